@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# One entry point for a fresh machine (only Python 3.11 and the OS needed):
+#   bash dev.sh demo   create/reuse .venv, install pinned Jazzy wheels + package, run the demo
+#   bash dev.sh test   same set-up, then lint and the full test suite
+# Any other arguments after the subcommand are passed on (gyro-attitude / pytest).
+set -euo pipefail
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+cd "$here"
+venv="${GYRO_VENV:-$here/.venv}"
+py="${PYTHON:-python3.11}"
+command -v "$py" >/dev/null 2>&1 || py=python3
+
+what="${1:-demo}"
+shift || true
+
+if [ ! -x "$venv/bin/python" ]; then
+  echo "[dev.sh] creating virtual environment $venv" >&2
+  "$py" -m venv "$venv"
+fi
+req=requirements.txt
+[ "$what" = "test" ] && req=requirements-test.txt
+stamp="$venv/.installed-$(cat requirements.txt "$req" | sha256sum | cut -c1-16)"
+if [ ! -e "$stamp" ]; then
+  echo "[dev.sh] installing pinned dependencies ($req)" >&2
+  "$venv/bin/python" -m pip install --quiet --disable-pip-version-check --upgrade pip
+  "$venv/bin/python" -m pip install --quiet --disable-pip-version-check -r "$req"
+  touch "$stamp"
+fi
+echo "[dev.sh] installing gyro_attitude into $venv" >&2
+rm -rf build/ros_launchers
+"$venv/bin/python" -m pip install --quiet --disable-pip-version-check \
+  --no-deps --no-build-isolation --force-reinstall .
+
+# The ament index (package lookup of `ros2 run`, message .msg/.json files) lives in the venv.
+export AMENT_PREFIX_PATH="$venv${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
+export PATH="$venv/bin:$PATH"
+# Stay on loopback unless the user's own environment says otherwise.
+export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
+export MPLBACKEND="${MPLBACKEND:-Agg}"
+
+case "$what" in
+  demo)
+    exec "$venv/bin/gyro-attitude" demo "$@" ;;
+  test)
+    "$venv/bin/ruff" check gyro_attitude test setup.py
+    # pytest exits 5 when it collected no test: that is a failure here, as any nonzero.
+    exec "$venv/bin/pytest" "$@" ;;
+  *)
+    exec "$venv/bin/gyro-attitude" "$what" "$@" ;;
+esac

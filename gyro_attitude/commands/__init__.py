@@ -1,0 +1,1 @@
+"""Subcommands of the ``gyro-attitude`` console command (one module each)."""

@@ -1,0 +1,1 @@
+"""Numpy-only core: knows nothing of ROS or files."""

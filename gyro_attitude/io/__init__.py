@@ -1,0 +1,1 @@
+"""File I/O: rosbag2-compatible MCAP. No rclpy import at module top."""
