@@ -65,7 +65,6 @@ setup(
     description="Gyroscope mechanics and attitude: gimballed-gyro simulator, quaternion "
     "attitude integrators, rosbag2-compatible MCAP recording and fast replay.",
     license="Apache-2.0",
-    tests_require=["pytest"],
     entry_points={
         "console_scripts": [f"{name} = {target}" for name, target in EXECUTABLES.items()],
     },

@@ -243,13 +243,14 @@ def check_rotation_matrix(matrix, atol: float = 1e-6, name: str = "matrix") -> n
     element of ``CᵀC − I``.
     """
     m = as_matrix_array(matrix, name)
-    err = np.abs(np.swapaxes(m, -1, -2) @ m - np.eye(3)).max(axis=(-2, -1)) if m.size else np.zeros(0)
+    if m.size == 0:
+        return m
+    err = np.abs(np.swapaxes(m, -1, -2) @ m - np.eye(3)).max(axis=(-2, -1))
     if np.any(err > atol):
         raise ValueError(
             f"{name} is not orthogonal: max |CᵀC − I| = {float(np.max(err)):.3g} > atol={atol:g}"
         )
-    det = np.linalg.det(m) if m.size else np.ones(0)
-    if np.any(det < 0):
+    if np.any(np.linalg.det(m) < 0):
         raise ValueError(f"{name} is a reflection (det = -1), not a rotation")
     return m
 
