@@ -1,0 +1,103 @@
+"""Input checks of the Imu stream: each bad case is rejected with its own reason, once."""
+
+import math
+
+import numpy as np
+import pytest
+
+from gyro_attitude.core import imu_validation as iv
+
+MS = 1_000_000
+
+
+def make(max_gap_ms=100, jump_ms=1000):
+    return iv.ImuStreamValidator(iv.ImuCheckConfig(max_gap_ms * MS, jump_ms * MS))
+
+
+def test_clean_stream_is_accepted():
+    v = make()
+    actions = [v.check(t * MS, [0.1, 0.2, 0.3], "imu").action for t in range(1, 11)]
+    assert actions == [iv.START] + [iv.ACCEPT] * 9
+    assert v.accepted == 10 and v.rejected_total == 0
+    assert v.last_t_ns == 10 * MS and v.frame_id == "imu"
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_non_finite_rejected_and_state_untouched(bad):
+    v = make()
+    v.check(1 * MS, [0, 0, 0], "imu")
+    verdict = v.check(2 * MS, [0, bad, 0], "imu")
+    assert verdict.rejected and verdict.reason == iv.NON_FINITE
+    assert v.last_t_ns == 1 * MS
+    # the next good sample integrates over (1 ms, 3 ms]: the bad one cost one sample only
+    assert v.check(3 * MS, [0, 0, 0], "imu").action == iv.ACCEPT
+    assert v.counts[iv.NON_FINITE] == 1 and v.rejected_total == 1
+
+
+def test_stamp_problems_each_have_their_reason():
+    v = make()
+    assert v.check(0, [0, 0, 0], "imu").reason == iv.ZERO_STAMP
+    assert v.check(-5, [0, 0, 0], "imu").reason == iv.ZERO_STAMP
+    v.check(10 * MS, [0, 0, 0], "imu")
+    assert v.check(10 * MS, [0, 0, 0], "imu").reason == iv.DUPLICATE_STAMP
+    assert v.check(9 * MS, [0, 0, 0], "imu").reason == iv.OUT_OF_ORDER
+    assert v.check(11 * MS, [0, 0, 0], "other").reason == iv.FRAME_CHANGED
+    assert v.check(11 * MS, [0, 0, 0], "imu").action == iv.ACCEPT
+    expected = {iv.ZERO_STAMP: 2, iv.DUPLICATE_STAMP: 1, iv.OUT_OF_ORDER: 1, iv.FRAME_CHANGED: 1}
+    for reason in iv.REJECT_REASONS:
+        assert v.counts[reason] == expected.get(reason, 0), reason
+    assert v.rejected_total == 5 and v.accepted == 2
+
+
+def test_gap_restarts_time_base_and_is_counted():
+    v = make(max_gap_ms=50)
+    v.check(1 * MS, [0, 0, 0], "imu")
+    assert v.check(51 * MS, [0, 0, 0], "imu").action == iv.ACCEPT  # exactly the limit: fine
+    verdict = v.check(102 * MS, [0, 0, 0], "imu")
+    assert verdict.action == iv.RESTART_AFTER_GAP and verdict.reason == iv.GAP
+    assert v.last_t_ns == 102 * MS
+    assert v.check(103 * MS, [0, 0, 0], "imu").action == iv.ACCEPT
+    assert v.counts[iv.GAP] == 1 and v.rejected_total == 0
+
+
+def test_backward_jump_beyond_threshold_resets():
+    v = make(jump_ms=500)
+    v.check(2000 * MS, [0, 0, 0], "imu")
+    assert v.check(1600 * MS, [0, 0, 0], "imu").reason == iv.OUT_OF_ORDER
+    verdict = v.check(1000 * MS, [0, 0, 0], "imu")
+    assert verdict.action == iv.RESET_TIME_JUMP
+    assert v.time_jump_resets == 1 and v.last_t_ns == 1000 * MS
+    assert v.check(1001 * MS, [0, 0, 0], "imu").action == iv.ACCEPT
+
+
+def test_reset_forgets_frame_and_time():
+    v = make()
+    v.check(5 * MS, [0, 0, 0], "a")
+    v.reset()
+    assert v.check(1 * MS, [0, 0, 0], "b").action == iv.START
+
+
+@pytest.mark.parametrize(
+    "kwargs", [{"max_gap_ns": 0}, {"time_jump_ns": -1}, {"max_gap_ns": 1.5}, {"time_jump_ns": True}]
+)
+def test_config_refuses_bad_thresholds(kwargs):
+    name = next(iter(kwargs))
+    with pytest.raises(ValueError, match=name):
+        iv.ImuCheckConfig(**kwargs)
+
+
+def test_interval_statistics_against_numpy():
+    rng = np.random.default_rng(3)
+    dt_ns = (1_000_000 + rng.integers(-20_000, 20_000, size=500)).astype(np.int64)
+    stats = iv.IntervalStatistics(window=200)
+    assert math.isnan(stats.summary()["rate_hz"])
+    for d in dt_ns:
+        stats.add(int(d))
+    tail = dt_ns[-200:] / 1e9
+    s = stats.summary()
+    assert s["rate_hz"] == pytest.approx(1.0 / np.mean(tail), rel=1e-12)
+    assert s["jitter_s"] == pytest.approx(np.std(tail), rel=1e-9)
+    assert s["max_dt_s"] == pytest.approx(tail.max(), rel=1e-12)
+    assert len(stats) == 200
+    with pytest.raises(ValueError, match="window"):
+        iv.IntervalStatistics(window=1)
