@@ -1,0 +1,808 @@
+"""Gimballed gyro dynamics (seed ch. 2-5): single-gimbal rate gyro, two-gimbal free gyro.
+
+Everything here is numpy only (``scipy.linalg.expm`` is used once per rate-gyro set-up
+for the exact discretization).  SI units: rad, rad/s, N·m, kg·m², seconds as floats
+(the scene layer converts its integer-nanosecond clock).
+
+Rate gyro (single gimbal, two degrees of freedom, seed §4-2)
+------------------------------------------------------------
+One gimbal carries the rotor (spin momentum ``H`` along the spin axis S) and turns by the
+angle β about the output axis O against a spring ``K`` and a damper ``D``. A rate ω_I
+about the input axis I produces the gyroscopic torque ``H ω_I`` about O::
+
+    J β̈ + D β̇ + K β = H (ω_I cos β − c ω_S sin β)
+
+(``c`` = ``cross_coupling``: the deflected gimbal tilts the spin axis, so part of the rate
+ω_S about the spin reference axis leaks in; c = 1 is the full geometric effect, 0 removes
+it). The indicated rate is ``x = K β / H``; with ω_n² = K/J and 2ζω_n = D/J::
+
+    ẍ + 2ζω_n ẋ + ω_n² x = ω_n² u,    u = ω_I cos β − c ω_S sin β,   β = (H/K) x.
+
+The steady-state output for a constant rate is therefore ω_I (unit gain, when c = 0);
+the −3 dB bandwidth is ω_n (1 − 2ζ² + (4ζ⁴ − 4ζ² + 2)^½)^½.  The linear part is
+discretized exactly (matrix exponential of the 2×2 system, with the input held constant
+("zoh") or linear ("foh") between samples), so a step response equals the analytic
+second-order response to round-off.  With c ≠ 0 the coupling term u uses β at the start
+of each sample interval (an O(dt) approximation of a small second-order effect).
+
+Free gyro (two gimbals, three degrees of freedom, seed §2-1, §2-2, §3-7, §5-1…§5-3)
+--------------------------------------------------------------------------------------
+Frames (all right-handed): case ``c`` (fixed to the carrier), outer gimbal ``o``, inner
+gimbal ``g``.  The outer gimbal turns by α (``outer_gimbal``) about ``z_c = z_o``; the
+inner gimbal turns by β (``inner_gimbal``) about ``y_o = y_g``; the rotor spins about
+``x_g``::
+
+    C_co = Rz(α),  C_og = Ry(β)   (active: v_c = C_co v_o),
+    spin axis in the case frame  s_c = [cos α cos β, sin α cos β, −sin β].
+
+With α = β = 0 the spin axis lies along the case x axis and the outer axis along case z
+(a directional gyro: α measures azimuth, β tilt).  β = ±90° is gimbal lock and raises.
+The rotor is symmetric and no torque acts about its spin axis, so its axial angular
+momentum ``H = J_s (ω_gx + φ̇)`` is constant (``H = spin_inertia · spin_rate``).
+
+Inertial angular velocities (ω_c from ``omega_base_fn``, in case axes)::
+
+    ω_o = C_oc ω_c + α̇ e_z,      ω_g = C_go ω_o + β̇ e_y.
+
+Full equations (``model="full"``; Newton-Euler for the inner assembly = rotor + inner
+gimbal, and for the outer gimbal; rotor transverse inertia J_t, inner gimbal principal
+inertias (I_gx, I_gy, I_gz), outer gimbal (I_ox, I_oy, I_oz))::
+
+    h_g = [H + I_gx ω_gx, A_y ω_gy, A_z ω_gz],  A_y = J_t + I_gy,  A_z = J_t + I_gz
+    inner axis:  e_yᵀ (A ω̇_g + ω_g × h_g) = M_β
+    outer axis:  I_oz ω̇_oz + (ω_o × I_o ω_o)_z + e_zᵀ C_og (A ω̇_g + ω_g × h_g) = M_α
+
+with A = diag(I_gx, A_y, A_z).  Expanding ω̇_o and ω̇_g (they contain the base angular
+acceleration ω̇_c) gives a diagonal mass matrix::
+
+    (I_oz + I_gx sin²β + A_z cos²β) α̈ = M_α − (known terms),   A_y β̈ = M_β − (known terms).
+
+Linearized about a fast rotor these show nutation at ω_nut = H / (A_y M_11)^½ — for a
+24 000 rpm rotor on light gimbals thousands of rad/s, far above any output rate.
+
+Precession (technical) equations (``model="precession"``, seed §3-7): drop the gimbal and
+transverse inertia, keep the gyroscopic torques ``ω_g × H e_x``::
+
+    H (ω_gz) = M_β,   −H cos β (ω_gy) = M_α
+    ⇒  α̇ = (M_β/H − w_z) / cos β,    β̇ = −M_α / (H cos β) − w_y,    w = C_gc ω_c.
+
+With no torque the spin axis keeps its inertial direction and the gimbal angles show
+the apparent drift of the base (Earth rate ω_ie sin L about the vertical, plus the
+transport rate v_E tan L/(R_N+h) when moving east; seed §2-3, §2-4).
+
+Torques on the gimbal axes (outer, inner): constant, harmonic ``A sin(2πf t + φ)``
+(§4-6), rectangular impact pulses of given angular impulse (§5-2: a fast gyro answers an
+impulse S with a jump S/H of the *other* gimbal, plus a small nutation), viscous friction
+``−c_v q̇`` and Coulomb friction ``−M_c tanh(q̇/ε)`` on the relative gimbal rate q̇.
+Coulomb friction is smoothed rather than handled by stick/slip events because in a free
+gyro the gimbal rates are driven by the base and the gyroscopic coupling, not by the
+friction: in the precession model the rate equations with friction reduce to one scalar
+equation g(β̇) = 0 with g′ ≥ 1 (friction is dissipative), so the smoothed problem has a
+unique solution for every ε and tends to the Filippov (set-valued friction) solution as
+ε → 0; ε = ``coulomb_smoothing_rate`` (default 1e-9 rad/s) is far below any rate of
+interest.  Result of §5-2 reproduced: outer-axis friction M_c makes the inner gimbal drift
+at M_c/(H cos β).
+
+Numerics.  Precession model: classical RK4 on (α, β) with fixed sub-steps
+(≤ ``max_step``, ≤ 1/16 of a harmonic-torque period), pulse edges and output times on
+the step grid; the rates solve the algebraic friction equation by safeguarded Newton.
+Full model: the nutation mode is a weakly damped oscillation far faster than the
+motion of interest.  ``integrator="midpoint"`` (default) uses the implicit midpoint
+rule, solved by Newton with a finite-difference Jacobian: it is A-stable and its
+amplification factor has modulus exactly 1 on the imaginary axis, so a nutation that
+is not resolved by the step is neither amplified (explicit methods blow up) nor
+artificially damped (BDF/Radau would damp it); the slow precession is second-order
+accurate in the step.  ``integrator="rk4"`` resolves the nutation explicitly (step ≤
+nutation period / ``steps_per_nutation``) — exact nutation, cost ∝ H.  The benchmark
+``gyro_attitude.benchmarks.gyro_fidelity`` measures both against the precession model.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "RateGyroParams",
+    "RateGyroTriad",
+    "rate_gyro_step_response",
+    "HarmonicTorque",
+    "ImpactTorque",
+    "FreeGyroParams",
+    "FreeGyroSimulator",
+    "free_gyro_angles_from_spin_axis",
+    "spin_axis_from_free_gyro_angles",
+]
+
+
+def _check_positive(value, name: str) -> float:
+    value = float(value)
+    if not math.isfinite(value) or value <= 0.0:
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+    return value
+
+
+def _check_nonnegative(value, name: str) -> float:
+    value = float(value)
+    if not math.isfinite(value) or value < 0.0:
+        raise ValueError(f"{name} must be a non-negative finite number, got {value!r}")
+    return value
+
+
+def _check_finite(value, name: str) -> float:
+    value = float(value)
+    if not math.isfinite(value):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return value
+
+
+def _pair(value, name: str, check=_check_finite) -> tuple[float, float]:
+    vals = tuple(np.asarray(value, dtype=np.float64).reshape(-1).tolist())
+    if len(vals) != 2:
+        raise ValueError(f"{name} must have two entries (outer, inner), got {value!r}")
+    return tuple(check(v, f"{name}[{i}]") for i, v in enumerate(vals))
+
+
+def _triple(value, name: str, check=_check_nonnegative) -> tuple[float, float, float]:
+    vals = tuple(np.asarray(value, dtype=np.float64).reshape(-1).tolist())
+    if len(vals) != 3:
+        raise ValueError(f"{name} must have three entries (x, y, z), got {value!r}")
+    return tuple(check(v, f"{name}[{i}]") for i, v in enumerate(vals))
+
+
+# --------------------------------------------------------------------------------------
+# Single-gimbal rate gyro
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class RateGyroParams:
+    """Second-order rate-gyro model, identical for the three axes of a triad.
+
+    natural_frequency_hz: undamped natural frequency f_n = ω_n/2π = (K/J)^½ / 2π.
+    damping_ratio: ζ = D / (2 (K J)^½), > 0.
+    cross_coupling: c in ``u = ω_I cos β − c ω_S sin β`` (0 = ideal, 1 = full geometry).
+    gimbal_gain_s: H/K, the gimbal deflection per unit input rate (rad per rad/s); only
+        used by the cross-coupling term.
+    hold: "foh" (input linear between samples, default) or "zoh" (held constant).
+    """
+
+    natural_frequency_hz: float
+    damping_ratio: float
+    cross_coupling: float = 0.0
+    gimbal_gain_s: float = 0.01
+    hold: str = "foh"
+
+    def __post_init__(self):
+        _check_positive(self.natural_frequency_hz, "natural_frequency_hz")
+        _check_positive(self.damping_ratio, "damping_ratio")
+        _check_finite(self.cross_coupling, "cross_coupling")
+        _check_positive(self.gimbal_gain_s, "gimbal_gain_s")
+        if self.hold not in ("foh", "zoh"):
+            raise ValueError(f"hold must be 'foh' or 'zoh', got {self.hold!r}")
+
+    @classmethod
+    def from_physical(cls, spin_momentum: float, gimbal_inertia: float, damping: float,
+                      spring: float, **kwargs) -> RateGyroParams:
+        """From H (N·m·s), J (kg·m²), D (N·m·s/rad) and K (N·m/rad)."""
+        h = _check_positive(spin_momentum, "spin_momentum")
+        j = _check_positive(gimbal_inertia, "gimbal_inertia")
+        d = _check_positive(damping, "damping")
+        k = _check_positive(spring, "spring")
+        wn = math.sqrt(k / j)
+        return cls(natural_frequency_hz=wn / (2 * math.pi), damping_ratio=d / (2 * math.sqrt(k * j)),
+                   gimbal_gain_s=h / k, **kwargs)
+
+    @property
+    def natural_frequency_rad_s(self) -> float:
+        return 2.0 * math.pi * self.natural_frequency_hz
+
+    @property
+    def bandwidth_hz(self) -> float:
+        """−3 dB bandwidth of ``ω_n²/(s² + 2ζω_n s + ω_n²)`` in Hz."""
+        z2 = self.damping_ratio ** 2
+        return self.natural_frequency_hz * math.sqrt(1 - 2 * z2 + math.sqrt(4 * z2 * z2 - 4 * z2 + 2))
+
+
+def rate_gyro_step_response(t, natural_frequency_hz: float, damping_ratio: float) -> np.ndarray:
+    """Closed-form unit-step response of ``ω_n²/(s² + 2ζω_n s + ω_n²)`` from rest at t = 0."""
+    t = np.asarray(t, dtype=np.float64)
+    wn = 2 * math.pi * _check_positive(natural_frequency_hz, "natural_frequency_hz")
+    z = _check_positive(damping_ratio, "damping_ratio")
+    if z < 1.0:
+        wd = wn * math.sqrt(1 - z * z)
+        return 1 - np.exp(-z * wn * t) * (np.cos(wd * t) + z / math.sqrt(1 - z * z) * np.sin(wd * t))
+    if z == 1.0:
+        return 1 - np.exp(-wn * t) * (1 + wn * t)
+    r = math.sqrt(z * z - 1)
+    s1, s2 = -wn * (z - r), -wn * (z + r)
+    return 1 + (s2 * np.exp(s1 * t) - s1 * np.exp(s2 * t)) / (s1 - s2)
+
+
+class RateGyroTriad:
+    """Three single-gimbal rate gyros on the body axes x, y, z.
+
+    The spin reference axis of the gyro with input axis e_i is e_{(i+1) mod 3} (for the
+    cross-coupling term only).  ``step_block(omega_in)`` takes the true inertial rates at
+    consecutive samples ``dt`` apart and returns the indicated rates at the same samples;
+    the state carries over between calls.  The first sample of the first block is the
+    initial state: at rest (``initial="rest"``: x = ẋ = 0) or in steady state with the
+    first input (``initial="steady"``, default).
+    """
+
+    def __init__(self, params: RateGyroParams, dt: float, initial: str = "steady"):
+        if not isinstance(params, RateGyroParams):
+            raise ValueError("params must be a RateGyroParams")
+        self.params = params
+        self.dt = _check_positive(dt, "dt")
+        if initial not in ("steady", "rest"):
+            raise ValueError(f"initial must be 'steady' or 'rest', got {initial!r}")
+        self.initial = initial
+        wn = params.natural_frequency_rad_s
+        z = params.damping_ratio
+        a = np.array([[0.0, 1.0], [-wn * wn, -2 * z * wn]])
+        b = np.array([0.0, wn * wn])
+        # Van Loan: expm([[A, B, 0], [0, 0, 1/dt], [0, 0, 0]] dt) holds Φ = e^{A dt},
+        # Γ0 = ∫0^dt e^{Aτ}dτ B (held input) and Γ1 = ∫0^dt e^{A(dt−τ)} (τ/dt) dτ B (ramp).
+        from scipy.linalg import expm  # one-off set-up cost; exact and well conditioned
+
+        m = np.zeros((4, 4))
+        m[:2, :2] = a * self.dt
+        m[:2, 2] = b * self.dt
+        m[2, 3] = 1.0
+        e = expm(m)
+        self._phi = e[:2, :2].copy()
+        self._gamma0 = e[:2, 2].copy()
+        self._gamma1 = e[:2, 3].copy()
+        self._state: np.ndarray | None = None  # (3, 2): x, ẋ per axis
+        self._last_u: np.ndarray | None = None
+        self.samples = 0
+
+    def reset(self) -> None:
+        self._state = None
+        self._last_u = None
+        self.samples = 0
+
+    @property
+    def state(self) -> np.ndarray | None:
+        """``(3, 2)`` indicated rate and its derivative at the last sample (None before)."""
+        return None if self._state is None else self._state.copy()
+
+    def _effective_input(self, omega: np.ndarray, x: np.ndarray) -> np.ndarray:
+        c = self.params.cross_coupling
+        if c == 0.0:
+            return omega
+        beta = self.params.gimbal_gain_s * x
+        spin = np.roll(omega, -1, axis=-1)  # ω_S for input axes x, y, z is ω_y, ω_z, ω_x
+        return omega * np.cos(beta) - c * spin * np.sin(beta)
+
+    def step_block(self, omega_in) -> np.ndarray:
+        """Indicated rates ``(n, 3)`` for true rates ``omega_in`` ``(n, 3)`` in rad/s."""
+        w = np.asarray(omega_in, dtype=np.float64)
+        if w.ndim != 2 or w.shape[1] != 3:
+            raise ValueError(f"omega_in must have shape (n, 3), got {w.shape}")
+        if not np.all(np.isfinite(w)):
+            raise ValueError("omega_in contains non-finite values")
+        n = w.shape[0]
+        out = np.empty((n, 3))
+        if n == 0:
+            return out
+        k0 = 0
+        if self._state is None:
+            s = np.zeros((3, 2))
+            if self.initial == "steady":
+                s[:, 0] = w[0]
+                if self.params.cross_coupling != 0.0:  # fixed point of x = u(x), few passes
+                    for _ in range(50):
+                        s[:, 0] = self._effective_input(w[0], s[:, 0])
+            self._state = s
+            self._last_u = self._effective_input(w[0], s[:, 0])
+            out[0] = s[:, 0]
+            k0 = 1
+        if self.params.cross_coupling == 0.0:
+            out[k0:] = self._linear_block(w[k0:])
+        else:
+            out[k0:] = self._coupled_block(w[k0:])
+        self.samples += n
+        return out
+
+    def _linear_block(self, u: np.ndarray) -> np.ndarray:
+        """Exact recursion s_k = Φ s_{k−1} + Γ0 u_{k−1} + Γ1 (u_k − u_{k−1}) (Γ1 = 0: zoh).
+
+        A plain loop over samples on Python floats: the recursion is sequential and the
+        2×2 per-axis update costs ~1 µs per axis and sample this way.
+        """
+        n = u.shape[0]
+        out = np.empty((n, 3))
+        if n == 0:
+            return out
+        p00, p01, p10, p11 = self._phi.ravel().tolist()
+        g0a, g0b = self._gamma0.tolist()
+        if self.params.hold == "foh":
+            g1a, g1b = self._gamma1.tolist()
+        else:
+            g1a = g1b = 0.0
+        prev = np.concatenate((self._last_u[None, :], u[:-1]), axis=0)
+        # input terms for both state components, vectorized; only the state recursion loops
+        fa = (g0a - g1a) * prev + g1a * u
+        fb = (g0b - g1b) * prev + g1b * u
+        s = self._state
+        for ax in range(3):
+            x, v = float(s[ax, 0]), float(s[ax, 1])
+            fa_ax = fa[:, ax].tolist()
+            fb_ax = fb[:, ax].tolist()
+            col = [0.0] * n
+            for k in range(n):
+                x, v = p00 * x + p01 * v + fa_ax[k], p10 * x + p11 * v + fb_ax[k]
+                col[k] = x
+            out[:, ax] = col
+            s[ax, 0], s[ax, 1] = x, v
+        self._last_u = u[-1].copy()
+        return out
+
+    def _coupled_block(self, w: np.ndarray) -> np.ndarray:
+        n = w.shape[0]
+        out = np.empty((n, 3))
+        phi, g0, g1 = self._phi, self._gamma0, self._gamma1
+        foh = self.params.hold == "foh"
+        s = self._state
+        for k in range(n):
+            # coupling uses β at the start of the interval (see module docstring)
+            u = self._effective_input(w[k], s[:, 0])
+            if foh:
+                s = s @ phi.T + np.outer(self._last_u, g0 - g1) + np.outer(u, g1)
+            else:
+                s = s @ phi.T + np.outer(self._last_u, g0)
+            self._last_u = u
+            out[k] = s[:, 0]
+        self._state = s
+        return out
+
+
+# --------------------------------------------------------------------------------------
+# Two-gimbal free gyro
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class HarmonicTorque:
+    """Torque ``amplitude · sin(2π frequency_hz · t + phase_rad)`` on (outer, inner) axes."""
+
+    amplitude: tuple[float, float]
+    frequency_hz: float
+    phase_rad: float = 0.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "amplitude", _pair(self.amplitude, "harmonic amplitude"))
+        _check_positive(self.frequency_hz, "harmonic frequency_hz")
+        _check_finite(self.phase_rad, "harmonic phase_rad")
+
+
+@dataclass(frozen=True)
+class ImpactTorque:
+    """Rectangular torque pulse carrying the angular impulse ``impulse`` (N·m·s) on
+    (outer, inner) axes, applied on ``[t_start, t_start + duration)``."""
+
+    t_start: float
+    duration: float
+    impulse: tuple[float, float]
+
+    def __post_init__(self):
+        _check_finite(self.t_start, "impact t_start")
+        _check_positive(self.duration, "impact duration")
+        object.__setattr__(self, "impulse", _pair(self.impulse, "impact impulse"))
+
+
+@dataclass(frozen=True)
+class FreeGyroParams:
+    """Two-gimbal free gyro (see the module docstring for frames and equations).
+
+    Inertias in kg·m², rates in rad/s, torques in N·m; pairs are (outer, inner) axis.
+    ``initial_rates`` (full model only): relative gimbal rates at t0; None starts on the
+    precession solution (no nutation excited by the start itself).
+    """
+
+    spin_inertia: float
+    transverse_inertia: float
+    spin_rate: float
+    model: str = "precession"
+    inner_gimbal_inertia: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    outer_gimbal_inertia: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    initial_angles: tuple[float, float] = (0.0, 0.0)
+    initial_rates: tuple[float, float] | None = None
+    constant_torque: tuple[float, float] = (0.0, 0.0)
+    harmonic_torques: tuple[HarmonicTorque, ...] = ()
+    impacts: tuple[ImpactTorque, ...] = ()
+    viscous_friction: tuple[float, float] = (0.0, 0.0)
+    coulomb_friction: tuple[float, float] = (0.0, 0.0)
+    coulomb_smoothing_rate: float = 1e-9
+    integrator: str = "midpoint"
+    max_step: float = 0.01
+    steps_per_nutation: float = 20.0
+    base_rate_derivative_step: float = 1e-5
+
+    def __post_init__(self):
+        _check_positive(self.spin_inertia, "spin_inertia")
+        _check_positive(self.transverse_inertia, "transverse_inertia")
+        s = _check_finite(self.spin_rate, "spin_rate")
+        if s == 0.0:
+            raise ValueError("spin_rate must be non-zero (a free gyro needs angular momentum)")
+        if self.model not in ("precession", "full"):
+            raise ValueError(f"model must be 'precession' or 'full', got {self.model!r}")
+        if self.integrator not in ("midpoint", "rk4"):
+            raise ValueError(f"integrator must be 'midpoint' or 'rk4', got {self.integrator!r}")
+        object.__setattr__(self, "inner_gimbal_inertia",
+                           _triple(self.inner_gimbal_inertia, "inner_gimbal_inertia"))
+        object.__setattr__(self, "outer_gimbal_inertia",
+                           _triple(self.outer_gimbal_inertia, "outer_gimbal_inertia"))
+        object.__setattr__(self, "initial_angles", _pair(self.initial_angles, "initial_angles"))
+        if self.initial_rates is not None:
+            object.__setattr__(self, "initial_rates", _pair(self.initial_rates, "initial_rates"))
+        object.__setattr__(self, "constant_torque", _pair(self.constant_torque, "constant_torque"))
+        object.__setattr__(self, "viscous_friction",
+                           _pair(self.viscous_friction, "viscous_friction", _check_nonnegative))
+        object.__setattr__(self, "coulomb_friction",
+                           _pair(self.coulomb_friction, "coulomb_friction", _check_nonnegative))
+        _check_positive(self.coulomb_smoothing_rate, "coulomb_smoothing_rate")
+        _check_positive(self.max_step, "max_step")
+        _check_positive(self.steps_per_nutation, "steps_per_nutation")
+        _check_positive(self.base_rate_derivative_step, "base_rate_derivative_step")
+        harm = tuple(self.harmonic_torques)
+        if not all(isinstance(h, HarmonicTorque) for h in harm):
+            raise ValueError("harmonic_torques must be HarmonicTorque instances")
+        object.__setattr__(self, "harmonic_torques", harm)
+        imp = tuple(self.impacts)
+        if not all(isinstance(i, ImpactTorque) for i in imp):
+            raise ValueError("impacts must be ImpactTorque instances")
+        object.__setattr__(self, "impacts", imp)
+        if abs(math.cos(self.initial_angles[1])) < 1e-6:
+            raise ValueError("initial inner gimbal angle is at ±90° (gimbal lock)")
+
+    @property
+    def spin_momentum(self) -> float:
+        """H = J_s · spin_rate (N·m·s)."""
+        return self.spin_inertia * self.spin_rate
+
+    def nutation_frequency_rad_s(self, beta: float = 0.0) -> float:
+        """Linearized nutation frequency H / (A_y M_11(β))^½ of the full model."""
+        jt = self.transverse_inertia
+        igx, igy, igz = self.inner_gimbal_inertia
+        sb, cb = math.sin(beta), math.cos(beta)
+        m11 = self.outer_gimbal_inertia[2] + igx * sb * sb + (jt + igz) * cb * cb
+        return abs(self.spin_momentum) / math.sqrt((jt + igy) * m11)
+
+
+def spin_axis_from_free_gyro_angles(angles) -> np.ndarray:
+    """Spin axis in case axes ``[cos α cos β, sin α cos β, −sin β]`` for angles (..., 2)."""
+    a = np.asarray(angles, dtype=np.float64)
+    al, be = a[..., 0], a[..., 1]
+    return np.stack((np.cos(al) * np.cos(be), np.sin(al) * np.cos(be), -np.sin(be)), axis=-1)
+
+
+def free_gyro_angles_from_spin_axis(s_c) -> np.ndarray:
+    """Gimbal angles (α, β) of a spin-axis direction in case axes (inverse of the above)."""
+    s = np.asarray(s_c, dtype=np.float64)
+    al = np.arctan2(s[..., 1], s[..., 0])
+    be = np.arctan2(-s[..., 2], np.hypot(s[..., 0], s[..., 1]))
+    return np.stack((al, be), axis=-1)
+
+
+def _rot_to_gimbal(al, be, wx, wy, wz):
+    """w = C_gc ω = Ry(β)ᵀ Rz(α)ᵀ ω, plus the intermediate C_oc ω (Python floats)."""
+    ca, sa, cb, sb = math.cos(al), math.sin(al), math.cos(be), math.sin(be)
+    v0 = ca * wx + sa * wy
+    v1 = -sa * wx + ca * wy
+    v2 = wz
+    return (v0, v1, v2), (cb * v0 - sb * v2, v1, sb * v0 + cb * v2), (ca, sa, cb, sb)
+
+
+class FreeGyroSimulator:
+    """Two-gimbal free gyro on a moving base; resumable (see module docstring).
+
+    ``omega_base_fn(t)`` maps times ``(m,)`` in s to the inertial angular velocity of the
+    case in case axes ``(m, 3)`` in rad/s.  The full model also needs the base angular
+    acceleration: pass ``omega_base_dot_fn`` (same signature) or it is taken by central
+    differences of ``omega_base_fn`` with step ``params.base_rate_derivative_step``.
+    """
+
+    names: tuple[str, ...] = ("outer_gimbal", "inner_gimbal")
+
+    def __init__(self, params: FreeGyroParams,
+                 omega_base_fn: Callable[[np.ndarray], np.ndarray], t0: float = 0.0,
+                 omega_base_dot_fn: Callable[[np.ndarray], np.ndarray] | None = None):
+        if not isinstance(params, FreeGyroParams):
+            raise ValueError("params must be a FreeGyroParams")
+        if not callable(omega_base_fn):
+            raise ValueError("omega_base_fn must be callable: t (m,) -> (m, 3) rad/s")
+        self.params = params
+        self._omega_fn = omega_base_fn
+        self._omega_dot_fn = omega_base_dot_fn
+        self.t = _check_finite(t0, "t0")
+        p = params
+        self._h = p.spin_momentum
+        self._jt = p.transverse_inertia
+        self._ig = p.inner_gimbal_inertia
+        self._io = p.outer_gimbal_inertia
+        self._ay = self._jt + self._ig[1]
+        self._az = self._jt + self._ig[2]
+        self._fric = any(v != 0.0 for v in p.viscous_friction + p.coulomb_friction)
+        self._breaks = sorted({b for imp in p.impacts for b in (imp.t_start, imp.t_start + imp.duration)})
+        self.steps = 0  # sub-steps taken so far (cost figure for benchmarks)
+        self.rhs_evaluations = 0
+        al, be = p.initial_angles
+        w0 = self._base_rates(np.array([self.t]))[0]
+        if p.model == "precession":
+            self._y = np.array([al, be])
+        else:
+            if p.initial_rates is None:
+                ad, bd = self._precession_rates(self.t, al, be, *w0)
+            else:
+                ad, bd = p.initial_rates
+            self._y = np.array([al, be, ad, bd])
+
+    # -- inputs ---------------------------------------------------------------------
+    def _base_rates(self, t: np.ndarray) -> np.ndarray:
+        w = np.asarray(self._omega_fn(np.asarray(t, dtype=np.float64)), dtype=np.float64)
+        if w.shape != (t.shape[0], 3):
+            raise ValueError(f"omega_base_fn must return shape ({t.shape[0]}, 3), got {w.shape}")
+        if not np.all(np.isfinite(w)):
+            raise ValueError("omega_base_fn returned non-finite rates")
+        return w
+
+    def _base_accel(self, t: np.ndarray) -> np.ndarray:
+        if self._omega_dot_fn is not None:
+            wd = np.asarray(self._omega_dot_fn(t), dtype=np.float64)
+            if wd.shape != (t.shape[0], 3) or not np.all(np.isfinite(wd)):
+                raise ValueError("omega_base_dot_fn must return finite (m, 3) values")
+            return wd
+        d = self.params.base_rate_derivative_step
+        return (self._base_rates(t + d) - self._base_rates(t - d)) / (2 * d)
+
+    def _torques(self, t: float) -> tuple[float, float]:
+        """External (non-friction) torques about the outer and inner axes at time t."""
+        p = self.params
+        ma, mb = p.constant_torque
+        for h in p.harmonic_torques:
+            s = math.sin(2 * math.pi * h.frequency_hz * t + h.phase_rad)
+            ma += h.amplitude[0] * s
+            mb += h.amplitude[1] * s
+        for imp in p.impacts:
+            if imp.t_start <= t < imp.t_start + imp.duration:
+                ma += imp.impulse[0] / imp.duration
+                mb += imp.impulse[1] / imp.duration
+        return ma, mb
+
+    def _friction(self, axis: int, rate: float) -> tuple[float, float]:
+        """Friction torque on one axis and its derivative d/d(rate) (both ≤ 0 slope)."""
+        p = self.params
+        cv, mc, eps = p.viscous_friction[axis], p.coulomb_friction[axis], p.coulomb_smoothing_rate
+        if mc == 0.0:
+            return -cv * rate, -cv
+        x = rate / eps
+        th = math.tanh(x) if abs(x) < 40.0 else math.copysign(1.0, x)
+        return -cv * rate - mc * th, -cv - mc * (1.0 - th * th) / eps
+
+    # -- precession model -------------------------------------------------------------
+    def _precession_rates(self, t, al, be, wx, wy, wz) -> tuple[float, float]:
+        h = self._h
+        _, w, (_, _, cb, _) = _rot_to_gimbal(al, be, wx, wy, wz)
+        if abs(cb) < 1e-9:
+            raise ValueError(f"inner gimbal reached ±90° at t = {t:.6g} s (gimbal lock)")
+        ma, mb = self._torques(t)
+        if not self._fric:
+            return (mb / h - w[2]) / cb, -ma / (h * cb) - w[1]
+        # g(b) = b + M_α(a(b))/(H c) + w_y with a(b) = (M_β(b)/H − w_z)/c; g' ≥ 1, so the
+        # root lies within |g(b0)| of any b0: safeguarded Newton inside that bracket.
+
+        def g_of(b):
+            fb, dfb = self._friction(1, b)
+            a = ((mb + fb) / h - w[2]) / cb
+            fa, dfa = self._friction(0, a)
+            val = b + (ma + fa) / (h * cb) + w[1]
+            der = 1.0 + dfa * (dfb / (h * cb)) / (h * cb)
+            return val, der, a
+
+        b = -ma / (h * cb) - w[1]
+        val, der, a = g_of(b)
+        lo, hi = b - abs(val), b + abs(val)
+        for _ in range(200):
+            if val == 0.0 or hi - lo <= 1e-15 * max(1.0, abs(b)):
+                break
+            if val > 0:
+                hi = min(hi, b)
+            else:
+                lo = max(lo, b)
+            b_new = b - val / der
+            if not (lo < b_new < hi):
+                b_new = 0.5 * (lo + hi)
+            if abs(b_new - b) <= 1e-16 * max(1.0, abs(b)):
+                b = b_new
+                break
+            b = b_new
+            val, der, a = g_of(b)
+        _, _, a = g_of(b)
+        return a, b
+
+    # -- full model -------------------------------------------------------------------
+    def _full_rhs(self, t, y, wc, wcd) -> tuple[float, float, float, float]:
+        al, be, ad, bd = y
+        h = self._h
+        igx, igy, igz = self._ig
+        iox, ioy, ioz = self._io
+        ay, az = self._ay, self._az
+        v, _, (ca, sa, cb, sb) = _rot_to_gimbal(al, be, *wc)
+        # ω_o = C_oc ω_c + α̇ e_z ;  a_o = −α̇ e_z × (C_oc ω_c) + C_oc ω̇_c
+        wo0, wo1, wo2 = v[0], v[1], v[2] + ad
+        wd0, wd1, wd2 = wcd
+        ao0 = ad * v[1] + (ca * wd0 + sa * wd1)
+        ao1 = -ad * v[0] + (-sa * wd0 + ca * wd1)
+        ao2 = wd2
+        # ω_g = C_go ω_o + β̇ e_y ;  a_g = −β̇ e_y × (C_go ω_o) + C_go a_o
+        u0 = cb * wo0 - sb * wo2
+        u1 = wo1
+        u2 = sb * wo0 + cb * wo2
+        wg0, wg1, wg2 = u0, u1 + bd, u2
+        ag0 = -bd * u2 + (cb * ao0 - sb * ao2)
+        ag1 = ao1
+        ag2 = bd * u0 + (sb * ao0 + cb * ao2)
+        # T_g = A a_g + ω_g × h_g, h_g = [H + I_gx ω_gx, A_y ω_gy, A_z ω_gz]
+        hx, hy, hz = h + igx * wg0, ay * wg1, az * wg2
+        tg0 = igx * ag0 + (wg1 * hz - wg2 * hy)
+        tg1 = ay * ag1 + (wg2 * hx - wg0 * hz)
+        tg2 = az * ag2 + (wg0 * hy - wg1 * hx)
+        ma, mb = self._torques(t)
+        if self._fric:
+            ma += self._friction(0, ad)[0]
+            mb += self._friction(1, bd)[0]
+        gyro_o = (ioy - iox) * wo0 * wo1  # (ω_o × I_o ω_o)_z
+        m11 = ioz + igx * sb * sb + az * cb * cb
+        if m11 <= 0.0:
+            raise ValueError(f"outer-axis inertia vanished at t = {t:.6g} s (gimbal lock)")
+        add = (ma - ioz * ao2 - gyro_o - (-sb * tg0 + cb * tg2)) / m11
+        bdd = (mb - tg1) / ay
+        self.rhs_evaluations += 1
+        return ad, bd, add, bdd
+
+    def _step_midpoint(self, t, hstep, y0, wc, wcd):
+        """One implicit-midpoint step, y1 = y0 + h f(t + h/2, (y0 + y1)/2), by Newton."""
+        tm = t + 0.5 * hstep
+        f0 = np.array(self._full_rhs(tm, y0, wc, wcd))
+        # finite-difference Jacobian at y0 (reused for all Newton iterations of the step)
+        jac = np.empty((4, 4))
+        for j in range(4):
+            d = 1e-7 * max(1.0, abs(y0[j]))
+            yp = y0.copy()
+            yp[j] += d
+            jac[:, j] = (np.array(self._full_rhs(tm, yp, wc, wcd)) - f0) / d
+        mat = np.eye(4) - 0.5 * hstep * jac
+        y1 = y0 + hstep * f0  # explicit Euler predictor
+        scale = 1.0 + np.abs(y0)
+        for _ in range(30):
+            res = y1 - y0 - hstep * np.array(self._full_rhs(tm, 0.5 * (y0 + y1), wc, wcd))
+            dy = np.linalg.solve(mat, res)
+            y1 = y1 - dy
+            if np.all(np.abs(dy) <= 1e-13 * scale):
+                break
+        else:
+            raise ValueError(f"implicit midpoint did not converge at t = {t:.6g} s; "
+                             "reduce max_step")
+        return y1
+
+    def _step_rk4(self, t, hstep, y0, w3, wd3):
+        """Classical RK4; w3/wd3 hold base rates/accelerations at t, t+h/2, t+h."""
+        f = self._full_rhs if self.params.model == "full" else self._prec_rhs
+        k1 = np.array(f(t, y0, w3[0], wd3[0]))
+        k2 = np.array(f(t + 0.5 * hstep, y0 + 0.5 * hstep * k1, w3[1], wd3[1]))
+        k3 = np.array(f(t + 0.5 * hstep, y0 + 0.5 * hstep * k2, w3[1], wd3[1]))
+        k4 = np.array(f(t + hstep, y0 + hstep * k3, w3[2], wd3[2]))
+        return y0 + (hstep / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4)
+
+    def _prec_rhs(self, t, y, wc, _wcd):
+        self.rhs_evaluations += 1
+        return self._precession_rates(t, y[0], y[1], *wc)
+
+    # -- stepping ---------------------------------------------------------------------
+    def step_size(self) -> float:
+        """The largest sub-step this simulator takes (s)."""
+        p = self.params
+        hmax = p.max_step
+        for hm in p.harmonic_torques:
+            hmax = min(hmax, 1.0 / (16.0 * hm.frequency_hz))
+        if p.model == "full" and p.integrator == "rk4":
+            beta = float(self._y[1])
+            hmax = min(hmax, 2 * math.pi / (p.nutation_frequency_rad_s(beta) * p.steps_per_nutation))
+        return hmax
+
+    def _advance(self, t_end: float) -> None:
+        """Integrate from self.t to t_end with sub-steps ≤ step_size(), stopping at breaks."""
+        if t_end <= self.t:
+            return
+        marks = [self.t] + [b for b in self._breaks if self.t < b < t_end] + [t_end]
+        model, integ = self.params.model, self.params.integrator
+        for a, b in zip(marks[:-1], marks[1:], strict=True):
+            hmax = self.step_size()
+            n = max(1, math.ceil((b - a) / hmax - 1e-9))
+            # chunk the grid so memory stays bounded on long runs
+            for c0 in range(0, n, 20000):
+                c1 = min(n, c0 + 20000)
+                k = np.arange(c0, c1 + 1, dtype=np.float64)
+                grid = a + (b - a) * k / n
+                grid[-1] = b if c1 == n else grid[-1]
+                hs = np.diff(grid)
+                tm = grid[:-1] + 0.5 * hs
+                if model == "full" and integ == "midpoint":
+                    wc = self._base_rates(tm)
+                    wcd = self._base_accel(tm)
+                    y = self._y
+                    for i in range(hs.shape[0]):
+                        y = self._step_midpoint(float(grid[i]), float(hs[i]), y,
+                                                tuple(wc[i].tolist()), tuple(wcd[i].tolist()))
+                        self._check_lock(y, grid[i + 1])
+                    self._y = y
+                else:
+                    tt = np.stack((grid[:-1], tm, grid[1:]), axis=1).reshape(-1)
+                    w = self._base_rates(tt).reshape(-1, 3, 3)
+                    wd = (self._base_accel(tt).reshape(-1, 3, 3) if model == "full"
+                          else np.zeros_like(w))
+                    y = self._y
+                    for i in range(hs.shape[0]):
+                        y = self._step_rk4(float(grid[i]), float(hs[i]), y,
+                                           [tuple(r) for r in w[i].tolist()],
+                                           [tuple(r) for r in wd[i].tolist()])
+                        self._check_lock(y, grid[i + 1])
+                    self._y = y
+                self.steps += hs.shape[0]
+        self.t = float(t_end)
+
+    def _check_lock(self, y, t) -> None:
+        if not (math.isfinite(y[0]) and math.isfinite(y[1])):
+            raise ValueError(f"free-gyro state became non-finite at t = {float(t):.6g} s")
+        if abs(math.cos(y[1])) < 1e-6:
+            raise ValueError(f"inner gimbal reached ±90° at t = {float(t):.6g} s (gimbal lock)")
+
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Current (angles (2,), relative gimbal rates (2,))."""
+        if self.params.model == "full":
+            return self._y[:2].copy(), self._y[2:].copy()
+        w = self._base_rates(np.array([self.t]))[0]
+        return self._y.copy(), np.array(self._precession_rates(self.t, *self._y, *w))
+
+    def run_until(self, t_out) -> tuple[np.ndarray, np.ndarray]:
+        """Gimbal angles and relative rates ``(m, 2)`` (outer, inner) at times ``t_out``.
+
+        ``t_out`` must be finite, non-decreasing and not earlier than the current time.
+        """
+        t_out = np.atleast_1d(np.asarray(t_out, dtype=np.float64))
+        if t_out.ndim != 1:
+            raise ValueError("t_out must be a 1-D array of times")
+        if not np.all(np.isfinite(t_out)):
+            raise ValueError("t_out contains non-finite times")
+        if t_out.size and (t_out[0] < self.t - 1e-12 or np.any(np.diff(t_out) < 0)):
+            raise ValueError(f"t_out must be non-decreasing and start at or after the "
+                             f"current time {self.t!r}")
+        m = t_out.shape[0]
+        angles = np.empty((m, 2))
+        rates = np.empty((m, 2))
+        for i in range(m):
+            self._advance(float(t_out[i]))
+            a, r = self.state()
+            angles[i], rates[i] = a, r
+        return angles, rates
+
+    def kinetic_energy(self) -> float:
+        """Kinetic energy of rotor + gimbals (full model) at the current state, in J."""
+        if self.params.model != "full":
+            raise ValueError("kinetic_energy needs model='full'")
+        al, be, ad, bd = self._y
+        wc = self._base_rates(np.array([self.t]))[0]
+        v, _, (_, _, cb, sb) = _rot_to_gimbal(al, be, *wc)
+        wo = np.array([v[0], v[1], v[2] + ad])
+        wg = np.array([cb * wo[0] - sb * wo[2], wo[1] + bd, sb * wo[0] + cb * wo[2]])
+        io, ig = np.array(self._io), np.array(self._ig)
+        e_rot = 0.5 * self._h ** 2 / self.params.spin_inertia
+        return float(0.5 * wo @ (io * wo) + 0.5 * wg @ (ig * wg)
+                     + 0.5 * self._jt * (wg[1] ** 2 + wg[2] ** 2) + e_rot)
+
