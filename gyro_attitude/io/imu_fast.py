@@ -1,0 +1,345 @@
+"""Fast array reading of Imu and QuaternionStamped topics from MCAP files.
+
+Fast path: for each chunk, the Message Index gives the offsets of a topic's message
+records; with one frame_id the records have one fixed layout
+(:func:`gyro_attitude.io.cdr_arrays.message_record_dtype`), so the chunk is read as a
+numpy structured array — a zero-copy strided view when the records are evenly spaced
+(one topic per chunk, or topics interleaved regularly), else a gather.  Each record is
+checked (opcode, record length, channel, CDR little-endian header, frame_id length and
+bytes); anything irregular (another frame_id, big-endian CDR, another size) is decoded
+per message by rclpy's deserializer instead.  Chunks without a usable index (a file cut
+short by a crash) are walked record by record in Python to find the offsets, then decoded
+the same way.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from gyro_attitude.io import cdr_arrays
+from gyro_attitude.io.cdr_arrays import IMU_TYPE, QUATERNION_STAMPED_TYPE
+from gyro_attitude.io.mcap_reader import McapStreamReader, topic_matches
+from gyro_attitude.io.mcap_records import RECORD_HEADER
+
+__all__ = [
+    "ImuArrays",
+    "QuaternionArrays",
+    "read_imu_arrays",
+    "read_quaternion_stamped_arrays",
+    "read_topic_arrays",
+]
+
+_IMU_FIELDS = {
+    "orientation": 4,
+    "orientation_covariance": 9,
+    "angular_velocity": 3,
+    "angular_velocity_covariance": 9,
+    "linear_acceleration": 3,
+    "linear_acceleration_covariance": 9,
+}
+_FIELDS = {IMU_TYPE: _IMU_FIELDS, QUATERNION_STAMPED_TYPE: {"quaternion": 4}}
+
+
+@dataclass
+class _TopicArrays:
+    topic: str
+    stamp_ns: np.ndarray
+    log_time_ns: np.ndarray
+    publish_time_ns: np.ndarray
+    frame_id: str
+    frame_ids: set[str]
+    fast_messages: int
+    fallback_messages: int
+    damage: str | None
+
+    def __len__(self) -> int:
+        return int(self.stamp_ns.shape[0])
+
+
+@dataclass
+class ImuArrays(_TopicArrays):
+    """All messages of one ``sensor_msgs/msg/Imu`` topic as arrays, in file order.
+
+    ``stamp_ns`` header stamps, ``log_time_ns``/``publish_time_ns`` MCAP times (int64 ns);
+    ``orientation`` (N, 4) x, y, z, w; ``angular_velocity`` (N, 3) rad/s;
+    ``linear_acceleration`` (N, 3) m/s²; covariances (N, 9) row-major.  ``frame_id`` is
+    the first message's; ``frame_ids`` all seen.  ``damage`` is None for an intact file,
+    else what stopped the read (with ``on_damage="warn"``).
+    """
+
+    orientation: np.ndarray = field(default=None)
+    orientation_covariance: np.ndarray = field(default=None)
+    angular_velocity: np.ndarray = field(default=None)
+    angular_velocity_covariance: np.ndarray = field(default=None)
+    linear_acceleration: np.ndarray = field(default=None)
+    linear_acceleration_covariance: np.ndarray = field(default=None)
+
+
+@dataclass
+class QuaternionArrays(_TopicArrays):
+    """All messages of one ``geometry_msgs/msg/QuaternionStamped`` topic (x, y, z, w)."""
+
+    quaternion: np.ndarray = field(default=None)
+
+
+class _Collector:
+    def __init__(self, topic: str, type_name: str):
+        self.topic = topic
+        self.type_name = type_name
+        self.fields = _FIELDS[type_name]
+        self.parts: list[dict[str, np.ndarray]] = []
+        self.frame_ids: list[str] = []
+        self.fast = 0
+        self.fallback = 0
+        self._dtypes: dict[str, np.dtype] = {}
+
+    def dtype(self, frame: str, itemsize: int | None = None) -> np.dtype:
+        key = (frame, itemsize)
+        if key not in self._dtypes:
+            self._dtypes[key] = cdr_arrays.message_record_dtype(self.type_name, frame, itemsize)
+        return self._dtypes[key]
+
+    def add_records(self, recs: np.ndarray) -> None:
+        part = {
+            "stamp_ns": cdr_arrays.join_stamp(recs["sec"], recs["nanosec"]),
+            "log_time_ns": recs["log_time"].astype(np.int64),
+            "publish_time_ns": recs["publish_time"].astype(np.int64),
+        }
+        for name in self.fields:
+            part[name] = np.array(recs[name], dtype=np.float64)
+        self.parts.append(part)
+        self.fast += len(recs)
+
+    def add_messages(self, msgs: list[tuple[int, int, bytes]]) -> None:
+        """Per-message fallback: rclpy deserialization (log_time, publish_time, data)."""
+        from rclpy.serialization import deserialize_message  # lazy: no rclpy at io top
+
+        if self.type_name == IMU_TYPE:
+            from sensor_msgs.msg import Imu as msg_type
+        else:
+            from geometry_msgs.msg import QuaternionStamped as msg_type
+        cols: dict[str, list] = {k: [] for k in ("stamp_ns", "log_time_ns", "publish_time_ns",
+                                                 *self.fields)}
+        for log, pub, data in msgs:
+            try:
+                m = deserialize_message(data, msg_type)
+            except Exception as exc:  # rclpy raises plain exceptions on bad CDR
+                raise ValueError(f"{self.topic}: message at log time {log} does not "
+                                 f"deserialize as {self.type_name}: {exc}") from exc
+            cols["stamp_ns"].append(m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec)
+            cols["log_time_ns"].append(log)
+            cols["publish_time_ns"].append(pub)
+            self.frame_ids.append(m.header.frame_id)
+            if self.type_name == IMU_TYPE:
+                q = m.orientation
+                cols["orientation"].append((q.x, q.y, q.z, q.w))
+                cols["orientation_covariance"].append(tuple(m.orientation_covariance))
+                v = m.angular_velocity
+                cols["angular_velocity"].append((v.x, v.y, v.z))
+                cols["angular_velocity_covariance"].append(tuple(m.angular_velocity_covariance))
+                a = m.linear_acceleration
+                cols["linear_acceleration"].append((a.x, a.y, a.z))
+                cols["linear_acceleration_covariance"].append(
+                    tuple(m.linear_acceleration_covariance))
+            else:
+                q = m.quaternion
+                cols["quaternion"].append((q.x, q.y, q.z, q.w))
+        part = {k: np.asarray(v, dtype=np.int64) for k, v in cols.items()
+                if k in ("stamp_ns", "log_time_ns", "publish_time_ns")}
+        for name, width in self.fields.items():
+            part[name] = np.asarray(cols[name], dtype=np.float64).reshape(-1, width)
+        self.parts.append(part)
+        self.fallback += len(msgs)
+
+    def result(self, damage: str | None):
+        keys = ("stamp_ns", "log_time_ns", "publish_time_ns", *self.fields)
+        out = {}
+        for k in keys:
+            if self.parts:
+                out[k] = np.concatenate([p[k] for p in self.parts])
+            else:
+                width = self.fields.get(k)
+                out[k] = np.zeros((0,) if width is None else (0, width),
+                                  np.int64 if width is None else np.float64)
+        cls = ImuArrays if self.type_name == IMU_TYPE else QuaternionArrays
+        return cls(topic=self.topic, frame_id=self.frame_ids[0] if self.frame_ids else "",
+                   frame_ids=set(self.frame_ids), fast_messages=self.fast,
+                   fallback_messages=self.fallback, damage=damage, **out)
+
+
+def _frame_at(records: bytes, off: int) -> str | None:
+    """frame_id of the CDR-LE message record at ``off`` (None when it does not parse)."""
+    p = off + cdr_arrays.MESSAGE_RECORD_PREFIX
+    if records[p:p + 4] != cdr_arrays.CDR_LE_HEADER or p + 16 > len(records):
+        return None
+    n = int.from_bytes(records[p + 12:p + 16], "little")
+    if n < 1 or p + 16 + n > len(records) or records[p + 16 + n - 1] != 0:
+        return None
+    try:
+        return records[p + 16:p + 16 + n - 1].decode("utf-8")
+    except UnicodeDecodeError:
+        return None
+
+
+def _decode_chunk_channel(col: _Collector, records: bytes, offsets: np.ndarray,
+                          cid: int) -> None:
+    """Decode the records of channel ``cid`` at ``offsets`` (ascending) of one chunk."""
+    if offsets.size == 0:
+        return
+    frame = _frame_at(records, int(offsets[0]))
+    ok = np.zeros(offsets.size, dtype=bool)
+    recs = None
+    if frame is not None:
+        dtype = col.dtype(frame)
+        size = dtype.itemsize
+        inside = offsets + size <= len(records)
+        steps = np.diff(offsets)
+        if inside.all() and (offsets.size == 1 or (steps[0] >= size and (steps == steps[0]).all())):
+            # Evenly spaced records: a zero-copy strided view over the chunk.
+            stride = int(steps[0]) if offsets.size > 1 else size
+            recs = np.ndarray((offsets.size,), dtype=dtype, buffer=records,
+                              offset=int(offsets[0]), strides=(stride,))
+        else:
+            buf = np.frombuffer(records, dtype=np.uint8)
+            safe = np.where(inside, offsets, 0)
+            rows = buf[safe[:, None] + np.arange(size)]
+            recs = rows.view(dtype).reshape(-1)
+        fb = frame.encode("utf-8") + b"\x00"
+        ok = (inside & (recs["opcode"] == 0x05) & (recs["record_length"] == size - 9)
+              & (recs["channel_id"] == cid)
+              & (recs["encapsulation"] == cdr_arrays.CDR_LE_HEADER_U32)
+              & (recs["frame_id_len"] == len(fb)) & (recs["frame_id"] == fb[:-1]))
+    if ok.all():
+        col.add_records(recs)
+        col.frame_ids.append(frame)
+        return
+    # Irregular records (or a mix): keep the file order, regular ones still array-wide.
+    start = 0
+    n = offsets.size
+    while start < n:
+        stop = start
+        while stop < n and ok[stop] == ok[start]:
+            stop += 1
+        if ok[start]:
+            col.add_records(recs[start:stop])
+            col.frame_ids.append(frame)
+        else:
+            msgs = []
+            for off in offsets[start:stop]:
+                off = int(off)
+                _, length = RECORD_HEADER.unpack_from(records, off)
+                body = off + RECORD_HEADER.size
+                log = int.from_bytes(records[body + 6:body + 14], "little")
+                pub = int.from_bytes(records[body + 14:body + 22], "little")
+                msgs.append((log, pub, records[body + 22:body + length]))
+            col.add_messages(msgs)
+        start = stop
+
+
+def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
+                      validate_crc: bool = True,
+                      progress: Callable[[int, int], None] | None = None,
+                      required: bool = True) -> dict:
+    """Read several fixed-layout topics in one pass: ``{topic: type_name}`` -> arrays.
+
+    ``type_name`` is ``sensor_msgs/msg/Imu`` or ``geometry_msgs/msg/QuaternionStamped``.
+    A topic recorded with another type raises ValueError naming both types; a topic
+    absent from the file raises ValueError when ``required`` (else it is left out).
+    ``progress(bytes_done, bytes_total)`` is called after each chunk.
+    """
+    for t, ty in topics.items():
+        if ty not in _FIELDS:
+            raise ValueError(f"no array reader for {ty!r} (topic {t}); have {sorted(_FIELDS)}")
+    reader = McapStreamReader(path, validate_crc=validate_crc, on_damage=on_damage)
+    total = os.path.getsize(reader.path)
+    collectors = {t: _Collector(t, ty) for t, ty in topics.items()}
+    by_channel: dict[int, _Collector | None] = {}
+
+    def collector_for(cid: int) -> _Collector | None:
+        if cid not in by_channel:
+            ch = reader.channels.get(cid)
+            col = None
+            if ch is not None:
+                for t, c in collectors.items():
+                    if topic_matches(ch.topic, t):
+                        if ch.type_name != c.type_name:
+                            raise ValueError(f"topic {ch.topic} holds {ch.type_name or '?'}"
+                                             f" messages, expected {c.type_name}")
+                        if ch.message_encoding != "cdr":
+                            raise ValueError(f"topic {ch.topic} has message encoding "
+                                             f"{ch.message_encoding!r}, expected 'cdr'")
+                        c.topic = ch.topic
+                        col = c
+            by_channel[cid] = col
+        return by_channel[cid]
+
+    for chunk in reader.iter_chunks():
+        index = chunk.message_index
+        if index is None:
+            # No usable index: walk the records once to find each channel's offsets.
+            try:
+                offs = _walk_offsets(chunk.records)
+            except ValueError as exc:
+                reader._damaged(f"corrupt chunk records ({exc})", chunk.file_offset)
+                break
+            index = {cid: np.stack([np.zeros(len(o), np.uint64), np.asarray(o, np.uint64)], 1)
+                     for cid, o in offs.items()}
+        for cid, entries in index.items():
+            col = collector_for(cid)
+            if col is None:
+                continue
+            offsets = np.sort(entries[:, 1].astype(np.int64), kind="stable")
+            _decode_chunk_channel(col, chunk.records, offsets, cid)
+        if progress is not None:
+            progress(chunk.file_offset + 1, total)
+    if progress is not None:
+        progress(total, total)
+    out = {}
+    for t, c in collectors.items():
+        if not any(topic_matches(ch.topic, t) for ch in reader.channels.values()):
+            if required:
+                have = sorted(ch.topic for ch in reader.channels.values())
+                raise ValueError(f"{reader.path}: no topic {t!r}; topics: {have}")
+            continue
+        out[t] = c.result(reader.damage)
+    return out
+
+
+def _walk_offsets(records: bytes) -> dict[int, list[int]]:
+    """Offsets of every Message record in a chunk, per channel (Python walk)."""
+    out: dict[int, list[int]] = {}
+    pos = 0
+    n = len(records)
+    while pos < n:
+        if n - pos < RECORD_HEADER.size:
+            raise ValueError("chunk ends inside a record header")
+        opcode, length = RECORD_HEADER.unpack_from(records, pos)
+        body = pos + RECORD_HEADER.size
+        if length > n - body:
+            raise ValueError("record overruns its chunk")
+        if opcode == 0x05:
+            if length < 22:
+                raise ValueError("message record too short")
+            cid = int.from_bytes(records[body:body + 2], "little")
+            out.setdefault(cid, []).append(pos)
+        pos = body + length
+    return out
+
+
+def read_imu_arrays(path, topic: str = "imu/data_raw", *, on_damage: str = "raise",
+                    validate_crc: bool = True, progress=None) -> ImuArrays:
+    """Every ``sensor_msgs/msg/Imu`` message of ``topic`` as :class:`ImuArrays`."""
+    return read_topic_arrays(path, {topic: IMU_TYPE}, on_damage=on_damage,
+                             validate_crc=validate_crc, progress=progress)[topic]
+
+
+def read_quaternion_stamped_arrays(path, topic: str = "truth/attitude", *,
+                                   on_damage: str = "raise", validate_crc: bool = True,
+                                   progress=None) -> QuaternionArrays:
+    """Every ``geometry_msgs/msg/QuaternionStamped`` message of ``topic``."""
+    return read_topic_arrays(path, {topic: QUATERNION_STAMPED_TYPE}, on_damage=on_damage,
+                             validate_crc=validate_crc, progress=progress)[topic]
