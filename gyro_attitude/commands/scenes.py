@@ -1,0 +1,42 @@
+"""``gyro-attitude scenes [NAME] [--check]``: list the shipped scenes, or print one's YAML."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("name", nargs="?", help="scene name or path: print its YAML")
+    parser.add_argument("--check", action="store_true",
+                        help="also validate the scene(s) and report errors (exit 1 on any)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from gyro_attitude.io.scene_file import find_scene_file, list_scenes, load_scene
+
+    if args.name:
+        try:
+            path = find_scene_file(args.name)
+            if args.check:
+                load_scene(str(path))
+        except ValueError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 1
+        sys.stdout.write(path.read_text(encoding="utf-8"))
+        return 0
+    scenes = list_scenes()
+    if not scenes:
+        print("no scenes found", file=sys.stderr)
+        return 1
+    width = max(len(name) for name, _ in scenes)
+    status = 0
+    for name, description in scenes:
+        print(f"{name:<{width}}  {description}")
+        if args.check:
+            try:
+                load_scene(name)
+            except ValueError as exc:
+                print(f"{'':<{width}}  error: {exc}")
+                status = 1
+    return status

@@ -1,0 +1,110 @@
+"""Scene files: YAML loading and lookup of the shipped scenes by name.
+
+A scene is found by path (any existing file) or by name (``<name>.yaml`` in the scene
+directories, searched in this order):
+
+1. ``config/scenes`` of the source tree next to the package, when running from a checkout
+   (an installed package has no such directory next to it, so this never shadows an
+   install with anything but the checkout being worked on);
+2. ``<share>/gyro_attitude/config/scenes`` with ``<share>`` from
+   ``ament_index_python.packages.get_package_share_directory`` (imported lazily; skipped when
+   not importable or the package is not indexed);
+3. ``<sys.prefix>/share/gyro_attitude/config/scenes`` (pip/venv installs).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import yaml
+
+from gyro_attitude.core.scene import SceneSpec
+
+__all__ = ["scene_directories", "find_scene_file", "load_scene", "list_scenes", "read_scene_dict"]
+
+PACKAGE = "gyro_attitude"
+
+
+def scene_directories() -> list[Path]:
+    """Existing scene directories in search order (see module docstring), without repeats."""
+    candidates = [Path(__file__).resolve().parents[2] / "config" / "scenes"]
+    try:
+        from ament_index_python.packages import (
+            PackageNotFoundError,
+            get_package_share_directory,
+        )
+
+        try:
+            candidates.append(Path(get_package_share_directory(PACKAGE)) / "config" / "scenes")
+        except (PackageNotFoundError, LookupError, ValueError):
+            pass
+    except ImportError:
+        pass
+    candidates.append(Path(sys.prefix) / "share" / PACKAGE / "config" / "scenes")
+    out: list[Path] = []
+    for c in candidates:
+        if c.is_dir() and c.resolve() not in [o.resolve() for o in out]:
+            out.append(c)
+    return out
+
+
+def find_scene_file(name_or_path: str) -> Path:
+    """Path of a scene given as a file path or a shipped scene name; ``ValueError`` if none."""
+    p = Path(name_or_path)
+    if p.is_file():
+        return p
+    if p.suffix in (".yaml", ".yml") or "/" in str(name_or_path):
+        raise ValueError(f"scene file not found: {name_or_path}")
+    dirs = scene_directories()
+    for d in dirs:
+        f = d / f"{name_or_path}.yaml"
+        if f.is_file():
+            return f
+    known = ", ".join(name for name, _ in list_scenes()) or "none"
+    raise ValueError(f"unknown scene {name_or_path!r} (shipped scenes: {known}; "
+                     f"searched {', '.join(map(str, dirs)) or 'no scene directory'})")
+
+
+def read_scene_dict(path: Path) -> dict:
+    """Parse a scene YAML file into a dict (``ValueError`` on a syntax error or non-mapping)."""
+    try:
+        with open(path, encoding="utf-8") as f:
+            data = yaml.safe_load(f)
+    except yaml.YAMLError as exc:
+        raise ValueError(f"{path}: not valid YAML: {exc}") from exc
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: a scene must be a YAML mapping, got {type(data).__name__}")
+    return data
+
+
+def load_scene(name_or_path: str) -> SceneSpec:
+    """Load and validate a scene by shipped name (``"ship"``) or by file path.
+
+    Raises ``ValueError`` naming the bad key (``earth.latitude_deg: ...``) prefixed by the file.
+    """
+    path = find_scene_file(str(name_or_path))
+    data = read_scene_dict(path)
+    try:
+        return SceneSpec.from_dict(data, name=path.stem)
+    except ValueError as exc:
+        raise ValueError(f"{path.name}: {exc}") from exc
+
+
+def list_scenes() -> list[tuple[str, str]]:
+    """``(name, description)`` of every shipped scene, sorted by name (first directory wins).
+
+    The description is read from the file without validating the whole scene; a file that
+    does not parse is listed with its error as description.
+    """
+    found: dict[str, str] = {}
+    for d in scene_directories():
+        for f in sorted(d.glob("*.yaml")):
+            if f.stem in found:
+                continue
+            try:
+                desc = str(read_scene_dict(f).get("description", "")).strip()
+            except ValueError as exc:
+                desc = f"(invalid: {exc})"
+            found[f.stem] = desc.splitlines()[0] if desc else ""
+    return sorted(found.items())
