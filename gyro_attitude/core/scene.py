@@ -332,9 +332,24 @@ def _c2_params(cls_name: str, d: Any, path: str):
     if cls is None:
         raise ValueError(f"{path}: gyro_attitude.core.gyro has no {cls_name}")
     names = tuple(fl.name for fl in dataclasses.fields(cls))
-    f = _Fields(d, path, names)
+    f = _Fields({} if d is None else d, path, names)
+    kw = dict(f.d)
+    # Nested torque lists of the free gyro: mappings -> C2's HarmonicTorque / ImpactTorque.
+    for key, item_cls_name in (("harmonic_torques", "HarmonicTorque"), ("impacts", "ImpactTorque")):
+        if key in kw:
+            item_cls = getattr(gyro_module, item_cls_name)
+            items = kw[key] if isinstance(kw[key], list) else [kw[key]]
+            built = []
+            for i, item in enumerate(items):
+                item_path = f"{path}.{key}[{i}]"
+                fi = _Fields(item, item_path, tuple(fl.name for fl in dataclasses.fields(item_cls)))
+                try:
+                    built.append(item_cls(**fi.d))
+                except (TypeError, ValueError) as exc:
+                    raise ValueError(f"{item_path}: {exc}") from exc
+            kw[key] = tuple(built)
     try:
-        return cls(**f.d)
+        return cls(**kw)
     except TypeError as exc:
         raise ValueError(f"{path}: {exc}") from exc
     except ValueError as exc:
