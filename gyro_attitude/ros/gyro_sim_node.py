@@ -1,0 +1,345 @@
+"""ROS 2 node ``gyro_sim``: publish a simulated scene as Imu, gimbal joint states and truth.
+
+Publishes (relative names, so a namespace applies):
+
+* ``imu/data_raw`` (sensor_msgs/Imu, REP-145): ``angular_velocity`` = measured ω_ib^b
+  [rad/s], ``linear_acceleration`` = specific force [m/s²] when the scene has
+  accelerometers; covariances = per-sample variances of the scene's noise model
+  (``SceneSimulator.imu_variances()``) on the diagonal, all zeros when the model gives no
+  estimate; element 0 = −1 for orientation (a raw gyro has none) and for
+  linear_acceleration without accelerometers. ``header.stamp`` = sample time.
+* ``gyro/joint_states`` (sensor_msgs/JointState): gimbal angles [rad] and rates [rad/s],
+  only when the scene has a gimballed free gyro.
+* ``truth/attitude`` (geometry_msgs/QuaternionStamped): true q_nb, frame ``world_frame_id``.
+* ``truth/odom`` (nav_msgs/Odometry): position in the local ENU plane of the start point
+  [m], orientation q_nb; twist in ``frame_id``: body-frame velocity and ω_nb^b.
+* ``/clock`` (rosgraph_msgs/Clock) in ``time_mode: fast``.
+
+Timing. Stamps are on the sample grid: ``start + t_k`` with ``t_k`` the scene's own int-ns
+sample times, ``start`` = wall clock at start. ``realtime`` publishes each sample once the
+wall clock has reached its stamp, from a timer (``publish_period_s``); the schedule is
+computed from the absolute start, so late ticks catch up and nothing drifts. ``fast``
+publishes block after block as fast as possible and ``/clock`` along. The scene is
+simulated ``block_s`` ahead. With ``duration_s > 0`` the node stops after that much
+simulated time and ``main()`` exits 0. ``record_path`` records every published topic
+in-process to a rosbag2-compatible MCAP file.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import QuaternionStamped
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.task import Future
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Imu, JointState
+from std_msgs.msg import Header
+
+from gyro_attitude.core.earth import radii_of_curvature
+from gyro_attitude.core.rotation import quat_conjugate, quat_rotate
+from gyro_attitude.ros import convert
+from gyro_attitude.ros.params import ParameterError, ParamSpec, check_update, declare_all
+from gyro_attitude.ros.qos import imu_qos
+
+NODE_NAME = "gyro_sim"
+DEFAULT_SCENE = "coning"
+
+TOPICS = {
+    "imu/data_raw": "sensor_msgs/msg/Imu",
+    "gyro/joint_states": "sensor_msgs/msg/JointState",
+    "truth/attitude": "geometry_msgs/msg/QuaternionStamped",
+    "truth/odom": "nav_msgs/msg/Odometry",
+}
+
+
+def parameter_specs() -> list[ParamSpec]:
+    return [
+        ParamSpec("scene", DEFAULT_SCENE, "scene name (config/scenes/<name>.yaml) or YAML path"),
+        ParamSpec("rate_hz", 0.0, "Imu output rate [Hz] (0 = the scene's own rate_hz)",
+                  low=0.0, high=100000.0),
+        ParamSpec("frame_id", "imu_link", "header.frame_id of the Imu (sensor frame)"),
+        ParamSpec("world_frame_id", "enu", "frame of truth/attitude and truth/odom (ENU)"),
+        ParamSpec("seed", -1, "random seed of the noise model (-1: the scene's own seed)", low=-1,
+                  high=2**31 - 1),
+        ParamSpec("time_mode", "realtime",
+                  "'realtime': on the wall clock; 'fast': as fast as possible, with /clock",
+                  choices=("realtime", "fast")),
+        ParamSpec("duration_s", 0.0, "simulated duration [s] (0 = forever)", low=0.0,
+                  high=1.0e7),
+        ParamSpec("record_path", "", "MCAP file to record all published topics to ('' = off)"),
+        ParamSpec("block_s", 0.05, "simulate this far ahead per block [s]", low=1e-4, high=10.0),
+        ParamSpec("publish_period_s", 0.001, "realtime publishing timer period [s]", low=1e-4,
+                  high=1.0),
+        ParamSpec("publish_truth", True, "publish truth/attitude and truth/odom"),
+        ParamSpec("wait_for_subscribers", 0,
+                  "wait until imu/data_raw has this many subscribers before starting",
+                  low=0, high=1000),
+        ParamSpec("wait_timeout_s", 10.0, "give up waiting for subscribers after [s]",
+                  low=0.0, high=3600.0),
+        ParamSpec("qos_reliability", "best_effort", "imu/data_raw publisher reliability",
+                  choices=("best_effort", "reliable")),
+        ParamSpec("qos_depth", 1000, "imu/data_raw publisher queue depth", low=1, high=100000),
+    ]
+
+
+def local_enu_position(llh: np.ndarray, llh0: np.ndarray) -> np.ndarray:
+    """Position (east, north, up) [m] of geodetic ``llh (n,3)`` relative to ``llh0 (3,)`` on
+    the tangent plane at the start (first order in the offsets: good to ~1e-6 relative
+    for the km-scale paths of the scenes)."""
+    r_m, r_n = radii_of_curvature(llh0[0])
+    h0 = llh0[2]
+    east = (llh[:, 1] - llh0[1]) * (r_n + h0) * np.cos(llh0[0])
+    north = (llh[:, 0] - llh0[0]) * (r_m + h0)
+    return np.stack([east, north, llh[:, 2] - h0], axis=-1)
+
+
+class GyroSimNode(Node):
+    """Thin ROS wrapper around C1's ``SceneSimulator``."""
+
+    def __init__(self, **kwargs):
+        super().__init__(NODE_NAME, **kwargs)
+        specs = parameter_specs()
+        self._specs = {s.name: s for s in specs}
+        p = declare_all(self, specs)
+        self._p = p
+        from gyro_attitude.core.scene import SceneSimulator
+        from gyro_attitude.io.scene_file import load_scene
+
+        try:
+            spec = load_scene(p["scene"])
+        except (ValueError, FileNotFoundError, OSError) as exc:
+            raise ParameterError(f"parameter 'scene': {exc}") from exc
+        seed = None if p["seed"] < 0 else p["seed"]
+        if p["rate_hz"] == 0.0:
+            p["rate_hz"] = float(spec.rate_hz)
+        elif p["rate_hz"] < 1.0:
+            raise ParameterError(f"parameter 'rate_hz' must be 0 (scene rate) or >= 1 Hz, "
+                                 f"got {p['rate_hz']}")
+        try:
+            self._sim = SceneSimulator(spec, p["rate_hz"], seed=seed)
+        except ValueError as exc:
+            raise ParameterError(f"parameter 'scene'/'rate_hz': {exc}") from exc
+        gyro_var, accel_var = self._sim.imu_variances()
+        self._gyro_var = None if gyro_var is None else np.asarray(gyro_var, float)
+        self._accel_var = None if accel_var is None else np.asarray(accel_var, float)
+        self._frame_id = p["frame_id"]
+        self._world = p["world_frame_id"]
+        self._fast = p["time_mode"] == "fast"
+        self._block_n = max(1, int(round(p["block_s"] * p["rate_hz"])))
+        self._n_total = int(round(p["duration_s"] * p["rate_hz"])) if p["duration_s"] > 0 else 0
+
+        self._pub_imu = self.create_publisher(
+            Imu, "imu/data_raw", imu_qos(p["qos_reliability"], p["qos_depth"])
+        )
+        self._pub_joint = self.create_publisher(JointState, "gyro/joint_states", 100)
+        self._pub_truth = self.create_publisher(QuaternionStamped, "truth/attitude", 1000)
+        self._pub_odom = self.create_publisher(Odometry, "truth/odom", 100)
+        self._pub_clock = self.create_publisher(Clock, "/clock", 10) if self._fast else None
+
+        self._writer = None
+        self._serialize = None
+        if p["record_path"]:
+            self._open_recorder(p["record_path"])
+
+        self.published = 0  # samples published
+        self.finished = False
+        self.done = Future()  # completed when the duration is over
+        self._start_ns: int | None = None
+        self._llh0: np.ndarray | None = None
+        self._block: list | None = None  # rows of the current block, ready to publish
+        self._block_pos = 0
+        self._generated = 0
+        self._wait_deadline = time.monotonic() + p["wait_timeout_s"]
+        period = 1e-4 if self._fast else p["publish_period_s"]
+        self._timer = self.create_timer(period, self._tick)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.get_logger().info(
+            f"scene '{p['scene']}' at {p['rate_hz']:g} Hz, {p['time_mode']} time, "
+            f"duration {p['duration_s']:g} s"
+            + (f", recording to {p['record_path']}" if p["record_path"] else "")
+        )
+
+    # ------------------------------------------------------------------ recording
+    def _open_recorder(self, path: str) -> None:
+        from rclpy.serialization import serialize_message
+
+        from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
+
+        try:
+            self._writer = Rosbag2McapWriter(path)
+            for topic, type_name in TOPICS.items():
+                self._writer.add_topic(self._resolve(topic), type_name)
+        except (OSError, ValueError) as exc:
+            raise ParameterError(f"parameter 'record_path': {exc}") from exc
+        self._serialize = serialize_message
+
+    def _resolve(self, topic: str) -> str:
+        return self.resolve_topic_name(topic)
+
+    def _record(self, topic: str, msg, t_ns: int) -> None:
+        # log_time = when the sample is published (receive time of an in-process recorder)
+        self._writer.write(self._resolve_cache[topic], self._serialize(msg), t_ns, t_ns)
+
+    def close(self) -> None:
+        """Finish the recording (idempotent)."""
+        if self._writer is not None:
+            self._writer.finish()
+            self._writer = None
+
+    # ------------------------------------------------------------------ parameters
+    def _on_set_parameters(self, params) -> SetParametersResult:
+        reason = check_update(self._specs, params)
+        if reason is not None:
+            return SetParametersResult(successful=False, reason=reason)
+        return SetParametersResult(successful=True)
+
+    # ------------------------------------------------------------------ simulation
+    def _next_block(self) -> None:
+        n = self._block_n
+        if self._n_total:
+            n = min(n, self._n_total - self._generated)
+        b = self._sim.next_block(n)
+        self._generated += n
+        if self._llh0 is None:
+            self._llh0 = np.asarray(b.position_llh[0], dtype=float)
+            self._t0_scene = int(b.t_ns[0])
+        q = np.asarray(b.truth_q_nb, dtype=float)
+        pos = local_enu_position(np.asarray(b.position_llh, float), self._llh0)
+        v_body = quat_rotate(quat_conjugate(q), np.asarray(b.velocity_enu, float))
+        sf = None if b.specific_force_b is None else np.asarray(b.specific_force_b).tolist()
+        gimbal = b.gimbal
+        rows = []
+        # plain Python lists: building messages from numpy scalars is several times slower
+        # stamps relative to the scene's first sample; the node adds its start time
+        t_list = (np.asarray(b.t_ns, dtype=np.int64) - self._t0_scene).tolist()
+        omega = np.asarray(b.omega_ib_b, float).tolist()
+        q_l = q.tolist()
+        pos_l = pos.tolist()
+        vb_l = v_body.tolist()
+        wnb_l = np.asarray(b.truth_omega_nb_b, float).tolist()
+        g_ang = None if gimbal is None else np.asarray(gimbal.angles, float).tolist()
+        g_rate = None if gimbal is None else np.asarray(gimbal.rates, float).tolist()
+        for k in range(n):
+            rows.append((
+                t_list[k], omega[k], None if sf is None else sf[k], q_l[k], pos_l[k], vb_l[k],
+                wnb_l[k], None if g_ang is None else g_ang[k], None if g_rate is None
+                else g_rate[k],
+            ))
+        self._gimbal_names = None if gimbal is None else [str(x) for x in gimbal.names]
+        self._block = rows
+        self._block_pos = 0
+
+    def _publish_row(self, row) -> None:
+        t_rel, omega, sf, q, pos, v_b, w_nb, g_ang, g_rate = row
+        t_ns = self._start_ns + t_rel
+        imu = convert.imu_msg(t_ns, self._frame_id, omega, sf, self._gyro_var, self._accel_var)
+        self._pub_imu.publish(imu)
+        msgs = [("imu/data_raw", imu)]
+        if g_ang is not None:
+            js = convert.joint_state_msg(t_ns, self._gimbal_names, g_ang, g_rate)
+            js.header.frame_id = self._frame_id
+            self._pub_joint.publish(js)
+            msgs.append(("gyro/joint_states", js))
+        if self._p["publish_truth"]:
+            att = QuaternionStamped()
+            att.header = Header(stamp=imu.header.stamp, frame_id=self._world)
+            a = att.quaternion
+            a.x, a.y, a.z, a.w = q
+            self._pub_truth.publish(att)
+            odom = convert.odometry_msg(t_ns, self._world, self._frame_id, pos, q, v_b, w_nb)
+            self._pub_odom.publish(odom)
+            msgs += [("truth/attitude", att), ("truth/odom", odom)]
+        if self._pub_clock is not None:
+            self._pub_clock.publish(Clock(clock=imu.header.stamp))
+        if self._writer is not None:
+            for topic, m in msgs:
+                self._record(topic, m, t_ns)
+        self.published += 1
+
+    def _ready(self) -> bool:
+        want = self._p["wait_for_subscribers"]
+        if want <= 0 or self._pub_imu.get_subscription_count() >= want:
+            return True
+        if time.monotonic() > self._wait_deadline:
+            self.get_logger().warning(
+                f"only {self._pub_imu.get_subscription_count()} of {want} subscribers after "
+                f"{self._p['wait_timeout_s']} s; starting anyway"
+            )
+            return True
+        return False
+
+    def _tick(self) -> None:
+        if self.finished:
+            return
+        if self._start_ns is None:
+            if not self._ready():
+                return
+            self._resolve_cache = {t: self._resolve(t) for t in TOPICS}
+            self._next_block()
+            self._start_ns = time.time_ns()
+        if self._fast:
+            due = None  # everything in the current block
+        else:
+            due = time.time_ns() - self._start_ns
+        while True:
+            if self._block_pos >= len(self._block):
+                if self._n_total and self._generated >= self._n_total:
+                    self._finish()
+                    return
+                self._next_block()
+                if self._fast:
+                    return  # one block per tick: lets parameter services run in between
+            row = self._block[self._block_pos]
+            if due is not None and row[0] > due:
+                return
+            self._publish_row(row)
+            self._block_pos += 1
+
+    def _finish(self) -> None:
+        self.finished = True
+        self._timer.cancel()
+        self.done.set_result(self.published)
+        self.close()
+        self.get_logger().info(f"published {self.published} samples; done")
+
+
+def main(args=None) -> int:
+    """Spin until the duration is over (exit 0), SIGINT/SIGTERM (exit 0), or exit 2 on an
+    invalid parameter."""
+    node = None
+    status = 0
+    try:
+        rclpy.init(args=args)
+        node = GyroSimNode()
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        executor.spin_until_future_complete(node.done)
+        if node.finished:
+            # let DDS deliver the last samples before the participant goes away
+            end = time.monotonic() + 0.3
+            while rclpy.ok() and time.monotonic() < end:
+                executor.spin_once(timeout_sec=0.05)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except ParameterError as exc:
+        print(f"[{NODE_NAME}] invalid parameter: {exc}", file=sys.stderr)
+        status = 2
+    finally:
+        if node is not None:
+            try:
+                node.close()
+            finally:
+                node.destroy_node()
+        rclpy.try_shutdown()
+    return status
+
+
+if __name__ == "__main__":
+    sys.exit(main())
