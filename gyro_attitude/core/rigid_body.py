@@ -158,6 +158,12 @@ def heavy_top_nutation_bounds(top: HeavyTop, h_b, gamma_b) -> tuple[float, float
     coeffs = [2 * jt * mgl, -(2 * jt * e1 + b * b), 2 * a * b - 2 * jt * mgl, 2 * jt * e1 - a * a]
     roots = np.roots(coeffs) if mgl != 0.0 else np.roots(coeffs[1:])
     real = np.sort(roots[np.abs(roots.imag) <= 1e-9 * max(1.0, np.max(np.abs(roots)))].real)
+    # polish the companion-matrix roots with Newton steps (np.roots loses ~1e-11 here)
+    dcoeffs = np.polyder(coeffs)
+    for _ in range(3):
+        d = np.polyval(dcoeffs, real)
+        safe = np.abs(d) > 1e-300
+        real = np.where(safe, real - np.polyval(coeffs, real) / np.where(safe, d, 1.0), real)
     # the motion lives where f(u) >= 0; u0 may itself be a root (a turning point), so pick
     # the pair of consecutive roots around u0 whose interior has f > 0
     tol = 1e-9
