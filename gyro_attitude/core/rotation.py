@@ -70,6 +70,10 @@ __all__ = [
     "krylov_rates_from_body_rates",
     "fixed_rates_from_krylov_rates",
     "krylov_rates_from_fixed_rates",
+    "euler_zxz_body_rate_matrix",
+    "euler_zxz_fixed_rate_matrix",
+    "krylov_body_rate_matrix",
+    "krylov_body_rate_matrix_small_angle",
 ]
 
 # Below this rotation angle sin(θ/2)/θ and θ/sin(θ/2) use their Taylor series: the
@@ -888,3 +892,52 @@ def krylov_rates_from_fixed_rates(
     return np.stack(
         (w[..., 0] - phi_dot * sg, w[..., 1] * cd + w[..., 2] * sd, phi_dot), axis=-1
     )
+
+
+# --------------------------------------------------------------------------- matrix forms
+def _matrix_from_rows(rows) -> np.ndarray:
+    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+
+
+def euler_zxz_body_rate_matrix(angles) -> np.ndarray:
+    """Seed (1-10)': M with ``(p, q, r) = M (ψ̇, θ̇, φ̇)``, shape (..., 3, 3).
+
+    ``[[sinθ sinφ, cosφ, 0], [sinθ cosφ, −sinφ, 0], [cosθ, 0, 1]]``; det M = −sin θ.
+    """
+    a = as_vector_array(angles, "Euler angles")
+    st, ct = np.sin(a[..., 1]), np.cos(a[..., 1])
+    sf, cf = np.sin(a[..., 2]), np.cos(a[..., 2])
+    z, o = np.zeros_like(st), np.ones_like(st)
+    return _matrix_from_rows(((st * sf, cf, z), (st * cf, -sf, z), (ct, z, o)))
+
+
+def euler_zxz_fixed_rate_matrix(angles) -> np.ndarray:
+    """Seed (1-11)': M with ``(p0, q0, r0) = M (ψ̇, θ̇, φ̇)``, shape (..., 3, 3).
+
+    ``[[0, cosψ, sinθ sinψ], [0, sinψ, −sinθ cosψ], [1, 0, cosθ]]``.
+    """
+    a = as_vector_array(angles, "Euler angles")
+    sp, cp = np.sin(a[..., 0]), np.cos(a[..., 0])
+    st, ct = np.sin(a[..., 1]), np.cos(a[..., 1])
+    z, o = np.zeros_like(st), np.ones_like(st)
+    return _matrix_from_rows(((z, cp, st * sp), (z, sp, -st * cp), (o, z, ct)))
+
+
+def krylov_body_rate_matrix(angles) -> np.ndarray:
+    """Seed (1-15)': M with ``(p, q, r) = M (δ̇, γ̇, φ̇)``, shape (..., 3, 3).
+
+    ``[[cosγ cosφ, sinφ, 0], [−cosγ sinφ, cosφ, 0], [sinγ, 0, 1]]``; det M = cos γ.
+    """
+    a = as_vector_array(angles, "Krylov angles")
+    sg, cg = np.sin(a[..., 1]), np.cos(a[..., 1])
+    sf, cf = np.sin(a[..., 2]), np.cos(a[..., 2])
+    z, o = np.zeros_like(sg), np.ones_like(sg)
+    return _matrix_from_rows(((cg * cf, sf, z), (-cg * sf, cf, z), (sg, z, o)))
+
+
+def krylov_body_rate_matrix_small_angle(angles) -> np.ndarray:
+    """Seed (1-16): ``[[1, φ, 0], [−φ, 1, 0], [γ, 0, 1]]`` for small Krylov angles."""
+    a = as_vector_array(angles, "Krylov angles")
+    g, f = a[..., 1], a[..., 2]
+    z, o = np.zeros_like(g), np.ones_like(g)
+    return _matrix_from_rows(((o, f, z), (-f, o, z), (g, z, o)))

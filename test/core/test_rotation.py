@@ -130,6 +130,37 @@ def test_matrix_and_quaternion_against_scipy():
     np.testing.assert_allclose(rot.quat_rotate(q, v), Rotation.from_quat(q).apply(v), atol=1e-14)
 
 
+def test_slightly_non_orthogonal_matrix_gives_nearest_quaternion_within_atol():
+    q = random_quats(50, 16)
+    noise = 1e-8 * np.random.default_rng(17).normal(size=(50, 3, 3))
+    got = rot.quat_from_matrix(rot.quat_as_matrix(q) + noise)
+    assert np.all(np.linalg.norm(got, axis=-1) == pytest.approx(1.0, abs=1e-15))
+    assert np.all(scipy_angle(got, q) < 1e-7)
+    with pytest.raises(ValueError, match="not orthogonal"):
+        rot.quat_from_matrix(rot.quat_as_matrix(q) + noise, atol=1e-10)
+
+
+def test_batched_validation_flags_one_bad_matrix_in_a_batch():
+    m = rot.quat_as_matrix(random_quats(10, 18))
+    m[7] = -m[7]  # det −1, still orthogonal
+    with pytest.raises(ValueError, match="reflection"):
+        rot.quat_from_matrix(m)
+
+
+def test_quat_multiply_and_rotate_broadcast_over_leading_axes():
+    p, q = random_quats(3, 19), random_quats(5, 20)
+    pq = rot.quat_multiply(p[:, None, :], q[None, :, :])
+    assert pq.shape == (3, 5, 4)
+    for i in range(3):
+        for j in range(5):
+            expected = (Rotation.from_quat(p[i]) * Rotation.from_quat(q[j])).as_quat()
+            assert scipy_angle(pq[i, j], expected) < 1e-15
+    v = np.random.default_rng(21).normal(size=(4, 1, 3))
+    out = rot.quat_rotate(q[None, :, :], v)
+    assert out.shape == (4, 5, 3)
+    np.testing.assert_allclose(out[2, 3], Rotation.from_quat(q[3]).apply(v[2, 0]), atol=1e-15)
+
+
 def test_quat_multiply_composition_matches_scipy_and_matrices():
     p, q = random_quats(200, 9), random_quats(200, 10)
     pq = rot.quat_multiply(p, q)

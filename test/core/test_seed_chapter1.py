@@ -166,6 +166,8 @@ def test_euler_body_rates_1_10_against_finite_differences_of_A():
         omega_b = vee(-a_dot(lambda s, tr=traj: a_euler(*tr(s)), t) @ a_t.T)
         got = rot.body_rates_from_euler_zxz_rates(traj(t), traj.rate(t))
         np.testing.assert_allclose(got, omega_b, rtol=0, atol=1e-9 * (1 + np.abs(omega_b).max()))
+        got_m = rot.euler_zxz_body_rate_matrix(traj(t)) @ traj.rate(t)  # matrix form (1-10)'
+        np.testing.assert_allclose(got_m, omega_b, rtol=0, atol=1e-9 * (1 + np.abs(omega_b).max()))
         # The inverse recovers the true angle rates (θ stays in [0.4, 2.0] here).
         back = rot.euler_zxz_rates_from_body_rates(traj(t), omega_b)
         np.testing.assert_allclose(back, traj.rate(t), rtol=0, atol=1e-8)
@@ -178,6 +180,8 @@ def test_euler_fixed_rates_1_11_against_finite_differences_of_A():
         omega_n = vee(-a_t.T @ a_dot(lambda s, tr=traj: a_euler(*tr(s)), t))
         got = rot.fixed_rates_from_euler_zxz_rates(traj(t), traj.rate(t))
         np.testing.assert_allclose(got, omega_n, rtol=0, atol=1e-9 * (1 + np.abs(omega_n).max()))
+        got_m = rot.euler_zxz_fixed_rate_matrix(traj(t)) @ traj.rate(t)  # (1-11)'
+        np.testing.assert_allclose(got_m, omega_n, rtol=0, atol=1e-9 * (1 + np.abs(omega_n).max()))
         back = rot.euler_zxz_rates_from_fixed_rates(traj(t), omega_n)
         np.testing.assert_allclose(back, traj.rate(t), rtol=0, atol=1e-8)
 
@@ -199,6 +203,8 @@ def test_krylov_body_rates_1_15_against_finite_differences_of_A():
         omega_b = vee(-a_dot(lambda s, tr=traj: a_krylov(*tr(s)), t) @ a_t.T)
         got = rot.body_rates_from_krylov_rates(traj(t), traj.rate(t))
         np.testing.assert_allclose(got, omega_b, rtol=0, atol=1e-9 * (1 + np.abs(omega_b).max()))
+        got_m = rot.krylov_body_rate_matrix(traj(t)) @ traj.rate(t)  # (1-15)'
+        np.testing.assert_allclose(got_m, omega_b, rtol=0, atol=1e-9 * (1 + np.abs(omega_b).max()))
         back = rot.krylov_rates_from_body_rates(traj(t), omega_b)
         np.testing.assert_allclose(back, traj.rate(t), rtol=0, atol=1e-8)
 
@@ -243,6 +249,8 @@ def test_small_angle_rates_1_16_error_is_second_order():
         a_t = a_krylov(*ang)
         omega_b = vee(-a_dot(lambda s, a0=ang: a_krylov(*(a0 + s * rates)), 0.0, h=1e-4) @ a_t.T)
         approx = rot.body_rates_from_krylov_rates_small_angle(ang, rates)
+        approx_m = rot.krylov_body_rate_matrix_small_angle(ang) @ rates
+        np.testing.assert_allclose(approx_m, approx, atol=1e-15)
         ratios.append(np.abs(approx - omega_b).max() / eps**2)
     assert ratios[0] > 0.05
     np.testing.assert_allclose(ratios, ratios[0], rtol=0.05)
@@ -317,6 +325,19 @@ def test_krylov_rate_inverse_raises_at_gamma_90(gamma):
     for fn in (rot.krylov_rates_from_body_rates, rot.krylov_rates_from_fixed_rates):
         with pytest.raises(rot.GimbalLockError, match=r"cos\(gamma\).*tol="):
             fn([0.1, gamma, 0.2], [0.1, 0.2, 0.3])
+
+
+def test_rate_matrix_determinants_vanish_exactly_at_the_singularities():
+    """det (1-10)' = −sinθ and det (1-15)' = cosγ: the inverse exists exactly where the
+    inverse functions accept the input."""
+    rng = np.random.default_rng(23)
+    ang = rng.uniform(-np.pi, np.pi, (100, 3))
+    np.testing.assert_allclose(
+        np.linalg.det(rot.euler_zxz_body_rate_matrix(ang)), -np.sin(ang[:, 1]), atol=1e-15
+    )
+    np.testing.assert_allclose(
+        np.linalg.det(rot.krylov_body_rate_matrix(ang)), np.cos(ang[:, 1]), atol=1e-15
+    )
 
 
 def test_rate_inverse_near_but_outside_lock_is_finite_and_exact():
