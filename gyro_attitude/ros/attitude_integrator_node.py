@@ -118,7 +118,10 @@ class AttitudeIntegratorNode(Node):
             )
         self._world_frame = p["world_frame_id"] or p["frame"]
         self._algorithm = p["algorithm"]
-        self._integrator = self._make_integrator(self._q_init)
+        try:
+            self._integrator = self._make_integrator(self._q_init)
+        except ValueError as exc:  # e.g. an Euler-angle algorithm with frame=enu
+            raise ParameterError(f"parameter 'algorithm' = {self._algorithm!r}: {exc}") from exc
         # attitude to start from at the next START verdict instead of the initial one
         # (after an integrator error the attitude is kept)
         self._resume_q: np.ndarray | None = None
@@ -175,8 +178,16 @@ class AttitudeIntegratorNode(Node):
         if new["algorithm"] != self._algorithm:
             # keep the attitude and the time base: the next sample continues from here
             q_now = self._integrator.quaternion
+            old = self._algorithm
             self._algorithm = new["algorithm"]
-            self._integrator = self._make_integrator(q_now, self._integrator.last_t_ns)
+            try:
+                integrator = self._make_integrator(q_now, self._integrator.last_t_ns)
+            except ValueError as exc:
+                self._algorithm = old
+                return SetParametersResult(
+                    successful=False, reason=f"parameter 'algorithm' = {new['algorithm']!r}: {exc}"
+                )
+            self._integrator = integrator
             self.get_logger().info(f"algorithm switched to '{self._algorithm}'")
         self._validator.config = self._check_config(new)
         self._p = new

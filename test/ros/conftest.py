@@ -93,7 +93,8 @@ class NodeProcess:
         )
 
     def output(self) -> str:
-        self._log_f.flush()
+        if not self._log_f.closed:
+            self._log_f.flush()
         return self.log.read_text(errors="replace")
 
     def wait(self, timeout: float) -> int:
@@ -108,7 +109,8 @@ class NodeProcess:
             except subprocess.TimeoutExpired:
                 os.killpg(self.proc.pid, signal.SIGKILL)
                 self.proc.wait(timeout=5)
-        self._log_f.close()
+        if not self._log_f.closed:
+            self._log_f.close()
         return self.proc.returncode
 
 
