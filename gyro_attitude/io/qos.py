@@ -49,8 +49,12 @@ def _duration(value, what: str) -> tuple[int, int]:
         sec, nsec = (int(value[0]), int(value[1]))
     except (TypeError, ValueError, IndexError) as exc:
         raise ValueError(f"QoS {what} must be (sec, nsec), got {value!r}") from exc
-    if sec < 0 or (not 0 <= nsec <= 999_999_999 and (sec, nsec) != INFINITE_DURATION):
-        raise ValueError(f"QoS {what} (sec, nsec) out of range: {value!r}")
+    if sec < 0 or nsec < 0:
+        raise ValueError(f"QoS {what} (sec, nsec) must not be negative: {value!r}")
+    if nsec > 999_999_999 or sec >= 2**31 - 1:
+        # Older rosbag2 wrote "infinite" as (2147483647, 4294967295); Jazzy writes
+        # RMW_DURATION_INFINITE split as (9223372036, 854775807).  Both mean infinite.
+        return INFINITE_DURATION
     return sec, nsec
 
 
