@@ -12,6 +12,10 @@ Conventions (see DESIGN.md):
 * Composition is the Hamilton product: ``q_ac = q_ab ⊗ q_bc`` and ``C_ac = C_ab C_bc``
   (seed 1-24: ``A = C B`` applies B first, then C).
 * Everything is batched over leading axes and returns new arrays.
+* Seed chapter 1 proper — passive R1/R2/R3, the matrix A, classical Euler angles
+  (z-x-z), Krylov angles (x-y-z), the kinematic equations (1-10), (1-11), (1-15),
+  (1-16) and their inverses with gimbal-lock handling — is in the second half of this
+  module, whose header comment states the mapping to scipy's Euler sequences.
 
 Bad input (wrong trailing shape, non-finite values, zero-norm quaternions, matrices
 that are not rotations beyond a tolerance) raises ``ValueError`` naming the problem.
@@ -407,7 +411,10 @@ def quat_as_seed(q) -> np.ndarray:
 
 #: Default tolerance (rad) for gimbal lock: the angle conversions treat θ within this of
 #: 0 or π (z-x-z), or γ within this of ±π/2 (Krylov), as locked; the rate inversions
-#: raise :class:`GimbalLockError` when |sin θ| (or |cos γ|) is below it.
+#: raise :class:`GimbalLockError` when |sin θ| (or |cos γ|) is at or below it.
+#: Trade-off: a locked result reproduces the attitude only to ~2·tol rad; outside the
+#: lock the attitude is reproduced to rounding, but an input error ε (in q or A) can move
+#: ψ and φ individually by ~ε/sin θ (by ~ε/cos γ for δ, φ).  1e-9 keeps both small.
 GIMBAL_LOCK_TOL = 1e-9
 
 _TWO_PI = 2.0 * np.pi
@@ -591,7 +598,8 @@ def quat_as_euler_zxz(q, lock_tol: float = GIMBAL_LOCK_TOL) -> np.ndarray:
     rotation about z put into φ, and a ``UserWarning`` ("Gimbal lock detected ...") is
     issued once per call.  Such a result reproduces the attitude to within about
     2·``lock_tol`` rad; outside the lock the reconstruction is accurate to rounding
-    (ψ and φ individually are ill-conditioned, with errors ~1e-16/sin θ).
+    (near the lock ψ and φ individually are ill-conditioned: an error ε in ``q`` moves
+    them by up to ~ε/sin θ, their sum or difference stays accurate).
     """
     return _euler_zxz_from_unit_quat(quat_normalize(q), _check_lock_tol(lock_tol), 2)
 
