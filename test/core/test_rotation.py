@@ -320,6 +320,20 @@ def test_krylov_near_lock_outside_tolerance_is_exact_in_rotation(gamma):
     np.testing.assert_allclose(back, ang, atol=1e-9)
 
 
+def test_near_lock_only_the_defined_combination_is_well_conditioned():
+    """θ = 1e-6: a 1e-13 rad perturbation of the attitude may move ψ and φ each by up to
+    ~1e-13/θ, but ψ + φ (the rotation about the nearly common z axis) only by ~1e-13,
+    and the returned angles still reproduce the perturbed attitude to rounding."""
+    ang = np.array([0.7, 1e-6, -2.1])
+    q = rot.quat_from_euler_zxz(ang)
+    dq = rot.quat_from_rotvec([1e-13, -2e-13, 0.5e-13])
+    qp = rot.quat_multiply(q, dq)
+    got = rot.quat_as_euler_zxz(qp)
+    assert abs((got[0] + got[2]) - (ang[0] + ang[2])) < 5e-13
+    assert 1e-10 < abs(got[0] - ang[0]) < 1e-6  # ψ alone is ill-conditioned, as documented
+    assert scipy_angle(rot.quat_from_euler_zxz(got), qp) < 1e-15
+
+
 def test_small_gamma_keeps_relative_accuracy():
     # sin γ = 2(wy + xz) is read directly, so γ = 1e-12 keeps ~full relative precision.
     back = rot.quat_as_krylov(rot.quat_from_krylov([0.0, 1e-12, 0.0]))
