@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import signal
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -30,6 +31,7 @@ from sensor_msgs.msg import Imu, JointState  # noqa: E402
 
 from gyro_attitude.ros import convert  # noqa: E402
 
+REPO = Path(__file__).resolve().parents[2]
 SIM = "gyro_attitude.ros.gyro_sim_node"
 INTEGRATOR = "gyro_attitude.ros.attitude_integrator_node"
 RELIABLE = QoSProfile(depth=20000, reliability=ReliabilityPolicy.RELIABLE)
@@ -80,9 +82,12 @@ def test_sim_to_integrator_coning_against_truth(launch, ros_node):
         "joint": _collect(ros_node, JointState, "gyro/joint_states"),
         "diag": _collect(ros_node, DiagnosticArray, "/diagnostics", 100),
     }
-    integ = launch(INTEGRATOR, "-p", "initial_attitude_source:=truth",
+    config = REPO / "config"
+    integ = launch(INTEGRATOR, "--params-file", str(config / "attitude_integrator.yaml"),
+                   "-p", "initial_attitude_source:=truth",
                    "-p", "qos_reliability:=reliable", "-p", "diagnostics_period_s:=0.5")
-    sim = launch(SIM, "-p", "scene:=coning", "-p", f"rate_hz:={rate}",
+    sim = launch(SIM, "--params-file", str(config / "gyro_sim.yaml"),
+                 "-p", "scene:=coning", "-p", f"rate_hz:={rate}",
                  "-p", f"duration_s:={duration}", "-p", "wait_for_subscribers:=2",
                  "-p", "qos_reliability:=reliable")
     assert ros_node.spin_until(lambda: len(boxes["att"]) >= n_expected, timeout=40), (

@@ -1,0 +1,70 @@
+"""Node parameter files and parameter checking (no node processes)."""
+
+import math
+from pathlib import Path
+
+import pytest
+import yaml
+
+from gyro_attitude.ros import gyro_sim_node
+from gyro_attitude.ros.params import ParamSpec, check_value
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def _integrator_specs():
+    pytest.importorskip("gyro_attitude.core.integrate")
+    from gyro_attitude.ros import attitude_integrator_node
+
+    return attitude_integrator_node.parameter_specs()
+
+
+@pytest.mark.parametrize(
+    "node_name, specs_fn",
+    [("gyro_sim", gyro_sim_node.parameter_specs), ("attitude_integrator", _integrator_specs)],
+)
+def test_parameter_file_declares_every_parameter_with_valid_values(node_name, specs_fn):
+    data = yaml.safe_load((REPO / "config" / f"{node_name}.yaml").read_text())
+    params = data[node_name]["ros__parameters"]
+    specs = {s.name: s for s in specs_fn()}
+    assert set(params) == set(specs)
+    for name, value in params.items():
+        assert check_value(specs[name], value) is None, (name, value)
+        default = specs[name].default
+        if isinstance(default, tuple):
+            default = list(default)
+        assert value == default, f"{node_name}.yaml {name} differs from the node default"
+
+
+def test_check_value_names_the_parameter_and_the_problem():
+    rate = ParamSpec("rate_hz", 1.0, "rate", low=0.0, high=10.0)
+    assert check_value(rate, 5) is None  # an int for a float parameter is fine
+    assert "'rate_hz' must be <= 10.0" in check_value(rate, 11.0)
+    assert "'rate_hz' must be >= 0.0" in check_value(rate, -1.0)
+    assert "'rate_hz' must be finite" in check_value(rate, math.nan)
+    assert "'rate_hz' must be a number" in check_value(rate, "fast")
+    assert "'rate_hz' must be a number" in check_value(rate, True)
+    mode = ParamSpec("time_mode", "realtime", "mode", choices=("realtime", "fast"))
+    assert "'time_mode' must be one of" in check_value(mode, "slow")
+    depth = ParamSpec("qos_depth", 10, "depth", low=1, high=100)
+    assert "'qos_depth' must be an integer" in check_value(depth, 2.5)
+    q = ParamSpec("initial_attitude", (0.0, 0.0, 0.0, 1.0), "q", length=4)
+    assert check_value(q, [0, 0, 0, 1]) is None
+    assert "4 elements" in check_value(q, [0.0, 1.0])
+    assert "finite" in check_value(q, [0.0, 0.0, math.inf, 1.0])
+
+
+def test_local_enu_position_against_arc_lengths():
+    import numpy as np
+
+    from gyro_attitude.core.earth import radii_of_curvature
+
+    lat0 = math.radians(45.0)
+    llh0 = np.array([lat0, 0.1, 100.0])
+    r_m, r_n = radii_of_curvature(lat0)
+    # 1e-5 rad north, 2e-5 rad east, 3 m up: meridian and parallel arc lengths
+    llh = np.array([[lat0 + 1e-5, 0.1 + 2e-5, 103.0]])
+    enu = gyro_sim_node.local_enu_position(llh, llh0)
+    np.testing.assert_allclose(
+        enu[0], [2e-5 * (r_n + 100.0) * math.cos(lat0), 1e-5 * (r_m + 100.0), 3.0], rtol=1e-9
+    )
