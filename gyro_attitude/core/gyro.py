@@ -36,7 +36,8 @@ inner gimbal turns by β (``inner_gimbal``) about ``y_o = y_g``; the rotor spins
     spin axis in the case frame  s_c = [cos α cos β, sin α cos β, −sin β].
 
 With α = β = 0 the spin axis lies along the case x axis and the outer axis along case z
-(a directional gyro: α measures azimuth, β tilt).  β = ±90° is gimbal lock and raises.
+(a directional gyro: α measures azimuth, β tilt).  |β| < 90° reaches every spin
+direction; β = ±90° is gimbal lock and raises ``ValueError``.
 The rotor is symmetric and no torque acts about its spin axis, so its axial angular
 momentum ``H = J_s (ω_gx + φ̇)`` is constant (``H = spin_inertia · spin_rate``).
 
@@ -458,7 +459,7 @@ class FreeGyroParams:
         if not all(isinstance(i, ImpactTorque) for i in imp):
             raise ValueError("impacts must be ImpactTorque instances")
         object.__setattr__(self, "impacts", imp)
-        if abs(math.cos(self.initial_angles[1])) < 1e-6:
+        if abs(self.initial_angles[1]) > 0.5 * math.pi - 1e-6:
             raise ValueError("initial inner gimbal angle is at ±90° (gimbal lock)")
 
     @property
@@ -530,6 +531,7 @@ class FreeGyroSimulator:
         self._az = self._jt + self._ig[2]
         self._fric = any(v != 0.0 for v in p.viscous_friction + p.coulomb_friction)
         self._breaks = sorted({b for imp in p.impacts for b in (imp.t_start, imp.t_start + imp.duration)})
+        self._pulse_clock: float | None = None
         self.steps = 0  # sub-steps taken so far (cost figure for benchmarks)
         self.rhs_evaluations = 0
         al, be = p.initial_angles
@@ -562,7 +564,13 @@ class FreeGyroSimulator:
         return (self._base_rates(t + d) - self._base_rates(t - d)) / (2 * d)
 
     def _torques(self, t: float) -> tuple[float, float]:
-        """External (non-friction) torques about the outer and inner axes at time t."""
+        """External (non-friction) torques about the outer and inner axes at time t.
+
+        Impact pulses are switched by ``self._pulse_clock`` when a step is under way (the
+        midpoint of the current sub-step; pulse edges lie on the step grid), so that a
+        stage evaluated exactly on an edge counts for the step it belongs to.
+        """
+        tp = t if self._pulse_clock is None else self._pulse_clock
         p = self.params
         ma, mb = p.constant_torque
         for h in p.harmonic_torques:
@@ -570,7 +578,7 @@ class FreeGyroSimulator:
             ma += h.amplitude[0] * s
             mb += h.amplitude[1] * s
         for imp in p.impacts:
-            if imp.t_start <= t < imp.t_start + imp.duration:
+            if imp.t_start <= tp < imp.t_start + imp.duration:
                 ma += imp.impulse[0] / imp.duration
                 mb += imp.impulse[1] / imp.duration
         return ma, mb
@@ -669,6 +677,7 @@ class FreeGyroSimulator:
     def _step_midpoint(self, t, hstep, y0, wc, wcd):
         """One implicit-midpoint step, y1 = y0 + h f(t + h/2, (y0 + y1)/2), by Newton."""
         tm = t + 0.5 * hstep
+        self._pulse_clock = tm
         f0 = np.array(self._full_rhs(tm, y0, wc, wcd))
         # finite-difference Jacobian at y0 (reused for all Newton iterations of the step)
         jac = np.empty((4, 4))
@@ -689,15 +698,18 @@ class FreeGyroSimulator:
         else:
             raise ValueError(f"implicit midpoint did not converge at t = {t:.6g} s; "
                              "reduce max_step")
+        self._pulse_clock = None
         return y1
 
     def _step_rk4(self, t, hstep, y0, w3, wd3):
         """Classical RK4; w3/wd3 hold base rates/accelerations at t, t+h/2, t+h."""
         f = self._full_rhs if self.params.model == "full" else self._prec_rhs
+        self._pulse_clock = t + 0.5 * hstep
         k1 = np.array(f(t, y0, w3[0], wd3[0]))
         k2 = np.array(f(t + 0.5 * hstep, y0 + 0.5 * hstep * k1, w3[1], wd3[1]))
         k3 = np.array(f(t + 0.5 * hstep, y0 + 0.5 * hstep * k2, w3[1], wd3[1]))
         k4 = np.array(f(t + hstep, y0 + hstep * k3, w3[2], wd3[2]))
+        self._pulse_clock = None
         return y0 + (hstep / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4)
 
     def _prec_rhs(self, t, y, wc, _wcd):
@@ -760,7 +772,9 @@ class FreeGyroSimulator:
     def _check_lock(self, y, t) -> None:
         if not (math.isfinite(y[0]) and math.isfinite(y[1])):
             raise ValueError(f"free-gyro state became non-finite at t = {float(t):.6g} s")
-        if abs(math.cos(y[1])) < 1e-6:
+        # |β| < 90° covers every spin direction; reaching (or stepping across) ±90° means
+        # the spin axis met the outer axis: gimbal lock, where the equations are singular
+        if abs(y[1]) > 0.5 * math.pi - 1e-6:
             raise ValueError(f"inner gimbal reached ±90° at t = {float(t):.6g} s (gimbal lock)")
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,279 @@
+"""Two-gimbal free gyro (seed §2-1…§2-4, §4-6, §5-1…§5-3) against closed forms: rigid
+kinematics of an inertially fixed spin axis (scipy Rotation), Earth and transport rates
+(earth.py), precession M/H, and the linearized nutation solution."""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from gyro_attitude.core.earth import OMEGA_IE, earth_rate_enu, nav_rate_enu, radii_of_curvature
+from gyro_attitude.core.gyro import (
+    FreeGyroParams,
+    FreeGyroSimulator,
+    HarmonicTorque,
+    ImpactTorque,
+    free_gyro_angles_from_spin_axis,
+)
+
+RPM_24000 = 24000 * 2 * np.pi / 60
+ROTOR = dict(spin_inertia=1e-4, transverse_inertia=5e-5, spin_rate=RPM_24000)
+LIGHT_GIMBALS = dict(inner_gimbal_inertia=(1e-5, 1.2e-5, 1e-5),
+                     outer_gimbal_inertia=(2e-5, 2e-5, 3e-5))
+
+
+def _const(w):
+    w = np.asarray(w, dtype=float)
+    return lambda t: np.tile(w, (len(t), 1))
+
+
+def _angles_of_fixed_spin_axis(s_c0, rotvec_c):
+    """Case rotating at constant ω_c (case axes): s_c(t) = exp(−[ω_c×] t) s_c(0)."""
+    s = Rotation.from_rotvec(-rotvec_c).apply(s_c0)
+    return free_gyro_angles_from_spin_axis(s)
+
+
+def _angle_diff(a, b):
+    return np.angle(np.exp(1j * (a - b)))
+
+
+@pytest.mark.parametrize("model", ["precession", "full"])
+def test_stationary_base_apparent_drift_is_earth_rate_sin_latitude(model):
+    lat = np.radians(52.0)
+    w_c = earth_rate_enu(lat)  # case axes = ENU (level, x east)
+    extra = LIGHT_GIMBALS if model == "full" else {}
+    params = FreeGyroParams(**ROTOR, **extra, model=model, initial_angles=(np.radians(30), 0.0),
+                            max_step=0.05 if model == "precession" else 0.02)
+    sim = FreeGyroSimulator(params, _const(w_c))
+    t = np.linspace(0, 600.0 if model == "full" else 7200.0, 13)
+    angles, rates = sim.run_until(t)
+    s0 = [np.cos(np.radians(30)), np.sin(np.radians(30)), 0.0]
+    expected = _angles_of_fixed_spin_axis(s0, np.outer(t, w_c))
+    err = np.max(np.abs(_angle_diff(angles, expected)))
+    # full model: forced nutation from the base rate is ~ω_ie J_t / H ≈ 1e-8 rad at most
+    assert err < (1e-12 if model == "precession" else 5e-9)
+    # the apparent drift about the vertical at the start is exactly −ω_ie sin L
+    assert rates[0, 0] == pytest.approx(-OMEGA_IE * np.sin(lat), rel=1e-12 if model == "precession"
+                                        else 1e-6)
+
+
+def test_moving_east_adds_transport_rate():
+    lat, h, v_e = np.radians(35.0), 3000.0, 250.0
+    w_c = nav_rate_enu(lat, h, [v_e, 0.0, 0.0])
+    _, r_n = radii_of_curvature(lat)
+    sim = FreeGyroSimulator(FreeGyroParams(**ROTOR, max_step=0.1), _const(w_c))
+    t = np.linspace(0, 3600.0, 7)
+    angles, rates = sim.run_until(t)
+    expected_drift = -(OMEGA_IE * np.sin(lat) + v_e * np.tan(lat) / (r_n + h))
+    assert rates[0, 0] == pytest.approx(expected_drift, rel=1e-12)
+    expected = _angles_of_fixed_spin_axis([1.0, 0, 0], np.outer(t, w_c))
+    assert np.max(np.abs(_angle_diff(angles, expected))) < 1e-12
+
+
+def _ship_base(lat, yaw_rate, roll_amp, roll_hz):
+    """Ship yawing at a constant rate and rolling sinusoidally; returns ω_ib^b(t) and the
+    exact spin direction in body axes for a spin axis fixed in inertial space."""
+    w_in = earth_rate_enu(lat)
+    wr = 2 * np.pi * roll_hz
+
+    def c_bn(t):
+        yaw = Rotation.from_rotvec(np.outer(yaw_rate * t, [0, 0, 1]))
+        roll = Rotation.from_rotvec(np.outer(roll_amp * np.sin(wr * t), [1, 0, 0]))
+        return (yaw * roll).inv()
+
+    def omega(t):
+        t = np.asarray(t, dtype=float)
+        roll = Rotation.from_rotvec(np.outer(roll_amp * np.sin(wr * t), [1, 0, 0]))
+        # ω_nb^b = Rx(roll)ᵀ (yaw_rate e_z) + roll_rate e_x ; ω_in^b = C_bn ω_in^n
+        w_nb = roll.inv().apply(np.tile([0, 0, yaw_rate], (len(t), 1)))
+        w_nb[:, 0] += roll_amp * wr * np.cos(wr * t)
+        return c_bn(t).apply(np.tile(w_in, (len(t), 1))) + w_nb
+
+    def spin_b(t, s_n0):
+        s_n = Rotation.from_rotvec(-np.outer(t, w_in)).apply(s_n0)  # n turns at ω_in
+        return c_bn(t).apply(s_n)
+
+    return omega, spin_b
+
+
+@pytest.mark.parametrize("model", ["precession", "full"])
+def test_gimbal_angles_follow_inertially_fixed_spin_axis_on_rolling_yawing_ship(model):
+    lat = np.radians(40.0)
+    omega, spin_b = _ship_base(lat, yaw_rate=0.05, roll_amp=np.radians(10), roll_hz=0.1)
+    extra = LIGHT_GIMBALS if model == "full" else {}
+    params = FreeGyroParams(**ROTOR, **extra, model=model, max_step=0.01)
+    sim = FreeGyroSimulator(params, omega)
+    t = np.linspace(0, 30.0, 31)
+    angles, _ = sim.run_until(t)
+    expected = free_gyro_angles_from_spin_axis(spin_b(t, [1.0, 0, 0]))
+    err = np.max(np.abs(_angle_diff(angles, expected)))
+    # full model: gimbal inertia lags the spin axis by ~ (base angular accel) J/H ~ 1e-6 rad
+    assert err < (1e-9 if model == "precession" else 2e-5)
+    assert np.ptp(angles[:, 0]) > 1.0  # the outer gimbal really turned (yaw 1.5 rad)
+
+
+def test_harmonic_torque_on_inner_axis_precesses_outer_gimbal():
+    amp, f, phase = 2e-3, 2.0, 0.4
+    nu = 2 * np.pi * f
+    params = FreeGyroParams(**ROTOR, harmonic_torques=(HarmonicTorque((0.0, amp), f, phase),),
+                            max_step=2e-3)
+    sim = FreeGyroSimulator(params, _const([0, 0, 0]))
+    t = np.linspace(0, 3.0, 301)
+    angles, rates = sim.run_until(t)
+    hmom = params.spin_momentum
+    # α̇ = M_β / H  ⇒  α(t) = A/(Hν) (cos φ − cos(νt + φ)); β stays 0 (no outer torque)
+    expected = amp / (hmom * nu) * (np.cos(phase) - np.cos(nu * t + phase))
+    assert np.max(np.abs(angles[:, 0] - expected)) < 1e-9 * (amp / (hmom * nu)) * 1e3
+    assert np.max(np.abs(angles[:, 1])) == 0.0
+    assert np.max(np.abs(rates[:, 0] - amp * np.sin(nu * t + phase) / hmom)) < 1e-15
+
+
+def test_impact_on_inner_axis_jumps_outer_gimbal_by_s_over_h():
+    s_imp = 5e-4
+    imp = ImpactTorque(t_start=0.1, duration=1e-3, impulse=(0.0, s_imp))
+    hmom = ROTOR["spin_inertia"] * ROTOR["spin_rate"]
+    prec = FreeGyroSimulator(FreeGyroParams(**ROTOR, impacts=(imp,)), _const([0, 0, 0]))
+    a_p, _ = prec.run_until(np.array([0.05, 0.5]))
+    assert a_p[0, 0] == 0.0
+    assert a_p[1, 0] == pytest.approx(s_imp / hmom, rel=1e-12)
+    # full model: same mean jump plus a nutation of amplitude S/(A_y ω_nut) in β
+    params = FreeGyroParams(**ROTOR, **LIGHT_GIMBALS, model="full", impacts=(imp,),
+                            integrator="rk4", steps_per_nutation=40)
+    full = FreeGyroSimulator(params, _const([0, 0, 0]))
+    w_nut = params.nutation_frequency_rad_s()
+    # 20 whole nutation periods (RK4 itself damps |R(iωh)| = 1 − (ωh)⁶/144 per step: keep
+    # ωh small and the run short so that the numerical decay stays < 1e-6)
+    t = np.linspace(0.2, 0.2 + 20 * 2 * np.pi / w_nut, 801)
+    a_f, _ = full.run_until(t)
+    assert np.mean(a_f[:, 0]) == pytest.approx(s_imp / hmom, rel=1e-3)
+    a_y = ROTOR["transverse_inertia"] + LIGHT_GIMBALS["inner_gimbal_inertia"][1]
+    beta_amp = 0.5 * np.ptp(a_f[:, 1])
+    # a 1 ms pulse is not a Dirac impulse at ω_nut ≈ 3.6 krad/s: the finite-duration pulse
+    # excites the nutation with the factor |sinc(ω τ / 2)|
+    tau = imp.duration
+    sinc = abs(np.sin(w_nut * tau / 2) / (w_nut * tau / 2))
+    assert beta_amp == pytest.approx(s_imp / (a_y * w_nut) * sinc, rel=0.01)
+
+
+def test_friction_on_outer_axis_tilts_inner_gimbal_at_m_over_h():
+    """§5-2: the base turning about the outer axis drags the outer bearing; its friction
+    torque M precesses the inner gimbal: sin β(t) = −M t / H."""
+    big_omega = 0.2  # rad/s, case turning about its z (= outer) axis
+    cv, mc = 2e-5, 3e-5
+    params = FreeGyroParams(**ROTOR, viscous_friction=(cv, 0.0), coulomb_friction=(mc, 0.0),
+                            max_step=0.05)
+    sim = FreeGyroSimulator(params, _const([0, 0, big_omega]))
+    t = np.linspace(0, 20.0, 21)
+    angles, rates = sim.run_until(t)
+    hmom = params.spin_momentum
+    m_total = mc + cv * big_omega  # relative outer rate is −Ω, friction opposes it
+    assert np.max(np.abs(np.sin(angles[:, 1]) + m_total * t / hmom)) < 1e-12
+    assert np.max(np.abs(rates[:, 0] + big_omega)) < 1e-12
+    assert abs(angles[-1, 1]) > 2e-3  # a visible drift
+
+
+def test_inner_coulomb_friction_root_is_unique_and_opposes_motion():
+    # both axes with friction: the algebraic rate equation is solved by safeguarded Newton;
+    # check the returned rates satisfy the precession equations they were solved from
+    params = FreeGyroParams(**ROTOR, coulomb_friction=(2e-4, 1e-4), viscous_friction=(1e-5, 3e-5),
+                            initial_angles=(0.3, 0.4), coulomb_smoothing_rate=1e-8)
+    w = np.array([0.05, -0.1, 0.3])
+    sim = FreeGyroSimulator(params, _const(w))
+    (al, be), (ad, bd) = sim.state()
+    hmom = params.spin_momentum
+    m_a = -1e-5 * ad - 2e-4 * np.tanh(ad / 1e-8)
+    m_b = -3e-5 * bd - 1e-4 * np.tanh(bd / 1e-8)
+    c_gc = (Rotation.from_rotvec([0, 0, al]) * Rotation.from_rotvec([0, be, 0])).inv()
+    wg = c_gc.apply(w)
+    assert hmom * (wg[2] + ad * np.cos(be)) == pytest.approx(m_b, abs=1e-15)
+    assert -hmom * np.cos(be) * (wg[1] + bd) == pytest.approx(m_a, abs=1e-15)
+
+
+@pytest.mark.parametrize("integrator", ["rk4", "midpoint"])
+def test_constant_torque_nutation_matches_linear_closed_form(integrator):
+    """§4-3 with gimbals: from rest, torque M on the inner axis gives
+    β = (M J/H²)(1 − cos ω t), α = (M/H)(t − sin(ω t)/ω), ω = H/J (massless gimbals)."""
+    m = 1e-4
+    spans = []
+    for spin in (RPM_24000 / 4, RPM_24000):
+        rotor = dict(ROTOR, spin_rate=spin)
+        params = FreeGyroParams(**rotor, model="full", initial_rates=(0.0, 0.0),
+                                constant_torque=(0.0, m), integrator=integrator,
+                                max_step=1e-5, steps_per_nutation=40)
+        hmom, jt = params.spin_momentum, ROTOR["transverse_inertia"]
+        w = params.nutation_frequency_rad_s()
+        assert w == pytest.approx(hmom / jt, rel=1e-15)
+        sim = FreeGyroSimulator(params, _const([0, 0, 0]))
+        t = np.linspace(0, 6 * 2 * np.pi / w, 241)
+        angles, _ = sim.run_until(t)
+        beta = m * jt / hmom**2 * (1 - np.cos(w * t))
+        alpha = m / hmom * (t - np.sin(w * t) / w)
+        amp = m * jt / hmom**2
+        assert np.max(np.abs(angles[:, 1] - beta)) < 0.01 * amp
+        assert np.max(np.abs(angles[:, 0] - alpha)) < 0.01 * amp
+        spans.append(np.ptp(angles[:, 1]))
+    # nutation amplitude M J_t / H²: four times the spin, one sixteenth of the amplitude
+    assert spans[0] / spans[1] == pytest.approx(16.0, rel=0.01)
+
+
+def test_fast_rotor_unresolved_steps_stay_stable_and_conserve_energy():
+    """24 000 rpm on light gimbals, inertial base, nutation excited by an initial gimbal rate;
+    the implicit midpoint steps over ~6 nutation periods at a time. Energy (a conserved
+    quantity of the torque-free system) stays bounded to round-off-free precision."""
+    params = FreeGyroParams(**ROTOR, **LIGHT_GIMBALS, model="full", initial_rates=(0.3, -0.2),
+                            initial_angles=(0.2, 0.5), max_step=1e-2)
+    period = 2 * np.pi / params.nutation_frequency_rad_s(0.5)
+    assert params.max_step > 5 * period
+    sim = FreeGyroSimulator(params, _const([0, 0, 0]))
+    e_rotor = 0.5 * params.spin_momentum**2 / params.spin_inertia
+    e0 = sim.kinetic_energy() - e_rotor
+    energies, betas = [], []
+    for t_end in np.linspace(1.0, 20.0, 20):
+        a, _ = sim.run_until([t_end])
+        energies.append(sim.kinetic_energy() - e_rotor)
+        betas.append(a[0, 1])
+    energies = np.array(energies)
+    assert np.max(np.abs(energies - e0)) < 0.05 * e0
+    assert np.max(np.abs(np.array(betas) - 0.5)) < 0.01
+    assert sim.steps == 2000
+
+
+def test_full_model_converges_to_precession_model_as_spin_grows():
+    """Start the gimbals at rest relative to a yawing, rolling case: the full model nutates
+    about the precession solution with an amplitude ∝ 1/H."""
+    lat = np.radians(30.0)
+    omega, _ = _ship_base(lat, yaw_rate=0.1, roll_amp=np.radians(5), roll_hz=0.2)
+    t = np.linspace(0, 5.0, 51)
+    errors = []
+    for spin in (RPM_24000 / 4, RPM_24000, 4 * RPM_24000):
+        rotor = dict(ROTOR, spin_rate=spin)
+        prec = FreeGyroSimulator(FreeGyroParams(**rotor, max_step=5e-3), omega)
+        full = FreeGyroSimulator(FreeGyroParams(**rotor, **LIGHT_GIMBALS, model="full",
+                                                initial_rates=(0.0, 0.0), max_step=5e-3), omega)
+        a_p, _ = prec.run_until(t)
+        a_f, _ = full.run_until(t)
+        errors.append(np.max(np.abs(_angle_diff(a_f, a_p))))
+    assert errors[0] > errors[1] > errors[2]
+    assert errors[0] / errors[1] > 3.0 and errors[1] / errors[2] > 3.0
+    assert errors[2] < 1e-4
+
+
+def test_bad_parameters_and_inputs_raise():
+    with pytest.raises(ValueError, match="spin_rate"):
+        FreeGyroParams(1e-4, 5e-5, 0.0)
+    with pytest.raises(ValueError, match="model"):
+        FreeGyroParams(**ROTOR, model="exact")
+    with pytest.raises(ValueError, match="viscous_friction"):
+        FreeGyroParams(**ROTOR, viscous_friction=(-1.0, 0.0))
+    with pytest.raises(ValueError, match="gimbal lock"):
+        FreeGyroParams(**ROTOR, initial_angles=(0.0, np.pi / 2))
+    sim = FreeGyroSimulator(FreeGyroParams(**ROTOR), _const([0, 0, 0]))
+    sim.run_until([1.0])
+    with pytest.raises(ValueError, match="non-decreasing"):
+        sim.run_until([0.5])
+    with pytest.raises(ValueError, match="omega_base_fn"):
+        FreeGyroSimulator(FreeGyroParams(**ROTOR), lambda t: np.zeros((len(t), 2)))
+    # a constant outer torque drives the inner gimbal into gimbal lock: clear error
+    lock = FreeGyroSimulator(FreeGyroParams(**ROTOR, constant_torque=(0.05, 0.0)),
+                             _const([0, 0, 0]))
+    with pytest.raises(ValueError, match="gimbal lock"):
+        lock.run_until([10.0])
