@@ -575,6 +575,7 @@ class SceneSimulator:
                               else None)
         self._rate_gyro = None
         self._free_gyro = None
+        self._constant_case_rate = None
         if spec.gyro_model == "rate_gyro":
             from gyro_attitude.core.gyro import RateGyroTriad
 
@@ -631,6 +632,12 @@ class SceneSimulator:
         """Inertial angular velocity of the instrument case in the case (body) frame,
         ``ω_ib^b(t)`` at any times ``t`` (s since the start): the free gyro's base motion."""
         t = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        if isinstance(self.spec.motion, Stationary):
+            # At rest ω_ib^b = C_bn ω_ie^n is constant; the free gyro asks for it at every
+            # integration sub-step, one time at a time, so compute it once.
+            if self._constant_case_rate is None:
+                self._constant_case_rate = self._truth(np.zeros(1), need_accel=False)[4][0]
+            return np.broadcast_to(self._constant_case_rate, (t.shape[0], 3)).copy()
         return self._truth(t, need_accel=False)[4]
 
     def _specific_force(self, sample, llh, w_ie, w_en) -> np.ndarray:

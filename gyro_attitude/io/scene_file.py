@@ -37,8 +37,8 @@ def scene_directories() -> list[Path]:
 
         try:
             candidates.append(Path(get_package_share_directory(PACKAGE)) / "config" / "scenes")
-        except (PackageNotFoundError, LookupError, ValueError):
-            pass
+        except (PackageNotFoundError, LookupError, ValueError, OSError):
+            pass  # not indexed, or AMENT_PREFIX_PATH unset (OSError): use the fallbacks
     except ImportError:
         pass
     candidates.append(Path(sys.prefix) / "share" / PACKAGE / "config" / "scenes")

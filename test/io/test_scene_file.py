@@ -92,6 +92,12 @@ def test_installed_share_directory_is_searched(tmp_path, monkeypatch):
     assert "only_installed" in dict(list_scenes())
 
 
+def test_lookup_works_without_an_ament_environment(monkeypatch):
+    monkeypatch.delenv("AMENT_PREFIX_PATH", raising=False)
+    assert scene_file.find_scene_file("ship").name == "ship.yaml"
+    assert "coning" in dict(list_scenes())
+
+
 def test_scenes_command_lists_and_prints(capsys):
     assert cli_main(["scenes", "--check"]) == 0
     out = capsys.readouterr().out
