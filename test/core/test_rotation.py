@@ -448,7 +448,9 @@ def test_batched_shapes_broadcast():
 unit_quats = st.lists(
     st.floats(-1.0, 1.0, allow_nan=False, allow_infinity=False), min_size=4, max_size=4
 ).filter(lambda v: np.linalg.norm(v) > 1e-3)
-prop = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+prop = settings(
+    max_examples=60, deadline=None, database=None, suppress_health_check=[HealthCheck.too_slow]
+)
 
 
 @prop
