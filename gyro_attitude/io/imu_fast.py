@@ -14,7 +14,6 @@ the same way.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -231,8 +230,13 @@ def _decode_chunk_channel(col: _Collector, records: bytes, offsets: np.ndarray,
             msgs = []
             for off in offsets[start:stop]:
                 off = int(off)
-                _, length = RECORD_HEADER.unpack_from(records, off)
+                if off + RECORD_HEADER.size + 22 > len(records):
+                    raise ValueError(f"{col.topic}: message index points past the chunk end")
+                op, length = RECORD_HEADER.unpack_from(records, off)
                 body = off + RECORD_HEADER.size
+                if op != 0x05 or length < 22 or body + length > len(records):
+                    raise ValueError(f"{col.topic}: message index points at a record that "
+                                     f"is not a message of this chunk (offset {off})")
                 log = int.from_bytes(records[body + 6:body + 14], "little")
                 pub = int.from_bytes(records[body + 14:body + 22], "little")
                 msgs.append((log, pub, records[body + 22:body + length]))
@@ -255,7 +259,7 @@ def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
         if ty not in _FIELDS:
             raise ValueError(f"no array reader for {ty!r} (topic {t}); have {sorted(_FIELDS)}")
     reader = McapStreamReader(path, validate_crc=validate_crc, on_damage=on_damage)
-    total = os.path.getsize(reader.path)
+    total = reader.size
     collectors = {t: _Collector(t, ty) for t, ty in topics.items()}
     by_channel: dict[int, _Collector | None] = {}
 

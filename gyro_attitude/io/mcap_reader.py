@@ -17,6 +17,7 @@ decompression is capped at the chunk's declared size (itself capped by
 
 from __future__ import annotations
 
+import io
 import os
 import struct
 import zlib
@@ -137,7 +138,7 @@ class McapStreamReader:
 
     Parameters
     ----------
-    path: ``.mcap`` file or bag directory.
+    path: ``.mcap`` file, bag directory, or the file's bytes (tests, in-memory data).
     validate_crc: check chunk CRCs (a mismatch is damage).
     on_damage: ``"raise"`` or ``"warn"`` (see module docstring).
     max_chunk_bytes: refuse chunks that declare more uncompressed bytes than this.
@@ -147,7 +148,12 @@ class McapStreamReader:
                  max_chunk_bytes: int = 1 << 30):
         if on_damage not in ("raise", "warn"):
             raise ValueError(f"on_damage must be 'raise' or 'warn', got {on_damage!r}")
-        self.path = resolve_mcap_path(path)
+        if isinstance(path, bytes | bytearray | memoryview):
+            self._buffer: bytes | None = bytes(path)
+            self.path = Path("<memory>")
+        else:
+            self._buffer = None
+            self.path = resolve_mcap_path(path)
         self.validate_crc = validate_crc
         self.on_damage = on_damage
         self.max_chunk_bytes = int(max_chunk_bytes)
@@ -157,6 +163,10 @@ class McapStreamReader:
         self.damage: str | None = None
         self.complete = False  # Data End seen
         self._state = _State()
+
+    @property
+    def size(self) -> int:
+        return len(self._buffer) if self._buffer is not None else os.path.getsize(self.path)
 
     @property
     def channels(self) -> dict[int, ChannelInfo]:
@@ -175,8 +185,8 @@ class McapStreamReader:
 
     def iter_chunks(self) -> Iterator[RawChunk]:
         """Yield the chunks (and loose messages) of the data section in file order."""
-        size = os.path.getsize(self.path)
-        with open(self.path, "rb") as f:
+        size = self.size
+        with (open(self.path, "rb") if self._buffer is None else io.BytesIO(self._buffer)) as f:
             if size == 0:
                 self._damaged("empty file (no MCAP magic)", 0)
                 return
