@@ -702,7 +702,8 @@ class FreeGyroSimulator:
         return y1
 
     def _step_rk4(self, t, hstep, y0, w3, wd3):
-        """Classical RK4; w3/wd3 hold base rates/accelerations at t, t+h/2, t+h."""
+        """Classical RK4; w3/wd3 hold base rates/accelerations at t, t+h/2, t+h
+        (wd3 entries are None for the precession model, which does not use them)."""
         f = self._full_rhs if self.params.model == "full" else self._prec_rhs
         self._pulse_clock = t + 0.5 * hstep
         k1 = np.array(f(t, y0, w3[0], wd3[0]))
@@ -728,46 +729,64 @@ class FreeGyroSimulator:
             hmax = min(hmax, 2 * math.pi / (p.nutation_frequency_rad_s(beta) * p.steps_per_nutation))
         return hmax
 
-    def _advance(self, t_end: float) -> None:
-        """Integrate from self.t to t_end with sub-steps ≤ step_size(), stopping at breaks."""
-        if t_end <= self.t:
-            return
-        marks = [self.t] + [b for b in self._breaks if self.t < b < t_end] + [t_end]
+    def _advance(self, t_marks: np.ndarray) -> np.ndarray:
+        """Integrate from self.t through the increasing times ``t_marks`` (all > self.t);
+        return the state at each mark.
+
+        One step grid covers all marks and impact-pulse edges (each interval between them
+        split into equal sub-steps ≤ step_size()); the base rates for every stage of a
+        chunk of the grid come from one vectorized ``omega_base_fn`` call.
+        """
+        out = np.empty((t_marks.shape[0], self._y.shape[0]))
+        if t_marks.size == 0:
+            return out
+        t_end = float(t_marks[-1])
+        brk = np.array([b for b in self._breaks if self.t < b < t_end])
+        edges = np.unique(np.concatenate(([self.t], t_marks, brk)))
+        a, b = edges[:-1], edges[1:]
+        hmax = self.step_size()
+        n = np.maximum(1, np.ceil((b - a) / hmax - 1e-9).astype(np.int64))
+        ends = np.cumsum(n)  # grid index (1-based step count) at which each edge is reached
+        total = int(ends[-1])
+        mark_step = ends[np.searchsorted(b, t_marks)] - 1  # step after which each mark is hit
         model, integ = self.params.model, self.params.integrator
-        for a, b in zip(marks[:-1], marks[1:], strict=True):
-            hmax = self.step_size()
-            n = max(1, math.ceil((b - a) / hmax - 1e-9))
-            # chunk the grid so memory stays bounded on long runs
-            for c0 in range(0, n, 20000):
-                c1 = min(n, c0 + 20000)
-                k = np.arange(c0, c1 + 1, dtype=np.float64)
-                grid = a + (b - a) * k / n
-                grid[-1] = b if c1 == n else grid[-1]
-                hs = np.diff(grid)
-                tm = grid[:-1] + 0.5 * hs
-                if model == "full" and integ == "midpoint":
-                    wc = self._base_rates(tm)
-                    wcd = self._base_accel(tm)
-                    y = self._y
-                    for i in range(hs.shape[0]):
-                        y = self._step_midpoint(float(grid[i]), float(hs[i]), y,
-                                                tuple(wc[i].tolist()), tuple(wcd[i].tolist()))
-                        self._check_lock(y, grid[i + 1])
-                    self._y = y
-                else:
-                    tt = np.stack((grid[:-1], tm, grid[1:]), axis=1).reshape(-1)
-                    w = self._base_rates(tt).reshape(-1, 3, 3)
-                    wd = (self._base_accel(tt).reshape(-1, 3, 3) if model == "full"
-                          else np.zeros_like(w))
-                    y = self._y
-                    for i in range(hs.shape[0]):
-                        y = self._step_rk4(float(grid[i]), float(hs[i]), y,
-                                           [tuple(r) for r in w[i].tolist()],
-                                           [tuple(r) for r in wd[i].tolist()])
-                        self._check_lock(y, grid[i + 1])
-                    self._y = y
-                self.steps += hs.shape[0]
-        self.t = float(t_end)
+        y = self._y
+        # chunk the grid so memory stays bounded on long runs
+        for c0 in range(0, total, 20000):
+            c1 = min(total, c0 + 20000)
+            k = np.arange(c0, c1)
+            iv = np.searchsorted(ends, k, side="right")  # interval of each step
+            j = k - (ends[iv] - n[iv])
+            left = a[iv] + (b[iv] - a[iv]) * j / n[iv]
+            right = np.where(j + 1 == n[iv], b[iv], a[iv] + (b[iv] - a[iv]) * (j + 1) / n[iv])
+            hs = right - left
+            tm = left + 0.5 * hs
+            rec_all: dict[int, list[int]] = {}
+            for i, s in enumerate(mark_step):
+                if c0 <= s < c1:
+                    rec_all.setdefault(int(s) - c0, []).append(i)
+            if model == "full" and integ == "midpoint":
+                wc = self._base_rates(tm).tolist()
+                wcd = self._base_accel(tm).tolist()
+                for i in range(hs.shape[0]):
+                    y = self._step_midpoint(float(left[i]), float(hs[i]), y, wc[i], wcd[i])
+                    self._check_lock(y, right[i])
+                    for m_i in rec_all.get(i, ()):
+                        out[m_i] = y
+            else:
+                tt = np.stack((left, tm, right), axis=1).reshape(-1)
+                w = self._base_rates(tt).reshape(-1, 3, 3).tolist()
+                wd = (self._base_accel(tt).reshape(-1, 3, 3).tolist() if model == "full"
+                      else [[None, None, None]] * hs.shape[0])
+                for i in range(hs.shape[0]):
+                    y = self._step_rk4(float(left[i]), float(hs[i]), y, w[i], wd[i])
+                    self._check_lock(y, right[i])
+                    for m_i in rec_all.get(i, ()):
+                        out[m_i] = y
+            self._y = y
+            self.steps += hs.shape[0]
+        self.t = t_end
+        return out
 
     def _check_lock(self, y, t) -> None:
         if not (math.isfinite(y[0]) and math.isfinite(y[1])):
@@ -798,12 +817,21 @@ class FreeGyroSimulator:
             raise ValueError(f"t_out must be non-decreasing and start at or after the "
                              f"current time {self.t!r}")
         m = t_out.shape[0]
-        angles = np.empty((m, 2))
-        rates = np.empty((m, 2))
-        for i in range(m):
-            self._advance(float(t_out[i]))
-            a, r = self.state()
-            angles[i], rates[i] = a, r
+        dim = self._y.shape[0]
+        states = np.empty((m, dim))
+        now = t_out <= self.t  # requested at the current time (within 1e-12 s)
+        states[now] = self._y
+        later = t_out[~now]
+        if later.size:
+            uniq, inverse = np.unique(later, return_inverse=True)
+            states[~now] = self._advance(uniq)[inverse]
+        angles = states[:, :2].copy()
+        if self.params.model == "full":
+            rates = states[:, 2:].copy()
+        else:
+            w = self._base_rates(t_out).tolist()
+            rates = np.array([self._precession_rates(float(t_out[i]), *states[i], *w[i])
+                              for i in range(m)]).reshape(m, 2)
         return angles, rates
 
     def kinetic_energy(self) -> float:
