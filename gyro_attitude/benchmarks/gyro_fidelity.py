@@ -13,7 +13,8 @@ Levels:
   period (stable, cost independent of the rotor speed; the unresolved nutation is
   carried with the right amplitude but an aliased phase);
 * ``full/rk4``: gimbal inertia, explicit RK4 resolving the nutation (20 steps per period;
-  cost grows with H).
+  cost grows with H); and the same with a step longer than a nutation period, which
+  diverges (reported as such) — the reason the default full-model integrator is implicit.
 
 Also the single-gimbal rate-gyro triad: cost per sample and step-response error against
 the closed form.  Figures depend on the machine and its load: compare ratios within one run.
@@ -65,10 +66,18 @@ def ship_base(lat_rad: float = math.radians(45.0), yaw_rate: float = 0.05,
 
 
 def _run(params: FreeGyroParams, omega, t: np.ndarray) -> tuple[np.ndarray, float, FreeGyroSimulator]:
-    sim = FreeGyroSimulator(params, omega)
-    t0 = time.perf_counter()
-    angles, _ = sim.run_until(t)
-    return angles, time.perf_counter() - t0, sim
+    """Simulate; wall time is the best of up to 3 runs while a run takes < 0.3 s (the
+    machine is shared, so the minimum is the least disturbed figure)."""
+    best = math.inf
+    for _ in range(3):
+        sim = FreeGyroSimulator(params, omega)
+        t0 = time.perf_counter()
+        angles, _ = sim.run_until(t)
+        wall = time.perf_counter() - t0
+        best = min(best, wall)
+        if wall > 0.3:
+            break
+    return angles, best, sim
 
 
 def _max_angle_err(a: np.ndarray, b: np.ndarray) -> float:
@@ -78,7 +87,7 @@ def _max_angle_err(a: np.ndarray, b: np.ndarray) -> float:
 def _free_gyro_rows(quick: bool) -> list[dict]:
     omega = ship_base()
     duration = 0.5 if quick else 2.0
-    t = np.linspace(0.0, duration, 201)
+    t = np.linspace(0.0, duration, 51)  # outputs every 10 ms (quick) / 40 ms
     spins_rpm = (6000.0, 24000.0) if quick else (6000.0, 24000.0, 96000.0)
     rows = []
     for rpm in spins_rpm:
@@ -92,10 +101,23 @@ def _free_gyro_rows(quick: bool) -> list[dict]:
             ("precession", "rk4", FreeGyroParams(**rotor, max_step=1e-2)),
             ("full", "midpoint", FreeGyroParams(**full_kw, max_step=1e-2)),
             ("full", "midpoint", FreeGyroParams(**full_kw, max_step=2e-3)),
+            ("full", "midpoint", FreeGyroParams(**full_kw, max_step=1 / (20 * nut_hz))),
             ("full", "rk4", FreeGyroParams(**full_kw, integrator="rk4", steps_per_nutation=20.0)),
+            # explicit RK4 with a step of ~1.5 nutation periods: what the implicit rule avoids
+            ("full", "rk4", FreeGyroParams(**full_kw, integrator="rk4", steps_per_nutation=0.7)),
         ]
         for model, integ, p in levels:
-            angles, wall, sim = _run(p, omega, t)
+            try:
+                angles, wall, sim = _run(p, omega, t)
+            except ValueError as exc:  # blew up: non-finite state or runaway into gimbal lock
+                rows.append({
+                    "suite": SUITE, "case": "free_gyro_ship", "model": model,
+                    "integrator": integ, "spin_rpm": rpm, "nutation_hz": nut_hz,
+                    "step_s": 1 / (nut_hz * p.steps_per_nutation), "sim_seconds": duration,
+                    "diverged": True, "error": str(exc), "wall_per_sim_s": float("nan"),
+                    "err_vs_precession_rad": float("inf"), "err_vs_full_reference_rad": float("inf"),
+                })
+                continue
             rows.append({
                 "suite": SUITE, "case": "free_gyro_ship", "model": model, "integrator": integ,
                 "spin_rpm": rpm, "nutation_hz": nut_hz, "step_s": duration / max(sim.steps, 1),
@@ -103,6 +125,7 @@ def _free_gyro_rows(quick: bool) -> list[dict]:
                 "wall_s": wall, "wall_per_sim_s": wall / duration,
                 "err_vs_precession_rad": _max_angle_err(angles, prec_ref),
                 "err_vs_full_reference_rad": _max_angle_err(angles, full_ref),
+                "diverged": not bool(np.all(np.isfinite(angles))),
             })
     base = {r["spin_rpm"]: r["wall_per_sim_s"] for r in rows if r["model"] == "precession"}
     for r in rows:
@@ -139,6 +162,10 @@ def _print_table(free_rows: list[dict], rate_rows: list[dict]) -> None:
     print(head)
     print("-" * len(head))
     for r in free_rows:
+        if r.get("diverged"):
+            print(f"{r['spin_rpm']:7.0f} {r['nutation_hz']:7.0f} {r['model']:>10} "
+                  f"{r['integrator']:>9} {r['step_s']:9.2e}   DIVERGED ({r.get('error', '')[:40]})")
+            continue
         print(f"{r['spin_rpm']:7.0f} {r['nutation_hz']:7.0f} {r['model']:>10} {r['integrator']:>9} "
               f"{r['step_s']:9.2e} {r['wall_per_sim_s']:10.3g} {r['cost_ratio_vs_precession']:7.1f} "
               f"{r['err_vs_precession_rad']:11.2e} {r['err_vs_full_reference_rad']:10.2e}")
@@ -158,6 +185,8 @@ def _plot(rows: list[dict], out_dir: pathlib.Path) -> pathlib.Path | None:
         return None
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for r in rows:
+        if r.get("diverged"):
+            continue
         label = f"{r['model']}/{r['integrator']} {r['spin_rpm']:.0f} rpm h={r['step_s']:.1e}"
         ax.scatter(r["wall_per_sim_s"], max(r["err_vs_full_reference_rad"], 1e-16), label=label)
     ax.set_xscale("log")
