@@ -213,6 +213,20 @@ def test_effects_run_lists_instrument_errors():
     }
 
 
+def test_instrument_errors_act_on_the_true_rate_and_force():
+    b_g, s_g = np.array([1e-4, -2e-4, 3e-4]), np.array([1e-3, 0.0, -2e-3])
+    b_a = np.array([0.01, -0.02, 0.03])
+    d = scene(motion={"type": "coning", "half_angle_deg": 3.0, "frequency_hz": 2.0},
+              gyro={"errors": {"bias_rad_s": b_g.tolist(), "scale_factor": s_g.tolist()}},
+              accelerometer={"errors": {"bias_m_s2": b_a.tolist()}})
+    _, (b,) = run(d, n=300)
+    assert np.abs(b.omega_ib_b - ((1 + s_g) * b.truth_omega_ib_b + b_g)).max() < 1e-15
+    # Specific force of a body at rest in n: gravity only, in body axes, plus the bias.
+    g = 9.7803253359 * (1 + 0.00193185265241 * 0.5) / np.sqrt(1 - E2 * 0.5)  # 45°, h = 0
+    f_true = Rotation.from_quat(b.truth_q_nb).inv().apply([0.0, 0.0, g])
+    assert np.abs(b.specific_force_b - (f_true + b_a)).max() < 1e-12
+
+
 # --------------------------------------------------------------------------- reproducibility
 NOISY = scene(
     earth={"latitude_deg": 30.0},
