@@ -227,6 +227,25 @@ def test_instrument_errors_act_on_the_true_rate_and_force():
     assert np.abs(b.specific_force_b - (f_true + b_a)).max() < 1e-12
 
 
+def test_truth_is_consistent_with_the_design_navigation_update():
+    """Integrating the scene's true ω_ib^b with the ENU update of DESIGN.md (B's independent
+    integrator, Earth and transport rate removed) must follow the scene's own q_nb; a wrong
+    sign or frame in ω_ib^b = C_bn ω_in^n + ω_nb^b would leave ~|ω_in|·t ≈ 1e-3 rad."""
+    integrate = pytest.importorskip("gyro_attitude.core.integrate")
+    d = scene(earth={"latitude_deg": 60.0},
+              motion={"type": "ship", "speed_mps": 150.0, "yaw_deg": 30.0,
+                      "roll": {"amplitude_deg": 4.0, "period_s": 9.0},
+                      "pitch": {"amplitude_deg": 2.0, "period_s": 7.0},
+                      "heave": {"amplitude_m": 2.0, "period_s": 8.0}})
+    _, (b,) = run(d, rate_hz=200.0, n=12_000)
+    nav = integrate.NavFrame(latitude_rad=b.position_llh[:, 0], longitude_rad=b.position_llh[:, 1],
+                             height_m=b.position_llh[:, 2], velocity_enu=b.velocity_enu)
+    q = integrate.integrate_batch(b.t_ns, b.truth_omega_ib_b, q0=b.truth_q_nb[0],
+                                  algorithm="rotvec_cubic", nav=nav)
+    err = (Rotation.from_quat(q).inv() * Rotation.from_quat(b.truth_q_nb)).magnitude()
+    assert err.max() < 1e-8
+
+
 # --------------------------------------------------------------------------- reproducibility
 NOISY = scene(
     earth={"latitude_deg": 30.0},
