@@ -21,7 +21,7 @@ Schema (SI units; angles in the file are degrees where the key says ``_deg``)::
     motion:
       type: stationary | constant_velocity | coordinated_turn | ship | coning
             | spinning_projectile | profile
-      ...                                 # per type, see MOTION_KEYS / _build_motion
+      ...                                 # per type, below
     gyro:                                 # optional (ideal gyro triad)
       model: ideal | rate_gyro            # rate_gyro: single-gimbal rate gyro per axis
       rate_gyro: {...}                    # fields of gyro_attitude.core.gyro.RateGyroParams
@@ -32,6 +32,23 @@ Schema (SI units; angles in the file are degrees where the key says ``_deg``)::
       errors: {bias_m_s2, scale_factor, misalignment_rad, vrw_m_s_sqrt_s,
                bias_instability_m_s2, bias_instability_tau_s, quantization_m_s}
     free_gyro: {...}                      # optional: fields of gyro.FreeGyroParams
+
+Motion keys per type (``attitude: {roll_deg, pitch_deg, yaw_deg}`` is ROS roll/pitch/yaw,
+``q_nb = Rz(yaw) Ry(pitch) Rx(roll)``, yaw counter-clockwise from East; see
+:mod:`gyro_attitude.core.motion` for the closed forms)::
+
+    stationary:          attitude
+    constant_velocity:   speed_mps (along body x), attitude
+    coordinated_turn:    speed_mps, turn_rate_deg_s (+ = left), yaw_deg, bank_deg (default:
+                         coordinated against standard gravity)
+    ship:                speed_mps, yaw_deg (course), roll / pitch / yaw_oscillation:
+                         {amplitude_deg, period_s, phase_deg}, heave: {amplitude_m, period_s,
+                         phase_deg}
+    coning:              half_angle_deg, frequency_hz, attitude (of the cone axis frame)
+    spinning_projectile: spin_rate_hz, half_angle_deg, coning_frequency_hz, speed_mps,
+                         attitude (of the cone axis frame)
+    profile:             attitude, velocity_enu_mps, segments: [{duration_s,
+                         angular_rate_deg_s (body), acceleration_enu_mps2}, ...]
 
 :class:`SceneSimulator` composes exactly the effects named, once, and evaluates nothing
 else; ``effects_run`` records the names of the effects actually evaluated. The gyro
