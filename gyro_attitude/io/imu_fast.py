@@ -21,7 +21,7 @@ import numpy as np
 
 from gyro_attitude.io import cdr_arrays
 from gyro_attitude.io.cdr_arrays import IMU_TYPE, QUATERNION_STAMPED_TYPE
-from gyro_attitude.io.mcap_reader import McapStreamReader, topic_matches
+from gyro_attitude.io.mcap_reader import McapStreamReader, match_topic
 from gyro_attitude.io.mcap_records import RECORD_HEADER
 
 __all__ = [
@@ -251,8 +251,9 @@ def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
     """Read several fixed-layout topics in one pass: ``{topic: type_name}`` -> arrays.
 
     ``type_name`` is ``sensor_msgs/msg/Imu`` or ``geometry_msgs/msg/QuaternionStamped``.
-    A topic recorded with another type raises ValueError naming both types; a topic
-    absent from the file raises ValueError when ``required`` (else it is left out).
+    A relative topic name also matches the one recorded topic ending in ``/<name>`` (any
+    namespace).  A topic recorded with another type raises ValueError naming both types;
+    a topic absent from the file raises ValueError when ``required`` (else it is left out).
     ``progress(bytes_done, bytes_total)`` is called after each chunk.
     """
     for t, ty in topics.items():
@@ -268,8 +269,9 @@ def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
             ch = reader.channels.get(cid)
             col = None
             if ch is not None:
+                recorded = [c.topic for c in reader.channels.values()]
                 for t, c in collectors.items():
-                    if topic_matches(ch.topic, t):
+                    if match_topic(recorded, t) == ch.topic:
                         if ch.type_name != c.type_name:
                             raise ValueError(f"topic {ch.topic} holds {ch.type_name or '?'}"
                                              f" messages, expected {c.type_name}")
@@ -303,8 +305,9 @@ def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
     if progress is not None:
         progress(total, total)
     out = {}
+    recorded = [ch.topic for ch in reader.channels.values()]
     for t, c in collectors.items():
-        if not any(topic_matches(ch.topic, t) for ch in reader.channels.values()):
+        if match_topic(recorded, t) is None:
             if required:
                 have = sorted(ch.topic for ch in reader.channels.values())
                 raise ValueError(f"{reader.path}: no topic {t!r}; topics: {have}")

@@ -53,6 +53,7 @@ __all__ = [
     "McapStreamReader",
     "resolve_mcap_path",
     "topic_matches",
+    "match_topic",
 ]
 
 
@@ -112,6 +113,21 @@ class RawMessage:
 def topic_matches(topic: str, wanted: str) -> bool:
     """Topic equality ignoring a leading ``/`` (rosbag2 stores fully qualified names)."""
     return topic.lstrip("/") == wanted.lstrip("/")
+
+
+def match_topic(recorded: list[str], wanted: str) -> str | None:
+    """The recorded topic ``wanted`` names: equal up to a leading ``/``, or, for a relative
+    name, the one recorded topic ending in ``/<wanted>`` (any namespace).  None if none;
+    ValueError when a relative name fits several namespaces."""
+    exact = [t for t in recorded if topic_matches(t, wanted)]
+    if exact:
+        return exact[0]
+    if wanted.startswith("/"):
+        return None
+    ends = sorted({t for t in recorded if t.endswith("/" + wanted)})
+    if len(ends) > 1:
+        raise ValueError(f"topic {wanted!r} is ambiguous: {ends}; give the full name")
+    return ends[0] if ends else None
 
 
 def resolve_mcap_path(path) -> Path:
