@@ -460,3 +460,12 @@ def test_simulator_arguments_are_checked():
             SceneSimulator(spec, bad)
     with pytest.raises(ValueError, match="n must be"):
         SceneSimulator(spec, 10.0).next_block(-1)
+
+
+def test_empty_accelerometer_entry_asks_for_accelerometers_and_top_level_must_be_mapping():
+    d = scene()
+    d["accelerometer"] = None  # `accelerometer:` with nothing after it in YAML
+    spec = SceneSpec.from_dict(d)
+    assert spec.accelerometer and spec.gravity
+    with pytest.raises(ValueError, match=r"^scene: must be a mapping"):
+        SceneSpec.from_dict(["not", "a", "scene"])
