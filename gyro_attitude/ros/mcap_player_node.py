@@ -1,0 +1,239 @@
+"""``mcap_player``: republish a recording with its original timing, a rate factor,
+looping and ``/clock``.
+
+Messages are published serialized (no decode) in log-time order: a file with a summary is
+streamed in log-time order through the ``mcap`` package's indexed reader (memory: one chunk
+per overlapping chunk); a file without one (a recorder killed with ``kill -9``) is read by
+the damage-tolerant reader, its complete chunks sorted in memory.  Publishers get the
+recorded offered QoS (reliable / transient-local only if every recorded publisher was).
+
+Parameters: ``input`` (file or bag directory, required), ``rate`` (playback speed factor,
+default 1), ``loop``, ``publish_clock`` (rosgraph_msgs/Clock on ``/clock`` with the bag
+time, ``clock_rate_hz`` ticks per wall second), ``topics`` (subset; default all),
+``namespace_topics`` (publish recorded names without the leading ``/`` so the node's
+namespace applies), ``wait_for_subscribers`` (per topic, before starting; up to
+``wait_timeout_s``).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from gyro_attitude.io.mcap_reader import McapStreamReader, match_topic, resolve_mcap_path
+from gyro_attitude.io.qos import parse_qos_profiles
+from gyro_attitude.ros.mcap_recorder_node import ParameterError, message_class
+
+
+def playback_qos(offered_yaml: str) -> QoSProfile:
+    """QoS for republishing a channel from its recorded ``offered_qos_profiles``."""
+    try:
+        profiles = parse_qos_profiles(offered_yaml)
+    except ValueError:
+        profiles = []
+    reliable = bool(profiles) and all(p["reliability"] == "reliable" for p in profiles)
+    transient = bool(profiles) and all(p["durability"] == "transient_local" for p in profiles)
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST, depth=1000,
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if transient else DurabilityPolicy.VOLATILE)
+
+
+def iter_log_time_order(path, topics: list[str] | None):
+    """(topic, type_name, offered_qos_yaml, log_time, data) in log-time order."""
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+
+    path = resolve_mcap_path(path)
+    try:
+        with open(path, "rb") as f:
+            reader = make_reader(f, validate_crcs=True)
+            summary = reader.get_summary()
+            if summary is None:
+                raise McapError("no summary")
+            recorded = [c.topic for c in summary.channels.values()]
+            wanted = None if topics is None else {match_topic(recorded, t) for t in topics}
+            for schema, channel, message in reader.iter_messages(log_time_order=True):
+                if wanted is not None and channel.topic not in wanted:
+                    continue
+                yield (channel.topic, schema.name if schema else "",
+                       channel.metadata.get("offered_qos_profiles", ""), message.log_time,
+                       message.data)
+            return
+    except (McapError, ValueError, OSError, EOFError):
+        pass  # no usable summary: fall back to the damage-tolerant walk
+    reader = McapStreamReader(path, on_damage="warn")
+    msgs = list(reader.iter_messages(topics))
+    msgs.sort(key=lambda m: m.log_time)
+    for m in msgs:
+        yield (m.channel.topic, m.channel.type_name,
+               m.channel.metadata.get("offered_qos_profiles", ""), m.log_time, m.data)
+
+
+def recorded_channels(path, topics: list[str] | None) -> list[tuple[str, str, str]]:
+    """(topic, type_name, offered_qos_yaml) of the recorded channels (optionally a subset)."""
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+
+    chans = None
+    try:
+        with open(resolve_mcap_path(path), "rb") as f:
+            summary = make_reader(f).get_summary()
+        if summary is not None:
+            chans = [(c.topic, summary.schemas[c.schema_id].name if c.schema_id else "",
+                      c.metadata.get("offered_qos_profiles", ""))
+                     for c in summary.channels.values()]
+    except (McapError, ValueError, OSError, EOFError, KeyError):
+        chans = None
+    if chans is None:  # no summary: walk the file, channels register as met
+        reader = McapStreamReader(path, on_damage="warn")
+        for _ in reader.iter_chunks():
+            pass
+        chans = [(c.topic, c.type_name, c.metadata.get("offered_qos_profiles", ""))
+                 for c in reader.channels.values()]
+    recorded = [c[0] for c in chans]
+    wanted = None if topics is None else {match_topic(recorded, t) for t in topics}
+    return [c for c in chans if wanted is None or c[0] in wanted]
+
+
+class McapPlayerNode(Node):
+    def __init__(self, **kwargs):
+        super().__init__("mcap_player", **kwargs)
+        p = {
+            "input": self.declare_parameter("input", "").value,
+            "rate": self.declare_parameter("rate", 1.0).value,
+            "loop": self.declare_parameter("loop", False).value,
+            "publish_clock": self.declare_parameter("publish_clock", True).value,
+            "clock_rate_hz": self.declare_parameter("clock_rate_hz", 100.0).value,
+            "topics": self.declare_parameter("topics", [""]).value,
+            "namespace_topics": self.declare_parameter("namespace_topics", False).value,
+            "wait_for_subscribers": self.declare_parameter("wait_for_subscribers", 0).value,
+            "wait_timeout_s": self.declare_parameter("wait_timeout_s", 10.0).value,
+        }
+        if not p["input"]:
+            raise ParameterError("parameter 'input': the recording to play is required")
+        try:
+            self.path = resolve_mcap_path(p["input"])
+        except ValueError as exc:
+            raise ParameterError(f"parameter 'input': {exc}") from exc
+        if not float(p["rate"]) > 0:
+            raise ParameterError(f"parameter 'rate': must be > 0, got {p['rate']}")
+        if not float(p["clock_rate_hz"]) > 0:
+            raise ParameterError(f"parameter 'clock_rate_hz': must be > 0, got "
+                                 f"{p['clock_rate_hz']}")
+        self.rate = float(p["rate"])
+        self.loop = bool(p["loop"])
+        self.clock_period = 1.0 / float(p["clock_rate_hz"])
+        self.topics = [t for t in p["topics"] if t] or None
+        self.namespace_topics = bool(p["namespace_topics"])
+        self.wait_for_subscribers = int(p["wait_for_subscribers"])
+        self.wait_timeout_s = float(p["wait_timeout_s"])
+        self._pubs: dict[str, object] = {}
+        self._clock_pub = None
+        if p["publish_clock"]:
+            from rosgraph_msgs.msg import Clock
+
+            self._clock_cls = Clock
+            self._clock_pub = self.create_publisher(Clock, "/clock", 10)
+        self.published = 0
+
+    def _publisher(self, topic: str, type_name: str, qos_yaml: str):
+        if topic not in self._pubs:
+            name = topic.lstrip("/") if self.namespace_topics else topic
+            try:
+                cls = message_class(type_name)
+            except ValueError as exc:
+                self.get_logger().warning(f"not playing {topic}: {exc}")
+                self._pubs[topic] = None
+                return None
+            self._pubs[topic] = self.create_publisher(cls, name, playback_qos(qos_yaml))
+        return self._pubs[topic]
+
+    def _publish_clock(self, bag_ns: int) -> None:
+        msg = self._clock_cls()
+        msg.clock.sec, msg.clock.nanosec = divmod(int(bag_ns), 1_000_000_000)
+        self._clock_pub.publish(msg)
+
+    def _wait_for_subscribers(self, topics) -> None:
+        if self.wait_for_subscribers <= 0:
+            return
+        end = time.monotonic() + self.wait_timeout_s
+        while rclpy.ok() and time.monotonic() < end:
+            pubs = [self._pubs[t] for t in topics if self._pubs.get(t) is not None]
+            if all(p.get_subscription_count() >= self.wait_for_subscribers for p in pubs):
+                return
+            time.sleep(0.02)
+        self.get_logger().warning("starting without all subscribers")
+
+    def play_once(self) -> int:
+        """Publish the whole recording once with its timing; returns messages published."""
+        # Publishers for every channel before the clock starts (discovery takes time).
+        for topic, type_name, qos_yaml in recorded_channels(self.path, self.topics):
+            self._publisher(topic, type_name, qos_yaml)
+        self._wait_for_subscribers(list(self._pubs))
+        msgs = iter_log_time_order(self.path, self.topics)
+        first = next(msgs, None)
+        if first is None:
+            return 0
+        t0 = first[3]
+        wall0 = time.monotonic()
+        next_clock = wall0
+        count = 0
+
+        def all_msgs():
+            yield first
+            yield from msgs
+
+        for topic, type_name, qos_yaml, log_time, data in all_msgs():
+            if not rclpy.ok():
+                break
+            target = wall0 + (log_time - t0) * 1e-9 / self.rate
+            while True:
+                now = time.monotonic()
+                if self._clock_pub is not None and now >= next_clock:
+                    self._publish_clock(t0 + int((now - wall0) * self.rate * 1e9))
+                    next_clock += self.clock_period
+                if now >= target:
+                    break
+                wake = target if self._clock_pub is None else min(target, next_clock)
+                time.sleep(max(0.0, min(wake - now, 0.05)))
+            pub = self._publisher(topic, type_name, qos_yaml)
+            if pub is not None:
+                pub.publish(data)
+                count += 1
+        self.published += count
+        return count
+
+
+def main(args=None) -> int:
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = McapPlayerNode()
+        node.get_logger().info(f"playing {node.path} at rate {node.rate:g}"
+                               + (" (loop)" if node.loop else ""))
+        while rclpy.ok():
+            n = node.play_once()
+            if n == 0 or not node.loop:
+                break
+        print(f"mcap_player: published {node.published} messages", flush=True)
+    except ParameterError as exc:
+        print(f"mcap_player: {exc}", file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        if rclpy.ok():
+            rclpy.shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

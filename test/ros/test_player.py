@@ -1,0 +1,82 @@
+"""mcap_player as a process: original timing scaled by the rate factor, content, /clock,
+looping, and a recording without summary (kill -9 leftovers)."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
+
+pytestmark = pytest.mark.ros
+
+MODULE = "gyro_attitude.ros.mcap_player_node"
+
+
+def _recording(path, n=200, rate_hz=100, finish=True):
+    t = 10**9 + (np.arange(n, dtype=np.int64) * 10**9) // rate_hz
+    w = np.zeros((n, 3))
+    w[:, 0] = np.arange(n)
+    wr = Rosbag2McapWriter(path, chunk_size=4000)
+    wr.add_topic("imu/data_raw", "sensor_msgs/msg/Imu")
+    wr.write_imu_array("imu/data_raw", t, w)
+    if finish:
+        wr.finish()
+    else:
+        wr.flush()
+        wr.abandon()
+    return t
+
+
+def _subscribe(node):
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from rosgraph_msgs.msg import Clock
+    from sensor_msgs.msg import Imu
+
+    got, clock = [], []
+    node.create_subscription(
+        Imu, "imu/data_raw",
+        lambda m: got.append((time.monotonic(), m.angular_velocity.x,
+                              m.header.stamp.sec * 10**9 + m.header.stamp.nanosec)),
+        QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+    node.create_subscription(Clock, "/clock",
+                             lambda m: clock.append(m.clock.sec * 10**9 + m.clock.nanosec), 100)
+    return got, clock
+
+
+@pytest.mark.parametrize("finished", [True, False])
+def test_plays_with_timing_rate_and_clock(launch, ros_node, tmp_path, finished):
+    t = _recording(tmp_path / "in.mcap", finish=finished)
+    got, clock = _subscribe(ros_node)
+    proc = launch(MODULE, "-p", f"input:={tmp_path / 'in.mcap'}", "-p", "rate:=2.0",
+                  "-p", "namespace_topics:=true", "-p", "wait_for_subscribers:=1")
+    assert ros_node.spin_until(lambda: len(got) >= len(t), 30.0), proc.output()
+    assert proc.wait(timeout=15) == 0, proc.output()
+    np.testing.assert_array_equal([g[1] for g in got], np.arange(len(t)))
+    np.testing.assert_array_equal([g[2] for g in got], t)
+    # 1.99 s of recording at rate 2: ~1.0 s of wall time between first and last message.
+    span = got[-1][0] - got[0][0]
+    print(f"\nplayback span {span:.3f} s for {(t[-1] - t[0]) * 1e-9:.3f} s at rate 2")
+    assert 0.85 < span < 1.6
+    assert clock and all(t[0] <= c <= t[-1] + 10**8 for c in clock)
+    assert all(b >= a for a, b in zip(clock, clock[1:], strict=False))
+
+
+def test_loop_repeats_until_stopped(launch, ros_node, tmp_path):
+    t = _recording(tmp_path / "in.mcap", n=20, rate_hz=100)
+    got, _ = _subscribe(ros_node)
+    proc = launch(MODULE, "-p", f"input:={tmp_path / 'in.mcap'}", "-p", "loop:=true",
+                  "-p", "namespace_topics:=true", "-p", "wait_for_subscribers:=1",
+                  "-p", "publish_clock:=false")
+    assert ros_node.spin_until(lambda: len(got) >= 3 * len(t), 30.0), proc.output()
+    assert proc.stop(timeout=10) == 0
+    vals = [g[1] for g in got[:3 * len(t)]]
+    assert vals == list(range(len(t))) * 3
+
+
+def test_bad_input_parameter(launch, tmp_path):
+    proc = launch(MODULE, "-p", f"input:={tmp_path / 'missing.mcap'}")
+    assert proc.wait(timeout=20) == 2
+    assert "parameter 'input'" in proc.output()
