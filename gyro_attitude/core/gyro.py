@@ -93,7 +93,11 @@ rule, solved by Newton with a finite-difference Jacobian: it is A-stable and its
 amplification factor has modulus exactly 1 on the imaginary axis, so a nutation that
 is not resolved by the step is neither amplified (explicit methods blow up) nor
 artificially damped (BDF/Radau would damp it); the slow precession is second-order
-accurate in the step.  ``integrator="rk4"`` resolves the nutation explicitly (step ≤
+accurate in the step.  Coulomb friction (stiff and dissipative for small ε, where the
+midpoint rule would make the rates chatter instead of stick) enters that step
+backward-Euler (L-stable), with a backtracked Newton iteration; when the nutation decay by
+friction matters, resolve the nutation (``max_step`` well below 2π/ω_nut).
+``integrator="rk4"`` resolves the nutation explicitly (step ≤
 nutation period / ``steps_per_nutation``) — exact nutation, cost ∝ H.  The benchmark
 ``gyro_attitude.benchmarks.gyro_fidelity`` measures both against the precession model.
 """
@@ -635,7 +639,7 @@ class FreeGyroSimulator:
         return a, b
 
     # -- full model -------------------------------------------------------------------
-    def _full_rhs(self, t, y, wc, wcd) -> tuple[float, float, float, float]:
+    def _full_rhs(self, t, y, wc, wcd, with_coulomb: bool = True) -> tuple[float, float, float, float]:
         al, be, ad, bd = y
         h = self._h
         igx, igy, igz = self._ig
@@ -663,8 +667,12 @@ class FreeGyroSimulator:
         tg2 = az * ag2 + (wg0 * hy - wg1 * hx)
         ma, mb = self._torques(t)
         if self._fric:
-            ma += self._friction(0, ad)[0]
-            mb += self._friction(1, bd)[0]
+            if with_coulomb:
+                ma += self._friction(0, ad)[0]
+                mb += self._friction(1, bd)[0]
+            else:  # viscous part only (the midpoint solver adds Coulomb's slope itself)
+                ma -= self.params.viscous_friction[0] * ad
+                mb -= self.params.viscous_friction[1] * bd
         gyro_o = (ioy - iox) * wo0 * wo1  # (ω_o × I_o ω_o)_z
         m11 = ioz + igx * sb * sb + az * cb * cb
         if m11 <= 0.0:
@@ -675,31 +683,100 @@ class FreeGyroSimulator:
         return ad, bd, add, bdd
 
     def _step_midpoint(self, t, hstep, y0, wc, wcd):
-        """One implicit-midpoint step, y1 = y0 + h f(t + h/2, (y0 + y1)/2), by Newton."""
+        """One implicit-midpoint step, y1 = y0 + h f(t + h/2, (y0 + y1)/2), by Newton.
+
+        The Jacobian of the smooth part is taken by finite differences at y0 and reused
+        (chord Newton).  Coulomb friction ``−M_c tanh(q̇/ε)`` is a stiff *dissipative*
+        term for small ε, and the midpoint rule's amplification tends to −1 for such
+        modes (the rates would chatter instead of sticking).  So Coulomb friction is taken
+        at the end of the step (backward Euler, L-stable: a gimbal that should stick does;
+        first order in the friction term only), i.e. the step solves
+        ``y1 = y0 + h [f_smooth(t_m, (y0 + y1)/2) + f_coulomb(y1)]``.  Its exact slope is
+        added to the Jacobian at every iterate, and each Newton step is backtracked until
+        the residual drops (plain Newton overshoots on tanh).  The friction term is
+        monotone, so the step equation keeps a unique solution however small ε is.
+        """
         tm = t + 0.5 * hstep
         self._pulse_clock = tm
-        f0 = np.array(self._full_rhs(tm, y0, wc, wcd))
-        # finite-difference Jacobian at y0 (reused for all Newton iterations of the step)
+        coulomb = any(v != 0.0 for v in self.params.coulomb_friction)
+        f0 = np.array(self._full_rhs(tm, y0, wc, wcd, with_coulomb=not coulomb))
         jac = np.empty((4, 4))
         for j in range(4):
             d = 1e-7 * max(1.0, abs(y0[j]))
             yp = y0.copy()
             yp[j] += d
-            jac[:, j] = (np.array(self._full_rhs(tm, yp, wc, wcd)) - f0) / d
+            jac[:, j] = (np.array(self._full_rhs(tm, yp, wc, wcd, with_coulomb=not coulomb))
+                         - f0) / d
         mat = np.eye(4) - 0.5 * hstep * jac
-        y1 = y0 + hstep * f0  # explicit Euler predictor
+        # predictor: the midpoint step of the linearized (smooth) system
+        y1 = y0 + hstep * np.linalg.solve(mat, f0)
         scale = 1.0 + np.abs(y0)
-        for _ in range(30):
-            res = y1 - y0 - hstep * np.array(self._full_rhs(tm, 0.5 * (y0 + y1), wc, wcd))
-            dy = np.linalg.solve(mat, res)
-            y1 = y1 - dy
-            if np.all(np.abs(dy) <= 1e-13 * scale):
+
+        def residual(y):
+            if not coulomb:
+                return y - y0 - hstep * np.array(self._full_rhs(tm, 0.5 * (y0 + y), wc, wcd))
+            ym = 0.5 * (y0 + y)
+            f = np.array(self._full_rhs(tm, ym, wc, wcd, with_coulomb=False))
+            sb, cb = math.sin(ym[1]), math.cos(ym[1])
+            m11 = self._io[2] + self._ig[0] * sb * sb + self._az * cb * cb
+            f[2] += self._friction_coulomb(0, y[2]) / m11
+            f[3] += self._friction_coulomb(1, y[3]) / self._ay
+            return y - y0 - hstep * f
+
+        res = residual(y1)
+        for _ in range(60):
+            if coulomb:
+                ym = 0.5 * (y0 + y1)
+                m = mat.copy()
+                sb, cb = math.sin(ym[1]), math.cos(ym[1])
+                m11 = self._io[2] + self._ig[0] * sb * sb + self._az * cb * cb
+                m[2, 2] -= hstep * self._coulomb_slope(0, y1[2]) / m11
+                m[3, 3] -= hstep * self._coulomb_slope(1, y1[3]) / self._ay
+                dy = np.linalg.solve(m, res)
+                # backtracking on the scaled residual norm
+                norm0 = np.max(np.abs(res) / scale)
+                lam = 1.0
+                while True:
+                    y_try = y1 - lam * dy
+                    res_try = residual(y_try)
+                    if np.max(np.abs(res_try) / scale) <= (1 - 1e-4 * lam) * norm0 or lam < 1e-8:
+                        break
+                    lam *= 0.5
+                y1, res = y_try, res_try
+                step = lam * dy
+            else:
+                dy = np.linalg.solve(mat, res)
+                y1 = y1 - dy
+                res = residual(y1)
+                step = dy
+            if np.all(np.abs(step) <= 1e-13 * scale) or np.all(np.abs(res) <= 1e-15 * scale):
                 break
         else:
             raise ValueError(f"implicit midpoint did not converge at t = {t:.6g} s; "
                              "reduce max_step")
         self._pulse_clock = None
         return y1
+
+    def _friction_coulomb(self, axis: int, rate: float) -> float:
+        """Smoothed Coulomb torque −M_c tanh(rate/ε) alone."""
+        p = self.params
+        mc, eps = p.coulomb_friction[axis], p.coulomb_smoothing_rate
+        if mc == 0.0:
+            return 0.0
+        x = rate / eps
+        return -mc * (math.tanh(x) if abs(x) < 40.0 else math.copysign(1.0, x))
+
+    def _coulomb_slope(self, axis: int, rate: float) -> float:
+        """d/d(rate) of the smoothed Coulomb torque −M_c tanh(rate/ε) (≤ 0)."""
+        p = self.params
+        mc, eps = p.coulomb_friction[axis], p.coulomb_smoothing_rate
+        if mc == 0.0:
+            return 0.0
+        x = rate / eps
+        if abs(x) > 40.0:
+            return 0.0
+        th = math.tanh(x)
+        return -mc * (1.0 - th * th) / eps
 
     def _step_rk4(self, t, hstep, y0, w3, wd3):
         """Classical RK4; w3/wd3 hold base rates/accelerations at t, t+h/2, t+h
