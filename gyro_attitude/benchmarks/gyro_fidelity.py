@@ -16,8 +16,10 @@ Levels:
   cost grows with H); and the same with a step longer than a nutation period, which
   diverges (reported as such) — the reason the default full-model integrator is implicit.
 
-Also the single-gimbal rate-gyro triad: cost per sample and step-response error against
-the closed form.  Figures depend on the machine and its load: compare ratios within one run.
+Also the single-gimbal rate-gyro triad (cost per sample, step-response error against the
+closed form) and the heavy symmetric top (invariant drift after many steps, implicit
+midpoint versus classical RK4 at the same step).  Figures depend on the machine and its
+load: compare ratios within one run.
 """
 
 from __future__ import annotations
@@ -35,6 +37,12 @@ from gyro_attitude.core.gyro import (
     RateGyroParams,
     RateGyroTriad,
     rate_gyro_step_response,
+)
+from gyro_attitude.core.rigid_body import (
+    HeavyTop,
+    heavy_top_invariants,
+    heavy_top_state_from_euler,
+    integrate_heavy_top,
 )
 from gyro_attitude.core.rotation import quat_conjugate, quat_from_rotvec, quat_rotate
 
@@ -155,6 +163,54 @@ def _rate_gyro_rows(quick: bool) -> list[dict]:
     return rows
 
 
+def _heavy_top_rk4(top: HeavyTop, h0, g0, dt: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Classical RK4 on the same heavy-top equations, only as the non-structure-preserving
+    comparison for :func:`integrate_heavy_top` (floats, like the midpoint loop)."""
+    ijt, ijs, mgl = 1.0 / top.transverse_inertia, 1.0 / top.spin_inertia, top.mgl
+
+    def f(x):
+        h1, h2, h3, g1, g2, g3 = x
+        w1, w2, w3 = h1 * ijt, h2 * ijt, h3 * ijs
+        return (h2 * w3 - h3 * w2 + mgl * g2, h3 * w1 - h1 * w3 - mgl * g1, h1 * w2 - h2 * w1,
+                g2 * w3 - g3 * w2, g3 * w1 - g1 * w3, g1 * w2 - g2 * w1)
+
+    x = tuple(np.concatenate((h0, g0)).tolist())
+    for _ in range(n):
+        k1 = f(x)
+        k2 = f(tuple(a + 0.5 * dt * b for a, b in zip(x, k1, strict=True)))
+        k3 = f(tuple(a + 0.5 * dt * b for a, b in zip(x, k2, strict=True)))
+        k4 = f(tuple(a + dt * b for a, b in zip(x, k3, strict=True)))
+        x = tuple(a + dt / 6.0 * (b + 2 * c + 2 * d + e)
+                  for a, b, c, d, e in zip(x, k1, k2, k3, k4, strict=True))
+    return np.array([x[:3]]), np.array([x[3:]])
+
+
+def _heavy_top_rows(quick: bool) -> list[dict]:
+    """Invariant drift of the heavy symmetric top after many steps: implicit midpoint
+    (conserves every quadratic invariant) against classical RK4 at the same step."""
+    top = HeavyTop(transverse_inertia=1.0, spin_inertia=0.5, mgl=1.0)
+    h0, g0 = heavy_top_state_from_euler(top, 0.6, 0.3, 0.5, 18.0)
+    inv0 = heavy_top_invariants(top, h0, g0)
+    n = 20_000 if quick else 100_000
+    rows = []
+    for dt in (1e-3, 1e-2):
+        for name in ("midpoint", "rk4"):
+            t0 = time.perf_counter()
+            if name == "midpoint":
+                h, g = integrate_heavy_top(top, h0, g0, dt, n, record_every=n)
+            else:
+                h, g = _heavy_top_rk4(top, h0, g0, dt, n)
+            wall = time.perf_counter() - t0
+            inv = heavy_top_invariants(top, h[-1], g[-1])
+            rows.append({
+                "suite": SUITE, "case": "heavy_top", "integrator": name, "step_s": dt,
+                "steps": n, "wall_s": wall, "us_per_step": 1e6 * wall / n,
+                **{f"rel_drift_{k}": float(abs(inv[k] - inv0[k]) / abs(inv0[k]))
+                   for k in ("energy", "p_psi", "p_phi", "gamma_norm")},
+            })
+    return rows
+
+
 def _print_table(free_rows: list[dict], rate_rows: list[dict]) -> None:
     print("Free gyro on a ship base (24 000 rpm class rotor, light gimbals, nutation excited)")
     head = (f"{'rpm':>7} {'nut Hz':>7} {'model':>10} {'integrator':>9} {'step s':>9} "
@@ -207,11 +263,20 @@ def run(quick: bool, out_dir: pathlib.Path) -> list[dict]:
     """Run the suite, print its table, write ``gyro_fidelity.png``; return the JSON rows."""
     free_rows = _free_gyro_rows(quick)
     rate_rows = _rate_gyro_rows(quick)
+    top_rows = _heavy_top_rows(quick)
     _print_table(free_rows, rate_rows)
+    print(f"\nHeavy symmetric top (J_t = 1, J_s = 0.5, mgl = 1, spin 18 rad/s), "
+          f"{top_rows[0]['steps']} steps: relative invariant drift")
+    print(f"  {'integrator':>10} {'step s':>7} {'µs/step':>8} {'energy':>9} {'p_psi':>9} "
+          f"{'p_phi':>9} {'|Γ|':>9}")
+    for r in top_rows:
+        print(f"  {r['integrator']:>10} {r['step_s']:7.0e} {r['us_per_step']:8.2f} "
+              f"{r['rel_drift_energy']:9.1e} {r['rel_drift_p_psi']:9.1e} "
+              f"{r['rel_drift_p_phi']:9.1e} {r['rel_drift_gamma_norm']:9.1e}")
     path = _plot(free_rows, pathlib.Path(out_dir))
     if path is not None:
         print(f"plot: {path}")
-    return free_rows + rate_rows
+    return free_rows + rate_rows + top_rows
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -511,6 +511,14 @@ class FreeGyroSimulator:
     case in case axes ``(m, 3)`` in rad/s.  The full model also needs the base angular
     acceleration: pass ``omega_base_dot_fn`` (same signature) or it is taken by central
     differences of ``omega_base_fn`` with step ``params.base_rate_derivative_step``.
+
+    ``run_until(t_out)`` integrates on one step grid containing every requested time and
+    impact-pulse edge (sub-steps ≤ ``step_size()``) and returns angles and relative gimbal
+    rates (rad, rad/s; columns ``names``).  ``state()`` gives the current pair,
+    ``kinetic_energy()`` (full model) the energy of rotor and gimbals, ``t`` the current
+    time, ``steps`` / ``rhs_evaluations`` the work done so far (for benchmarks).
+    Numerical failure (non-finite state, gimbal lock, Newton not converging) raises
+    ``ValueError`` naming the time.
     """
 
     names: tuple[str, ...] = ("outer_gimbal", "inner_gimbal")
