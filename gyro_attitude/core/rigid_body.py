@@ -183,7 +183,8 @@ def integrate_heavy_top(top: HeavyTop, h0_b, gamma0_b, dt: float, n_steps: int,
     row is the initial state).  Each step solves ``x_m = x₀ + (dt/2) f(x_m)`` by fixed-point
     iteration (contracting while ``dt·|ω| < 2``; raises ``ValueError`` if it does not
     converge) and sets ``x₁ = 2x_m − x₀``.  The loop runs on Python floats: the state is
-    six numbers, for which numpy's per-call overhead would dominate.
+    six numbers, for which numpy's per-call overhead would dominate.  The iteration stops at
+    ``tol`` or when it stalls at the round-off floor (change < 1e-12 and not shrinking).
     """
     dt = _pos(dt, "dt")
     n_steps = int(n_steps)
@@ -207,6 +208,7 @@ def integrate_heavy_top(top: HeavyTop, h0_b, gamma0_b, dt: float, n_steps: int,
     rec = 1
     for k in range(1, n_steps + 1):
         m1, m2, m3, n1, n2, n3 = h1, h2, h3, g1, g2, g3
+        err_prev = math.inf
         for _ in range(max_iter):
             w1, w2, w3 = m1 * ijt, m2 * ijt, m3 * ijs
             a1 = h1 + half * (m2 * w3 - m3 * w2 + mgl * n2)
@@ -219,8 +221,10 @@ def integrate_heavy_top(top: HeavyTop, h0_b, gamma0_b, dt: float, n_steps: int,
             err = ((abs(a1 - m1) + abs(a2 - m2) + abs(a3 - m3)) / scale_h
                    + abs(b1 - n1) + abs(b2 - n2) + abs(b3 - n3))
             m1, m2, m3, n1, n2, n3 = a1, a2, a3, b1, b2, b3
-            if err <= tol:
+            # converged, or stalled at the round-off floor (no further contraction)
+            if err <= tol or (err < 1e-12 and err >= err_prev):
                 break
+            err_prev = err
         else:
             raise ValueError(f"heavy-top midpoint iteration did not converge at step {k}; "
                              "reduce dt")
