@@ -108,7 +108,10 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
 
     arrays = read_topic_arrays(input_path, {imu_topic: IMU_TYPE,
                                             truth_topic: QUATERNION_STAMPED_TYPE},
-                               on_damage=on_damage, progress=cb, required=False)
+                               on_damage=on_damage, progress=cb, required=False,
+                               fields={imu_topic: ("angular_velocity", "linear_acceleration",
+                                                   "angular_velocity_covariance",
+                                                   "linear_acceleration_covariance")})
     if bar is not None:
         bar.close()
     if imu_topic not in arrays:

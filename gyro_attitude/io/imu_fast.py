@@ -86,10 +86,18 @@ class QuaternionArrays(_TopicArrays):
 
 
 class _Collector:
-    def __init__(self, topic: str, type_name: str):
+    def __init__(self, topic: str, type_name: str, fields=None):
         self.topic = topic
         self.type_name = type_name
-        self.fields = _FIELDS[type_name]
+        all_fields = _FIELDS[type_name]
+        if fields is None:
+            self.fields = dict(all_fields)
+        else:
+            unknown = sorted(set(fields) - set(all_fields))
+            if unknown:
+                raise ValueError(f"{type_name} has no array fields {unknown}; have "
+                                 f"{sorted(all_fields)}")
+            self.fields = {k: v for k, v in all_fields.items() if k in fields}
         self.parts: list[dict[str, np.ndarray]] = []
         self.frame_ids: list[str] = []
         self.fast = 0
@@ -122,7 +130,7 @@ class _Collector:
         else:
             from geometry_msgs.msg import QuaternionStamped as msg_type
         cols: dict[str, list] = {k: [] for k in ("stamp_ns", "log_time_ns", "publish_time_ns",
-                                                 *self.fields)}
+                                                 *_FIELDS[self.type_name])}
         for log, pub, data in msgs:
             try:
                 m = deserialize_message(data, msg_type)
@@ -173,13 +181,13 @@ class _Collector:
 def _frame_at(records: bytes, off: int) -> str | None:
     """frame_id of the CDR-LE message record at ``off`` (None when it does not parse)."""
     p = off + cdr_arrays.MESSAGE_RECORD_PREFIX
-    if records[p:p + 4] != cdr_arrays.CDR_LE_HEADER or p + 16 > len(records):
+    if p + 16 > len(records) or bytes(records[p:p + 4]) != cdr_arrays.CDR_LE_HEADER:
         return None
     n = int.from_bytes(records[p + 12:p + 16], "little")
     if n < 1 or p + 16 + n > len(records) or records[p + 16 + n - 1] != 0:
         return None
     try:
-        return records[p + 16:p + 16 + n - 1].decode("utf-8")
+        return bytes(records[p + 16:p + 16 + n - 1]).decode("utf-8")
     except UnicodeDecodeError:
         return None
 
@@ -239,7 +247,7 @@ def _decode_chunk_channel(col: _Collector, records: bytes, offsets: np.ndarray,
                                      f"is not a message of this chunk (offset {off})")
                 log = int.from_bytes(records[body + 6:body + 14], "little")
                 pub = int.from_bytes(records[body + 14:body + 22], "little")
-                msgs.append((log, pub, records[body + 22:body + length]))
+                msgs.append((log, pub, bytes(records[body + 22:body + length])))
             col.add_messages(msgs)
         start = stop
 
@@ -247,21 +255,25 @@ def _decode_chunk_channel(col: _Collector, records: bytes, offsets: np.ndarray,
 def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
                       validate_crc: bool = True,
                       progress: Callable[[int, int], None] | None = None,
-                      required: bool = True) -> dict:
+                      required: bool = True, fields: dict | None = None) -> dict:
     """Read several fixed-layout topics in one pass: ``{topic: type_name}`` -> arrays.
 
     ``type_name`` is ``sensor_msgs/msg/Imu`` or ``geometry_msgs/msg/QuaternionStamped``.
     A relative topic name also matches the one recorded topic ending in ``/<name>`` (any
     namespace).  A topic recorded with another type raises ValueError naming both types;
     a topic absent from the file raises ValueError when ``required`` (else it is left out).
-    ``progress(bytes_done, bytes_total)`` is called after each chunk.
+    ``progress(bytes_done, bytes_total)`` is called after each chunk.  ``fields``
+    (``{topic: names}``) limits what is extracted for a topic (others come back None);
+    stamps and times are always read.
     """
     for t, ty in topics.items():
         if ty not in _FIELDS:
             raise ValueError(f"no array reader for {ty!r} (topic {t}); have {sorted(_FIELDS)}")
-    reader = McapStreamReader(path, validate_crc=validate_crc, on_damage=on_damage)
+    reader = McapStreamReader(path, validate_crc=validate_crc, on_damage=on_damage,
+                              reuse_buffers=True)
     total = reader.size
-    collectors = {t: _Collector(t, ty) for t, ty in topics.items()}
+    fields = fields or {}
+    collectors = {t: _Collector(t, ty, fields.get(t)) for t, ty in topics.items()}
     by_channel: dict[int, _Collector | None] = {}
 
     def collector_for(cid: int) -> _Collector | None:

@@ -158,10 +158,13 @@ class McapStreamReader:
     validate_crc: check chunk CRCs (a mismatch is damage).
     on_damage: ``"raise"`` or ``"warn"`` (see module docstring).
     max_chunk_bytes: refuse chunks that declare more uncompressed bytes than this.
+    reuse_buffers: read every uncompressed chunk into one reused buffer; a yielded
+        :class:`RawChunk`'s ``records`` is then only valid until the next one is requested
+        (saves an allocation and its page faults per chunk; for array readers that copy).
     """
 
     def __init__(self, path, *, validate_crc: bool = True, on_damage: str = "raise",
-                 max_chunk_bytes: int = 1 << 30):
+                 max_chunk_bytes: int = 1 << 30, reuse_buffers: bool = False):
         if on_damage not in ("raise", "warn"):
             raise ValueError(f"on_damage must be 'raise' or 'warn', got {on_damage!r}")
         if isinstance(path, bytes | bytearray | memoryview):
@@ -173,6 +176,8 @@ class McapStreamReader:
         self.validate_crc = validate_crc
         self.on_damage = on_damage
         self.max_chunk_bytes = int(max_chunk_bytes)
+        self.reuse_buffers = bool(reuse_buffers)
+        self._chunk_buf = bytearray()
         self.profile: str | None = None
         self.library: str | None = None
         self.metadata: list[tuple[str, dict]] = []
@@ -255,7 +260,16 @@ class McapStreamReader:
                     if length > self.max_chunk_bytes + 64:
                         self._damaged(f"chunk of {length} bytes exceeds max_chunk_bytes", pos)
                         return
-                    body = f.read(length)
+                    if self.reuse_buffers:
+                        if len(self._chunk_buf) < length:
+                            self._chunk_buf = bytearray(length)
+                        body = memoryview(self._chunk_buf)[:length]
+                        got = f.readinto(body)
+                        if got != length:
+                            self._damaged("chunk truncated", pos)
+                            return
+                    else:
+                        body = f.read(length)
                     try:
                         pending = self._parse_chunk(body, pos)
                     except (IndexError, ValueError, struct.error, zlib.error) as exc:

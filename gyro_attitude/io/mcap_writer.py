@@ -116,6 +116,10 @@ class Rosbag2McapWriter:
         is older than this; recorders call :meth:`flush` from a timer as well.
     ros_distro:
         Written into the ``rosbag2`` metadata.
+    data_section_crc:
+        Also compute the Data End CRC over the whole data section.  Off by default, as in
+        libmcap (``enableDataCRC = false``) and so in rosbag2's files (CRC 0 = "not
+        computed"); chunk CRCs and the summary CRC are always written.
 
     Use as a context manager, or call :meth:`finish` (idempotent).  Times are int ns;
     ``log_time`` is the receive time, ``publish_time`` the send time (defaults to log time).
@@ -130,6 +134,7 @@ class Rosbag2McapWriter:
         compression: str = "",
         max_chunk_interval_s: float | None = None,
         ros_distro: str = "jazzy",
+        data_section_crc: bool = False,
     ):
         if compression not in COMPRESSIONS:
             raise ValueError(f"compression must be one of {COMPRESSIONS}, got {compression!r}")
@@ -164,6 +169,7 @@ class Rosbag2McapWriter:
         self._file = open(path, "wb")  # closed in finish()
         self._pos = 0
         self._data_crc = 0
+        self._crc_data = bool(data_section_crc)
         self._schemas: dict[str, tuple[int, bytes]] = {}  # type -> (id, record)
         self._channels: dict[str, _Channel] = {}
         self._channel_records: list[bytes] = []
@@ -180,7 +186,8 @@ class Rosbag2McapWriter:
     # ----------------------------------------------------------------- plumbing
     def _emit(self, data) -> None:
         self._file.write(data)
-        self._data_crc = zlib.crc32(data, self._data_crc)
+        if self._crc_data:
+            self._data_crc = zlib.crc32(data, self._data_crc)
         self._pos += len(data)
 
     def _check_open(self) -> None:
@@ -289,9 +296,12 @@ class Rosbag2McapWriter:
         })
         self._chunk = _OpenChunk()
 
-    def _write_chunk(self, records: bytes, start: int, end: int,
+    def _write_chunk(self, records, start: int, end: int,
                      index: dict[int, np.ndarray]) -> None:
-        """Chunk record + its Message Index records; remembers the Chunk Index."""
+        """Chunk record + its Message Index records; remembers the Chunk Index.
+
+        ``records``: bytes or a byte-format memoryview (the array paths pass a view of
+        their record buffer to avoid a copy)."""
         crc = zlib.crc32(records)
         data = records if self._compressor is None else self._compressor(records)
         chunk_start = self._pos
@@ -345,10 +355,14 @@ class Rosbag2McapWriter:
         rec_size = dtype.itemsize
         per_chunk = max(1, self.chunk_size // rec_size)
         frame = frame_id.encode("utf-8") + b"\x00"
+        # One record buffer reused for every chunk (fresh pages per chunk cost page
+        # faults).  Zeroed once: the fields below cover every byte except the CDR padding
+        # after frame_id, which so stays 0.
+        buf = np.zeros(min(n, per_chunk), dtype=dtype)
         for lo in range(0, n, per_chunk):
             hi = min(n, lo + per_chunk)
             m = hi - lo
-            recs = np.zeros(m, dtype=dtype)  # zeros: CDR padding bytes are written as 0
+            recs = buf[:m]
             recs["opcode"] = OP_MESSAGE
             recs["record_length"] = rec_size - 9
             recs["channel_id"] = ch.id
@@ -368,7 +382,7 @@ class Rosbag2McapWriter:
             index = np.empty((m, 2), dtype=np.uint64)
             index[:, 0] = lt
             index[:, 1] = np.arange(m, dtype=np.uint64) * rec_size
-            self._write_chunk(recs.tobytes(), start, end, {ch.id: index})
+            self._write_chunk(memoryview(recs.view(np.uint8)), start, end, {ch.id: index})
             self._message_count += m
             self._start = min(self._start, start)
             self._end = max(self._end, end)

@@ -96,10 +96,17 @@ def test_mcap_and_mcap_ros2_read_back(tmp_path, compression):
     assert ch["/imu/data_raw"].metadata["topic_type_hash"].startswith("RIHS01_")
 
 
-def test_crcs_and_summary_layout(tmp_path):
+@pytest.mark.parametrize("data_crc", [False, True])
+def test_crcs_and_summary_layout(tmp_path, data_crc):
     """Data-section CRC, summary CRC and summary offsets recomputed from the raw bytes."""
     path = tmp_path / "a.mcap"
-    _write_sample(path, np.random.default_rng(2), "zstd")
+    t = np.arange(30, dtype=np.int64) * 1000
+    with Rosbag2McapWriter(path, compression="zstd", chunk_size=3000,
+                           data_section_crc=data_crc) as wr:
+        wr.add_topic("imu/data_raw", "sensor_msgs/msg/Imu")
+        wr.add_topic("chatter", "std_msgs/msg/String")
+        wr.write_message("chatter", String(data="x"), 5)
+        wr.write_imu_array("imu/data_raw", t, np.ones((30, 3)))
     raw = path.read_bytes()
     records = []
     with open(path, "rb") as f:
@@ -111,7 +118,8 @@ def test_crcs_and_summary_layout(tmp_path):
     # Data End follows the data section: its CRC covers everything before it.
     de_off = footer.summary_start - (1 + 8 + 4)
     assert raw[de_off] == 0x0F
-    assert data_end.data_section_crc == zlib.crc32(raw[:de_off])
+    # 0 = "not computed", what rosbag2 (libmcap's default) writes
+    assert data_end.data_section_crc == (zlib.crc32(raw[:de_off]) if data_crc else 0)
     end = len(raw) - 8 - 4  # footer's CRC field and the closing magic
     assert footer.summary_crc == zlib.crc32(raw[footer.summary_start:end])
     assert raw[-8:] == raw[:8] == b"\x89MCAP0\r\n"
