@@ -240,11 +240,19 @@ def _plot(rows: list[dict], out_dir: pathlib.Path) -> pathlib.Path | None:
     except ImportError:
         return None
     fig, ax = plt.subplots(figsize=(7, 4.5))
+    markers = {rpm: m for rpm, m in zip(sorted({r["spin_rpm"] for r in rows}), "os^dv",
+                                         strict=False)}
+    level = {}  # same colour for the same level at every rotor speed
+    per_rpm: dict[float, int] = {}
     for r in rows:
+        per_rpm[r["spin_rpm"]] = per_rpm.get(r["spin_rpm"], -1) + 1
         if r.get("diverged"):
             continue
+        k = per_rpm[r["spin_rpm"]]
+        level.setdefault(k, f"C{k}")
         label = f"{r['model']}/{r['integrator']} {r['spin_rpm']:.0f} rpm h={r['step_s']:.1e}"
-        ax.scatter(r["wall_per_sim_s"], max(r["err_vs_full_reference_rad"], 1e-16), label=label)
+        ax.scatter(r["wall_per_sim_s"], max(r["err_vs_full_reference_rad"], 1e-16),
+                   color=level[k], marker=markers[r["spin_rpm"]], label=label)
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("wall-clock seconds per simulated second")
