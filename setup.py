@@ -58,7 +58,7 @@ setup(
     ]
     + _wheel_launchers(),
     package_data={package_name: ["py.typed"]},
-    install_requires=["setuptools", "numpy", "mcap", "pyyaml", "tqdm", "matplotlib"],
+    install_requires=["setuptools", "numpy", "scipy", "mcap", "pyyaml", "tqdm", "matplotlib"],
     zip_safe=True,
     maintainer="gyro_attitude developers",
     maintainer_email="gyro-attitude@example.org",
