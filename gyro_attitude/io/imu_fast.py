@@ -14,6 +14,8 @@ the same way.
 
 from __future__ import annotations
 
+import os
+import struct
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -21,8 +23,15 @@ import numpy as np
 
 from gyro_attitude.io import cdr_arrays
 from gyro_attitude.io.cdr_arrays import IMU_TYPE, QUATERNION_STAMPED_TYPE
-from gyro_attitude.io.mcap_reader import McapStreamReader, match_topic
-from gyro_attitude.io.mcap_records import RECORD_HEADER
+from gyro_attitude.io.mcap_reader import McapStreamReader, match_topic, resolve_mcap_path
+from gyro_attitude.io.mcap_records import (
+    MAGIC,
+    OP_CHANNEL,
+    OP_FOOTER,
+    OP_STATISTICS,
+    RECORD_HEADER,
+    BodyReader,
+)
 
 __all__ = [
     "ImuArrays",
@@ -99,6 +108,8 @@ class _Collector:
                                  f"{sorted(all_fields)}")
             self.fields = {k: v for k, v in all_fields.items() if k in fields}
         self.parts: list[dict[str, np.ndarray]] = []
+        self.out: dict[str, np.ndarray] | None = None  # preallocated (count from summary)
+        self.pos = 0
         self.frame_ids: list[str] = []
         self.fast = 0
         self.fallback = 0
@@ -110,16 +121,53 @@ class _Collector:
             self._dtypes[key] = cdr_arrays.message_record_dtype(self.type_name, frame, itemsize)
         return self._dtypes[key]
 
+    def preallocate(self, count: int) -> None:
+        """Size the output for ``count`` messages (from the file's summary statistics):
+        chunks are then copied straight into place, with no final concatenation."""
+        self.out = {k: np.empty(count, np.int64)
+                    for k in ("stamp_ns", "log_time_ns", "publish_time_ns")}
+        for name, width in self.fields.items():
+            self.out[name] = np.empty((count, width), np.float64)
+
+    def _room(self, m: int) -> bool:
+        if self.out is not None and self.pos + m > len(self.out["stamp_ns"]):
+            # The summary's count was wrong (or stale): keep what is in place as a part.
+            self.parts.append({k: v[:self.pos] for k, v in self.out.items()})
+            self.out = None
+        return self.out is not None
+
     def add_records(self, recs: np.ndarray) -> None:
-        part = {
-            "stamp_ns": cdr_arrays.join_stamp(recs["sec"], recs["nanosec"]),
-            "log_time_ns": recs["log_time"].astype(np.int64),
-            "publish_time_ns": recs["publish_time"].astype(np.int64),
-        }
-        for name in self.fields:
-            part[name] = np.array(recs[name], dtype=np.float64)
-        self.parts.append(part)
-        self.fast += len(recs)
+        m = len(recs)
+        if self._room(m):
+            sl = slice(self.pos, self.pos + m)
+            o = self.out
+            o["stamp_ns"][sl] = recs["sec"]
+            o["stamp_ns"][sl] *= 1_000_000_000
+            o["stamp_ns"][sl] += recs["nanosec"]
+            o["log_time_ns"][sl] = recs["log_time"]
+            o["publish_time_ns"][sl] = recs["publish_time"]
+            for name in self.fields:
+                o[name][sl] = recs[name]
+            self.pos += m
+        else:
+            part = {
+                "stamp_ns": cdr_arrays.join_stamp(recs["sec"], recs["nanosec"]),
+                "log_time_ns": recs["log_time"].astype(np.int64),
+                "publish_time_ns": recs["publish_time"].astype(np.int64),
+            }
+            for name in self.fields:
+                part[name] = np.array(recs[name], dtype=np.float64)
+            self.parts.append(part)
+        self.fast += m
+
+    def _add_part(self, part: dict[str, np.ndarray]) -> None:
+        m = len(part["stamp_ns"])
+        if self._room(m):
+            for k, v in self.out.items():
+                v[self.pos:self.pos + m] = part[k]
+            self.pos += m
+        else:
+            self.parts.append(part)
 
     def add_messages(self, msgs: list[tuple[int, int, bytes]]) -> None:
         """Per-message fallback: rclpy deserialization (log_time, publish_time, data)."""
@@ -159,14 +207,18 @@ class _Collector:
                 if k in ("stamp_ns", "log_time_ns", "publish_time_ns")}
         for name, width in self.fields.items():
             part[name] = np.asarray(cols[name], dtype=np.float64).reshape(-1, width)
-        self.parts.append(part)
+        self._add_part(part)
         self.fallback += len(msgs)
 
     def result(self, damage: str | None):
         keys = ("stamp_ns", "log_time_ns", "publish_time_ns", *self.fields)
         out = {}
+        if self.out is not None and self.parts:  # cannot happen: _room() empties out first
+            raise AssertionError("preallocated output and parts at once")
         for k in keys:
-            if self.parts:
+            if self.out is not None:
+                out[k] = self.out[k][:self.pos]
+            elif self.parts:
                 out[k] = np.concatenate([p[k] for p in self.parts])
             else:
                 width = self.fields.get(k)
@@ -295,6 +347,13 @@ def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
             by_channel[cid] = col
         return by_channel[cid]
 
+    counts = summary_message_counts(path)
+    if counts:
+        recorded = list(counts)
+        for t, c in collectors.items():
+            topic = match_topic(recorded, t)
+            if topic is not None:
+                c.preallocate(counts[topic])
     for chunk in reader.iter_chunks():
         index = chunk.message_index
         if index is None:
@@ -326,6 +385,54 @@ def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
             continue
         out[t] = c.result(reader.damage)
     return out
+
+
+def summary_message_counts(path) -> dict[str, int] | None:
+    """{topic: message count} from the Statistics of an intact file's summary, or None
+    (no footer/summary, damaged, in-memory input): used only to pre-size arrays."""
+    if isinstance(path, bytes | bytearray | memoryview):
+        return None
+    try:
+        p = resolve_mcap_path(path)
+        with open(p, "rb") as f:
+            size = f.seek(0, os.SEEK_END)
+            if size < 8 + 9 + 20 + 8:
+                return None
+            f.seek(size - 8 - 29)
+            tail = f.read(29 + 8)
+            if tail[-8:] != MAGIC or tail[0] != OP_FOOTER:
+                return None
+            summary_start, summary_offset_start = struct.unpack_from("<QQ", tail, 9)
+            end = summary_offset_start or size - 8 - 29
+            if not 0 < summary_start <= end <= size or end - summary_start > 1 << 28:
+                return None
+            f.seek(summary_start)
+            buf = f.read(end - summary_start)
+        topics: dict[int, str] = {}
+        counts: dict[int, int] | None = None
+        pos = 0
+        while pos + 9 <= len(buf):
+            op, length = RECORD_HEADER.unpack_from(buf, pos)
+            body = buf[pos + 9:pos + 9 + length]
+            if op == OP_CHANNEL:
+                r = BodyReader(body)
+                cid = r.u16()
+                r.u16()
+                topics[cid] = r.string()
+            elif op == OP_STATISTICS:
+                r = BodyReader(body, 8 + 2 + 4 + 4 + 4 + 4 + 8 + 8)
+                n = r.u32()
+                entries = body[r.pos:r.pos + n]
+                counts = {}
+                for k in range(0, len(entries) - 9, 10):
+                    cid, cnt = struct.unpack_from("<HQ", entries, k)
+                    counts[cid] = cnt
+            pos += 9 + length
+        if counts is None:
+            return None
+        return {topics[c]: n for c, n in counts.items() if c in topics}
+    except (OSError, ValueError, IndexError, struct.error, UnicodeDecodeError):
+        return None
 
 
 def _walk_offsets(records: bytes) -> dict[int, list[int]]:

@@ -170,3 +170,44 @@ def test_wrong_type_and_missing_topic(tmp_path):
         read_imu_arrays(tmp_path / "a.mcap", topic="imu/other")
     with pytest.raises(ValueError, match="no array reader"):
         read_topic_arrays(tmp_path / "a.mcap", {"imu/data_raw": "std_msgs/msg/String"})
+
+
+def test_summary_counts_match_mcap_and_wrong_counts_are_harmless(tmp_path, monkeypatch):
+    from mcap.reader import make_reader
+
+    import gyro_attitude.io.imu_fast as imu_fast
+
+    rng = np.random.default_rng(15)
+    msgs = _write_messages(tmp_path / "a.mcap", rng, 150, ["imu_link", "imu_link", "x"],
+                           extra_every=4)
+    with open(tmp_path / "a.mcap", "rb") as f:
+        s = make_reader(f).get_summary()
+    expected = {s.channels[c].topic: n for c, n in s.statistics.channel_message_counts.items()}
+    assert imu_fast.summary_message_counts(tmp_path / "a.mcap") == expected
+    for wrong in (0, 1, 149, 151, 10_000):  # the pre-sizing hint may lie: results must not
+        monkeypatch.setattr(imu_fast, "summary_message_counts",
+                            lambda path, w=wrong: {"/imu/data_raw": w})
+        _check(read_imu_arrays(tmp_path / "a.mcap"), _expected(msgs))
+
+
+def test_field_subset(tmp_path):
+    rng = np.random.default_rng(16)
+    msgs = _write_messages(tmp_path / "a.mcap", rng, 40, ["imu_link"])
+    out = read_topic_arrays(tmp_path / "a.mcap", {"imu/data_raw": "sensor_msgs/msg/Imu"},
+                            fields={"imu/data_raw": ("angular_velocity",)})["imu/data_raw"]
+    assert out.orientation is None and out.linear_acceleration is None
+    np.testing.assert_array_equal(out.angular_velocity, _expected(msgs)["angular_velocity"])
+    with pytest.raises(ValueError, match="no array fields"):
+        read_topic_arrays(tmp_path / "a.mcap", {"imu/data_raw": "sensor_msgs/msg/Imu"},
+                          fields={"imu/data_raw": ("angular_rate",)})
+
+
+def test_relative_topic_matches_a_namespace_once(tmp_path):
+    with Rosbag2McapWriter(tmp_path / "a.mcap") as wr:
+        for ns in ("/robot1", "/robot2"):
+            wr.add_topic(f"{ns}/imu/data_raw", "sensor_msgs/msg/Imu")
+            wr.write_imu_array(f"{ns}/imu/data_raw", np.arange(3), np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="ambiguous"):
+        read_imu_arrays(tmp_path / "a.mcap")
+    assert len(read_imu_arrays(tmp_path / "a.mcap", "/robot2/imu/data_raw")) == 3
+    assert len(read_imu_arrays(tmp_path / "a.mcap", "robot1/imu/data_raw")) == 3
