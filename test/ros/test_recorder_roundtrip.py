@@ -30,8 +30,13 @@ def test_live_integrator_equals_offline_replay(launch, ros_node, namespace, tmp_
         lambda: ros_node.count_subscribers(f"{namespace}/imu/data_raw") >= 1
         and ros_node.count_subscribers(f"{namespace}/attitude") >= 1, 30.0)
     assert ok, integ.output() + rec.output()
+    from geometry_msgs.msg import QuaternionStamped
+
+    probe = []  # a second, independent listener: tells a silent integrator from the recorder
+    ros_node.create_subscription(QuaternionStamped, "attitude", probe.append, 1000)
     sim = launch("gyro_attitude.ros.gyro_sim_node", "-p", "scene:=coning", "-p",
-                 "rate_hz:=200.0", "-p", "duration_s:=2.0", "-p", f"record_path:={sim_bag}")
+                 "rate_hz:=200.0", "-p", "duration_s:=2.0", "-p", f"record_path:={sim_bag}",
+                 "-p", "wait_for_subscribers:=1")  # the integrator (discovery can be slow)
     assert sim.wait(timeout=60) == 0, sim.output()
     ros_node.spin_until(lambda: False, 1.0)  # let the last samples arrive
     assert rec.stop(sig=signal.SIGINT, timeout=15) == 0, rec.output()
@@ -39,7 +44,8 @@ def test_live_integrator_equals_offline_replay(launch, ros_node, namespace, tmp_
 
     imu = read_imu_arrays(sim_bag)
     live = read_quaternion_stamped_arrays(live_bag, "attitude")
-    assert len(imu) == 400 and len(live) > 300, (len(imu), len(live))
+    assert len(imu) == 400 and len(live) > 300, (len(imu), len(live), len(probe),
+                                                 integ.output(), rec.output())
     # The integrator starts at identity on the first sample it received.
     k0 = int(np.searchsorted(imu.stamp_ns, live.stamp_ns[0]))
     t = imu.stamp_ns[k0:]
