@@ -6,7 +6,6 @@ import os
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
@@ -20,8 +19,3 @@ def reference_dir() -> Path:
     if not (REFERENCE / "only_topics.mcap").is_file():
         pytest.skip(f"rosbag2 reference files not found at {REFERENCE} (<repo>/../shared)")
     return REFERENCE
-
-
-def random_unit_quaternions(rng, n):
-    q = rng.normal(size=(n, 4))
-    return q / np.linalg.norm(q, axis=1, keepdims=True)

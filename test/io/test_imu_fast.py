@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import random_unit_quaternions
 
 from gyro_attitude.io.imu_fast import (
     read_imu_arrays,
@@ -18,6 +17,10 @@ from geometry_msgs.msg import QuaternionStamped  # noqa: E402
 from sensor_msgs.msg import Imu  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
+
+def random_unit_quaternions(rng, n):
+    q = rng.normal(size=(n, 4))
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
 
 def _random_imu(rng, t_ns, frame):
     m = Imu()

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
-from conftest import REPO
 
 from gyro_attitude.io.imu_fast import read_imu_arrays, read_quaternion_stamped_arrays
 from gyro_attitude.io.make_sample_bag import SAMPLE_NAME, make_sample_bag
 
+REPO = Path(__file__).resolve().parents[2]
 SAMPLE = REPO / "bags" / SAMPLE_NAME
 
 

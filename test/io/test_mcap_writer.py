@@ -9,7 +9,6 @@ import zlib
 import numpy as np
 import pytest
 import yaml
-from conftest import random_unit_quaternions
 from mcap.reader import make_reader
 from mcap.records import DataEnd, Footer
 from mcap.stream_reader import StreamReader
@@ -23,6 +22,10 @@ from geometry_msgs.msg import QuaternionStamped  # noqa: E402
 from sensor_msgs.msg import Imu  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
+
+def random_unit_quaternions(rng, n):
+    q = rng.normal(size=(n, 4))
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
 
 def _imu_msg(t_ns, frame, w, a, q=None, cov=None):
     m = Imu()
