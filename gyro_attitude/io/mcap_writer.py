@@ -30,6 +30,7 @@ from __future__ import annotations
 import struct
 import time
 import zlib
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -355,37 +356,52 @@ class Rosbag2McapWriter:
         rec_size = dtype.itemsize
         per_chunk = max(1, self.chunk_size // rec_size)
         frame = frame_id.encode("utf-8") + b"\x00"
-        # One record buffer reused for every chunk (fresh pages per chunk cost page
-        # faults).  Zeroed once: the fields below cover every byte except the CDR padding
-        # after frame_id, which so stays 0.
-        buf = np.zeros(min(n, per_chunk), dtype=dtype)
-        for lo in range(0, n, per_chunk):
-            hi = min(n, lo + per_chunk)
-            m = hi - lo
-            recs = buf[:m]
-            recs["opcode"] = OP_MESSAGE
-            recs["record_length"] = rec_size - 9
-            recs["channel_id"] = ch.id
-            recs["sequence"] = (ch.sequence + np.arange(m, dtype=np.int64)) & 0xFFFFFFFF
-            recs["log_time"] = log[lo:hi]
-            recs["publish_time"] = pub[lo:hi]
-            recs["encapsulation"] = cdr_arrays.CDR_LE_HEADER_U32
-            recs["sec"] = sec[lo:hi]
-            recs["nanosec"] = nsec[lo:hi]
-            recs["frame_id_len"] = len(frame)
-            recs["frame_id"] = frame
-            fill(recs, lo, hi)
-            ch.sequence += m
-            ch.count += m
-            lt = log[lo:hi].astype(np.uint64)
-            start, end = int(lt.min()), int(lt.max())
-            index = np.empty((m, 2), dtype=np.uint64)
-            index[:, 0] = lt
-            index[:, 1] = np.arange(m, dtype=np.uint64) * rec_size
-            self._write_chunk(memoryview(recs.view(np.uint8)), start, end, {ch.id: index})
-            self._message_count += m
-            self._start = min(self._start, start)
-            self._end = max(self._end, end)
+        # Two record buffers, reused for every chunk (fresh pages per chunk cost page
+        # faults), so that one is filled here while a worker thread CRCs, compresses and
+        # writes the other: numpy's copies, zlib.crc32, the compressors and file writes all
+        # release the GIL, so the two overlap on a multi-core machine.  The worker runs
+        # chunks in submission order (one thread) and is the only one touching the file
+        # until the last chunk is done.  Zeroed once: the fields below cover every byte
+        # except the CDR padding after frame_id, which so stays 0.
+        bufs = [np.zeros(min(n, per_chunk), dtype=dtype) for _ in range(2)]
+        busy: list = [None, None]
+        worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mcap_chunk_writer")
+        try:
+            for i, lo in enumerate(range(0, n, per_chunk)):
+                hi = min(n, lo + per_chunk)
+                m = hi - lo
+                if busy[i % 2] is not None:
+                    busy[i % 2].result()  # that buffer is written out: reuse it
+                recs = bufs[i % 2][:m]
+                recs["opcode"] = OP_MESSAGE
+                recs["record_length"] = rec_size - 9
+                recs["channel_id"] = ch.id
+                recs["sequence"] = (ch.sequence + np.arange(m, dtype=np.int64)) & 0xFFFFFFFF
+                recs["log_time"] = log[lo:hi]
+                recs["publish_time"] = pub[lo:hi]
+                recs["encapsulation"] = cdr_arrays.CDR_LE_HEADER_U32
+                recs["sec"] = sec[lo:hi]
+                recs["nanosec"] = nsec[lo:hi]
+                recs["frame_id_len"] = len(frame)
+                recs["frame_id"] = frame
+                fill(recs, lo, hi)
+                ch.sequence += m
+                ch.count += m
+                lt = log[lo:hi].astype(np.uint64)
+                start, end = int(lt.min()), int(lt.max())
+                index = np.empty((m, 2), dtype=np.uint64)
+                index[:, 0] = lt
+                index[:, 1] = np.arange(m, dtype=np.uint64) * rec_size
+                busy[i % 2] = worker.submit(self._write_chunk, memoryview(recs.view(np.uint8)),
+                                            start, end, {ch.id: index})
+                self._message_count += m
+                self._start = min(self._start, start)
+                self._end = max(self._end, end)
+            for f in busy:
+                if f is not None:
+                    f.result()  # re-raises a write error here
+        finally:
+            worker.shutdown(wait=True)
 
     @staticmethod
     def _rows(value, n: int, width: int, name: str, default=None) -> np.ndarray:
