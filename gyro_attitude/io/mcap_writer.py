@@ -361,9 +361,16 @@ class Rosbag2McapWriter:
         # writes the other: numpy's copies, zlib.crc32, the compressors and file writes all
         # release the GIL, so the two overlap on a multi-core machine.  The worker runs
         # chunks in submission order (one thread) and is the only one touching the file
-        # until the last chunk is done.  Zeroed once: the fields below cover every byte
-        # except the CDR padding after frame_id, which so stays 0.
+        # until the last chunk is done.  Zeroed once, constant fields set once: the fields
+        # cover every byte except the CDR padding after frame_id, which so stays 0.
         bufs = [np.zeros(min(n, per_chunk), dtype=dtype) for _ in range(2)]
+        for b in bufs:  # the fields that are the same in every record, set once
+            b["opcode"] = OP_MESSAGE
+            b["record_length"] = rec_size - 9
+            b["channel_id"] = ch.id
+            b["encapsulation"] = cdr_arrays.CDR_LE_HEADER_U32
+            b["frame_id_len"] = len(frame)
+            b["frame_id"] = frame
         busy: list = [None, None]
         worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mcap_chunk_writer")
         try:
@@ -373,17 +380,11 @@ class Rosbag2McapWriter:
                 if busy[i % 2] is not None:
                     busy[i % 2].result()  # that buffer is written out: reuse it
                 recs = bufs[i % 2][:m]
-                recs["opcode"] = OP_MESSAGE
-                recs["record_length"] = rec_size - 9
-                recs["channel_id"] = ch.id
                 recs["sequence"] = (ch.sequence + np.arange(m, dtype=np.int64)) & 0xFFFFFFFF
                 recs["log_time"] = log[lo:hi]
                 recs["publish_time"] = pub[lo:hi]
-                recs["encapsulation"] = cdr_arrays.CDR_LE_HEADER_U32
                 recs["sec"] = sec[lo:hi]
                 recs["nanosec"] = nsec[lo:hi]
-                recs["frame_id_len"] = len(frame)
-                recs["frame_id"] = frame
                 fill(recs, lo, hi)
                 ch.sequence += m
                 ch.count += m
