@@ -214,3 +214,13 @@ def test_relative_topic_matches_a_namespace_once(tmp_path):
         read_imu_arrays(tmp_path / "a.mcap")
     assert len(read_imu_arrays(tmp_path / "a.mcap", "/robot2/imu/data_raw")) == 3
     assert len(read_imu_arrays(tmp_path / "a.mcap", "robot1/imu/data_raw")) == 3
+
+
+def test_messages_that_are_not_what_the_schema_says(tmp_path):
+    """A channel declared Imu carrying String CDR: the fast path rejects every record and
+    the per-message decode fails with a clear error."""
+    with Rosbag2McapWriter(tmp_path / "a.mcap") as wr:
+        wr.add_topic("imu/data_raw", "sensor_msgs/msg/Imu")
+        wr.write("imu/data_raw", rclpy_serialization.serialize_message(String(data="hi")), 1)
+    with pytest.raises(ValueError, match="does not deserialize as sensor_msgs/msg/Imu"):
+        read_imu_arrays(tmp_path / "a.mcap")

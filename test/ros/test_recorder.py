@@ -69,7 +69,10 @@ def test_signal_finishes_file_without_loss(launch, ros_node, tmp_path, sig):
         assert ch.metadata["topic_type_hash"].startswith("RIHS01_")
     imu = read_imu_arrays(out)
     np.testing.assert_array_equal(imu.angular_velocity[:, 0], np.arange(n))
-    assert (imu.log_time_ns > 0).all() and (imu.publish_time_ns <= imu.log_time_ns).all()
+    # log_time = receive time, publish_time = the publisher's source timestamp: earlier,
+    # and by less than a second on loopback
+    lag = imu.log_time_ns - imu.publish_time_ns
+    assert (lag > 0).all() and (lag < 10**9).all()
     print(f"\n{sig.name}: published {n}, recorded {len(imu)}, lost {n - len(imu)}")
 
 
@@ -109,3 +112,30 @@ def test_kill_9_loses_at_most_the_last_flush_period(launch, ros_node, tmp_path):
     print(f"\nkill -9: published {published}, recovered {recovered}, lost {lost} "
           f"(bound {bound:.0f} = {rate_hz:g} Hz x ({FLUSH_S} s flush + 0.25 s slack))")
     assert 0 <= lost <= bound
+
+
+def test_all_topics_into_a_bag_directory_read_by_rosbags(launch, ros_node, tmp_path,
+                                                           namespace):
+    from rosbags.highlevel import AnyReader
+    from std_msgs.msg import String
+
+    bag = tmp_path / "bag"
+    proc = launch(MODULE, "-p", f"output:={bag}", "-p", "all_topics:=true",
+                  "-p", "bag_directory:=true")
+    pub, publish = _publisher(ros_node)
+    chatter = ros_node.create_publisher(String, "chatter", 100)
+    ok = ros_node.spin_until(lambda: pub.get_subscription_count() > 0
+                             and chatter.get_subscription_count() > 0, 20.0)
+    assert ok, proc.output()
+    for k in range(50):
+        publish(k)
+        chatter.publish(String(data=f"msg {k}"))
+        ros_node.executor_.spin_once(timeout_sec=0.002)
+    time.sleep(1.0)
+    assert proc.stop(timeout=15.0) == 0, proc.output()
+    with AnyReader([bag]) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        texts = [reader.deserialize(raw, c.msgtype).data for c, _, raw in
+                 reader.messages([c for c in reader.connections if c.topic.endswith("chatter")])]
+    assert counts[f"{namespace}/imu/data_raw"] == 50 and counts[f"{namespace}/chatter"] == 50
+    assert texts == [f"msg {k}" for k in range(50)]
