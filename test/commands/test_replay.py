@@ -150,6 +150,17 @@ def test_cli_json_plot_and_errors(tmp_path, capsys):
     assert rc == 2 and "--latitude-deg" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         cli_main(["replay", str(sample), "--out", "x.mcap", "--initial-attitude", "1,2"])
+    rc = cli_main(["replay", str(sample), "--out", str(tmp_path / "enu.mcap"), "--frame", "enu",
+                   "--latitude-deg", "45", "--height-m", "10", "--velocity-enu", "1,2,0",
+                   "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert rc == 0 and out["frame"] == "enu"
+    imu = read_imu_arrays(sample)
+    nav = NavFrame(latitude_rad=np.radians(45.0), height_m=10.0,
+                   velocity_enu=np.array([1.0, 2.0, 0.0]))
+    att = read_quaternion_stamped_arrays(tmp_path / "enu.mcap", "attitude")
+    np.testing.assert_allclose(att.quaternion, integrate_batch(imu.stamp_ns, imu.angular_velocity,
+                                                               nav=nav), atol=1e-12, rtol=0)
 
 
 def test_damaged_input_replays_what_precedes_the_damage(tmp_path, capsys):
