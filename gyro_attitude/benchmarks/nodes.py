@@ -1,0 +1,184 @@
+"""Node benchmark (``gyro-attitude bench --suite nodes``): how fast can sim → integrator go?
+
+For each Imu rate, ``gyro_sim`` (real time, scene ``coning``) and ``attitude_integrator``
+run as separate processes on loopback, as deployed (best-effort sensor-data QoS unless
+``reliable``), for ``duration_s`` (60 s; 5 s in quick mode). Reported per rate:
+
+* lost samples = published − integrated (the integrator's own ``accepted`` count from
+  ``/diagnostics``, so losses of this probe do not count);
+* latency from publish to attitude: ``received_timestamp`` of ``attitude`` at this probe
+  minus ``source_timestamp`` (the sim's publish time, stamped by the middleware) of the
+  ``imu/data_raw`` message with the same header stamp; p50 / p99 / max. Both timestamps
+  come from the same system clock (one machine). The probe takes both topics serialized
+  (``raw=True``) and reads the stamp from the CDR bytes, so it stays light next to the
+  nodes it measures.
+
+The highest rate with zero loss is the sustained rate. Everything shares the machine's
+cores (sim, integrator, probe, and whatever else runs): quote figures with the conditions.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import struct
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+QUICK_RATES = (500.0, 1000.0, 2000.0)
+FULL_RATES = (500.0, 1000.0, 2000.0, 4000.0)
+_STAMP = struct.Struct("<iI")  # CDR (little endian): 4-byte encapsulation header, then stamp
+
+
+def _stamp_of(cdr: bytes) -> int:
+    sec, nanosec = _STAMP.unpack_from(cdr, 4)
+    return sec * 1_000_000_000 + nanosec
+
+
+def _env() -> dict[str, str]:
+    from gyro_attitude.commands.demo import demo_environment
+
+    return demo_environment()
+
+
+def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
+                 reliability: str = "best_effort", scene: str = "coning") -> dict:
+    """Run sim + integrator at ``rate_hz`` for ``duration_s``; return one result row."""
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray
+    from geometry_msgs.msg import QuaternionStamped
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import Imu
+
+    from gyro_attitude.commands.demo import node_command
+    from gyro_attitude.ros.qos import imu_qos
+
+    ns = f"/bench_nodes_{os.getpid()}_{int(rate_hz)}"
+    context = Context()
+    rclpy.init(context=context, domain_id=int(env["ROS_DOMAIN_ID"]))
+    node = rclpy.create_node("bench_probe", namespace=ns, context=context)
+    ex = SingleThreadedExecutor(context=context)
+    ex.add_node(node)
+    published_at: dict[int, int] = {}
+    received_at: dict[int, int] = {}
+    accepted = [0]
+    published_total = [0]
+
+    def on_imu(cdr, info):
+        published_at[_stamp_of(cdr)] = info["source_timestamp"]
+
+    def on_att(cdr, info):
+        received_at[_stamp_of(cdr)] = info["received_timestamp"]
+
+    def on_diag(msg):
+        for s in msg.status:
+            for kv in s.values:
+                if kv.key == "accepted":
+                    accepted[0] = int(kv.value)
+
+    node.create_subscription(Imu, f"{ns}/imu/data_raw", on_imu, imu_qos("best_effort", 50000),
+                             raw=True)
+    node.create_subscription(QuaternionStamped, f"{ns}/attitude", on_att,
+                             QoSProfile(depth=50000, reliability=ReliabilityPolicy.RELIABLE),
+                             raw=True)
+    common = ["--ros-args", "-r", f"__ns:={ns}", "-p", f"qos_reliability:={reliability}"]
+    integ_args = common + ["-p", "diagnostics_period_s:=0.25",
+                           "-r", f"/diagnostics:={ns}/diagnostics"]
+    node.create_subscription(DiagnosticArray, f"{ns}/diagnostics", on_diag, 50)
+    integ = subprocess.Popen(node_command("attitude_integrator") + integ_args, env=env,
+                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                             start_new_session=True)
+    sim = subprocess.Popen(
+        node_command("gyro_sim") + common + [
+            "-p", f"scene:={scene}", "-p", f"rate_hz:={rate_hz!r}",
+            "-p", f"duration_s:={duration_s!r}", "-p", "wait_for_subscribers:=2",
+            "-p", "wait_timeout_s:=30.0", "-p", "publish_truth:=false"],
+        env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        start_new_session=True)
+    n_expected = int(round(rate_hz * duration_s))
+    try:
+        deadline = time.monotonic() + duration_s * 2 + 60
+        while sim.poll() is None and time.monotonic() < deadline:
+            ex.spin_once(timeout_sec=0.01)
+        end = time.monotonic() + 1.0  # late attitudes and the last diagnostics
+        while time.monotonic() < end:
+            ex.spin_once(timeout_sec=0.01)
+        sim_out = sim.communicate(timeout=10)[0] if sim.poll() is not None else ""
+        for line in sim_out.splitlines():
+            if "published" in line and "samples" in line:
+                published_total[0] = int(line.split("published")[1].split()[0])
+    finally:
+        for p in (sim, integ):
+            if p.poll() is None:
+                p.send_signal(signal.SIGINT)
+                try:
+                    p.wait(timeout=10)
+                except subprocess.TimeoutExpired:
+                    os.killpg(p.pid, signal.SIGKILL)
+                    p.wait()
+        ex.shutdown()
+        node.destroy_node()
+        rclpy.shutdown(context=context)
+
+    pairs = [received_at[s] - published_at[s] for s in received_at if s in published_at]
+    lat = np.array(pairs, dtype=np.float64) * 1e-6  # ms
+    published = published_total[0] or n_expected
+    return {
+        "suite": "nodes",
+        "scene": scene,
+        "rate_hz": rate_hz,
+        "duration_s": duration_s,
+        "qos": reliability,
+        "published": published,
+        "integrated": accepted[0],
+        "lost": published - accepted[0],
+        "attitudes_at_probe": len(received_at),
+        "latency_pairs": len(pairs),
+        "latency_p50_ms": float(np.percentile(lat, 50)) if lat.size else None,
+        "latency_p99_ms": float(np.percentile(lat, 99)) if lat.size else None,
+        "latency_max_ms": float(lat.max()) if lat.size else None,
+        "cpu_count": os.cpu_count(),
+    }
+
+
+def run(quick: bool, out_dir: Path) -> list[dict]:
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    env = _env()
+    duration = 5.0 if quick else 60.0
+    rates = QUICK_RATES if quick else FULL_RATES
+    rows = []
+    print(f"nodes: gyro_sim -> attitude_integrator, {duration:g} s per rate, "
+          f"{os.cpu_count()} cores (shared), ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']}")
+    print(f"{'rate Hz':>9} {'published':>10} {'integrated':>10} {'lost':>6} "
+          f"{'p50 ms':>8} {'p99 ms':>8} {'max ms':>8}")
+    for rate in rates:
+        row = measure_rate(rate, duration, env)
+        rows.append(row)
+
+        def fmt(x):
+            return f"{x:8.3f}" if x is not None else f"{'-':>8}"
+
+        print(f"{rate:9.0f} {row['published']:10d} {row['integrated']:10d} {row['lost']:6d} "
+              f"{fmt(row['latency_p50_ms'])} {fmt(row['latency_p99_ms'])} "
+              f"{fmt(row['latency_max_ms'])}", flush=True)
+    ok = [r["rate_hz"] for r in rows if r["lost"] == 0]
+    best = max(ok) if ok else None
+    summary = {"suite": "nodes", "summary": True, "duration_s": duration,
+               "max_rate_no_loss_hz": best, "rates_tested": list(rates)}
+    rows.append(summary)
+    print(f"highest rate with zero loss over {duration:g} s: "
+          f"{best if best is not None else 'none'} Hz (of {list(rates)})")
+    (out_dir / "nodes.json").write_text(json.dumps(rows, indent=2))
+    return rows
+
+
+if __name__ == "__main__":  # python -m gyro_attitude.benchmarks.nodes [--quick]
+    sys.exit(0 if run("--quick" in sys.argv, Path("bench_out")) else 1)
