@@ -50,6 +50,7 @@ def iter_log_time_order(path, topics: list[str] | None):
     from mcap.reader import make_reader
 
     path = resolve_mcap_path(path)
+    yielded = 0
     try:
         with open(path, "rb") as f:
             reader = make_reader(f, validate_crcs=True)
@@ -64,9 +65,12 @@ def iter_log_time_order(path, topics: list[str] | None):
                 yield (channel.topic, schema.name if schema else "",
                        channel.metadata.get("offered_qos_profiles", ""), message.log_time,
                        message.data)
+                yielded += 1
             return
     except (McapError, ValueError, OSError, EOFError):
-        pass  # no usable summary: fall back to the damage-tolerant walk
+        if yielded:
+            return  # damage after the start: stop there (no replay of what was played)
+        # no usable summary: fall back to the damage-tolerant walk
     reader = McapStreamReader(path, on_damage="warn")
     msgs = list(reader.iter_messages(topics))
     msgs.sort(key=lambda m: m.log_time)
