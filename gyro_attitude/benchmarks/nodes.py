@@ -128,6 +128,9 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
         rclpy.shutdown(context=context)
 
     pairs = [received_at[s] - published_at[s] for s in received_at if s in published_at]
+    # where losses happened (sample index from the first stamp seen by the probe)
+    stamps = sorted(published_at)
+    missing = [i for i, s in enumerate(stamps) if s not in received_at]
     lat = np.array(pairs, dtype=np.float64) * 1e-6  # ms
     published = published_total[0] or n_expected
     return {
@@ -140,6 +143,8 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
         "integrated": accepted[0],
         "lost": published - accepted[0],
         "attitudes_at_probe": len(received_at),
+        "missing_at_probe_first_index": missing[0] if missing else None,
+        "missing_at_probe_last_index": missing[-1] if missing else None,
         "latency_pairs": len(pairs),
         "latency_p50_ms": float(np.percentile(lat, 50)) if lat.size else None,
         "latency_p99_ms": float(np.percentile(lat, 99)) if lat.size else None,
