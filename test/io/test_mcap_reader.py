@@ -177,3 +177,15 @@ def test_fuzz_mutations_never_crash(small_file, tmp_path, data):
     except ValueError:
         pass  # McapDamagedError or a clear ValueError (e.g. a mangled type name)
     assert time.monotonic() - start < 5.0
+
+
+def test_chunk_size_cap_bounds_memory(tmp_path):
+    """A chunk declaring more uncompressed bytes than max_chunk_bytes is refused before
+    anything is decompressed (a corrupted or hostile size cannot exhaust memory)."""
+    path = tmp_path / "z.mcap"
+    with Rosbag2McapWriter(path, compression="zstd") as wr:
+        wr.add_topic("imu/data_raw", IMU)
+        wr.write_imu_array("imu/data_raw", np.arange(1000), np.zeros((1000, 3)))
+    with pytest.raises(McapDamagedError, match="exceeds max_chunk_bytes"):
+        list(McapStreamReader(path, max_chunk_bytes=10_000).iter_messages())
+    assert len(list(McapStreamReader(path).iter_messages())) == 1000
