@@ -85,8 +85,14 @@ def _integrator_params(spec, algorithm: str | None, reliable: bool) -> list[str]
         args += ["-p", "qos_reliability:=reliable"]
     earth = spec.earth
     if earth.rotation or (earth.transport_rate and spec.motion.moves):
-        # the scene's gyro sees Earth (and transport) rate: integrate q_nb in ENU
+        # the scene's gyro sees Earth (and transport) rate: integrate q_nb in ENU. The
+        # integrator's nav frame is constant: it gets the start position and the initial
+        # velocity, so a scene whose velocity turns keeps a small transport-rate error.
+        import numpy as np
+
+        v0 = [float(v) for v in np.asarray(spec.motion.velocity(np.zeros(1)))[0]]
         args += ["-p", "frame:=enu", "-p", f"latitude_rad:={earth.latitude_rad!r}",
+                 "-p", f"velocity_enu:=[{v0[0]!r}, {v0[1]!r}, {v0[2]!r}]",
                  "-p", f"longitude_rad:={earth.longitude_rad!r}",
                  "-p", f"height_m:={float(earth.height_m)!r}",
                  "-p", "world_frame_id:=enu"]
