@@ -293,20 +293,34 @@ def test_invalid_parameters_refused_at_start(launch):
 
 # --------------------------------------------------------------------------- fast + record
 @needs_scenes
-def test_fast_mode_records_gimbal_scene_and_publishes_clock(launch, ros_node, tmp_path):
+def test_fast_mode_gimbal_scene_recording_clock_and_enu_at_rest(launch, ros_node, tmp_path):
     pytest.importorskip("gyro_attitude.io.mcap_writer")
     from mcap.reader import make_reader
 
     bag = tmp_path / "free_gyro.mcap"
     clock = _collect(ros_node, Clock, "/clock", 100)
     joints = _collect(ros_node, JointState, "gyro/joint_states")
-    _collect(ros_node, Imu, "imu/data_raw")  # the subscriber the sim waits for
+    att = _collect(ros_node, QuaternionStamped, "attitude")
+    truth = _collect(ros_node, QuaternionStamped, "truth/attitude")
+    _collect(ros_node, Imu, "imu/data_raw")  # with the integrator: the sim waits for 2
+    lat = math.radians(45.0)  # the scene's latitude
+    integ = launch(INTEGRATOR, "-p", "frame:=enu", "-p", f"latitude_rad:={lat!r}",
+                   "-p", "initial_attitude_source:=truth", "-p", "qos_reliability:=reliable")
     sim = launch(SIM, "-p", "scene:=free_gyro_drift", "-p", "time_mode:=fast",
                  "-p", "duration_s:=4.0", "-p", f"record_path:={bag}",
-                 "-p", "wait_for_subscribers:=1", "-p", "wait_timeout_s:=20.0")
-    assert ros_node.spin_until(lambda: sim.proc.poll() is not None and len(clock) > 0,
-                               timeout=60), sim.output()
+                 "-p", "qos_reliability:=reliable",
+                 "-p", "wait_for_subscribers:=2", "-p", "wait_timeout_s:=20.0")
+    assert ros_node.spin_until(lambda: sim.proc.poll() is not None and len(clock) > 0
+                               and len(att) >= 200, timeout=60), sim.output() + integ.output()
     _assert_clean_exit(sim, sim.wait(timeout=5))
+    _assert_clean_exit(integ, integ.stop(signal.SIGINT))
+    # A body at rest in ENU: the gyro sees only Earth rate, which frame=enu removes, so the
+    # attitude stays put (DESIGN.md). Without the removal it would turn by ω_ie·4 s ≈ 2.9e-4.
+    q_truth = np.array([convert.quat_from_msg(m.quaternion) for m in truth])
+    q_att = np.array([convert.quat_from_msg(m.quaternion) for m in att])
+    assert _angle(q_truth, np.broadcast_to(q_truth[0], q_truth.shape)).max() == 0.0
+    assert _angle(q_att, np.broadcast_to(q_truth[0], q_att.shape)).max() < 1e-12
+    assert all(m.header.frame_id == "enu" for m in att)
     n = 200  # the scene's own 50 Hz for 4 s
     assert "published 200 samples" in sim.output()
 
