@@ -47,7 +47,8 @@ def _env() -> dict[str, str]:
 
 
 def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
-                 reliability: str = "best_effort", scene: str = "coning") -> dict:
+                 reliability: str = "best_effort", scene: str = "coning",
+                 integrator_params: tuple[str, ...] = ()) -> dict:
     """Run sim + integrator at ``rate_hz`` for ``duration_s``; return one result row."""
     import rclpy
     from diagnostic_msgs.msg import DiagnosticArray
@@ -92,6 +93,8 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
     integ_args = common + ["-p", "diagnostics_period_s:=0.25",
                            "-r", f"/diagnostics:={ns}/diagnostics"]
     node.create_subscription(DiagnosticArray, f"{ns}/diagnostics", on_diag, 50)
+    for assignment in integrator_params:
+        integ_args += ["-p", assignment]
     integ = subprocess.Popen(node_command("attitude_integrator") + integ_args, env=env,
                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                              start_new_session=True)
@@ -139,6 +142,7 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
         "rate_hz": rate_hz,
         "duration_s": duration_s,
         "qos": reliability,
+        "integrator_params": list(integrator_params),
         "published": published,
         "integrated": accepted[0],
         "lost": published - accepted[0],

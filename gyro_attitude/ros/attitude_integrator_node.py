@@ -37,6 +37,7 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
+from std_msgs.msg import Header
 
 from gyro_attitude.core import imu_validation as iv
 from gyro_attitude.core.rotation import quat_normalize
@@ -89,6 +90,9 @@ def parameter_specs() -> list[ParamSpec]:
                   low=1e-6, high=1e6, runtime=True),
         ParamSpec("max_gap_s", 0.1, "a forward stamp step longer than this is a gap [s]",
                   low=1e-6, high=1e6, runtime=True),
+        ParamSpec("drain_queue", True,
+                  "take all queued Imu messages per executor wakeup (less overhead at high "
+                  "rates); false: one message per wakeup (plain rclpy)"),
         ParamSpec("diagnostics_period_s", 1.0, "period of /diagnostics [s]", low=0.01,
                   high=3600.0),
     ]
@@ -144,8 +148,9 @@ class AttitudeIntegratorNode(Node):
         self._pub_imu = self.create_publisher(Imu, "imu/data", 100)
         self._pub_att = self.create_publisher(QuaternionStamped, "attitude", 100)
         self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        self.create_subscription(
-            Imu, "imu/data_raw", self._on_imu, imu_qos(p["qos_reliability"], p["qos_depth"])
+        self._sub_imu = self.create_subscription(
+            Imu, "imu/data_raw", self._on_imu_wakeup,
+            imu_qos(p["qos_reliability"], p["qos_depth"]),
         )
         if self._awaiting_truth:
             self.create_subscription(QuaternionStamped, "truth/attitude", self._on_truth, 1000)
@@ -224,6 +229,27 @@ class AttitudeIntegratorNode(Node):
                     self._on_imu(later)
                 return
 
+    # at most this many extra messages per wakeup, so timers (diagnostics) still run
+    _DRAIN_MAX = 200
+
+    def _on_imu_wakeup(self, msg: Imu) -> None:
+        self._on_imu(msg)
+        if not self._p["drain_queue"]:
+            return
+        # rclpy's executor rebuilds its wait set for every callback, which costs more than
+        # integrating one sample; taking the messages already queued here (as the executor
+        # itself does, via the subscription handle) keeps up at several kHz.
+        sub = self._sub_imu
+        for _ in range(self._DRAIN_MAX):
+            try:
+                with sub.handle:
+                    taken = sub.handle.take_message(Imu, False)
+            except Exception:  # handle destroyed at shutdown: the executor handles the rest
+                return
+            if taken is None:
+                return
+            self._on_imu(taken[0])
+
     def _on_imu(self, msg: Imu) -> None:
         t_ns, frame_id, omega, _ = convert.imu_arrays(msg)
         if self._awaiting_truth:
@@ -289,8 +315,7 @@ class AttitudeIntegratorNode(Node):
             msg.orientation_covariance = list(convert.UNKNOWN_COVARIANCE)
         self._pub_imu.publish(msg)
         att = QuaternionStamped()
-        att.header = msg.header
-        att.header.frame_id = self._world_frame
+        att.header = Header(stamp=msg.header.stamp, frame_id=self._world_frame)
         a = att.quaternion
         a.x, a.y, a.z, a.w = x, y, z, w
         self._pub_att.publish(att)
