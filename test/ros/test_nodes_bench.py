@@ -22,4 +22,5 @@ def test_nodes_benchmark_quick_reports_loss_and_latency(ros_env, tmp_path, monke
     assert 0 < row["latency_p50_ms"] <= row["latency_p99_ms"] <= row["latency_max_ms"]
     assert summary["summary"] and summary["rates_tested"] == [200.0]
     assert summary["max_rate_no_loss_hz"] == (200.0 if row["lost"] == 0 else None)
+    assert summary["max_rate_no_loss_p99_under_target_hz"] in (200.0, None)
     assert json.loads((tmp_path / "nodes.json").read_text()) == rows
