@@ -115,8 +115,8 @@ class GyroSimNode(Node):
 
         try:
             spec = load_scene(p["scene"])
-        except (ValueError, FileNotFoundError, OSError) as exc:
-            raise ParameterError(f"parameter 'scene': {exc}") from exc
+        except Exception as exc:  # unknown name, unreadable file, YAML syntax, bad key
+            raise ParameterError(f"parameter 'scene' = {p['scene']!r}: {exc}") from exc
         seed = None if p["seed"] < 0 else p["seed"]
         if p["rate_hz"] == 0.0:
             p["rate_hz"] = float(spec.rate_hz)
