@@ -540,27 +540,47 @@ def _pareto_plot(rows, out_dir: pathlib.Path):
         return None
     cases = [c for c in ("smooth_random", "spinning_coning", "coning") if
              any(r["case"] == c for r in rows)]
-    fig, axes = plt.subplots(1, len(cases), figsize=(6 * len(cases), 5), squeeze=False)
+    fig, axes = plt.subplots(1, len(cases), figsize=(6.5 * len(cases), 5.5), squeeze=False)
+    names = sorted({r["algorithm"] for r in rows if r["case"] in cases})
+    colors = plt.get_cmap("tab10")
+    markers = "os^vDPX*<>h"
+    style = {name: (colors(i % 10), markers[i % len(markers)]) for i, name in enumerate(names)}
     for ax, case in zip(axes[0], cases, strict=True):
         sel = [r for r in rows if r["case"] == case and r["final_error_rad"] is not None
                and r["ns_per_sample"] is not None and r["interface"] in ("batch", "peer")]
-        names = sorted({r["algorithm"] for r in sel})
-        cmap = plt.get_cmap("tab20")
-        for i, name in enumerate(names):
-            pts = [(r["ns_per_sample"], max(r["final_error_rad"], 1e-17), r["rate_hz"])
+        for name in names:
+            pts = [(r["ns_per_sample"], max(r["final_error_rad"], 1e-17))
                    for r in sel if r["algorithm"] == name]
-            x, y, _ = zip(*pts, strict=True)
-            marker = "s" if any(r["interface"] == "peer" for r in sel
-                                if r["algorithm"] == name) else "o"
-            ax.scatter(x, y, s=18, color=cmap(i % 20), marker=marker, label=name)
+            if not pts:
+                continue
+            x, y = zip(*pts, strict=True)
+            color, marker = style[name]
+            peer = name in {r["algorithm"] for r in sel if r["interface"] == "peer"}
+            ax.scatter(x, y, s=30 if peer else 20, color=color, marker=marker,
+                       facecolors="none" if peer else color, label=name)
+        # Pareto front: points no other point beats in both cost and error.
+        pts = sorted((r["ns_per_sample"], max(r["final_error_rad"], 1e-17)) for r in sel)
+        front, best = [], float("inf")
+        for x, y in pts:
+            if y < best:
+                front.append((x, y))
+                best = y
+        if front:
+            fx, fy = zip(*front, strict=True)
+            ax.step(fx, fy, where="post", color="k", lw=0.8, alpha=0.6, label="Pareto front")
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_xlabel("cost, ns per sample (batch; peers as squares)")
+        ax.set_xlabel("cost, ns per sample (batch; peers hollow)")
         ax.set_ylabel("final attitude error, rad")
-        ax.set_title(f"{case}: error vs cost, all rates")
+        ax.set_title(f"{case}: all sample rates and parameters")
         ax.grid(True, which="both", alpha=0.3)
-    axes[0][-1].legend(fontsize=6, loc="center left", bbox_to_anchor=(1.0, 0.5))
-    fig.tight_layout()
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    seen = dict(zip(labels, handles, strict=True))
+    for ax in axes[0][1:]:
+        for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
+            seen.setdefault(lab, h)
+    fig.legend(list(seen.values()), list(seen.keys()), fontsize=7, loc="center right")
+    fig.subplots_adjust(right=0.84)
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / "attitude_pareto.png"
     fig.savefig(path, dpi=110)
