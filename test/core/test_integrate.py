@@ -439,3 +439,17 @@ def test_streaming_reset_and_state():
     q = s.update(5 + 500_000_000, (2.0, 0.0, 0.0))
     truth = (Rotation.from_quat(Q0) * Rotation.from_rotvec([1.0, 0, 0])).as_quat()
     assert angle_between(q, truth)[0] < 1e-14
+
+
+@pytest.mark.parametrize("algorithm", QUAT_RATE_ALGS + ["coning2"])
+def test_streaming_with_start_time_holds_first_rate_back(algorithm):
+    """t0_ns without a rate: the first rate is held back to t0 (as the node starts)."""
+    t_ns = np.array([0, 4_000_000, 9_000_000, 15_000_000, 20_000_000], dtype=np.int64)
+    w = smooth_rate(t_ns * 1e-9, scale=2.0)
+    s = StreamingIntegrator(algorithm, Q0, t0_ns=0)
+    q_stream = np.array([Q0] + [s.update(int(t), x) for t, x in zip(t_ns[1:], w[1:],
+                                                                      strict=True)])
+    w_held = w.copy()
+    w_held[0] = w[1]
+    q_batch = integrate_batch(t_ns, w_held, Q0, algorithm)
+    assert angle_between(q_batch, q_stream).max() < 1e-14
