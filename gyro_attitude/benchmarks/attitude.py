@@ -461,7 +461,7 @@ def _throughput(n, m):
         rows.append(_row(alg, "batch", "throughput", motion, 1000.0, n * 1e-3, dt / n * 1e9,
                          None, status="timing_only", samples_per_s=n / dt, n_samples=n))
     for alg in (DEFAULT_ALGORITHM, "exp_map", "coning2", "quat_rk4"):
-        mm = m if alg in (DEFAULT_ALGORITHM, "exp_map") else m // 10
+        mm = m if alg in (DEFAULT_ALGORITHM, "exp_map", "quat_rk4") else m // 10
         s = StreamingIntegrator(alg)
         t0 = time.perf_counter()
         for i in range(mm):
