@@ -284,11 +284,17 @@ def test_invalid_parameters_refused_at_start(launch):
     if _have_scene_loader():
         cases.append((SIM, ["-p", "scene:=no_such_scene_xyz"], "scene"))
     procs = [(launch(module, *args), name) for module, args, name in cases]
+    # alongside: a valid sim running forever stops cleanly on SIGINT (exit 0, no traceback)
+    running = launch(SIM, "-p", "scene:=coning") if _have_scene_loader() else None
     for proc, name in procs:
         code = proc.wait(timeout=30)
         out = proc.output()
         assert code == 2, f"{proc.module} {name}: exit {code}\n{out}"
         assert f"'{name}'" in out and "Traceback" not in out, out
+    if running is not None:
+        assert running.proc.poll() is None, running.output()
+        _assert_clean_exit(running, running.stop(signal.SIGINT))
+        assert "scene 'coning'" in running.output()
 
 
 # --------------------------------------------------------------------------- fast + record
