@@ -152,7 +152,7 @@ def run(args: argparse.Namespace) -> int:
     from gyro_attitude.ros import convert
     from gyro_attitude.ros.qos import imu_qos
 
-    log_dir = bag_dir / "logs"
+    log_dir = bag_dir / f"demo_{spec.name}_{stamp}_logs"  # node output, for a post-mortem
     log_dir.mkdir(exist_ok=True)
     procs: list[subprocess.Popen] = []
     context = None
