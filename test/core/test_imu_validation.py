@@ -101,3 +101,43 @@ def test_interval_statistics_against_numpy():
     assert len(stats) == 200
     with pytest.raises(ValueError, match="window"):
         iv.IntervalStatistics(window=1)
+
+
+def test_random_streams_only_accept_positive_bounded_steps():
+    """Any mix of good and bad samples: an ACCEPT always integrates 0 < dt <= max_gap with
+    finite values in the locked frame, and every rejection is counted exactly once."""
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    sample = st.tuples(
+        st.integers(min_value=-5, max_value=3000).map(lambda ms: ms * MS // 2),
+        st.sampled_from([0.1, math.nan, math.inf]),
+        st.sampled_from(["imu", "imu", "imu", "other"]),
+    )
+
+    @settings(max_examples=200, deadline=None)
+    @given(st.lists(sample, max_size=60))
+    def check(stream):
+        v = make(max_gap_ms=100, jump_ms=1000)
+        last = None
+        rejects = 0
+        for t, w, frame in stream:
+            verdict = v.check(t, [w, 0.0, 0.0], frame)
+            if verdict.rejected:
+                rejects += 1
+                continue
+            assert math.isfinite(w) and t > 0
+            assert frame == v.frame_id
+            if verdict.action == iv.ACCEPT:
+                assert 0 < t - last <= 100 * MS
+            elif verdict.action == iv.RESTART_AFTER_GAP:
+                assert t - last > 100 * MS
+            elif verdict.action == iv.RESET_TIME_JUMP:
+                assert last - t > 1000 * MS
+            else:
+                assert verdict.action == iv.START and last is None
+            last = t
+        assert v.rejected_total == rejects
+        assert v.accepted == len(stream) - rejects
+
+    check()
