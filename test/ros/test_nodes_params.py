@@ -68,3 +68,32 @@ def test_local_enu_position_against_arc_lengths():
     np.testing.assert_allclose(
         enu[0], [2e-5 * (r_n + 100.0) * math.cos(lat0), 1e-5 * (r_m + 100.0), 3.0], rtol=1e-9
     )
+
+
+def test_descriptors_carry_ranges_and_descriptions(ros_domain_id):
+    """What `ros2 param describe` shows: description, numeric range, allowed strings."""
+    pytest.importorskip("gyro_attitude.io.scene_file")
+    import rclpy
+    from rclpy.context import Context
+
+    from gyro_attitude.ros.attitude_integrator_node import AttitudeIntegratorNode
+
+    context = Context()
+    rclpy.init(context=context, domain_id=ros_domain_id)
+    try:
+        sim = gyro_sim_node.GyroSimNode(context=context)
+        integ = AttitudeIntegratorNode(context=context)
+        rate = sim.describe_parameter("rate_hz")
+        assert rate.description and rate.floating_point_range[0].to_value == 100000.0
+        assert sim.describe_parameter("qos_depth").integer_range[0].from_value == 1
+        assert "realtime, fast" in sim.describe_parameter("time_mode").additional_constraints
+        gap = integ.describe_parameter("max_gap_s")
+        assert gap.floating_point_range[0].from_value > 0
+        assert "fixed after start" in integ.describe_parameter("frame").additional_constraints
+        assert "fixed after start" not in integ.describe_parameter(
+            "algorithm").additional_constraints
+        sim.close()
+        sim.destroy_node()
+        integ.destroy_node()
+    finally:
+        rclpy.shutdown(context=context)
