@@ -252,7 +252,8 @@ def _summarize(spec, rate, args, truth, attitude, diagnostics, bag, plot, wall, 
         rejected = {k: v for k, v in d.items() if k.startswith("rejected_") and v != "0"}
         print(f"[demo] integrator: algorithm {d.get('algorithm')}, input {d.get('input_rate_hz')}"
               f" Hz, dt jitter {float(d.get('dt_jitter_s', 'nan')) * 1e6:.3f} us, accepted "
-              f"{d.get('accepted')}, rejected {d.get('rejected_total')} {rejected or ''}, "
+              f"{d.get('accepted')}, rejected {d.get('rejected_total')}"
+              f"{' ' + str(rejected) if rejected else ''}, "
               f"gaps {d.get('gaps')}")
     if bag is not None and bag.exists():
         print(f"[demo] recording: {bag} ({bag.stat().st_size / 1e6:.1f} MB)")
