@@ -6,6 +6,7 @@ run as separate processes on loopback, as deployed (best-effort sensor-data QoS 
 
 * lost samples = published − integrated (the integrator's own ``accepted`` count from
   ``/diagnostics``, so losses of this probe do not count);
+* how late the sim publishes a sample after its stamp (its due time), p50 / p99;
 * latency from publish to attitude: ``received_timestamp`` of ``attitude`` at this probe
   minus ``source_timestamp`` (the sim's publish time, stamped by the middleware) of the
   ``imu/data_raw`` message with the same header stamp; p50 / p99 / max. Both timestamps
@@ -137,6 +138,9 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
     stamps = sorted(published_at)
     missing = [i for i, s in enumerate(stamps) if s not in received_at]
     lat = np.array(pairs, dtype=np.float64) * 1e-6  # ms
+    # how late the sim publishes each sample after its stamp (real time: stamp = the
+    # sample's due time on the wall clock, so this is the timer's lateness, not drift)
+    late = np.array([published_at[s] - s for s in published_at], dtype=np.float64) * 1e-6
     published = published_total[0] or n_expected
     return {
         "suite": "nodes",
@@ -155,6 +159,8 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
         "latency_p50_ms": float(np.percentile(lat, 50)) if lat.size else None,
         "latency_p99_ms": float(np.percentile(lat, 99)) if lat.size else None,
         "latency_max_ms": float(lat.max()) if lat.size else None,
+        "sim_late_p50_ms": float(np.percentile(late, 50)) if late.size else None,
+        "sim_late_p99_ms": float(np.percentile(late, 99)) if late.size else None,
         "cpu_count": os.cpu_count(),
     }
 

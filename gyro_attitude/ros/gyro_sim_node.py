@@ -50,6 +50,7 @@ from gyro_attitude.ros.params import ParameterError, ParamSpec, check_update, de
 from gyro_attitude.ros.qos import imu_qos
 
 NODE_NAME = "gyro_sim"
+_GRID_MARGIN_NS = 50_000  # realtime: a sample is due this long before the timer tick
 DEFAULT_SCENE = "coning"
 
 TOPICS = {
@@ -291,7 +292,17 @@ class GyroSimNode(Node):
                 return
             self._resolve_cache = {t: self._resolve(t) for t in TOPICS}
             self._next_block()
-            self._start_ns = time.time_ns()
+            now = time.time_ns()
+            until = self._timer.time_until_next_call()
+            if self._fast or until is None:
+                self._start_ns = now
+            else:
+                # Anchor the sample grid on this timer's own schedule: its nominal tick time
+                # (next call − period) minus a small margin. Every later tick then finds the
+                # samples up to its own time due and publishes them at once (margin +
+                # scheduling jitter after their stamps), instead of up to a period late when
+                # the grid's phase falls just after the ticks'.
+                self._start_ns = now + until - self._timer.timer_period_ns - _GRID_MARGIN_NS
         if self._fast:
             due = None  # everything in the current block
         else:
