@@ -170,6 +170,10 @@ class McapPlayerNode(Node):
         while rclpy.ok() and time.monotonic() < end:
             pubs = [self._pubs[t] for t in topics if self._pubs.get(t) is not None]
             if all(p.get_subscription_count() >= self.wait_for_subscribers for p in pubs):
+                # Discovery is two-sided: our writers see the readers, but a reader may not
+                # have matched a writer yet and would drop the first samples. Settle briefly
+                # (the same 0.25 s as gyro_sim).
+                time.sleep(0.25)
                 return
             time.sleep(0.02)
         self.get_logger().warning("starting without all subscribers")
