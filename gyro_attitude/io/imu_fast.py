@@ -23,11 +23,17 @@ import numpy as np
 
 from gyro_attitude.io import cdr_arrays
 from gyro_attitude.io.cdr_arrays import IMU_TYPE, QUATERNION_STAMPED_TYPE
-from gyro_attitude.io.mcap_reader import McapStreamReader, match_topic, resolve_mcap_path
+from gyro_attitude.io.mcap_reader import (
+    McapStreamReader,
+    iter_chunk_records,
+    match_topic,
+    resolve_mcap_path,
+)
 from gyro_attitude.io.mcap_records import (
     MAGIC,
     OP_CHANNEL,
     OP_FOOTER,
+    OP_MESSAGE,
     OP_STATISTICS,
     RECORD_HEADER,
     BodyReader,
@@ -438,21 +444,10 @@ def summary_message_counts(path) -> dict[str, int] | None:
 def _walk_offsets(records: bytes) -> dict[int, list[int]]:
     """Offsets of every Message record in a chunk, per channel (Python walk)."""
     out: dict[int, list[int]] = {}
-    pos = 0
-    n = len(records)
-    while pos < n:
-        if n - pos < RECORD_HEADER.size:
-            raise ValueError("chunk ends inside a record header")
-        opcode, length = RECORD_HEADER.unpack_from(records, pos)
-        body = pos + RECORD_HEADER.size
-        if length > n - body:
-            raise ValueError("record overruns its chunk")
-        if opcode == 0x05:
-            if length < 22:
-                raise ValueError("message record too short")
+    for opcode, pos, body, _ in iter_chunk_records(records):
+        if opcode == OP_MESSAGE:
             cid = int.from_bytes(records[body:body + 2], "little")
             out.setdefault(cid, []).append(pos)
-        pos = body + length
     return out
 
 

@@ -54,6 +54,8 @@ __all__ = [
     "resolve_mcap_path",
     "topic_matches",
     "match_topic",
+    "iter_chunk_records",
+    "iter_chunk_messages",
 ]
 
 
@@ -380,15 +382,14 @@ def _parse_message_index(body: bytes, records_len: int) -> tuple[int, np.ndarray
     return cid, entries
 
 
-def iter_chunk_messages(records: bytes):
-    """(channel_id, sequence, log_time, publish_time, data) for each Message record.
+def iter_chunk_records(records: bytes):
+    """(opcode, record_offset, body_offset, body_length) for each record of a chunk.
 
-    A Python walk over the records: the slow, general path (the array decoders use the
-    message index instead).  Raises ValueError on a record that overruns the chunk.
+    Raises ValueError on a record that overruns the chunk or a Message record too short to
+    hold its fixed fields.
     """
     pos = 0
     n = len(records)
-    mv = memoryview(records)
     while pos < n:
         if n - pos < RECORD_HEADER.size:
             raise ValueError("chunk ends inside a record header")
@@ -396,12 +397,23 @@ def iter_chunk_messages(records: bytes):
         body = pos + RECORD_HEADER.size
         if length > n - body:
             raise ValueError("record overruns its chunk")
+        if opcode == OP_MESSAGE and length < MESSAGE_FIXED.size:
+            raise ValueError("message record too short")
+        yield opcode, pos, body, length
+        pos = body + length
+
+
+def iter_chunk_messages(records: bytes):
+    """(channel_id, sequence, log_time, publish_time, data) for each Message record.
+
+    A Python walk over the records: the slow, general path (the array decoders use the
+    message index instead).  Raises ValueError on a record that overruns the chunk.
+    """
+    mv = memoryview(records)
+    for opcode, _, body, length in iter_chunk_records(records):
         if opcode == OP_MESSAGE:
-            if length < MESSAGE_FIXED.size:
-                raise ValueError("message record too short")
             cid, seq, log, pub = MESSAGE_FIXED.unpack_from(records, body)
             yield cid, seq, log, pub, bytes(mv[body + MESSAGE_FIXED.size:body + length])
-        pos = body + length
 
 
 def _scan_meta_in_chunk(records: bytes, reader: McapStreamReader) -> None:
