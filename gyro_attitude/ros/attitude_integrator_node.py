@@ -24,17 +24,14 @@ attitude therefore never becomes NaN.
 
 from __future__ import annotations
 
-import gc
 import sys
 import time
 from collections import deque
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import QuaternionStamped
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Header
@@ -42,6 +39,7 @@ from std_msgs.msg import Header
 from gyro_attitude.core import imu_validation as iv
 from gyro_attitude.core.rotation import quat_normalize
 from gyro_attitude.ros import convert
+from gyro_attitude.ros.node_main import run_node
 from gyro_attitude.ros.params import ParameterError, ParamSpec, check_update, declare_all
 from gyro_attitude.ros.qos import imu_qos
 
@@ -370,26 +368,8 @@ class AttitudeIntegratorNode(Node):
 
 def main(args=None) -> int:
     """Spin the node until SIGINT/SIGTERM; exit 0, or 2 on an invalid parameter."""
-    node = None
-    status = 0
-    try:
-        rclpy.init(args=args)
-        node = AttitudeIntegratorNode()
-        # Move everything allocated at start-up (modules, message classes, numpy) out of the
-        # collector's reach: a full gen-2 collection then scans only recent objects instead
-        # of ~10^5, which keeps its pauses (latency spikes at 1 kHz) well below a millisecond.
-        gc.freeze()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ParameterError as exc:
-        print(f"[{NODE_NAME}] invalid parameter: {exc}", file=sys.stderr)
-        status = 2
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return status
+    return run_node(NODE_NAME, AttitudeIntegratorNode, args)
+
 
 
 if __name__ == "__main__":

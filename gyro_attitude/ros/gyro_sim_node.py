@@ -27,7 +27,6 @@ in-process to a rosbag2-compatible MCAP file.
 
 from __future__ import annotations
 
-import gc
 import sys
 import time
 
@@ -36,7 +35,7 @@ import rclpy
 from geometry_msgs.msg import QuaternionStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
@@ -46,6 +45,7 @@ from std_msgs.msg import Header
 from gyro_attitude.core.earth import radii_of_curvature
 from gyro_attitude.core.rotation import quat_conjugate, quat_rotate
 from gyro_attitude.ros import convert
+from gyro_attitude.ros.node_main import run_node
 from gyro_attitude.ros.params import ParameterError, ParamSpec, check_update, declare_all
 from gyro_attitude.ros.qos import imu_qos
 
@@ -329,39 +329,23 @@ class GyroSimNode(Node):
         self.get_logger().info(f"published {self.published} samples; done")
 
 
+def _spin_until_done(node: GyroSimNode) -> None:
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    executor.spin_until_future_complete(node.done)
+    if node.finished:
+        # let DDS deliver the last samples before the participant goes away
+        end = time.monotonic() + 0.3
+        while rclpy.ok() and time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.05)
+
+
 def main(args=None) -> int:
     """Spin until the duration is over (exit 0), SIGINT/SIGTERM (exit 0), or exit 2 on an
     invalid parameter."""
-    node = None
-    status = 0
-    try:
-        rclpy.init(args=args)
-        node = GyroSimNode()
-        # Move everything allocated at start-up (modules, message classes, numpy) out of the
-        # collector's reach: a full gen-2 collection then scans only recent objects instead
-        # of ~10^5, which keeps its pauses (latency spikes at 1 kHz) well below a millisecond.
-        gc.freeze()
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        executor.spin_until_future_complete(node.done)
-        if node.finished:
-            # let DDS deliver the last samples before the participant goes away
-            end = time.monotonic() + 0.3
-            while rclpy.ok() and time.monotonic() < end:
-                executor.spin_once(timeout_sec=0.05)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ParameterError as exc:
-        print(f"[{NODE_NAME}] invalid parameter: {exc}", file=sys.stderr)
-        status = 2
-    finally:
-        if node is not None:
-            try:
-                node.close()
-            finally:
-                node.destroy_node()
-        rclpy.try_shutdown()
-    return status
+    return run_node(NODE_NAME, GyroSimNode, args, spin=_spin_until_done,
+                    finish=GyroSimNode.close)
+
 
 
 if __name__ == "__main__":

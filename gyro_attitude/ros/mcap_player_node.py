@@ -21,13 +21,14 @@ import sys
 import time
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from gyro_attitude.io.mcap_reader import McapStreamReader, match_topic, resolve_mcap_path
 from gyro_attitude.io.qos import parse_qos_profiles
-from gyro_attitude.ros.mcap_recorder_node import ParameterError, message_class
+from gyro_attitude.ros.mcap_recorder_node import message_class
+from gyro_attitude.ros.node_main import run_node
+from gyro_attitude.ros.params import ParameterError
 
 
 def playback_qos(offered_yaml: str) -> QoSProfile:
@@ -218,29 +219,24 @@ class McapPlayerNode(Node):
         return count
 
 
+def _play(node: McapPlayerNode) -> None:
+    node.get_logger().info(f"playing {node.path} at rate {node.rate:g}"
+                           + (" (loop)" if node.loop else ""))
+    while rclpy.ok():
+        n = node.play_once()
+        if n == 0 or not node.loop:
+            break
+
+
+def _report(node: McapPlayerNode) -> None:
+    print(f"mcap_player: published {node.published} messages", flush=True)
+
+
 def main(args=None) -> int:
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = McapPlayerNode()
-        node.get_logger().info(f"playing {node.path} at rate {node.rate:g}"
-                               + (" (loop)" if node.loop else ""))
-        while rclpy.ok():
-            n = node.play_once()
-            if n == 0 or not node.loop:
-                break
-        print(f"mcap_player: published {node.published} messages", flush=True)
-    except ParameterError as exc:
-        print(f"mcap_player: {exc}", file=sys.stderr)
-        return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        if rclpy.ok():
-            rclpy.shutdown()
-    return 0
+    """Play the recording (once, or looping until SIGINT/SIGTERM); exit 0, or 2 on an
+    invalid parameter."""
+    return run_node("mcap_player", McapPlayerNode, args, spin=_play, finish=_report)
+
 
 
 if __name__ == "__main__":

@@ -24,20 +24,16 @@ import sys
 import time
 from pathlib import Path
 
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from gyro_attitude.io.mcap_writer import COMPRESSIONS, Rosbag2McapWriter
 from gyro_attitude.io.qos import qos_profile, qos_profiles_yaml
+from gyro_attitude.ros.node_main import run_node
+from gyro_attitude.ros.params import ParameterError
 
 DEFAULT_TOPICS = ["imu/data_raw", "imu/data", "attitude", "truth/attitude"]
 MAX_FLUSH_PERIOD_S = 1.0
-
-
-class ParameterError(ValueError):
-    """A parameter value is invalid; the message names the parameter."""
 
 
 def message_class(type_name: str):
@@ -184,26 +180,17 @@ class McapRecorderNode(Node):
             self._writer = None
 
 
+def _close_and_report(node: McapRecorderNode) -> None:
+    count = node.message_count
+    node.close()
+    print(f"mcap_recorder: wrote {count} messages to {node.output}", flush=True)
+
+
 def main(args=None) -> int:
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = McapRecorderNode()
-        rclpy.spin(node)
-    except ParameterError as exc:
-        print(f"mcap_recorder: {exc}", file=sys.stderr)
-        return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            count = node.message_count
-            node.close()
-            print(f"mcap_recorder: wrote {count} messages to {node.output}", flush=True)
-            node.destroy_node()
-        if rclpy.ok():
-            rclpy.shutdown()
-    return 0
+    """Record until SIGINT/SIGTERM (the file is finished with its summary); exit 0, or 2 on
+    an invalid parameter."""
+    return run_node("mcap_recorder", McapRecorderNode, args, finish=_close_and_report)
+
 
 
 if __name__ == "__main__":
