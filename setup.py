@@ -54,7 +54,10 @@ setup(
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/config", glob("config/*.yaml")),
         ("share/" + package_name + "/config/scenes", glob("config/scenes/*.yaml")),
-        ("share/" + package_name + "/bags", glob("bags/*.mcap")),
+        # The shipped sample only: demo and recorder output (bags/demo_*, bags/recording_*)
+        # lands in the same folder and must not be installed.
+        ("share/" + package_name + "/bags", sorted(
+            p for p in glob("bags/*.mcap") if not os.path.basename(p).startswith(("demo_", "recording_")))),
     ]
     + _wheel_launchers(),
     package_data={package_name: ["py.typed"]},
