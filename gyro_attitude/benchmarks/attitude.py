@@ -33,9 +33,7 @@ quotes ratios against the scipy loop measured in the same run.
 from __future__ import annotations
 
 import math
-import os
 import pathlib
-import platform
 import time
 import warnings
 
@@ -43,6 +41,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
+from gyro_attitude.benchmarks import machine_description
 from gyro_attitude.core.earth import earth_rate_enu
 from gyro_attitude.core.integrate import (
     ALGORITHMS,
@@ -608,8 +607,10 @@ def run(quick: bool, out_dir: pathlib.Path) -> list[dict]:
     motions += [SmoothRandom(duration=duration), Tumble(1.0, 0.02, "near_singular"),
                 Tumble(1.0, 0.002, "nearer_singular")]
 
-    print(f"attitude benchmark ({'quick' if quick else 'full'}): {platform.processor() or '?'}"
-          f", {os.cpu_count()} CPUs, numpy {np.__version__}; default = {DEFAULT_ALGORITHM}")
+    m = machine_description()
+    print(f"attitude benchmark ({'quick' if quick else 'full'}): {m['cpu_model']}, "
+          f"{m['cpu_count']} CPUs, load {m['load_avg_1min']}, numpy {m['numpy']}; "
+          f"default = {DEFAULT_ALGORITHM}")
     rows: list[dict] = []
     peers: list[dict] = []
     for motion in motions:

@@ -13,12 +13,11 @@ import argparse
 import importlib
 import json
 import math
-import os
 import pathlib
-import platform
-import sys
 import time
 import traceback
+
+from gyro_attitude.benchmarks import machine_description
 
 SUITES: dict[str, str] = {
     "attitude": "gyro_attitude.benchmarks.attitude",
@@ -104,8 +103,7 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         meta = {
             "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-            "quick": bool(args.quick), "suites": status, "python": sys.version.split()[0],
-            "platform": platform.platform(), "cpu_count": os.cpu_count(),
+            "quick": bool(args.quick), "suites": status, **machine_description(),
         }
         path = pathlib.Path(args.json)
         if path.parent != pathlib.Path(""):
