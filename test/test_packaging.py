@@ -26,10 +26,11 @@ PACKAGE = "gyro_attitude"
 DECLARED = {"gyro-attitude", "gyro_sim", "attitude_integrator", "mcap_recorder", "mcap_player"}
 
 
-def _ros_env(extra_prefix: Path | None = None, pythonpath: Path | None = None) -> dict[str, str]:
+def _ros_env(domain_id: int, extra_prefix: Path | None = None,
+             pythonpath: Path | None = None) -> dict[str, str]:
     env = dict(os.environ)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    env["ROS_DOMAIN_ID"] = str(100 + os.getpid() % 100)
+    env["ROS_DOMAIN_ID"] = str(domain_id)
     if extra_prefix is not None:
         env["AMENT_PREFIX_PATH"] = os.pathsep.join(
             [str(extra_prefix)] + [p for p in env.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
@@ -111,14 +112,14 @@ def test_installed_distribution_declares_every_executable():
 
 @pytest.mark.ros
 @pytest.mark.parametrize("exe", sorted(DECLARED))
-def test_ros2_run_finds_and_starts_venv_install(exe, tmp_path):
-    env = _ros_env()
+def test_ros2_run_finds_and_starts_venv_install(exe, tmp_path, ros_domain_id):
+    env = _ros_env(ros_domain_id)
     path = _ros2_run_lookup(exe, env)
     _starts(path, env, tmp_path)
 
 
 @pytest.mark.ros
-def test_colcon_build_installs_where_ros2_run_looks(tmp_path):
+def test_colcon_build_installs_where_ros2_run_looks(tmp_path, ros_domain_id):
     colcon = shutil.which("colcon", path=os.pathsep.join([str(Path(sys.executable).parent),
                                                           os.environ.get("PATH", "")]))
     if colcon is None:
@@ -139,7 +140,7 @@ def test_colcon_build_installs_where_ros2_run_looks(tmp_path):
     # Sourcing install/setup.bash would put this on PYTHONPATH; with no system ROS it does not
     # extend AMENT_PREFIX_PATH (DESIGN.md), so prepend the prefix as a user would.
     site = prefix / "lib" / f"python{sys.version_info.major}.{sys.version_info.minor}" / "site-packages"
-    env = _ros_env(extra_prefix=prefix, pythonpath=site)
+    env = _ros_env(ros_domain_id, extra_prefix=prefix, pythonpath=site)
     for exe in sorted(DECLARED):
         path = _ros2_run_lookup(exe, env)
         assert path.is_relative_to(prefix), f"{exe} resolved outside the colcon install: {path}"

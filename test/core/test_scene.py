@@ -257,7 +257,8 @@ def test_truth_is_consistent_with_the_design_navigation_update():
     """Integrating the scene's true ω_ib^b with the ENU update of DESIGN.md (B's independent
     integrator, Earth and transport rate removed) must follow the scene's own q_nb; a wrong
     sign or frame in ω_ib^b = C_bn ω_in^n + ω_nb^b would leave ~|ω_in|·t ≈ 1e-3 rad."""
-    integrate = pytest.importorskip("gyro_attitude.core.integrate")
+    from gyro_attitude.core import integrate
+
     d = scene(earth={"latitude_deg": 60.0},
               motion={"type": "ship", "speed_mps": 150.0, "yaw_deg": 30.0,
                       "roll": {"amplitude_deg": 4.0, "period_s": 9.0},
@@ -326,7 +327,8 @@ def test_imu_variances():
 
 # --------------------------------------------------------------------------- instruments (C2)
 def test_rate_gyro_scene_composes_the_rate_gyro_triad():
-    gyro = pytest.importorskip("gyro_attitude.core.gyro")
+    from gyro_attitude.core import gyro
+
     d = scene(earth={"latitude_deg": 45.0, "rotation": False},
               motion={"type": "profile", "segments": [
                   {"duration_s": 0.5}, {"duration_s": 1.5, "angular_rate_deg_s": [0, 0, 30.0]}]},
@@ -343,7 +345,6 @@ def test_rate_gyro_scene_composes_the_rate_gyro_triad():
 
 
 def test_free_gyro_on_the_earth_keeps_its_inertial_direction():
-    pytest.importorskip("gyro_attitude.core.gyro")
     lat_deg = 45.0
     d = scene(earth={"latitude_deg": lat_deg},
               motion={"type": "stationary", "attitude": {"yaw_deg": 90.0}},
@@ -439,7 +440,6 @@ def test_bad_profile_and_motion_values_are_refused_naming_the_key():
 
 
 def test_bad_instrument_parameters_are_refused_naming_the_key():
-    pytest.importorskip("gyro_attitude.core.gyro")
     d = scene(gyro={"model": "rate_gyro", "rate_gyro": {"natural_frequency_hz": 10.0,
                                                         "damping_ratio": 0.5, "wobble": 1}})
     with pytest.raises(ValueError, match=r"^gyro\.rate_gyro\.wobble: unknown key"):

@@ -4,6 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import rclpy.serialization as rclpy_serialization
+from geometry_msgs.msg import QuaternionStamped
+from sensor_msgs.msg import Imu
+from std_msgs.msg import String
 
 from gyro_attitude.io.imu_fast import (
     read_imu_arrays,
@@ -11,11 +15,6 @@ from gyro_attitude.io.imu_fast import (
     read_topic_arrays,
 )
 from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
-
-rclpy_serialization = pytest.importorskip("rclpy.serialization")
-from geometry_msgs.msg import QuaternionStamped  # noqa: E402
-from sensor_msgs.msg import Imu  # noqa: E402
-from std_msgs.msg import String  # noqa: E402
 
 
 def random_unit_quaternions(rng, n):

@@ -8,19 +8,18 @@ import zlib
 
 import numpy as np
 import pytest
+import rclpy.serialization as rclpy_serialization
 import yaml
+from geometry_msgs.msg import QuaternionStamped
 from mcap.reader import make_reader
 from mcap.records import DataEnd, Footer
 from mcap.stream_reader import StreamReader
 from mcap_ros2.decoder import DecoderFactory
+from sensor_msgs.msg import Imu
+from std_msgs.msg import String
 
 from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
 from gyro_attitude.io.qos import DEFAULT_QOS_YAML, qos_profile, qos_profiles_yaml
-
-rclpy_serialization = pytest.importorskip("rclpy.serialization")
-from geometry_msgs.msg import QuaternionStamped  # noqa: E402
-from sensor_msgs.msg import Imu  # noqa: E402
-from std_msgs.msg import String  # noqa: E402
 
 
 def random_unit_quaternions(rng, n):

@@ -28,8 +28,6 @@ def test_every_shipped_scene_is_listed_with_a_description_and_a_seed():
 
 @pytest.mark.parametrize("name", SHIPPED)
 def test_shipped_scene_loads_and_runs(name):
-    if name in ("free_gyro_drift", "rate_gyro_step"):
-        pytest.importorskip("gyro_attitude.core.gyro")
     spec = load_scene(name)
     assert spec.name == name
     sim = SceneSimulator(spec, spec.rate_hz)

@@ -12,49 +12,18 @@
 
 from __future__ import annotations
 
-import fcntl
 import itertools
 import os
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-_DOMAIN_RANGE = range(40, 100)  # 0..101 are safe on Linux; leave the low ids to users
-_lock_file = None
 _ns_counter = itertools.count()
-
-
-def _claim_domain_id() -> int:
-    global _lock_file
-    lock_dir = Path(tempfile.gettempdir()) / "gyro_attitude_ros_domains"
-    lock_dir.mkdir(exist_ok=True)
-    start = os.getpid() % len(_DOMAIN_RANGE)
-    for i in range(len(_DOMAIN_RANGE)):
-        domain = _DOMAIN_RANGE[(start + i) % len(_DOMAIN_RANGE)]
-        f = open(lock_dir / f"{domain}.lock", "w")  # held for the session
-        try:
-            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            f.close()
-            continue
-        _lock_file = f  # keep the lock until this process exits
-        return domain
-    raise RuntimeError("no free ROS_DOMAIN_ID for the test process")
-
-
-@pytest.fixture(scope="session")
-def ros_domain_id() -> int:
-    domain = _claim_domain_id()
-    os.environ["ROS_DOMAIN_ID"] = str(domain)
-    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    os.environ.setdefault("AMENT_PREFIX_PATH", sys.prefix)
-    return domain
 
 
 @pytest.fixture

@@ -14,40 +14,23 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import QuaternionStamped
+from nav_msgs.msg import Odometry
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from scipy.spatial.transform import Rotation
+from sensor_msgs.msg import Imu, JointState
+
+from gyro_attitude.core import integrate
+from gyro_attitude.ros import convert
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
-
-rclpy = pytest.importorskip("rclpy")
-integrate = pytest.importorskip("gyro_attitude.core.integrate")
-pytest.importorskip("gyro_attitude.core.scene")
-
-from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from geometry_msgs.msg import QuaternionStamped  # noqa: E402
-from nav_msgs.msg import Odometry  # noqa: E402
-from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
-from rosgraph_msgs.msg import Clock  # noqa: E402
-from scipy.spatial.transform import Rotation  # noqa: E402
-from sensor_msgs.msg import Imu, JointState  # noqa: E402
-
-from gyro_attitude.ros import convert  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 SIM = "gyro_attitude.ros.gyro_sim_node"
 INTEGRATOR = "gyro_attitude.ros.attitude_integrator_node"
 RELIABLE = QoSProfile(depth=20000, reliability=ReliabilityPolicy.RELIABLE)
-
-
-def _have_scene_loader() -> bool:
-    try:
-        import gyro_attitude.io.scene_file  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-needs_scenes = pytest.mark.skipif(
-    not _have_scene_loader(), reason="gyro_attitude.io.scene_file (C1) not available yet"
-)
 
 
 def _collect(node, msg_type, topic, qos=RELIABLE):
@@ -68,7 +51,6 @@ def _assert_clean_exit(proc, code):
 
 
 # --------------------------------------------------------------------------- pipeline
-@needs_scenes
 def test_sim_to_integrator_coning_against_truth(launch, ros_node):
     """Every topic, type, frame and covariance convention; integrated attitude vs truth."""
     rate, duration = 500.0, 2.0
@@ -280,27 +262,23 @@ def test_invalid_parameters_refused_at_start(launch):
         (INTEGRATOR, ["-p", "initial_attitude:=[0.0, 0.0, 1.0]"], "initial_attitude"),
         (SIM, ["-p", "rate_hz:=-5.0"], "rate_hz"),
         (SIM, ["-p", "time_mode:=slow"], "time_mode"),
+        (SIM, ["-p", "scene:=no_such_scene_xyz"], "scene"),
     ]
-    if _have_scene_loader():
-        cases.append((SIM, ["-p", "scene:=no_such_scene_xyz"], "scene"))
     procs = [(launch(module, *args), name) for module, args, name in cases]
     # alongside: a valid sim running forever stops cleanly on SIGINT (exit 0, no traceback)
-    running = launch(SIM, "-p", "scene:=coning") if _have_scene_loader() else None
+    running = launch(SIM, "-p", "scene:=coning")
     for proc, name in procs:
         code = proc.wait(timeout=30)
         out = proc.output()
         assert code == 2, f"{proc.module} {name}: exit {code}\n{out}"
         assert f"'{name}'" in out and "Traceback" not in out, out
-    if running is not None:
-        assert running.proc.poll() is None, running.output()
-        _assert_clean_exit(running, running.stop(signal.SIGINT))
-        assert "scene 'coning'" in running.output()
+    assert running.proc.poll() is None, running.output()
+    _assert_clean_exit(running, running.stop(signal.SIGINT))
+    assert "scene 'coning'" in running.output()
 
 
 # --------------------------------------------------------------------------- fast + record
-@needs_scenes
 def test_fast_mode_gimbal_scene_recording_clock_and_enu_at_rest(launch, ros_node, tmp_path):
-    pytest.importorskip("gyro_attitude.io.mcap_writer")
     from mcap.reader import make_reader
 
     bag = tmp_path / "free_gyro.mcap"

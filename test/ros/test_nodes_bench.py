@@ -5,7 +5,6 @@ import json
 import pytest
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
-pytest.importorskip("gyro_attitude.io.scene_file")
 
 
 def test_nodes_benchmark_quick_reports_loss_and_latency(ros_env, tmp_path, monkeypatch):

@@ -7,8 +7,6 @@ import sys
 import pytest
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
-pytest.importorskip("gyro_attitude.io.scene_file")
-pytest.importorskip("gyro_attitude.io.mcap_writer")
 
 
 def test_demo_runs_records_and_plots(ros_env, tmp_path):

@@ -13,7 +13,6 @@ REPO = Path(__file__).resolve().parents[2]
 
 
 def _integrator_specs():
-    pytest.importorskip("gyro_attitude.core.integrate")
     from gyro_attitude.ros import attitude_integrator_node
 
     return attitude_integrator_node.parameter_specs()
@@ -72,7 +71,6 @@ def test_local_enu_position_against_arc_lengths():
 
 def test_descriptors_carry_ranges_and_descriptions(ros_domain_id):
     """What `ros2 param describe` shows: description, numeric range, allowed strings."""
-    pytest.importorskip("gyro_attitude.io.scene_file")
     import rclpy
     from rclpy.context import Context
 
