@@ -751,7 +751,8 @@ def _initial_angles(to_angles, q0, tol, div_fn, div_name):
 
 # --------------------------------------------------------------------------- streaming
 _FAST_STREAMING = ("rotvec_cubic", "rotvec_trapezoid", "exp_map", "quat_rk4",
-                   "quat_first_order", "dcm_first_order")
+                   "quat_first_order", "dcm_first_order",
+                   "coning1", "coning1_prev", "coning2", "coning3", "coning4")
 _SQRT3_12 = math.sqrt(3.0) / 12.0
 
 
@@ -833,6 +834,21 @@ def _lagrange_scalar(xs, ys, e):
     return ox, oy, oz
 
 
+def _quadrature_scalar(quadrature, ts, ws, k, nodes):
+    """Scalar twin of :func:`_increments_from_rates`: angle increment of interval k."""
+    h = (ts[k] - ts[k - 1]) * 1e-9
+    if quadrature == "trapezoid":
+        (ax, ay, az), (bx, by, bz) = ws[k - 1], ws[k]
+        return (0.5 * (ax + bx) * h, 0.5 * (ay + by) * h, 0.5 * (az + bz) * h)
+    t_prev = ts[k - 1]
+    xs = [(ts[i] - t_prev) * 1e-9 for i in nodes]
+    ys = [ws[i] for i in nodes]
+    ax, ay, az = _lagrange_scalar(xs, ys, h * (0.5 - _GAUSS_OFFSET))
+    bx, by, bz = _lagrange_scalar(xs, ys, h * (0.5 + _GAUSS_OFFSET))
+    half = 0.5 * h
+    return (half * (ax + bx), half * (ay + by), half * (az + bz))
+
+
 def _exp_scalar(x, y, z):
     th2 = x * x + y * y + z * z
     th = math.sqrt(th2)
@@ -864,8 +880,9 @@ def _compose_scalar(q, b, zeta):
 class StreamingIntegrator:
     """Per-sample attitude update with the same results as :func:`integrate_batch`.
 
-    The quaternion rate algorithms run a plain-float path (3-9 µs per call here); the
-    coning algorithms and the Euler baselines use the numpy path (45-140 µs per call).
+    The quaternion rate and the coning algorithms run a plain-float path (~3-10 µs per
+    call on the 2-core development machine); the Euler baselines use the numpy path
+    (tens of µs per call).
 
     ``update(t_ns, omega_ib_b)`` takes one rate sample and returns the attitude at
     ``t_ns`` (the first call, or the first after ``reset`` without ``t_ns``, only sets
@@ -897,6 +914,17 @@ class StreamingIntegrator:
                 if "time series" not in str(err):
                     raise
                 self._nav_series = nav
+                n = None
+                for arr in (nav.latitude_rad, nav.height_m):
+                    a = np.asarray(arr)
+                    if a.ndim:
+                        n = a.shape[0]
+                v = np.asarray(nav.velocity_enu)
+                if v.ndim > 1:
+                    n = v.shape[0]
+                # Evaluated once for the whole series (as the batch does): per-sample numpy
+                # calls would cost ~30 µs per update.
+                self._nav_rates = nav.rate_enu(n)
         self.reset(q0, t0_ns)
 
     def reset(self, q0, t_ns: int | None = None) -> None:
@@ -920,12 +948,16 @@ class StreamingIntegrator:
             self._angles = _initial_angles(to_angles, self._q, self.singular_tol, div_fn,
                                            div_name)
         self._angles_start = self._angles
-        # Scalar fast path (plain floats, no numpy per call) for the cheap rate algorithms.
+        # Scalar fast path (plain floats, no numpy per call) for the quaternion algorithms.
         self._fast = self.algorithm in _FAST_STREAMING
+        self._fincr = self.info.consumes == "increment"
+        self._fblock: list[tuple[float, float, float]] = []  # increments of the open N-block
+        self._fzeta_block = None
+        self._fprev = None  # previous increment (coning1_prev)
         self._ft: list[int] = []
         self._fw: list[tuple[float, float, float]] = []
         self._fq = tuple(float(c) for c in self._q)
-        self._fq_start = self._fq
+        self._fq_start = self._fq_block = self._fq
         self._fnav: list[tuple[float, float, float]] = []
         self._fzeta_first = None
         if t_ns is not None:
@@ -945,23 +977,10 @@ class StreamingIntegrator:
             return None
         if self._nav_const is not None:
             return self._nav_const
-        nav = self._nav_series
-        n = None
-        for arr in (nav.latitude_rad, nav.height_m):
-            a = np.asarray(arr)
-            if a.ndim:
-                n = a.shape[0]
-        v = np.asarray(nav.velocity_enu)
-        if v.ndim > 1:
-            n = v.shape[0]
+        n = self._nav_rates.shape[0]
         if index >= n:
             raise ValueError(f"NavFrame time series has {n} samples; sample {index} is beyond")
-
-        def pick(x, nd):
-            x = np.asarray(x, dtype=np.float64)
-            return x[index] if x.ndim > nd else x
-        return nav_rate_enu(check_latitude(pick(nav.latitude_rad, 0)),
-                            pick(nav.height_m, 0), pick(nav.velocity_enu, 1))
+        return self._nav_rates[index]
 
     def _check_time(self, t_ns) -> int:
         if isinstance(t_ns, float | np.floating) or not isinstance(t_ns, int | np.integer):
@@ -1033,7 +1052,7 @@ class StreamingIntegrator:
         w = (wx, wy, wz)
         rate_n = self._nav_rate_at(self.samples)
         if rate_n is not None:
-            rate_n = (float(rate_n[0]), float(rate_n[1]), float(rate_n[2]))
+            rate_n = rate_n.tolist()
             self._fnav = (self._fnav + [rate_n])[-2:]
         self.samples += 1
         if self.last_t_ns is None:
@@ -1057,10 +1076,24 @@ class StreamingIntegrator:
             self._fzeta_first = zeta
         elif self.samples == 3 and self._redo_first:
             # Redo interval 1 with the quadratic through samples 0, 1, 2 (as the batch).
-            b1 = _increment_scalar(self.algorithm, self._ft, self._fw, 1, (0, 1, 2))
-            self._fq = _compose_scalar(self._fq_start, b1, self._fzeta_first)
-        b = _increment_scalar(self.algorithm, self._ft, self._fw, n - 1, tuple(range(n)))
-        self._fq = _compose_scalar(self._fq, b, zeta)
+            if self._fincr:
+                d1 = _quadrature_scalar(self.quadrature, self._ft, self._fw, 1, (0, 1, 2))
+                if self.info.samples_per_update > 1:
+                    self._fblock[0] = d1  # the N-block is still open: fix its first entry
+                else:
+                    self._fq = self._fq_block = _compose_scalar(
+                        self._fq_start, _exp_scalar(*d1), self._fzeta_first)
+                    self._fprev = d1
+            else:
+                b1 = _increment_scalar(self.algorithm, self._ft, self._fw, 1, (0, 1, 2))
+                self._fq = _compose_scalar(self._fq_start, b1, self._fzeta_first)
+        if self._fincr:
+            d = _quadrature_scalar(self.quadrature, self._ft, self._fw, n - 1,
+                                   tuple(range(n)))
+            self._increment_fast(d, zeta)
+        else:
+            b = _increment_scalar(self.algorithm, self._ft, self._fw, n - 1, tuple(range(n)))
+            self._fq = _compose_scalar(self._fq, b, zeta)
         self.last_t_ns = t
         self._q = np.array(self._fq)
         return self._q.copy()
@@ -1097,6 +1130,8 @@ class StreamingIntegrator:
         """
         if self.info.consumes != "increment":
             raise ValueError(f"{self.algorithm} consumes rate samples; use update()")
+        if self._fast:
+            return self._update_increment_fast(t_ns, delta_theta)
         d = as_vector_array(delta_theta, "delta_theta")
         if d.shape != (3,):
             raise ValueError(f"delta_theta must have shape (3,), got {d.shape}")
@@ -1112,6 +1147,76 @@ class StreamingIntegrator:
         self.last_t_ns = t
         self.samples += 1
         return self.quaternion
+
+    def _update_increment_fast(self, t_ns, delta_theta) -> np.ndarray:
+        try:
+            dx, dy, dz = (float(c) for c in delta_theta)
+        except (TypeError, ValueError):
+            raise ValueError("delta_theta must have shape (3,): 3 finite numbers, got "
+                             f"{delta_theta!r}") from None
+        if not (math.isfinite(dx) and math.isfinite(dy) and math.isfinite(dz)):
+            raise ValueError("delta_theta contains non-finite values (NaN or inf)")
+        t = self._check_time(t_ns)
+        if self.last_t_ns is None:
+            raise ValueError("update_increment needs a start time: pass t0_ns to the "
+                             "constructor or reset(q0, t_ns)")
+        zeta = None
+        if self.nav is not None:
+            rate_n = self._nav_rate_at(self.samples).tolist()
+            self._fnav = (self._fnav + [rate_n])[-2:]
+            h = (t - self.last_t_ns) * 1e-9
+            if self._nav_const is not None:
+                zeta = (rate_n[0] * h, rate_n[1] * h, rate_n[2] * h)
+            else:
+                r0, r1 = self._fnav
+                zeta = tuple(0.5 * (r0[i] + r1[i]) * h for i in range(3))
+        self._increment_fast((dx, dy, dz), zeta)
+        self.last_t_ns = t
+        self.samples += 1
+        self._q = np.array(self._fq)
+        return self._q.copy()
+
+    def _increment_fast(self, d, zeta) -> None:
+        """Scalar twin of :meth:`_increment_update` (same sums in the same order)."""
+        dx, dy, dz = d
+        if self.algorithm == "coning1_prev":
+            p = self._fprev
+            if p is not None:
+                px, py, pz = p
+                d = (dx + (py * dz - pz * dy) / 12.0, dy + (pz * dx - px * dz) / 12.0,
+                     dz + (px * dy - py * dx) / 12.0)
+            self._fprev = (dx, dy, dz)
+            self._fq = self._fq_block = _compose_scalar(self._fq_block, _exp_scalar(*d), zeta)
+            return
+        block = self._fblock
+        block.append(d)
+        j = len(block)
+        sx = sy = sz = 0.0
+        for bx, by, bz in block:
+            sx += bx
+            sy += by
+            sz += bz
+        coef = CONING_COEFFICIENTS[j]
+        if coef:
+            wx = wy = wz = 0.0
+            for c, (bx, by, bz) in zip(coef, block, strict=False):
+                wx += c * bx
+                wy += c * by
+                wz += c * bz
+            sx += wy * dz - wz * dy
+            sy += wz * dx - wx * dz
+            sz += wx * dy - wy * dx
+        if zeta is not None:
+            zb = self._fzeta_block
+            if j > 1:
+                zeta = (zb[0] + zeta[0], zb[1] + zeta[1], zb[2] + zeta[2])
+            self._fzeta_block = zeta
+        q = _compose_scalar(self._fq_block, _exp_scalar(sx, sy, sz), zeta)
+        self._fq = q
+        if j == self.info.samples_per_update:
+            self._fq_block = q
+            self._fblock = []
+            self._fzeta_block = None
 
     def _zeta(self, t: int) -> np.ndarray | None:
         if self.nav is None:

@@ -453,3 +453,116 @@ def test_streaming_with_start_time_holds_first_rate_back(algorithm):
     w_held[0] = w[1]
     q_batch = integrate_batch(t_ns, w_held, Q0, algorithm)
     assert angle_between(q_batch, q_stream).max() < 1e-14
+
+
+# ----------------------------------------------------------------------------- streaming fast path
+def _random_steps(n, seed=11):
+    rng = np.random.default_rng(seed)
+    return np.cumsum(rng.integers(700_000, 1_300_000, n)).astype(np.int64)
+
+
+def _nav_cases(n):
+    lat = np.linspace(0.5, 0.52, n)
+    vel = np.column_stack((np.linspace(0, 250, n), np.full(n, 30.0), np.zeros(n)))
+    return [None, NavFrame(0.7, velocity_enu=(40.0, -10.0, 0.0)),
+            NavFrame(lat, height_m=np.linspace(0, 1000, n), velocity_enu=vel)]
+
+
+@pytest.mark.parametrize("algorithm", INCR_ALGS)
+@pytest.mark.parametrize("n", [1, 2, 3, 4, 5, 6, 9, 23])
+def test_coning_streaming_first_samples_and_partial_blocks_equal_batch(algorithm, n):
+    """Short runs end inside an N-block (and before/at the first-interval redo)."""
+    t_ns = _random_steps(n)
+    w = smooth_rate(t_ns * 1e-9, scale=3.0)
+    for quadrature in ("trapezoid", "cubic"):
+        for nav in _nav_cases(n):
+            q_batch = integrate_batch(t_ns, w, Q0, algorithm, nav=nav, quadrature=quadrature)
+            q_stream = _stream(algorithm, t_ns, w, Q0, nav, quadrature)
+            assert angle_between(q_batch, q_stream).max() < 1e-13, (quadrature, nav)
+    if n > 1:
+        d = smooth_increments(t_ns[:-1] * 1e-9, t_ns[1:] * 1e-9, scale=3.0)
+        for nav in _nav_cases(n):
+            s = StreamingIntegrator(algorithm, Q0, nav=nav, t0_ns=int(t_ns[0]))
+            q_stream = np.array([Q0] + [s.update_increment(int(t), x)
+                                        for t, x in zip(t_ns[1:], d, strict=True)])
+            q_batch = integrate_increments_batch(t_ns, d, Q0, algorithm, nav=nav)
+            assert angle_between(q_batch, q_stream).max() < 1e-13, nav
+
+
+@pytest.mark.parametrize("algorithm", INCR_ALGS + QUAT_RATE_ALGS)
+def test_streaming_fast_path_equals_numpy_path(algorithm):
+    """The plain-float streaming path against the general numpy one (same operations)."""
+    n = 203
+    t_ns = _random_steps(n, seed=5)
+    w = smooth_rate(t_ns * 1e-9, scale=2.5)
+    d = smooth_increments(t_ns[:-1] * 1e-9, t_ns[1:] * 1e-9, scale=2.5)
+    incr = ALGORITHMS[algorithm].consumes == "increment"
+    for quadrature in ("trapezoid", "cubic") if incr else ("trapezoid",):
+        for nav in _nav_cases(n):
+            fast = StreamingIntegrator(algorithm, Q0, nav=nav, quadrature=quadrature)
+            slow = StreamingIntegrator(algorithm, Q0, nav=nav, quadrature=quadrature)
+            assert fast._fast
+            slow._fast = False
+            for t, x in zip(t_ns, w, strict=True):
+                np.testing.assert_allclose(fast.update(int(t), x), slow.update(int(t), x),
+                                           rtol=0, atol=1e-14)
+            if incr:
+                for s in (fast, slow):
+                    s.reset(Q0, t_ns=int(t_ns[0]))
+                slow._fast = False
+                for t, x in zip(t_ns[1:], d, strict=True):
+                    np.testing.assert_allclose(fast.update_increment(int(t), x),
+                                               slow.update_increment(int(t), x),
+                                               rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("algorithm", INCR_ALGS)
+def test_coning_streaming_reset_mid_block(algorithm):
+    """reset() inside an open N-block drops the block: the stream restarts like a batch."""
+    t_ns = _random_steps(40, seed=2)
+    w = smooth_rate(t_ns * 1e-9, scale=2.0)
+    for quadrature in ("trapezoid", "cubic"):
+        s = StreamingIntegrator(algorithm, Q0, quadrature=quadrature)
+        for t, x in zip(t_ns[:7], w[:7], strict=True):
+            s.update(int(t), x)
+        # reset without a time: the next sample is the new origin
+        s.reset(Q0)
+        q_stream = np.array([s.update(int(t), x) for t, x in zip(t_ns[7:], w[7:], strict=True)])
+        q_batch = integrate_batch(t_ns[7:], w[7:], Q0, algorithm, quadrature=quadrature)
+        assert angle_between(q_batch, q_stream).max() < 1e-13
+        # reset with a time: the first rate is held back to it (as for t0_ns)
+        s.reset(Q0, t_ns=int(t_ns[-1]) + 1_000_000)
+        t2 = int(t_ns[-1]) + 1_000_000 + np.cumsum(np.full(9, 900_000))
+        w2 = smooth_rate(t2 * 1e-9, scale=2.0)
+        q_stream = np.array([s.update(int(t), x) for t, x in zip(t2, w2, strict=True)])
+        t_all = np.concatenate(([int(t_ns[-1]) + 1_000_000], t2))
+        q_batch = integrate_batch(t_all, np.vstack((w2[:1], w2)), Q0, algorithm,
+                                  quadrature=quadrature)
+        assert angle_between(q_batch[1:], q_stream).max() < 1e-13
+
+
+def test_update_increment_bad_input():
+    s = StreamingIntegrator("coning2")
+    with pytest.raises(ValueError, match="start time"):
+        s.update_increment(10, (0.0, 0.0, 0.0))
+    s.reset(Q0, t_ns=0)
+    with pytest.raises(ValueError, match="non-finite"):
+        s.update_increment(10, (0.0, np.nan, 0.0))
+    with pytest.raises(ValueError, match="shape"):
+        s.update_increment(10, (0.0, 0.0))
+    with pytest.raises(ValueError, match="not positive"):
+        s.update_increment(0, (0.0, 0.0, 0.0))
+    assert s.samples == 1 and s.last_t_ns == 0
+    with pytest.raises(ValueError, match="consumes rate samples"):
+        StreamingIntegrator("rotvec_cubic", t0_ns=0).update_increment(10, (0.0, 0.0, 0.0))
+
+
+def test_streaming_nav_series_checked_and_bounded():
+    nav = NavFrame(np.array([0.5, 0.51, 0.52]))
+    s = StreamingIntegrator("coning2", nav=nav)
+    for k in range(3):
+        s.update(k * 1_000_000, (0.1, 0.0, 0.0))
+    with pytest.raises(ValueError, match="sample 3 is beyond"):
+        s.update(3_000_000, (0.1, 0.0, 0.0))
+    with pytest.raises(ValueError, match="latitude"):
+        StreamingIntegrator("coning2", nav=NavFrame(np.array([0.5, 2.0])))
