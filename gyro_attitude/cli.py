@@ -39,8 +39,8 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser()
     if not argv or argv[0] not in SUBCOMMANDS:
-        args = parser.parse_args(argv)  # prints help / version / the error for unknown names
-        parser.print_help()
+        parser.parse_args(argv)  # exits for --help, --version and unknown subcommands
+        parser.print_help()  # no subcommand given
         return 2
     name = argv[0]
     module = importlib.import_module(f"gyro_attitude.commands.{name}")
