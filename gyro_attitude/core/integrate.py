@@ -930,25 +930,19 @@ class StreamingIntegrator:
     def reset(self, q0, t_ns: int | None = None) -> None:
         """Restart from attitude ``q0`` (at ``t_ns`` if given), dropping all history."""
         self._q = _check_q0(q0)
-        self._q_block = self._q.copy()
         self._t_hist: list[int] = []
         self._w_hist: list[np.ndarray] = []
-        self._nav_hist: list[np.ndarray] = []
-        self._block: list[np.ndarray] = []
-        self._zeta_block = np.zeros(3)
-        self._prev_dtheta: np.ndarray | None = None
         self.samples = 0
         self.last_t_ns: int | None = None
         self._angles = None
-        self._q_start = self._q.copy()
-        self._zeta_first = None
         self._redo_first = _uses_rate_fit(self.info, self.quadrature)
         if self.info.sequential:
             to_angles, _, _, div_name, div_fn = _euler_setup(self.algorithm)
             self._angles = _initial_angles(to_angles, self._q, self.singular_tol, div_fn,
                                            div_name)
         self._angles_start = self._angles
-        # Scalar fast path (plain floats, no numpy per call) for the quaternion algorithms.
+        # Scalar fast path (plain floats, no numpy per call) for the quaternion algorithms;
+        # the Euler-angle baselines run their numpy RK4 step per sample.
         self._fast = self.algorithm in _FAST_STREAMING
         self._fincr = self.info.consumes == "increment"
         self._fblock: list[tuple[float, float, float]] = []  # increments of the open N-block
@@ -997,8 +991,6 @@ class StreamingIntegrator:
         self._t_hist = [t]
         self._w_hist = [w if w is not None else np.zeros(3)]
         self._have_w0 = w is not None
-        rate = self._nav_rate_at(self.samples)
-        self._nav_hist = [rate] if rate is not None else []
         self.samples += 1
 
     def update(self, t_ns: int, omega_ib_b) -> np.ndarray:
@@ -1022,21 +1014,9 @@ class StreamingIntegrator:
         tt = np.array(self._t_hist, dtype=np.int64)
         ww = np.array(self._w_hist)
         k = np.array([tt.size - 1])
-        rate_n = self._nav_rate_at(self.samples)
-        if rate_n is not None:
-            self._nav_hist = (self._nav_hist + [rate_n])[-2:]
-        if self.samples == 1:
-            self._zeta_first = self._zeta(t)
-        elif self.samples == 2 and self._redo_first:
+        if self.samples == 2 and self._redo_first:
             self._redo_first_interval(tt, ww)
-        if self.info.sequential:
-            self._euler_update(tt, ww, k, t)
-        elif self.info.consumes == "increment":
-            d = _increments_from_rates(tt, ww, k, self.quadrature)[0]
-            self._increment_update(t, d)
-        else:
-            b = _rate_body_increments(self.algorithm, tt, ww, k)[0]
-            self._apply(b, self._zeta(t), major=True)
+        self._euler_update(tt, ww, k, t)
         self.last_t_ns = t
         self.samples += 1
         return self.quaternion
@@ -1100,27 +1080,11 @@ class StreamingIntegrator:
 
     def _redo_first_interval(self, tt: np.ndarray, ww: np.ndarray) -> None:
         """Redo interval 1 with the quadratic through samples 0, 1, 2 (batch does the same)."""
-        k1 = np.array([1])
-        zeta1 = self._zeta_first
-        if self.info.sequential:
-            _, _, rates_fn, div_name, div_fn = _euler_setup(self.algorithm)
-            wm = _rate_at_fractions(tt, ww, k1, (0.5,), lookahead=True)[0, 0]
-            self._angles = _euler_step(rates_fn, div_fn, div_name, self._angles_start, ww[0],
-                                       wm, ww[1], (tt[1] - tt[0]) * 1e-9, self.singular_tol,
-                                       1, int(tt[1]))
-            return
-        if self.info.consumes == "increment":
-            d1 = _increments_from_rates(tt, ww, k1, self.quadrature, lookahead=True)[0]
-            if self.info.samples_per_update > 1:
-                self._block[0] = d1  # the N-block is still open: just fix its first entry
-                return
-            self._q_block = self._q_start
-            self._apply(_exp_rotvec(d1), zeta1, major=True)
-            self._prev_dtheta = d1
-            return
-        b1 = _rate_body_increments(self.algorithm, tt, ww, k1, lookahead=True)[0]
-        self._q_block = self._q_start
-        self._apply(b1, zeta1, major=True)
+        _, _, rates_fn, div_name, div_fn = _euler_setup(self.algorithm)
+        wm = _rate_at_fractions(tt, ww, np.array([1]), (0.5,), lookahead=True)[0, 0]
+        self._angles = _euler_step(rates_fn, div_fn, div_name, self._angles_start, ww[0],
+                                   wm, ww[1], (tt[1] - tt[0]) * 1e-9, self.singular_tol,
+                                   1, int(tt[1]))
 
     def update_increment(self, t_ns: int, delta_theta) -> np.ndarray:
         """Consume one angle increment over ``(last_t_ns, t_ns]`` (increment algorithms).
@@ -1130,23 +1094,7 @@ class StreamingIntegrator:
         """
         if self.info.consumes != "increment":
             raise ValueError(f"{self.algorithm} consumes rate samples; use update()")
-        if self._fast:
-            return self._update_increment_fast(t_ns, delta_theta)
-        d = as_vector_array(delta_theta, "delta_theta")
-        if d.shape != (3,):
-            raise ValueError(f"delta_theta must have shape (3,), got {d.shape}")
-        t = self._check_time(t_ns)
-        if self.last_t_ns is None:
-            raise ValueError("update_increment needs a start time: pass t0_ns to the "
-                             "constructor or reset(q0, t_ns)")
-        self._t_hist = (self._t_hist + [t])[-4:]
-        rate_n = self._nav_rate_at(self.samples)
-        if rate_n is not None:
-            self._nav_hist = (self._nav_hist + [rate_n])[-2:]
-        self._increment_update(t, d.copy())
-        self.last_t_ns = t
-        self.samples += 1
-        return self.quaternion
+        return self._update_increment_fast(t_ns, delta_theta)
 
     def _update_increment_fast(self, t_ns, delta_theta) -> np.ndarray:
         try:
@@ -1217,45 +1165,6 @@ class StreamingIntegrator:
             self._fq_block = q
             self._fblock = []
             self._fzeta_block = None
-
-    def _zeta(self, t: int) -> np.ndarray | None:
-        if self.nav is None:
-            return None
-        h = (t - self.last_t_ns) * 1e-9
-        if self._nav_const is not None:
-            return self._nav_const * h
-        return 0.5 * (self._nav_hist[-2] + self._nav_hist[-1]) * h
-
-    def _apply(self, b: np.ndarray, zeta: np.ndarray | None, major: bool) -> None:
-        # q = a' ⊗ Q_block ⊗ b'; the same products (in the same order) as the batch path.
-        out = _qmul(self._q_block, b)
-        if zeta is not None:
-            out = _qmul(_exp_rotvec(-zeta), out)
-        out = out / math.sqrt(float(np.dot(out, out)))
-        self._q = out
-        if major:
-            self._q_block = out
-
-    def _increment_update(self, t: int, d: np.ndarray) -> None:
-        n_code = _coning_n(self.info)
-        n = self.info.samples_per_update
-        zeta = self._zeta(t)
-        if n_code == 0:
-            phi = _coning_partials(d[None, :], 0, 0, self._prev_dtheta, None)[0]
-            self._prev_dtheta = d
-            self._apply(_exp_rotvec(phi), zeta, major=True)
-            return
-        head = np.array(self._block).reshape(-1, 3)
-        phi = _coning_partials(d[None, :], len(self._block), n, None, head)[0]
-        if zeta is not None:
-            self._zeta_block = self._zeta_block + zeta
-            zeta = self._zeta_block
-        self._block.append(d)
-        major = len(self._block) == n
-        self._apply(_exp_rotvec(phi), zeta, major=major)
-        if major:
-            self._block = []
-            self._zeta_block = np.zeros(3)
 
     def _euler_update(self, tt, ww, k, t):
         _, from_angles, rates_fn, div_name, div_fn = _euler_setup(self.algorithm)
