@@ -868,6 +868,14 @@ def _qmul_scalar(a, b):
             aw * bw - ax * bx - ay * by - az * bz)
 
 
+def _nav_zeta_scalar(rates, h):
+    """``ζ = ∫ ω_in^n dt`` over one interval of length ``h``: trapezoid of the nav rates at
+    its two ends (``rates = [r0, r1]``), as the batch interface forms it.  For a constant
+    rate ``0.5·(r + r)·h`` is ``r·h`` to the last bit."""
+    r0, r1 = rates
+    return (0.5 * (r0[0] + r1[0]) * h, 0.5 * (r0[1] + r1[1]) * h, 0.5 * (r0[2] + r1[2]) * h)
+
+
 def _compose_scalar(q, b, zeta):
     """``normalize(exp(−ζ) ⊗ q ⊗ b)`` in plain floats."""
     out = _qmul_scalar(q, b)
@@ -890,6 +898,14 @@ class StreamingIntegrator:
     ``quadrature`` exactly as the batch interface does, or directly through
     ``update_increment(t_ns, delta_theta)``.  A NavFrame with time series is indexed by
     the sample count.  Raises ``ValueError`` on a zero/negative step or non-finite input.
+
+    ``update_nav(nav)`` replaces the navigation frame by a constant one from the next
+    sample on (a moving carrier whose velocity is measured while integrating): its rate
+    ``ω_in^n`` is evaluated once, at the call, and is the nav rate *at the next sample*;
+    the interval ending at that sample uses the trapezoid of the previous sample's rate
+    and the new one, later intervals the new rate.  A stream whose nav frame is switched
+    this way equals :func:`integrate_batch` with the NavFrame time series that holds the
+    old values up to the sample before and the new values from that sample on.
     """
 
     def __init__(self, algorithm: str = DEFAULT_ALGORITHM, q0=(0.0, 0.0, 0.0, 1.0),
@@ -965,6 +981,32 @@ class StreamingIntegrator:
     @property
     def quaternion(self) -> np.ndarray:
         return self._q.copy()
+
+    def update_nav(self, nav: NavFrame) -> None:
+        """Use the constant navigation frame ``nav`` from the next sample on.
+
+        ``ω_in^n`` of ``nav`` (Earth rate plus transport rate) is computed here, once, and
+        becomes the nav rate at the next sample: the interval from the last sample to the
+        next one integrates the trapezoid of the previous rate and this one, every later
+        interval this one (until the next call).  Called before any sample (or between
+        ``reset`` and the first sample), it is the rate from the first sample on.  The
+        attitude and the history are kept; ``reset`` keeps the new frame.
+
+        Raises ``ValueError`` (and changes nothing) when the integrator was built without a
+        nav frame, ``nav`` is not a NavFrame, holds time series, or has an invalid
+        latitude (beyond ±π/2) or non-finite values.
+        """
+        if self.nav is None:
+            raise ValueError("update_nav needs an integrator built with a NavFrame (q_nb); "
+                             "this one integrates q_ib")
+        if not isinstance(nav, NavFrame):
+            raise ValueError(f"nav must be a NavFrame, got {type(nav).__name__}")
+        rate = nav.rate_enu(None)  # raises on series and on invalid values
+        if rate.shape != (3,):
+            raise ValueError(f"update_nav needs a constant NavFrame, got rate shape {rate.shape}")
+        self.nav = nav
+        self._nav_const = rate
+        self._nav_series = None
 
     def _nav_rate_at(self, index: int) -> np.ndarray | None:
         if self.nav is None:
@@ -1046,11 +1088,7 @@ class StreamingIntegrator:
         h = (t - self.last_t_ns) * 1e-9
         zeta = None
         if self.nav is not None:
-            if self._nav_const is not None:
-                zeta = (rate_n[0] * h, rate_n[1] * h, rate_n[2] * h)
-            else:
-                r0, r1 = self._fnav
-                zeta = tuple(0.5 * (r0[i] + r1[i]) * h for i in range(3))
+            zeta = _nav_zeta_scalar(self._fnav, h)
         n = len(self._ft)
         if self.samples == 2:
             self._fzeta_first = zeta
@@ -1112,12 +1150,7 @@ class StreamingIntegrator:
         if self.nav is not None:
             rate_n = self._nav_rate_at(self.samples).tolist()
             self._fnav = (self._fnav + [rate_n])[-2:]
-            h = (t - self.last_t_ns) * 1e-9
-            if self._nav_const is not None:
-                zeta = (rate_n[0] * h, rate_n[1] * h, rate_n[2] * h)
-            else:
-                r0, r1 = self._fnav
-                zeta = tuple(0.5 * (r0[i] + r1[i]) * h for i in range(3))
+            zeta = _nav_zeta_scalar(self._fnav, (t - self.last_t_ns) * 1e-9)
         self._increment_fast((dx, dy, dz), zeta)
         self.last_t_ns = t
         self.samples += 1

@@ -2,7 +2,9 @@
 
 Subscribes ``imu/data_raw`` (sensor_msgs/Imu, ω_ib^b in rad/s) and, when
 ``initial_attitude_source`` is ``truth``, ``truth/attitude`` (geometry_msgs/QuaternionStamped,
-q_nb) once to take the starting attitude. Publishes
+q_nb) once to take the starting attitude, and with ``frame: enu`` and a non-empty
+``odometry_topic`` a nav_msgs/Odometry topic whose velocity sets the transport rate (below).
+Publishes
 
 * ``imu/data``: the input Imu with ``orientation`` filled (q_ib for ``frame: inertial``,
   q_nb for ``frame: enu``) and an orientation covariance that grows with the gyro noise
@@ -20,6 +22,25 @@ rejected (counted, warned at most once per second per reason); a gap longer than
 ``max_gap_s`` is not integrated across (attitude held, time base restarted); a backward
 time jump beyond ``time_jump_threshold_s`` resets the attitude to the initial one. The
 attitude therefore never becomes NaN.
+
+Moving carrier (``frame: enu``). The nav-frame rate ``ω_in^n = ω_ie^n + ω_en^n`` starts
+from the parameters ``latitude_rad``, ``height_m`` and ``velocity_enu``. With
+``odometry_topic`` set, every Odometry message replaces the velocity by its linear
+velocity expressed in ENU: ``twist.twist.linear`` is taken in ``child_frame_id``
+(nav_msgs / REP-105) and rotated into ``header.frame_id`` with ``pose.pose.orientation``
+(gyro_sim's ``truth/odom``: frame ``enu``, child = the Imu frame, orientation q_nb, twist =
+body velocity); with an empty or equal ``child_frame_id`` it is used as is. The header
+frame must be ENU-aligned (its origin does not matter). Messages are applied in stamp
+order on the Imu time line: before integrating an Imu sample, the newest queued message
+whose stamp is not after the sample's stamp becomes the nav frame (``ω_in^n`` evaluated
+once per applied message) and holds from that sample on, until a newer one. So the
+velocity is time-aligned however the two topics interleave (an Odometry stamp equal to an
+Imu stamp is the rate at that sample, as a NavFrame time series); a message arriving after
+its Imu sample takes effect at the next one. Both topics must share one clock; a backward
+time jump drops the queue. Latitude and height stay the
+parameters: the Odometry position is in a local frame with no geodetic origin, and over a
+flight of minutes the change of ω_in^n with latitude (~ω_ie·ΔL) is orders below the
+transport rate itself.
 """
 
 from __future__ import annotations
@@ -31,8 +52,10 @@ from collections import deque
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import QuaternionStamped
+from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Header
 
@@ -70,6 +93,10 @@ def parameter_specs() -> list[ParamSpec]:
                   low=-1.0e4, high=1.0e6),
         ParamSpec("velocity_enu", (0.0, 0.0, 0.0),
                   "carrier velocity (east, north, up) for frame=enu [m/s]", length=3),
+        ParamSpec("odometry_topic", "",
+                  "nav_msgs/Odometry topic giving the carrier velocity for the transport "
+                  "rate (frame=enu; twist in child_frame_id, rotated to ENU with the pose "
+                  "orientation); '' = off, velocity_enu is used"),
         ParamSpec("initial_attitude_source", "parameter",
                   "'parameter': initial_attitude; 'truth': first truth/attitude message "
                   "whose stamp equals an Imu stamp", choices=("parameter", "truth")),
@@ -142,6 +169,10 @@ class AttitudeIntegratorNode(Node):
         self._last_period_rejected = 0
         self._last_period_accepted = 0
         self._published = 0
+        self.odometry_updates = 0
+        self._sub_odom = None
+        # (stamp ns, NavFrame) of received Odometry not yet applied, in stamp order
+        self._odom_queue: deque = deque(maxlen=self._ODOM_QUEUE)
 
         self._pub_imu = self.create_publisher(Imu, "imu/data", 100)
         self._pub_att = self.create_publisher(QuaternionStamped, "attitude", 100)
@@ -152,6 +183,14 @@ class AttitudeIntegratorNode(Node):
         )
         if self._awaiting_truth:
             self.create_subscription(QuaternionStamped, "truth/attitude", self._on_truth, 1000)
+        if p["odometry_topic"]:
+            if self._nav is None:
+                self.get_logger().warning(
+                    f"odometry_topic '{p['odometry_topic']}' is ignored with frame=inertial")
+            else:
+                self._sub_odom = self.create_subscription(
+                    Odometry, p["odometry_topic"], self._on_odometry,
+                    QoSProfile(depth=self._ODOM_QUEUE, reliability=ReliabilityPolicy.RELIABLE))
         self.create_timer(p["diagnostics_period_s"], self._publish_diagnostics)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.get_logger().info(
@@ -227,6 +266,60 @@ class AttitudeIntegratorNode(Node):
                     self._on_imu(later)
                 return
 
+    _ODOM_QUEUE = 1000  # Odometry messages waiting for the Imu time line
+
+    def _on_odometry(self, msg: Odometry) -> None:
+        from gyro_attitude.core.integrate import NavFrame
+
+        try:
+            v_enu = convert.odometry_velocity_parent(msg)
+        except ValueError as exc:
+            self._warn("odometry", f"ignoring an Odometry message: {exc}")
+            return
+        nav = NavFrame(latitude_rad=self._nav.latitude_rad,
+                       longitude_rad=self._nav.longitude_rad,
+                       height_m=self._nav.height_m, velocity_enu=v_enu)
+        t_ns = convert.stamp_to_ns(msg.header.stamp)
+        q = self._odom_queue
+        if q and t_ns < q[-1][0]:  # out of order: keep the queue sorted by stamp
+            items = sorted([*q, (t_ns, nav)], key=lambda item: item[0])
+            q.clear()
+            q.extend(items)
+        else:
+            q.append((t_ns, nav))
+
+    def _take_odometry(self) -> None:
+        # The executor hands over one Odometry per wakeup while the Imu drain takes many:
+        # take what is already queued in the subscription, so the velocity keeps up.
+        sub = self._sub_odom
+        for _ in range(self._ODOM_QUEUE):
+            try:
+                with sub.handle:
+                    taken = sub.handle.take_message(Odometry, False)
+            except Exception:  # handle destroyed at shutdown
+                return
+            if taken is None:
+                return
+            self._on_odometry(taken[0])
+
+    def _apply_odometry(self, t_ns: int) -> None:
+        """Make the newest queued Odometry stamped at or before ``t_ns`` the nav frame."""
+        q = self._odom_queue
+        if not q or q[-1][0] < t_ns:
+            self._take_odometry()  # a newer message may be waiting
+        nav = None
+        while q and q[0][0] <= t_ns:
+            nav = q.popleft()[1]
+        if nav is None:
+            return
+        try:
+            self._integrator.update_nav(nav)  # ω_in^n evaluated here, once per message
+        except ValueError as exc:
+            self._warn("odometry", f"ignoring an Odometry message: {exc}")
+            return
+        self._nav = nav  # also for an integrator rebuilt on an algorithm switch
+        self.odometry_updates += 1
+
     # at most this many extra messages per wakeup, so timers (diagnostics) still run
     _DRAIN_MAX = 200
 
@@ -265,6 +358,11 @@ class AttitudeIntegratorNode(Node):
         if verdict.rejected:
             self._warn(verdict.reason, f"rejected Imu sample ({verdict.reason}): {verdict.detail}")
             return
+        if self._sub_odom is not None:
+            if verdict.action == iv.RESET_TIME_JUMP:
+                self._odom_queue.clear()  # stamps of the old time line
+            else:
+                self._apply_odometry(t_ns)
         last_t = self._integrator.last_t_ns
         try:
             if verdict.action == iv.ACCEPT:
@@ -335,6 +433,7 @@ class AttitudeIntegratorNode(Node):
             "time_jump_resets": str(v.time_jump_resets),
             "skipped_before_initial_attitude": str(self.skipped_before_init),
             "integrator_errors": str(self.integrator_errors),
+            "odometry_updates": str(self.odometry_updates),
         }
         for reason in iv.REJECT_REASONS:
             values[f"rejected_{reason}" if reason != iv.GAP else "gaps"] = str(v.counts[reason])

@@ -21,7 +21,7 @@ from geometry_msgs.msg import Quaternion, QuaternionStamped, Vector3
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, JointState
 
-from gyro_attitude.core.rotation import as_quat_array, as_vector_array
+from gyro_attitude.core.rotation import as_quat_array, as_vector_array, quat_rotate
 
 __all__ = [
     "NO_ESTIMATE_COVARIANCE",
@@ -38,6 +38,7 @@ __all__ = [
     "imu_arrays",
     "quaternion_stamped_msg",
     "odometry_msg",
+    "odometry_velocity_parent",
     "joint_state_msg",
 ]
 
@@ -210,6 +211,27 @@ def odometry_msg(
     msg.twist.twist.linear = vector3_to_msg(linear_velocity_child)
     msg.twist.twist.angular = vector3_to_msg(angular_velocity_child)
     return msg
+
+
+def odometry_velocity_parent(msg: Odometry) -> np.ndarray:
+    """Linear velocity (3,) of a ``nav_msgs/Odometry`` expressed in its ``header.frame_id``.
+
+    nav_msgs (REP-105) gives ``twist`` in ``child_frame_id``; when that is set and differs
+    from ``header.frame_id`` the velocity is rotated into the parent frame with the pose
+    orientation (which maps child vectors into the parent: ``v_parent = C(q) v_child``, as
+    :func:`odometry_msg` and gyro_sim's ``truth/odom`` fill it with q_nb and the body
+    velocity). An empty or equal ``child_frame_id`` means the twist is already in the
+    parent frame. Raises ``ValueError`` on a non-finite velocity or a zero/non-finite
+    orientation that would be needed."""
+    v = vector3_from_msg(msg.twist.twist.linear)
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"odometry twist.linear is not finite: {v.tolist()}")
+    if msg.child_frame_id and msg.child_frame_id != msg.header.frame_id:
+        q = quat_from_msg(msg.pose.pose.orientation)
+        if not np.all(np.isfinite(q)) or float(np.dot(q, q)) < 1e-18:
+            raise ValueError(f"odometry pose orientation is zero or not finite: {q.tolist()}")
+        v = quat_rotate(q, v)
+    return v
 
 
 def joint_state_msg(t_ns: int, names, positions, velocities) -> JointState:

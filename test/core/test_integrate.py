@@ -550,3 +550,82 @@ def test_streaming_nav_series_checked_and_bounded():
         s.update(3_000_000, (0.1, 0.0, 0.0))
     with pytest.raises(ValueError, match="latitude"):
         StreamingIntegrator("coning2", nav=NavFrame(np.array([0.5, 2.0])))
+
+
+# ----------------------------------------------------------------------------- update_nav
+_LAT, _H = 0.87, 3000.0
+_VELS = [(120.0, 0.0, 0.0), (84.9, 84.9, 1.0), (0.0, 120.0, -2.0)]
+
+
+def _piecewise_velocity(n, switches):
+    """(n, 3) ENU velocity: _VELS[j] from sample switches[j-1] on (switches ascending)."""
+    vel = np.empty((n, 3))
+    edges = [0, *switches, n]
+    for j in range(len(edges) - 1):
+        vel[edges[j]:edges[j + 1]] = _VELS[j]
+    return vel
+
+
+def _stream_switching(algorithm, t_ns, w, switches):
+    s = StreamingIntegrator(algorithm, Q0, nav=NavFrame(_LAT, height_m=_H,
+                                                        velocity_enu=_VELS[0]))
+    out = []
+    for k, (t, x) in enumerate(zip(t_ns, w, strict=True)):
+        if k in switches:
+            s.update_nav(NavFrame(_LAT, height_m=_H, velocity_enu=_VELS[switches.index(k) + 1]))
+        out.append(s.update(int(t), x))
+    return np.array(out)
+
+
+@pytest.mark.parametrize("algorithm", [DEFAULT_ALGORITHM, "exp_map", "quat_rk4", "coning1_prev",
+                                       "coning2", "coning3"])
+def test_update_nav_mid_stream_equals_batch_with_piecewise_constant_series(algorithm):
+    """update_nav before sample s == a NavFrame series holding the new values from s on."""
+    n, switches = 300, [101, 218]
+    t_ns = _random_steps(n, seed=5)
+    w = smooth_rate(t_ns * 1e-9, scale=2.0)
+    nav = NavFrame(_LAT, height_m=_H, velocity_enu=_piecewise_velocity(n, switches))
+    q_batch = integrate_batch(t_ns, w, Q0, algorithm, nav=nav)
+    q_stream = _stream_switching(algorithm, t_ns, w, switches)
+    assert angle_between(q_batch, q_stream).max() < 1e-12
+    # and the switch matters: the stale velocity differs by ~5e-6 rad at the end
+    q_stale = integrate_batch(t_ns, w, Q0, algorithm,
+                              nav=NavFrame(_LAT, height_m=_H, velocity_enu=_VELS[0]))
+    assert angle_between(q_stale[-1], q_stream[-1])[0] > 1e-6
+
+
+@pytest.mark.parametrize("algorithm", ["exp_map", "coning1"])
+def test_update_nav_body_at_rest_in_n_stays_put(algorithm):
+    """Closed form: a body at rest in a nav frame whose velocity steps measures
+    ω_ib^b = C_bn ω_in^n(t); with the rate switched at the same samples the exponential map
+    of the trapezoid increment cancels ζ exactly, so q_nb stays q0.  A stale velocity drifts
+    by |Δω_en|·T."""
+    n, switches = 400, [150, 290]
+    t_ns = np.arange(n, dtype=np.int64) * 5_000_000  # 200 Hz, 2 s
+    vel = _piecewise_velocity(n, switches)
+    rate_n = nav_rate_enu(np.full(n, _LAT), np.full(n, _H), vel)
+    w = Rotation.from_quat(Q0).inv().apply(rate_n)  # C_bn ω_in^n
+    q = _stream_switching(algorithm, t_ns, w, switches)
+    assert angle_between(q, np.broadcast_to(Q0, q.shape)).max() < 1e-13
+    s = StreamingIntegrator(algorithm, Q0, nav=NavFrame(_LAT, height_m=_H,
+                                                        velocity_enu=_VELS[0]))
+    q_stale = [s.update(int(t), x) for t, x in zip(t_ns, w, strict=True)][-1]
+    # trapezoid of the rate error over the two later segments (closed form)
+    err = rate_n - rate_n[0]
+    dt = 5e-3
+    expected = np.linalg.norm(0.5 * (err[1:] + err[:-1]).sum(axis=0) * dt)
+    assert angle_between(q_stale, Q0)[0] == pytest.approx(expected, rel=1e-6)
+    assert expected > 5e-6
+
+
+def test_update_nav_refuses_bad_values_and_keeps_its_frame():
+    nav0 = NavFrame(_LAT, height_m=_H, velocity_enu=_VELS[0])
+    s = StreamingIntegrator(DEFAULT_ALGORITHM, Q0, nav=nav0)
+    for bad in (NavFrame(2.0), NavFrame(_LAT, velocity_enu=(np.nan, 0.0, 0.0)),
+                NavFrame(np.array([0.5, 0.6])), (0.5, 0.0, 0.0)):
+        with pytest.raises(ValueError):
+            s.update_nav(bad)
+        assert s.nav is nav0
+    np.testing.assert_array_equal(s._nav_const, nav0.rate_enu())
+    with pytest.raises(ValueError, match="NavFrame"):
+        StreamingIntegrator(DEFAULT_ALGORITHM, Q0).update_nav(nav0)
