@@ -85,9 +85,9 @@ def _integrator_params(spec, algorithm: str | None, reliable: bool) -> list[str]
         args += ["-p", "qos_reliability:=reliable"]
     earth = spec.earth
     if earth.rotation or (earth.transport_rate and spec.motion.moves):
-        # the scene's gyro sees Earth (and transport) rate: integrate q_nb in ENU. The
-        # integrator's nav frame is constant: it gets the start position and the initial
-        # velocity, so a scene whose velocity turns keeps a small transport-rate error.
+        # the scene's gyro sees Earth (and transport) rate: integrate q_nb in ENU from the
+        # start position; the velocity for the transport rate follows truth/odom (the
+        # initial velocity covers the samples before the first odometry message).
         import numpy as np
 
         v0 = [float(v) for v in np.asarray(spec.motion.velocity(np.zeros(1)))[0]]
@@ -96,6 +96,8 @@ def _integrator_params(spec, algorithm: str | None, reliable: bool) -> list[str]
                  "-p", f"longitude_rad:={earth.longitude_rad!r}",
                  "-p", f"height_m:={float(earth.height_m)!r}",
                  "-p", "world_frame_id:=enu"]
+        if earth.transport_rate and spec.motion.moves:
+            args += ["-p", "odometry_topic:=truth/odom"]
     else:
         # no Earth rate: n is inertial and q_ib = q_nb
         args += ["-p", "world_frame_id:=enu"]
