@@ -123,7 +123,8 @@ __all__ = [
 ]
 
 
-def _check_positive(value, name: str) -> float:
+def check_positive(value, name: str) -> float:
+    """``value`` as a float; ValueError naming it unless finite and > 0."""
     value = float(value)
     if not math.isfinite(value) or value <= 0.0:
         raise ValueError(f"{name} must be a positive finite number, got {value!r}")
@@ -182,10 +183,10 @@ class RateGyroParams:
     hold: str = "foh"
 
     def __post_init__(self):
-        _check_positive(self.natural_frequency_hz, "natural_frequency_hz")
-        _check_positive(self.damping_ratio, "damping_ratio")
+        check_positive(self.natural_frequency_hz, "natural_frequency_hz")
+        check_positive(self.damping_ratio, "damping_ratio")
         _check_finite(self.cross_coupling, "cross_coupling")
-        _check_positive(self.gimbal_gain_s, "gimbal_gain_s")
+        check_positive(self.gimbal_gain_s, "gimbal_gain_s")
         if self.hold not in ("foh", "zoh"):
             raise ValueError(f"hold must be 'foh' or 'zoh', got {self.hold!r}")
 
@@ -193,10 +194,10 @@ class RateGyroParams:
     def from_physical(cls, spin_momentum: float, gimbal_inertia: float, damping: float,
                       spring: float, **kwargs) -> RateGyroParams:
         """From H (N·m·s), J (kg·m²), D (N·m·s/rad) and K (N·m/rad)."""
-        h = _check_positive(spin_momentum, "spin_momentum")
-        j = _check_positive(gimbal_inertia, "gimbal_inertia")
-        d = _check_positive(damping, "damping")
-        k = _check_positive(spring, "spring")
+        h = check_positive(spin_momentum, "spin_momentum")
+        j = check_positive(gimbal_inertia, "gimbal_inertia")
+        d = check_positive(damping, "damping")
+        k = check_positive(spring, "spring")
         wn = math.sqrt(k / j)
         return cls(natural_frequency_hz=wn / (2 * math.pi), damping_ratio=d / (2 * math.sqrt(k * j)),
                    gimbal_gain_s=h / k, **kwargs)
@@ -215,8 +216,8 @@ class RateGyroParams:
 def rate_gyro_step_response(t, natural_frequency_hz: float, damping_ratio: float) -> np.ndarray:
     """Closed-form unit-step response of ``ω_n²/(s² + 2ζω_n s + ω_n²)`` from rest at t = 0."""
     t = np.asarray(t, dtype=np.float64)
-    wn = 2 * math.pi * _check_positive(natural_frequency_hz, "natural_frequency_hz")
-    z = _check_positive(damping_ratio, "damping_ratio")
+    wn = 2 * math.pi * check_positive(natural_frequency_hz, "natural_frequency_hz")
+    z = check_positive(damping_ratio, "damping_ratio")
     if z < 1.0:
         wd = wn * math.sqrt(1 - z * z)
         return 1 - np.exp(-z * wn * t) * (np.cos(wd * t) + z / math.sqrt(1 - z * z) * np.sin(wd * t))
@@ -242,7 +243,7 @@ class RateGyroTriad:
         if not isinstance(params, RateGyroParams):
             raise ValueError("params must be a RateGyroParams")
         self.params = params
-        self.dt = _check_positive(dt, "dt")
+        self.dt = check_positive(dt, "dt")
         if initial not in ("steady", "rest"):
             raise ValueError(f"initial must be 'steady' or 'rest', got {initial!r}")
         self.initial = initial
@@ -382,7 +383,7 @@ class HarmonicTorque:
 
     def __post_init__(self):
         object.__setattr__(self, "amplitude", _pair(self.amplitude, "harmonic amplitude"))
-        _check_positive(self.frequency_hz, "harmonic frequency_hz")
+        check_positive(self.frequency_hz, "harmonic frequency_hz")
         _check_finite(self.phase_rad, "harmonic phase_rad")
 
 
@@ -397,7 +398,7 @@ class ImpactTorque:
 
     def __post_init__(self):
         _check_finite(self.t_start, "impact t_start")
-        _check_positive(self.duration, "impact duration")
+        check_positive(self.duration, "impact duration")
         object.__setattr__(self, "impulse", _pair(self.impulse, "impact impulse"))
 
 
@@ -430,8 +431,8 @@ class FreeGyroParams:
     base_rate_derivative_step: float = 1e-5
 
     def __post_init__(self):
-        _check_positive(self.spin_inertia, "spin_inertia")
-        _check_positive(self.transverse_inertia, "transverse_inertia")
+        check_positive(self.spin_inertia, "spin_inertia")
+        check_positive(self.transverse_inertia, "transverse_inertia")
         s = _check_finite(self.spin_rate, "spin_rate")
         if s == 0.0:
             raise ValueError("spin_rate must be non-zero (a free gyro needs angular momentum)")
@@ -451,10 +452,10 @@ class FreeGyroParams:
                            _pair(self.viscous_friction, "viscous_friction", _check_nonnegative))
         object.__setattr__(self, "coulomb_friction",
                            _pair(self.coulomb_friction, "coulomb_friction", _check_nonnegative))
-        _check_positive(self.coulomb_smoothing_rate, "coulomb_smoothing_rate")
-        _check_positive(self.max_step, "max_step")
-        _check_positive(self.steps_per_nutation, "steps_per_nutation")
-        _check_positive(self.base_rate_derivative_step, "base_rate_derivative_step")
+        check_positive(self.coulomb_smoothing_rate, "coulomb_smoothing_rate")
+        check_positive(self.max_step, "max_step")
+        check_positive(self.steps_per_nutation, "steps_per_nutation")
+        check_positive(self.base_rate_derivative_step, "base_rate_derivative_step")
         harm = tuple(self.harmonic_torques)
         if not all(isinstance(h, HarmonicTorque) for h in harm):
             raise ValueError("harmonic_torques must be HarmonicTorque instances")

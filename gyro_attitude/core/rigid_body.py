@@ -38,6 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gyro_attitude.core.gyro import check_positive as _pos
 from gyro_attitude.core.rotation import (
     _exp_rotvec,
     _qmul,
@@ -56,13 +57,6 @@ __all__ = [
     "heavy_top_nutation_bounds",
     "heavy_top_state_from_euler",
 ]
-
-
-def _pos(value, name: str) -> float:
-    value = float(value)
-    if not math.isfinite(value) or value <= 0.0:
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-    return value
 
 
 def free_top_precession_rate(angular_momentum: float, transverse_inertia: float) -> float:
