@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from gyro_attitude.core import imu_validation as iv
+from gyro_attitude.core.attitude import validation as iv
 
 MS = 1_000_000
 

@@ -1,0 +1,380 @@
+"""Verdicts on a stream of Imu samples (stamps, rates, frame), per sample or array-wide.
+
+An attitude integrator must never let one bad message corrupt its state: a NaN or absurd rate
+poisons the quaternion forever, a duplicate or out-of-order stamp gives ``dt <= 0``, a gap makes
+the rate-times-time step meaningless, and a changed ``frame_id`` means the rates are no longer
+about the axes the attitude is for. :class:`ImuStreamValidator` classifies each sample *before*
+it reaches the integrator and keeps counts per reason; :func:`classify` gives the same verdicts
+for a whole recording at once (vectorized where the stream is regular). Both are used through
+:class:`gyro_attitude.core.attitude.stream.AttitudeStream`, the one policy of node and replay.
+:class:`IntervalStatistics` keeps the input rate and dt jitter over a sliding window.
+
+Times are integer nanoseconds (the ``header.stamp`` of the message).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+# Verdicts. ACCEPT: integrate over (last, t]. START: first sample (or first after a restart):
+# sets the time base, nothing to integrate yet.
+ACCEPT = "accept"
+START = "start"
+# The sample is integrated from a fresh time base, the attitude kept (see GAP below).
+RESTART_AFTER_GAP = "restart_after_gap"
+# Backward time jump beyond the threshold (e.g. a bag replay looped, a simulator restarted):
+# the attitude resets to the initial one and starts over at this sample.
+RESET_TIME_JUMP = "reset_time_jump"
+REJECT = "reject"
+
+# Rejection reasons (the sample is dropped, counted, and the state is untouched).
+NON_FINITE = "non_finite"
+IMPLAUSIBLE_RATE = "implausible_rate"
+ZERO_STAMP = "zero_stamp"
+DUPLICATE_STAMP = "duplicate_stamp"
+OUT_OF_ORDER = "out_of_order"
+FRAME_CHANGED = "frame_changed"
+# A gap is counted like a rejection of the *interval*: nothing is integrated across it.
+# The sample itself becomes the new time base (RESTART_AFTER_GAP), otherwise every later
+# sample would also be "after a gap".
+GAP = "gap"
+
+REJECT_REASONS: tuple[str, ...] = (
+    NON_FINITE,
+    IMPLAUSIBLE_RATE,
+    ZERO_STAMP,
+    DUPLICATE_STAMP,
+    OUT_OF_ORDER,
+    FRAME_CHANGED,
+    GAP,
+)
+
+# Integer codes of the verdicts in the arrays of :func:`classify`.
+ACTION_CODES: dict[str, int] = {
+    REJECT: 0, START: 1, ACCEPT: 2, RESTART_AFTER_GAP: 3, RESET_TIME_JUMP: 4,
+}
+_REASON_CODES: dict[str, int] = {r: i + 1 for i, r in enumerate(REJECT_REASONS)}
+
+# Far above any real gyro's range (tactical and MEMS gyros saturate at 40..200 rad/s), far
+# below what overflows a rotation angle in float64 over any step.
+DEFAULT_MAX_RATE_RAD_S = 1.0e4
+
+
+@dataclass(frozen=True)
+class ImuCheckConfig:
+    """Thresholds of the validator.
+
+    max_gap_ns: a forward step longer than this is a gap (not integrated across).
+    time_jump_ns: a backward step longer than this is a time jump (reset); a backward
+        step up to this long is an out-of-order sample (rejected).
+    max_rate_rad_s: a sample whose rate exceeds this on any axis is implausible (rejected).
+    """
+
+    max_gap_ns: int = 100_000_000
+    time_jump_ns: int = 1_000_000_000
+    max_rate_rad_s: float = DEFAULT_MAX_RATE_RAD_S
+
+    def __post_init__(self):
+        for name in ("max_gap_ns", "time_jump_ns"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | np.integer):
+                raise ValueError(f"{name} must be an integer number of nanoseconds, got {value!r}")
+            if value <= 0:
+                raise ValueError(f"{name} must be > 0 ns, got {value}")
+        rate = self.max_rate_rad_s
+        if isinstance(rate, bool) or not isinstance(rate, int | float | np.integer | np.floating):
+            raise ValueError(f"max_rate_rad_s must be a number, got {rate!r}")
+        if not (math.isfinite(rate) and rate > 0):
+            raise ValueError(f"max_rate_rad_s must be finite and > 0, got {rate!r}")
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """Outcome of one check: ``action`` is ACCEPT/START/RESTART_AFTER_GAP/RESET_TIME_JUMP
+    or REJECT; ``reason`` names the rejection (or the gap/jump) and ``detail`` says why in
+    words, for a log line."""
+
+    action: str
+    reason: str | None = None
+    detail: str = ""
+
+    @property
+    def rejected(self) -> bool:
+        return self.action == REJECT
+
+
+_ACCEPTED = Verdict(ACCEPT)
+_STARTED = Verdict(START)
+
+
+def value_problem(omega, max_rate_rad_s: float) -> tuple[str, str] | None:
+    """(reason, detail) when the rate sample itself is unusable, else None."""
+    try:
+        values = [float(c) for c in omega]
+    except (TypeError, ValueError):
+        return NON_FINITE, f"not numbers: {omega!r}"
+    if len(values) != 3 or not all(math.isfinite(x) for x in values):
+        return NON_FINITE, f"non-finite value(s) {values}"
+    if any(abs(x) > max_rate_rad_s for x in values):
+        return IMPLAUSIBLE_RATE, (f"rate {values} rad/s beyond max_rate_rad_s = "
+                                  f"{max_rate_rad_s:g}")
+    return None
+
+
+class ImuStreamValidator:
+    """Classify each Imu sample of a stream; count rejections by reason.
+
+    The frame of the first accepted sample is locked in; ``reset()`` forgets it and the
+    time base. A rejected sample leaves the state (last stamp, frame) untouched, so one
+    bad message costs exactly one sample.
+    """
+
+    def __init__(self, config: ImuCheckConfig | None = None):
+        self.config = config if config is not None else ImuCheckConfig()
+        self.counts: dict[str, int] = {reason: 0 for reason in REJECT_REASONS}
+        self.accepted = 0
+        self.time_jump_resets = 0
+        self.last_t_ns: int | None = None
+        self.frame_id: str | None = None
+
+    @property
+    def rejected_total(self) -> int:
+        return sum(self.counts[r] for r in REJECT_REASONS if r != GAP)
+
+    def reset(self) -> None:
+        """Forget the time base and the locked frame (counts are kept)."""
+        self.last_t_ns = None
+        self.frame_id = None
+
+    def _reject(self, reason: str, detail: str) -> Verdict:
+        self.counts[reason] += 1
+        return Verdict(REJECT, reason, detail)
+
+    def check(self, t_ns: int, omega, frame_id: str = "") -> Verdict:
+        """Classify one sample and update the state.
+
+        t_ns: header stamp in ns; omega: angular rate (3,) [rad/s]; frame_id: header.frame_id.
+        """
+        problem = value_problem(omega, self.config.max_rate_rad_s)
+        if problem is not None:
+            return self._reject(*problem)
+        t_ns = int(t_ns)
+        if t_ns <= 0:
+            return self._reject(ZERO_STAMP, f"stamp {t_ns} ns is zero/unset")
+        if self.frame_id is not None and frame_id != self.frame_id:
+            return self._reject(
+                FRAME_CHANGED, f"frame_id {frame_id!r} differs from {self.frame_id!r}"
+            )
+        last = self.last_t_ns
+        if last is None:
+            self.last_t_ns = t_ns
+            self.frame_id = frame_id
+            self.accepted += 1
+            return _STARTED
+        dt = t_ns - last
+        if dt == 0:
+            return self._reject(DUPLICATE_STAMP, f"stamp {t_ns} ns repeats the previous one")
+        if dt < 0:
+            if -dt > self.config.time_jump_ns:
+                self.time_jump_resets += 1
+                self.last_t_ns = t_ns
+                self.accepted += 1
+                return Verdict(
+                    RESET_TIME_JUMP, "time_jump", f"time jumped back by {-dt / 1e9:.3f} s"
+                )
+            return self._reject(
+                OUT_OF_ORDER, f"stamp {t_ns} ns is {-dt / 1e6:.3f} ms before the previous"
+            )
+        self.last_t_ns = t_ns
+        self.accepted += 1
+        if dt > self.config.max_gap_ns:
+            self.counts[GAP] += 1
+            return Verdict(RESTART_AFTER_GAP, GAP, f"gap of {dt / 1e6:.3f} ms")
+        return _ACCEPTED
+
+
+@dataclass
+class Classification:
+    """Verdicts of :func:`classify` for N samples.
+
+    ``action`` (N,) int8 codes of :data:`ACTION_CODES`; ``reason`` (N,) int8, 0 = none, else
+    1 + the index in :data:`REJECT_REASONS` (rejections and gaps); ``counts`` per reason;
+    ``details`` the first detail line per reason; ``time_jump_resets``; ``accepted``;
+    ``frame_id`` the locked frame.
+    """
+
+    action: np.ndarray
+    reason: np.ndarray
+    counts: dict[str, int]
+    details: dict[str, str]
+    time_jump_resets: int
+    accepted: int
+    frame_id: str | None
+
+
+def _frame_codes(frame_id, n: int) -> tuple[np.ndarray | None, list[str]]:
+    """Per-sample frame codes (None: one frame for all) and the names they index."""
+    if frame_id is None or isinstance(frame_id, str):
+        return None, ["" if frame_id is None else frame_id]
+    names: dict[str, int] = {}
+    codes = np.fromiter((names.setdefault(str(f), len(names)) for f in frame_id),
+                        dtype=np.int64, count=n)
+    return codes, list(names)
+
+
+def classify(t_ns, omega, frame_id: str | list[str] | None = "",
+             config: ImuCheckConfig | None = None) -> Classification:
+    """The verdicts :class:`ImuStreamValidator` gives to these samples in this order.
+
+    ``t_ns`` (N,) int stamps, ``omega`` (N, 3) rates, ``frame_id`` one string for all samples or
+    one per sample. A fresh validator is assumed (no locked frame, no time base).
+    """
+    cfg = config if config is not None else ImuCheckConfig()
+    t = np.asarray(t_ns)
+    if t.ndim != 1 or not (np.issubdtype(t.dtype, np.integer) or t.size == 0):
+        raise ValueError(f"t_ns must be a 1-D integer array of nanoseconds, got {t.dtype} "
+                         f"shape {t.shape}")
+    t = t.astype(np.int64, copy=False)
+    w = np.asarray(omega, dtype=np.float64)
+    n = t.shape[0]
+    if w.shape != (n, 3):
+        raise ValueError(f"omega must have shape ({n}, 3), got {w.shape}")
+    codes, names = _frame_codes(frame_id, n)
+    action = np.zeros(n, np.int8)
+    reason = np.zeros(n, np.int8)
+    details: dict[str, str] = {}
+
+    # Sample-local checks, in the validator's order: values, then stamp, then frame.
+    with np.errstate(invalid="ignore"):
+        finite = np.isfinite(w).all(axis=1)
+        plausible = (np.abs(w) <= cfg.max_rate_rad_s).all(axis=1)
+    bad_value = ~finite
+    rate_bad = finite & ~plausible
+    zero = (t <= 0) & finite & plausible
+    ok = finite & plausible & (t > 0)
+    reason[bad_value] = _REASON_CODES[NON_FINITE]
+    reason[rate_bad] = _REASON_CODES[IMPLAUSIBLE_RATE]
+    reason[zero] = _REASON_CODES[ZERO_STAMP]
+    for name, mask in ((NON_FINITE, bad_value), (IMPLAUSIBLE_RATE, rate_bad),
+                       (ZERO_STAMP, zero)):
+        if mask.any():
+            k = int(np.flatnonzero(mask)[0])
+            details[name] = {NON_FINITE: f"non-finite value(s) {w[k].tolist()}",
+                             IMPLAUSIBLE_RATE: f"rate {w[k].tolist()} rad/s beyond "
+                                               f"max_rate_rad_s = {cfg.max_rate_rad_s:g}",
+                             ZERO_STAMP: f"stamp {int(t[k])} ns is zero/unset"}[name]
+    locked = None
+    if ok.any():
+        # the first sample that passes the local checks is always accepted (START): its
+        # frame is the one locked in
+        first = int(np.flatnonzero(ok)[0])
+        locked = 0 if codes is None else int(codes[first])
+        if codes is not None:
+            changed = ok & (codes != locked)
+            if changed.any():
+                reason[changed] = _REASON_CODES[FRAME_CHANGED]
+                ok &= ~changed
+                k = int(np.flatnonzero(changed)[0])
+                details[FRAME_CHANGED] = (f"frame_id {names[int(codes[k])]!r} differs from "
+                                          f"{names[locked]!r}")
+
+    # Stamp checks depend on the last accepted stamp. A regular stream (strictly increasing,
+    # no gap) is settled array-wide; anything else walks the candidate stamps in Python ints.
+    idx = np.flatnonzero(ok)
+    resets = 0
+    if idx.size:
+        tc = t[idx]
+        dt = np.diff(tc)
+        if dt.size == 0 or (dt.min() > 0 and dt.max() <= cfg.max_gap_ns):
+            action[idx] = ACTION_CODES[ACCEPT]
+            action[idx[0]] = ACTION_CODES[START]
+        else:
+            resets = _walk_stamps(tc.tolist(), idx, action, reason, details, cfg)
+    counts = {r: int(np.count_nonzero(reason == _REASON_CODES[r])) for r in REJECT_REASONS}
+    accepted = int(np.count_nonzero(action != ACTION_CODES[REJECT]))
+    return Classification(action, reason, counts, details, resets, accepted,
+                          None if locked is None else names[locked])
+
+
+def _walk_stamps(stamps: list[int], idx: np.ndarray, action: np.ndarray, reason: np.ndarray,
+                 details: dict[str, str], cfg: ImuCheckConfig) -> int:
+    """The validator's stamp logic over candidate samples (plain ints: ~0.2 µs a sample)."""
+    codes_a = ACTION_CODES
+    out_a = [codes_a[START]] + [0] * (len(stamps) - 1)
+    out_r = [0] * len(stamps)
+    dup, ooo, gap = (_REASON_CODES[DUPLICATE_STAMP], _REASON_CODES[OUT_OF_ORDER],
+                     _REASON_CODES[GAP])
+    accept, restart, reset = codes_a[ACCEPT], codes_a[RESTART_AFTER_GAP], codes_a[RESET_TIME_JUMP]
+    max_gap, jump = cfg.max_gap_ns, cfg.time_jump_ns
+    last = stamps[0]
+    resets = 0
+    for i in range(1, len(stamps)):
+        s = stamps[i]
+        dt = s - last
+        if 0 < dt <= max_gap:
+            out_a[i] = accept
+            last = s
+        elif dt > max_gap:
+            out_a[i] = restart
+            out_r[i] = gap
+            details.setdefault(GAP, f"gap of {dt / 1e6:.3f} ms")
+            last = s
+        elif dt == 0:
+            out_r[i] = dup
+            details.setdefault(DUPLICATE_STAMP, f"stamp {s} ns repeats the previous one")
+        elif -dt > jump:
+            out_a[i] = reset
+            resets += 1
+            details.setdefault("time_jump", f"time jumped back by {-dt / 1e9:.3f} s")
+            last = s
+        else:
+            out_r[i] = ooo
+            details.setdefault(OUT_OF_ORDER, f"stamp {s} ns is {-dt / 1e6:.3f} ms before the "
+                                             "previous")
+    action[idx] = out_a
+    reason[idx] = out_r
+    return resets
+
+
+class IntervalStatistics:
+    """Input rate and dt jitter over the last ``window`` accepted intervals.
+
+    ``rate_hz`` = 1/mean(dt); ``jitter_s`` = standard deviation of dt (population);
+    ``max_dt_s`` = largest dt in the window. NaN while fewer than 2 intervals are known.
+    """
+
+    def __init__(self, window: int = 1000):
+        if int(window) < 2:
+            raise ValueError(f"window must be >= 2 intervals, got {window}")
+        self._dt_ns: deque[int] = deque(maxlen=int(window))
+
+    def add(self, dt_ns: int) -> None:
+        self._dt_ns.append(int(dt_ns))
+
+    def clear(self) -> None:
+        self._dt_ns.clear()
+
+    def __len__(self) -> int:
+        return len(self._dt_ns)
+
+    def summary(self) -> dict[str, float]:
+        return interval_summary(np.fromiter(self._dt_ns, dtype=np.int64, count=len(self._dt_ns)))
+
+
+def interval_summary(dt_ns: np.ndarray) -> dict[str, float]:
+    """Rate, mean dt, jitter and largest dt of accepted intervals (NaN for fewer than 2)."""
+    if dt_ns.size < 2:
+        nan = math.nan
+        return {"rate_hz": nan, "mean_dt_s": nan, "jitter_s": nan, "max_dt_s": nan}
+    dt = dt_ns * 1e-9
+    mean = float(dt.mean())
+    return {
+        "rate_hz": 1.0 / mean,
+        "mean_dt_s": mean,
+        "jitter_s": float(dt.std()),
+        "max_dt_s": float(dt.max()),
+    }
