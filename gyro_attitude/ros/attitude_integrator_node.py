@@ -16,12 +16,14 @@ Publishes
 * ``/diagnostics``: diagnostic_msgs/DiagnosticArray about every ``diagnostics_period_s``:
   input rate, dt jitter, accepted samples and rejected samples by reason.
 
-Every input sample passes :class:`gyro_attitude.core.imu_validation.ImuStreamValidator`
-first: non-finite values, zero/duplicate/out-of-order stamps and a changed frame_id are
-rejected (counted, warned at most once per second per reason); a gap longer than
-``max_gap_s`` is not integrated across (attitude held, time base restarted); a backward
-time jump beyond ``time_jump_threshold_s`` resets the attitude to the initial one. The
-attitude therefore never becomes NaN.
+Every input sample goes through :class:`gyro_attitude.core.attitude.stream.AttitudeStream`,
+the policy ``gyro-attitude replay`` applies too: non-finite rates, rates beyond
+``max_rate_rad_s``, zero/duplicate/out-of-order stamps and a changed frame_id are rejected
+(counted, warned at most once per second per reason); a gap longer than ``max_gap_s`` is not
+integrated across (attitude held, time base restarted); a backward time jump beyond
+``time_jump_threshold_s`` resets the attitude to the initial one; an invalid
+``angular_velocity_covariance`` counts as unknown; a non-finite update restores the last good
+attitude (``integrator_errors``). Every published quaternion is finite and unit.
 
 Moving carrier (``frame: enu``). The nav-frame rate ``ω_in^n = ω_ie^n + ω_en^n`` starts
 from the parameters ``latitude_rad``, ``height_m`` and ``velocity_enu``. With
@@ -59,7 +61,14 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Header
 
-from gyro_attitude.core import imu_validation as iv
+from gyro_attitude.core.attitude import validation as iv
+from gyro_attitude.core.attitude.stream import (
+    INTEGRATOR_ERROR,
+    INVALID_COVARIANCE,
+    AttitudeStream,
+    StreamConfig,
+)
+from gyro_attitude.core.integrate import ALGORITHMS, DEFAULT_ALGORITHM, NavFrame
 from gyro_attitude.core.rotation import quat_normalize
 from gyro_attitude.ros import convert
 from gyro_attitude.ros.node_main import run_node
@@ -69,19 +78,11 @@ from gyro_attitude.ros.qos import imu_qos
 NODE_NAME = "attitude_integrator"
 
 
-def _algorithms():
-    """B's algorithm registry (imported lazily so this module imports without it)."""
-    from gyro_attitude.core.integrate import ALGORITHMS, DEFAULT_ALGORITHM
-
-    return ALGORITHMS, DEFAULT_ALGORITHM
-
-
 def parameter_specs() -> list[ParamSpec]:
-    algorithms, default_algorithm = _algorithms()
     return [
-        ParamSpec("algorithm", default_algorithm,
+        ParamSpec("algorithm", DEFAULT_ALGORITHM,
                   "attitude update algorithm (gyro-attitude bench lists them)",
-                  choices=tuple(algorithms), runtime=True),
+                  choices=tuple(ALGORITHMS), runtime=True),
         ParamSpec("frame", "inertial",
                   "'inertial': integrate q_ib; 'enu': q_nb with Earth and transport rate removed",
                   choices=("inertial", "enu")),
@@ -115,6 +116,9 @@ def parameter_specs() -> list[ParamSpec]:
                   low=1e-6, high=1e6, runtime=True),
         ParamSpec("max_gap_s", 0.1, "a forward stamp step longer than this is a gap [s]",
                   low=1e-6, high=1e6, runtime=True),
+        ParamSpec("max_rate_rad_s", iv.DEFAULT_MAX_RATE_RAD_S,
+                  "a sample with a larger rate on any axis is implausible and rejected [rad/s]",
+                  low=1e-3, high=1e9, runtime=True),
         ParamSpec("drain_queue", True,
                   "take all queued Imu messages per executor wakeup (less overhead at high "
                   "rates); false: one message per wakeup (plain rclpy)"),
@@ -124,7 +128,7 @@ def parameter_specs() -> list[ParamSpec]:
 
 
 class AttitudeIntegratorNode(Node):
-    """Thin ROS wrapper around ``StreamingIntegrator`` + ``ImuStreamValidator``."""
+    """Thin ROS wrapper around :class:`AttitudeStream` (the policy replay shares)."""
 
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
@@ -135,11 +139,9 @@ class AttitudeIntegratorNode(Node):
         q0 = np.asarray(p["initial_attitude"], dtype=float)
         if not np.linalg.norm(q0) > 1e-9:
             raise ParameterError("parameter 'initial_attitude' must be a nonzero quaternion")
-        self._q_init = quat_normalize(q0)
+        q_init = quat_normalize(q0)
         self._nav = None
         if p["frame"] == "enu":
-            from gyro_attitude.core.integrate import NavFrame
-
             self._nav = NavFrame(
                 latitude_rad=p["latitude_rad"],
                 longitude_rad=p["longitude_rad"],
@@ -147,24 +149,16 @@ class AttitudeIntegratorNode(Node):
                 velocity_enu=np.asarray(p["velocity_enu"], dtype=float),
             )
         self._world_frame = p["world_frame_id"] or p["frame"]
-        self._algorithm = p["algorithm"]
         try:
-            self._integrator = self._make_integrator(self._q_init)
+            self._stream = AttitudeStream(p["algorithm"], q0=q_init, nav=self._nav,
+                                          config=self._stream_config(p))
         except ValueError as exc:  # e.g. an Euler-angle algorithm with frame=enu
-            raise ParameterError(f"parameter 'algorithm' = {self._algorithm!r}: {exc}") from exc
-        # attitude to start from at the next START verdict instead of the initial one
-        # (after an integrator error the attitude is kept)
-        self._resume_q: np.ndarray | None = None
-        self._validator = iv.ImuStreamValidator(self._check_config(p))
-        self._intervals = iv.IntervalStatistics(window=2000)
+            raise ParameterError(f"parameter 'algorithm' = {p['algorithm']!r}: {exc}") from exc
         self._awaiting_truth = p["initial_attitude_source"] == "truth"
         self._truth_by_stamp: dict[int, np.ndarray] = {}
         self._truth_order: deque[int] = deque()
         self._pending: deque[Imu] = deque(maxlen=5000)
         self.skipped_before_init = 0
-        self.integrator_errors = 0
-        self._angle_var = np.full(3, p["initial_attitude_variance"])
-        self._gyro_var_known = False
         self._last_warn: dict[str, float] = {}
         self._last_period_rejected = 0
         self._last_period_accepted = 0
@@ -194,23 +188,20 @@ class AttitudeIntegratorNode(Node):
         self.create_timer(p["diagnostics_period_s"], self._publish_diagnostics)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.get_logger().info(
-            f"integrating imu/data_raw with '{self._algorithm}' in frame '{p['frame']}' "
+            f"integrating imu/data_raw with '{p['algorithm']}' in frame '{p['frame']}' "
             f"(initial attitude from {p['initial_attitude_source']}, "
             f"QoS {p['qos_reliability']}/{p['qos_depth']})"
         )
 
     # ------------------------------------------------------------------ set-up helpers
     @staticmethod
-    def _check_config(p) -> iv.ImuCheckConfig:
-        return iv.ImuCheckConfig(
+    def _stream_config(p) -> StreamConfig:
+        return StreamConfig(
             max_gap_ns=int(round(p["max_gap_s"] * 1e9)),
             time_jump_ns=int(round(p["time_jump_threshold_s"] * 1e9)),
+            max_rate_rad_s=float(p["max_rate_rad_s"]),
+            initial_variance=float(p["initial_attitude_variance"]),
         )
-
-    def _make_integrator(self, q0, t0_ns: int | None = None):
-        from gyro_attitude.core.integrate import StreamingIntegrator
-
-        return StreamingIntegrator(algorithm=self._algorithm, q0=q0, nav=self._nav, t0_ns=t0_ns)
 
     def _on_set_parameters(self, params) -> SetParametersResult:
         reason = check_update(self._specs, params)
@@ -218,21 +209,16 @@ class AttitudeIntegratorNode(Node):
             return SetParametersResult(successful=False, reason=reason)
         new = dict(self._p)
         new.update({q.name: q.value for q in params if q.name in self._specs})
-        if new["algorithm"] != self._algorithm:
+        if new["algorithm"] != self._stream.algorithm:
             # keep the attitude and the time base: the next sample continues from here
-            q_now = self._integrator.quaternion
-            old = self._algorithm
-            self._algorithm = new["algorithm"]
             try:
-                integrator = self._make_integrator(q_now, self._integrator.last_t_ns)
+                self._stream.set_algorithm(new["algorithm"])
             except ValueError as exc:
-                self._algorithm = old
                 return SetParametersResult(
                     successful=False, reason=f"parameter 'algorithm' = {new['algorithm']!r}: {exc}"
                 )
-            self._integrator = integrator
-            self.get_logger().info(f"algorithm switched to '{self._algorithm}'")
-        self._validator.config = self._check_config(new)
+            self.get_logger().info(f"algorithm switched to '{new['algorithm']}'")
+        self._stream.set_config(self._stream_config(new))
         self._p = new
         return SetParametersResult(successful=True)
 
@@ -269,8 +255,6 @@ class AttitudeIntegratorNode(Node):
     _ODOM_QUEUE = 1000  # Odometry messages waiting for the Imu time line
 
     def _on_odometry(self, msg: Odometry) -> None:
-        from gyro_attitude.core.integrate import NavFrame
-
         try:
             v_enu = convert.odometry_velocity_parent(msg)
         except ValueError as exc:
@@ -313,7 +297,7 @@ class AttitudeIntegratorNode(Node):
         if nav is None:
             return
         try:
-            self._integrator.update_nav(nav)  # ω_in^n evaluated here, once per message
+            self._stream.update_nav(nav)  # ω_in^n evaluated here, once per message
         except ValueError as exc:
             self._warn("odometry", f"ignoring an Odometry message: {exc}")
             return
@@ -349,64 +333,30 @@ class AttitudeIntegratorNode(Node):
                 self._pending.append(msg)
                 return
             self._awaiting_truth = False
-            self._q_init = q_truth
             self._truth_by_stamp.clear()
             self._truth_order.clear()
-            self._validator.reset()
+            self._stream.restart(q_truth)
             self.get_logger().info("initial attitude taken from truth/attitude")
-        verdict = self._validator.check(t_ns, omega, frame_id)
-        if verdict.rejected:
+        if self._sub_odom is not None:
+            self._apply_odometry(t_ns)
+        verdict, q = self._stream.push(t_ns, omega, frame_id, msg.angular_velocity_covariance)
+        if q is None:
             self._warn(verdict.reason, f"rejected Imu sample ({verdict.reason}): {verdict.detail}")
             return
-        if self._sub_odom is not None:
-            if verdict.action == iv.RESET_TIME_JUMP:
-                self._odom_queue.clear()  # stamps of the old time line
-            else:
-                self._apply_odometry(t_ns)
-        last_t = self._integrator.last_t_ns
-        try:
-            if verdict.action == iv.ACCEPT:
-                q = self._integrator.update(t_ns, omega)
-                dt_s = (t_ns - last_t) * 1e-9 if last_t is not None else 0.0
-                self._intervals.add(t_ns - last_t if last_t is not None else 0)
-                self._grow_covariance(msg, dt_s)
-            else:
-                if verdict.action == iv.RESET_TIME_JUMP:
-                    self._warn("time_jump", f"{verdict.detail}: attitude reset")
-                    q0 = self._q_init
-                    self._angle_var = np.full(3, self._p["initial_attitude_variance"])
-                    self._intervals.clear()
-                elif verdict.action == iv.RESTART_AFTER_GAP:
-                    self._warn("gap", f"{verdict.detail}: not integrated across, attitude held")
-                    q0 = self._integrator.quaternion
-                else:  # START
-                    q0 = self._q_init if self._resume_q is None else self._resume_q
-                    self._resume_q = None
-                self._integrator.reset(q0, None)
-                q = self._integrator.update(t_ns, omega)
-        except ValueError as exc:  # defensive: the validator should have caught it
-            self.integrator_errors += 1
-            self._warn("integrator", f"integrator refused a sample ({exc}); restarting")
-            self._resume_q = self._integrator.quaternion
-            self._validator.reset()
-            return
-        self._publish(msg, t_ns, q)
+        if verdict.action == iv.RESET_TIME_JUMP:
+            self._warn("time_jump", f"{verdict.detail}: attitude reset")
+            self._odom_queue.clear()  # stamps of the old time line
+        elif verdict.action == iv.RESTART_AFTER_GAP:
+            self._warn("gap", f"{verdict.detail}: not integrated across, attitude held")
+        self._publish(msg, q)
 
-    def _grow_covariance(self, msg: Imu, dt_s: float) -> None:
-        var = convert.variances_from_covariance(msg.angular_velocity_covariance)
-        if var is None:
-            return
-        self._gyro_var_known = True
-        # angle random walk: each sample adds an independent angle error of variance
-        # σ_ω² dt² per axis, so the variance grows linearly in time (σ_ω² dt · T).
-        self._angle_var += var * (dt_s * dt_s)
-
-    def _publish(self, msg: Imu, t_ns: int, q: np.ndarray) -> None:
+    def _publish(self, msg: Imu, q: np.ndarray) -> None:
         x, y, z, w = q.tolist()
         o = msg.orientation
         o.x, o.y, o.z, o.w = x, y, z, w
-        if self._gyro_var_known:
-            msg.orientation_covariance = convert.covariance_from_variances(self._angle_var)
+        variance = self._stream.variance
+        if variance is not None:
+            msg.orientation_covariance = convert.covariance_from_variances(variance)
         else:
             msg.orientation_covariance = list(convert.UNKNOWN_COVARIANCE)
         self._pub_imu.publish(msg)
@@ -419,28 +369,30 @@ class AttitudeIntegratorNode(Node):
 
     # ------------------------------------------------------------------ diagnostics
     def diagnostics_values(self) -> dict[str, str]:
-        s = self._intervals.summary()
-        v = self._validator
+        st = self._stream
+        s = st.intervals.summary()
+        counts = st.counts
         values = {
-            "algorithm": self._algorithm,
+            "algorithm": st.algorithm,
             "input_rate_hz": f"{s['rate_hz']:.3f}",
             "dt_mean_s": f"{s['mean_dt_s']:.9f}",
             "dt_jitter_s": f"{s['jitter_s']:.9f}",
             "dt_max_s": f"{s['max_dt_s']:.9f}",
-            "accepted": str(v.accepted),
+            "accepted": str(st.accepted),
             "published": str(self._published),
-            "rejected_total": str(v.rejected_total),
-            "time_jump_resets": str(v.time_jump_resets),
+            "rejected_total": str(st.rejected_total),
+            "time_jump_resets": str(st.time_jump_resets),
             "skipped_before_initial_attitude": str(self.skipped_before_init),
-            "integrator_errors": str(self.integrator_errors),
+            "integrator_errors": str(counts[INTEGRATOR_ERROR]),
+            "invalid_covariances": str(counts[INVALID_COVARIANCE]),
             "odometry_updates": str(self.odometry_updates),
         }
         for reason in iv.REJECT_REASONS:
-            values[f"rejected_{reason}" if reason != iv.GAP else "gaps"] = str(v.counts[reason])
+            values[f"rejected_{reason}" if reason != iv.GAP else "gaps"] = str(counts[reason])
         return values
 
     def _publish_diagnostics(self) -> None:
-        v = self._validator
+        v = self._stream
         values = self.diagnostics_values()
         new_rejected = v.rejected_total - self._last_period_rejected
         new_accepted = v.accepted - self._last_period_accepted
@@ -448,7 +400,7 @@ class AttitudeIntegratorNode(Node):
         self._last_period_accepted = v.accepted
         status = DiagnosticStatus()
         status.name = f"{self.get_name()}: imu input"
-        status.hardware_id = v.frame_id or ""
+        status.hardware_id = v.validator.frame_id or ""
         if new_rejected > 0:
             status.level = DiagnosticStatus.WARN
             status.message = f"{new_rejected} sample(s) rejected in the last period"
