@@ -7,7 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from gyro_attitude.core.earth import OMEGA_IE, earth_rate_enu, nav_rate_enu, radii_of_curvature
-from gyro_attitude.core.gyro import (
+from gyro_attitude.core.gyro.free_gyro import (
     FreeGyroParams,
     FreeGyroSimulator,
     HarmonicTorque,

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy import optimize, signal
 
-from gyro_attitude.core.gyro import RateGyroParams, RateGyroTriad, rate_gyro_step_response
+from gyro_attitude.core.gyro.rate_gyro import RateGyroParams, RateGyroTriad, rate_gyro_step_response
 
 
 def _analytic_step(t, fn_hz, zeta):
