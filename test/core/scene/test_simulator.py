@@ -1,6 +1,8 @@
 """Scene simulator against closed forms (docs/equations.md), scipy oracles and conserved quantities."""
 
 
+import copy
+
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
@@ -8,7 +10,7 @@ from scipy.spatial.transform import Rotation
 
 from gyro_attitude.core import earth as earth_module
 from gyro_attitude.core.gyro.rate_gyro import RateGyroParams, RateGyroTriad
-from gyro_attitude.core.scene import SceneSimulator, SceneSpec
+from gyro_attitude.core.scene import MAX_RATE_HZ, MAX_SAMPLES_PER_CALL, SceneSimulator, SceneSpec, simulator
 
 OMEGA_IE = 7.292115e-5
 A = 6378137.0
@@ -311,6 +313,51 @@ def test_stamps_are_integer_nanoseconds_on_the_sample_grid():
     sim = SceneSimulator(SceneSpec.from_dict(d), 123.4)
     t = sim.next_block(1000).t_ns - d["start_time_ns"]
     assert np.abs(t - np.arange(1000) * 1e9 / 123.4).max() <= 0.5
+
+
+def test_stamps_stay_exact_past_int64_overflow_of_k_times_1e9():
+    # k·10⁹ overflows int64 after 9.2e9 samples: 2.6 h at 1 MHz. Stamps there must still be
+    # start + k·10⁹/r exactly (Python integers are the oracle).
+    d = scene(start_time_ns=123)
+    sim = SceneSimulator(SceneSpec.from_dict(d), 1.0e6)
+    k0 = 9_300_000_000
+    sim._k = k0  # jump ahead instead of simulating 2.6 h
+    t = sim.next_block(3).t_ns
+    assert t.tolist() == [123 + (k * 10**9) // 10**6 for k in range(k0, k0 + 3)]
+    sim = SceneSimulator(SceneSpec.from_dict(d), 3.0)
+    sim._k = 10**10 + 1
+    assert sim.next_block(2).t_ns.tolist() == [123 + (k * 10**9) // 3
+                                               for k in (10**10 + 1, 10**10 + 2)]
+
+
+def test_large_request_is_generated_in_bounded_pieces(monkeypatch):
+    """Working memory is bounded by the piece size: a request above BLOCK_SAMPLES is made of
+    pieces of at most that size, and equals the same samples asked for piece by piece."""
+    monkeypatch.setattr(simulator, "BLOCK_SAMPLES", 64)
+    d = copy.deepcopy(NOISY)
+    d["free_gyro"] = {"spin_inertia": 1e-4, "transverse_inertia": 6e-5, "spin_rate": 2500.0}
+    sim = SceneSimulator(SceneSpec.from_dict(d), 100.0)
+    sizes = []
+    generate = sim._generate
+    monkeypatch.setattr(sim, "_generate", lambda n: sizes.append(n) or generate(n))
+    whole = sim.next_block(300)
+    assert sizes == [64, 64, 64, 64, 44]
+    ref_sim = SceneSimulator(SceneSpec.from_dict(d), 100.0)
+    pieces = [ref_sim.next_block(k) for k in (64, 64, 64, 64, 44)]
+    for field in ("t_ns", "omega_ib_b", "specific_force_b", "truth_q_nb", "position_llh"):
+        assert np.array_equal(getattr(whole, field), cat(pieces, field)), field
+    assert np.array_equal(whole.gimbal.angles, np.concatenate([b.gimbal.angles for b in pieces]))
+    assert whole.gimbal.rates.shape == (300, 2)
+
+
+def test_rate_and_request_size_are_bounded():
+    spec = SceneSpec.from_dict(scene())
+    with pytest.raises(ValueError, match=r"rate_hz must be a number in \(0, 1e\+06\] Hz"):
+        SceneSimulator(spec, 1.0e12)
+    sim = SceneSimulator(spec, MAX_RATE_HZ)
+    with pytest.raises(ValueError, match="more than one call returns"):
+        sim.next_block(MAX_SAMPLES_PER_CALL + 1)
+    assert sim.next_block(5).t_ns.tolist() == [0, 1000, 2000, 3000, 4000]
 
 
 def test_imu_variances():
