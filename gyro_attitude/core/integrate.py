@@ -1,6 +1,6 @@
 """Attitude integration from gyro output: batch (vectorized) and streaming, same results.
 
-Conventions (DESIGN.md):
+Conventions (docs/conventions.md):
 
 * Input samples are rate-gyro outputs ``ω_ib^b`` (rad/s, body frame, as
   ``sensor_msgs/Imu.angular_velocity`` carries them) at strictly increasing times
@@ -119,7 +119,7 @@ class AlgorithmInfo:
     sequential: bool = False  # True: Python loop per sample (nonlinear state update)
 
 
-#: Compressed N-sample coning coefficients k_1..k_{N-1} (DESIGN.md).
+#: Compressed N-sample coning coefficients k_1..k_{N-1} (docs/equations.md).
 CONING_COEFFICIENTS: dict[int, tuple[float, ...]] = {
     1: (),
     2: (2.0 / 3.0,),

@@ -73,7 +73,7 @@ def test_earth_rotation_off_means_navigation_frame_is_inertial():
 
 # --------------------------------------------------------------------------- moving carrier
 def _oracle_position(lat0, lon0, h0, v_enu, t_end, t_eval):
-    """DESIGN.md position equations integrated by scipy (DOP853, tight tolerances)."""
+    """Position equations of docs/conventions.md integrated by scipy (DOP853, tight tolerances)."""
 
     def rhs(_, y):
         r_m, r_n = _radii(y[0])
@@ -105,7 +105,7 @@ def test_constant_velocity_position_and_transport_rate(yaw_deg, pitch_deg):
     ref = _oracle_position(lat0, lon0, h0, v, t[-1], t)
     assert np.abs(llh[:, :2] - ref[:, :2]).max() < 2e-13  # rad: ~1 mm
     assert np.abs(llh[:, 2] - ref[:, 2]).max() < 1e-8
-    # Transport rate of DESIGN.md at the oracle position, plus Earth rate, in body axes.
+    # Transport rate of docs/conventions.md at the oracle position, plus Earth rate, in body axes.
     lat, h = ref[:, 0], ref[:, 2]
     r_m, r_n = _radii(lat)
     w_in = np.stack((-v[1] / (r_m + h), OMEGA_IE * np.cos(lat) + v[0] / (r_n + h),
@@ -116,7 +116,7 @@ def test_constant_velocity_position_and_transport_rate(yaw_deg, pitch_deg):
 
 def test_turning_carrier_position_matches_scipy():
     """Time-varying velocity (a 2°/s turn at 200 m/s across the date line): the oracle
-    integrates the DESIGN position equations with the velocity written out in closed form."""
+    integrates the position equations with the velocity written out in closed form."""
     speed, rate, yaw0 = 200.0, np.radians(2.0), np.radians(10.0)
     d = scene(earth={"latitude_deg": -35.0, "longitude_deg": 179.98, "height_m": 500.0},
               motion={"type": "coordinated_turn", "speed_mps": speed, "turn_rate_deg_s": 2.0,
@@ -256,7 +256,7 @@ def test_instrument_errors_act_on_the_true_rate_and_force():
 
 
 def test_truth_is_consistent_with_the_design_navigation_update():
-    """Integrating the scene's true ω_ib^b with the ENU update of DESIGN.md (B's independent
+    """Integrating the scene's true ω_ib^b with the ENU update of docs/conventions.md (the attitude
     integrator, Earth and transport rate removed) must follow the scene's own q_nb; a wrong
     sign or frame in ω_ib^b = C_bn ω_in^n + ω_nb^b would leave ~|ω_in|·t ≈ 1e-3 rad."""
     from gyro_attitude.core import integrate
