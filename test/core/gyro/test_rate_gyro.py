@@ -46,39 +46,24 @@ def test_steady_state_output_equals_input_rate():
     assert np.max(np.abs(out[-1] - w)) < 1e-12
 
 
-def test_foh_matches_scipy_lsim_for_arbitrary_input():
+@pytest.mark.parametrize("hold, interp", [("foh", True), ("zoh", False)])
+def test_hold_matches_scipy_lsim_for_a_smooth_input(hold, interp):
+    """scipy's lsim is the oracle: interp=True interpolates the input linearly between samples
+    (first-order hold), interp=False holds each sample until the next (zero-order hold: over
+    [t_{k-1}, t_k] the input is u_{k-1}, the sample at the START of the interval). A step
+    cannot tell which sample a ZOH holds (they differ at one instant only); this smooth input
+    can: holding u_k instead shifts the output by about dt·u̇ (1e-3 here)."""
     fn, zeta, dt = 12.0, 0.45, 2e-3
     t = np.arange(4000) * dt
     u = np.stack((np.sin(2 * np.pi * 3.0 * t) + 0.2 * t, np.cos(2 * np.pi * 17.0 * t),
                   np.where(t > 1.0, 1.0, 0.0) * t), axis=1)
-    gyro = RateGyroTriad(RateGyroParams(fn, zeta, hold="foh"), dt, initial="rest")
-    out = gyro.step_block(u)
+    out = RateGyroTriad(RateGyroParams(fn, zeta, hold=hold), dt, initial="rest").step_block(u)
     wn = 2 * np.pi * fn
     sys = signal.lti([wn**2], [1.0, 2 * zeta * wn, wn**2])
     for ax in range(3):
-        # lsim interpolates the input linearly between samples (first-order hold)
-        _, y, _ = signal.lsim(sys, u[:, ax], t, interp=True)
-        # exact discretizations of the same system agree to rounding (measured ≤ 1.4e-15
-        # relative to the output's peak); 1e-14 leaves ~10× margin
-        assert np.max(np.abs(out[:, ax] - y)) < 1e-14 * np.max(np.abs(y))
-
-
-def test_zoh_matches_scipy_lsim_holding_the_old_sample():
-    """Zero-order hold: over [t_{k-1}, t_k] the input is u_{k-1}, the sample at the START of
-    the interval. A step cannot tell which sample is held (they differ at one instant only);
-    a smooth input can: holding u_k instead shifts the output by about dt·u̇ (1e-3 here)."""
-    fn, zeta, dt = 12.0, 0.45, 2e-3
-    t = np.arange(4000) * dt
-    u = np.stack((np.sin(2 * np.pi * 3.0 * t) + 0.2 * t, np.cos(2 * np.pi * 17.0 * t),
-                  np.where(t > 1.0, 1.0, 0.0) * t), axis=1)
-    out = RateGyroTriad(RateGyroParams(fn, zeta, hold="zoh"), dt, initial="rest").step_block(u)
-    wn = 2 * np.pi * fn
-    sys = signal.lti([wn**2], [1.0, 2 * zeta * wn, wn**2])
-    for ax in range(3):
-        # interp=False: lsim holds each input sample until the next (zero-order hold)
-        _, y, _ = signal.lsim(sys, u[:, ax], t, interp=False)
-        # both are exact discretizations of the same system: they agree to rounding
-        # (measured ≤ 1.2e-15 relative to the output's peak); 1e-14 leaves ~10× margin
+        _, y, _ = signal.lsim(sys, u[:, ax], t, interp=interp)
+        # both are exact discretizations of the same system and agree to rounding (measured
+        # ≤ 1.4e-15 relative to the output's peak); 1e-14 leaves ~10× margin
         assert np.max(np.abs(out[:, ax] - y)) < 1e-14 * np.max(np.abs(y))
 
 
