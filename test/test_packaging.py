@@ -138,7 +138,7 @@ def test_colcon_build_installs_where_ros2_run_looks(tmp_path, ros_domain_id):
     assert out.returncode == 0, out.stdout + out.stderr
     prefix = tmp_path / "install" / PACKAGE
     # Sourcing install/setup.bash would put this on PYTHONPATH; with no system ROS it does not
-    # extend AMENT_PREFIX_PATH (DESIGN.md), so prepend the prefix as a user would.
+    # extend AMENT_PREFIX_PATH (without a system ROS), so prepend the prefix as a user would.
     site = prefix / "lib" / f"python{sys.version_info.major}.{sys.version_info.minor}" / "site-packages"
     env = _ros_env(ros_domain_id, extra_prefix=prefix, pythonpath=site)
     for exe in sorted(DECLARED):

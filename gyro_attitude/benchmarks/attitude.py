@@ -8,7 +8,7 @@ the body-frame error rotation vector, least squares) and the cost in ns per samp
 
 Cases:
 
-* ``coning``: DESIGN.md classical coning over a grid of half-angle α and frequency;
+* ``coning``: classical coning (docs/equations.md) over a grid of half-angle α and frequency;
   rate algorithms get the rates, increment algorithms both exact increments
   (``coningN[exact]``) and trapezoid increments from the rates (``coningN[trapezoid]``).
 * ``spinning_coning``: a fast spin about body z on top of coning,

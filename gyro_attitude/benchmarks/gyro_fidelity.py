@@ -31,13 +31,8 @@ import time
 import numpy as np
 
 from gyro_attitude.core.earth import earth_rate_enu
-from gyro_attitude.core.gyro import (
-    FreeGyroParams,
-    FreeGyroSimulator,
-    RateGyroParams,
-    RateGyroTriad,
-    rate_gyro_step_response,
-)
+from gyro_attitude.core.gyro.free_gyro import FreeGyroParams, FreeGyroSimulator
+from gyro_attitude.core.gyro.rate_gyro import RateGyroParams, RateGyroTriad, rate_gyro_step_response
 from gyro_attitude.core.rigid_body import (
     HeavyTop,
     heavy_top_invariants,

@@ -1,7 +1,7 @@
 """Replay throughput: ``gyro-attitude bench --suite replay``.
 
 Input: a 1 kHz, 1-hour recording (3.6 M ``sensor_msgs/Imu`` on ``/imu/data_raw`` plus
-``/truth/attitude`` at 10 Hz), closed-form classical coning from DESIGN.md (half-angle 1°,
+``/truth/attitude`` at 10 Hz), closed-form classical coning from docs/equations.md (half-angle 1°,
 1 Hz), written by the array writer into a temporary directory (deleted afterwards).
 ``--quick`` uses 60 s (60 k messages).
 
@@ -46,7 +46,7 @@ CONE_HZ = 1.0
 
 
 def coning_closed_form(t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """DESIGN.md classical coning: (ω_b (N,3), q (N,4) x, y, z, w)."""
+    """Classical coning (docs/equations.md): (ω_b (N,3), q (N,4) x, y, z, w)."""
     a, om = HALF_ANGLE, 2 * np.pi * CONE_HZ
     s, c = np.sin(om * t_s), np.cos(om * t_s)
     w = np.stack([np.full_like(t_s, -2 * om * np.sin(a / 2) ** 2), -om * np.sin(a) * s,

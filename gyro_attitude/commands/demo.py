@@ -1,7 +1,7 @@
 """``gyro-attitude demo``: gyro_sim + attitude_integrator on a scene, recorded and summarized.
 
 Default scene: ``coning`` (classical coning, 1° half-angle at 10 Hz, Earth rotation off),
-whose truth is the closed form of DESIGN.md: the attitude is periodic, so any error of the
+whose truth is the closed form of docs/equations.md: the attitude is periodic, so any error of the
 integrated attitude against ``truth/attitude`` is algorithm error.
 
 The two nodes run as separate processes started the way ``ros2 run`` does (ament index →

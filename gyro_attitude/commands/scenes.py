@@ -1,4 +1,4 @@
-"""``gyro-attitude scenes [NAME] [--check]``: list the shipped scenes, or print one's YAML."""
+"""``gyro-attitude scenes [NAME] [--check]``: list the shipped scenes, or validate one and print its YAML."""
 
 from __future__ import annotations
 
@@ -7,23 +7,31 @@ import sys
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("name", nargs="?", help="scene name or path: print its YAML")
+    parser.add_argument("name", nargs="?",
+                        help="scene name or path: validate it and print its YAML")
     parser.add_argument("--check", action="store_true",
-                        help="also validate the scene(s) and report errors (exit 1 on any)")
+                        help="also validate every listed scene and report errors (exit 1 on any)")
 
 
 def run(args: argparse.Namespace) -> int:
-    from gyro_attitude.io.scene_file import find_scene_file, list_scenes, load_scene
+    from gyro_attitude.io.scene_file import (
+        find_scene_file,
+        list_scenes,
+        load_scene,
+        read_scene_text,
+        validate_scene_text,
+    )
 
     if args.name:
+        # Only a valid scene is printed: a path to any other file gets one line and exit 1.
         try:
             path = find_scene_file(args.name)
-            if args.check:
-                load_scene(str(path))
+            text = read_scene_text(path)
+            validate_scene_text(text, path)
         except ValueError as exc:
             print(f"error: {exc}", file=sys.stderr)
             return 1
-        sys.stdout.write(path.read_text(encoding="utf-8"))
+        sys.stdout.write(text)
         return 0
     scenes = list_scenes()
     if not scenes:

@@ -1,4 +1,4 @@
-"""WGS-84 Earth model in the local ENU navigation frame (seed §2-3, §2-4; DESIGN.md).
+"""WGS-84 Earth model in the local ENU navigation frame (textbook §2-3, §2-4; docs/conventions.md).
 
 All functions are batched over leading axes. Latitude ``lat`` and longitude ``lon`` in rad,
 height ``h`` in m above the ellipsoid, velocities ``v_enu = (v_E, v_N, v_U)`` in m/s.

@@ -1,6 +1,6 @@
 """Attitude integration from gyro output: batch (vectorized) and streaming, same results.
 
-Conventions (DESIGN.md):
+Conventions (docs/conventions.md):
 
 * Input samples are rate-gyro outputs ``ω_ib^b`` (rad/s, body frame, as
   ``sensor_msgs/Imu.angular_velocity`` carries them) at strictly increasing times
@@ -26,7 +26,7 @@ Algorithms (name: consumes, global order in the step h, cost):
 ``euler_zxz_rk4``, ``euler_krylov_rk4`` (rate, 4)
     Seed (1-10) / (1-15) angle kinematics, classical RK4; the mid-step rate comes from
     the causal cubic through the last four samples.  Divides by sin θ / cos γ: raises
-    :class:`~gyro_attitude.core.rotation.GimbalLockError` near the singularity.
+    :class:`~gyro_attitude.core.euler_kinematics.GimbalLockError` near the singularity.
     Sequential Python loop: tens of µs per sample.  Inertial frame only.
 ``dcm_first_order`` (rate, 1)
     ``C_k = orth(C_{k-1} (I + [θ×]))`` with ``θ = ω_{k-1} h`` (forward Euler) and exact
@@ -80,12 +80,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gyro_attitude.core.earth import check_latitude, nav_rate_enu
-from gyro_attitude.core.rotation import (
+from gyro_attitude.core.euler_kinematics import (
     GimbalLockError,
-    _exp_rotvec,
-    _qmul,
-    as_quat_array,
-    as_vector_array,
     euler_zxz_rates_from_body_rates,
     krylov_rates_from_body_rates,
     quat_as_euler_zxz,
@@ -93,6 +89,7 @@ from gyro_attitude.core.rotation import (
     quat_from_euler_zxz,
     quat_from_krylov,
 )
+from gyro_attitude.core.rotation import _exp_rotvec, _qmul, as_quat_array, as_vector_array
 
 __all__ = [
     "AlgorithmInfo",
@@ -122,7 +119,7 @@ class AlgorithmInfo:
     sequential: bool = False  # True: Python loop per sample (nonlinear state update)
 
 
-#: Compressed N-sample coning coefficients k_1..k_{N-1} (DESIGN.md).
+#: Compressed N-sample coning coefficients k_1..k_{N-1} (docs/equations.md).
 CONING_COEFFICIENTS: dict[int, tuple[float, ...]] = {
     1: (),
     2: (2.0 / 3.0,),

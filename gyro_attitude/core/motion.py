@@ -270,7 +270,7 @@ class ShipMotion(Motion):
 
 
 def coning_quat_and_rate(half_angle: float, omega: float, t: np.ndarray):
-    """Classical coning (DESIGN.md): the body x axis sweeps a cone of half-angle α about the
+    """Classical coning (docs/equations.md): the body x axis sweeps a cone of half-angle α about the
     reference x axis at Ω rad/s.
 
     ``q(t) = [0, sin(α/2) cos Ωt, sin(α/2) sin Ωt, cos(α/2)]`` (scalar-last),
@@ -294,7 +294,7 @@ class ClassicalConing(Motion):
     """``q_nb(t) = q_base ⊗ q_cone(t)``, ``ω_nb^b = ω_cone(t)`` (see :func:`coning_quat_and_rate`).
 
     ``half_angle`` α in rad, ``omega`` Ω in rad/s; the base attitude is constant, so the body
-    rates are exactly the closed form of DESIGN.md and the attitude is periodic (2π/Ω).
+    rates are exactly the closed form of docs/equations.md and the attitude is periodic (2π/Ω).
     """
 
     name = "coning"
@@ -320,7 +320,7 @@ class SpinningProjectile(Motion):
 
     ``q_nb(t) = q_base ⊗ q_cone(t) ⊗ [sin(pt/2), 0, 0, cos(pt/2)]``, hence
     ``ω_nb^b(t) = [p − 2Ω sin²(α/2), −Ω sin α sin((Ω−p)t), Ω sin α cos((Ω−p)t)]``
-    (the coning rate of DESIGN.md seen from the spinning body). The projectile flies at
+    (the coning rate of docs/equations.md seen from the spinning body). The projectile flies at
     ``speed`` m/s along the cone axis ``C_n,base e_x`` (constant velocity).
     """
 

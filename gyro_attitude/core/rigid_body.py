@@ -1,4 +1,4 @@
-"""Symmetric tops (seed §4-1 free top, §4-3 pseudo-regular precession, §4-4 heavy top).
+"""Symmetric tops (§4-1 free top, §4-3 pseudo-regular precession, §4-4 heavy top).
 
 Body frame b: principal axes, symmetry axis along body z.  ``J_t`` (``transverse_inertia``)
 about x and y, ``J_s`` (``spin_inertia``) about z.  Quaternions are scalar-last ``q_nb``
@@ -38,7 +38,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gyro_attitude.core.gyro import check_positive as _pos
 from gyro_attitude.core.rotation import (
     _exp_rotvec,
     _qmul,
@@ -47,6 +46,7 @@ from gyro_attitude.core.rotation import (
     quat_normalize,
     quat_rotate,
 )
+from gyro_attitude.core.validators import check_finite, check_positive
 
 __all__ = [
     "free_symmetric_top",
@@ -61,7 +61,8 @@ __all__ = [
 
 def free_top_precession_rate(angular_momentum: float, transverse_inertia: float) -> float:
     """Regular precession rate ``|H| / J_t`` (rad/s) of a free symmetric top (§4-1)."""
-    return abs(float(angular_momentum)) / _pos(transverse_inertia, "transverse_inertia")
+    h = abs(check_finite(angular_momentum, "angular_momentum"))
+    return h / check_positive(transverse_inertia, "transverse_inertia")
 
 
 def free_symmetric_top(q0, omega0_b, transverse_inertia: float, spin_inertia: float,
@@ -71,8 +72,8 @@ def free_symmetric_top(q0, omega0_b, transverse_inertia: float, spin_inertia: fl
     q0: initial ``q_nb`` (4,); omega0_b: initial body rate (3,) rad/s; t: times (m,) s
     measured from the initial state.  Returns ``q_nb`` (m, 4) and ``ω_b`` (m, 3).
     """
-    jt = _pos(transverse_inertia, "transverse_inertia")
-    js = _pos(spin_inertia, "spin_inertia")
+    jt = check_positive(transverse_inertia, "transverse_inertia")
+    js = check_positive(spin_inertia, "spin_inertia")
     q0 = quat_normalize(as_quat_array(q0, "q0"))
     w0 = as_vector_array(omega0_b, "omega0_b")
     if q0.shape != (4,) or w0.shape != (3,):
@@ -105,18 +106,16 @@ class HeavyTop:
     mgl: float
 
     def __post_init__(self):
-        _pos(self.transverse_inertia, "transverse_inertia")
-        _pos(self.spin_inertia, "spin_inertia")
-        mgl = float(self.mgl)
-        if not math.isfinite(mgl):
-            raise ValueError(f"mgl must be finite, got {self.mgl!r}")
+        check_positive(self.transverse_inertia, "transverse_inertia")
+        check_positive(self.spin_inertia, "spin_inertia")
+        check_finite(self.mgl, "mgl")
 
 
 def heavy_top_state_from_euler(top: HeavyTop, theta: float, theta_dot: float, psi_dot: float,
                                phi_dot: float) -> tuple[np.ndarray, np.ndarray]:
-    """``(H_b, Γ_b)`` from classical Euler angles (seed §1-1, φ = 0) and their rates.
+    """``(H_b, Γ_b)`` from classical Euler angles (§1-1, φ = 0) and their rates.
 
-    Body rates by seed (1-10) with φ = 0: p = θ̇, q = ψ̇ sin θ, r = ψ̇ cos θ + φ̇; the
+    Body rates by (1-10) with φ = 0: p = θ̇, q = ψ̇ sin θ, r = ψ̇ cos θ + φ̇; the
     vertical in body axes is the third column of A = R1(θ): Γ = (0, sin θ, cos θ).
     """
     w = np.array([theta_dot, psi_dot * math.sin(theta), psi_dot * math.cos(theta) + phi_dot])
@@ -180,7 +179,7 @@ def integrate_heavy_top(top: HeavyTop, h0_b, gamma0_b, dt: float, n_steps: int,
     six numbers, for which numpy's per-call overhead would dominate.  The iteration stops at
     ``tol`` or when it stalls at the round-off floor (change < 1e-12 and not shrinking).
     """
-    dt = _pos(dt, "dt")
+    dt = check_positive(dt, "dt")
     n_steps = int(n_steps)
     record_every = int(record_every)
     if n_steps < 0 or record_every < 1:

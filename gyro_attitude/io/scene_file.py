@@ -1,4 +1,4 @@
-"""Scene files: YAML loading and lookup of the shipped scenes by name.
+"""Scene files: lookup of the shipped scenes by name, and safe reading and validation of scene YAML.
 
 A scene is found by path (any existing file) or by name (``<name>.yaml`` in the scene
 directories, searched in this order):
@@ -21,9 +21,20 @@ import yaml
 
 from gyro_attitude.core.scene import SceneSpec
 
-__all__ = ["scene_directories", "find_scene_file", "load_scene", "list_scenes", "read_scene_dict"]
+__all__ = [
+    "scene_directories",
+    "find_scene_file",
+    "load_scene",
+    "list_scenes",
+    "read_scene_dict",
+    "read_scene_text",
+    "validate_scene_text",
+    "MAX_SCENE_FILE_BYTES",
+]
 
 PACKAGE = "gyro_attitude"
+#: Largest scene file read (bytes): the shipped scenes are about 1 kB.
+MAX_SCENE_FILE_BYTES = 1 << 20
 
 
 def scene_directories() -> list[Path]:
@@ -66,13 +77,40 @@ def find_scene_file(name_or_path: str) -> Path:
                      f"searched {', '.join(map(str, dirs)) or 'no scene directory'})")
 
 
-def read_scene_dict(path: Path) -> dict:
-    """Parse a scene YAML file into a dict (``ValueError`` on a syntax error or non-mapping)."""
+def read_scene_text(path: Path) -> str:
+    """The text of a scene file; ``ValueError`` naming the file unless it is a readable UTF-8
+    text file of at most :data:`MAX_SCENE_FILE_BYTES`."""
     try:
-        with open(path, encoding="utf-8") as f:
-            data = yaml.safe_load(f)
+        size = Path(path).stat().st_size
+        if size > MAX_SCENE_FILE_BYTES:
+            raise ValueError(f"{path}: {size} bytes is too large for a scene file "
+                             f"(at most {MAX_SCENE_FILE_BYTES})")
+        with open(path, "rb") as f:
+            raw = f.read(MAX_SCENE_FILE_BYTES + 1)
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read: {exc.strerror or exc}") from exc
+    if len(raw) > MAX_SCENE_FILE_BYTES:  # grew, or a special file whose size says nothing
+        raise ValueError(f"{path}: too large for a scene file (at most {MAX_SCENE_FILE_BYTES} bytes)")
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not a scene file: not UTF-8 text "
+                         f"(byte 0x{raw[exc.start]:02x} at offset {exc.start})") from None
+
+
+def read_scene_dict(path: Path) -> dict:
+    """Parse a scene YAML file into a dict (``ValueError`` on an unreadable file, a syntax
+    error or a document that is not a mapping)."""
+    return _parse_scene_text(read_scene_text(path), path)
+
+
+def _parse_scene_text(text: str, path: Path) -> dict:
+    try:
+        data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise ValueError(f"{path}: not valid YAML: {exc}") from exc
+        raise ValueError(f"{path}: not valid YAML: {' '.join(str(exc).split())}") from None
+    except RecursionError:
+        raise ValueError(f"{path}: not a scene file: YAML nested too deeply") from None
     if not isinstance(data, dict):
         raise ValueError(f"{path}: a scene must be a YAML mapping, got {type(data).__name__}")
     return data
@@ -84,7 +122,13 @@ def load_scene(name_or_path: str) -> SceneSpec:
     Raises ``ValueError`` naming the bad key (``earth.latitude_deg: ...``) prefixed by the file.
     """
     path = find_scene_file(str(name_or_path))
-    data = read_scene_dict(path)
+    return validate_scene_text(read_scene_text(path), path)
+
+
+def validate_scene_text(text: str, path: Path) -> SceneSpec:
+    """The validated scene of a file's ``text``; errors are prefixed by the file's name."""
+    path = Path(path)
+    data = _parse_scene_text(text, path)
     try:
         return SceneSpec.from_dict(data, name=path.stem)
     except ValueError as exc:

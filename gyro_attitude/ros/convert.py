@@ -1,6 +1,6 @@
 """numpy <-> ROS 2 message conversion (the only module that builds/reads message fields).
 
-Conventions (DESIGN.md, REP-103, REP-145):
+Conventions (docs/conventions.md, REP-103, REP-145):
 
 * Times are int nanoseconds; ``builtin_interfaces/Time`` holds ``sec`` (int32) and
   ``nanosec`` (uint32, < 1e9). Negative times and times past 2038 (int32 sec) are refused.

@@ -1,4 +1,4 @@
-"""WGS-84 Earth model against the closed forms of DESIGN.md and independent numbers."""
+"""WGS-84 Earth model against the closed forms of docs/conventions.md and independent numbers."""
 
 import numpy as np
 import pytest

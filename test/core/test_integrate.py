@@ -1,6 +1,6 @@
 """Attitude integrators against closed-form truth, scipy oracles and each other.
 
-Truth sources: the closed-form coning motion of DESIGN.md, constant-rate exact solutions
+Truth sources: the closed-form coning motion of docs/equations.md, constant-rate exact solutions
 (``Rotation.from_rotvec``), and ``scipy.integrate.solve_ivp`` (DOP853, rtol 1e-13) of
 ``q̇ = ½ q ⊗ ω`` for smooth analytic rates — never the code under test.
 """
@@ -41,7 +41,7 @@ def angle_between(q1, q2):
 
 
 def coning_truth(alpha, omega_c, t):
-    """DESIGN.md classical coning, converted to scalar-last: attitude and body rate."""
+    """Classical coning (docs/equations.md), converted to scalar-last: attitude and body rate."""
     s, c = math.sin(alpha / 2), math.cos(alpha / 2)
     q = np.stack([np.zeros_like(t), s * np.cos(omega_c * t), s * np.sin(omega_c * t),
                   np.full_like(t, c)], axis=-1)
@@ -52,7 +52,7 @@ def coning_truth(alpha, omega_c, t):
 
 
 def coning_increments(alpha, omega_c, t):
-    """DESIGN.md exact coning angle increments over [t_k, t_{k+1}]."""
+    """Exact coning angle increments over [t_k, t_{k+1}]."""
     h = np.diff(t)
     tm = t[:-1] + h / 2
     s2 = math.sin(alpha / 2) ** 2

@@ -89,7 +89,7 @@ def test_classical_coning_closed_form_of_design():
     m = mo.ClassicalConing(alpha, om)
     t = np.linspace(0, 1, 101)
     s = m.evaluate(t)
-    # DESIGN.md, scalar-first [cos(α/2), 0, sin(α/2) cos Ωt, sin(α/2) sin Ωt]
+    # docs/equations.md, scalar-first [cos(α/2), 0, sin(α/2) cos Ωt, sin(α/2) sin Ωt]
     lam = np.stack((np.full_like(t, np.cos(alpha / 2)), 0 * t, np.sin(alpha / 2) * np.cos(om * t),
                     np.sin(alpha / 2) * np.sin(om * t)), axis=1)
     assert np.abs(s.q_nb - lam[:, [1, 2, 3, 0]]).max() < 1e-15

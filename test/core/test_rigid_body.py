@@ -1,4 +1,4 @@
-"""Symmetric tops (seed §4-1, §4-3, §4-4) against scipy's ODE solvers, closed forms and
+"""Symmetric tops (textbook §4-1, §4-3, §4-4) against scipy's ODE solvers, closed forms and
 conserved quantities."""
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""The shipped sample recording: small, deterministic, and physically the DESIGN.md coning."""
+"""The shipped sample recording: small, deterministic, and physically the coning of docs/equations.md."""
 
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ def test_shipped_sample_is_small_and_is_classical_coning():
     assert len(imu) == len(truth) == 4000  # 20 s at 200 Hz
     np.testing.assert_array_equal(np.diff(imu.stamp_ns), 5_000_000)
     np.testing.assert_array_equal(imu.stamp_ns, truth.stamp_ns)
-    # DESIGN.md closed form, half-angle 1 deg at 10 Hz (config/scenes/coning.yaml), ideal gyro
+    # docs/equations.md closed form, half-angle 1 deg at 10 Hz (config/scenes/coning.yaml), ideal gyro
     a, om = np.radians(1.0), 2 * np.pi * 10.0
     t = (imu.stamp_ns - imu.stamp_ns[0]) * 1e-9
     w = np.stack([np.full_like(t, -2 * om * np.sin(a / 2) ** 2), -om * np.sin(a) * np.sin(om * t),

@@ -1,5 +1,7 @@
 """Scene files: lookup, loading, refusal messages, the shipped scenes and `gyro-attitude scenes`."""
 
+import re
+import subprocess
 import sys
 from pathlib import Path
 
@@ -105,3 +107,47 @@ def test_scenes_command_lists_and_prints(capsys):
     assert capsys.readouterr().out == (SOURCE_SCENES / "ship.yaml").read_text(encoding="utf-8")
     assert cli_main(["scenes", "atlantis"]) == 1
     assert "unknown scene" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        (b"\x7fELF\x02\x01\x01\x00\xff\xfe binary", r"not a scene file: not UTF-8 text \(byte 0xff"),
+        (b"root:x:0:0:root:/root:/bin/bash\n", r"a scene must be a YAML mapping, got str"),
+        (b"", r"a scene must be a YAML mapping, got NoneType"),
+        (b"description: [unclosed\n", r"not valid YAML"),
+        (b"[" * 5000 + b"]" * 5000, r"not a scene file: YAML nested too deeply|not valid YAML"),
+        (b"description: x\nseed: 1\nrate_hz: 1.0e+12\nearth: {latitude_deg: 1}\n"
+         b"motion: {type: stationary}\n", r"bad\.yaml: rate_hz: must be <= 1e\+06"),
+    ],
+)
+def test_scenes_command_refuses_a_file_that_is_not_a_valid_scene(tmp_path, capsys, content,
+                                                                  message):
+    p = tmp_path / "bad.yaml"
+    p.write_bytes(content)
+    assert cli_main(["scenes", str(p)]) == 1
+    out, err = capsys.readouterr()
+    assert out == ""
+    assert len(err.splitlines()) == 1 and err.startswith("error: ")
+    assert re.search(message, err), err
+
+
+def test_scene_file_size_is_bounded(tmp_path):
+    p = tmp_path / "huge.yaml"
+    p.write_bytes(b"#" * (scene_file.MAX_SCENE_FILE_BYTES + 1))
+    with pytest.raises(ValueError, match=r"too large for a scene file"):
+        load_scene(str(p))
+    with pytest.raises(ValueError, match=r"cannot read"):
+        scene_file.read_scene_text(tmp_path / "missing.yaml")
+
+
+@pytest.mark.parametrize("path", ["/bin/ls", "/etc/passwd"])
+def test_scenes_command_on_system_files_is_one_line_and_nonzero(path):
+    if not Path(path).is_file():
+        pytest.skip(f"{path} not on this machine")
+    code = f"from gyro_attitude.cli import main; raise SystemExit(main(['scenes', {path!r}]))"
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1, r
+    assert r.stdout == ""
+    assert len(r.stderr.splitlines()) == 1 and r.stderr.startswith("error: /"), r.stderr
+    assert "Traceback" not in r.stderr

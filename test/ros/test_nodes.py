@@ -95,7 +95,7 @@ def test_sim_to_integrator_coning_against_truth(launch, ros_node):
         assert m.orientation_covariance[0] == -1.0  # raw gyro: no orientation estimate
         assert m.linear_acceleration_covariance[0] == -1.0  # coning has no accelerometer
         assert not any(m.angular_velocity_covariance)  # ideal gyro: no random error model
-    # the coning rate in closed form (DESIGN.md): |ω| = Ω·sqrt(sin²α + 4 sin⁴(α/2))
+    # the coning rate in closed form (docs/equations.md): |ω| = Ω·sqrt(sin²α + 4 sin⁴(α/2))
     alpha, big_omega = math.radians(1.0), 2 * math.pi * 10.0
     w = np.array([convert.vector3_from_msg(m.angular_velocity) for m in raw])
     expected_norm = big_omega * math.sqrt(math.sin(alpha) ** 2 + 4 * math.sin(alpha / 2) ** 4)
@@ -120,7 +120,7 @@ def test_sim_to_integrator_coning_against_truth(launch, ros_node):
     assert np.all(np.isfinite(q_node))
     err = _angle(q_truth, q_node)
     # bound: drift of an update with no coning correction, α²Ω(Ωh)²/12 per second
-    # (DESIGN.md, N=1); every shipped rate algorithm is at least second order and beats it.
+    # (docs/equations.md, N=1); every shipped rate algorithm is at least second order and beats it.
     h = 1.0 / rate
     bound = alpha**2 * big_omega * (big_omega * h) ** 2 / 12 * duration
     assert err.max() < bound, (err.max(), bound)
@@ -299,7 +299,7 @@ def test_fast_mode_gimbal_scene_recording_clock_and_enu_at_rest(launch, ros_node
     _assert_clean_exit(sim, sim.wait(timeout=5))
     _assert_clean_exit(integ, integ.stop(signal.SIGINT))
     # A body at rest in ENU: the gyro sees only Earth rate, which frame=enu removes, so the
-    # attitude stays put (DESIGN.md). Without the removal it would turn by ω_ie·4 s ≈ 2.9e-4.
+    # attitude stays put (docs/conventions.md). Without the removal it would turn by ω_ie·4 s ≈ 2.9e-4.
     q_truth = np.array([convert.quat_from_msg(m.quaternion) for m in truth])
     q_att = np.array([convert.quat_from_msg(m.quaternion) for m in att])
     assert _angle(q_truth, np.broadcast_to(q_truth[0], q_truth.shape)).max() == 0.0

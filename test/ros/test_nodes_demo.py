@@ -29,7 +29,7 @@ def test_demo_runs_records_and_plots(ros_env, tmp_path):
                     if ch.topic.endswith("imu/data_raw"))
     assert n_imu == 1500  # the coning scene's 1 kHz for 1.5 s
     assert "received here: 1500 imu/data_raw, 1500 truth/attitude, 1500 attitude" in out, out
-    # coning drift bound without coning correction, α²Ω(Ωh)²/12 per second (DESIGN.md)
+    # coning drift bound without coning correction, α²Ω(Ωh)²/12 per second (docs/equations.md)
     import math
 
     alpha, big_omega, h = math.radians(1.0), 2 * math.pi * 10.0, 1e-3

@@ -6,7 +6,7 @@ model. Two integrators in frame=enu start from truth with the initial velocity: 
 ``truth/odom``, one keeps the constant velocity. Truth: the sim's truth/attitude and
 truth/odom as it recorded them (the scene's closed-form motion; the velocity is checked
 against it) and, for the stale-velocity error, the closed-form transport rate of the
-velocity change (DESIGN.md formula written out below).
+velocity change (docs/conventions.md formula written out below).
 """
 
 from __future__ import annotations

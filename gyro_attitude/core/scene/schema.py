@@ -1,4 +1,4 @@
-"""Scenes: a base motion on the Earth plus the instrument effects it calls for (numpy only).
+"""Scene schema: the YAML mapping of a scene validated into a SceneSpec, each error naming the key's path.
 
 A scene is a plain dict (the YAML files in ``config/scenes/`` are loaded by
 :mod:`gyro_attitude.io.scene_file`); :meth:`SceneSpec.from_dict` validates it and refuses an
@@ -10,8 +10,8 @@ Schema (SI units; angles in the file are degrees where the key says ``_deg``)::
     description: one line                 # required
     seed: 42                              # required, int >= 0: every scene is reproducible
     start_time_ns: 0                      # stamp of the first sample (default 0)
-    rate_hz: 200.0                        # suggested output rate (default 200)
-    duration_s: 60.0                      # suggested run length (default 60)
+    rate_hz: 200.0                        # suggested output rate (default 200, <= 1 MHz)
+    duration_s: 60.0                      # suggested run length (default 60, <= 1e7 s)
     earth:
       latitude_deg: 45.0                  # required, [-90, 90]
       longitude_deg: 0.0                  # [-180, 180]
@@ -24,14 +24,14 @@ Schema (SI units; angles in the file are degrees where the key says ``_deg``)::
       ...                                 # per type, below
     gyro:                                 # optional (ideal gyro triad)
       model: ideal | rate_gyro            # rate_gyro: single-gimbal rate gyro per axis
-      rate_gyro: {...}                    # fields of gyro_attitude.core.gyro.RateGyroParams
+      rate_gyro: {...}                    # fields of core.gyro.rate_gyro.RateGyroParams
       errors: {bias_rad_s, scale_factor, misalignment_rad, arw_rad_sqrt_s,
                bias_instability_rad_s, bias_instability_tau_s, quantization_rad}
     accelerometer:                        # optional: only then is specific force computed
       gravity: true
       errors: {bias_m_s2, scale_factor, misalignment_rad, vrw_m_s_sqrt_s,
                bias_instability_m_s2, bias_instability_tau_s, quantization_m_s}
-    free_gyro: {...}                      # optional: fields of gyro.FreeGyroParams
+    free_gyro: {...}                      # optional: fields of core.gyro.free_gyro.FreeGyroParams
 
 Motion keys per type (``attitude: {roll_deg, pitch_deg, yaw_deg}`` is ROS roll/pitch/yaw,
 ``q_nb = Rz(yaw) Ry(pitch) Rx(roll)``, yaw counter-clockwise from East; see
@@ -50,13 +50,13 @@ Motion keys per type (``attitude: {roll_deg, pitch_deg, yaw_deg}`` is ROS roll/p
     profile:             attitude, velocity_enu_mps, segments: [{duration_s,
                          angular_rate_deg_s (body), acceleration_enu_mps2}, ...]
 
-:class:`SceneSimulator` composes exactly the effects named, once, and evaluates nothing
-else; ``effects_run`` records the names of the effects actually evaluated. The gyro
-measures ``ω_ib^b = C_bn (ω_ie^n + ω_en^n) + ω_nb^b`` (DESIGN.md), then the instrument
-(rate-gyro dynamics, then the error model of :mod:`gyro_attitude.core.sensor_errors`).
-Accelerometers measure the specific force ``f^b = C_bn (dv^n/dt + (2ω_ie^n + ω_en^n) × v^n
-− g^n)`` with WGS-84 normal gravity (gravitation plus centrifugal); a term whose effect is
-switched off (Earth rotation, transport rate, gravity) is left out of that sum.
+
+Sizes that drive allocation or work are bounded here, so that a valid scene cannot ask for
+unbounded memory: ``rate_hz`` (at most :data:`MAX_RATE_HZ`), ``duration_s`` (at most
+:data:`MAX_DURATION_S`), ``start_time_ns`` (at most :data:`MAX_START_TIME_NS`, so int64
+stamps cannot overflow), the number of profile segments, harmonic torques and impacts
+(at most :data:`MAX_LIST_ITEMS` each), and every array is checked for its shape before
+it is converted.
 """
 
 from __future__ import annotations
@@ -68,7 +68,8 @@ from typing import Any
 
 import numpy as np
 
-from gyro_attitude.core import earth
+from gyro_attitude.core.gyro.free_gyro import FreeGyroParams, HarmonicTorque, ImpactTorque
+from gyro_attitude.core.gyro.rate_gyro import RateGyroParams
 from gyro_attitude.core.motion import (
     ClassicalConing,
     ConstantVelocity,
@@ -80,18 +81,27 @@ from gyro_attitude.core.motion import (
     SpinningProjectile,
     Stationary,
 )
-from gyro_attitude.core.rotation import quat_conjugate, quat_rotate
-from gyro_attitude.core.sensor_errors import SensorErrorModel, SensorErrorParams
+from gyro_attitude.core.sensor_errors import SensorErrorParams
 
 __all__ = [
     "SceneSpec",
     "EarthSpec",
-    "SceneSimulator",
-    "SimBlock",
-    "GimbalBlock",
     "MOTION_TYPES",
-    "integrate_position",
+    "MAX_RATE_HZ",
+    "MAX_DURATION_S",
+    "MAX_START_TIME_NS",
+    "MAX_LIST_ITEMS",
 ]
+
+#: Highest sample rate a scene may ask for (Hz). Simulated IMUs run at 100 Hz…10 kHz; 1 MHz
+#: leaves room for stress tests while a block of a fraction of a second stays small.
+MAX_RATE_HZ = 1.0e6
+#: Longest suggested run (s): about 116 days.
+MAX_DURATION_S = 1.0e7
+#: Latest first stamp (ns), about 146 years: leaves as much again before int64 stamps overflow.
+MAX_START_TIME_NS = 2**62
+#: Most entries in any list of a scene (profile segments, harmonic torques, impacts).
+MAX_LIST_ITEMS = 10_000
 
 _REQUIRED = object()
 
@@ -186,12 +196,14 @@ class _Fields:
             raise ValueError(f"{self.key(k)}: must be {'<' if hi_open else '<='} {hi:g}, got {v:g}")
         return v
 
-    def integer(self, k, default=_REQUIRED, lo=None):
+    def integer(self, k, default=_REQUIRED, lo=None, hi=None):
         v = self.raw(k, default)
         if isinstance(v, bool) or not isinstance(v, int | np.integer):
             raise ValueError(f"{self.key(k)}: must be an integer, got {v!r}")
         if lo is not None and v < lo:
             raise ValueError(f"{self.key(k)}: must be >= {lo}, got {v}")
+        if hi is not None and v > hi:
+            raise ValueError(f"{self.key(k)}: must be <= {hi}, got {v}")
         return int(v)
 
     def boolean(self, k, default=_REQUIRED) -> bool:
@@ -210,14 +222,13 @@ class _Fields:
 
     def array(self, k, shape, default=_REQUIRED, scalar_ok=False, nonnegative=False):
         v = self.raw(k, default)
-        try:
+        if scalar_ok and _is_number(v):
+            a = np.full(shape, float(v))
+        else:
+            # The nesting is checked before numpy sees the value: a YAML alias bomb or a
+            # huge list must be refused, not expanded into an array first.
+            _check_nested_shape(v, shape, self.key(k))
             a = np.asarray(v, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ValueError(f"{self.key(k)}: must be numbers of shape {shape}, got {v!r}") from None
-        if scalar_ok and a.shape == ():
-            a = np.full(shape, float(a))
-        if a.shape != shape:
-            raise ValueError(f"{self.key(k)}: must have shape {shape}, got {a.shape}")
         if not np.all(np.isfinite(a)):
             raise ValueError(f"{self.key(k)}: must be finite")
         if nonnegative and np.any(a < 0):
@@ -230,6 +241,40 @@ class _Fields:
                 raise ValueError(f"{self.key(k)}: required section is missing")
             return None
         return _Fields(self.d[k], self.key(k), allowed)
+
+
+def _is_number(v) -> bool:
+    return not isinstance(v, bool) and isinstance(v, int | float | np.integer | np.floating)
+
+
+def _check_nested_shape(v, shape: tuple[int, ...], key: str) -> None:
+    """Refuse ``v`` unless it is (nested) lists of numbers of exactly ``shape``."""
+    if isinstance(v, np.ndarray):
+        if v.shape != shape:
+            raise ValueError(f"{key}: must have shape {shape}, got {v.shape}")
+        return
+
+    def walk(x, depth: int) -> None:
+        if depth == len(shape):
+            if not _is_number(x):
+                raise ValueError(f"{key}: must be numbers of shape {shape}, got {x!r:.80}")
+            return
+        if not isinstance(x, list | tuple) or len(x) != shape[depth]:
+            got = f"a list of {len(x)}" if isinstance(x, list | tuple) else f"{x!r:.80}"
+            raise ValueError(f"{key}: must have shape {shape}, got {got}")
+        for item in x:
+            walk(item, depth + 1)
+
+    walk(v, 0)
+
+
+def _list_items(f: _Fields, k: str) -> list:
+    """The list under ``k`` (a single mapping counts as one item), at most MAX_LIST_ITEMS."""
+    v = f.raw(k)
+    items = v if isinstance(v, list) else [v]
+    if len(items) > MAX_LIST_ITEMS:
+        raise ValueError(f"{f.key(k)}: at most {MAX_LIST_ITEMS} entries, got {len(items)}")
+    return items
 
 
 def _attitude(f: _Fields) -> tuple[float, float, float]:
@@ -285,14 +330,14 @@ def _build_motion(f: _Fields) -> Motion:
     if kind == "coning":
         return ClassicalConing(
             math.radians(f.number("half_angle_deg", lo=0.0, hi=180.0)),
-            2.0 * math.pi * f.number("frequency_hz"),
+            2.0 * math.pi * f.number("frequency_hz", lo=-MAX_RATE_HZ, hi=MAX_RATE_HZ),
             _attitude(f),
         )
     if kind == "spinning_projectile":
         return SpinningProjectile(
-            2.0 * math.pi * f.number("spin_rate_hz"),
+            2.0 * math.pi * f.number("spin_rate_hz", lo=-MAX_RATE_HZ, hi=MAX_RATE_HZ),
             math.radians(f.number("half_angle_deg", lo=0.0, hi=180.0)),
-            2.0 * math.pi * f.number("coning_frequency_hz"),
+            2.0 * math.pi * f.number("coning_frequency_hz", lo=-MAX_RATE_HZ, hi=MAX_RATE_HZ),
             f.number("speed_mps", 0.0, lo=0.0),
             _attitude(f),
         )
@@ -300,6 +345,7 @@ def _build_motion(f: _Fields) -> Motion:
     segs = f.raw("segments")
     if not isinstance(segs, list) or not segs:
         raise ValueError(f"{f.key('segments')}: must be a non-empty list of segments")
+    segs = _list_items(f, "segments")
     segments = []
     for i, s in enumerate(segs):
         sf = _Fields(s, f"{f.key('segments')}[{i}]",
@@ -338,26 +384,16 @@ def _error_params(f: _Fields | None, keys: dict[str, str]) -> SensorErrorParams:
     return SensorErrorParams(**kw)
 
 
-def _c2_params(cls_name: str, d: Any, path: str):
-    """Build one of C2's parameter dataclasses from a YAML mapping, naming bad keys."""
-    try:
-        from gyro_attitude.core import gyro as gyro_module
-    except ImportError as exc:
-        raise ValueError(f"{path}: gyro dynamics (gyro_attitude.core.gyro) unavailable: {exc}") \
-            from exc
-    cls = getattr(gyro_module, cls_name, None)
-    if cls is None:
-        raise ValueError(f"{path}: gyro_attitude.core.gyro has no {cls_name}")
+def _instrument_params(cls, d: Any, path: str):
+    """Build an instrument's parameter dataclass from a YAML mapping, naming bad keys."""
     names = tuple(fl.name for fl in dataclasses.fields(cls))
     f = _Fields({} if d is None else d, path, names)
     kw = dict(f.d)
-    # Nested torque lists of the free gyro: mappings -> C2's HarmonicTorque / ImpactTorque.
-    for key, item_cls_name in (("harmonic_torques", "HarmonicTorque"), ("impacts", "ImpactTorque")):
-        if key in kw:
-            item_cls = getattr(gyro_module, item_cls_name)
-            items = kw[key] if isinstance(kw[key], list) else [kw[key]]
+    # Nested torque lists of the free gyro: mappings -> HarmonicTorque / ImpactTorque.
+    for key, item_cls in (("harmonic_torques", HarmonicTorque), ("impacts", ImpactTorque)):
+        if f.has(key):
             built = []
-            for i, item in enumerate(items):
+            for i, item in enumerate(_list_items(f, key)):
                 item_path = f"{path}.{key}[{i}]"
                 fi = _Fields(item, item_path, tuple(fl.name for fl in dataclasses.fields(item_cls)))
                 try:
@@ -367,9 +403,7 @@ def _c2_params(cls_name: str, d: Any, path: str):
             kw[key] = tuple(built)
     try:
         return cls(**kw)
-    except TypeError as exc:
-        raise ValueError(f"{path}: {exc}") from exc
-    except ValueError as exc:
+    except (TypeError, ValueError) as exc:
         raise ValueError(f"{path}: {exc}") from exc
 
 
@@ -399,12 +433,12 @@ class SceneSpec:
     rate_hz: float = 200.0
     duration_s: float = 60.0
     gyro_model: str = "ideal"
-    rate_gyro_params: Any = None
+    rate_gyro_params: RateGyroParams | None = None
     gyro_errors: SensorErrorParams = dataclasses.field(default_factory=SensorErrorParams)
     accelerometer: bool = False
     gravity: bool = True
     accel_errors: SensorErrorParams = dataclasses.field(default_factory=SensorErrorParams)
-    free_gyro_params: Any = None
+    free_gyro_params: FreeGyroParams | None = None
     source: dict = dataclasses.field(default_factory=dict)
 
     @classmethod
@@ -416,9 +450,9 @@ class SceneSpec:
         ))
         description = top.string("description")
         seed = top.integer("seed", lo=0)
-        start_time_ns = top.integer("start_time_ns", 0, lo=0)
-        rate_hz = top.number("rate_hz", 200.0, lo=0.0, lo_open=True)
-        duration_s = top.number("duration_s", 60.0, lo=0.0, lo_open=True)
+        start_time_ns = top.integer("start_time_ns", 0, lo=0, hi=MAX_START_TIME_NS)
+        rate_hz = top.number("rate_hz", 200.0, lo=0.0, lo_open=True, hi=MAX_RATE_HZ)
+        duration_s = top.number("duration_s", 60.0, lo=0.0, lo_open=True, hi=MAX_DURATION_S)
 
         e = top.section("earth", ("latitude_deg", "longitude_deg", "height_m", "rotation",
                                   "transport_rate"), required=True)
@@ -439,7 +473,8 @@ class SceneSpec:
         if g is not None:
             gyro_model = g.string("model", "ideal", choices=("ideal", "rate_gyro"))
             if gyro_model == "rate_gyro":
-                rate_params = _c2_params("RateGyroParams", g.raw("rate_gyro"), g.key("rate_gyro"))
+                rate_params = _instrument_params(RateGyroParams, g.raw("rate_gyro"),
+                                                 g.key("rate_gyro"))
             elif g.has("rate_gyro"):
                 raise ValueError(f"{g.key('rate_gyro')}: given but gyro.model is 'ideal'")
             gyro_errors = _error_params(
@@ -457,7 +492,7 @@ class SceneSpec:
 
         free_params = None
         if top.has("free_gyro"):
-            free_params = _c2_params("FreeGyroParams", top.raw("free_gyro"), "free_gyro")
+            free_params = _instrument_params(FreeGyroParams, top.raw("free_gyro"), "free_gyro")
 
         return cls(
             name=name, description=description, seed=seed, earth=earth_spec, motion=motion,
@@ -466,273 +501,3 @@ class SceneSpec:
             gyro_errors=gyro_errors, accelerometer=accel, gravity=gravity,
             accel_errors=accel_errors, free_gyro_params=free_params, source=dict(d),
         )
-
-
-# --------------------------------------------------------------------------- position
-def _simpson_cumulative(h, f_a, f_m, f_b):
-    """Cumulative Simpson sums over consecutive intervals of widths ``h``."""
-    return np.cumsum(h / 6.0 * (f_a + 4.0 * f_m + f_b), axis=0)
-
-
-def _hermite_mid(y_a, y_b, f_a, f_b, h):
-    """Cubic Hermite value at an interval's midpoint from end values and slopes."""
-    return 0.5 * (y_a + y_b) + h / 8.0 * (f_a - f_b)
-
-
-def integrate_position(motion: Motion, t0: float, llh0, t) -> np.ndarray:
-    """Geodetic position ``(lat, lon, h)`` (rad, rad, m) at times ``t`` (s, sorted).
-
-    Integrates ``(L̇, λ̇, ḣ) = (v_N/(R_M+h), v_E/((R_N+h) cos L), v_U)`` from ``llh0`` at
-    ``t0`` with the motion's exact velocity: Simpson's rule over each interval between
-    consecutive times (velocity at the midpoints evaluated in closed form), the latitude
-    dependence of the radii resolved by three Picard sweeps with cubic-Hermite midpoint
-    values. The integrand varies on the scale of the Earth's radius, so each sweep shrinks
-    the error by ~e²·|v|·Δt/R and three leave it at rounding level for any block length.
-    """
-    t = np.asarray(t, dtype=np.float64)
-    nodes = np.concatenate(([t0], t))
-    h = np.diff(nodes)
-    mids = nodes[:-1] + 0.5 * h
-    v_n = motion.velocity(nodes)
-    v_m = motion.velocity(mids)
-    lat0, lon0, hgt0 = (float(x) for x in llh0)
-
-    hgt = np.concatenate(([hgt0], hgt0 + _simpson_cumulative(h, v_n[:-1, 2], v_m[:, 2],
-                                                             v_n[1:, 2])))
-    hgt_m = _hermite_mid(hgt[:-1], hgt[1:], v_n[:-1, 2], v_n[1:, 2], h)
-
-    def lat_rate(lat, height, v_north):
-        r_m, _ = earth.radii_of_curvature(lat)
-        return v_north / (r_m + height)
-
-    lat = np.full(nodes.shape, lat0)
-    for _ in range(3):
-        f_n = lat_rate(lat, hgt, v_n[:, 1])
-        lat_m = _hermite_mid(lat[:-1], lat[1:], f_n[:-1], f_n[1:], h)
-        f_m = lat_rate(lat_m, hgt_m, v_m[:, 1])
-        lat = np.concatenate(([lat0], lat0 + _simpson_cumulative(h, f_n[:-1], f_m, f_n[1:])))
-
-    def lon_rate(lat_, height, v_east):
-        _, r_n = earth.radii_of_curvature(lat_)
-        return v_east / ((r_n + height) * np.cos(lat_))
-
-    f_n = lat_rate(lat, hgt, v_n[:, 1])
-    lat_m = _hermite_mid(lat[:-1], lat[1:], f_n[:-1], f_n[1:], h)
-    g_n = lon_rate(lat, hgt, v_n[:, 0])
-    g_m = lon_rate(lat_m, hgt_m, v_m[:, 0])
-    lon = lon0 + _simpson_cumulative(h, g_n[:-1], g_m, g_n[1:])
-    # Longitude is reported wrapped into [-π, π).
-    lon = (lon + np.pi) % (2.0 * np.pi) - np.pi
-    return np.stack((lat[1:], lon, hgt[1:]), axis=-1)
-
-
-# --------------------------------------------------------------------------- simulator
-@dataclass
-class GimbalBlock:
-    """Gimbal state of a gimballed instrument: ``names (k,)``, ``angles (n,k)`` rad,
-    ``rates (n,k)`` rad/s."""
-
-    names: tuple[str, ...]
-    angles: np.ndarray
-    rates: np.ndarray
-
-
-@dataclass
-class SimBlock:
-    """``n`` consecutive output samples of a scene (see module docstring for the physics).
-
-    ``t_ns (n,)`` int64 stamps; ``omega_ib_b (n,3)`` measured gyro output (rad/s);
-    ``specific_force_b (n,3)`` measured accelerometer output (m/s²) or ``None`` when the scene
-    has no accelerometer; truth: ``truth_q_nb (n,4)``, ``truth_omega_nb_b (n,3)``,
-    ``truth_omega_ib_b (n,3)``, ``position_llh (n,3)`` (rad, rad, m), ``velocity_enu (n,3)``;
-    ``gimbal`` (free gyro) or ``None``.
-    """
-
-    t_ns: np.ndarray
-    omega_ib_b: np.ndarray
-    specific_force_b: np.ndarray | None
-    truth_q_nb: np.ndarray
-    truth_omega_nb_b: np.ndarray
-    truth_omega_ib_b: np.ndarray
-    position_llh: np.ndarray
-    velocity_enu: np.ndarray
-    gimbal: GimbalBlock | None = None
-
-
-class SceneSimulator:
-    """Generates a scene's samples at ``rate_hz`` in resumable, vectorized blocks.
-
-    ``seed=None`` uses the scene's ``seed``; the same seed gives identical output, and the
-    output does not depend on how it is split into blocks (each random process has its own
-    generator). Sample k is stamped ``start_time_ns + k·10⁹/rate_hz`` ns (integer division
-    when ``rate_hz`` is an integer, else rounded); truth is evaluated at exactly those stamps.
-    ``effects_run`` is the set of effect names actually evaluated so far, e.g.
-    ``motion.coning``, ``earth_rate``, ``transport_rate``, ``position``, ``gravity``,
-    ``coriolis``, ``specific_force``, ``rate_gyro``, ``free_gyro``, ``gyro.white_noise``,
-    ``accelerometer.bias``.
-    """
-
-    def __init__(self, spec: SceneSpec, rate_hz: float, seed: int | None = None):
-        if isinstance(rate_hz, bool) or not (np.isfinite(rate_hz) and rate_hz > 0):
-            raise ValueError(f"rate_hz must be a finite positive number, got {rate_hz!r}")
-        self.spec = spec
-        self.rate_hz = float(rate_hz)
-        self.dt = 1.0 / self.rate_hz
-        self.seed = spec.seed if seed is None else int(seed)
-        self.effects_run: set[str] = set()
-        self._k = 0
-        ea = spec.earth
-        self._anchor_t = 0.0
-        self._anchor_llh = np.array([ea.latitude_rad, ea.longitude_rad, ea.height_m])
-        gyro_ss, accel_ss = np.random.SeedSequence(self.seed).spawn(2)
-        self._gyro_errors = (SensorErrorModel(spec.gyro_errors, self.dt, gyro_ss)
-                             if spec.gyro_errors.active_effects() else None)
-        self._accel_errors = (SensorErrorModel(spec.accel_errors, self.dt, accel_ss)
-                              if spec.accelerometer and spec.accel_errors.active_effects()
-                              else None)
-        self._rate_gyro = None
-        self._free_gyro = None
-        self._constant_case_rate = None
-        if spec.gyro_model == "rate_gyro":
-            from gyro_attitude.core.gyro import RateGyroTriad
-
-            self._rate_gyro = RateGyroTriad(spec.rate_gyro_params, self.dt)
-        if spec.free_gyro_params is not None:
-            from gyro_attitude.core.gyro import FreeGyroSimulator
-
-            self._free_gyro = FreeGyroSimulator(spec.free_gyro_params, self._case_rate, t0=0.0)
-
-    # ------------------------------------------------------------------ pieces
-    def _stamps(self, n: int) -> np.ndarray:
-        k = np.arange(self._k, self._k + n, dtype=np.int64)
-        if self.rate_hz.is_integer():
-            offset = (k * 1_000_000_000) // int(self.rate_hz)
-        else:
-            offset = np.rint(k * (1e9 / self.rate_hz)).astype(np.int64)
-        return self.spec.start_time_ns + offset
-
-    def _positions(self, t: np.ndarray) -> np.ndarray:
-        if not self.spec.motion.moves:
-            return np.broadcast_to(self._anchor_llh, (t.shape[0], 3)).copy()
-        self.effects_run.add("position")
-        order = np.argsort(t, kind="stable")
-        out = np.empty((t.shape[0], 3))
-        out[order] = integrate_position(self.spec.motion, self._anchor_t, self._anchor_llh,
-                                        t[order])
-        return out
-
-    def _nav_rates(self, llh: np.ndarray, v: np.ndarray):
-        """``(ω_ie^n, ω_en^n)``; ``None`` for an effect the scene does not call for."""
-        ea = self.spec.earth
-        w_ie = w_en = None
-        if ea.rotation:
-            self.effects_run.add("earth_rate")
-            w_ie = earth.earth_rate_enu(llh[:, 0])
-        if ea.transport_rate and self.spec.motion.moves:
-            self.effects_run.add("transport_rate")
-            w_en = earth.transport_rate_enu(llh[:, 0], llh[:, 2], v)
-        return w_ie, w_en
-
-    def _truth(self, t: np.ndarray, need_accel: bool):
-        sample = self.spec.motion.evaluate(t, need_accel=need_accel)
-        self.effects_run.add(f"motion.{self.spec.motion.name}")
-        llh = self._positions(t)
-        w_ie, w_en = self._nav_rates(llh, sample.velocity_enu)
-        if w_ie is None and w_en is None:
-            w_ib = sample.omega_nb_b.copy()
-        else:
-            w_in = w_ie if w_en is None else (w_en if w_ie is None else w_ie + w_en)
-            w_ib = quat_rotate(quat_conjugate(sample.q_nb), w_in) + sample.omega_nb_b
-        return sample, llh, w_ie, w_en, w_ib
-
-    def _case_rate(self, t) -> np.ndarray:
-        """Inertial angular velocity of the instrument case in the case (body) frame,
-        ``ω_ib^b(t)`` at any times ``t`` (s since the start): the free gyro's base motion."""
-        t = np.atleast_1d(np.asarray(t, dtype=np.float64))
-        if isinstance(self.spec.motion, Stationary):
-            # At rest ω_ib^b = C_bn ω_ie^n is constant; the free gyro asks for it at every
-            # integration sub-step, one time at a time, so compute it once.
-            if self._constant_case_rate is None:
-                self._constant_case_rate = self._truth(np.zeros(1), need_accel=False)[4][0]
-            return np.broadcast_to(self._constant_case_rate, (t.shape[0], 3)).copy()
-        return self._truth(t, need_accel=False)[4]
-
-    def _specific_force(self, sample, llh, w_ie, w_en) -> np.ndarray:
-        self.effects_run.add("specific_force")
-        f_n = sample.accel_enu.copy()
-        if self.spec.motion.moves and (w_ie is not None or w_en is not None):
-            self.effects_run.add("coriolis")
-            w = np.zeros_like(f_n)
-            if w_ie is not None:
-                w += 2.0 * w_ie
-            if w_en is not None:
-                w += w_en
-            f_n += np.cross(w, sample.velocity_enu)
-        if self.spec.gravity:
-            self.effects_run.add("gravity")
-            f_n -= earth.gravity_enu(llh[:, 0], llh[:, 2])
-        return quat_rotate(quat_conjugate(sample.q_nb), f_n)
-
-    # ------------------------------------------------------------------ public
-    def next_block(self, n: int) -> SimBlock:
-        """The next ``n`` output samples (truth and measurements); resumable."""
-        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 0:
-            raise ValueError(f"n must be a non-negative integer, got {n!r}")
-        n = int(n)
-        spec = self.spec
-        t_ns = self._stamps(n)
-        t = (t_ns - spec.start_time_ns).astype(np.float64) / 1e9
-        sample, llh, w_ie, w_en, w_ib = self._truth(t, need_accel=spec.accelerometer)
-
-        gyro_out = w_ib
-        if self._rate_gyro is not None:
-            self.effects_run.add("rate_gyro")
-            gyro_out = np.asarray(self._rate_gyro.step_block(w_ib), dtype=np.float64)
-        if self._gyro_errors is not None:
-            gyro_out = self._gyro_errors.apply(gyro_out)
-            self.effects_run.update(f"gyro.{e}" for e in self._gyro_errors.effects_run)
-        elif gyro_out is w_ib:
-            gyro_out = w_ib.copy()
-
-        f_b = None
-        if spec.accelerometer:
-            f_b = self._specific_force(sample, llh, w_ie, w_en)
-            if self._accel_errors is not None:
-                f_b = self._accel_errors.apply(f_b)
-                self.effects_run.update(f"accelerometer.{e}"
-                                        for e in self._accel_errors.effects_run)
-
-        if n:
-            self._anchor_t = float(t[-1])
-            self._anchor_llh = llh[-1].copy()
-        self._k += n
-
-        gimbal = None
-        if self._free_gyro is not None:
-            self.effects_run.add("free_gyro")
-            angles, rates = self._free_gyro.run_until(t)
-            gimbal = GimbalBlock(tuple(self._free_gyro.names), np.asarray(angles),
-                                 np.asarray(rates))
-
-        return SimBlock(
-            t_ns=t_ns, omega_ib_b=gyro_out, specific_force_b=f_b, truth_q_nb=sample.q_nb,
-            truth_omega_nb_b=sample.omega_nb_b, truth_omega_ib_b=w_ib, position_llh=llh,
-            velocity_enu=sample.velocity_enu, gimbal=gimbal,
-        )
-
-    def imu_variances(self) -> tuple[np.ndarray | None, np.ndarray | None]:
-        """Per-axis variance per sample of the gyro ((rad/s)²) and accelerometer ((m/s²)²)
-        random errors (white noise, bias instability, quantization).
-
-        An ideal instrument gives zeros ("known perfect"); the accelerometer entry is
-        ``None`` when the scene has no accelerometer (publish −1: no estimate).
-        Deterministic errors (bias, scale factor, misalignment, rate-gyro dynamics) are
-        not random and are not part of the variance.
-        """
-        gyro = (self._gyro_errors.variances() if self._gyro_errors is not None
-                else np.zeros(3))
-        if not self.spec.accelerometer:
-            return gyro, None
-        accel = (self._accel_errors.variances() if self._accel_errors is not None
-                 else np.zeros(3))
-        return gyro, accel

@@ -1,0 +1,344 @@
+"""Scene simulator: a validated scene's truth and measurements in resumable blocks, and position integration.
+
+:class:`SceneSimulator` composes exactly the effects named, once, and evaluates nothing
+else; ``effects_run`` records the names of the effects actually evaluated. The gyro
+measures ``ω_ib^b = C_bn (ω_ie^n + ω_en^n) + ω_nb^b`` (``docs/conventions.md``), then the instrument
+(rate-gyro dynamics, then the error model of :mod:`gyro_attitude.core.sensor_errors`).
+Accelerometers measure the specific force ``f^b = C_bn (dv^n/dt + (2ω_ie^n + ω_en^n) × v^n
+− g^n)`` with WGS-84 normal gravity (gravitation plus centrifugal); a term whose effect is
+switched off (Earth rotation, transport rate, gravity) is left out of that sum.
+
+Memory is bounded whatever the caller asks for: a request for ``n`` samples is generated
+in pieces of at most :data:`BLOCK_SAMPLES` (the working arrays of the motion, Earth and
+instrument models scale with the piece, the result with ``n``), and ``n`` itself is at most
+:data:`MAX_SAMPLES_PER_CALL`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from gyro_attitude.core import earth
+from gyro_attitude.core.gyro.free_gyro import FreeGyroSimulator
+from gyro_attitude.core.gyro.rate_gyro import RateGyroTriad
+from gyro_attitude.core.motion import Motion, Stationary
+from gyro_attitude.core.rotation import quat_conjugate, quat_rotate
+from gyro_attitude.core.scene.schema import MAX_RATE_HZ, SceneSpec
+from gyro_attitude.core.sensor_errors import SensorErrorModel
+
+__all__ = [
+    "SceneSimulator",
+    "SimBlock",
+    "GimbalBlock",
+    "integrate_position",
+    "BLOCK_SAMPLES",
+    "MAX_SAMPLES_PER_CALL",
+]
+
+#: Largest piece generated at once; a longer request is assembled from such pieces.
+BLOCK_SAMPLES = 65_536
+#: Most samples one ``next_block`` call returns (about 3 GB of results): ask in pieces.
+MAX_SAMPLES_PER_CALL = 1 << 24
+
+# --------------------------------------------------------------------------- position
+def _simpson_cumulative(h, f_a, f_m, f_b):
+    """Cumulative Simpson sums over consecutive intervals of widths ``h``."""
+    return np.cumsum(h / 6.0 * (f_a + 4.0 * f_m + f_b), axis=0)
+
+
+def _hermite_mid(y_a, y_b, f_a, f_b, h):
+    """Cubic Hermite value at an interval's midpoint from end values and slopes."""
+    return 0.5 * (y_a + y_b) + h / 8.0 * (f_a - f_b)
+
+
+def integrate_position(motion: Motion, t0: float, llh0, t) -> np.ndarray:
+    """Geodetic position ``(lat, lon, h)`` (rad, rad, m) at times ``t`` (s, sorted).
+
+    Integrates ``(L̇, λ̇, ḣ) = (v_N/(R_M+h), v_E/((R_N+h) cos L), v_U)`` from ``llh0`` at
+    ``t0`` with the motion's exact velocity: Simpson's rule over each interval between
+    consecutive times (velocity at the midpoints evaluated in closed form), the latitude
+    dependence of the radii resolved by three Picard sweeps with cubic-Hermite midpoint
+    values. The integrand varies on the scale of the Earth's radius, so each sweep shrinks
+    the error by ~e²·|v|·Δt/R and three leave it at rounding level for any block length.
+    """
+    t = np.asarray(t, dtype=np.float64)
+    nodes = np.concatenate(([t0], t))
+    h = np.diff(nodes)
+    mids = nodes[:-1] + 0.5 * h
+    v_n = motion.velocity(nodes)
+    v_m = motion.velocity(mids)
+    lat0, lon0, hgt0 = (float(x) for x in llh0)
+
+    hgt = np.concatenate(([hgt0], hgt0 + _simpson_cumulative(h, v_n[:-1, 2], v_m[:, 2],
+                                                             v_n[1:, 2])))
+    hgt_m = _hermite_mid(hgt[:-1], hgt[1:], v_n[:-1, 2], v_n[1:, 2], h)
+
+    def lat_rate(lat, height, v_north):
+        r_m, _ = earth.radii_of_curvature(lat)
+        return v_north / (r_m + height)
+
+    lat = np.full(nodes.shape, lat0)
+    for _ in range(3):
+        f_n = lat_rate(lat, hgt, v_n[:, 1])
+        lat_m = _hermite_mid(lat[:-1], lat[1:], f_n[:-1], f_n[1:], h)
+        f_m = lat_rate(lat_m, hgt_m, v_m[:, 1])
+        lat = np.concatenate(([lat0], lat0 + _simpson_cumulative(h, f_n[:-1], f_m, f_n[1:])))
+
+    def lon_rate(lat_, height, v_east):
+        _, r_n = earth.radii_of_curvature(lat_)
+        return v_east / ((r_n + height) * np.cos(lat_))
+
+    f_n = lat_rate(lat, hgt, v_n[:, 1])
+    lat_m = _hermite_mid(lat[:-1], lat[1:], f_n[:-1], f_n[1:], h)
+    g_n = lon_rate(lat, hgt, v_n[:, 0])
+    g_m = lon_rate(lat_m, hgt_m, v_m[:, 0])
+    lon = lon0 + _simpson_cumulative(h, g_n[:-1], g_m, g_n[1:])
+    # Longitude is reported wrapped into [-π, π).
+    lon = (lon + np.pi) % (2.0 * np.pi) - np.pi
+    return np.stack((lat[1:], lon, hgt[1:]), axis=-1)
+
+
+# --------------------------------------------------------------------------- simulator
+@dataclass
+class GimbalBlock:
+    """Gimbal state of a gimballed instrument: ``names (k,)``, ``angles (n,k)`` rad,
+    ``rates (n,k)`` rad/s."""
+
+    names: tuple[str, ...]
+    angles: np.ndarray
+    rates: np.ndarray
+
+
+@dataclass
+class SimBlock:
+    """``n`` consecutive output samples of a scene (see module docstring for the physics).
+
+    ``t_ns (n,)`` int64 stamps; ``omega_ib_b (n,3)`` measured gyro output (rad/s);
+    ``specific_force_b (n,3)`` measured accelerometer output (m/s²) or ``None`` when the scene
+    has no accelerometer; truth: ``truth_q_nb (n,4)``, ``truth_omega_nb_b (n,3)``,
+    ``truth_omega_ib_b (n,3)``, ``position_llh (n,3)`` (rad, rad, m), ``velocity_enu (n,3)``;
+    ``gimbal`` (free gyro) or ``None``.
+    """
+
+    t_ns: np.ndarray
+    omega_ib_b: np.ndarray
+    specific_force_b: np.ndarray | None
+    truth_q_nb: np.ndarray
+    truth_omega_nb_b: np.ndarray
+    truth_omega_ib_b: np.ndarray
+    position_llh: np.ndarray
+    velocity_enu: np.ndarray
+    gimbal: GimbalBlock | None = None
+
+
+def _concatenate(blocks: list[SimBlock]) -> SimBlock:
+    """One SimBlock of consecutive pieces (same scene, so the same fields are present)."""
+    first = blocks[0]
+
+    def cat(name):
+        return None if getattr(first, name) is None else np.concatenate(
+            [getattr(b, name) for b in blocks])
+
+    gimbal = None
+    if first.gimbal is not None:
+        gimbal = GimbalBlock(first.gimbal.names,
+                             np.concatenate([b.gimbal.angles for b in blocks]),
+                             np.concatenate([b.gimbal.rates for b in blocks]))
+    return SimBlock(**{f: cat(f) for f in ("t_ns", "omega_ib_b", "specific_force_b",
+                                           "truth_q_nb", "truth_omega_nb_b", "truth_omega_ib_b",
+                                           "position_llh", "velocity_enu")}, gimbal=gimbal)
+
+
+class SceneSimulator:
+    """Generates a scene's samples at ``rate_hz`` in resumable, vectorized blocks.
+
+    ``seed=None`` uses the scene's ``seed``; the same seed gives identical output, and the
+    output does not depend on how it is split into blocks (each random process has its own
+    generator). Sample k is stamped ``start_time_ns + k·10⁹/rate_hz`` ns (integer division
+    when ``rate_hz`` is an integer, else rounded); truth is evaluated at exactly those stamps.
+    ``effects_run`` is the set of effect names actually evaluated so far, e.g.
+    ``motion.coning``, ``earth_rate``, ``transport_rate``, ``position``, ``gravity``,
+    ``coriolis``, ``specific_force``, ``rate_gyro``, ``free_gyro``, ``gyro.white_noise``,
+    ``accelerometer.bias``.
+    """
+
+    def __init__(self, spec: SceneSpec, rate_hz: float, seed: int | None = None):
+        if (isinstance(rate_hz, bool) or not isinstance(rate_hz, int | float | np.number)
+                or not (np.isfinite(rate_hz) and 0 < rate_hz <= MAX_RATE_HZ)):
+            raise ValueError(f"rate_hz must be a number in (0, {MAX_RATE_HZ:g}] Hz, got {rate_hz!r}")
+        self.spec = spec
+        self.rate_hz = float(rate_hz)
+        self.dt = 1.0 / self.rate_hz
+        self.seed = spec.seed if seed is None else int(seed)
+        self.effects_run: set[str] = set()
+        self._k = 0
+        ea = spec.earth
+        self._anchor_t = 0.0
+        self._anchor_llh = np.array([ea.latitude_rad, ea.longitude_rad, ea.height_m])
+        gyro_ss, accel_ss = np.random.SeedSequence(self.seed).spawn(2)
+        self._gyro_errors = (SensorErrorModel(spec.gyro_errors, self.dt, gyro_ss)
+                             if spec.gyro_errors.active_effects() else None)
+        self._accel_errors = (SensorErrorModel(spec.accel_errors, self.dt, accel_ss)
+                              if spec.accelerometer and spec.accel_errors.active_effects()
+                              else None)
+        self._rate_gyro = None
+        self._free_gyro = None
+        self._constant_case_rate = None
+        if spec.gyro_model == "rate_gyro":
+            self._rate_gyro = RateGyroTriad(spec.rate_gyro_params, self.dt)
+        if spec.free_gyro_params is not None:
+            self._free_gyro = FreeGyroSimulator(spec.free_gyro_params, self._case_rate, t0=0.0)
+
+    # ------------------------------------------------------------------ pieces
+    def _stamps(self, n: int) -> np.ndarray:
+        k = np.arange(self._k, self._k + n, dtype=np.int64)
+        if self.rate_hz.is_integer():
+            # exact k·10⁹/r in int64 without forming k·10⁹, which overflows after 9.2e9
+            # samples (2.6 h at 1 MHz): whole seconds plus the remainder's nanoseconds
+            r = int(self.rate_hz)
+            offset = (k // r) * 1_000_000_000 + ((k % r) * 1_000_000_000) // r
+        else:
+            offset = np.rint(k * (1e9 / self.rate_hz)).astype(np.int64)
+        return self.spec.start_time_ns + offset
+
+    def _positions(self, t: np.ndarray) -> np.ndarray:
+        if not self.spec.motion.moves:
+            return np.broadcast_to(self._anchor_llh, (t.shape[0], 3)).copy()
+        self.effects_run.add("position")
+        order = np.argsort(t, kind="stable")
+        out = np.empty((t.shape[0], 3))
+        out[order] = integrate_position(self.spec.motion, self._anchor_t, self._anchor_llh,
+                                        t[order])
+        return out
+
+    def _nav_rates(self, llh: np.ndarray, v: np.ndarray):
+        """``(ω_ie^n, ω_en^n)``; ``None`` for an effect the scene does not call for."""
+        ea = self.spec.earth
+        w_ie = w_en = None
+        if ea.rotation:
+            self.effects_run.add("earth_rate")
+            w_ie = earth.earth_rate_enu(llh[:, 0])
+        if ea.transport_rate and self.spec.motion.moves:
+            self.effects_run.add("transport_rate")
+            w_en = earth.transport_rate_enu(llh[:, 0], llh[:, 2], v)
+        return w_ie, w_en
+
+    def _truth(self, t: np.ndarray, need_accel: bool):
+        sample = self.spec.motion.evaluate(t, need_accel=need_accel)
+        self.effects_run.add(f"motion.{self.spec.motion.name}")
+        llh = self._positions(t)
+        w_ie, w_en = self._nav_rates(llh, sample.velocity_enu)
+        if w_ie is None and w_en is None:
+            w_ib = sample.omega_nb_b.copy()
+        else:
+            w_in = w_ie if w_en is None else (w_en if w_ie is None else w_ie + w_en)
+            w_ib = quat_rotate(quat_conjugate(sample.q_nb), w_in) + sample.omega_nb_b
+        return sample, llh, w_ie, w_en, w_ib
+
+    def _case_rate(self, t) -> np.ndarray:
+        """Inertial angular velocity of the instrument case in the case (body) frame,
+        ``ω_ib^b(t)`` at any times ``t`` (s since the start): the free gyro's base motion."""
+        t = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        if isinstance(self.spec.motion, Stationary):
+            # At rest ω_ib^b = C_bn ω_ie^n is constant; the free gyro asks for it at every
+            # integration sub-step, one time at a time, so compute it once.
+            if self._constant_case_rate is None:
+                self._constant_case_rate = self._truth(np.zeros(1), need_accel=False)[4][0]
+            return np.broadcast_to(self._constant_case_rate, (t.shape[0], 3)).copy()
+        return self._truth(t, need_accel=False)[4]
+
+    def _specific_force(self, sample, llh, w_ie, w_en) -> np.ndarray:
+        self.effects_run.add("specific_force")
+        f_n = sample.accel_enu.copy()
+        if self.spec.motion.moves and (w_ie is not None or w_en is not None):
+            self.effects_run.add("coriolis")
+            w = np.zeros_like(f_n)
+            if w_ie is not None:
+                w += 2.0 * w_ie
+            if w_en is not None:
+                w += w_en
+            f_n += np.cross(w, sample.velocity_enu)
+        if self.spec.gravity:
+            self.effects_run.add("gravity")
+            f_n -= earth.gravity_enu(llh[:, 0], llh[:, 2])
+        return quat_rotate(quat_conjugate(sample.q_nb), f_n)
+
+    # ------------------------------------------------------------------ public
+    def next_block(self, n: int) -> SimBlock:
+        """The next ``n`` output samples (truth and measurements); resumable.
+
+        Generated in pieces of at most :data:`BLOCK_SAMPLES`; ``n`` is at most
+        :data:`MAX_SAMPLES_PER_CALL`.
+        """
+        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 0:
+            raise ValueError(f"n must be a non-negative integer, got {n!r}")
+        n = int(n)
+        if n > MAX_SAMPLES_PER_CALL:
+            raise ValueError(f"n = {n} samples is more than one call returns "
+                             f"({MAX_SAMPLES_PER_CALL}); ask in smaller blocks")
+        if n <= BLOCK_SAMPLES:
+            return self._generate(n)
+        return _concatenate([self._generate(min(BLOCK_SAMPLES, n - k0))
+                             for k0 in range(0, n, BLOCK_SAMPLES)])
+
+    def _generate(self, n: int) -> SimBlock:
+        """The next ``n`` (at most BLOCK_SAMPLES) samples."""
+        spec = self.spec
+        t_ns = self._stamps(n)
+        t = (t_ns - spec.start_time_ns).astype(np.float64) / 1e9
+        sample, llh, w_ie, w_en, w_ib = self._truth(t, need_accel=spec.accelerometer)
+
+        gyro_out = w_ib
+        if self._rate_gyro is not None:
+            self.effects_run.add("rate_gyro")
+            gyro_out = np.asarray(self._rate_gyro.step_block(w_ib), dtype=np.float64)
+        if self._gyro_errors is not None:
+            gyro_out = self._gyro_errors.apply(gyro_out)
+            self.effects_run.update(f"gyro.{e}" for e in self._gyro_errors.effects_run)
+        elif gyro_out is w_ib:
+            gyro_out = w_ib.copy()
+
+        f_b = None
+        if spec.accelerometer:
+            f_b = self._specific_force(sample, llh, w_ie, w_en)
+            if self._accel_errors is not None:
+                f_b = self._accel_errors.apply(f_b)
+                self.effects_run.update(f"accelerometer.{e}"
+                                        for e in self._accel_errors.effects_run)
+
+        if n:
+            self._anchor_t = float(t[-1])
+            self._anchor_llh = llh[-1].copy()
+        self._k += n
+
+        gimbal = None
+        if self._free_gyro is not None:
+            self.effects_run.add("free_gyro")
+            angles, rates = self._free_gyro.run_until(t)
+            gimbal = GimbalBlock(tuple(self._free_gyro.names), np.asarray(angles),
+                                 np.asarray(rates))
+
+        return SimBlock(
+            t_ns=t_ns, omega_ib_b=gyro_out, specific_force_b=f_b, truth_q_nb=sample.q_nb,
+            truth_omega_nb_b=sample.omega_nb_b, truth_omega_ib_b=w_ib, position_llh=llh,
+            velocity_enu=sample.velocity_enu, gimbal=gimbal,
+        )
+
+    def imu_variances(self) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """Per-axis variance per sample of the gyro ((rad/s)²) and accelerometer ((m/s²)²)
+        random errors (white noise, bias instability, quantization).
+
+        An ideal instrument gives zeros ("known perfect"); the accelerometer entry is
+        ``None`` when the scene has no accelerometer (publish −1: no estimate).
+        Deterministic errors (bias, scale factor, misalignment, rate-gyro dynamics) are
+        not random and are not part of the variance.
+        """
+        gyro = (self._gyro_errors.variances() if self._gyro_errors is not None
+                else np.zeros(3))
+        if not self.spec.accelerometer:
+            return gyro, None
+        accel = (self._accel_errors.variances() if self._accel_errors is not None
+                 else np.zeros(3))
+        return gyro, accel
