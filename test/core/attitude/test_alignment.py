@@ -58,7 +58,7 @@ def test_gyrocompass_heading_error_is_bias_over_horizontal_earth_rate(grade_deg_
     east_b = c_nb.inv().apply([bias_err, 0.0, 0.0])
     t, g, a = static_imu(2000, 100.0, q, lat, gyro_bias=east_b)
     res = align(t, g, a, gyrocompass=True, latitude_rad=lat, gyro_bias_sigma=bias_err,
-                accel_bias_sigma=0.0)
+                accel_bias_sigma=0.0, heading_error_limit_deg=10.0)
     expected = np.arctan2(bias_err, OMEGA_IE * np.cos(lat))  # exact for a level frame rotation
     err = (res.heading - np.radians(heading_deg) + np.pi) % (2 * np.pi) - np.pi
     # Sign: an east bias adds to sin ψ → ψ grows → heading (= 90° − ψ) shrinks.
@@ -73,6 +73,9 @@ def test_gyrocompass_refused_for_mems_gyro():
     t, g, a = static_imu(1000, 100.0, q, np.radians(45), gyro_bias=(1e-4, 0, 0))
     with pytest.raises(ValueError, match="gyrocompass refused"):
         align(t, g, a, gyrocompass=True, latitude_rad=np.radians(45), gyro_bias_sigma=np.radians(0.01))
+    # A tactical gyro (1 °/h) at 60°N: expected 7.6° > the default 5° limit.
+    with pytest.raises(ValueError, match="7.6"):
+        align(t, g, a, gyrocompass=True, latitude_rad=np.radians(60), gyro_bias_sigma=DEG_PER_H)
     with pytest.raises(ValueError, match="gyro_bias_sigma"):
         align(t, g, a, gyrocompass=True, latitude_rad=np.radians(45))
 
