@@ -12,7 +12,8 @@ The complementary filter (Mahony et al. 2008, explicit complementary filter): wi
 up ``a = f/‖f‖`` and the predicted up ``v = C_bn e_up``, the error ``e = a × v`` is the small
 rotation (body frame) taking ``v`` to ``a``; the integrated rate is
 ``ω − b_a + k_p e`` and the bias correction integrates ``ḃ_a = −k_i e``.  The loop is a
-first-order low-pass on tilt with time constant ``1/k_p`` (default 1 s; on the BROAD recordings 1 s and a 2 m/s² gate beat 5 s and 0.3 m/s²): accelerometer noise and
+first-order low-pass on tilt with time constant ``1/k_p`` (default 1 s; on the BROAD
+recordings 1 s and a 2 m/s² gate beat 5 s and 0.3 m/s²): accelerometer noise and
 brief accelerations are averaged, gyro errors are bounded.  Gated off — pure gyro integration —
 while ``|‖f‖ − g| > accel_tol`` or ``‖ω‖ > rate_max``: during fast translation the specific
 force is not gravity.

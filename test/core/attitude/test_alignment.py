@@ -4,7 +4,7 @@ bias / (ω_ie cos L), refusal for a MEMS gyro, no rest → ValueError, stream ==
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
-from sim_static import G, OMEGA_IE, static_imu
+from sim_static import OMEGA_IE, G, static_imu
 
 from gyro_attitude.core.attitude.alignment import StaticAligner, align
 
