@@ -1,0 +1,196 @@
+"""Real MEMS recordings with optical truth (BROAD, CC BY 4.0): bias, levelling, gravity aiding, peers.
+
+``gyro-attitude bench --suite real`` or ``run(quick, out_dir)``.  Data:
+``shared/real/*.mcap`` in the working directory or above (``../shared/real``), or
+``$GYRO_ATTITUDE_REAL_DIR`` (Laidig, Caruso,
+Cereatti, Seel, "BROAD", Data 6(7):72, 2021).  Per recording and mode one row: error angle at the
+end of the motion, RMS error over the motion, tilt error at the end, cost per sample.
+
+End of the motion: the start of the final rest found by the rest detector (rest.py) on the data
+itself (the first sample of the last rest run that reaches the end of the recording), evaluated
+at the last truth sample at or before it.  Modes (all start from the first truth attitude except
+``level``): ``none`` raw gyro; ``auto`` bias from rests; ``level`` roll/pitch from the initial
+rest's specific force, heading from the truth (the truth's north is magnetic); ``gravity`` auto
+bias + gravity aiding.  Peers in the same run on the same data: naive exponential map without
+bias, ``vqf`` (VQF 6D, no magnetometer) and ``imufusion`` (Madgwick's Fusion AHRS, 6D); their
+heading is not observable, so their full-attitude error is taken after aligning the heading at
+the start and their tilt error is the fair comparison.
+"""
+
+from __future__ import annotations
+
+import os
+import pathlib
+import time
+
+import numpy as np
+
+from gyro_attitude.core.attitude.alignment import align
+from gyro_attitude.core.attitude.gravity_aiding import gravity_aided_attitude
+from gyro_attitude.core.attitude.gyro_bias import estimate_gyro_bias
+from gyro_attitude.core.attitude.rest import detect_rest, rest_segments
+from gyro_attitude.core.integrate import integrate_batch
+from gyro_attitude.core.rotation import quat_angle_between, quat_as_matrix, quat_multiply
+
+RECORDINGS = ("broad_05_slow_rotation_with_breaks", "broad_16_fast_translation")
+
+
+def real_dir() -> pathlib.Path:
+    env = os.environ.get("GYRO_ATTITUDE_REAL_DIR")
+    if env:
+        return pathlib.Path(env)
+    # The repository's sibling ``shared/real`` (``../shared/real``), looked for from the working
+    # directory upwards (the package may be installed elsewhere, so not from __file__).
+    cwd = pathlib.Path.cwd().resolve()
+    for base in (cwd, *cwd.parents):
+        if (base / "shared" / "real").is_dir():
+            return base / "shared" / "real"
+    return cwd.parent / "shared" / "real"
+
+
+def load(name: str, directory: pathlib.Path | None = None):
+    """(t_ns, gyro, accel, truth_t_ns, truth_q) of one recording."""
+    from gyro_attitude.io.imu_fast import read_imu_arrays, read_quaternion_stamped_arrays
+
+    path = (directory or real_dir()) / f"{name}.mcap"
+    imu = read_imu_arrays(path, "/imu/data_raw")
+    truth = read_quaternion_stamped_arrays(path, "/truth/attitude")
+    return (imu.stamp_ns, imu.angular_velocity, imu.linear_acceleration, truth.stamp_ns,
+            truth.quaternion)
+
+
+def end_of_motion(t, g, a) -> int:
+    """Index of the first sample of the final rest (the rest run reaching the last sample)."""
+    segs = rest_segments(detect_rest(t, g, a).covered)
+    if not segs or segs[-1][1] != t.size - 1:
+        raise ValueError("the recording does not end at rest: no end of motion found")
+    return segs[-1][0]
+
+
+def tilt_error(q_est, q_true) -> np.ndarray:
+    """Angle between the estimated and true up directions in the body (rad)."""
+    u = quat_as_matrix(q_est)[..., 2, :]
+    v = quat_as_matrix(q_true)[..., 2, :]
+    return np.arccos(np.clip(np.sum(u * v, axis=-1), -1.0, 1.0))
+
+
+def _yaw_align(q_est, q_true0):
+    """Rotate q_est about nav up so that its first heading matches the truth's."""
+    def yaw(q):
+        c = quat_as_matrix(q)
+        return np.arctan2(c[1, 0], c[0, 0])
+    d = yaw(q_true0) - yaw(q_est[0])
+    rz = np.array([0.0, 0.0, np.sin(d / 2), np.cos(d / 2)])
+    return quat_multiply(rz, q_est)
+
+
+def evaluate(name: str, directory=None, modes=("none", "auto", "level", "gravity"), peers=True,
+             histories: dict | None = None) -> list[dict]:
+    t, g, a, tt, tq = load(name, directory)
+    ke_imu = end_of_motion(t, g, a)
+    kt_end = int(np.searchsorted(tt, t[ke_imu], side="right")) - 1
+    idx = np.searchsorted(t, tt)  # truth stamps are IMU stamps
+    motion = slice(0, kt_end + 1)
+    rows = []
+
+    def row(mode, q, seconds, peer=False):
+        qe = q[idx]
+        if peer:
+            qe = _yaw_align(qe, tq[0])
+        err = quat_angle_between(qe, tq)
+        tilt = tilt_error(qe, tq)
+        if histories is not None:
+            histories[(name, mode)] = ((tt - tt[0]) * 1e-9, np.degrees(err), np.degrees(tilt))
+        rows.append({"recording": name, "mode": mode, "peer": peer,
+                     "end_error_deg": float(np.degrees(err[kt_end])),
+                     "rms_error_deg": float(np.degrees(np.sqrt(np.mean(err[motion] ** 2)))),
+                     "end_tilt_deg": float(np.degrees(tilt[kt_end])),
+                     "rms_tilt_deg": float(np.degrees(np.sqrt(np.mean(tilt[motion] ** 2)))),
+                     "ns_per_sample": seconds / t.size * 1e9,
+                     "end_of_motion_s": float((tt[kt_end] - tt[0]) * 1e-9)})
+
+    for mode in modes:
+        t0 = time.perf_counter()
+        if mode == "none":
+            q = integrate_batch(t, g, q0=tq[0])
+        else:
+            bias, _ = estimate_gyro_bias(t, g, a)
+            if mode == "auto":
+                q = integrate_batch(t, g - bias, q0=tq[0])
+            elif mode == "level":
+                heading = np.pi / 2 - np.arctan2(quat_as_matrix(tq[0])[1, 0], quat_as_matrix(tq[0])[0, 0])
+                res = align(t, g, a, float(np.degrees(heading)))
+                q = integrate_batch(t, g - bias, q0=res.q_nb)
+            else:
+                q, _ = gravity_aided_attitude(t, g - bias, a, tq[0])
+        row(mode, q, time.perf_counter() - t0)
+    if peers:
+        t0 = time.perf_counter()
+        q = integrate_batch(t, g, q0=tq[0], algorithm="exp_map")
+        row("peer/naive_exp_map", q, time.perf_counter() - t0, peer=True)
+        dt = float(np.median(np.diff(t))) * 1e-9
+        try:
+            from vqf import VQF
+            t0 = time.perf_counter()
+            out = VQF(dt).updateBatch(np.ascontiguousarray(g), np.ascontiguousarray(a))
+            qv = out["quat6D"]  # w, x, y, z; maps sensor to its earth frame
+            row("peer/vqf_6d", np.column_stack([qv[:, 1:], qv[:, :1]]), time.perf_counter() - t0,
+                peer=True)
+        except ImportError:
+            pass
+        try:
+            import imufusion
+            t0 = time.perf_counter()
+            settings = imufusion.AhrsSettings()
+            settings.sample_rate = round(1.0 / dt)
+            settings.convention = imufusion.CONVENTION_ENU
+            ahrs = imufusion.Ahrs()
+            ahrs.set_settings(settings)
+            ahrs.set_sample_period(dt)
+            qf = np.empty((t.size, 4))
+            gd = np.degrees(g)
+            ag = a / 9.81
+            for k in range(t.size):
+                ahrs.update_no_magnetometer(gd[k], ag[k])
+                w, x, y, z = ahrs.get_quaternion()  # scalar first
+                qf[k] = (x, y, z, w)
+            row("peer/imufusion_6d", qf, time.perf_counter() - t0, peer=True)
+        except ImportError:
+            pass
+    return rows
+
+
+def run(quick: bool = False, out_dir=None) -> list[dict]:
+    directory = real_dir()
+    names = RECORDINGS[:1] if quick else RECORDINGS
+    hist: dict = {}
+    rows = []
+    for name in names:
+        if not (directory / f"{name}.mcap").exists():
+            print(f"real: {directory / name}.mcap missing, skipped")
+            continue
+        rows += evaluate(name, directory, histories=hist)
+    print(f"{'recording':36s} {'mode':20s} {'end°':>7s} {'rms°':>7s} {'tilt°':>7s} {'ns/sample':>10s}")
+    for r in rows:
+        print(f"{r['recording']:36s} {r['mode']:20s} {r['end_error_deg']:7.2f} {r['rms_error_deg']:7.2f} "
+              f"{r['end_tilt_deg']:7.3f} {r['ns_per_sample']:10.0f}")
+    if out_dir is not None and hist:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        fig, axes = plt.subplots(len(names), 1, figsize=(9, 3.5 * len(names)), squeeze=False)
+        for ax, name in zip(axes[:, 0], names, strict=False):
+            for (n, mode), (ts, err, tilt) in hist.items():
+                if n == name:
+                    ax.semilogy(ts, np.maximum(tilt if "peer/" in mode and "naive" not in mode else err,
+                                               1e-3), label=mode + (" (tilt)" if "peer/" in mode
+                                                                    and "naive" not in mode else ""))
+            ax.set_title(name)
+            ax.set_xlabel("time (s)")
+            ax.set_ylabel("error (°)")
+            ax.legend(fontsize=7)
+        fig.tight_layout()
+        path = pathlib.Path(out_dir) / "real_error.png"
+        fig.savefig(path, dpi=90)
+        print(f"wrote {path}")
+    return rows

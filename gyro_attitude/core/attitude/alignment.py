@@ -1,0 +1,248 @@
+"""Static self-alignment at the first rest: levelling from the specific force, heading given or gyrocompassed.
+
+Contract (streaming): ``StaticAligner.update(t_ns, gyro, accel) -> bool`` once per accepted
+sample (accelerometer required), O(1); returns True once the first rest of at least
+``min_rest_s`` has ended (motion started) — the alignment is then final.  ``result()`` gives
+the :class:`AlignmentResult` from the rest samples so far (also before the rest ended), or raises
+``ValueError`` when no rest of ``min_rest_s`` has been seen: an IMU that never rests cannot align,
+and an identity attitude would be a silent lie.  :func:`align` is the batch form over arrays
+with bit-identical results.  Rest samples are the oldest samples of rest windows (rest.py).
+
+Heading convention: ``heading`` is the azimuth of the body x axis, clockwise from north
+(navigation usage); in ENU its yaw about up is ``ψ = π/2 − heading``.  ``q_nb = Rz(ψ) Ry(θ) Rx(φ)``
+with roll ``φ = atan2(f_y, f_z)`` and pitch ``θ = atan2(−f_x, √(f_y² + f_z²))`` from the mean
+specific force (which points up at rest).
+
+Expected errors (1σ, reported):
+
+* levelling: ``√(σ_ba² + σ_f²/n) / g`` per tilt axis — an accelerometer bias ``b`` tilts the
+  measured vertical by ``b_horizontal / g``; ``accel_bias_sigma`` (default 0.05 m/s² ≈ 5 mg, a
+  calibrated consumer MEMS) is the user's statement of it, the noise term is measured.
+* gyrocompass: the levelled gyro sees the horizontal Earth rate ``ω_ie cos L`` along north; a
+  residual gyro bias ``δb`` across it turns the heading by ``δb / (ω_ie cos L)``, and a tilt
+  error ``δ`` leaks the vertical Earth rate in, ``δ tan L``.  Expected error
+  ``√((σ_b² + σ_ω²/n) / (ω_ie cos L)² + σ_tilt² tan² L)``, with ``gyro_bias_sigma`` the
+  uncertainty of the bias subtracted (it must be stated: at rest a bias cannot be told from the
+  Earth rate, so a bias estimated at rests has absorbed it and cannot be used).  Refused
+  (``ValueError``) above ``heading_error_limit_deg`` (default 5°): a consumer MEMS gyro (bias
+  uncertainty ~0.01 °/s = 36 °/h against 15 °/h · cos L) cannot find north; a tactical one
+  (1 °/h: ~5° at 45°N) barely; a navigation-grade one (0.01 °/h: ~0.05°) can.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from gyro_attitude.core.attitude.rest import RestDetector, check_sample, check_samples, detect_rest
+from gyro_attitude.core.earth import OMEGA_IE, check_latitude
+from gyro_attitude.core.rotation import quat_from_matrix
+
+__all__ = ["AlignmentResult", "StaticAligner", "align", "level_quaternion", "gyrocompass_heading"]
+
+
+@dataclass(frozen=True)
+class AlignmentResult:
+    """Initial attitude and how well it is known (angles in rad, 1σ expected errors)."""
+
+    q_nb: np.ndarray  # (4,) x, y, z, w
+    roll: float
+    pitch: float
+    heading: float  # clockwise from north, [0, 2π)
+    heading_source: str  # "given" | "gyrocompass"
+    level_error_expected: float
+    heading_error_expected: float  # NaN for a given heading (the caller knows its quality)
+    rest_start_ns: int
+    rest_end_ns: int
+    samples: int
+    mean_specific_force: np.ndarray  # (3,) m/s²
+    mean_rate: np.ndarray  # (3,) rad/s, raw (bias not removed)
+
+
+def _c_lb(roll: float, pitch: float) -> np.ndarray:
+    """Body → level frame (yaw 0): Ry(pitch) Rx(roll)."""
+    cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
+    ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    return ry @ rx
+
+
+def level_quaternion(f_b, heading: float) -> tuple[np.ndarray, float, float]:
+    """``(q_nb, roll, pitch)`` with body z along the measured up ``f_b`` and the given heading."""
+    fx, fy, fz = (float(c) for c in f_b)
+    if not math.isfinite(fx * fy * fz) or math.hypot(fx, fy, fz) < 1.0:
+        raise ValueError(f"specific force {f_b!r} is not a usable gravity measurement")
+    roll = math.atan2(fy, fz)
+    pitch = math.atan2(-fx, math.hypot(fy, fz))
+    psi = math.pi / 2 - heading
+    cz, sz = math.cos(psi), math.sin(psi)
+    rz = np.array([[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]])
+    return quat_from_matrix(rz @ _c_lb(roll, pitch)), roll, pitch
+
+
+def gyrocompass_heading(w_b, roll: float, pitch: float) -> float:
+    """Heading (clockwise from north) from the bias-free mean rate at rest: in the levelled frame
+    the horizontal Earth rate is ``ω_ie cos L · [sin ψ, cos ψ]``, so ``ψ = atan2(ω_x, ω_y)``."""
+    w_l = _c_lb(roll, pitch) @ np.asarray(w_b, dtype=np.float64)
+    psi = math.atan2(float(w_l[0]), float(w_l[1]))
+    return (math.pi / 2 - psi) % (2 * math.pi)
+
+
+def _check_nonneg(name, v) -> float:
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {v!r}") from None
+    if not math.isfinite(x) or x < 0 or x > 1e6:
+        raise ValueError(f"{name} must be a finite non-negative number, got {v!r}")
+    return x
+
+
+class _Options:
+    def __init__(self, initial_heading_deg, gyrocompass, latitude_rad, gyro_bias, gyro_bias_sigma,
+                 accel_bias_sigma, heading_error_limit_deg, min_rest_s, rest):
+        if isinstance(initial_heading_deg, bool) or not isinstance(initial_heading_deg, int | float) \
+                or not math.isfinite(initial_heading_deg) or abs(initial_heading_deg) > 1e6:
+            raise ValueError(f"initial_heading_deg must be a finite number, got {initial_heading_deg!r}")
+        self.heading = math.radians(initial_heading_deg) % (2 * math.pi)
+        self.gyrocompass = bool(gyrocompass)
+        self.lat = None if latitude_rad is None else float(check_latitude(float(latitude_rad),
+                                                                          "latitude_rad"))
+        try:
+            self.bias = np.array([float(c) for c in gyro_bias], dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"gyro_bias must be 3 numbers (rad/s), got {gyro_bias!r}") from None
+        if self.bias.shape != (3,) or not np.all(np.isfinite(self.bias)):
+            raise ValueError(f"gyro_bias must be 3 finite numbers (rad/s), got {gyro_bias!r}")
+        self.bias_sigma = None if gyro_bias_sigma is None else _check_nonneg(
+            "gyro_bias_sigma", gyro_bias_sigma)
+        self.accel_bias_sigma = _check_nonneg("accel_bias_sigma", accel_bias_sigma)
+        self.limit = math.radians(_check_nonneg("heading_error_limit_deg", heading_error_limit_deg))
+        self.min_rest_ns = int(round(_check_nonneg("min_rest_s", min_rest_s) * 1e9))
+        self.rest = dict(rest or {})
+        if self.gyrocompass and (self.lat is None or self.bias_sigma is None):
+            raise ValueError("gyrocompass alignment needs latitude_rad and gyro_bias_sigma (the "
+                             "1σ uncertainty of the gyro_bias subtracted, rad/s)")
+
+
+def _result(opt: _Options, n: int, t0: int, t1: int, ref_f, s1f, s2f, ref_w, s1w, s2w):
+    f = np.array([ref_f[i] + s1f[i] / n for i in range(3)])
+    w = np.array([ref_w[i] + s1w[i] / n for i in range(3)])
+    var_f = np.array([max(s2f[i] - s1f[i] * s1f[i] / n, 0.0) / max(n - 1, 1) for i in range(3)])
+    var_w = np.array([max(s2w[i] - s1w[i] * s1w[i] / n, 0.0) / max(n - 1, 1) for i in range(3)])
+    g = float(np.linalg.norm(f))
+    q, roll, pitch = level_quaternion(f, opt.heading)
+    sigma_level = math.sqrt(opt.accel_bias_sigma ** 2 + float(np.mean(var_f[:2])) / n) / g
+    heading, source, sigma_heading = opt.heading, "given", math.nan
+    if opt.gyrocompass:
+        horizontal = OMEGA_IE * math.cos(opt.lat)
+        sigma_heading = math.sqrt(
+            (opt.bias_sigma ** 2 + float(np.mean(var_w[:2])) / n) / max(horizontal, 1e-300) ** 2
+            + (sigma_level * math.tan(opt.lat)) ** 2)
+        if not sigma_heading <= opt.limit:
+            raise ValueError(
+                f"gyrocompass refused: expected heading error {math.degrees(sigma_heading):.3g}° "
+                f"exceeds the limit {math.degrees(opt.limit):.3g}° (gyro bias uncertainty "
+                f"{math.degrees(opt.bias_sigma) * 3600:.3g} °/h against a horizontal Earth rate of "
+                f"{math.degrees(horizontal) * 3600:.3g} °/h at this latitude); give the heading")
+        heading = gyrocompass_heading(w - opt.bias, roll, pitch)
+        q, roll, pitch = level_quaternion(f, heading)
+        source = "gyrocompass"
+    return AlignmentResult(q, roll, pitch, heading, source, sigma_level, sigma_heading, t0, t1, n,
+                           f, w)
+
+
+class StaticAligner:
+    """Streaming static alignment over the first rest (see the module docstring)."""
+
+    def __init__(self, initial_heading_deg: float = 0.0, *, gyrocompass: bool = False,
+                 latitude_rad: float | None = None, gyro_bias=(0.0, 0.0, 0.0),
+                 gyro_bias_sigma: float | None = None, accel_bias_sigma: float = 0.05,
+                 heading_error_limit_deg: float = 5.0, min_rest_s: float = 1.0,
+                 rest: dict | None = None):
+        self._opt = _Options(initial_heading_deg, gyrocompass, latitude_rad, gyro_bias,
+                             gyro_bias_sigma, accel_bias_sigma, heading_error_limit_deg,
+                             min_rest_s, rest)
+        self.detector = RestDetector(**self._opt.rest)
+        self._pending: deque = deque()
+        self._seg = None  # [t0, t1, n, ref_f, s1f, s2f, ref_w, s1w, s2w]
+        self._last_acc = -1
+        self.done = False
+
+    def update(self, t_ns: int, gyro, accel) -> bool:
+        """Consume one sample; True once the first qualifying rest has ended."""
+        if self.done:
+            return True
+        if accel is None:
+            raise ValueError("alignment needs the accelerometer (accel is None)")
+        at_rest = self.detector.update(t_ns, gyro, accel)
+        t, g, a = check_sample(t_ns, gyro, accel)
+        index = self.detector.samples - 1
+        self._pending.append((index, t, g, a))
+        j = self.detector.oldest_index
+        while self._pending[0][0] < j:
+            self._pending.popleft()
+        if at_rest:
+            if j > self._last_acc:
+                self._last_acc = j
+                _, tj, gj, aj = self._pending[0]
+                self._add(tj, gj, aj)
+        elif self._seg is not None:
+            if self._seg[1] - self._seg[0] >= self._opt.min_rest_ns:
+                self.done = True
+            else:
+                self._seg = None  # too short: wait for a longer rest
+        return self.done
+
+    def _add(self, t, g, a) -> None:
+        s = self._seg
+        if s is None:
+            s = self._seg = [t, t, 0, a, [0.0] * 3, [0.0] * 3, g, [0.0] * 3, [0.0] * 3]
+        s[1] = t
+        s[2] += 1
+        for i in range(3):
+            d = a[i] - s[3][i]
+            s[4][i] = s[4][i] + d
+            s[5][i] = s[5][i] + d * d
+            e = g[i] - s[6][i]
+            s[7][i] = s[7][i] + e
+            s[8][i] = s[8][i] + e * e
+
+    def result(self) -> AlignmentResult:
+        s = self._seg
+        if s is None or s[1] - s[0] < self._opt.min_rest_ns:
+            raise ValueError(f"cannot align: no rest of at least {self._opt.min_rest_ns / 1e9:g} s "
+                             "seen yet (alignment needs the IMU still)")
+        return _result(self._opt, s[2], s[0], s[1], s[3], s[4], s[5], s[6], s[7], s[8])
+
+
+def align(t_ns, gyro, accel, initial_heading_deg: float = 0.0, *, gyrocompass: bool = False,
+          latitude_rad: float | None = None, gyro_bias=(0.0, 0.0, 0.0),
+          gyro_bias_sigma: float | None = None, accel_bias_sigma: float = 0.05,
+          heading_error_limit_deg: float = 5.0, min_rest_s: float = 1.0,
+          rest: dict | None = None) -> AlignmentResult:
+    """Batch :class:`StaticAligner` over arrays: alignment over the first qualifying rest."""
+    opt = _Options(initial_heading_deg, gyrocompass, latitude_rad, gyro_bias, gyro_bias_sigma,
+                   accel_bias_sigma, heading_error_limit_deg, min_rest_s, rest)
+    if accel is None:
+        raise ValueError("alignment needs the accelerometer (accel is None)")
+    t, g, a = check_samples(t_ns, gyro, accel)
+    r = detect_rest(t, g, a, **opt.rest)
+    ev = np.flatnonzero(r.at_rest)
+    if ev.size:
+        ev = ev[np.concatenate([[True], r.oldest[ev][1:] > r.oldest[ev][:-1]])]
+    run_id = np.cumsum(np.diff(np.concatenate([[False], r.at_rest]).astype(np.int8)) == 1)
+    for rid in np.unique(run_id[ev]):
+        j = r.oldest[ev[run_id[ev] == rid]]
+        if t[j[-1]] - t[j[0]] < opt.min_rest_ns:
+            continue
+        df, dw = a[j] - a[j[0]], g[j] - g[j[0]]
+        # Sequential sums (np.cumsum) as the stream adds them: bit-identical results.
+        sums = [np.cumsum(x, axis=0)[-1].tolist() for x in (df, df * df, dw, dw * dw)]
+        return _result(opt, j.size, int(t[j[0]]), int(t[j[-1]]), a[j[0]].tolist(), sums[0],
+                       sums[1], g[j[0]].tolist(), sums[2], sums[3])
+    raise ValueError(f"cannot align: no rest of at least {opt.min_rest_ns / 1e9:g} s in the data "
+                     "(alignment needs the IMU still)")

@@ -1,0 +1,298 @@
+"""Gyro bias: none, a fixed parameter, or estimated at rests (zero-rate updates), streaming and batch.
+
+Contract (streaming): ``GyroBiasEstimator.update(t_ns, gyro, accel=None, q_nb=None) -> bias``
+once per accepted sample, O(1) amortized; the returned bias (3,) rad/s is what to subtract from
+that sample before integration.  ``q_nb`` is the current attitude estimate (body→ENU) when the
+caller has one; with a latitude it lets the estimator take the Earth rate ``C_bn ω_ie^n`` out of
+the rest average.  :func:`estimate_gyro_bias` is the batch form over arrays with bit-identical
+results (same rest decisions, same sequential sums).
+
+Modes:
+
+* ``none``: bias 0.  ``parameter``: the fixed ``bias`` [x, y, z] rad/s given.
+* ``auto``: a :class:`~gyro_attitude.core.attitude.rest.RestDetector` finds rests; each rest
+  window contributes its *oldest* sample (so every rest sample is followed by a full window of
+  rest, see rest.py).  A rest counts once its samples span ``min_rest_s`` (default 1 s, i.e.
+  1.5 s of rest with the 0.5 s window): from then on, while it lasts, and after it, the bias is
+  the mean over all qualifying rests so far, each weighted by its length (the pooled sample
+  mean).  During motion the bias is held.  Before the first qualifying rest it is 0 (or the
+  optional ``initial`` bias) and the report says so.
+
+Report (:class:`GyroBiasReport`): value, rests used, standard error per axis, and whether the
+Earth rate was removed.  The standard error is the larger of (a) the white-noise figure
+``σ_within / √N`` and (b) the scatter of the rest means between rests (needs ≥ 2 rests).
+With one rest only (a), a lower bound: MEMS noise has flicker components that averaging does not
+beat.  Without latitude and attitude the Earth rate (up to 15 °/h) is absorbed into the bias —
+right for an inertial-frame integration, and a consumer MEMS bias (0.1–0.6 °/s here) is 25–150×
+larger anyway — but a navigation-frame integration then removes the Earth rate twice.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from gyro_attitude.core.attitude.rest import RestDetector, check_sample, check_samples, detect_rest
+from gyro_attitude.core.earth import check_latitude, earth_rate_enu
+from gyro_attitude.core.rotation import as_quat_array, quat_conjugate, quat_normalize, quat_rotate
+
+__all__ = ["BIAS_MODES", "GyroBiasEstimator", "GyroBiasReport", "estimate_gyro_bias"]
+
+BIAS_MODES = ("auto", "none", "parameter")
+
+
+@dataclass(frozen=True)
+class GyroBiasReport:
+    """What the bias is and how well it is known (rad/s)."""
+
+    mode: str
+    bias: np.ndarray  # (3,)
+    rests_used: int
+    rest_samples: int
+    standard_error: np.ndarray  # (3,), NaN when not estimated
+    earth_rate_removed: bool
+    note: str
+
+
+def _check_vector(name: str, v) -> tuple[float, float, float]:
+    try:
+        x = tuple(float(c) for c in v)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be 3 finite numbers (rad/s), got {v!r}") from None
+    if len(x) != 3 or not all(math.isfinite(c) and abs(c) < 1e3 for c in x):
+        raise ValueError(f"{name} must be 3 finite numbers (rad/s), got {v!r}")
+    return x  # type: ignore[return-value]
+
+
+class _Pool:
+    """Pooled rest statistics: completed rests plus the open one (plain floats, O(1))."""
+
+    def __init__(self):
+        self.k = 0  # qualifying rests completed
+        self.n = 0  # their samples
+        self.sum_nm = [0.0] * 3  # Σ n_i m_i
+        self.sum_nm2 = [0.0] * 3  # Σ n_i m_i²
+        self.ssd = [0.0] * 3  # Σ within-rest sums of squared deviations
+
+    @staticmethod
+    def seg_stats(n: int, ref, s1, s2):
+        mean = [ref[i] + s1[i] / n for i in range(3)]
+        ssd = [max(s2[i] - s1[i] * s1[i] / n, 0.0) for i in range(3)]
+        return mean, ssd
+
+    def add(self, n, mean, ssd) -> None:
+        self.k += 1
+        self.n += n
+        for i in range(3):
+            self.sum_nm[i] = self.sum_nm[i] + n * mean[i]
+            self.sum_nm2[i] = self.sum_nm2[i] + n * mean[i] * mean[i]
+            self.ssd[i] = self.ssd[i] + ssd[i]
+
+    def estimate(self, open_seg=None):
+        """(bias, standard error, rests, samples) including an open qualifying rest."""
+        k, n = self.k, self.n
+        snm, snm2, ssd = list(self.sum_nm), list(self.sum_nm2), list(self.ssd)
+        if open_seg is not None:
+            n_c, mean_c, ssd_c = open_seg
+            k += 1
+            n += n_c
+            for i in range(3):
+                snm[i] = snm[i] + n_c * mean_c[i]
+                snm2[i] = snm2[i] + n_c * mean_c[i] * mean_c[i]
+                ssd[i] = ssd[i] + ssd_c[i]
+        if k == 0:
+            return None
+        bias = [snm[i] / n for i in range(3)]
+        se = []
+        for i in range(3):
+            white = math.sqrt(ssd[i] / max(n - k, 1) / n)
+            between = 0.0
+            if k >= 2:
+                between = math.sqrt(max(snm2[i] - n * bias[i] * bias[i], 0.0) / n / (k - 1))
+            se.append(max(white, between))
+        return bias, se, k, n
+
+
+class GyroBiasEstimator:
+    """Streaming gyro bias (see the module docstring for modes and the contract)."""
+
+    def __init__(self, mode: str = "auto", bias=None, *, min_rest_s: float = 1.0,
+                 latitude_rad: float | None = None, initial=None, rest: dict | None = None):
+        if mode not in BIAS_MODES:
+            raise ValueError(f"gyro bias mode must be one of {BIAS_MODES}, got {mode!r}")
+        if mode == "parameter" and bias is None:
+            raise ValueError("gyro bias mode 'parameter' needs bias=[x, y, z] in rad/s")
+        if mode != "parameter" and bias is not None:
+            raise ValueError(f"a fixed bias is only used with mode 'parameter', not {mode!r}")
+        self.mode = mode
+        self._fixed = _check_vector("bias", bias) if bias is not None else (0.0, 0.0, 0.0)
+        self._initial = _check_vector("initial", initial) if initial is not None else (0.0,) * 3
+        if not (isinstance(min_rest_s, int | float) and math.isfinite(min_rest_s)
+                and 0 < min_rest_s < 1e6):
+            raise ValueError(f"min_rest_s must be a positive number of seconds, got {min_rest_s!r}")
+        self.min_rest_ns = int(round(min_rest_s * 1e9))
+        self._earth_n = None
+        if latitude_rad is not None:
+            self._earth_n = earth_rate_enu(check_latitude(float(latitude_rad), "latitude_rad"))
+        self._rest_params = dict(rest or {})
+        self.detector = RestDetector(**self._rest_params)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget rests and the window (the fixed/initial bias stays)."""
+        self.detector.reset()
+        self._pool = _Pool()
+        self._pending: deque = deque()  # (index, t_ns, value to average) for the window
+        self._seg = None  # open rest: [t_first, t_last, n, ref, s1, s2]
+        self._last_acc = -1
+        self._earth_all = True
+        self._bias = self._fixed if self.mode == "parameter" else (
+            self._initial if self.mode == "auto" else (0.0, 0.0, 0.0))
+        self._se = (math.nan,) * 3
+        self._k = self._n = 0
+
+    @property
+    def bias(self) -> np.ndarray:
+        return np.array(self._bias)
+
+    def update(self, t_ns: int, gyro, accel=None, q_nb=None) -> np.ndarray:
+        """Consume one sample; return the bias (3,) rad/s to subtract from it."""
+        if self.mode != "auto":
+            check_sample(t_ns, gyro, accel)
+            return np.array(self._bias)
+        at_rest = self.detector.update(t_ns, gyro, accel)
+        t, g, _ = check_sample(t_ns, gyro, accel)
+        value = g
+        if self._earth_n is not None and q_nb is not None:
+            e = quat_rotate(quat_conjugate(quat_normalize(as_quat_array(q_nb, "q_nb"))),
+                            self._earth_n)
+            value = (g[0] - float(e[0]), g[1] - float(e[1]), g[2] - float(e[2]))
+            earth = True
+        else:
+            earth = False
+        index = self.detector.samples - 1
+        self._pending.append((index, t, value, earth))
+        j = self.detector.oldest_index
+        pend = self._pending
+        while pend[0][0] < j:
+            pend.popleft()
+        if at_rest:
+            if j > self._last_acc:
+                self._accumulate(pend[0])
+                self._last_acc = j
+        elif self._seg is not None:
+            self._close()
+        return np.array(self._bias)
+
+    def _accumulate(self, entry) -> None:
+        _, t, v, earth = entry
+        seg = self._seg
+        if seg is None:
+            seg = self._seg = [t, t, 0, v, [0.0] * 3, [0.0] * 3, True]
+        seg[1] = t
+        seg[2] += 1
+        ref, s1, s2 = seg[3], seg[4], seg[5]
+        for i in range(3):
+            d = v[i] - ref[i]
+            s1[i] = s1[i] + d
+            s2[i] = s2[i] + d * d
+        seg[6] = seg[6] and earth
+        if seg[1] - seg[0] >= self.min_rest_ns:
+            mean, ssd = _Pool.seg_stats(seg[2], ref, s1, s2)
+            self._publish(self._pool.estimate((seg[2], mean, ssd)), seg[6])
+
+    def _close(self) -> None:
+        seg, self._seg = self._seg, None
+        if seg[1] - seg[0] >= self.min_rest_ns:
+            mean, ssd = _Pool.seg_stats(seg[2], seg[3], seg[4], seg[5])
+            self._pool.add(seg[2], mean, ssd)
+            self._earth_all = self._earth_all and seg[6]
+
+    def _publish(self, est, earth_open: bool) -> None:
+        bias, se, self._k, self._n = est
+        self._bias, self._se = tuple(bias), tuple(se)
+        self._earth_now = self._earth_all and earth_open
+
+    def report(self) -> GyroBiasReport:
+        if self.mode == "none":
+            return GyroBiasReport("none", np.zeros(3), 0, 0, np.full(3, np.nan), False,
+                                  "bias not corrected (mode none)")
+        if self.mode == "parameter":
+            return GyroBiasReport("parameter", np.array(self._fixed), 0, 0, np.full(3, np.nan),
+                                  False, "fixed bias given as a parameter")
+        if self._k == 0:
+            return GyroBiasReport("auto", np.array(self._bias), 0, 0, np.full(3, np.nan), False,
+                                  "no rest of at least "
+                                  f"{self.min_rest_ns / 1e9:g} s yet: bias not estimated")
+        earth = bool(getattr(self, "_earth_now", False))
+        note = ("Earth rate removed (latitude and attitude known)" if earth else
+                "Earth rate absorbed into the bias (latitude or attitude unknown)")
+        return GyroBiasReport("auto", np.array(self._bias), self._k, self._n, np.array(self._se),
+                              earth, note)
+
+
+def estimate_gyro_bias(t_ns, gyro, accel=None, q_nb=None, *, mode: str = "auto", bias=None,
+                       min_rest_s: float = 1.0, latitude_rad: float | None = None, initial=None,
+                       rest: dict | None = None) -> tuple[np.ndarray, GyroBiasReport]:
+    """Batch :class:`GyroBiasEstimator`: the bias for every sample (N, 3) and the final report.
+
+    Rest detection is vectorized (:func:`~gyro_attitude.core.attitude.rest.detect_rest`); the
+    running sums of each rest use ``np.cumsum`` (sequential, as the stream adds them) and the
+    loop runs over rests, not samples.  ``q_nb`` (N, 4), with ``latitude_rad``, removes the
+    Earth rate as in the stream.
+    """
+    est = GyroBiasEstimator(mode, bias, min_rest_s=min_rest_s, latitude_rad=latitude_rad,
+                            initial=initial, rest=rest)
+    t, g, a = check_samples(t_ns, gyro, accel)
+    out = np.empty((t.size, 3))
+    out[:] = est.bias
+    if mode != "auto":
+        return out, est.report()
+    value = g
+    if latitude_rad is not None and q_nb is not None:
+        q = as_quat_array(q_nb, "q_nb")
+        if q.shape != (t.size, 4):
+            raise ValueError(f"q_nb must have shape ({t.size}, 4), got {q.shape}")
+        value = g - quat_rotate(quat_conjugate(quat_normalize(q)), est._earth_n)
+    earth = latitude_rad is not None and q_nb is not None
+    r = detect_rest(t, g, a, **est._rest_params)
+    # Accumulation events: window k at rest whose oldest sample is new.
+    ev = np.flatnonzero(r.at_rest)
+    if ev.size:
+        new = np.concatenate([[True], r.oldest[ev][1:] > r.oldest[ev][:-1]])
+        ev = ev[new]
+    pool = est._pool
+    # A rest is a run of consecutive at-rest windows.
+    run_id = np.cumsum(np.diff(np.concatenate([[False], r.at_rest]).astype(np.int8)) == 1)
+    at_k: list[int] = []  # sample index from which a new estimate holds
+    values: list[list[float]] = []
+    last = None
+    for rid in np.unique(run_id[ev]):
+        kk = ev[run_id[ev] == rid]
+        j = r.oldest[kk]
+        v = value[j]
+        ref = v[0]
+        d = v - ref
+        s1 = np.cumsum(d, axis=0)
+        s2 = np.cumsum(d * d, axis=0)
+        qual = np.flatnonzero(t[j] - t[j[0]] >= est.min_rest_ns)
+        ref_l = ref.tolist()
+        for m in qual:  # one pooled estimate per sample while the open rest qualifies
+            mean, ssd = _Pool.seg_stats(int(m) + 1, ref_l, s1[m].tolist(), s2[m].tolist())
+            last = pool.estimate((int(m) + 1, mean, ssd))
+            at_k.append(int(kk[m]))
+            values.append(last[0])
+        if qual.size:
+            mean, ssd = _Pool.seg_stats(j.size, ref_l, s1[-1].tolist(), s2[-1].tolist())
+            pool.add(j.size, mean, ssd)
+    if at_k:
+        # Hold each estimate until the next one (and the initial value before the first).
+        pos = np.searchsorted(np.array(at_k), np.arange(t.size), side="right") - 1
+        vals = np.array(values)
+        out[pos >= 0] = vals[pos[pos >= 0]]
+        est._bias, est._se, est._k, est._n = tuple(last[0]), tuple(last[1]), last[2], last[3]
+        est._earth_now = earth
+    return out, est.report()

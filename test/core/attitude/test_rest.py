@@ -1,0 +1,69 @@
+"""Rest detection: stream == batch bit for bit, finds the true rests, ignores a constant bias."""
+
+import numpy as np
+import pytest
+from sim_static import rest_motion_rest
+
+from gyro_attitude.core.attitude.rest import RestDetector, detect_rest, rest_segments
+
+
+def test_stream_equals_batch_bitwise():
+    t, g, a, _ = rest_motion_rest(seed=3)
+    batch = detect_rest(t, g, a)
+    det = RestDetector()
+    stream = np.array([det.update(t[k], g[k], a[k]) for k in range(t.size)])
+    oldest = []
+    det.reset()
+    for k in range(t.size):
+        det.update(t[k], g[k], a[k])
+        oldest.append(det.oldest_index)
+    np.testing.assert_array_equal(stream, batch.at_rest)
+    np.testing.assert_array_equal(oldest, batch.oldest)
+
+
+@pytest.mark.parametrize("use_accel", [True, False])
+def test_finds_the_true_rests_despite_a_large_bias(use_accel):
+    # 0.05 rad/s (2.9 °/s) bias on z: the deviation test must not mind it.
+    t, g, a, truth = rest_motion_rest(bias=(0.02, -0.01, 0.05), seed=4)
+    r = detect_rest(t, g, a if use_accel else None)
+    segs = rest_segments(r.covered)
+    true_segs = rest_segments(truth)
+    assert len(segs) == len(true_segs) == 3
+    for (s, e), (ts, te) in zip(segs, true_segs, strict=True):
+        # Motion starts/stops smoothly (sin); edges agree within 0.3 s at 200 Hz.
+        assert abs(s - ts) <= 60 and abs(e - te) <= 60
+    # No motion sample is vouched for by a rest window far inside the motion.
+    assert not np.any(r.covered & ~truth & ~np.isin(np.arange(t.size), _near_edges(truth, 60)))
+
+
+def _near_edges(mask, width):
+    edges = np.flatnonzero(np.diff(mask.astype(int)) != 0)
+    return np.unique(np.clip((edges[:, None] + np.arange(-width, width + 1)).ravel(), 0, mask.size - 1))
+
+
+def test_constant_fast_rotation_is_not_rest():
+    t = np.arange(400, dtype=np.int64) * 5_000_000
+    g = np.tile([0.0, 0.0, 0.2], (400, 1))  # smooth 11 °/s spin: zero deviation, large mean
+    assert not detect_rest(t, g).at_rest.any()
+    assert detect_rest(t, g, gyro_mean_max=0.3).at_rest.any()
+
+
+def test_bad_input_is_refused():
+    det = RestDetector()
+    with pytest.raises(ValueError, match="gyro"):
+        det.update(0, [np.nan, 0, 0])
+    with pytest.raises(ValueError, match="t_ns"):
+        det.update(1.5, [0, 0, 0])
+    det.update(10, [0, 0, 0], [0, 0, 9.8])
+    with pytest.raises(ValueError, match="increase"):
+        det.update(10, [0, 0, 0], [0, 0, 9.8])
+    with pytest.raises(ValueError, match="accel"):
+        det.update(20, [0, 0, 0])
+    with pytest.raises(ValueError, match="window_s"):
+        RestDetector(window_s=float("inf"))
+    with pytest.raises(ValueError, match="strictly increasing"):
+        detect_rest([0, 0], np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="shape"):
+        detect_rest([0, 1], np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="non-empty"):
+        detect_rest([], np.zeros((0, 3)))
