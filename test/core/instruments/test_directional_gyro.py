@@ -7,6 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from gyro_attitude.core.earth import OMEGA_IE, radii_of_curvature
+from gyro_attitude.core.instruments.cases import CASES, instrument_case
 from gyro_attitude.core.instruments.directional_gyro import (
     DirectionalGyro,
     DirectionalGyroParams,
@@ -118,3 +119,14 @@ def test_bad_inputs():
         cardan_indicated_heading(math.nan, 0.0, 0.0)
     with pytest.raises(ValueError, match="t_grid"):
         DirectionalGyro(DirectionalGyroParams()).simulate([], Stationary(), 0.0)
+
+
+def test_named_cases_build_and_run_briefly():
+    for name in CASES:
+        case = instrument_case(name)
+        assert case.name == name and case.description
+        out = case.instrument.simulate(case.t_grid[:3], case.carrier, case.latitude, **case.options)
+        assert np.all(np.isfinite(out.heading_indicated if hasattr(out, "heading_indicated")
+                                  else out.roll_indicated))
+    with pytest.raises(ValueError, match="unknown instrument case"):
+        instrument_case("nope")
