@@ -25,6 +25,7 @@ SUITES: dict[str, str] = {
     "replay": "gyro_attitude.benchmarks.replay",
     "nodes": "gyro_attitude.benchmarks.nodes",
     "scenes": "gyro_attitude.benchmarks.scenes",
+    "instruments": "gyro_attitude.benchmarks.instruments",
 }
 
 
