@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from gyro_attitude.core.earth import OMEGA_IE, radii_of_curvature
+from gyro_attitude.core.earth import OMEGA_IE, gravity_enu, radii_of_curvature
 from gyro_attitude.core.instruments.gyrocompass import (
     Gyrocompass,
     GyrocompassParams,
@@ -27,6 +27,16 @@ def _zero_crossing_period(t, x):
 
 def test_schuler_period_is_84_4_minutes():
     assert schuler_period() / 60.0 == pytest.approx(84.4, abs=0.05)
+
+
+@pytest.mark.parametrize("lat_deg", [20.0, 60.0, -35.0])
+def test_schuler_tuned_params_give_the_schuler_period(lat_deg):
+    """m l = H/(R_M Ω cos L) ⇔ T = 2π √(R_M/g(L)) at that latitude (WGS-84 radius and gravity)."""
+    lat = math.radians(lat_deg)
+    r_m, _ = radii_of_curvature(lat)
+    g = float(-gravity_enu(lat)[2])
+    params = GyrocompassParams.schuler_tuned(H, lat)
+    assert params.period(lat) == pytest.approx(2 * math.pi * math.sqrt(float(r_m) / g), rel=1e-12)
 
 
 @pytest.mark.parametrize(("lat_deg", "period_min", "heading"), [(45.0, None, 90.0), (20.0, 60.0, 30.0)])
