@@ -26,6 +26,7 @@ SUITES: dict[str, str] = {
     "nodes": "gyro_attitude.benchmarks.nodes",
     "scenes": "gyro_attitude.benchmarks.scenes",
     "real": "gyro_attitude.benchmarks.real",
+    "instruments": "gyro_attitude.benchmarks.instruments",
 }
 
 
