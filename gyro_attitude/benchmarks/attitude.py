@@ -42,8 +42,7 @@ from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
 from gyro_attitude.benchmarks import machine_description
-from gyro_attitude.core.earth import earth_rate_enu
-from gyro_attitude.core.integrate import (
+from gyro_attitude.core.attitude import (
     ALGORITHMS,
     CONING_DRIFT_RHO,
     DEFAULT_ALGORITHM,
@@ -53,6 +52,7 @@ from gyro_attitude.core.integrate import (
     integrate_batch,
     integrate_increments_batch,
 )
+from gyro_attitude.core.earth import earth_rate_enu
 
 SUITE = "attitude"
 

@@ -70,10 +70,10 @@ NODE_NAME = "attitude_integrator"
 
 
 def _algorithms():
-    """B's algorithm registry (imported lazily so this module imports without it)."""
-    from gyro_attitude.core.integrate import ALGORITHMS, DEFAULT_ALGORITHM
+    """The causal algorithms (a stream cannot run offline ones) and the default."""
+    from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, causal_algorithms
 
-    return ALGORITHMS, DEFAULT_ALGORITHM
+    return causal_algorithms(), DEFAULT_ALGORITHM
 
 
 def parameter_specs() -> list[ParamSpec]:
@@ -138,7 +138,7 @@ class AttitudeIntegratorNode(Node):
         self._q_init = quat_normalize(q0)
         self._nav = None
         if p["frame"] == "enu":
-            from gyro_attitude.core.integrate import NavFrame
+            from gyro_attitude.core.attitude import NavFrame
 
             self._nav = NavFrame(
                 latitude_rad=p["latitude_rad"],
@@ -208,7 +208,7 @@ class AttitudeIntegratorNode(Node):
         )
 
     def _make_integrator(self, q0, t0_ns: int | None = None):
-        from gyro_attitude.core.integrate import StreamingIntegrator
+        from gyro_attitude.core.attitude import StreamingIntegrator
 
         return StreamingIntegrator(algorithm=self._algorithm, q0=q0, nav=self._nav, t0_ns=t0_ns)
 
@@ -269,7 +269,7 @@ class AttitudeIntegratorNode(Node):
     _ODOM_QUEUE = 1000  # Odometry messages waiting for the Imu time line
 
     def _on_odometry(self, msg: Odometry) -> None:
-        from gyro_attitude.core.integrate import NavFrame
+        from gyro_attitude.core.attitude import NavFrame
 
         try:
             v_enu = convert.odometry_velocity_parent(msg)

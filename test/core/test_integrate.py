@@ -15,8 +15,7 @@ from scipy.integrate import solve_ivp
 from scipy.linalg import polar
 from scipy.spatial.transform import Rotation
 
-from gyro_attitude.core.earth import earth_rate_enu, nav_rate_enu
-from gyro_attitude.core.integrate import (
+from gyro_attitude.core.attitude import (
     ALGORITHMS,
     CONING_DRIFT_RHO,
     DEFAULT_ALGORITHM,
@@ -27,6 +26,7 @@ from gyro_attitude.core.integrate import (
     integrate_batch,
     integrate_increments_batch,
 )
+from gyro_attitude.core.earth import earth_rate_enu, nav_rate_enu
 
 RATE_ALGS = [a for a, i in ALGORITHMS.items() if i.consumes == "rate"]
 INCR_ALGS = [a for a, i in ALGORITHMS.items() if i.consumes == "increment"]
@@ -492,7 +492,7 @@ def test_coning_streaming_first_samples_and_partial_blocks_equal_batch(algorithm
 def test_every_quaternion_algorithm_streams_on_the_scalar_path():
     """Only the Euler-angle baselines keep a numpy step per sample; the rest must have the
     scalar streaming path (the batch == streaming tests then cover all of it)."""
-    from gyro_attitude.core import integrate
+    from gyro_attitude.core import attitude as integrate
 
     quaternion_algs = {name for name, info in ALGORITHMS.items() if not info.sequential}
     assert set(integrate._FAST_STREAMING) == quaternion_algs
