@@ -152,7 +152,7 @@ class StreamingIntegrator:
             raise ValueError("omega_ib_b contains non-finite values (NaN or inf)")
         t = self._check_time(t_ns)
         w = (wx, wy, wz)
-        zeta = self._nav_zeta(t)
+        zeta = None if self.nav is None else self._nav_zeta(t)
         self.samples += 1
         if self.last_t_ns is None:
             self.last_t_ns = t
