@@ -1,5 +1,4 @@
-"""What every attitude algorithm object carries (facts + batch and streaming behaviour), and
-the shared template of the quaternion rate algorithms."""
+"""The Algorithm protocol (facts, batch and streaming behaviour) and the rate-algorithm template."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""Composing body and nav increments into attitudes: the blocked prefix product (batch) and
-the plain-float quaternion helpers of the streaming steps."""
+"""Composing increments into attitudes: blocked prefix product (batch), plain-float helpers."""
 
 from __future__ import annotations
 

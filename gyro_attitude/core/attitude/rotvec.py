@@ -1,5 +1,4 @@
-"""Rotation-vector (Magnus) updates: trapezoid with its commutation term, and the 4th-order
-Magnus step on the causal cubic."""
+"""Rotation-vector (Magnus) updates: trapezoid + commutation term, 4th order on the causal cubic."""
 
 from __future__ import annotations
 
