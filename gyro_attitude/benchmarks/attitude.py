@@ -23,6 +23,13 @@ Cases:
 * ``earth_rate_24h``: a body at rest in ENU at 45° latitude for 24 simulated hours at
   100 Hz, integrated in the navigation frame (truth: the attitude stays put); also the
   quaternion norm error.
+* ``order_slope``: the ``spinning_projectile`` scene's motion (spin 50 rev/s about body x,
+  2° coning at 5 Hz; closed form in :class:`gyro_attitude.core.motion.SpinningProjectile`)
+  for 10 s at several sample rates: the final error of the offline ``magnus6_quintic`` and
+  of ``rotvec_cubic`` per rate, and the measured order (slope of log error over log h).
+
+Offline algorithms (``causal`` False) run in batch only: they need samples after each
+interval, which a stream does not have.
 
 Plus the coning drift of N = 1..4 (and one-sample-plus-previous) against theory
 ρ_N α² Ω (Ωh)^{2N} with exact increments, and throughput figures for the targets.
@@ -42,17 +49,19 @@ from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
 from gyro_attitude.benchmarks import machine_description
-from gyro_attitude.core.earth import earth_rate_enu
-from gyro_attitude.core.integrate import (
+from gyro_attitude.core.attitude import (
     ALGORITHMS,
     CONING_DRIFT_RHO,
     DEFAULT_ALGORITHM,
+    DEFAULT_OFFLINE_ALGORITHM,
     GimbalLockError,
     NavFrame,
     StreamingIntegrator,
     integrate_batch,
     integrate_increments_batch,
 )
+from gyro_attitude.core.earth import earth_rate_enu
+from gyro_attitude.core.motion import SpinningProjectile
 
 SUITE = "attitude"
 
@@ -62,13 +71,14 @@ SIZES: dict[str, dict] = {
                   peer_cap=2001, npq_duration=0.5, npq_timeout=5.0,
                   grid=((0.1, 1.0), (0.1, 10.0)), spins=(300.0,), earth_hours=24.0,
                   earth_algs=("rotvec_cubic",), theory_pers=(12, 24), throughput_n=500_000,
-                  stream_n=20_000),
+                  stream_n=20_000, slope_rates=(500.0, 1000.0, 2000.0), slope_duration=10.0),
     "full": dict(rates=(100.0, 1000.0, 10000.0), duration=10.0, stream_cap=5000,
                  euler_cap=20001, peer_cap=20001, npq_duration=2.0, npq_timeout=20.0,
                  grid=((0.1, 1.0), (0.1, 10.0), (0.01, 1.0), (0.01, 10.0), (0.5, 5.0)),
                  spins=(100.0, 600.0), earth_hours=24.0,
                  earth_algs=("rotvec_cubic", "exp_map", "quat_rk4", "coning2"),
-                 theory_pers=(12, 24, 48, 96), throughput_n=2_000_000, stream_n=100_000),
+                 theory_pers=(12, 24, 48, 96), throughput_n=2_000_000, stream_n=100_000,
+                 slope_rates=(250.0, 500.0, 1000.0, 2000.0, 4000.0), slope_duration=10.0),
 }
 
 
@@ -272,6 +282,8 @@ def _run_one(motion, label, alg, kind, rate_hz, duration, stream_cap, euler_cap)
     except GimbalLockError as err:
         rows.append(_row(label, "batch", motion.name, motion, rate_hz, t[-1], None, None,
                          status="flagged_singular", n_samples=n, message=str(err)[:160]))
+    if not info.causal:
+        return rows  # offline: batch only
     ns = min(n, stream_cap)
     s = StreamingIntegrator(alg, q_true[0], quadrature=quad, t0_ns=None)
     q = np.empty((ns, 4))
@@ -446,6 +458,35 @@ def _earth_24h(hours, algs):
     return rows
 
 
+def _order_slopes(rates, duration):
+    """Final error after ``duration`` s on the spinning projectile per sample rate, and the
+    order between neighbouring rates: log(e_i / e_{i+1}) / log(h_i / h_{i+1})."""
+    rows = []
+    projectile = SpinningProjectile(2 * math.pi * 50.0, math.radians(2.0), 2 * math.pi * 5.0)
+    motion = Motion()
+    motion.name = "order_slope"
+    motion.alpha, motion.omega, motion.spin = projectile.half_angle, projectile.omega, \
+        projectile.spin_rate
+    for alg in ("rotvec_cubic", DEFAULT_OFFLINE_ALGORITHM):
+        prev = None
+        for rate_hz in sorted(rates):
+            step = int(round(1e9 / rate_hz))
+            n = int(round(duration * rate_hz)) + 1
+            t_ns = np.arange(n, dtype=np.int64) * step
+            truth = projectile.evaluate(t_ns * 1e-9)
+            q, dt = _timed(lambda t=t_ns, s=truth, a=alg: integrate_batch(
+                t, s.omega_nb_b, s.q_nb[0], a))
+            errs = _errors(q, truth.q_nb, t_ns * 1e-9)
+            slope = None
+            if prev is not None and errs[0] > 0 and prev[1] > 0:
+                slope = math.log(prev[1] / errs[0]) / math.log(rate_hz / prev[0])
+            rows.append(_row(alg, "batch", "order_slope", motion, rate_hz, (n - 1) * step * 1e-9,
+                             dt / n * 1e9, errs, n_samples=n, order_from_previous_rate=slope,
+                             nominal_order=ALGORITHMS[alg].order))
+            prev = (rate_hz, errs[0])
+    return rows
+
+
 def _throughput(n, m):
     """Samples per second on long constant-rate runs (targets) and streaming µs/sample."""
     rows = []
@@ -454,7 +495,7 @@ def _throughput(n, m):
     motion = Motion()
     motion.name = "throughput"
     for alg in ("exp_map", "rotvec_trapezoid", "rotvec_cubic", "quat_rk4", "coning1_prev",
-                "coning2", "coning4"):
+                "coning2", "coning4", DEFAULT_OFFLINE_ALGORITHM):
         _, dt = _timed(lambda a=alg: integrate_batch(t_ns, w, algorithm=a), min_time=0.0,
                        max_repeat=2)
         rows.append(_row(alg, "batch", "throughput", motion, 1000.0, n * 1e-3, dt / n * 1e9,
@@ -483,7 +524,7 @@ def _print_table(rows):
     print(head)
     print("-" * len(head))
     for r in rows:
-        if r["case"] in ("coning_theory", "throughput"):
+        if r["case"] in ("coning_theory", "throughput", "order_slope"):
             continue
         extra = ""
         if r["alpha_rad"] is not None and r["case"] in ("coning", "spinning_coning"):
@@ -509,11 +550,21 @@ def _print_theory(rows):
               f"{'above' if r['above_float_floor'] else 'BELOW (ratio meaningless)'}")
 
 
+def _print_slopes(rows):
+    print("\nOrder on the spinning projectile (spin 50 rev/s + 2 deg coning at 5 Hz), final "
+          "error after the run; order = slope of log error over log h against the rate before:")
+    print(f"{'algorithm':18s} {'rate':>6s} {'final':>9s} {'order':>6s} {'ns/sample':>10s}")
+    for r in rows:
+        order = r["order_from_previous_rate"]
+        print(f"{r['algorithm']:18s} {r['rate_hz']:6.0f} {r['final_error_rad']:9.2e} "
+              f"{_fmt(order, '6.2f'):>6s} {r['ns_per_sample']:10.0f}")
+
+
 def _print_targets(throughput, earth, peers):
     print("\nTargets (this machine, shared, noisy):")
     by = {(r["algorithm"], r["interface"]): r for r in throughput}
     for alg in ("exp_map", "rotvec_cubic", "coning2", "coning4", "rotvec_trapezoid",
-                "quat_rk4", "coning1_prev"):
+                "quat_rk4", "coning1_prev", DEFAULT_OFFLINE_ALGORITHM):
         r = by.get((alg, "batch"))
         if r:
             print(f"  batch {alg:18s} {r['samples_per_s'] / 1e6:6.2f} M samples/s")
@@ -626,8 +677,11 @@ def run(quick: bool, out_dir: pathlib.Path) -> list[dict]:
     earth = _earth_24h(cfg["earth_hours"], cfg["earth_algs"])
     theory = _coning_theory(cfg["theory_pers"])
     throughput = _throughput(cfg["throughput_n"], cfg["stream_n"])
+    slopes = _order_slopes(cfg.get("slope_rates", (500.0, 1000.0, 2000.0)),
+                           cfg.get("slope_duration", 1.0))
     _print_table(rows + earth)
     _print_theory(theory)
+    _print_slopes(slopes)
     _print_targets(throughput, earth, peers)
     _pareto_plot(rows, out_dir)
-    return rows + earth + theory + throughput
+    return rows + earth + theory + throughput + slopes

@@ -25,11 +25,11 @@ import time
 
 import numpy as np
 
+from gyro_attitude.core.attitude import integrate_batch
 from gyro_attitude.core.attitude.alignment import align
 from gyro_attitude.core.attitude.gravity_aiding import gravity_aided_attitude
 from gyro_attitude.core.attitude.gyro_bias import estimate_gyro_bias
 from gyro_attitude.core.attitude.rest import detect_rest, rest_segments
-from gyro_attitude.core.integrate import integrate_batch
 from gyro_attitude.core.rotation import quat_angle_between, quat_as_matrix, quat_multiply
 
 RECORDINGS = ("broad_05_slow_rotation_with_breaks", "broad_16_fast_translation")

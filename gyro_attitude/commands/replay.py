@@ -1,7 +1,7 @@
 """``gyro-attitude replay IN.mcap --out OUT.mcap``: integrate every Imu message offline.
 
 No ROS graph: the Imu topic is read array-wide (:mod:`gyro_attitude.io.imu_fast`),
-integrated in one call of :func:`gyro_attitude.core.integrate.integrate_batch`, and
+integrated in one call of :func:`gyro_attitude.core.attitude.integrate_batch`, and
 written array-wide to OUT as ``attitude`` (geometry_msgs/QuaternionStamped, frame
 ``inertial`` or ``enu``) and ``imu/data`` (the input Imu with the orientation filled in),
 stamped and logged with the input's stamps and log times.  When IN has
@@ -45,7 +45,7 @@ def _initial_attitude(text: str):
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from gyro_attitude.core.integrate import ALGORITHMS, DEFAULT_ALGORITHM
+    from gyro_attitude.core.attitude import ALGORITHMS, DEFAULT_ALGORITHM
 
     parser.add_argument("input", metavar="IN.mcap", help="recording (file or bag directory)")
     parser.add_argument("--out", required=True, metavar="OUT.mcap", help="output MCAP file")
@@ -80,11 +80,11 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                 progress: bool = False, on_damage: str = "warn") -> dict:
     """Integrate every Imu message of ``input_path`` and write ``output_path``.
 
-    ``nav`` is a :class:`gyro_attitude.core.integrate.NavFrame` when ``frame == "enu"``.
+    ``nav`` is a :class:`gyro_attitude.core.attitude.NavFrame` when ``frame == "enu"``.
     Returns the summary dict (also what ``--json`` prints); the attitudes and error series
     are under the private keys ``_t_ns``, ``_q``, ``_err_t_ns``, ``_err_rad``.
     """
-    from gyro_attitude.core.integrate import DEFAULT_ALGORITHM, integrate_batch
+    from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, integrate_batch
     from gyro_attitude.core.rotation import quat_angle_between
     from gyro_attitude.io.imu_fast import read_topic_arrays
     from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
@@ -243,7 +243,7 @@ def write_error_plot(summary: dict, png) -> None:
 
 
 def run(args) -> int:
-    from gyro_attitude.core.integrate import NavFrame
+    from gyro_attitude.core.attitude import NavFrame
 
     nav = None
     if args.frame == "enu":

@@ -32,7 +32,7 @@ _G_EQUATOR = 9.7803253359
 _G_K = 0.00193185265241
 _FREE_AIR_1 = 3.0877e-6  # 1/s²
 _FREE_AIR_LAT = 4.4e-9  # 1/s² per sin²L
-_FREE_AIR_2 = 7.2e-14  # 1/(m s²)
+_FREE_AIR_2 = 7.2125e-13  # 1/(m s²): 3 g/a² (second-order free-air term)
 
 
 def check_latitude(lat, name: str = "latitude") -> np.ndarray:

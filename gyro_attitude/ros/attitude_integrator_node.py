@@ -61,6 +61,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Header
 
+from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, NavFrame, causal_algorithms
 from gyro_attitude.core.attitude import validation as iv
 from gyro_attitude.core.attitude.stream import (
     INTEGRATOR_ERROR,
@@ -68,7 +69,6 @@ from gyro_attitude.core.attitude.stream import (
     AttitudeStream,
     StreamConfig,
 )
-from gyro_attitude.core.integrate import ALGORITHMS, DEFAULT_ALGORITHM, NavFrame
 from gyro_attitude.core.rotation import quat_normalize
 from gyro_attitude.ros import convert
 from gyro_attitude.ros.node_main import run_node
@@ -82,7 +82,7 @@ def parameter_specs() -> list[ParamSpec]:
     return [
         ParamSpec("algorithm", DEFAULT_ALGORITHM,
                   "attitude update algorithm (gyro-attitude bench lists them)",
-                  choices=tuple(ALGORITHMS), runtime=True),
+                  choices=tuple(causal_algorithms()), runtime=True),
         ParamSpec("frame", "inertial",
                   "'inertial': integrate q_ib; 'enu': q_nb with Earth and transport rate removed",
                   choices=("inertial", "enu")),

@@ -15,7 +15,7 @@ from scipy.spatial.transform import Rotation
 
 from gyro_attitude.cli import main as cli_main
 from gyro_attitude.commands.replay import replay_file
-from gyro_attitude.core.integrate import NavFrame, integrate_batch
+from gyro_attitude.core.attitude import NavFrame, integrate_batch
 from gyro_attitude.io.imu_fast import read_imu_arrays, read_quaternion_stamped_arrays
 from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
 

@@ -22,7 +22,7 @@ from rosgraph_msgs.msg import Clock
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import Imu, JointState
 
-from gyro_attitude.core import integrate
+from gyro_attitude.core import attitude as integrate
 from gyro_attitude.ros import convert
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from gyro_attitude.commands.replay import replay_file
-from gyro_attitude.core.integrate import integrate_batch
+from gyro_attitude.core.attitude import integrate_batch
 from gyro_attitude.io.imu_fast import read_imu_arrays, read_quaternion_stamped_arrays
 
 pytestmark = pytest.mark.ros

@@ -30,7 +30,7 @@ import math
 import numpy as np
 
 from gyro_attitude.core.attitude.rest import check_sample, check_samples
-from gyro_attitude.core.integrate import StreamingIntegrator
+from gyro_attitude.core.attitude.streaming import StreamingIntegrator
 from gyro_attitude.core.rotation import as_quat_array
 
 __all__ = ["GravityAiding", "gravity_aided_attitude"]

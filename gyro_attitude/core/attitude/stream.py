@@ -32,13 +32,13 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
-from gyro_attitude.core.attitude import validation as v
-from gyro_attitude.core.integrate import (
+from gyro_attitude.core.attitude import (
     DEFAULT_ALGORITHM,
     NavFrame,
     StreamingIntegrator,
     integrate_batch,
 )
+from gyro_attitude.core.attitude import validation as v
 from gyro_attitude.core.rotation import quat_normalize
 
 INVALID_COVARIANCE = "invalid_covariance"

@@ -49,7 +49,7 @@ def test_gated_off_under_acceleration_and_stream_equals_batch():
     assert aid.aided_samples == 0
     t, g, a = static_imu(500, 100.0, q_true, 0.0, gyro_noise=1e-3, accel_noise=0.05, seed=4)
     q, bias = gravity_aided_attitude(t, g, a, q_true)
-    from gyro_attitude.core.integrate import StreamingIntegrator
+    from gyro_attitude.core.attitude.streaming import StreamingIntegrator
 
     aid, integ = GravityAiding(), StreamingIntegrator("exp_map", q0=q_true)
     cur = integ.quaternion

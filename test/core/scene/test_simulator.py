@@ -259,7 +259,7 @@ def test_truth_is_consistent_with_the_design_navigation_update():
     """Integrating the scene's true ω_ib^b with the ENU update of docs/conventions.md (the attitude
     integrator, Earth and transport rate removed) must follow the scene's own q_nb; a wrong
     sign or frame in ω_ib^b = C_bn ω_in^n + ω_nb^b would leave ~|ω_in|·t ≈ 1e-3 rad."""
-    from gyro_attitude.core import integrate
+    from gyro_attitude.core import attitude as integrate
 
     d = scene(earth={"latitude_deg": 60.0},
               motion={"type": "ship", "speed_mps": 150.0, "yaw_deg": 30.0,

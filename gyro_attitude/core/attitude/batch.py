@@ -1,0 +1,53 @@
+"""Batch attitude integration over a whole record (vectorized; the front of every algorithm)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gyro_attitude.core.attitude.coning import IncrementAlgorithm
+from gyro_attitude.core.attitude.inputs import check_q0, check_rates, check_times
+from gyro_attitude.core.attitude.nav_frame import NavFrame, nav_rate_for
+from gyro_attitude.core.attitude.quadrature import get_quadrature
+from gyro_attitude.core.attitude.registry import DEFAULT_ALGORITHM, get_algorithm
+from gyro_attitude.core.rotation import as_vector_array
+
+
+def integrate_batch(t_ns, omega_ib_b, q0=(0.0, 0.0, 0.0, 1.0),
+                    algorithm: str = DEFAULT_ALGORITHM, nav: NavFrame | None = None,
+                    quadrature: str = "trapezoid", singular_tol: float = 1e-3) -> np.ndarray:
+    """Attitudes ``q[k]`` (N, 4) at ``t_ns[k]`` from rate samples ``ω_ib^b`` (N, 3).
+
+    ``q[0] = q0``; ``q_ib`` when ``nav`` is None, else ``q_nb`` with the nav-frame rate
+    removed.  Increment algorithms (``coning*``) get their increments from ``quadrature``
+    (see :func:`~gyro_attitude.core.attitude.increments_from_rates`).  ``singular_tol``
+    applies to the Euler-angle baselines only.  Raises ``ValueError`` for non-increasing
+    times, wrong shapes, non-finite input, unknown names.
+    """
+    alg = get_algorithm(algorithm)
+    t = check_times(t_ns)
+    w = check_rates(omega_ib_b, t.size)
+    q0 = check_q0(q0)
+    quad = get_quadrature(quadrature)
+    rate_n = nav_rate_for(nav, t.size)
+    if rate_n is not None and not alg.supports_nav:
+        raise ValueError(f"{alg.name} integrates q_ib only; nav frames need a quaternion "
+                         "algorithm")
+    return alg.integrate(t, w, q0, rate_n, quad, float(singular_tol))
+
+
+def integrate_increments_batch(t_ns, delta_theta, q0=(0.0, 0.0, 0.0, 1.0),
+                               algorithm: str = "coning4",
+                               nav: NavFrame | None = None) -> np.ndarray:
+    """Attitudes (N, 4) from angle increments ``delta_theta`` (N-1, 3) of an increment
+    algorithm; ``delta_theta[k-1] = ∫ ω_ib^b dt`` over ``(t_ns[k-1], t_ns[k]]``."""
+    alg = get_algorithm(algorithm)
+    if not isinstance(alg, IncrementAlgorithm):
+        raise ValueError(f"{alg.name} consumes rate samples; use integrate_batch")
+    t = check_times(t_ns)
+    d = as_vector_array(delta_theta, "delta_theta")
+    if d.shape != (t.size - 1, 3):
+        raise ValueError(f"delta_theta must have shape ({t.size - 1}, 3) (one per interval), "
+                         f"got {d.shape}")
+    q0 = check_q0(q0)
+    rate_n = nav_rate_for(nav, t.size)
+    return alg.integrate_increments(t, lambda k: d[k - 1], q0, rate_n)

@@ -1,0 +1,81 @@
+"""The local ENU navigation frame of the q_nb update and its per-interval rotation ζ."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from gyro_attitude.core.earth import check_latitude, nav_rate_enu
+
+
+@dataclass(frozen=True)
+class NavFrame:
+    """Local ENU navigation frame whose rate ``ω_in^n = ω_ie^n + ω_en^n`` is removed.
+
+    ``latitude_rad``, ``longitude_rad``, ``height_m`` (m above WGS-84) and
+    ``velocity_enu`` (m/s, (3,)) are constants, or time series aligned with the samples
+    (``(N,)`` and ``(N, 3)``).  Only latitude, height and velocity enter ``ω_in^n``.
+    """
+
+    latitude_rad: float | np.ndarray
+    longitude_rad: float | np.ndarray = 0.0
+    height_m: float | np.ndarray = 0.0
+    velocity_enu: np.ndarray | tuple = field(default=(0.0, 0.0, 0.0))
+
+    def series_length(self) -> int | None:
+        """Number of samples of the time series held, or None for a constant frame."""
+        n = None
+        for arr, nd in ((self.latitude_rad, 0), (self.height_m, 0), (self.velocity_enu, 1)):
+            a = np.asarray(arr)
+            if a.ndim > nd:
+                n = a.shape[0]
+        return n
+
+    def rate_enu(self, n_samples: int | None = None) -> np.ndarray:
+        """``ω_in^n`` in rad/s: shape (3,) for constants or (n_samples, 3) for series."""
+        lat = check_latitude(self.latitude_rad)
+        h = np.asarray(self.height_m, dtype=np.float64)
+        v = np.asarray(self.velocity_enu, dtype=np.float64)
+        if v.shape[-1:] != (3,):
+            raise ValueError(f"velocity_enu must have shape (3,) or (N, 3), got {v.shape}")
+        if not (np.all(np.isfinite(h)) and np.all(np.isfinite(v))):
+            raise ValueError("NavFrame height_m / velocity_enu contain non-finite values")
+        series = lat.ndim > 0 or h.ndim > 0 or v.ndim > 1
+        if series:
+            if n_samples is None:
+                raise ValueError("NavFrame holds time series; the sample count is needed")
+            for name, arr, nd in (("latitude_rad", lat, 0), ("height_m", h, 0),
+                                  ("velocity_enu", v, 1)):
+                if arr.ndim > nd and arr.shape[0] != n_samples:
+                    raise ValueError(f"NavFrame.{name} has {arr.shape[0]} samples, "
+                                     f"expected {n_samples} (one per gyro sample)")
+            lat = np.broadcast_to(lat, (n_samples,))
+            h = np.broadcast_to(h, (n_samples,))
+            v = np.broadcast_to(v, (n_samples, 3))
+        return nav_rate_enu(lat, h, v)
+
+
+def nav_rate_for(nav: NavFrame | None, n_samples: int) -> np.ndarray | None:
+    """``ω_in^n`` for a batch of ``n_samples`` ((3,) or (n_samples, 3)), None without nav."""
+    if nav is None:
+        return None
+    if not isinstance(nav, NavFrame):
+        raise ValueError(f"nav must be a NavFrame or None, got {type(nav).__name__}")
+    return nav.rate_enu(n_samples)
+
+
+def nav_zeta(t_ns: np.ndarray, rate_n: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """``ζ_k = ∫ ω_in^n dt`` over intervals ``k`` by the trapezoid (exact for constants)."""
+    h = ((t_ns[k] - t_ns[k - 1]) * 1e-9)[:, None]
+    if rate_n.ndim == 1:
+        return rate_n[None, :] * h
+    return 0.5 * (rate_n[k - 1] + rate_n[k]) * h
+
+
+def nav_zeta_scalar(rates, h):
+    """Scalar twin of :func:`nav_zeta` for one interval of length ``h``: trapezoid of the
+    nav rates at its two ends (``rates = [r0, r1]``).  For a constant rate
+    ``0.5·(r + r)·h`` is ``r·h`` to the last bit, as in the batch."""
+    r0, r1 = rates
+    return (0.5 * (r0[0] + r1[0]) * h, 0.5 * (r0[1] + r1[1]) * h, 0.5 * (r0[2] + r1[2]) * h)
