@@ -47,14 +47,14 @@ def test_latitude_out_of_range_is_refused(bad):
         earth.earth_rate_enu(bad)
 
 
-# WGS-84 written out here (DESIGN.md, NIMA TR8350.2), not taken from earth.py.
+# WGS-84 written out here (docs/equations.md, NIMA TR8350.2), not taken from earth.py.
 _A, _F = 6378137.0, 1 / 298.257223563
 _E2 = _F * (2 - _F)
 _OMEGA = 7.292115e-5
 
 
 def _nav_rate_formula(lat, h, v):
-    """ω_ie^n + ω_en^n, DESIGN.md: [0, Ω cos L, Ω sin L] + [−v_N/(R_M+h), v_E/(R_N+h),
+    """ω_ie^n + ω_en^n, docs/equations.md: [0, Ω cos L, Ω sin L] + [−v_N/(R_M+h), v_E/(R_N+h),
     v_E tan L/(R_N+h)], R_M = a(1−e²)/(1−e² sin²L)^1.5, R_N = a/(1−e² sin²L)^0.5."""
     s2 = np.sin(lat) ** 2
     r_m = _A * (1 - _E2) / (1 - _E2 * s2) ** 1.5

@@ -1,7 +1,7 @@
 """Attitude from angular rates: the algorithm registry, batch and streaming integration, and the
 attitude-stream policy (validation, gaps, resets, covariance) that the node and replay share.
 
-Conventions (DESIGN.md): input samples are rate-gyro outputs ``ω_ib^b`` (rad/s, body frame)
+Conventions (docs/conventions.md): input samples are rate-gyro outputs ``ω_ib^b`` (rad/s, body frame)
 at strictly increasing int64 nanosecond times (non-uniform steps allowed), or angle
 increments ``Δθ_k = ∫ ω_ib^b dt`` over ``(t_{k-1}, t_k]`` for the coning algorithms.
 Quaternions are scalar-last.  Without a navigation frame the result is ``q_ib``; with

@@ -15,7 +15,7 @@ from gyro_attitude.core.attitude.interpolation import NODES
 from gyro_attitude.core.attitude.nav_frame import nav_zeta
 from gyro_attitude.core.rotation import _exp_rotvec
 
-#: Compressed N-sample coning coefficients k_1..k_{N-1} (DESIGN.md).
+#: Compressed N-sample coning coefficients k_1..k_{N-1} (docs/equations.md).
 CONING_COEFFICIENTS: dict[int, tuple[float, ...]] = {
     1: (),
     2: (2.0 / 3.0,),

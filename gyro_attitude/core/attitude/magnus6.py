@@ -29,7 +29,7 @@ def bracket(x: np.ndarray, y: np.ndarray) -> np.ndarray:
 def magnus6_rotation_vector(a1: np.ndarray, a2: np.ndarray, a3: np.ndarray,
                             h: np.ndarray) -> np.ndarray:
     """Sixth-order Magnus rotation vector over a step ``h`` from the body rates ``a1, a2, a3``
-    at the three Gauss–Legendre points (DESIGN.md "Higher-order and instrument formulas"):
+    at the three Gauss–Legendre points (docs/equations.md "Higher-order and instrument formulas"):
 
     ``B1 = h A2``, ``B2 = (√15 h/3)(A3 − A1)``, ``B3 = (10 h/3)(A3 − 2 A2 + A1)``,
     ``Ω = B1 + B3/12 + (1/240)·[−20 B1 − B3 + [B1,B2], B2 − (1/60)·[B1, 2 B3 + [B1,B2]]]``.

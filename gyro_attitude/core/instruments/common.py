@@ -124,7 +124,7 @@ class CarrierTruth:
 def carrier_truth(carrier: Motion, t, latitude, height: float = 0.0) -> CarrierTruth:
     """Truth of ``carrier`` at times ``t`` (s) and latitudes ``latitude`` (rad, scalar or per time).
 
-    Specific force ``f^n = dv^n/dt + (2ω_ie^n + ω_en^n) × v^n − g^n`` (DESIGN.md), with the
+    Specific force ``f^n = dv^n/dt + (2ω_ie^n + ω_en^n) × v^n − g^n`` (docs/equations.md), with the
     WGS-84 normal gravity of :mod:`gyro_attitude.core.earth`.
     """
     if not isinstance(carrier, Motion):

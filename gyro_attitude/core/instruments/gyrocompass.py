@@ -13,7 +13,7 @@ tilt, ``M_d = −D (β − β_ref(L)) e_U``, where the latitude corrector ``β_r
 equilibrium tilt at rest at the current latitude; without that corrector the damping would
 leave the classical damping error ``α ≈ (D/P) tan L``.
 
-Small-angle form (DESIGN.md), with ``ω_in = (ω_E, ω_N, ω_U)`` and horizontal specific force
+Small-angle form (docs/equations.md), with ``ω_in = (ω_E, ω_N, ω_U)`` and horizontal specific force
 ``(f_E, f_N)``::
 
     α̇ = ω_U − ω_N β − (P/H)(β + f_N/g)
@@ -73,7 +73,7 @@ __all__ = [
     "ballistic_throw",
 ]
 
-SCHULER_RADIUS = 6.371e6  # m, mean Earth radius of the Schuler period in DESIGN.md
+SCHULER_RADIUS = 6.371e6  # m, mean Earth radius of the Schuler period in docs/equations.md
 SCHULER_GRAVITY = 9.80665  # m/s²
 
 
@@ -97,7 +97,7 @@ def gyrocompass_period(angular_momentum: float, pendulosity: float, latitude: fl
 
 
 def schuler_period(radius: float = SCHULER_RADIUS, gravity: float = SCHULER_GRAVITY) -> float:
-    """``2π √(R/g)`` (s): 5064 s = 84.4 min for the DESIGN.md constants."""
+    """``2π √(R/g)`` (s): 5064 s = 84.4 min for the docs/equations.md constants."""
     return 2.0 * math.pi * math.sqrt(positive(radius, "radius") / positive(gravity, "gravity"))
 
 
@@ -105,7 +105,7 @@ def speed_error(v_north: float, v_east: float, latitude: float, height: float = 
     """Speed error ``δ`` (rad): the settled axis lies ``δ`` west of north, the compass reads ``+δ``.
 
     ``δ = atan2(v_N/(R_M+h), Ω cos L + v_E/(R_N+h))`` — the azimuth of the horizontal part of
-    ``ω_ie + ω_en`` (WGS-84 radii; DESIGN.md's ``atan(v_N / (R Ω cos L + v_E))`` with R_M ≈ R_N).
+    ``ω_ie + ω_en`` (WGS-84 radii; docs/equations.md's ``atan(v_N / (R Ω cos L + v_E))`` with R_M ≈ R_N).
     """
     lat = _lat(latitude)
     r_m, r_n = (float(r) for r in radii_of_curvature(lat))

@@ -1,4 +1,4 @@
-"""Truth for the attitude tests: closed forms of DESIGN.md, scipy oracles and written-out
+"""Truth for the attitude tests: closed forms of docs/equations.md, scipy oracles and written-out
 formulas — never the code under test."""
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ def angle_between(q1, q2):
 
 
 def coning_truth(alpha, omega_c, t):
-    """DESIGN.md classical coning, converted to scalar-last: attitude and body rate."""
+    """docs/equations.md classical coning, converted to scalar-last: attitude and body rate."""
     s, c = math.sin(alpha / 2), math.cos(alpha / 2)
     q = np.stack([np.zeros_like(t), s * np.cos(omega_c * t), s * np.sin(omega_c * t),
                   np.full_like(t, c)], axis=-1)
@@ -30,7 +30,7 @@ def coning_truth(alpha, omega_c, t):
 
 
 def coning_increments(alpha, omega_c, t):
-    """DESIGN.md exact coning angle increments over [t_k, t_{k+1}]."""
+    """docs/equations.md exact coning angle increments over [t_k, t_{k+1}]."""
     h = np.diff(t)
     tm = t[:-1] + h / 2
     s2 = math.sin(alpha / 2) ** 2
@@ -41,7 +41,7 @@ def coning_increments(alpha, omega_c, t):
 
 
 def spinning_coning_truth(alpha, omega_c, spin, t):
-    """Spin ``spin`` rad/s about body x, the axis that cones in DESIGN.md's coning case
+    """Spin ``spin`` rad/s about body x, the axis that cones in docs/equations.md's coning case
     (a projectile): ``q = q_cone(t) ⊗ exp(spin t x)``, ``ω_b = C_spinᵀ ω_cone + spin x``
     (composed with scipy)."""
     q_cone, w_cone = coning_truth(alpha, omega_c, t)
@@ -94,7 +94,7 @@ def uniform_times(n_steps, duration_s):
     return np.arange(n_steps + 1, dtype=np.int64) * step
 
 
-# DESIGN.md "Conventions", written out here so the nav-frame tests do not take ω_in^n from
+# docs/equations.md "Conventions", written out here so the nav-frame tests do not take ω_in^n from
 # the code under test (earth.nav_rate_enu).
 _OMEGA_IE = 7.292115e-5
 _A_WGS84 = 6378137.0

@@ -1,4 +1,4 @@
-"""Coning algorithms and the quadratures that feed them: drift against DESIGN.md theory,
+"""Coning algorithms and the quadratures that feed them: drift against docs/equations.md theory,
 orders, increments against the analytic integral."""
 
 from __future__ import annotations

@@ -86,7 +86,7 @@ def test_short_records_and_ends_exact_for_polynomial_rate_about_a_fixed_axis(n):
 
 
 def test_magnus_step_with_exact_rates_on_spinning_projectile():
-    """DESIGN.md check: exact rates at the Gauss points, 2 kHz, 10 s: ~2.6e-10 rad with the
+    """docs/equations.md check: exact rates at the Gauss points, 2 kHz, 10 s: ~2.6e-10 rad with the
     right-composition bracket [x, y] = −x × y (the + sign gives ~1.3e-3)."""
     rate_hz, dur = 2000, 10.0
     n = int(rate_hz * dur)

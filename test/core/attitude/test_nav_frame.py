@@ -1,5 +1,5 @@
 """Navigation-frame (q_nb) integration against closed forms, with ω_ie + ω_en written out
-from DESIGN.md (not taken from earth.nav_rate_enu)."""
+from docs/equations.md (not taken from earth.nav_rate_enu)."""
 
 from __future__ import annotations
 
