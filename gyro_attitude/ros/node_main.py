@@ -22,6 +22,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 
+from gyro_attitude.io.ament_prefix import ensure_ament_prefix_path
 from gyro_attitude.ros.params import ParameterError
 
 RCLError = _rclpy.RCLError
@@ -115,7 +116,7 @@ def _destroy(node: Node) -> None:
     """``destroy_node`` that tolerates a context already shut down by a signal."""
     try:
         node.destroy_node()
-    except Exception:  # noqa: BLE001 - handles of an invalid context: nothing left to free
+    except Exception:  # handles of an invalid context: nothing left to free
         pass
 
 
@@ -131,11 +132,13 @@ def run_node(name: str, make_node: Callable[[], Node], args=None, *,
     signals.install()
     signals.silence_unraisable_after_signal()
     node = None
+    initialized = False
     status = EXIT_OK
 
     def say(message: str) -> None:
         print(f"[{name}] {message}", file=sys.stderr, flush=True)
 
+    ensure_ament_prefix_path()  # a venv started without any ROS environment variable
     try:
         problem = _params_file_problem(args)
         if problem is not None:
@@ -146,6 +149,7 @@ def run_node(name: str, make_node: Callable[[], Node], args=None, *,
         except RCLError as exc:  # malformed --ros-args, unparsable parameter file
             say(f"invalid ROS arguments: {str(exc).splitlines()[0]}")
             return EXIT_PARAMETER
+        initialized = True
         node = make_node()
         # Move everything allocated at start-up (modules, message classes, numpy) out of the
         # collector's reach: a full gen-2 collection then scans only recent objects instead
@@ -164,8 +168,11 @@ def run_node(name: str, make_node: Callable[[], Node], args=None, *,
     except Exception:
         # Publishing, waiting or creating entities on a context that a signal has just shut
         # down raises (e.g. RCLError "publisher's context is invalid"): that is the shutdown
-        # the user asked for, not a failure. Anything else is a real error.
-        if signals.received is None:
+        # the user asked for, not a failure. rclpy shuts the context down from its own
+        # thread and may do so before the Python handler has run, so a context that is no
+        # longer ok (only a signal shuts it down here) counts as well. Anything else is a
+        # real error.
+        if signals.received is None and (not initialized or rclpy.ok()):
             raise
     finally:
         try:
