@@ -70,7 +70,7 @@ NODE_NAME = "attitude_integrator"
 
 
 def _algorithms():
-    """B's algorithm registry (imported lazily so this module imports without it)."""
+    """The attitude algorithm registry (imported lazily so this module imports without it)."""
     from gyro_attitude.core.integrate import ALGORITHMS, DEFAULT_ALGORITHM
 
     return ALGORITHMS, DEFAULT_ALGORITHM
