@@ -10,9 +10,12 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
+import threading
 
 from gyro_attitude import __version__
+from gyro_attitude.io.ament_prefix import ensure_ament_prefix_path
 
 # name -> one-line help; the module gyro_attitude.commands.<name> implements it.
 SUBCOMMANDS: dict[str, str] = {
@@ -35,7 +38,44 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class _Interrupt:
+    """SIGINT/SIGTERM → one ``KeyboardInterrupt`` in the running subcommand (which cleans up
+    as on Ctrl-C); repeated signals during that clean-up are ignored."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.received = False
+        self._previous: dict[int, object] = {}
+
+    def _handle(self, _signum, _frame) -> None:
+        if not self.received:
+            self.received = True
+            raise KeyboardInterrupt
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            self._previous = {s: signal.signal(s, self._handle) for s in self.SIGNALS}
+        return self
+
+    def __exit__(self, *exc) -> bool:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+        return False
+
+    @staticmethod
+    def ignore_from_now_on() -> None:
+        """The process is exiting: finalization would reset Python handlers to the default
+        action (a repeat then kills it); ignored signals stay ignored."""
+        if threading.current_thread() is threading.main_thread():
+            for sig in _Interrupt.SIGNALS:
+                signal.signal(sig, signal.SIG_IGN)
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run a subcommand; exit status 0 also after SIGINT/SIGTERM (the subcommand stopped
+    cleanly). ``argv`` None = this is the process's entry point."""
+    is_process_main = argv is None
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser()
     if not argv or argv[0] not in SUBCOMMANDS:
@@ -43,14 +83,22 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()  # no subcommand given
         return 2
     name = argv[0]
+    ensure_ament_prefix_path()  # before any subcommand loads rclpy or starts node processes
     module = importlib.import_module(f"gyro_attitude.commands.{name}")
     sub = argparse.ArgumentParser(prog=f"gyro-attitude {name}", description=SUBCOMMANDS[name])
     module.configure(sub)
     args = sub.parse_args(argv[1:])
+    interrupt = _Interrupt()
     try:
-        return int(module.run(args) or 0)
+        with interrupt:
+            status = int(module.run(args) or 0)
     except KeyboardInterrupt:
-        return 130
+        status = 0
+    finally:
+        if is_process_main:
+            _Interrupt.ignore_from_now_on()
+    # a subcommand that caught the interrupt itself reports its own status (e.g. 130)
+    return 0 if interrupt.received else status
 
 
 if __name__ == "__main__":

@@ -103,7 +103,7 @@ def local_enu_position(llh: np.ndarray, llh0: np.ndarray) -> np.ndarray:
 
 
 class GyroSimNode(Node):
-    """Thin ROS wrapper around C1's ``SceneSimulator``."""
+    """Thin ROS wrapper around the core ``SceneSimulator``."""
 
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)

@@ -7,42 +7,67 @@ per overlapping chunk); a file without one (a recorder killed with ``kill -9``) 
 the damage-tolerant reader, its complete chunks sorted in memory.  Publishers get the
 recorded offered QoS (reliable / transient-local only if every recorded publisher was).
 
-Parameters: ``input`` (file or bag directory, required), ``rate`` (playback speed factor,
-default 1), ``loop``, ``publish_clock`` (rosgraph_msgs/Clock on ``/clock`` with the bag
-time, ``clock_rate_hz`` ticks per wall second), ``topics`` (subset; default all),
-``namespace_topics`` (publish recorded names without the leading ``/`` so the node's
-namespace applies), ``wait_for_subscribers`` (per topic, before starting; up to
-``wait_timeout_s``).
+Parameters: :func:`parameter_specs` (``config/mcap_player.yaml`` lists them all). An input
+that cannot be read (empty, not MCAP, damaged beyond what the reader recovers) ends the node
+with one line naming the file and the problem, exit status 1.
 """
 
 from __future__ import annotations
 
+import struct
 import sys
 import time
 
 import rclpy
+from mcap.exceptions import McapError
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from gyro_attitude.io.mcap_reader import McapStreamReader, match_topic, resolve_mcap_path
+from gyro_attitude.io.mcap_records import MAGIC
 from gyro_attitude.io.qos import parse_qos_profiles
 from gyro_attitude.ros.mcap_recorder_node import message_class
-from gyro_attitude.ros.node_main import run_node
-from gyro_attitude.ros.params import ParameterError
+from gyro_attitude.ros.node_main import InputError, run_node
+from gyro_attitude.ros.params import ParameterError, ParamSpec, check_update, declare_all
+from gyro_attitude.ros.qos import adapted_qos
+
+NODE_NAME = "mcap_player"
+PLAYBACK_QUEUE_DEPTH = 1000
 
 
-def playback_qos(offered_yaml: str) -> QoSProfile:
-    """QoS for republishing a channel from its recorded ``offered_qos_profiles``."""
+def parameter_specs() -> list[ParamSpec]:
+    return [
+        ParamSpec("input", "", "recording to play: an MCAP file or a rosbag2 bag directory "
+                  "(required)"),
+        ParamSpec("rate", 1.0, "playback speed factor (2 = twice as fast)", low=1e-3,
+                  high=1e3),
+        ParamSpec("loop", False, "start over at the end, until stopped"),
+        ParamSpec("publish_clock", True, "publish rosgraph_msgs/Clock on /clock with the bag "
+                  "time"),
+        ParamSpec("clock_rate_hz", 100.0, "/clock messages per wall-clock second", low=0.1,
+                  high=10000.0),
+        ParamSpec("topics", ("",), "recorded topics to play ([''] = all)"),
+        ParamSpec("namespace_topics", False, "publish recorded names without the leading '/' "
+                  "so that the node's namespace applies"),
+        ParamSpec("wait_for_subscribers", 0, "before starting, wait until every topic has "
+                  "this many subscribers", low=0, high=1000),
+        ParamSpec("wait_timeout_s", 10.0, "give up waiting for subscribers after [s]",
+                  low=0.0, high=3600.0),
+    ]
+
+
+def check_recording_start(path) -> None:
+    """InputError unless ``path`` starts like an MCAP file (checked before any playing, so
+    an empty or foreign file is named as such instead of playing nothing)."""
     try:
-        profiles = parse_qos_profiles(offered_yaml)
-    except ValueError:
-        profiles = []
-    reliable = bool(profiles) and all(p["reliability"] == "reliable" for p in profiles)
-    transient = bool(profiles) and all(p["durability"] == "transient_local" for p in profiles)
-    return QoSProfile(
-        history=HistoryPolicy.KEEP_LAST, depth=1000,
-        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL if transient else DurabilityPolicy.VOLATILE)
+        with open(path, "rb") as f:
+            head = f.read(len(MAGIC))
+    except OSError as exc:
+        raise InputError(f"{path}: {exc.strerror or exc}") from exc
+    if not head:
+        raise InputError(f"{path}: empty file")
+    if head != MAGIC:
+        raise InputError(f"{path}: not an MCAP file (no MCAP magic at the start)")
 
 
 def iter_log_time_order(path, topics: list[str] | None):
@@ -107,37 +132,28 @@ def recorded_channels(path, topics: list[str] | None) -> list[tuple[str, str, st
 
 
 class McapPlayerNode(Node):
+    """Republishes the messages of one recording with their recorded timing."""
+
     def __init__(self, **kwargs):
-        super().__init__("mcap_player", **kwargs)
-        p = {
-            "input": self.declare_parameter("input", "").value,
-            "rate": self.declare_parameter("rate", 1.0).value,
-            "loop": self.declare_parameter("loop", False).value,
-            "publish_clock": self.declare_parameter("publish_clock", True).value,
-            "clock_rate_hz": self.declare_parameter("clock_rate_hz", 100.0).value,
-            "topics": self.declare_parameter("topics", [""]).value,
-            "namespace_topics": self.declare_parameter("namespace_topics", False).value,
-            "wait_for_subscribers": self.declare_parameter("wait_for_subscribers", 0).value,
-            "wait_timeout_s": self.declare_parameter("wait_timeout_s", 10.0).value,
-        }
+        super().__init__(NODE_NAME, **kwargs)
+        specs = parameter_specs()
+        self._specs = {s.name: s for s in specs}
+        p = declare_all(self, specs)  # raises ParameterError naming a bad parameter
+        self.add_on_set_parameters_callback(self._on_set_parameters)
         if not p["input"]:
             raise ParameterError("parameter 'input': the recording to play is required")
         try:
             self.path = resolve_mcap_path(p["input"])
         except ValueError as exc:
             raise ParameterError(f"parameter 'input': {exc}") from exc
-        if not float(p["rate"]) > 0:
-            raise ParameterError(f"parameter 'rate': must be > 0, got {p['rate']}")
-        if not float(p["clock_rate_hz"]) > 0:
-            raise ParameterError(f"parameter 'clock_rate_hz': must be > 0, got "
-                                 f"{p['clock_rate_hz']}")
-        self.rate = float(p["rate"])
-        self.loop = bool(p["loop"])
-        self.clock_period = 1.0 / float(p["clock_rate_hz"])
+        check_recording_start(self.path)
+        self.rate = p["rate"]
+        self.loop = p["loop"]
+        self.clock_period = 1.0 / p["clock_rate_hz"]
         self.topics = [t for t in p["topics"] if t] or None
-        self.namespace_topics = bool(p["namespace_topics"])
-        self.wait_for_subscribers = int(p["wait_for_subscribers"])
-        self.wait_timeout_s = float(p["wait_timeout_s"])
+        self.namespace_topics = p["namespace_topics"]
+        self.wait_for_subscribers = p["wait_for_subscribers"]
+        self.wait_timeout_s = p["wait_timeout_s"]
         self._pubs: dict[str, object] = {}
         self._clock_pub = None
         if p["publish_clock"]:
@@ -146,6 +162,10 @@ class McapPlayerNode(Node):
             self._clock_cls = Clock
             self._clock_pub = self.create_publisher(Clock, "/clock", 10)
         self.published = 0
+
+    def _on_set_parameters(self, params) -> SetParametersResult:
+        reason = check_update(self._specs, params)
+        return SetParametersResult(successful=reason is None, reason=reason or "")
 
     def _publisher(self, topic: str, type_name: str, qos_yaml: str):
         if topic not in self._pubs:
@@ -156,7 +176,12 @@ class McapPlayerNode(Node):
                 self.get_logger().warning(f"not playing {topic}: {exc}")
                 self._pubs[topic] = None
                 return None
-            self._pubs[topic] = self.create_publisher(cls, name, playback_qos(qos_yaml))
+            try:
+                profiles = parse_qos_profiles(qos_yaml)
+            except ValueError:
+                profiles = []  # unreadable offered QoS: the rule's safe default
+            self._pubs[topic] = self.create_publisher(
+                cls, name, adapted_qos(profiles, PLAYBACK_QUEUE_DEPTH))
         return self._pubs[topic]
 
     def _publish_clock(self, bag_ns: int) -> None:
@@ -222,10 +247,14 @@ class McapPlayerNode(Node):
 def _play(node: McapPlayerNode) -> None:
     node.get_logger().info(f"playing {node.path} at rate {node.rate:g}"
                            + (" (loop)" if node.loop else ""))
-    while rclpy.ok():
-        n = node.play_once()
-        if n == 0 or not node.loop:
-            break
+    try:
+        while rclpy.ok():
+            n = node.play_once()
+            if n == 0 or not node.loop:
+                break
+    except (ValueError, OSError, EOFError, struct.error, McapError) as exc:
+        # whatever reading the recording raises (the mcap package's own errors included)
+        raise InputError(f"{node.path}: {exc}") from exc
 
 
 def _report(node: McapPlayerNode) -> None:
@@ -233,9 +262,9 @@ def _report(node: McapPlayerNode) -> None:
 
 
 def main(args=None) -> int:
-    """Play the recording (once, or looping until SIGINT/SIGTERM); exit 0, or 2 on an
-    invalid parameter."""
-    return run_node("mcap_player", McapPlayerNode, args, spin=_play, finish=_report)
+    """Play the recording (once, or looping until SIGINT/SIGTERM); exit 0, 2 on an invalid
+    parameter, 1 on a recording that cannot be read."""
+    return run_node(NODE_NAME, McapPlayerNode, args, spin=_play, finish=_report)
 
 
 

@@ -6,15 +6,17 @@ every ``discovery_period_s``); its channel gets the publishers' offered QoS and 
 The subscription's QoS adapts to the publishers like rosbag2's: reliable only if every
 publisher is reliable, transient-local only if every publisher is.
 
-Crash safety: the open chunk is closed and the file flushed every ``flush_period_s``
-(default 0.5 s, at most 1 s), so ``kill -9`` loses at most that much and leaves a file
-whose complete chunks every reader here recovers.  SIGINT/SIGTERM finish the file
-(summary, footer) and lose nothing.
+Output safety: an existing output is refused unless ``force`` is true; the recording is
+written under a temporary name beside the output (a hidden ``.<name>.*.partial`` folder,
+see :mod:`gyro_attitude.io.safe_output`) and renamed to the output once finished, so a
+failed or killed recording never replaces a file under the requested name.
 
-Parameters: ``topics`` (string array; relative names resolve in the node's namespace),
-``all_topics`` (record everything published), ``output`` (file; default
-``bags/recording_<UTC time>.mcap``), ``bag_directory``, ``compression`` ('', zstd, lz4),
-``flush_period_s``, ``discovery_period_s``, ``queue_depth``.
+Crash safety: the open chunk is closed and the file flushed every ``flush_period_s``
+(default 0.5 s, at most 1 s), so ``kill -9`` loses at most that much and leaves a temporary
+file whose complete chunks every reader here recovers.  SIGINT/SIGTERM finish the file
+(summary, footer), rename it to the output and lose nothing.
+
+Parameters: :func:`parameter_specs` (``config/mcap_recorder.yaml`` lists them all).
 """
 
 from __future__ import annotations
@@ -24,16 +26,39 @@ import sys
 import time
 from pathlib import Path
 
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from gyro_attitude.io.mcap_writer import COMPRESSIONS, Rosbag2McapWriter
 from gyro_attitude.io.qos import qos_profile, qos_profiles_yaml
+from gyro_attitude.io.safe_output import AtomicOutput, check_output_path
 from gyro_attitude.ros.node_main import run_node
-from gyro_attitude.ros.params import ParameterError
+from gyro_attitude.ros.params import ParameterError, ParamSpec, check_update, declare_all
+from gyro_attitude.ros.qos import adapted_qos, offered_profiles
 
-DEFAULT_TOPICS = ["imu/data_raw", "imu/data", "attitude", "truth/attitude"]
-MAX_FLUSH_PERIOD_S = 1.0
+NODE_NAME = "mcap_recorder"
+DEFAULT_TOPICS = ("imu/data_raw", "imu/data", "attitude", "truth/attitude")
+MAX_FLUSH_PERIOD_S = 1.0  # the crash-safety promise: at most this much is lost to kill -9
+
+
+def parameter_specs() -> list[ParamSpec]:
+    return [
+        ParamSpec("topics", DEFAULT_TOPICS,
+                  "topics to record (relative names resolve in the node's namespace)"),
+        ParamSpec("all_topics", False, "record every topic that has a publisher"),
+        ParamSpec("output", "", "MCAP file (or bag directory) to write; "
+                  "'' = bags/recording_<UTC time>.mcap"),
+        ParamSpec("force", False, "replace an existing output (refused otherwise)"),
+        ParamSpec("bag_directory", False,
+                  "write a rosbag2 bag directory (MCAP file + metadata.yaml)"),
+        ParamSpec("compression", "", "chunk compression ('' = none)", choices=COMPRESSIONS),
+        ParamSpec("flush_period_s", 0.5, "close the open chunk and flush the file this often "
+                  "[s]: the most a kill -9 loses", low=0.01, high=MAX_FLUSH_PERIOD_S),
+        ParamSpec("discovery_period_s", 0.2, "poll the graph for new topics this often [s]",
+                  low=0.01, high=10.0),
+        ParamSpec("queue_depth", 1000, "subscription queue depth (keep last)", low=1,
+                  high=100000),
+    ]
 
 
 def message_class(type_name: str):
@@ -47,65 +72,21 @@ def message_class(type_name: str):
         raise ValueError(f"message type {type_name} is not installed: {exc}") from exc
 
 
-def _split_ns(duration) -> tuple[int, int]:
-    ns = int(duration.nanoseconds)
-    return divmod(ns, 1_000_000_000)
-
-
 def offered_qos_yaml(endpoint_infos) -> str:
     """rosbag2 ``offered_qos_profiles`` YAML from ``get_publishers_info_by_topic``."""
-    profiles = []
-    for info in endpoint_infos:
-        q = info.qos_profile
-        profiles.append(qos_profile(
-            history=int(q.history), depth=int(q.depth), reliability=int(q.reliability),
-            durability=int(q.durability), deadline=_split_ns(q.deadline),
-            lifespan=_split_ns(q.lifespan), liveliness=int(q.liveliness),
-            liveliness_lease_duration=_split_ns(q.liveliness_lease_duration),
-            avoid_ros_namespace_conventions=bool(q.avoid_ros_namespace_conventions)))
+    profiles = offered_profiles(endpoint_infos)
     return qos_profiles_yaml(profiles) if profiles else qos_profiles_yaml([qos_profile()])
-
-
-def adapted_qos(endpoint_infos, depth: int) -> QoSProfile:
-    """Subscription QoS compatible with every publisher (rosbag2's adaptation rule)."""
-    infos = list(endpoint_infos)
-    reliable = bool(infos) and all(
-        i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in infos)
-    transient = bool(infos) and all(
-        i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for i in infos)
-    return QoSProfile(
-        history=HistoryPolicy.KEEP_LAST, depth=depth,
-        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL if transient else DurabilityPolicy.VOLATILE)
 
 
 class McapRecorderNode(Node):
     """Records serialized messages of the chosen topics into one MCAP file."""
 
     def __init__(self, **kwargs):
-        super().__init__("mcap_recorder", **kwargs)
-        p = {
-            "topics": self.declare_parameter("topics", list(DEFAULT_TOPICS)).value,
-            "all_topics": self.declare_parameter("all_topics", False).value,
-            "output": self.declare_parameter("output", "").value,
-            "bag_directory": self.declare_parameter("bag_directory", False).value,
-            "compression": self.declare_parameter("compression", "").value,
-            "flush_period_s": self.declare_parameter("flush_period_s", 0.5).value,
-            "discovery_period_s": self.declare_parameter("discovery_period_s", 0.2).value,
-            "queue_depth": self.declare_parameter("queue_depth", 1000).value,
-        }
-        if p["compression"] not in COMPRESSIONS:
-            raise ParameterError(f"parameter 'compression': {p['compression']!r} is not one "
-                                 f"of {COMPRESSIONS}")
-        if not 0.01 <= float(p["flush_period_s"]) <= MAX_FLUSH_PERIOD_S:
-            raise ParameterError(f"parameter 'flush_period_s': {p['flush_period_s']} is not "
-                                 f"in [0.01, {MAX_FLUSH_PERIOD_S}] s")
-        if not 0.01 <= float(p["discovery_period_s"]) <= 10.0:
-            raise ParameterError(f"parameter 'discovery_period_s': {p['discovery_period_s']} "
-                                 "is not in [0.01, 10] s")
-        if not 1 <= int(p["queue_depth"]) <= 100000:
-            raise ParameterError(f"parameter 'queue_depth': {p['queue_depth']} is not in "
-                                 "[1, 100000]")
+        super().__init__(NODE_NAME, **kwargs)
+        specs = parameter_specs()
+        self._specs = {s.name: s for s in specs}
+        p = declare_all(self, specs)  # raises ParameterError naming a bad parameter
+        self.add_on_set_parameters_callback(self._on_set_parameters)
         self._topics = [self.resolve_topic_name(t) for t in p["topics"] if t]
         self._all = bool(p["all_topics"])
         if not self._topics and not self._all:
@@ -113,20 +94,32 @@ class McapRecorderNode(Node):
         out = p["output"] or str(Path("bags") / time.strftime(
             "recording_%Y%m%d_%H%M%S.mcap", time.gmtime()))
         self._depth = int(p["queue_depth"])
+        self._writer = None
+        self._atomic = None
         try:
+            self.output = check_output_path(out, force=p["force"])
+            # Written under a temporary name beside the output and renamed by close(): a
+            # failed or killed recording never replaces what the output name holds.
+            self._atomic = AtomicOutput(self.output, force=p["force"])
             self._writer = Rosbag2McapWriter(
-                out, bag_directory=bool(p["bag_directory"]), compression=p["compression"],
-                max_chunk_interval_s=float(p["flush_period_s"]))
+                self._atomic.open(), bag_directory=bool(p["bag_directory"]),
+                compression=p["compression"], max_chunk_interval_s=float(p["flush_period_s"]))
         except (OSError, ValueError) as exc:
+            if self._atomic is not None:
+                self._atomic.discard()
             raise ParameterError(f"parameter 'output': {exc}") from exc
-        self.output = self._writer.path
+        self.partial_path = self._writer.path  # the file being written until close()
         self._subs: dict[str, object] = {}
         self._discover()
         self.create_timer(float(p["discovery_period_s"]), self._discover)
         self.create_timer(float(p["flush_period_s"]), self._flush)
         self.get_logger().info(
             f"recording {'all topics' if self._all else ', '.join(self._topics)} "
-            f"to {self.output}")
+            f"to {self.output} (until finished: {self.partial_path})")
+
+    def _on_set_parameters(self, params) -> SetParametersResult:
+        reason = check_update(self._specs, params)
+        return SetParametersResult(successful=reason is None, reason=reason or "")
 
     def _discover(self) -> None:
         if self._writer is None:
@@ -152,7 +145,8 @@ class McapRecorderNode(Node):
                 self._on_message(topic, raw, info)
 
             self._subs[name] = self.create_subscription(
-                cls, name, callback, adapted_qos(infos, self._depth), raw=True)
+                cls, name, callback, adapted_qos(offered_profiles(infos), self._depth),
+                raw=True)
             self.get_logger().info(f"subscribed to {name} [{type_name}]")
 
     def _on_message(self, topic: str, raw: bytes, info) -> None:
@@ -174,10 +168,12 @@ class McapRecorderNode(Node):
         return 0 if self._writer is None else self._writer.message_count
 
     def close(self) -> None:
-        """Finish the file: last chunk, metadata, summary, footer (idempotent)."""
+        """Finish the file (last chunk, metadata, summary, footer) and move it to the output
+        name (idempotent)."""
         if self._writer is not None:
             self._writer.finish()
             self._writer = None
+            self._atomic.commit()
 
 
 def _close_and_report(node: McapRecorderNode) -> None:
@@ -187,9 +183,9 @@ def _close_and_report(node: McapRecorderNode) -> None:
 
 
 def main(args=None) -> int:
-    """Record until SIGINT/SIGTERM (the file is finished with its summary); exit 0, or 2 on
-    an invalid parameter."""
-    return run_node("mcap_recorder", McapRecorderNode, args, finish=_close_and_report)
+    """Record until SIGINT/SIGTERM (the file is finished with its summary and renamed to the
+    output); exit 0, or 2 on an invalid parameter or an existing output without force."""
+    return run_node(NODE_NAME, McapRecorderNode, args, finish=_close_and_report)
 
 
 

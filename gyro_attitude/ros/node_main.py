@@ -1,50 +1,190 @@
 """The one ``main()`` life cycle every gyro_attitude node shares (demo_nodes_py style).
 
-init → build the node → ``gc.freeze()`` → spin → on SIGINT/SIGTERM exit 0 without a
-traceback; an invalid parameter (:class:`~gyro_attitude.ros.params.ParameterError`) prints
-one line naming it and exits 2; the node's own ``finish`` runs before it is destroyed.
+init → build the node → ``gc.freeze()`` → spin → the node's own ``finish`` → destroy →
+shutdown. Exit status: 0 when the node is done or on SIGINT/SIGTERM (also when the signal is
+repeated during shutdown: ``ros2 launch`` forwards the terminal's Ctrl-C, so every node gets
+it twice); 2 with one line on an invalid parameter
+(:class:`~gyro_attitude.ros.params.ParameterError`, also a missing or unreadable
+``--params-file``); 1 with one line when the node's input is unusable
+(:class:`InputError`). Never a traceback for any of these.
 """
 
 from __future__ import annotations
 
 import gc
+import signal
 import sys
+import threading
 from collections.abc import Callable
 
 import rclpy
 from rclpy.executors import ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 
+from gyro_attitude.io.ament_prefix import ensure_ament_prefix_path
 from gyro_attitude.ros.params import ParameterError
 
-__all__ = ["run_node"]
+RCLError = _rclpy.RCLError
+
+__all__ = ["run_node", "InputError", "ShutdownSignals", "EXIT_OK", "EXIT_INPUT",
+           "EXIT_PARAMETER"]
+
+EXIT_OK = 0
+EXIT_INPUT = 1  # the input (a recording) cannot be used
+EXIT_PARAMETER = 2  # a parameter (or the parameter file) is invalid
+
+
+class InputError(ValueError):
+    """The node's input (e.g. the recording to play) cannot be used; the message says why."""
+
+
+class ShutdownSignals:
+    """SIGINT/SIGTERM handlers that turn the first signal into an orderly shutdown request
+    and ignore every later one.
+
+    Python's default SIGINT handler raises ``KeyboardInterrupt`` wherever the main thread is,
+    including inside ``destroy_node`` or a file's ``finish`` when the signal repeats; its
+    default SIGTERM kills the process without finishing anything. These handlers raise
+    nothing: they only record the signal. The wake-up comes from rclpy's own C-level handler
+    (installed by ``rclpy.init`` after these, so it chains to them): it shuts the contexts
+    down, which ends ``spin`` with ``ExternalShutdownException`` and makes ``rclpy.ok()``
+    false for hand-written loops. A shutdown must not be started from here: a Python handler
+    runs between two bytecodes of the main thread, possibly while it holds the context's
+    (non-reentrant) lock.
+    """
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.received: int | None = None
+
+    def install(self) -> bool:
+        """Install on the main thread (signals are delivered there only); False elsewhere."""
+        if threading.current_thread() is not threading.main_thread():
+            return False
+        for sig in self.SIGNALS:
+            signal.signal(sig, self._handle)
+        return True
+
+    def _handle(self, signum, _frame) -> None:
+        if self.received is None:
+            self.received = signum
+
+    def _unraisable(self, info) -> None:
+        # After a shutdown signal, rclpy objects whose construction the shutdown cut short
+        # (an executor created just as the context went invalid) complain from __del__;
+        # that is noise about the shutdown the user asked for, not an error to report.
+        if self.received is None:
+            self._previous_unraisable(info)
+
+    def silence_unraisable_after_signal(self) -> None:
+        self._previous_unraisable = sys.unraisablehook
+        sys.unraisablehook = self._unraisable
+
+    def ignore_from_now_on(self) -> None:
+        """Ignore both signals for the rest of the process (only once it is exiting).
+
+        Interpreter finalization resets signals that have a Python handler to the default
+        action, so a repeat arriving then would kill the process with -SIGINT; an ignored
+        signal stays ignored.
+        """
+        if threading.current_thread() is threading.main_thread():
+            for sig in self.SIGNALS:
+                signal.signal(sig, signal.SIG_IGN)
+
+
+def _params_file_problem(args: list[str] | None) -> str | None:
+    """A reason when a ``--params-file`` named on the command line cannot be read.
+
+    rcl parses the arguments inside ``rclpy.init`` and fails on a missing file with an
+    ``RCLError`` whose text is a C source location; checking first gives one plain line.
+    """
+    argv = sys.argv if args is None else args
+    for i, arg in enumerate(argv[:-1]):
+        if arg == "--params-file":
+            path = argv[i + 1]
+            try:
+                with open(path, "rb"):
+                    pass
+            except OSError as exc:
+                return f"--params-file {path}: {exc.strerror or exc}"
+    return None
+
+
+def _destroy(node: Node) -> None:
+    """``destroy_node`` that tolerates a context already shut down by a signal."""
+    try:
+        node.destroy_node()
+    except Exception:  # handles of an invalid context: nothing left to free
+        pass
 
 
 def run_node(name: str, make_node: Callable[[], Node], args=None, *,
              spin: Callable[[Node], None] = rclpy.spin,
              finish: Callable[[Node], None] | None = None) -> int:
-    """Run a node until it is done or signalled; returns the process exit status."""
+    """Run a node until it is done or signalled; returns the process exit status.
+
+    Meant as the whole of a node process's ``main()``: it installs SIGINT/SIGTERM handlers
+    and leaves both signals ignored when it returns.
+    """
+    signals = ShutdownSignals()
+    signals.install()
+    signals.silence_unraisable_after_signal()
     node = None
-    status = 0
+    initialized = False
+    status = EXIT_OK
+
+    def say(message: str) -> None:
+        print(f"[{name}] {message}", file=sys.stderr, flush=True)
+
+    ensure_ament_prefix_path()  # a venv started without any ROS environment variable
     try:
-        rclpy.init(args=args)
+        problem = _params_file_problem(args)
+        if problem is not None:
+            say(f"invalid parameter file: {problem}")
+            return EXIT_PARAMETER
+        try:
+            rclpy.init(args=args)
+        except RCLError as exc:  # malformed --ros-args, unparsable parameter file
+            say(f"invalid ROS arguments: {str(exc).splitlines()[0]}")
+            return EXIT_PARAMETER
+        initialized = True
         node = make_node()
         # Move everything allocated at start-up (modules, message classes, numpy) out of the
         # collector's reach: a full gen-2 collection then scans only recent objects instead
         # of ~10^5, which keeps its pauses (latency spikes at 1 kHz) well below a millisecond.
         gc.freeze()
-        spin(node)
+        if signals.received is None:  # a signal during start-up: nothing to spin for
+            spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except ParameterError as exc:
-        print(f"[{name}] invalid parameter: {exc}", file=sys.stderr, flush=True)
-        status = 2
+        say(f"invalid parameter: {exc}")
+        status = EXIT_PARAMETER
+    except InputError as exc:
+        say(f"unusable input: {exc}")
+        status = EXIT_INPUT
+    except Exception:
+        # Publishing, waiting or creating entities on a context that a signal has just shut
+        # down raises (e.g. RCLError "publisher's context is invalid"): that is the shutdown
+        # the user asked for, not a failure. rclpy shuts the context down from its own
+        # thread and may do so before the Python handler has run, so a context that is no
+        # longer ok (only a signal shuts it down here) counts as well. Anything else is a
+        # real error.
+        if signals.received is None and (not initialized or rclpy.ok()):
+            raise
     finally:
-        if node is not None:
-            try:
-                if finish is not None:
-                    finish(node)
-            finally:
-                node.destroy_node()
-        rclpy.try_shutdown()
+        try:
+            if node is not None:
+                try:
+                    if finish is not None:
+                        finish(node)
+                finally:
+                    _destroy(node)
+        finally:
+            rclpy.try_shutdown()
+            # run_node is the process's main: it is exiting now, and a repeated signal must
+            # not turn a clean exit into a kill.
+            signals.ignore_from_now_on()
     return status

@@ -30,6 +30,8 @@ class ParamSpec:
 
     low/high: inclusive numeric range (float or int parameters); choices: allowed strings;
     length: required array length (float arrays); runtime: may change after start.
+    A list/tuple default of strings (non-empty: the type comes from its elements) makes a
+    string-array parameter; of numbers, a float-array parameter.
     """
 
     name: str
@@ -40,6 +42,11 @@ class ParamSpec:
     choices: tuple[str, ...] = field(default_factory=tuple)
     length: int | None = None
     runtime: bool = False
+
+    @property
+    def is_string_array(self) -> bool:
+        return isinstance(self.default, list | tuple) and bool(self.default) and all(
+            isinstance(v, str) for v in self.default)
 
 
 def _descriptor(spec: ParamSpec) -> ParameterDescriptor:
@@ -95,6 +102,11 @@ def check_value(spec: ParamSpec, value) -> str | None:
         if spec.high is not None and value > spec.high:
             return f"parameter '{name}' must be <= {spec.high}, got {value!r}"
         return None
+    if spec.is_string_array:
+        if isinstance(value, str) or not isinstance(value, list | tuple) or not all(
+                isinstance(v, str) for v in value):
+            return f"parameter '{name}' must be an array of strings, got {value!r}"
+        return None
     if isinstance(default, list | tuple):
         try:
             values = [float(v) for v in value]
@@ -116,7 +128,9 @@ def declare_all(node, specs: list[ParamSpec]) -> dict[str, object]:
     values: dict[str, object] = {}
     for spec in specs:
         default = spec.default
-        if isinstance(default, list | tuple):
+        if spec.is_string_array:
+            default = list(default)  # declares a STRING_ARRAY
+        elif isinstance(default, list | tuple):
             default = [float(v) for v in default]  # declares a DOUBLE_ARRAY
         try:
             param = node.declare_parameter(spec.name, default, _descriptor(spec))
@@ -126,7 +140,9 @@ def declare_all(node, specs: list[ParamSpec]) -> dict[str, object]:
         except ParameterException as exc:  # e.g. wrong type in YAML / --ros-args
             raise ParameterError(f"parameter '{spec.name}': {exc}") from exc
         value = param.value
-        if isinstance(value, tuple | list) or type(value).__name__ == "array":
+        if spec.is_string_array:
+            value = list(value) if isinstance(value, list | tuple) else value
+        elif isinstance(value, tuple | list) or type(value).__name__ == "array":
             value = [float(v) for v in value]
         reason = check_value(spec, value)
         if reason is not None:

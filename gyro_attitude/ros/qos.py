@@ -1,10 +1,13 @@
-"""QoS profiles of the gyro_attitude topics."""
+"""QoS profiles of the gyro_attitude topics and the one QoS adaptation rule of recorder and
+player."""
 
 from __future__ import annotations
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-__all__ = ["imu_qos"]
+from gyro_attitude.io.qos import qos_profile
+
+__all__ = ["imu_qos", "offered_profiles", "adapted_qos"]
 
 
 def imu_qos(reliability: str = "best_effort", depth: int = 1000) -> QoSProfile:
@@ -26,3 +29,39 @@ def imu_qos(reliability: str = "best_effort", depth: int = 1000) -> QoSProfile:
         reliability=policies[reliability],
         durability=DurabilityPolicy.VOLATILE,
     )
+
+
+def offered_profiles(endpoint_infos) -> list[dict]:
+    """The publishers' offered QoS (``get_publishers_info_by_topic``) as rosbag2 profile dicts
+    (:func:`gyro_attitude.io.qos.qos_profile`: policies by name, durations as (sec, nsec))."""
+    profiles = []
+    for info in endpoint_infos:
+        q = info.qos_profile
+        profiles.append(qos_profile(
+            history=int(q.history), depth=int(q.depth), reliability=int(q.reliability),
+            durability=int(q.durability), deadline=_sec_nsec(q.deadline),
+            lifespan=_sec_nsec(q.lifespan), liveliness=int(q.liveliness),
+            liveliness_lease_duration=_sec_nsec(q.liveliness_lease_duration),
+            avoid_ros_namespace_conventions=bool(q.avoid_ros_namespace_conventions)))
+    return profiles
+
+
+def _sec_nsec(duration) -> tuple[int, int]:
+    return divmod(int(duration.nanoseconds), 1_000_000_000)
+
+
+def adapted_qos(profiles: list[dict], depth: int) -> QoSProfile:
+    """QoS that matches every offered profile (rosbag2's adaptation rule), keep-last ``depth``.
+
+    Used both to subscribe to live publishers (recorder) and to republish recorded ones
+    (player): reliable only if every profile is reliable, transient-local only if every one
+    is; otherwise best effort / volatile, which any publisher or subscriber accepts.
+    ``profiles`` are dicts with policy names (:func:`offered_profiles`,
+    :func:`gyro_attitude.io.qos.parse_qos_profiles`); none known gives best effort, volatile.
+    """
+    reliable = bool(profiles) and all(p["reliability"] == "reliable" for p in profiles)
+    transient = bool(profiles) and all(p["durability"] == "transient_local" for p in profiles)
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST, depth=int(depth),
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if transient else DurabilityPolicy.VOLATILE)

@@ -18,9 +18,22 @@ def _integrator_specs():
     return attitude_integrator_node.parameter_specs()
 
 
+def _recorder_specs():
+    from gyro_attitude.ros import mcap_recorder_node
+
+    return mcap_recorder_node.parameter_specs()
+
+
+def _player_specs():
+    from gyro_attitude.ros import mcap_player_node
+
+    return mcap_player_node.parameter_specs()
+
+
 @pytest.mark.parametrize(
     "node_name, specs_fn",
-    [("gyro_sim", gyro_sim_node.parameter_specs), ("attitude_integrator", _integrator_specs)],
+    [("gyro_sim", gyro_sim_node.parameter_specs), ("attitude_integrator", _integrator_specs),
+     ("mcap_recorder", _recorder_specs), ("mcap_player", _player_specs)],
 )
 def test_parameter_file_declares_every_parameter_with_valid_values(node_name, specs_fn):
     data = yaml.safe_load((REPO / "config" / f"{node_name}.yaml").read_text())
@@ -32,6 +45,7 @@ def test_parameter_file_declares_every_parameter_with_valid_values(node_name, sp
         default = specs[name].default
         if isinstance(default, tuple):
             default = list(default)
+        assert specs[name].description, name
         assert value == default, f"{node_name}.yaml {name} differs from the node default"
 
 
@@ -51,6 +65,11 @@ def test_check_value_names_the_parameter_and_the_problem():
     assert check_value(q, [0, 0, 0, 1]) is None
     assert "4 elements" in check_value(q, [0.0, 1.0])
     assert "finite" in check_value(q, [0.0, 0.0, math.inf, 1.0])
+    topics = ParamSpec("topics", ("imu/data_raw",), "topics")
+    assert check_value(topics, ["a", "b"]) is None
+    assert "array of strings" in check_value(topics, 5)
+    assert "array of strings" in check_value(topics, "imu/data_raw")
+    assert "array of strings" in check_value(topics, [1.0, 2.0])
 
 
 def test_local_enu_position_against_arc_lengths():

@@ -3,6 +3,7 @@ looping, and a recording without summary (kill -9 leftovers)."""
 
 from __future__ import annotations
 
+import struct
 import time
 
 import numpy as np
@@ -80,3 +81,56 @@ def test_bad_input_parameter(launch, tmp_path):
     proc = launch(MODULE, "-p", f"input:={tmp_path / 'missing.mcap'}")
     assert proc.wait(timeout=20) == 2
     assert "parameter 'input'" in proc.output()
+
+
+@pytest.mark.parametrize("args, code, text", [
+    (["-p", "rate:=abc"], 2, "parameter 'rate'"),
+    (["-p", "rate:=0.0"], 2, "parameter 'rate'"),
+    (["-p", "loop:=3"], 2, "parameter 'loop'"),
+    (["--params-file", "/nonexistent.yaml"], 2, "--params-file /nonexistent.yaml"),
+])
+def test_bad_parameters_one_line(launch, tmp_path, args, code, text):
+    _recording(tmp_path / "in.mcap", n=5)
+    proc = launch(MODULE, "-p", f"input:={tmp_path / 'in.mcap'}", *args)
+    assert proc.wait(timeout=30) == code, proc.output()
+    assert text in proc.output() and "Traceback" not in proc.output(), proc.output()
+
+
+@pytest.mark.parametrize("content, text", [
+    (b"", "empty file"),
+    (b"hello, this is not a recording\n" * 4, "not an MCAP file"),
+])
+def test_unusable_input_one_line_exit_1(launch, tmp_path, content, text):
+    path = tmp_path / "in.mcap"
+    path.write_bytes(content)
+    proc = launch(MODULE, "-p", f"input:={path}", "-p", "rate:=100.0")
+    assert proc.wait(timeout=30) == 1, proc.output()
+    out = proc.output()
+    assert text in out and "unusable input" in out and "Traceback" not in out, out
+
+
+@pytest.mark.parametrize("error", [ValueError("damaged at byte 1234"), OSError(5, "I/O error"),
+                                   struct.error("unpack requires a buffer of 8 bytes")])
+def test_reading_errors_become_input_errors(error):
+    """Whatever reading the recording raises ends the node as unusable input (exit 1)."""
+    from gyro_attitude.ros.mcap_player_node import _play
+    from gyro_attitude.ros.node_main import InputError
+
+    class Node:
+        path, rate, loop = "in.mcap", 1.0, False
+
+        def get_logger(self):
+            return type("L", (), {"info": staticmethod(lambda *_: None)})()
+
+        def play_once(self):
+            raise error
+
+    import rclpy
+
+    rclpy.init()
+    try:
+        with pytest.raises(InputError) as caught:
+            _play(Node())
+        assert str(caught.value) == f"in.mcap: {error}"
+    finally:
+        rclpy.shutdown()

@@ -92,6 +92,10 @@ def test_kill_9_loses_at_most_the_last_flush_period(launch, ros_node, tmp_path):
     proc.proc.send_signal(signal.SIGKILL)
     proc.proc.wait(timeout=10)
     published = k
+    # Killed before finishing: nothing under the requested name, the partial file beside it.
+    assert not out.exists()
+    (partial,) = tmp_path.glob(".rec.mcap.*.partial/rec.mcap")
+    out = partial
     reader = McapStreamReader(out, on_damage="warn")
     got = [m.data for m in reader.iter_messages()]
     assert reader.damage is not None and not reader.complete  # no summary: killed
@@ -139,3 +143,40 @@ def test_all_topics_into_a_bag_directory_read_by_rosbags(launch, ros_node, tmp_p
                  reader.messages([c for c in reader.connections if c.topic.endswith("chatter")])]
     assert counts[f"{namespace}/imu/data_raw"] == 50 and counts[f"{namespace}/chatter"] == 50
     assert texts == [f"msg {k}" for k in range(50)]
+
+
+def test_existing_output_refused_unless_forced(launch, tmp_path):
+    out = tmp_path / "rec.mcap"
+    out.write_bytes(b"precious")
+    refused = _start(launch, out)
+    assert refused.wait(timeout=30) == 2, refused.output()
+    assert "parameter 'output'" in refused.output() and "exists" in refused.output()
+    assert "Traceback" not in refused.output()
+    assert out.read_bytes() == b"precious"
+    forced = _start(launch, out, "-p", "force:=true")
+    deadline = time.monotonic() + 30
+    while "recording" not in forced.output() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    # while recording, the requested name still holds the old file
+    assert out.read_bytes() == b"precious", forced.output()
+    assert forced.stop(sig=signal.SIGTERM, timeout=15.0) == 0, forced.output()
+    with open(out, "rb") as f:
+        assert make_reader(f).get_summary() is not None
+    assert sorted(p.name for p in tmp_path.iterdir() if not p.name.endswith(".log")) == [
+        "rec.mcap"]
+
+
+@pytest.mark.parametrize("args, name", [
+    (["-p", "queue_depth:=1.5"], "queue_depth"),
+    (["-p", "flush_period_s:=abc"], "flush_period_s"),
+    (["-p", "flush_period_s:=2.0"], "flush_period_s"),
+    (["-p", "topics:=5"], "topics"),
+    (["-p", "compression:=gzip"], "compression"),
+])
+def test_bad_parameters_one_line_exit_2(launch, tmp_path, args, name):
+    proc = launch(MODULE, "-p", f"output:={tmp_path / 'x.mcap'}", *args)
+    assert proc.wait(timeout=30) == 2, proc.output()
+    out = proc.output()
+    assert f"'{name}'" in out and "Traceback" not in out, out
+    assert not (tmp_path / "x.mcap").exists()
+    assert [p.name for p in tmp_path.iterdir() if not p.name.endswith(".log")] == []

@@ -1,0 +1,84 @@
+"""SIGINT/SIGTERM, single and repeated within milliseconds (what ``ros2 launch`` does on a
+terminal's Ctrl-C), against every node executable: exit 0, no traceback, every time; the
+recorder's file is finished under its requested name."""
+
+from __future__ import annotations
+
+import itertools
+import os
+import random
+import signal
+import time
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+
+pytestmark = pytest.mark.ros
+
+REPO = Path(__file__).resolve().parents[2]
+BAG = REPO / "bags" / "coning_200hz.mcap"
+REPETITIONS = 3
+# (module, extra parameters, text the node logs once it is up and spinning)
+NODES = {
+    "gyro_sim": ("gyro_attitude.ros.gyro_sim_node", ["-p", "scene:=coning"], "scene 'coning'"),
+    "gyro_sim_fast": ("gyro_attitude.ros.gyro_sim_node",
+                      ["-p", "scene:=coning", "-p", "time_mode:=fast"], "fast time"),
+    "attitude_integrator": ("gyro_attitude.ros.attitude_integrator_node", [],
+                            "integrating imu/data_raw"),
+    "mcap_recorder": ("gyro_attitude.ros.mcap_recorder_node", [], "recording"),
+    "mcap_player": ("gyro_attitude.ros.mcap_player_node",
+                    ["-p", f"input:={BAG}", "-p", "loop:=true"], "playing"),
+}
+_ns = itertools.count()
+
+
+def _wait_for(proc, text: str, timeout: float) -> None:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if text in proc.output():
+            return
+        if proc.proc.poll() is not None:
+            break
+        time.sleep(0.05)
+    raise AssertionError(f"{proc.module} never logged {text!r}:\n{proc.output()}")
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=lambda s: s.name)
+def test_signal_single_and_repeated_exit_zero_without_traceback(sig, launch, tmp_path):
+    """Every node x (one signal, two within a few ms) x REPETITIONS, all processes at once
+    (start-up dominates the time)."""
+    rng = random.Random(int(sig))
+    runs = []
+    for k, (node, count) in enumerate(
+            itertools.product(sorted(NODES), (1, 2) * REPETITIONS)):
+        module, params, ready = NODES[node]
+        extra = list(params)
+        out = None
+        if node == "mcap_recorder":
+            out = tmp_path / f"rec_{k}.mcap"
+            extra += ["-p", f"output:={out}"]
+        ns = f"/gyro_sig_{os.getpid()}_{next(_ns)}"
+        proc = launch(module, "-r", f"__ns:={ns}", *extra, use_namespace=False)
+        runs.append((node, proc, count, out, ready))
+    for _node, proc, count, _out, ready in runs:
+        _wait_for(proc, ready, timeout=90.0)
+        time.sleep(rng.uniform(0.0, 0.2))  # hit the nodes in different phases of their work
+        proc.proc.send_signal(sig)
+        if count == 2:
+            time.sleep(rng.uniform(0.001, 0.005))
+            proc.proc.send_signal(sig)
+    failures = []
+    for node, proc, count, out, _ready in runs:
+        code = proc.proc.wait(timeout=30)
+        text = proc.output()
+        what = f"{node} after {count} x {sig.name}"
+        if code != 0 or "Traceback" in text:
+            failures.append(f"{what}: exit {code}\n{text}")
+        elif out is not None:  # finished (summary + footer) under the requested name
+            with open(out, "rb") as f:
+                assert make_reader(f).get_summary() is not None, what
+    recorded = sorted(r[3].name for r in runs if r[3] is not None)
+    assert sorted(p.name for p in tmp_path.iterdir() if not p.name.endswith(".log")) == recorded, \
+        "a temporary recording was left behind"
+    assert not failures, f"{len(failures)} of {len(runs)} runs failed:\n" + "\n".join(failures)
