@@ -257,11 +257,12 @@ class SensorErrorModel:
         k_sqrt_dt = self.params.rate_random_walk * math.sqrt(self.dt)
         z = self._rrw_rng.standard_normal((n, 2, 3))
         steps = k_sqrt_dt * z[:, 0]
-        # Walk value at the start of each interval, then the interval average around it.
-        start = self._rrw_state + np.cumsum(steps, axis=0) - steps
-        out = start + k_sqrt_dt * (0.5 * z[:, 0] + z[:, 1] / math.sqrt(12.0))
-        self._rrw_state = start[-1] + steps[-1]
-        return out
+        # Walk value at the start of each interval (a running sum that continues from the
+        # carried state in the same order of additions, so any split into blocks gives the
+        # same bits), then the interval average around it.
+        walk = np.cumsum(np.concatenate([self._rrw_state[None], steps]), axis=0)
+        self._rrw_state = walk[-1].copy()
+        return walk[:-1] + k_sqrt_dt * (0.5 * z[:, 0] + z[:, 1] / math.sqrt(12.0))
 
     def _quantize(self, y: np.ndarray) -> np.ndarray:
         q = self.params.quantum
