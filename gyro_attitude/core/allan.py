@@ -11,8 +11,9 @@ weighted by its confidence (relative error 1/√(2(K_c − 1)), K_c = number of 
 clusters), not read off one τ each: where ARW and RRW cross close to the floor, the minimum
 of σ alone over-reads B (by 20 % for the shipped ``lab_bench`` gyro). The reported values are
 still the IEEE read-outs of the fitted lines: N = the −½ line at τ = 1 s, K = the +½ line at
-τ = 3 s, B = the flat line / 0.664. A term whose fitted share of σ² stays below
-``VISIBLE_SHARE`` at every τ is reported as not visible (``None``).
+τ = 3 s, B = the flat line / 0.664. A term is reported as not visible (``None``) unless at
+some τ its fitted share of σ² is at least ``VISIBLE_SHARE`` and more than twice the standard
+error of the measured σ² there.
 """
 
 from __future__ import annotations
@@ -127,10 +128,14 @@ def fit_terms(tau, adev, rel_err) -> AllanTerms:
             break
     contrib = basis * coef
     total = contrib.sum(axis=1)
-    share = np.max(contrib / np.where(total > 0, total, 1.0)[:, None], axis=0)
+    share = contrib / np.where(total > 0, total, 1.0)[:, None]
+    # Visible: the term's share of σ² beats VISIBLE_SHARE and, at the same τ, twice the
+    # standard error of the measured σ² there (2 · 2·rel), so scatter at long τ with few
+    # clusters does not pass for a term.
+    visible = np.any((share >= VISIBLE_SHARE) & (share > 4.0 * rel[:, None]), axis=0)
     values = {}
     for i, name in enumerate(TERM_NAMES):
-        values[name] = float(math.sqrt(coef[i])) if share[i] >= VISIBLE_SHARE else None
+        values[name] = float(math.sqrt(coef[i])) if visible[i] else None
     tau_floor = float(tau[np.argmin(adev)])
     return AllanTerms(**values, tau_read_s={"random_walk": 1.0, "rate_random_walk": 3.0,
                                             "bias_instability": tau_floor})
