@@ -69,8 +69,8 @@ class TopicFields:
     angular_velocity: np.ndarray
     specific_force: np.ndarray | None
     q_nb: np.ndarray
-    position_enu: np.ndarray
-    velocity_body: np.ndarray
+    position_enu: np.ndarray | None
+    velocity_body: np.ndarray | None
     omega_nb_b: np.ndarray
     gimbal_names: tuple[str, ...] | None = None
     gimbal_angles: np.ndarray | None = None
@@ -85,15 +85,18 @@ class SimTopics:
         self.llh0: np.ndarray | None = None
         self.t0_ns: int | None = None
 
-    def fields(self, b: SimBlock) -> TopicFields:
+    def fields(self, b: SimBlock, truth: bool = True) -> TopicFields:
+        """Fields of the block; ``truth=False`` leaves the odometry fields ``None``."""
         n = int(np.shape(b.t_ns)[0])
         if self.llh0 is None and n:
             self.llh0 = np.asarray(b.position_llh[0], dtype=np.float64).copy()
             self.t0_ns = int(b.t_ns[0])
         q = np.asarray(b.truth_q_nb, dtype=np.float64)
-        llh = np.asarray(b.position_llh, dtype=np.float64)
-        pos = local_enu_position(llh, self.llh0) if n else np.zeros((0, 3))
-        v_body = quat_rotate(quat_conjugate(q), np.asarray(b.velocity_enu, dtype=np.float64))
+        pos = v_body = None
+        if truth:
+            llh = np.asarray(b.position_llh, dtype=np.float64)
+            pos = local_enu_position(llh, self.llh0) if n else np.zeros((0, 3))
+            v_body = quat_rotate(quat_conjugate(q), np.asarray(b.velocity_enu, dtype=np.float64))
         g = b.gimbal
         return TopicFields(
             t_rel_ns=np.asarray(b.t_ns, dtype=np.int64) - (self.t0_ns or 0),
@@ -102,7 +105,7 @@ class SimTopics:
                             else np.asarray(b.specific_force_b, dtype=np.float64)),
             q_nb=q,
             position_enu=pos,
-            velocity_body=np.asarray(v_body, dtype=np.float64),
+            velocity_body=v_body,
             omega_nb_b=np.asarray(b.truth_omega_nb_b, dtype=np.float64),
             gimbal_names=None if g is None else tuple(str(x) for x in g.names),
             gimbal_angles=None if g is None else np.asarray(g.angles, dtype=np.float64),

@@ -120,7 +120,7 @@ def simulate(scene: str | SceneSpec, duration_s: float, out, *, rate_hz: float |
         done = 0
         while done < n_total:
             n = min(BLOCK_SAMPLES, n_total - done)
-            f = topics.fields(sim.next_block(n))
+            f = topics.fields(sim.next_block(n), truth=publish_truth)
             stamps = f.t_rel_ns + topics.t0_ns
             writer.write_imu_array(
                 names[IMU_TOPIC], stamps, f.angular_velocity, f.specific_force,
