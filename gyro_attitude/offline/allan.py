@@ -207,8 +207,11 @@ def plot(result: AllanResult, path, title: str = "") -> None:
                 t_read = a.terms.tau_read_s.get(term)
                 if t_read is not None:
                     ax.plot([t_read], [f(v, np.array([t_read]))[0]], "o", color=color, ms=4)
-        ax.set_ylim(np.min([axes[x].adev.min() for x in AXES]) / 3,
-                    np.max([axes[x].adev.max() for x in AXES]) * 3)
+        # Low enough to show every read-out point (K at 3 s often sits far below the curve).
+        lows = [axes[x].adev.min() / 3 for x in AXES] + [
+            getattr(axes[x].terms, term) / 1.5 for x in AXES
+            for term in ("random_walk", "rate_random_walk") if getattr(axes[x].terms, term)]
+        ax.set_ylim(min(lows), np.max([axes[x].adev.max() for x in AXES]) * 3)
         ax.set_xlabel("τ [s]")
         ax.set_ylabel(f"Allan deviation [{unit}]")
         ax.set_title(f"{name}: dashed = fitted terms (N@1 s, B floor, K@3 s: dots)")
