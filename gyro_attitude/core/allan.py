@@ -9,7 +9,7 @@ Model of the Allan variance of a rate (or acceleration) signal, one term per noi
 m/s²/√s). The terms are fitted together by non-negative least squares on σ² with each τ
 weighted by its confidence (relative error 1/√(2(K_c − 1)), K_c = number of non-overlapping
 clusters), not read off one τ each: where ARW and RRW cross close to the floor, the minimum
-of σ alone over-reads B (by 20 % for the shipped ``lab_bench`` gyro). The reported values are
+of σ alone over-reads B (by 37 % for the shipped ``lab_bench`` gyro). The reported values are
 still the IEEE read-outs of the fitted lines: N = the −½ line at τ = 1 s, K = the +½ line at
 τ = 3 s, B = the flat line / 0.664. A term is reported as not visible (``None``) unless at
 some τ its fitted share of σ² is at least ``VISIBLE_SHARE`` and more than twice the standard
