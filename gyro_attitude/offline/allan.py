@@ -40,7 +40,7 @@ _GYRO_JSON = {"quantization": "quantization_rad", "random_walk": "arw_rad_sqrt_s
               "rate_random_walk": "rrw_rad_s_sqrt_s"}
 _ACCEL_JSON = {"quantization": "quantization_m_s", "random_walk": "vrw_m_s_sqrt_s",
                "bias_instability": "bias_instability_m_s2",
-               "rate_random_walk": "arw_m_s2_sqrt_s"}
+               "rate_random_walk": "acc_rw_m_s2_sqrt_s"}
 
 
 @dataclass
