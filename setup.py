@@ -63,7 +63,8 @@ setup(
     ]
     + _wheel_launchers(),
     package_data={package_name: ["py.typed"]},
-    install_requires=["setuptools", "numpy", "scipy", "mcap", "pyyaml", "tqdm", "matplotlib"],
+    install_requires=["setuptools", "numpy", "scipy", "mcap", "pyyaml", "tqdm", "matplotlib",
+                      "allantools"],
     zip_safe=True,
     maintainer="gyro_attitude developers",
     maintainer_email="gyro-attitude@example.org",

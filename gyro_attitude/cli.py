@@ -1,4 +1,4 @@
-"""The ``gyro-attitude`` console command: ``demo | replay | bench | scenes``.
+"""The ``gyro-attitude`` console command: ``demo | replay | bench | scenes | simulate | allan``.
 
 Each subcommand lives in ``gyro_attitude.commands.<name>`` with two functions,
 ``configure(parser)`` (adds its arguments) and ``run(args) -> int`` (exit status); the
@@ -23,6 +23,8 @@ SUBCOMMANDS: dict[str, str] = {
     "replay": "integrate every Imu message of an MCAP recording offline (no ROS graph)",
     "bench": "accuracy versus cost of every attitude algorithm (table, Pareto plot, JSON)",
     "scenes": "list the shipped scenes with one line each, or show one",
+    "simulate": "run a scene offline (no ROS graph) into an MCAP file of gyro_sim's topics",
+    "allan": "Allan deviation and IEEE 952 noise terms (ARW, bias instability, RRW) of a recording",
 }
 
 

@@ -14,6 +14,7 @@ import copy
 import pathlib
 import time
 
+from gyro_attitude.benchmarks import simulate as simulate_bench
 from gyro_attitude.core.scene import SceneSimulator, SceneSpec
 from gyro_attitude.io.scene_file import list_scenes, load_scene
 
@@ -33,6 +34,8 @@ _STEPS = [
     ("+ bias instability", {"gyro": {"errors": {"bias_instability_rad_s": 1e-5,
                                                 "bias_instability_tau_s": 100.0}}}),
     ("+ quantization", {"gyro": {"errors": {"quantization_rad": 1e-6}}}),
+    ("+ Allan-floor bias instability", {"gyro": {"errors": {"bias_instability": "3 deg/h"}}}),
+    ("+ rate random walk", {"gyro": {"errors": {"rate_random_walk": "30 deg/h/sqrt(h)"}}}),
     ("+ moving (position, transport)", {"motion": {"type": "constant_velocity",
                                                    "speed_mps": 100.0}}),
 ]
@@ -101,7 +104,7 @@ def run(quick: bool, out_dir: pathlib.Path) -> list[dict]:
         r["relative_cost"] = fastest / r["samples_per_s"]
         print(f"  {r['variant']:<32}{r['samples_per_s']:>14,.0f} samples/s"
               f"{r['relative_cost']:>8.2f}x")
-    return rows + variant_rows
+    return rows + variant_rows + simulate_bench.run(quick, out_dir)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -3,7 +3,7 @@
 For true samples ``x_k`` (rad/s for a gyro, m/s² for an accelerometer) taken every ``dt`` s
 the output is
 
-    y_k = Q[(I + diag(s) + M) x_k + b + β_k + n_k]
+    y_k = Q[(I + diag(s) + M) x_k + b + β_k + r_k + n_k]
 
 * ``b`` constant bias; ``s`` scale-factor error (dimensionless, 1e-6 = 1 ppm); ``M``
   misalignment / cross-axis matrix (rad, zero diagonal): ``M[i, j]`` is the part of true
@@ -12,9 +12,26 @@ the output is
   random walk in m/s/√s for an accelerometer). A rate sample is the average over ``dt`` of
   white noise of two-sided PSD N², so its standard deviation is ``N/√dt``; the integral of
   the output then has variance ``N² t`` whatever ``dt`` is.
-* ``β_k`` first-order Gauss–Markov bias instability with stationary standard deviation σ
-  and correlation time τ, discretized exactly: ``β_k = φ β_{k−1} + w_k``, ``φ = e^{−dt/τ}``,
-  ``var w = σ²(1 − φ²)``; it starts from its stationary distribution.
+* ``β_k`` bias instability, in either (or both) of two forms:
+
+  - first-order Gauss–Markov with stationary standard deviation σ and correlation time τ,
+    discretized exactly: ``β_k = φ β_{k−1} + w_k``, ``φ = e^{−dt/τ}``,
+    ``var w = σ²(1 − φ²)``; it starts from its stationary distribution;
+  - the datasheet figure B, the flat floor of the Allan deviation (IEEE Std 952:
+    ``σ_floor = √(2 ln 2/π)·B ≈ 0.664 B``, flicker noise of two-sided PSD B²/(2πf)).
+    Rule: B is realised as a sum of :data:`FLOOR_PROCESSES` independent Gauss–Markov
+    processes (each as above) with correlation times one decade apart from
+    ``FLOOR_TAU_MIN_S`` = 0.1 s to ``FLOOR_TAU_MAX_S`` = 10⁵ s and equal σ_j. Equal σ_j²
+    per log-step give a 1/f PSD between the band's corner frequencies (σ_j² ≈ B² ln10/π);
+    σ_j is then scaled so that the maximum of the sum's closed-form Allan deviation is
+    exactly 0.664 B. That floor is flat within 3.2 % for Allan times from 1 s to 10⁴ s
+    (2.3 % from 3 s to 3000 s); below 1 s the white noise hides it in any real sensor.
+* ``r_k`` rate random walk of coefficient K (rad/s/√s; m/s²/√s for an accelerometer): a
+  Wiener process of intensity K² that starts at 0, averaged over each sample interval like
+  the white noise. Exact discretization: with the walk ``r(t_{k−1})`` at the start of the
+  interval, the sample is ``r(t_{k−1}) + K√dt (z₁/2 + z₂/√12)`` and the walk moves on by
+  ``K√dt z₁`` (z₁, z₂ standard normal): the joint Gaussian of the interval average and the
+  end value (variances K²dt/3, K²dt, covariance K²dt/2). Its Allan variance is K²τ/3.
 * ``Q`` quantization of the integrated output: the instrument emits whole quanta ``q`` of
   angle (rad) or velocity (m/s) per sample and carries the remainder to the next sample, so
   the integrated output never drifts from the integrated input by more than ``q/2``.
@@ -26,11 +43,20 @@ does not change the others' draws.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.signal import lfilter
 
-__all__ = ["SensorErrorParams", "SensorErrorModel", "ERROR_EFFECTS"]
+__all__ = [
+    "SensorErrorParams",
+    "SensorErrorModel",
+    "ERROR_EFFECTS",
+    "FLICKER_FLOOR_FACTOR",
+    "gauss_markov_allan_variance",
+    "flicker_floor_components",
+]
 
 # Names of the error effects, in the order they are applied.
 ERROR_EFFECTS = (
@@ -38,14 +64,66 @@ ERROR_EFFECTS = (
     "misalignment",
     "bias",
     "bias_instability",
+    "bias_instability_floor",
+    "rate_random_walk",
     "white_noise",
     "quantization",
 )
 
-# Gauss–Markov samples are generated in chunks of this many with one lower-triangular
-# Toeplitz matrix φ^(j−i): the AR(1) recursion is sequential, and a Python loop per sample
-# would cost ~100x more than this (m multiply-adds per sample, m = 256).
-_GM_CHUNK = 256
+# σ_floor / B of flicker rate noise (IEEE Std 952): √(2 ln 2 / π) = 0.6643.
+FLICKER_FLOOR_FACTOR = math.sqrt(2.0 * math.log(2.0) / math.pi)
+# Correlation times of the Gauss–Markov sum that realises an Allan floor B (module docstring).
+FLOOR_TAU_MIN_S = 0.1
+FLOOR_TAU_MAX_S = 1.0e5
+FLOOR_PROCESSES = 7
+# Samples per pass of the Gauss–Markov generator: its (columns x samples) work arrays stay
+# in cache instead of streaming hundreds of MB through memory for long blocks.
+_GM_BLOCK = 1 << 15
+
+
+def gauss_markov_allan_variance(sigma, tau_c, tau) -> np.ndarray:
+    """Closed-form Allan variance at averaging time ``tau`` of a Gauss–Markov process of
+    stationary σ and correlation time τ_c (autocovariance σ² e^{−|t|/τ_c}):
+    ``σ²/x² (2x − 3 + 4e^{−x} − e^{−2x})``, x = τ/τ_c."""
+    sigma, tau_c, tau = (np.asarray(v, dtype=np.float64) for v in (sigma, tau_c, tau))
+    x = tau / tau_c
+    # For x ≪ 1 the bracket cancels to 2x³/3 − x⁴/2 + 7x⁵/30 − x⁶/12 + 31x⁷/1260 − ...:
+    # below x = 0.01 the series (truncation < 4e-10) beats the closed form (rounding 6e-10).
+    series = x**3 * (2.0 / 3.0 + x * (-0.5 + x * (7.0 / 30.0
+                                                  + x * (-1.0 / 12.0 + x * 31.0 / 1260.0))))
+    with np.errstate(over="ignore", invalid="ignore"):
+        full = 2.0 * x - 3.0 + 4.0 * np.exp(-x) - np.exp(-2.0 * x)
+    bracket = np.where(x < 0.01, series, full)
+    return sigma**2 * bracket / x**2
+
+
+def flicker_floor_components(floor_b: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(sigmas, taus)`` of the Gauss–Markov sum whose Allan floor is ``floor_b`` (B).
+
+    Equal σ_j over log-spaced τ_j (module docstring), scaled so that the maximum of the
+    sum's closed-form Allan deviation is ``FLICKER_FLOOR_FACTOR · B``."""
+    taus = np.logspace(math.log10(FLOOR_TAU_MIN_S), math.log10(FLOOR_TAU_MAX_S),
+                       FLOOR_PROCESSES)
+    grid = np.logspace(-1.0, 5.0, 601)
+    unit = gauss_markov_allan_variance(1.0, taus[:, None], grid[None, :]).sum(axis=0)
+    sigma = FLICKER_FLOOR_FACTOR * floor_b / math.sqrt(unit.max())
+    return np.full(FLOOR_PROCESSES, sigma), taus
+
+
+def _gauss_markov(rng, phi, w_std, state, n: int) -> np.ndarray:
+    """``(columns, n)`` samples of independent AR(1) processes β_k = φ β_{k−1} + w_k from
+    ``state`` (each column's value one step before the first sample; updated in place)."""
+    out = np.empty((phi.shape[0], n))
+    for lo in range(0, n, _GM_BLOCK):
+        m = min(_GM_BLOCK, n - lo)
+        # Drawn sample-major (so the stream does not depend on block sizes), filtered
+        # column-major: contiguous rows are several times faster through the filter.
+        w = (w_std * rng.standard_normal((m, phi.shape[0]))).T
+        for a in range(phi.shape[0]):
+            # scipy's IIR filter runs the sequential recursion in C; zi carries φ·β_prev.
+            out[a, lo:lo + m] = lfilter([1.0], [1.0, -phi[a]], w[a], zi=[phi[a] * state[a]])[0]
+            state[a] = out[a, lo + m - 1]
+    return out
 
 
 def _vec3(value, name: str, nonnegative: bool = False) -> np.ndarray:
@@ -66,6 +144,7 @@ class SensorErrorParams:
     """Error parameters of one triad; scalars apply to all three axes. See module docstring.
 
     ``noise_density`` N, ``bias_instability_sigma`` σ and ``bias_instability_tau`` τ (s),
+    ``bias_instability_floor`` B (Allan floor), ``rate_random_walk`` K,
     ``quantum`` q (integrated-output quantum), ``misalignment`` 3x3 with zero diagonal.
     """
 
@@ -76,6 +155,8 @@ class SensorErrorParams:
     bias_instability_sigma: np.ndarray = field(default_factory=lambda: np.zeros(3))
     bias_instability_tau: np.ndarray = field(default_factory=lambda: np.full(3, 100.0))
     quantum: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    bias_instability_floor: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    rate_random_walk: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     def __post_init__(self):
         set_ = object.__setattr__
@@ -87,6 +168,9 @@ class SensorErrorParams:
         set_(self, "bias_instability_tau",
              _vec3(self.bias_instability_tau, "bias_instability_tau", True))
         set_(self, "quantum", _vec3(self.quantum, "quantum", True))
+        set_(self, "bias_instability_floor",
+             _vec3(self.bias_instability_floor, "bias_instability_floor", True))
+        set_(self, "rate_random_walk", _vec3(self.rate_random_walk, "rate_random_walk", True))
         m = np.asarray(self.misalignment, dtype=np.float64)
         if m.shape != (3, 3) or not np.all(np.isfinite(m)):
             raise ValueError(f"misalignment must be a finite 3x3 matrix, got shape {m.shape}")
@@ -103,6 +187,8 @@ class SensorErrorParams:
             "misalignment": np.any(self.misalignment != 0),
             "bias": np.any(self.bias != 0),
             "bias_instability": np.any(self.bias_instability_sigma > 0),
+            "bias_instability_floor": np.any(self.bias_instability_floor > 0),
+            "rate_random_walk": np.any(self.rate_random_walk > 0),
             "white_noise": np.any(self.noise_density > 0),
             "quantization": np.any(self.quantum > 0),
         }
@@ -126,43 +212,57 @@ class SensorErrorModel:
         self.active = params.active_effects()
         self.effects_run: set[str] = set()
         ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+        # Spawned in two calls so that the first two streams are those of the model before
+        # the floor and the rate random walk were added (spawn continues the child count).
         noise_ss, gm_ss = ss.spawn(2)
+        floor_ss, rrw_ss = ss.spawn(2)
         self._noise_rng = np.random.default_rng(noise_ss)
         self._gm_rng = np.random.default_rng(gm_ss)
+        self._floor_rng = np.random.default_rng(floor_ss)
+        self._rrw_rng = np.random.default_rng(rrw_ss)
         self._gain = np.eye(3) + np.diag(params.scale_factor) + params.misalignment
         self._remainder = np.zeros(3)
+        p = params
         if "bias_instability" in self.active:
-            p = params
             tau = np.where(p.bias_instability_tau > 0, p.bias_instability_tau, 1.0)
-            self._phi = np.exp(-self.dt / tau)
-            # 1 − φ² = −expm1(−2dt/τ) keeps full accuracy when dt ≪ τ.
-            self._w_std = p.bias_instability_sigma * np.sqrt(-np.expm1(-2.0 * self.dt / tau))
-            # State one step before the first sample, drawn from the stationary distribution.
-            self._gm_state = p.bias_instability_sigma * self._gm_rng.standard_normal(3)
-            j = np.arange(_GM_CHUNK)
-            lag = j[:, None] - j[None, :]
-            # toeplitz[a, j, i] = φ_a^(j−i) for i <= j, else 0.
-            with np.errstate(under="ignore"):
-                self._toeplitz = np.where(
-                    lag[None] >= 0,
-                    np.exp((-self.dt / tau)[:, None, None] * np.maximum(lag, 0)[None]),
-                    0.0,
-                )
-                self._powers = self._phi[None, :] ** (j[:, None] + 1)  # (m, 3): φ^(j+1)
+            self._gm = self._gm_setup(p.bias_instability_sigma, tau, self._gm_rng)
+        if "bias_instability_floor" in self.active:
+            # Columns: 3 axes x FLOOR_PROCESSES components, axis-major.
+            comps = [flicker_floor_components(b) for b in p.bias_instability_floor]
+            sig = np.concatenate([c[0] for c in comps])
+            tau = np.concatenate([c[1] for c in comps])
+            self._floor_var = np.array([np.sum(c[0] ** 2) for c in comps])
+            self._floor = self._gm_setup(sig, tau, self._floor_rng)
+        self._rrw_state = np.zeros(3)
+
+    def _gm_setup(self, sigma, tau, rng):
+        phi = np.exp(-self.dt / tau)
+        # 1 − φ² = −expm1(−2dt/τ) keeps full accuracy when dt ≪ τ.
+        w_std = sigma * np.sqrt(-np.expm1(-2.0 * self.dt / tau))
+        # State one step before the first sample, drawn from the stationary distribution.
+        state = sigma * rng.standard_normal(sigma.shape[0])
+        return phi, w_std, state
 
     # ------------------------------------------------------------------ processes
     def _bias_instability(self, n: int) -> np.ndarray:
-        w = self._w_std * self._gm_rng.standard_normal((n, 3))
-        out = np.empty((n, 3))
-        for start in range(0, n, _GM_CHUNK):
-            m = min(_GM_CHUNK, n - start)
-            # β_j = φ^(j+1) β_prev + Σ_{i<=j} φ^(j−i) w_i for the m samples of this chunk.
-            chunk = w[start:start + m]
-            for a in range(3):  # three matrix-vector products (BLAS) beat one einsum 5x
-                out[start:start + m, a] = self._toeplitz[a, :m, :m] @ chunk[:, a]
-            out[start:start + m] += self._powers[:m] * self._gm_state
-            self._gm_state = out[start + m - 1].copy()
-        return out
+        phi, w_std, state = self._gm
+        return _gauss_markov(self._gm_rng, phi, w_std, state, n).T
+
+    def _bias_instability_floor(self, n: int) -> np.ndarray:
+        phi, w_std, state = self._floor
+        rows = _gauss_markov(self._floor_rng, phi, w_std, state, n)
+        return rows.reshape(3, FLOOR_PROCESSES, n).sum(axis=1).T
+
+    def _rate_random_walk(self, n: int) -> np.ndarray:
+        k_sqrt_dt = self.params.rate_random_walk * math.sqrt(self.dt)
+        z = self._rrw_rng.standard_normal((n, 2, 3))
+        steps = k_sqrt_dt * z[:, 0]
+        # Walk value at the start of each interval (a running sum that continues from the
+        # carried state in the same order of additions, so any split into blocks gives the
+        # same bits), then the interval average around it.
+        walk = np.cumsum(np.concatenate([self._rrw_state[None], steps]), axis=0)
+        self._rrw_state = walk[-1].copy()
+        return walk[:-1] + k_sqrt_dt * (0.5 * z[:, 0] + z[:, 1] / math.sqrt(12.0))
 
     def _quantize(self, y: np.ndarray) -> np.ndarray:
         q = self.params.quantum
@@ -194,6 +294,10 @@ class SensorErrorModel:
             y += self.params.bias
         if "bias_instability" in act:
             y += self._bias_instability(n)
+        if "bias_instability_floor" in act:
+            y += self._bias_instability_floor(n)
+        if "rate_random_walk" in act:
+            y += self._rate_random_walk(n)
         if "white_noise" in act:
             y += (self.params.noise_density / np.sqrt(self.dt)) * self._noise_rng.standard_normal(
                 (n, 3)
@@ -206,14 +310,17 @@ class SensorErrorModel:
     def variances(self) -> np.ndarray:
         """Per-axis variance of the random output error per sample, shape ``(3,)``.
 
-        White noise N²/dt + Gauss–Markov σ² + quantization q²/(6 dt²) (the output error is
-        the difference of two remainders, each uniform on ±q/2). Deterministic errors (bias,
-        scale factor, misalignment) are not random and are not included; all zeros for an
-        ideal sensor.
+        White noise N²/dt + Gauss–Markov σ² (and Σσ_j² of the Allan-floor sum) +
+        quantization q²/(6 dt²) (the output error is the difference of two remainders, each
+        uniform on ±q/2). Deterministic errors (bias, scale factor, misalignment) and the rate
+        random walk (a bias that wanders from 0, variance growing with time, no stationary
+        value) are not included; all zeros for an ideal sensor.
         """
         p = self.params
+        floor = self._floor_var if "bias_instability_floor" in self.active else 0.0
         return (
             p.noise_density**2 / self.dt
             + p.bias_instability_sigma**2
+            + floor
             + p.quantum**2 / (6.0 * self.dt**2)
         )

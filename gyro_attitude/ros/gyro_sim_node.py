@@ -42,8 +42,13 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Header
 
-from gyro_attitude.core.earth import radii_of_curvature
-from gyro_attitude.core.rotation import quat_conjugate, quat_rotate
+from gyro_attitude.core.sim_topics import (
+    DEFAULT_FRAME_ID,
+    DEFAULT_WORLD_FRAME_ID,
+    TOPICS,
+    SimTopics,
+    local_enu_position,  # noqa: F401  (re-exported: its home moved to core.sim_topics)
+)
 from gyro_attitude.ros import convert
 from gyro_attitude.ros.node_main import run_node
 from gyro_attitude.ros.params import ParameterError, ParamSpec, check_update, declare_all
@@ -53,12 +58,6 @@ NODE_NAME = "gyro_sim"
 _GRID_MARGIN_NS = 50_000  # realtime: a sample is due this long before the timer tick
 DEFAULT_SCENE = "coning"
 
-TOPICS = {
-    "imu/data_raw": "sensor_msgs/msg/Imu",
-    "gyro/joint_states": "sensor_msgs/msg/JointState",
-    "truth/attitude": "geometry_msgs/msg/QuaternionStamped",
-    "truth/odom": "nav_msgs/msg/Odometry",
-}
 
 
 def parameter_specs() -> list[ParamSpec]:
@@ -66,8 +65,9 @@ def parameter_specs() -> list[ParamSpec]:
         ParamSpec("scene", DEFAULT_SCENE, "scene name (config/scenes/<name>.yaml) or YAML path"),
         ParamSpec("rate_hz", 0.0, "Imu output rate [Hz] (0 = the scene's own rate_hz)",
                   low=0.0, high=100000.0),
-        ParamSpec("frame_id", "imu_link", "header.frame_id of the Imu (sensor frame)"),
-        ParamSpec("world_frame_id", "enu", "frame of truth/attitude and truth/odom (ENU)"),
+        ParamSpec("frame_id", DEFAULT_FRAME_ID, "header.frame_id of the Imu (sensor frame)"),
+        ParamSpec("world_frame_id", DEFAULT_WORLD_FRAME_ID,
+                  "frame of truth/attitude and truth/odom (ENU)"),
         ParamSpec("seed", -1, "random seed of the noise model (-1: the scene's own seed)", low=-1,
                   high=2**31 - 1),
         ParamSpec("time_mode", "realtime",
@@ -89,17 +89,6 @@ def parameter_specs() -> list[ParamSpec]:
                   choices=("best_effort", "reliable")),
         ParamSpec("qos_depth", 1000, "imu/data_raw publisher queue depth", low=1, high=100000),
     ]
-
-
-def local_enu_position(llh: np.ndarray, llh0: np.ndarray) -> np.ndarray:
-    """Position (east, north, up) [m] of geodetic ``llh (n,3)`` relative to ``llh0 (3,)`` on
-    the tangent plane at the start (first order in the offsets: good to ~1e-6 relative
-    for the km-scale paths of the scenes)."""
-    r_m, r_n = radii_of_curvature(llh0[0])
-    h0 = llh0[2]
-    east = (llh[:, 1] - llh0[1]) * (r_n + h0) * np.cos(llh0[0])
-    north = (llh[:, 0] - llh0[0]) * (r_m + h0)
-    return np.stack([east, north, llh[:, 2] - h0], axis=-1)
 
 
 class GyroSimNode(Node):
@@ -154,7 +143,7 @@ class GyroSimNode(Node):
         self.finished = False
         self.done = Future()  # completed when the duration is over
         self._start_ns: int | None = None
-        self._llh0: np.ndarray | None = None
+        self._topics = SimTopics()  # message fields, shared with offline `simulate`
         self._block: list | None = None  # rows of the current block, ready to publish
         self._block_pos = 0
         self._generated = 0
@@ -208,35 +197,17 @@ class GyroSimNode(Node):
         n = self._block_n
         if self._n_total:
             n = min(n, self._n_total - self._generated)
-        b = self._sim.next_block(n)
+        f = self._topics.fields(self._sim.next_block(n))
         self._generated += n
-        if self._llh0 is None:
-            self._llh0 = np.asarray(b.position_llh[0], dtype=float)
-            self._t0_scene = int(b.t_ns[0])
-        q = np.asarray(b.truth_q_nb, dtype=float)
-        pos = local_enu_position(np.asarray(b.position_llh, float), self._llh0)
-        v_body = quat_rotate(quat_conjugate(q), np.asarray(b.velocity_enu, float))
-        sf = None if b.specific_force_b is None else np.asarray(b.specific_force_b).tolist()
-        gimbal = b.gimbal
-        rows = []
         # plain Python lists: building messages from numpy scalars is several times slower
-        # stamps relative to the scene's first sample; the node adds its start time
-        t_list = (np.asarray(b.t_ns, dtype=np.int64) - self._t0_scene).tolist()
-        omega = np.asarray(b.omega_ib_b, float).tolist()
-        q_l = q.tolist()
-        pos_l = pos.tolist()
-        vb_l = v_body.tolist()
-        wnb_l = np.asarray(b.truth_omega_nb_b, float).tolist()
-        g_ang = None if gimbal is None else np.asarray(gimbal.angles, float).tolist()
-        g_rate = None if gimbal is None else np.asarray(gimbal.rates, float).tolist()
-        for k in range(n):
-            rows.append((
-                t_list[k], omega[k], None if sf is None else sf[k], q_l[k], pos_l[k], vb_l[k],
-                wnb_l[k], None if g_ang is None else g_ang[k], None if g_rate is None
-                else g_rate[k],
-            ))
-        self._gimbal_names = None if gimbal is None else [str(x) for x in gimbal.names]
-        self._block = rows
+        cols = [f.t_rel_ns.tolist(), f.angular_velocity.tolist(),
+                None if f.specific_force is None else f.specific_force.tolist(),
+                f.q_nb.tolist(), f.position_enu.tolist(), f.velocity_body.tolist(),
+                f.omega_nb_b.tolist(),
+                None if f.gimbal_angles is None else f.gimbal_angles.tolist(),
+                None if f.gimbal_rates is None else f.gimbal_rates.tolist()]
+        self._block = [tuple(None if c is None else c[k] for c in cols) for k in range(n)]
+        self._gimbal_names = None if f.gimbal_names is None else list(f.gimbal_names)
         self._block_pos = 0
 
     def _publish_row(self, row) -> None:

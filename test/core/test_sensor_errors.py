@@ -152,3 +152,207 @@ def test_bad_parameters_are_refused_by_name():
         SensorErrorModel(SensorErrorParams(), 0.0)
     with pytest.raises(ValueError, match="shape"):
         SensorErrorModel(SensorErrorParams(), 0.01).apply(np.zeros((4, 2)))
+
+
+# ---------------------------------------------------------------- datasheet terms
+def _gm_avar_closed_form(sigma, tau_c, tau):
+    """Allan variance of a Gauss–Markov process (autocovariance σ² e^{−|t|/τc}), derived
+    in the test from σ²_A = Var(ȳ) − Cov(ȳ₁, ȳ₂) of adjacent τ-averages."""
+    x = tau / tau_c
+    var_mean = 2 * sigma**2 / x**2 * (x - 1 + np.exp(-x))
+    cov_adjacent = sigma**2 / x**2 * (1 - np.exp(-x)) ** 2
+    return var_mean - cov_adjacent
+
+
+def _oadev(rate: np.ndarray, dt: float, m: int) -> np.ndarray:
+    """Overlapping Allan deviation (DESIGN.md formula) per column at τ = m·dt."""
+    theta = np.concatenate([np.zeros((1, rate.shape[1])), np.cumsum(rate, axis=0) * dt])
+    d = theta[2 * m:] - 2 * theta[m:-m] + theta[:-2 * m]
+    return np.sqrt(np.mean(d**2, axis=0) / (2 * (m * dt) ** 2))
+
+
+def test_gauss_markov_closed_form_matches_the_module():
+    from decimal import Decimal, getcontext
+
+    from gyro_attitude.core.sensor_errors import gauss_markov_allan_variance
+
+    getcontext().prec = 60
+    tau = np.logspace(-6, 4, 60)
+    # The closed form cancels catastrophically for τ ≪ τc: evaluate it with 60 digits.
+    ref = []
+    for t in tau:
+        x = Decimal(float(t)) / Decimal(3)
+        br = 2 * x - 3 + 4 * (-x).exp() - (-2 * x).exp()
+        ref.append(float(Decimal(4) * br / x**2))
+    got = gauss_markov_allan_variance(2.0, 3.0, tau)  # series and full branches both
+    assert np.allclose(got, ref, rtol=2e-9, atol=0)  # series / rounding limits: 1e-9
+    wide = tau > 0.1  # the test's own form, in doubles where it does not cancel
+    assert np.allclose(got[wide], _gm_avar_closed_form(2.0, 3.0, tau[wide]), rtol=1e-9, atol=0)
+
+
+def test_allan_floor_of_the_gauss_markov_sum_is_b():
+    from gyro_attitude.core.sensor_errors import flicker_floor_components
+
+    b = 1.5e-5
+    sig, taus = flicker_floor_components(b)
+    tau = np.logspace(0, 4, 200)
+    adev = np.sqrt(sum(_gm_avar_closed_form(s, c, tau) for s, c in zip(sig, taus, strict=True)))
+    floor = np.sqrt(2 * np.log(2) / np.pi) * b  # IEEE 952: σ_floor = 0.664 B
+    # Flat floor: within 3.2 % of 0.664 B from 1 s to 1e4 s, never above it (documented).
+    assert np.all(np.abs(adev / floor - 1) < 0.032)
+    assert adev.max() == pytest.approx(floor, rel=1e-3)
+    # And B read back as σ_min/0.664 over the flat part (3 s .. 3000 s) is within 2.5 %.
+    mid = (tau > 3) & (tau < 3000)
+    assert adev[mid].max() / 0.664 == pytest.approx(b, rel=0.025)
+
+
+def test_allan_floor_simulated_samples():
+    b, dt = 2e-5, 0.05
+    model = SensorErrorModel(SensorErrorParams(bias_instability_floor=b), dt, seed=4)
+    y = np.concatenate([model.apply(np.zeros((n, 3))) for n in (100_000, 300_000)])
+    # 400k samples = 2e4 s; at τ = 20 s and 200 s there are 1000 and 100 clusters per axis,
+    # three axes: the estimate scatters by ~1/√(2·K·3) → tolerance 12 %.
+    for m in (400, 4000):
+        assert _oadev(y, dt, m).mean() == pytest.approx(0.6643 * b, rel=0.12)
+    assert model.effects_run == {"bias_instability_floor"}
+
+
+def test_rate_random_walk_allan_slope_and_exact_discretization():
+    k, dt = 1e-4, 0.01
+    model = SensorErrorModel(SensorErrorParams(rate_random_walk=k), dt, seed=6)
+    y = np.concatenate([model.apply(np.zeros((n, 3))) for n in (1, 99_999, 100_000)])
+    # σ(τ) = K √(τ/3) exactly for interval-averaged samples; at τ = 1 s (2000 clusters per
+    # axis) and 10 s (200): tolerance ~3/√(2·K·3).
+    for m, tol in ((100, 0.05), (1000, 0.15)):
+        assert _oadev(y, dt, m).mean() == pytest.approx(k * np.sqrt(m * dt / 3), rel=tol)
+    # First sample: the average over the first interval of a walk starting at 0 has
+    # variance K² dt/3 (not K² dt of the end value): 3000 seeds.
+    first = np.array([SensorErrorModel(SensorErrorParams(rate_random_walk=k), dt, seed=s)
+                      .apply(np.zeros((1, 3)))[0] for s in range(1000)]).ravel()
+    assert first.var() == pytest.approx(k**2 * dt / 3, rel=0.08)
+    # Second minus first sample: K² dt (1/3 + 1/3 + 1 − 2·1/2) = K² dt·2/3.
+    pairs = np.array([SensorErrorModel(SensorErrorParams(rate_random_walk=k), dt, seed=s)
+                      .apply(np.zeros((2, 3))) for s in range(1000)])
+    assert (pairs[:, 1] - pairs[:, 0]).var() == pytest.approx(k**2 * dt * 2 / 3, rel=0.08)
+
+
+def test_new_processes_block_split_invariant_and_separate_streams():
+    p = SensorErrorParams(noise_density=1e-3, bias_instability_floor=1e-4,
+                          rate_random_walk=1e-5)
+    x = np.zeros((70_000, 3))
+    whole = SensorErrorModel(p, 0.01, seed=3).apply(x)
+    m = SensorErrorModel(p, 0.01, seed=3)
+    parts = np.concatenate([m.apply(x[i:j]) for i, j in ((0, 1), (1, 40_000), (40_000, 70_000))])
+    # Bit for bit: gyro_sim (small blocks) and offline simulate (large) must agree exactly.
+    assert np.array_equal(whole, parts)
+    # The white noise draws are those of a model without the new processes.
+    white = SensorErrorModel(SensorErrorParams(noise_density=1e-3), 0.01, seed=3).apply(x)
+    floor = SensorErrorModel(SensorErrorParams(bias_instability_floor=1e-4), 0.01, seed=3)
+    rrw = SensorErrorModel(SensorErrorParams(rate_random_walk=1e-5), 0.01, seed=3)
+    assert np.allclose(whole, white + floor.apply(x) + rrw.apply(x), rtol=0, atol=1e-14)
+
+
+def test_floor_variance_in_per_sample_variances():
+    from gyro_attitude.core.sensor_errors import flicker_floor_components
+
+    m = SensorErrorModel(SensorErrorParams(bias_instability_floor=[1e-5, 2e-5, 0.0],
+                                           rate_random_walk=1.0), 0.01)
+    sig = [np.sum(flicker_floor_components(b)[0] ** 2) for b in (1e-5, 2e-5)]
+    assert m.variances() == pytest.approx([sig[0], sig[1], 0.0], rel=1e-12)
+
+
+# ---------------------------------------------------------------- units
+_DEG = np.pi / 180
+
+
+@pytest.mark.parametrize("text,kind,si", [
+    ("0.15 deg/sqrt(h)", "angle random walk", 0.15 * _DEG / 60),
+    ("0.15 deg/√h", "angle random walk", 0.15 * _DEG / 60),
+    ("0.01 deg/s/sqrt(Hz)", "angle random walk", 0.01 * _DEG),
+    ("5e-5 rad/sqrt(s)", "angle random walk", 5e-5),
+    ("3 deg/h", "angular rate", 3 * _DEG / 3600),
+    ("1 deg/hr", "angular rate", _DEG / 3600),
+    ("0.02 deg/h/sqrt(h)", "rate random walk", 0.02 * _DEG / 3600 / 60),
+    ("2 deg/h^2/sqrt(Hz)", "rate random walk", 2 * _DEG / 3600**2),
+    ("40 ug", "acceleration", 40e-6 * 9.80665),
+    ("0.5 mg", "acceleration", 0.5e-3 * 9.80665),
+    ("0.06 m/s/sqrt(h)", "velocity random walk", 0.06 / 60),
+    ("100 ug/sqrt(Hz)", "velocity random walk", 100e-6 * 9.80665),
+    ("1e-3 m/s^2/sqrt(s)", "acceleration random walk", 1e-3),
+    (2.5e-5, "angle random walk", 2.5e-5),
+    ("7e-6", "angular rate", 7e-6),
+])
+def test_units_to_si(text, kind, si):
+    from gyro_attitude.core.units import to_si
+
+    assert to_si(text, kind, "k") == pytest.approx(si, rel=1e-12)
+
+
+@pytest.mark.parametrize("kind", ["angle random walk", "angular rate", "rate random walk",
+                                  "acceleration", "velocity random walk"])
+def test_units_format_reads_back(kind):
+    from gyro_attitude.core.units import format_si, to_si
+
+    assert to_si(format_si(1.234567e-5, kind, digits=12), kind, "k") == pytest.approx(
+        1.234567e-5, rel=1e-10)
+
+
+@pytest.mark.parametrize("value,match", [
+    ("3 furlong/h", r"^gyro\.errors\.arw: unknown unit 'furlong'"),
+    ("3 deg/h", r"^gyro\.errors\.arw: '3 deg/h' is not a angle random walk"),
+    ("nan deg/sqrt(h)", r"^gyro\.errors\.arw: expected '<number> <unit>'"),
+    ("1e400 deg/sqrt(h)", r"^gyro\.errors\.arw: must be finite"),
+    (float("inf"), r"^gyro\.errors\.arw: must be finite"),
+    (True, r"^gyro\.errors\.arw: must be a number"),
+    ({"a": 1}, r"^gyro\.errors\.arw: must be a number"),
+    ("0.1 deg/sqrt(h", r"^gyro\.errors\.arw: missing '\)'"),
+])
+def test_units_refused_with_the_key_path(value, match):
+    from gyro_attitude.core.units import to_si
+
+    with pytest.raises(ValueError, match=match):
+        to_si(value, "angle random walk", "gyro.errors.arw")
+
+
+def _scene(errors, accel=None):
+    d = {"description": "t", "seed": 1, "earth": {"latitude_deg": 45.0},
+         "motion": {"type": "stationary"}, "gyro": {"errors": errors}}
+    if accel is not None:
+        d["accelerometer"] = {"errors": accel}
+    return d
+
+
+def test_scene_accepts_datasheet_terms():
+    from gyro_attitude.core.scene import SceneSpec
+
+    s = SceneSpec.from_dict(_scene(
+        {"arw": "0.15 deg/sqrt(h)", "bias_instability": ["3 deg/h", "2 deg/h", 1e-5],
+         "rate_random_walk": "0.02 deg/h/sqrt(h)", "bias_rad_s": 1e-4},
+        {"vrw": "0.06 m/s/sqrt(h)", "bias_instability": "40 ug",
+         "acceleration_random_walk": 1e-4}))
+    g = s.gyro_errors
+    assert g.noise_density == pytest.approx(np.full(3, 0.15 * _DEG / 60), rel=1e-12)
+    assert g.bias_instability_floor == pytest.approx(
+        [3 * _DEG / 3600, 2 * _DEG / 3600, 1e-5], rel=1e-12)
+    assert g.rate_random_walk == pytest.approx(np.full(3, 0.02 * _DEG / 3600 / 60), rel=1e-12)
+    assert g.bias == pytest.approx(np.full(3, 1e-4))
+    a = s.accel_errors
+    assert a.noise_density == pytest.approx(np.full(3, 1e-3), rel=1e-12)
+    assert a.bias_instability_floor == pytest.approx(np.full(3, 40e-6 * 9.80665), rel=1e-12)
+    assert a.rate_random_walk == pytest.approx(np.full(3, 1e-4))
+
+
+@pytest.mark.parametrize("errors,match", [
+    ({"arw": "1 furlong"}, r"^gyro\.errors\.arw: unknown unit"),
+    ({"bias_instability": "3 deg/sqrt(h)"}, r"^gyro\.errors\.bias_instability: .* not a angular"),
+    ({"bias_instability": ["3 deg/h", "1 m", 0.0]}, r"^gyro\.errors\.bias_instability\[1\]: "),
+    ({"rate_random_walk": "-1 deg/h/sqrt(h)"}, r"^gyro\.errors\.rate_random_walk: must be >= 0"),
+    ({"arw": [1e-5, 2e-5]}, r"^gyro\.errors\.arw: must be one value or 3"),
+    ({"arw": 1e-5, "arw_rad_sqrt_s": 1e-5}, r"^gyro\.errors\.arw: give either"),
+    ({"rrw": 1.0}, r"^gyro\.errors\.rrw: unknown key"),
+])
+def test_scene_refuses_bad_datasheet_terms(errors, match):
+    from gyro_attitude.core.scene import SceneSpec
+
+    with pytest.raises(ValueError, match=match):
+        SceneSpec.from_dict(_scene(errors))

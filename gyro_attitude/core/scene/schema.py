@@ -26,11 +26,16 @@ Schema (SI units; angles in the file are degrees where the key says ``_deg``)::
       model: ideal | rate_gyro            # rate_gyro: single-gimbal rate gyro per axis
       rate_gyro: {...}                    # fields of core.gyro.rate_gyro.RateGyroParams
       errors: {bias_rad_s, scale_factor, misalignment_rad, arw_rad_sqrt_s,
-               bias_instability_rad_s, bias_instability_tau_s, quantization_rad}
+               bias_instability_rad_s, bias_instability_tau_s, quantization_rad,
+               arw, bias_instability, rate_random_walk}   # last three: datasheet terms
     accelerometer:                        # optional: only then is specific force computed
       gravity: true
       errors: {bias_m_s2, scale_factor, misalignment_rad, vrw_m_s_sqrt_s,
-               bias_instability_m_s2, bias_instability_tau_s, quantization_m_s}
+               bias_instability_m_s2, bias_instability_tau_s, quantization_m_s,
+               vrw, bias_instability, acceleration_random_walk}
+    # Datasheet terms take a number (SI) or a string with units ("0.15 deg/sqrt(h)",
+    # "3 deg/h", "12 deg/h/sqrt(h)"; gyro_attitude.core.units), scalar or 3 values;
+    # bias_instability is the Allan floor B (not a Gauss–Markov σ: that is *_rad_s + tau).
     free_gyro: {...}                      # optional: fields of core.gyro.free_gyro.FreeGyroParams
 
 Motion keys per type (``attitude: {roll_deg, pitch_deg, yaw_deg}`` is ROS roll/pitch/yaw,
@@ -82,6 +87,7 @@ from gyro_attitude.core.motion import (
     Stationary,
 )
 from gyro_attitude.core.sensor_errors import SensorErrorParams
+from gyro_attitude.core.units import to_si
 
 __all__ = [
     "SceneSpec",
@@ -146,6 +152,18 @@ _ACCEL_ERROR_KEYS = {
     "bias_instability_m_s2": "bias_instability_sigma",
     "bias_instability_tau_s": "bias_instability_tau",
     "quantization_m_s": "quantum",
+}
+# Datasheet error keys with units in the value -> (SensorErrorParams field, quantity kind,
+# the SI-number key for the same field that must not be given too).
+_GYRO_DATASHEET_KEYS = {
+    "arw": ("noise_density", "angle random walk", "arw_rad_sqrt_s"),
+    "bias_instability": ("bias_instability_floor", "angular rate", None),
+    "rate_random_walk": ("rate_random_walk", "rate random walk", None),
+}
+_ACCEL_DATASHEET_KEYS = {
+    "vrw": ("noise_density", "velocity random walk", "vrw_m_s_sqrt_s"),
+    "bias_instability": ("bias_instability_floor", "acceleration", None),
+    "acceleration_random_walk": ("rate_random_walk", "acceleration random walk", None),
 }
 
 
@@ -360,10 +378,31 @@ def _build_motion(f: _Fields) -> Motion:
     return SegmentProfile(segments, _attitude(f), f.array("velocity_enu_mps", (3,), np.zeros(3)))
 
 
-def _error_params(f: _Fields | None, keys: dict[str, str]) -> SensorErrorParams:
+def _datasheet_terms(f: _Fields, datasheet: dict[str, tuple]) -> dict[str, np.ndarray]:
+    """Datasheet keys (value with units, scalar or 3 values) -> SI fields, >= 0."""
+    kw: dict[str, np.ndarray] = {}
+    for key, (field_name, kind, si_key) in datasheet.items():
+        if not f.has(key):
+            continue
+        if si_key is not None and f.has(si_key):
+            raise ValueError(f"{f.key(key)}: give either {key} or {si_key}, not both")
+        v = f.raw(key)
+        items = v if isinstance(v, list) else [v]
+        if len(items) not in (1, 3):
+            raise ValueError(f"{f.key(key)}: must be one value or 3 (x, y, z), got {len(items)}")
+        si = np.array([to_si(x, kind, f.key(key) if len(items) == 1 else f"{f.key(key)}[{i}]")
+                       for i, x in enumerate(items)])
+        if np.any(si < 0):
+            raise ValueError(f"{f.key(key)}: must be >= 0, got {v!r}")
+        kw[field_name] = np.broadcast_to(si, (3,)).copy()
+    return kw
+
+
+def _error_params(f: _Fields | None, keys: dict[str, str],
+                  datasheet: dict[str, tuple] | None = None) -> SensorErrorParams:
     if f is None:
         return SensorErrorParams()
-    kw: dict[str, Any] = {}
+    kw: dict[str, Any] = _datasheet_terms(f, datasheet or {})
     for yaml_key, field_name in keys.items():
         if not f.has(yaml_key):
             continue
@@ -478,7 +517,8 @@ class SceneSpec:
             elif g.has("rate_gyro"):
                 raise ValueError(f"{g.key('rate_gyro')}: given but gyro.model is 'ideal'")
             gyro_errors = _error_params(
-                g.section("errors", tuple(_GYRO_ERROR_KEYS)), _GYRO_ERROR_KEYS
+                g.section("errors", tuple(_GYRO_ERROR_KEYS) + tuple(_GYRO_DATASHEET_KEYS)),
+                _GYRO_ERROR_KEYS, _GYRO_DATASHEET_KEYS,
             )
 
         accel, gravity, accel_errors = False, True, SensorErrorParams()
@@ -487,7 +527,8 @@ class SceneSpec:
             a = _Fields(d["accelerometer"] or {}, "accelerometer", ("gravity", "errors"))
             gravity = a.boolean("gravity", True)
             accel_errors = _error_params(
-                a.section("errors", tuple(_ACCEL_ERROR_KEYS)), _ACCEL_ERROR_KEYS
+                a.section("errors", tuple(_ACCEL_ERROR_KEYS) + tuple(_ACCEL_DATASHEET_KEYS)),
+                _ACCEL_ERROR_KEYS, _ACCEL_DATASHEET_KEYS,
             )
 
         free_params = None

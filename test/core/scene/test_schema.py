@@ -59,7 +59,7 @@ DELETE = object()
          r"^gyro\.errors\.misalignment_rad: diagonal must be zero"),
         ("gyro.errors.bias_instability_tau_s", 0.0,
          r"^gyro\.errors\.bias_instability_tau_s: must be > 0"),
-        ("gyro.errors.arw", 1.0, r"^gyro\.errors\.arw: unknown key"),
+        ("gyro.errors.arw_deg_sqrt_h", 1.0, r"^gyro\.errors\.arw_deg_sqrt_h: unknown key"),
         ("accelerometer.errors.quantization_rad", 1.0,
          r"^accelerometer\.errors\.quantization_rad: unknown key"),
         ("gyro.rate_gyro", {"natural_frequency_hz": 10.0},

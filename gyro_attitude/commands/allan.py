@@ -1,0 +1,96 @@
+"""``gyro-attitude allan IN.mcap``: Allan deviation and IEEE 952 noise terms of a static Imu recording."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+_GYRO_UNITS = (("random_walk", "N (ARW)", "angle random walk"),
+               ("bias_instability", "B (bias inst.)", "angular rate"),
+               ("rate_random_walk", "K (RRW)", "rate random walk"))
+_ACCEL_UNITS = (("random_walk", "VRW", "velocity random walk"),
+                ("bias_instability", "B (bias inst.)", "acceleration"),
+                ("rate_random_walk", "AccRW", "acceleration random walk"))
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("input", metavar="IN.mcap", help="recording of an IMU at rest")
+    parser.add_argument("--imu-topic", default="imu/data_raw", help="sensor_msgs/Imu topic")
+    parser.add_argument("--json", metavar="PATH", help="write deviation and terms as JSON")
+    parser.add_argument("--plot", metavar="PNG", help="log-log plot with the fitted terms")
+    parser.add_argument("--scene-out", metavar="YAML",
+                        help="write a scene whose errors are the fitted terms")
+    parser.add_argument("--force", action="store_true", help="overwrite existing outputs")
+
+
+def _scene_yaml(result, source: str) -> str:
+    import yaml
+
+    errors = result.scene_errors()
+    scene = {
+        "description": f"IMU at rest with the noise fitted by gyro-attitude allan from {source}",
+        "seed": 1,
+        "rate_hz": round(1.0 / result.dt_s, 6),
+        "duration_s": round(result.samples * result.dt_s, 3),
+        # Allan analysis cannot see the site: set the latitude for the Earth rate you want.
+        "earth": {"latitude_deg": 0.0},
+        "motion": {"type": "stationary"},
+        "gyro": {"model": "ideal", "errors": errors["gyro"]},
+    }
+    if "accelerometer" in errors:
+        scene["accelerometer"] = {"gravity": True, "errors": errors["accelerometer"]}
+    head = ("# Written by gyro-attitude allan: noise terms per axis (x, y, z) fitted to the\n"
+            "# recording's Allan deviation. Bias, scale factor and misalignment are not\n"
+            "# observable from it; add them if known. Set earth.latitude_deg to your site.\n")
+    return head + yaml.safe_dump(scene, sort_keys=False, allow_unicode=True)
+
+
+def run(args: argparse.Namespace) -> int:
+    from gyro_attitude.core.units import format_si
+    from gyro_attitude.offline.allan import AXES, analyse_mcap, plot
+
+    outs = [p for p in (args.json, args.plot, args.scene_out) if p]
+    for p in outs:
+        if Path(p).resolve() == Path(args.input).resolve():
+            print(f"allan: error: output {p} is the input", file=sys.stderr)
+            return 1
+        if Path(p).exists() and not args.force:
+            print(f"allan: error: output {p} exists (use --force to overwrite)", file=sys.stderr)
+            return 1
+    try:
+        result = analyse_mcap(args.input, args.imu_topic)
+    except (ValueError, OSError) as exc:
+        print(f"allan: error: {exc}", file=sys.stderr)
+        return 1
+    print(f"[allan] {args.input} {result.topic}: {result.samples} samples every "
+          f"{result.dt_s * 1e3:g} ms, τ from {result.tau_s[0]:g} s to {result.tau_s[-1]:g} s")
+    for name, axes, units in (("gyro", result.gyro, _GYRO_UNITS),
+                              ("accelerometer", result.accel, _ACCEL_UNITS)):
+        if axes is None:
+            continue
+        print(f"[allan] {name}:")
+        for axis in AXES:
+            t = axes[axis].terms
+            cells = [f"{label} " + ("not visible" if getattr(t, term) is None
+                                    else format_si(getattr(t, term), kind))
+                     for term, label, kind in units]
+            print(f"  {axis}: " + ";  ".join(cells))
+    for note in result.notes:
+        print(f"[allan] note: {note}")
+    try:
+        if args.json:
+            Path(args.json).write_text(json.dumps(result.to_json(), indent=1), encoding="utf-8")
+            print(f"[allan] JSON -> {args.json}")
+        if args.scene_out:
+            Path(args.scene_out).write_text(_scene_yaml(result, Path(args.input).name),
+                                            encoding="utf-8")
+            print(f"[allan] scene -> {args.scene_out}")
+        if args.plot:
+            plot(result, args.plot, title=f"{Path(args.input).name} {result.topic}")
+            print(f"[allan] plot -> {args.plot}")
+    except OSError as exc:
+        print(f"allan: error: cannot write output: {exc}", file=sys.stderr)
+        return 1
+    return 0

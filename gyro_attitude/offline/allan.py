@@ -1,0 +1,224 @@
+"""Allan analysis of a static IMU recording: deviation per axis, fitted terms, JSON, scene, plot."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import allantools
+import numpy as np
+
+from gyro_attitude.core.allan import (
+    AllanTerms,
+    fit_terms,
+    log_spaced_cluster_sizes,
+    model_variance,
+    relative_error,
+)
+from gyro_attitude.core.sensor_errors import FLICKER_FLOOR_FACTOR
+from gyro_attitude.core.units import format_si
+from gyro_attitude.io.imu_fast import read_imu_arrays
+
+__all__ = ["AxisAllan", "AllanResult", "allan_deviation", "analyse_rates", "analyse_mcap"]
+
+AXES = ("x", "y", "z")
+# Unit kinds of each term, per sensor (gyro_attitude.core.units) and the scene keys they
+# go to (core/scene.py datasheet keys).
+_GYRO_TERMS = {
+    "random_walk": ("angle random walk", "arw"),
+    "bias_instability": ("angular rate", "bias_instability"),
+    "rate_random_walk": ("rate random walk", "rate_random_walk"),
+}
+_ACCEL_TERMS = {
+    "random_walk": ("velocity random walk", "vrw"),
+    "bias_instability": ("acceleration", "bias_instability"),
+    "rate_random_walk": ("acceleration random walk", "acceleration_random_walk"),
+}
+# JSON names of the terms, per sensor (SI units in the name).
+_GYRO_JSON = {"quantization": "quantization_rad", "random_walk": "arw_rad_sqrt_s",
+              "bias_instability": "bias_instability_rad_s",
+              "rate_random_walk": "rrw_rad_s_sqrt_s"}
+_ACCEL_JSON = {"quantization": "quantization_m_s", "random_walk": "vrw_m_s_sqrt_s",
+               "bias_instability": "bias_instability_m_s2",
+               "rate_random_walk": "acc_rw_m_s2_sqrt_s"}
+
+
+@dataclass
+class AxisAllan:
+    """One axis: overlapping Allan deviation, its 1-σ bounds and the fitted terms."""
+
+    adev: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    terms: AllanTerms
+
+
+@dataclass
+class AllanResult:
+    """Allan analysis of one Imu topic. ``accel`` is ``None`` without accelerometer data."""
+
+    topic: str
+    samples: int
+    dt_s: float
+    tau_s: np.ndarray
+    gyro: dict[str, AxisAllan]
+    accel: dict[str, AxisAllan] | None = None
+    notes: list[str] = field(default_factory=list)
+
+    def to_json(self) -> dict:
+        """The ``--json`` document (SI units in the key names)."""
+        out = {"topic": self.topic, "samples": self.samples, "dt_s": self.dt_s,
+               "tau_s": self.tau_s.tolist()}
+        for key, axes, names in (("", self.gyro, _GYRO_JSON), ("accel_", self.accel, _ACCEL_JSON)):
+            if axes is None:
+                continue
+            unit = "rad_s" if not key else "m_s2"
+            out[f"{key}adev_{unit}"] = {a: axes[a].adev.tolist() for a in AXES}
+            out[f"{key}adev_lower_{unit}"] = {a: axes[a].lower.tolist() for a in AXES}
+            out[f"{key}adev_upper_{unit}"] = {a: axes[a].upper.tolist() for a in AXES}
+            out[f"{key}axes"] = {a: {names[t]: v for t, v in axes[a].terms.as_dict().items()}
+                                 for a in AXES}
+        out["notes"] = list(self.notes)
+        return out
+
+    def scene_errors(self) -> dict:
+        """``{"gyro": {...}, "accelerometer": {...}}`` error blocks (datasheet keys, values
+        with units) that the scene loader reads; terms not visible are left out."""
+        blocks = {}
+        for sensor, axes, terms in (("gyro", self.gyro, _GYRO_TERMS),
+                                    ("accelerometer", self.accel, _ACCEL_TERMS)):
+            if axes is None:
+                continue
+            block = {}
+            for term, (kind, key) in terms.items():
+                vals = [getattr(axes[a].terms, term) for a in AXES]
+                if all(v is None for v in vals):
+                    continue
+                block[key] = [format_si(v or 0.0, kind) for v in vals]
+            blocks[sensor] = block
+        return blocks
+
+
+def allan_deviation(samples: np.ndarray, dt: float, m: np.ndarray) -> np.ndarray:
+    """Overlapping Allan deviation (allantools.oadev) of rate samples ``(n,)`` at τ = m·dt."""
+    taus, adev, _, _ = allantools.oadev(np.asarray(samples, dtype=np.float64), rate=1.0 / dt,
+                                        data_type="freq", taus=np.asarray(m) * dt)
+    if taus.shape != m.shape:
+        raise ValueError("allantools dropped averaging times; recording too short")
+    return adev
+
+
+def _analyse(data: np.ndarray, dt: float, m: np.ndarray, n: int) -> dict[str, AxisAllan]:
+    rel = relative_error(n, m)
+    tau = m * dt
+    out = {}
+    for i, axis in enumerate(AXES):
+        adev = allan_deviation(data[:, i], dt, m)
+        out[axis] = AxisAllan(adev, adev * (1.0 - rel), adev * (1.0 + rel),
+                              fit_terms(tau, adev, rel))
+    return out
+
+
+def analyse_rates(gyro: np.ndarray, dt: float, accel: np.ndarray | None = None,
+                  topic: str = "") -> AllanResult:
+    """Allan analysis of evenly spaced samples ``(n, 3)`` (rad/s; accel m/s²) every ``dt`` s."""
+    gyro = np.asarray(gyro, dtype=np.float64)
+    if gyro.ndim != 2 or gyro.shape[1] != 3:
+        raise ValueError(f"gyro samples must have shape (n, 3), got {gyro.shape}")
+    if not (np.isfinite(dt) and dt > 0):
+        raise ValueError(f"sample interval must be finite and > 0, got {dt}")
+    if not np.all(np.isfinite(gyro)):
+        raise ValueError("gyro samples contain NaN or inf")
+    n = gyro.shape[0]
+    m = log_spaced_cluster_sizes(n)
+    result = AllanResult(topic, n, float(dt), m * dt, _analyse(gyro, dt, m, n))
+    if accel is not None:
+        accel = np.asarray(accel, dtype=np.float64)
+        if accel.shape != gyro.shape or not np.all(np.isfinite(accel)):
+            raise ValueError("accelerometer samples must be finite and shaped like the gyro's")
+        result.accel = _analyse(accel, dt, m, n)
+    return result
+
+
+def analyse_mcap(path, topic: str = "imu/data_raw") -> AllanResult:
+    """Read every ``sensor_msgs/Imu`` of ``topic`` from an MCAP file and analyse it.
+
+    The accelerometer is analysed when the messages carry one (linear acceleration
+    covariance element 0 is not −1). ``ValueError`` with one line on a bad file, no Imu,
+    uneven stamps or too few samples."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"{path}: no such file")
+    try:
+        imu = read_imu_arrays(path, topic)
+    except ValueError:
+        raise
+    except Exception as exc:  # the reader's own errors for damaged files
+        raise ValueError(f"{path}: cannot read: {exc}") from None
+    if len(imu) == 0:
+        raise ValueError(f"{path}: no sensor_msgs/Imu messages on topic {topic!r}")
+    t = imu.stamp_ns.astype(np.int64)
+    steps = np.diff(t)
+    if steps.size == 0 or np.any(steps <= 0):
+        raise ValueError(f"{path}: Imu stamps on {topic!r} are not strictly increasing")
+    dt_ns = float(np.median(steps))
+    notes = []
+    spread = float(np.max(np.abs(steps - dt_ns))) / dt_ns
+    if spread > 0.5:
+        raise ValueError(f"{path}: Imu stamps on {topic!r} have gaps or jitter up to "
+                         f"{spread:.0%} of the {dt_ns / 1e6:g} ms step; Allan analysis needs "
+                         f"evenly spaced samples")
+    if spread > 0.01:
+        notes.append(f"stamp jitter up to {spread:.1%} of the step (treated as even)")
+    has_accel = bool(imu.linear_acceleration_covariance[0, 0] != -1.0)
+    result = analyse_rates(imu.angular_velocity, dt_ns / 1e9,
+                           imu.linear_acceleration if has_accel else None, topic)
+    result.notes += notes
+    return result
+
+
+def plot(result: AllanResult, path, title: str = "") -> None:
+    """Log-log Allan deviation per axis with bounds, the fitted term lines and read points."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    sensors = [("gyro", result.gyro, "rad/s")]
+    if result.accel is not None:
+        sensors.append(("accelerometer", result.accel, "m/s²"))
+    fig, axs = plt.subplots(1, len(sensors), figsize=(6.5 * len(sensors), 5), squeeze=False)
+    tau = result.tau_s
+    line = {"quantization": ("Q: −1", lambda v, t: np.sqrt(3.0) * v / t),
+            "random_walk": ("N: −½", lambda v, t: v / np.sqrt(t)),
+            "bias_instability": ("B: 0", lambda v, t: np.full_like(t, FLICKER_FLOOR_FACTOR * v)),
+            "rate_random_walk": ("K: +½", lambda v, t: v * np.sqrt(t / 3.0))}
+    for ax, (name, axes, unit) in zip(axs[0], sensors, strict=True):
+        for axis, color in zip(AXES, ("C0", "C1", "C2"), strict=True):
+            a = axes[axis]
+            ax.loglog(tau, a.adev, color=color, lw=1.6, label=f"{axis}")
+            ax.fill_between(tau, a.lower, a.upper, color=color, alpha=0.15, lw=0)
+            ax.loglog(tau, np.sqrt(model_variance(tau, a.terms)), color=color, lw=0.8, ls=":")
+            for term, (_label, f) in line.items():
+                v = getattr(a.terms, term)
+                if v is None:
+                    continue
+                ax.loglog(tau, f(v, tau), color=color, lw=0.6, ls="--", alpha=0.6)
+                t_read = a.terms.tau_read_s.get(term)
+                if t_read is not None:
+                    ax.plot([t_read], [f(v, np.array([t_read]))[0]], "o", color=color, ms=4)
+        # Low enough to show every read-out point (K at 3 s often sits far below the curve).
+        lows = [axes[x].adev.min() / 3 for x in AXES] + [
+            getattr(axes[x].terms, term) / 1.5 for x in AXES
+            for term in ("random_walk", "rate_random_walk") if getattr(axes[x].terms, term)]
+        ax.set_ylim(min(lows), np.max([axes[x].adev.max() for x in AXES]) * 3)
+        ax.set_xlabel("τ [s]")
+        ax.set_ylabel(f"Allan deviation [{unit}]")
+        ax.set_title(f"{name}: dashed = fitted terms (N@1 s, B floor, K@3 s: dots)")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend()
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
