@@ -44,7 +44,7 @@ CDR_LE_HEADER = b"\x00\x01\x00\x00"
 # The 4 encapsulation bytes read as one little-endian uint32.
 CDR_LE_HEADER_U32 = int.from_bytes(CDR_LE_HEADER, "little")
 
-_BODY_FIELDS = {
+BODY_FIELDS = {
     IMU_TYPE: (
         ("orientation", 4),
         ("orientation_covariance", 9),
@@ -71,8 +71,8 @@ def _frame_bytes(frame_id: str) -> bytes:
 
 
 def _fields(type_name: str, frame_id: str, base: int) -> tuple[list, int]:
-    if type_name not in _BODY_FIELDS:
-        raise ValueError(f"no array codec for {type_name!r}; have {sorted(_BODY_FIELDS)}")
+    if type_name not in BODY_FIELDS:
+        raise ValueError(f"no array codec for {type_name!r}; have {sorted(BODY_FIELDS)}")
     fb = _frame_bytes(frame_id)
     n = len(fb)
     fields = [
@@ -83,7 +83,7 @@ def _fields(type_name: str, frame_id: str, base: int) -> tuple[list, int]:
         ("frame_id", f"S{n}", base + 16),
     ]
     off = 4 + ((12 + n + 7) // 8) * 8  # first double, 8-aligned relative to offset 4
-    for name, count in _BODY_FIELDS[type_name]:
+    for name, count in BODY_FIELDS[type_name]:
         fields.append((name, ("<f8", (count,)), base + off))
         off += 8 * count
     return fields, off
