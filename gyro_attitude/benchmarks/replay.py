@@ -97,7 +97,7 @@ def peer_read(path: pathlib.Path, n_imu: int) -> dict:
     nbytes = 0
     start = time.perf_counter()
     with open(path, "rb") as f:
-        for _, channel, message in NonSeekingReader(f).iter_messages():
+        for _, channel, message in NonSeekingReader(f).iter_messages(log_time_order=False):
             if channel.topic == "/imu/data_raw":
                 nbytes += len(message.data)
                 k += 1

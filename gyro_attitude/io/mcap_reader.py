@@ -408,11 +408,11 @@ class McapStreamReader:
         p += 4 + n
         (clen,) = struct.unpack_from("<Q", body, p)
         p += 8
-        if clen != len(body) - p:
-            raise ValueError(f"records length {clen} does not match the chunk body "
+        if clen > len(body) - p:  # fewer is padding (forward compatibility)
+            raise ValueError(f"records length {clen} overruns the chunk body "
                              f"({len(body) - p} bytes)")
         check_declared_size(usize, clen, compression, self.max_chunk_bytes)
-        data = body[p:]
+        data = body[p:p + clen]
         records = decompress_bounded(compression, data, usize)
         if self.validate_crc and crc != 0 and zlib.crc32(records) != crc:
             raise ValueError("chunk CRC mismatch")

@@ -14,10 +14,10 @@ from mcap_ros2.decoder import DecoderFactory
 from scipy.spatial.transform import Rotation
 
 from gyro_attitude.cli import main as cli_main
-from gyro_attitude.commands.replay import replay_file
 from gyro_attitude.core.integrate import NavFrame, integrate_batch
 from gyro_attitude.io.imu_fast import read_imu_arrays, read_quaternion_stamped_arrays
 from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
+from gyro_attitude.offline.replay import replay_file
 
 os.environ.setdefault("AMENT_PREFIX_PATH", sys.prefix)
 REPO = Path(__file__).resolve().parents[2]
@@ -29,8 +29,10 @@ def _record(path, t, w, a=None, truth=None, shuffle=None):
     with Rosbag2McapWriter(path, chunk_size=50_000) as wr:
         wr.add_topic("imu/data_raw", IMU)
         idx = np.arange(t.size) if shuffle is None else shuffle
+        # shuffled: stamps out of order, log times (receive times) increasing in file order
+        log = t[idx] + 1000 if shuffle is None else np.sort(t[idx]) + 1000
         wr.write_imu_array("imu/data_raw", t[idx], w[idx], None if a is None else a[idx],
-                           log_time_ns=t[idx] + 1000)
+                           log_time_ns=log)
         if truth is not None:
             wr.add_topic("truth/attitude", QS)
             wr.write_quaternion_stamped_array("truth/attitude", t, truth, frame_id="enu")
@@ -60,8 +62,8 @@ def test_replay_equals_integrate_batch_inertial(tmp_path, algorithm):
     imu = read_imu_arrays(tmp_path / "out.mcap", "imu/data")
     np.testing.assert_allclose(imu.orientation, expected, rtol=0, atol=1e-12)
     np.testing.assert_array_equal(imu.angular_velocity, w)
-    assert s["messages"] == 3001 and s["fast_path_messages"] == 3001
-    assert s["truth_matched"] == 0 and s["final_error_rad"] is None
+    assert s.messages == 3001 and s.fast_path_messages == 3001
+    assert s.truth_matched == 0 and s.final_error_rad is None
 
 
 def test_replay_equals_integrate_batch_enu(tmp_path):
@@ -106,16 +108,16 @@ def test_truth_errors_against_closed_form(tmp_path):
     exact = np.stack([0 * tt, 0 * tt, np.sin(omega * tt / 2), np.cos(omega * tt / 2)], 1)
     _record(tmp_path / "good.mcap", t, w, truth=exact)
     s = replay_file(tmp_path / "good.mcap", tmp_path / "o1.mcap")
-    assert s["truth_matched"] == n and s["max_error_rad"] < 1e-9
+    assert s.truth_matched == n and s.max_error_rad < 1e-9
     # truth = (0.1 rad about the reference x axis) ⊗ exact: the same motion seen from a
     # reference frame tilted by 0.1 rad, so the error angle is 0.1 throughout.
     shifted = (Rotation.from_rotvec([0.1, 0.0, 0.0]) * Rotation.from_quat(exact)).as_quat()
     _record(tmp_path / "off.mcap", t, w, truth=shifted)
     s = replay_file(tmp_path / "off.mcap", tmp_path / "o2.mcap")
-    assert abs(s["final_error_rad"] - 0.1) < 1e-9 and abs(s["max_error_rad"] - 0.1) < 1e-9
+    assert abs(s.final_error_rad - 0.1) < 1e-9 and abs(s.max_error_rad - 0.1) < 1e-9
     # 'truth' initial attitude: starts on the (shifted) truth, error back to ~0
     s = replay_file(tmp_path / "off.mcap", tmp_path / "o3.mcap", initial_attitude="truth")
-    assert s["max_error_rad"] < 1e-9
+    assert s.max_error_rad < 1e-9
 
 
 def test_unsorted_input_is_sorted_and_duplicates_refused(tmp_path):
@@ -123,9 +125,13 @@ def test_unsorted_input_is_sorted_and_duplicates_refused(tmp_path):
     perm = np.random.default_rng(3).permutation(500)
     _record(tmp_path / "in.mcap", t, w, shuffle=perm)
     s = replay_file(tmp_path / "in.mcap", tmp_path / "out.mcap")
-    assert s["sorted_by_stamp"]
+    assert s.sorted_by_stamp
     att = read_quaternion_stamped_arrays(tmp_path / "out.mcap", "attitude")
-    np.testing.assert_allclose(att.quaternion, integrate_batch(t, w), atol=1e-12, rtol=0)
+    # written in log-time order (each output keeps its input's log time): compare by stamp
+    assert (np.diff(att.log_time_ns) >= 0).all()
+    k = np.argsort(att.stamp_ns)
+    np.testing.assert_array_equal(att.stamp_ns[k], t)
+    np.testing.assert_allclose(att.quaternion[k], integrate_batch(t, w), atol=1e-12, rtol=0)
     dup = np.concatenate([np.arange(500), [7]])
     _record(tmp_path / "dup.mcap", t, w, shuffle=dup)
     with pytest.raises(ValueError, match="duplicate header stamps"):
@@ -143,10 +149,10 @@ def test_cli_json_plot_and_errors(tmp_path, capsys):
     assert out["messages_per_second"] > 0 and out["wall_seconds"] > 0
     assert 0 <= out["final_error_rad"] <= out["max_error_rad"] < 0.01
     assert png.stat().st_size > 1000
-    rc = cli_main(["replay", str(sample), "--out", str(tmp_path / "o.mcap"), "--imu-topic",
+    rc = cli_main(["replay", str(sample), "--out", str(tmp_path / "o2.mcap"), "--imu-topic",
                    "nope"])
     assert rc == 1 and "no Imu topic 'nope'" in capsys.readouterr().err
-    rc = cli_main(["replay", str(sample), "--out", str(tmp_path / "o.mcap"), "--frame", "enu"])
+    rc = cli_main(["replay", str(sample), "--out", str(tmp_path / "o3.mcap"), "--frame", "enu"])
     assert rc == 2 and "--latitude-deg" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         cli_main(["replay", str(sample), "--out", "x.mcap", "--initial-attitude", "1,2"])
