@@ -59,7 +59,11 @@ def integrate_attitude(t_ns: np.ndarray, omega: np.ndarray, q0, algorithm: str,
     """The integration step of the replay: strictly increasing ``t_ns`` (N,), rates
     ``omega`` (N, 3) rad/s, attitude ``q0`` at ``t_ns[0]``.  Every sample gets an attitude
     here (``valid`` all True); a stream policy that skips samples returns them masked."""
-    q = integrate_batch(t_ns, omega, q0=q0, algorithm=algorithm, nav=nav)
+    # An absurd but finite rate (1e155 rad/s) overflows inside the update: the caller
+    # checks the result for non-finite values and says which sample, instead of numpy's
+    # overflow warnings.
+    with np.errstate(over="ignore", invalid="ignore"):
+        q = integrate_batch(t_ns, omega, q0=q0, algorithm=algorithm, nav=nav)
     return AttitudeSeries(q=q, valid=np.ones(len(t_ns), dtype=bool))
 
 

@@ -179,3 +179,133 @@ def test_damaged_input_replays_what_precedes_the_damage(tmp_path, capsys):
     captured = capsys.readouterr()
     assert rc == 0 and "warning: input damaged" in captured.err
     assert "replayed 1000 Imu messages" in captured.out
+
+
+def _one_line(err: str) -> str:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+def _listing(d):
+    return sorted(p.name for p in d.iterdir())
+
+
+def test_output_never_overwrites_the_input(tmp_path, capsys):
+    t, w = _tumbling(200)
+    src = tmp_path / "in.mcap"
+    _record(src, t, w)
+    before = src.read_bytes()
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "bag_0.mcap").write_bytes(before)
+    (tmp_path / "link.mcap").symlink_to(src)
+    for inp, out in [(src, src), (src, tmp_path / "link.mcap"), (tmp_path / "link.mcap", src),
+                     (bag, bag / "bag_0.mcap")]:
+        rc = cli_main(["replay", str(inp), "--out", str(out), "--force"])
+        assert rc == 1 and "is the input" in _one_line(capsys.readouterr().err)
+    assert src.read_bytes() == before and (bag / "bag_0.mcap").read_bytes() == before
+
+
+def test_existing_output_needs_force(tmp_path, capsys):
+    t, w = _tumbling(200)
+    _record(tmp_path / "in.mcap", t, w)
+    out = tmp_path / "out.mcap"
+    out.write_bytes(b"precious")
+    rc = cli_main(["replay", str(tmp_path / "in.mcap"), "--out", str(out)])
+    assert rc == 1 and "exists (use --force" in _one_line(capsys.readouterr().err)
+    assert out.read_bytes() == b"precious"
+    assert cli_main(["replay", str(tmp_path / "in.mcap"), "--out", str(out), "--force"]) == 0
+    assert len(read_quaternion_stamped_arrays(out, "attitude")) == 200
+    assert _listing(tmp_path) == ["in.mcap", "out.mcap"]  # no temporary file left
+
+
+def test_absurd_rate_fails_clearly_and_writes_nothing(tmp_path, capsys):
+    t, w = _tumbling(2000)
+    w[100] = [1e155, 1e155, 0.0]  # finite, but the default algorithm's attitude goes NaN
+    _record(tmp_path / "in.mcap", t, w)
+    rc = cli_main(["replay", str(tmp_path / "in.mcap"), "--out", str(tmp_path / "o.mcap")])
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 1 and "not finite" in line and "1e+155 rad/s at sample 100" in line
+    assert _listing(tmp_path) == ["in.mcap"]
+
+
+@pytest.mark.parametrize("content, message", [
+    (b"", "empty file"),
+    (b"PK\x03\x04 a zip file, not MCAP", "not an MCAP file (bad magic)"),
+])
+def test_unusable_files_say_what_is_wrong(tmp_path, capsys, content, message):
+    (tmp_path / "in.mcap").write_bytes(content)
+    rc = cli_main(["replay", str(tmp_path / "in.mcap"), "--out", str(tmp_path / "o.mcap")])
+    assert rc == 1 and message in _one_line(capsys.readouterr().err)
+    assert _listing(tmp_path) == ["in.mcap"]
+
+
+def test_file_cut_inside_its_first_chunk_names_the_damage(tmp_path, capsys):
+    t, w = _tumbling(2000)
+    _record(tmp_path / "full.mcap", t, w)
+    raw = (tmp_path / "full.mcap").read_bytes()
+    with open(tmp_path / "full.mcap", "rb") as f:
+        first = make_reader(f).get_summary().chunk_indexes[0]
+    (tmp_path / "in.mcap").write_bytes(raw[:first.chunk_start_offset + 100])
+    rc = cli_main(["replay", str(tmp_path / "in.mcap"), "--out", str(tmp_path / "o.mcap")])
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 1 and "has no messages" in line
+    assert f"damaged at byte {first.chunk_start_offset}" in line
+
+
+def test_output_paths_are_checked_before_the_work(tmp_path, capsys):
+    sample = REPO / "bags" / "coning_200hz.mcap"
+    out = tmp_path / "o.mcap"
+    rc = cli_main(["replay", str(sample), "--out", str(out), "--plot",
+                   str(tmp_path / "no_such_dir" / "err.png")])
+    assert rc == 1 and "plot directory" in _one_line(capsys.readouterr().err)
+    assert not out.exists()
+    rc = cli_main(["replay", str(sample), "--out", str(tmp_path / "nodir" / "o.mcap")])
+    assert rc == 1 and "does not exist" in _one_line(capsys.readouterr().err)
+
+
+def test_bad_arguments_one_line_exit_2(tmp_path, capsys):
+    sample = REPO / "bags" / "coning_200hz.mcap"
+    for extra in (["--latitude-deg", "nan", "--frame", "enu"], ["--compression", "gzip"],
+                  ["--initial-attitude", "1,2"], ["--velocity-enu", "1,inf,0"]):
+        with pytest.raises(SystemExit) as exc:
+            cli_main(["replay", str(sample), "--out", str(tmp_path / "o.mcap"), *extra])
+        assert exc.value.code == 2
+        assert "error:" in _one_line(capsys.readouterr().err)
+    assert _listing(tmp_path) == []
+
+
+def test_interrupt_leaves_no_partial_output(tmp_path, capsys, monkeypatch):
+    import gyro_attitude.io.mcap_writer as mw
+
+    sample = REPO / "bags" / "coning_200hz.mcap"
+    calls = {"n": 0}
+    real = mw.Rosbag2McapWriter._write_chunk
+
+    def interrupted(self, *args, **kwargs):
+        calls["n"] += 1
+        real(self, *args, **kwargs)
+        raise KeyboardInterrupt  # Ctrl-C after the first chunk reached the file
+
+    monkeypatch.setattr(mw.Rosbag2McapWriter, "_write_chunk", interrupted)
+    rc = cli_main(["replay", str(sample), "--out", str(tmp_path / "o.mcap"),
+                   "--compression", "none"])
+    assert rc == 130 and "interrupted" in _one_line(capsys.readouterr().err)
+    assert calls["n"] >= 1 and _listing(tmp_path) == []
+
+
+def test_default_output_is_zstd_in_log_time_order(tmp_path):
+    sample = REPO / "bags" / "coning_200hz.mcap"
+    out = tmp_path / "o.mcap"
+    assert cli_main(["replay", str(sample), "--out", str(out), "--json"]) == 0
+    for path in (sample, out):
+        with open(path, "rb") as f:
+            reader = make_reader(f, validate_crcs=True)
+            assert {c.compression for c in reader.get_summary().chunk_indexes} == {"zstd"}
+            logs = [m.log_time for _, _, m in reader.iter_messages(log_time_order=False)]
+        assert len(logs) == 8000 and all(a <= b for a, b in zip(logs, logs[1:], strict=False))
+    assert cli_main(["replay", str(sample), "--out", str(tmp_path / "n.mcap"),
+                     "--compression", "none", "--json"]) == 0
+    with open(tmp_path / "n.mcap", "rb") as f:
+        assert {c.compression for c in make_reader(f).get_summary().chunk_indexes} == {""}

@@ -1,0 +1,78 @@
+"""Safe output paths: the input is never the output (directly, through a symlink, a
+relative path or its bag directory), an existing file needs force, and a failed write
+leaves nothing under the requested name."""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from gyro_attitude.io.safe_output import OutputPathError, SafeOutput, check_output_path
+
+
+@pytest.fixture()
+def files(tmp_path):
+    src = tmp_path / "in.mcap"
+    src.write_bytes(b"input bytes")
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "bag_0.mcap").write_bytes(b"bag bytes")
+    link = tmp_path / "link.mcap"
+    link.symlink_to(src)
+    return tmp_path, src, bag, link
+
+
+def test_output_resolving_to_the_input_is_refused_even_with_force(files):
+    tmp, src, bag, link = files
+    rel = os.path.relpath(src, os.getcwd())
+    for out, inp in [(src, src), (link, src), (src, link), (rel, src),
+                     (tmp / "sub" / ".." / "in.mcap", src), (bag / "bag_0.mcap", bag)]:
+        if not (tmp / "sub").exists():
+            (tmp / "sub").mkdir()
+        with pytest.raises(OutputPathError, match="is the input"):
+            check_output_path(out, inputs=[inp], force=True)
+    assert src.read_bytes() == b"input bytes"
+
+
+def test_existing_output_needs_force_and_bad_places_are_named(files):
+    tmp, src, _, _ = files
+    other = tmp / "other.mcap"
+    other.write_bytes(b"x")
+    with pytest.raises(OutputPathError, match="exists .use --force"):
+        check_output_path(other, inputs=[src])
+    assert check_output_path(other, inputs=[src], force=True) == other
+    assert check_output_path(tmp / "new.mcap", inputs=[src]) == tmp / "new.mcap"
+    with pytest.raises(OutputPathError, match="is a directory"):
+        check_output_path(tmp, inputs=[src], force=True)
+    with pytest.raises(OutputPathError, match="does not exist"):
+        check_output_path(tmp / "missing" / "o.mcap", inputs=[src])
+    ro = tmp / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        if not os.access(ro, os.W_OK):  # root can write anywhere: then nothing to check
+            with pytest.raises(OutputPathError, match="not writable"):
+                check_output_path(ro / "o.mcap", inputs=[src])
+    finally:
+        ro.chmod(0o700)
+
+
+def test_commit_on_success_nothing_on_failure(tmp_path):
+    out = tmp_path / "o.bin"
+    out.write_bytes(b"old")
+    with pytest.raises(RuntimeError):
+        with SafeOutput(out) as tmp:
+            tmp.write_bytes(b"half")
+            raise RuntimeError("boom")
+    assert out.read_bytes() == b"old" and sorted(p.name for p in tmp_path.iterdir()) == ["o.bin"]
+    with pytest.raises(KeyboardInterrupt):
+        with SafeOutput(tmp_path / "new.bin") as tmp:
+            tmp.write_bytes(b"half")
+            raise KeyboardInterrupt
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["o.bin"]
+    with SafeOutput(out) as tmp:
+        assert tmp.parent == out.parent and tmp != out
+        tmp.write_bytes(b"new")
+        assert out.read_bytes() == b"old"  # replaced only at the end
+    assert out.read_bytes() == b"new" and sorted(p.name for p in tmp_path.iterdir()) == ["o.bin"]
