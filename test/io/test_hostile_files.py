@@ -88,6 +88,11 @@ def test_four_gib_of_declared_zeros_is_refused_in_seconds(tmp_path, big_zero_fra
         _bounded(lambda: replay_file(path, tmp_path / "o.mcap"), seconds=5,
                  peak_bytes=20 * MiB)
     assert not (tmp_path / "o.mcap").exists()
+    # Under the hard cap but far beyond any real compression ratio: refused as well.
+    _bomb_file(path, 200 * MiB, big_zero_frame)
+    reader = McapStreamReader(path, on_damage="warn")
+    _bounded(lambda: list(reader.iter_messages()), seconds=5, peak_bytes=20 * MiB)
+    assert "more than 1000x" in reader.damage
 
 
 def test_frame_larger_than_its_declared_chunk_stops_at_the_declaration(tmp_path):
@@ -138,6 +143,8 @@ def test_forged_statistics_count_allocates_nothing_big(tmp_path, good_file):
         struct.pack_into("<Q", data, ci + RECORD_HEADER.size + length - 8, 2**40)
     forged = tmp_path / "forged.mcap"
     forged.write_bytes(bytes(data))
+    assert McapStreamReader(good_file).summary().message_counts == {1: 3000}
+    assert McapStreamReader(forged).summary().message_counts == {}  # not believed
     expected = read_imu_arrays(good_file)
     got = _bounded(lambda: read_imu_arrays(forged), seconds=5, peak_bytes=40 * MiB)
     np.testing.assert_array_equal(got.angular_velocity, expected.angular_velocity)
