@@ -207,16 +207,22 @@ class MessageBatch:
                             self.log_time_ns[order], self.publish_time_ns[order],
                             {k: v[order] for k, v in self.columns.items()})
 
-    def fill(self, recs: np.ndarray, lo: int, hi: int) -> None:
-        """Write messages ``lo:hi`` into structured records (constant fields set by the
-        caller): stamp, times and the body fields."""
+    def constant_columns(self) -> list[str]:
+        """Body fields that are one value broadcast to every message (stride 0)."""
+        return [k for k, v in self.columns.items() if len(self) and v.strides[0] == 0]
+
+    def fill(self, recs: np.ndarray, lo: int, hi: int, skip=()) -> None:
+        """Write messages ``lo:hi`` into structured records (the header constants, and the
+        body fields in ``skip``, are set by the caller once per buffer): stamp, times and
+        the body fields."""
         sec, nsec = split_stamp(self.stamp_ns[lo:hi])
         recs["sec"] = sec
         recs["nanosec"] = nsec
         recs["log_time"] = self.log_time_ns[lo:hi]
         recs["publish_time"] = self.publish_time_ns[lo:hi]
         for name, arr in self.columns.items():
-            recs[name] = arr[lo:hi]
+            if name not in skip:
+                recs[name] = arr[lo:hi]
 
 
 def _batch(topic, type_name, frame_id, stamp_ns, log_time_ns, publish_time_ns,

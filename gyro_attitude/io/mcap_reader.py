@@ -588,7 +588,10 @@ def _non_message_records(records, index: dict[int, np.ndarray] | None) -> list:
         return [(op, off, length) for op, off, _, length in iter_chunk_records(records)
                 if op != OP_MESSAGE]
     parts = [e[:, 1] for e in index.values() if e.size]
-    offs = np.unique(np.concatenate(parts)).astype(np.int64) if parts else np.zeros(0, np.int64)
+    offs = (np.concatenate(parts) if len(parts) > 1 else parts[0]).astype(np.int64) \
+        if parts else np.zeros(0, np.int64)
+    if offs.size > 1 and not (offs[1:] > offs[:-1]).all():
+        offs = np.unique(offs)  # several channels, or an unordered index
     buf = np.frombuffer(records, dtype=np.uint8)
     if offs.size:
         if offs[-1] + RECORD_HEADER.size > n:

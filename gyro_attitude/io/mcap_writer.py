@@ -361,7 +361,10 @@ class Rosbag2McapWriter:
                 r["encapsulation"] = cdr_arrays.CDR_LE_HEADER_U32
                 r["frame_id_len"] = len(frame)
                 r["frame_id"] = frame
+                for name in b.constant_columns():
+                    r[name] = b.columns[name][0]
             rec_bufs.append(pair)
+        constants = [set(b.constant_columns()) for b in batches]
         chunk_bufs = [np.zeros(max_bytes, dtype=np.uint8) for _ in range(2)] \
             if len(batches) > 1 else None
         busy: list = [None, None]
@@ -376,15 +379,15 @@ class Rosbag2McapWriter:
                 index = {}
                 start, end = _U64_MAX, 0
                 records = None
-                for b, ch, pos, bufs in zip(batches, channels, positions, rec_bufs,
-                                            strict=True):
+                for bi, (b, ch, pos, bufs) in enumerate(zip(batches, channels, positions,
+                                                            rec_bufs, strict=True)):
                     lo, hi = (int(v) for v in np.searchsorted(pos, [p0, p1]))
                     m = hi - lo
                     if m == 0:
                         continue
                     recs = bufs[slot][:m]
                     recs["sequence"] = (ch.sequence + np.arange(m, dtype=np.int64)) & 0xFFFFFFFF
-                    b.fill(recs, lo, hi)
+                    b.fill(recs, lo, hi, skip=constants[bi])
                     ch.sequence += m
                     ch.count += m
                     offs = starts[pos[lo:hi]] - starts[p0]

@@ -143,6 +143,12 @@ def _check_finite(q: np.ndarray, valid: np.ndarray, t: np.ndarray, omega: np.nda
                          f"sample {culprit} is not usable; nothing written")
 
 
+def _constant_rows(a: np.ndarray) -> np.ndarray:
+    """``a`` (N, w), or its first row when every row equals it (covariances usually are
+    constant: the writer then sets them once per buffer instead of per message)."""
+    return a[0] if len(a) and (a == a[0]).all() else a
+
+
 def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                 algorithm: str | None = None, frame: str = "inertial",
                 nav: NavFrame | None = None, initial_attitude=(0.0, 0.0, 0.0, 1.0),
@@ -200,17 +206,23 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     _check_finite(q, valid, t, omega, imu.topic)
     t_int = time.perf_counter()
 
-    log = ordered(imu.log_time_ns)[valid]
-    pub = ordered(imu.publish_time_ns)[valid]
-    tv, qv = t[valid], q[valid]
+    every = bool(valid.all())
+
+    def kept(a):
+        """Only the samples that got an attitude (no copy when all did)."""
+        return a if every else a[valid]
+
+    log, pub = kept(ordered(imu.log_time_ns)), kept(ordered(imu.publish_time_ns))
+    tv, qv = kept(t), kept(q)
     batches = [
         quaternion_stamped_batch("attitude", tv, qv, frame_id=frame, log_time_ns=log,
                                  publish_time_ns=pub),
-        imu_batch("imu/data", tv, omega[valid], ordered(imu.linear_acceleration)[valid], qv,
+        imu_batch("imu/data", tv, kept(omega), kept(ordered(imu.linear_acceleration)), qv,
                   frame_id=imu.frame_id, orientation_covariance=np.zeros(9),
-                  angular_velocity_covariance=ordered(imu.angular_velocity_covariance)[valid],
-                  linear_acceleration_covariance=ordered(
-                      imu.linear_acceleration_covariance)[valid],
+                  angular_velocity_covariance=_constant_rows(kept(ordered(
+                      imu.angular_velocity_covariance))),
+                  linear_acceleration_covariance=_constant_rows(kept(ordered(
+                      imu.linear_acceleration_covariance))),
                   log_time_ns=log, publish_time_ns=pub),
     ]
     with SafeOutput(output_path) as tmp:
