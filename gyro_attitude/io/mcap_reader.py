@@ -591,13 +591,17 @@ def _non_message_records(records, index: dict[int, np.ndarray] | None) -> list:
     offs = (np.concatenate(parts) if len(parts) > 1 else parts[0]).astype(np.int64) \
         if parts else np.zeros(0, np.int64)
     if offs.size > 1 and not (offs[1:] > offs[:-1]).all():
-        offs = np.unique(offs)  # several channels, or an unordered index
+        offs = np.sort(offs)  # several channels, or an unordered index
+        if not (offs[1:] > offs[:-1]).all():
+            raise ValueError("the index lists a record twice")
     buf = np.frombuffer(records, dtype=np.uint8)
     if offs.size:
         if offs[-1] + RECORD_HEADER.size > n:
             raise ValueError("index offset beyond the chunk")
         ops = buf[offs]
-        lens = np.frombuffer(buf[(offs + 1)[:, None] + np.arange(8)].tobytes(), "<u8")
+        # the u64 record lengths, gathered through a sliding-window view
+        lens = np.ascontiguousarray(
+            np.lib.stride_tricks.sliding_window_view(buf, 8)[offs + 1]).view("<u8")[:, 0]
         if (ops != OP_MESSAGE).any() or (lens < MESSAGE_FIXED.size).any() \
                 or (lens > n).any():
             raise ValueError("index points at a record that is not a message")
