@@ -36,8 +36,6 @@ __all__ = [
     "IMU_TYPE",
     "QUATERNION_STAMPED_TYPE",
     "CDR_LE_HEADER",
-    "payload_dtype",
-    "payload_size",
     "MESSAGE_RECORD_PREFIX",
     "message_record_dtype",
     "split_stamp",
@@ -97,17 +95,6 @@ def _fields(type_name: str, frame_id: str, base: int) -> tuple[list, int]:
         fields.append((name, ("<f8", (count,)), base + off))
         off += 8 * count
     return fields, off
-
-
-def payload_size(type_name: str, frame_id: str) -> int:
-    """Serialized size in bytes (with the 4-byte encapsulation header)."""
-    return _fields(type_name, frame_id, 0)[1]
-
-
-def payload_dtype(type_name: str, frame_id: str) -> np.dtype:
-    """Structured dtype of one serialized message (itemsize = :func:`payload_size`)."""
-    fields, size = _fields(type_name, frame_id, 0)
-    return _make_dtype(fields, size)
 
 
 def message_record_dtype(type_name: str, frame_id: str, itemsize: int | None = None) -> np.dtype:

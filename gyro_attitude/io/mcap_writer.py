@@ -70,6 +70,9 @@ COMPRESSIONS = ("", "zstd", "lz4")
 DEFAULT_COMPRESSION = "zstd"
 DEFAULT_CHUNK_SIZE = 768 * 1024  # libmcap's default, used by rosbag2
 _U64_MAX = 2**64 - 1
+# Array paths: chunks being filled, compressed or written at once, and compression threads.
+_PIPELINE_DEPTH = 4
+_COMPRESS_THREADS = 2
 
 
 @dataclass
@@ -79,6 +82,10 @@ class _OpenChunk:
     end: int = 0
     index: dict[int, list] = field(default_factory=dict)  # channel -> [(log_time, offset)]
     opened_at: float = 0.0
+
+
+def _zstd_compress(records) -> bytes:
+    return zstandard.ZstdCompressor(level=1).compress(records)
 
 
 def merge_positions(logs: list[np.ndarray]) -> list[np.ndarray]:
@@ -154,7 +161,8 @@ class Rosbag2McapWriter:
         self.path = path
         self._compressor = None
         if compression == "zstd":
-            self._compressor = zstandard.ZstdCompressor(level=1).compress
+            # A ZstdCompressor must not be shared by threads: one context per chunk.
+            self._compressor = _zstd_compress
         elif compression == "lz4":
             self._compressor = lz4.frame.compress
         self._file = open(path, "wb")  # closed in finish()
@@ -279,14 +287,19 @@ class Rosbag2McapWriter:
         })
         self._chunk = _OpenChunk()
 
+    def _prepare_chunk(self, records) -> tuple[int, object]:
+        """(CRC of the uncompressed records, the bytes to store): thread-safe."""
+        crc = zlib.crc32(records)
+        return crc, records if self._compressor is None else self._compressor(records)
+
     def _write_chunk(self, records, start: int, end: int,
-                     index: dict[int, np.ndarray]) -> None:
+                     index: dict[int, np.ndarray], prepared=None) -> None:
         """Chunk record + its Message Index records; remembers the Chunk Index.
 
         ``records``: bytes or a byte-format memoryview (the array paths pass a view of
-        their record buffer to avoid a copy)."""
-        crc = zlib.crc32(records)
-        data = records if self._compressor is None else self._compressor(records)
+        their record buffer to avoid a copy); ``prepared``: a future of
+        :meth:`_prepare_chunk` already running elsewhere."""
+        crc, data = self._prepare_chunk(records) if prepared is None else prepared.result()
         chunk_start = self._pos
         self._emit(chunk_record_head(start, end, len(records), crc, self.compression,
                                      len(data)))
@@ -342,19 +355,20 @@ class Rosbag2McapWriter:
                                                           side="left"))))
             bounds[-1] = min(bounds[-1], total)
         max_bytes = int(np.diff(starts[bounds]).max())
-        # Two sets of buffers, reused for every chunk (fresh pages per chunk cost page
-        # faults), so that one is filled here while a worker thread CRCs, compresses and
-        # writes the other: numpy's copies, zlib.crc32, the compressors and file writes all
-        # release the GIL.  The worker runs chunks in submission order (one thread) and is
-        # the only one touching the file until the last chunk is done.  Record buffers are
-        # zeroed once and their constant fields set once: the fields cover every byte
-        # except the CDR padding after frame_id, which so stays 0.
+        # Buffer sets reused for every chunk (fresh pages per chunk cost page faults): one
+        # is filled here while other chunks are CRC'd and compressed by a pool of threads
+        # and written, in submission order, by one writer thread (the only one touching the
+        # file until the last chunk is done).  numpy's copies, zlib.crc32, the compressors
+        # and file writes all release the GIL, so these overlap on a multi-core machine.
+        # Record buffers are zeroed once and their constant fields set once: the fields
+        # cover every byte except the CDR padding after frame_id, which so stays 0.
+        slots = _PIPELINE_DEPTH
         rec_bufs = []
         for b, ch, dt in zip(batches, channels, dtypes, strict=True):
             cap = min(len(b), max_bytes // dt.itemsize + 1)
-            pair = [np.zeros(cap, dtype=dt) for _ in range(2)]
+            buffers = [np.zeros(cap, dtype=dt) for _ in range(slots)]
             frame = b.frame_id.encode("utf-8") + b"\x00"
-            for r in pair:
+            for r in buffers:
                 r["opcode"] = OP_MESSAGE
                 r["record_length"] = dt.itemsize - RECORD_HEADER.size
                 r["channel_id"] = ch.id
@@ -363,16 +377,18 @@ class Rosbag2McapWriter:
                 r["frame_id"] = frame
                 for name in b.constant_columns():
                     r[name] = b.columns[name][0]
-            rec_bufs.append(pair)
+            rec_bufs.append(buffers)
         constants = [set(b.constant_columns()) for b in batches]
-        chunk_bufs = [np.zeros(max_bytes, dtype=np.uint8) for _ in range(2)] \
+        chunk_bufs = [np.zeros(max_bytes, dtype=np.uint8) for _ in range(slots)] \
             if len(batches) > 1 else None
-        busy: list = [None, None]
+        busy: list = [None] * slots
+        compressors = ThreadPoolExecutor(max_workers=_COMPRESS_THREADS,
+                                         thread_name_prefix="mcap_chunk_compress")
         worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mcap_chunk_writer")
         try:
             for i in range(len(bounds) - 1):
                 p0, p1 = bounds[i], bounds[i + 1]
-                slot = i % 2
+                slot = i % slots
                 if busy[slot] is not None:
                     busy[slot].result()  # that buffer is written out: reuse it
                 nbytes = int(starts[p1] - starts[p0])
@@ -408,7 +424,9 @@ class Rosbag2McapWriter:
                             out, raw.shape[1], writeable=True)
                         win[offs] = raw
                         records = memoryview(out)
-                busy[slot] = worker.submit(self._write_chunk, records, start, end, index)
+                prepared = compressors.submit(self._prepare_chunk, records)
+                busy[slot] = worker.submit(self._write_chunk, records, start, end, index,
+                                           prepared)
                 self._message_count += p1 - p0
                 self._start = min(self._start, start)
                 self._end = max(self._end, end)
@@ -417,6 +435,7 @@ class Rosbag2McapWriter:
                     f.result()  # re-raises a write error here
         finally:
             worker.shutdown(wait=True)
+            compressors.shutdown(wait=True)
 
     def write_imu_array(self, topic: str, stamp_ns, angular_velocity, linear_acceleration=None,
                         orientation=None, **kwargs) -> None:
