@@ -7,10 +7,12 @@ with the Message Index records that follow it, which the array decoders
 (:mod:`gyro_attitude.io.imu_fast`) use to find message records without walking them.
 
 Descriptive records are parsed by the ``mcap`` package (:func:`.mcap_records.parse_record`).
-Chunk decompression and the message walk are here: the ``mcap`` package decompresses to
-whatever size a chunk declares (a 137 kB file declaring 4 GiB of zeros costs 4 GiB and a
-minute) and builds one Python object per message (~20-40 k messages/s here, against
-~10^6/s for the array decoders fed by this reader).
+Chunk decompression, Message Index parsing and the message walk are here, measured: the
+``mcap`` package decompresses to whatever size a chunk declares (a 137 kB file declaring
+4 GiB of zeros costs 4 GiB and a minute); its plain read loop builds one Python object per
+record (606 k messages of the replay benchmark file: 4.3 s, against 1.2 s for this reader
+with the array decoders, same run); its Message Index parser loops per entry (12 000
+entries: 14 ms, against 0.12 ms with numpy here).
 
 Hostile sizes: every declared length is checked against the bytes that are really there
 before anything is allocated; a chunk's uncompressed size must be at most
@@ -562,8 +564,8 @@ class McapStreamReader:
 def _parse_message_index(body, records_len: int) -> tuple[int, np.ndarray]:
     """(channel id, (k, 2) uint64 (log_time, offset)) of one Message Index record.
 
-    Parsed with numpy, not the ``mcap`` package's per-entry loop: an index holds up to
-    ~10^5 entries per chunk here."""
+    Parsed with numpy, not the ``mcap`` package's per-entry loop (100x slower, see the
+    module docstring): an index holds ~10^4 entries per chunk here."""
     if len(body) < 6:
         raise ValueError("record too short")
     cid, nbytes = struct.unpack_from("<HI", body, 0)
