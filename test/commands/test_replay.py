@@ -309,3 +309,33 @@ def test_default_output_is_zstd_in_log_time_order(tmp_path):
                      "--compression", "none", "--json"]) == 0
     with open(tmp_path / "n.mcap", "rb") as f:
         assert {c.compression for c in make_reader(f).get_summary().chunk_indexes} == {""}
+
+
+def test_ctrl_c_in_a_real_process(tmp_path):
+    """SIGINT while the output is being written: exit 130, one line, nothing left under
+    the requested name nor beside it."""
+    import signal
+    import subprocess
+    import time
+
+    n = 300_000
+    t = 10**9 + np.arange(n, dtype=np.int64) * 1_000_000
+    with Rosbag2McapWriter(tmp_path / "in.mcap", chunk_size=1 << 20) as wr:
+        wr.add_topic("imu/data_raw", IMU)
+        wr.write_imu_array("imu/data_raw", t, np.tile([0.1, 0.2, 0.3], (n, 1)))
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "gyro_attitude.cli", "replay", str(tmp_path / "in.mcap"),
+         "--out", str(out_dir / "o.mcap"), "--compression", "none"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    deadline = time.monotonic() + 60
+    while not any(out_dir.iterdir()) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.001)  # wait for the temporary output file: the write has begun
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    if proc.returncode == 0:
+        pytest.skip("the replay finished before the signal arrived")
+    assert proc.returncode == 130 and "interrupted" in _one_line(err)
+    assert _listing(out_dir) == []
