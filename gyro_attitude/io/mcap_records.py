@@ -69,17 +69,24 @@ def parse_record(opcode: int, body) -> mcap_records.McapRecord:
     parser = _PARSERS.get(opcode)
     if parser is None:
         raise RecordParseError(f"no parser for opcode 0x{opcode:02x}")
-    stream = ReadDataStream(io.BytesIO(body))
+    stream = ReadDataStream(_ExactReads(bytes(body)))
     try:
-        rec = parser.read(stream)
+        return parser.read(stream)
     except (EndOfFile, struct.error, UnicodeDecodeError, ValueError) as exc:
         raise RecordParseError(f"record 0x{opcode:02x} of {len(body)} bytes does not parse "
-                               f"({type(exc).__name__})") from None
-    # ReadDataStream returns short reads silently: a field cut by the record end shows as a
-    # read past the body.
-    if stream.count > len(body):
-        raise RecordParseError(f"record 0x{opcode:02x} fields overrun its {len(body)} bytes")
-    return rec
+                               f"({type(exc).__name__}: a field overruns the record or is "
+                               f"not UTF-8)") from None
+
+
+class _ExactReads(io.BytesIO):
+    """A body whose reads return exactly what is asked or raise EndOfFile: ReadDataStream
+    would otherwise accept a string or byte field cut short by the end of the record."""
+
+    def read(self, size=-1):
+        data = super().read(size)
+        if size is not None and size >= 0 and len(data) != size:
+            raise EndOfFile()
+        return data
 
 
 # ------------------------------------------------------------------ building

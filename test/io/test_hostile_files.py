@@ -236,3 +236,17 @@ def test_fuzz_reader_arrays_and_replay(tmp_path):
         tracemalloc.stop()
     assert cases > 30 and all(outcomes.values()), outcomes
     assert peak < 64 * MiB, f"peak {peak / MiB:.0f} MiB"
+
+
+def test_descriptive_record_with_a_field_cut_short_is_damage():
+    """A Schema whose data length says more than the record holds: damage, not a
+    silently truncated schema."""
+    from gyro_attitude.io.mcap_records import RecordParseError, parse_record, schema_record
+
+    rec = schema_record(1, "pkg/msg/T", "ros2msg", b"0123456789")
+    body = bytearray(rec[RECORD_HEADER.size:])
+    struct.pack_into("<I", body, 2 + 4 + 9 + 4 + 7, 1000)  # data length: 1000 bytes
+    with pytest.raises(RecordParseError, match="overruns"):
+        parse_record(0x03, bytes(body))
+    assert parse_record(0x03, rec[RECORD_HEADER.size:]).data == b"0123456789"
+    assert parse_record(0x03, rec[RECORD_HEADER.size:] + b"pad").data == b"0123456789"
