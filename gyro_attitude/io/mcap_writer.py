@@ -92,6 +92,10 @@ def merge_positions(logs: list[np.ndarray]) -> list[np.ndarray]:
     """Positions in the merged stream of several log-time-sorted sequences: stable, a
     sequence listed earlier goes first among equal times (an O(N log N) merge by binary
     search instead of sorting the concatenation)."""
+    k = len(logs)
+    if k > 1 and all(lc.shape == logs[0].shape and np.array_equal(lc, logs[0]) for lc in logs):
+        # Same log times in every sequence (a replay's outputs): a plain round robin.
+        return [np.arange(logs[0].shape[0], dtype=np.int64) * k + c for c in range(k)]
     out = []
     for c, lc in enumerate(logs):
         pos = np.arange(lc.shape[0], dtype=np.int64)
@@ -420,9 +424,16 @@ class Rosbag2McapWriter:
                         # Scatter whole records to their merged byte offsets through a
                         # sliding-window view (one row copy per record).
                         out = chunk_bufs[slot][:nbytes]
-                        win = np.lib.stride_tricks.sliding_window_view(
-                            out, raw.shape[1], writeable=True)
-                        win[offs] = raw
+                        steps = np.diff(offs)
+                        if m > 1 and (steps == steps[0]).all():
+                            # evenly interleaved: one strided copy
+                            np.ndarray((m, raw.shape[1]), np.uint8, buffer=out,
+                                       offset=int(offs[0]),
+                                       strides=(int(steps[0]), 1))[:] = raw
+                        else:
+                            win = np.lib.stride_tricks.sliding_window_view(
+                                out, raw.shape[1], writeable=True)
+                            win[offs] = raw
                         records = memoryview(out)
                 prepared = compressors.submit(self._prepare_chunk, records)
                 busy[slot] = worker.submit(self._write_chunk, records, start, end, index,

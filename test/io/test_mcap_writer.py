@@ -18,6 +18,8 @@ from mcap_ros2.decoder import DecoderFactory
 from sensor_msgs.msg import Imu
 from std_msgs.msg import String
 
+from gyro_attitude.io.cdr_arrays import imu_batch, quaternion_stamped_batch
+from gyro_attitude.io.imu_fast import read_imu_arrays, read_quaternion_stamped_arrays
 from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
 from gyro_attitude.io.qos import DEFAULT_QOS_YAML, qos_profile, qos_profiles_yaml
 
@@ -288,8 +290,6 @@ def test_writer_errors(tmp_path):
 def test_batches_are_merged_by_log_time_across_channels(tmp_path):
     """Oracle: Python's stable sort of the concatenated batches by log time (batch order
     breaks ties), against the mcap package's reader in file order."""
-    from gyro_attitude.io.cdr_arrays import imu_batch, quaternion_stamped_batch
-
     rng = np.random.default_rng(8)
     specs = [("imu", 700), ("att", 300), ("imu2", 50)]
     batches, expected = [], []
@@ -326,3 +326,28 @@ def test_batches_are_merged_by_log_time_across_channels(tmp_path):
         for _, ch, m in make_reader(f).iter_messages(log_time_order=False):
             seqs.setdefault(ch.topic, []).append(m.sequence)
     assert all(s == list(range(len(s))) for s in seqs.values())
+
+
+def test_batches_with_the_same_log_times_alternate(tmp_path):
+    """A replay's two outputs share log times: round robin in batch order, checked by the
+    mcap package's reader (and the bytes by decoding every message)."""
+    n = 3000
+    log = 10**9 + np.arange(n, dtype=np.int64) * 1000
+    q = random_unit_quaternions(np.random.default_rng(3), n)
+    w = np.random.default_rng(4).normal(size=(n, 3))
+    path = tmp_path / "rr.mcap"
+    with Rosbag2McapWriter(path, chunk_size=20_000) as wr:
+        wr.add_topic("attitude", "geometry_msgs/msg/QuaternionStamped")
+        wr.add_topic("imu/data", "sensor_msgs/msg/Imu")
+        wr.write_batches([quaternion_stamped_batch("attitude", log, q),
+                          imu_batch("imu/data", log, w, None, q)])
+    with open(path, "rb") as f:
+        got = [(ch.topic, m.log_time)
+               for _, ch, m in make_reader(f, validate_crcs=True).iter_messages(
+                   log_time_order=False)]
+    assert got == [(t, int(x)) for x in log for t in ("/attitude", "/imu/data")]
+    att = read_quaternion_stamped_arrays(path, "attitude")
+    imu = read_imu_arrays(path, "imu/data")
+    np.testing.assert_array_equal(att.quaternion, q)
+    np.testing.assert_array_equal(imu.orientation, q)
+    np.testing.assert_array_equal(imu.angular_velocity, w)
