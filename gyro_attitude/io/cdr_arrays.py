@@ -17,6 +17,10 @@ Imu doubles: orientation (x, y, z, w), orientation_covariance[9], angular_veloci
 angular_velocity_covariance[9], linear_acceleration[3], linear_acceleration_covariance[9].
 QuaternionStamped: quaternion (x, y, z, w).
 
+:class:`MessageBatch` holds N messages of one topic as columns (what the MCAP writer
+encodes chunk by chunk); :func:`imu_batch` and :func:`quaternion_stamped_batch` build and
+validate them.
+
 Written by hand because no library decodes CDR array-wide: per-message decoders
 (rclpy, mcap-ros2-support) run at tens of thousands of messages per second in Python.
 The tests check every field against rclpy's own (de)serialization.
@@ -24,18 +28,22 @@ The tests check every field against rclpy's own (de)serialization.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 __all__ = [
     "IMU_TYPE",
     "QUATERNION_STAMPED_TYPE",
     "CDR_LE_HEADER",
-    "payload_dtype",
-    "payload_size",
     "MESSAGE_RECORD_PREFIX",
     "message_record_dtype",
     "split_stamp",
     "join_stamp",
+    "BODY_FIELDS",
+    "MessageBatch",
+    "imu_batch",
+    "quaternion_stamped_batch",
 ]
 
 IMU_TYPE = "sensor_msgs/msg/Imu"
@@ -44,7 +52,7 @@ CDR_LE_HEADER = b"\x00\x01\x00\x00"
 # The 4 encapsulation bytes read as one little-endian uint32.
 CDR_LE_HEADER_U32 = int.from_bytes(CDR_LE_HEADER, "little")
 
-_BODY_FIELDS = {
+BODY_FIELDS = {
     IMU_TYPE: (
         ("orientation", 4),
         ("orientation_covariance", 9),
@@ -71,8 +79,8 @@ def _frame_bytes(frame_id: str) -> bytes:
 
 
 def _fields(type_name: str, frame_id: str, base: int) -> tuple[list, int]:
-    if type_name not in _BODY_FIELDS:
-        raise ValueError(f"no array codec for {type_name!r}; have {sorted(_BODY_FIELDS)}")
+    if type_name not in BODY_FIELDS:
+        raise ValueError(f"no array codec for {type_name!r}; have {sorted(BODY_FIELDS)}")
     fb = _frame_bytes(frame_id)
     n = len(fb)
     fields = [
@@ -83,21 +91,10 @@ def _fields(type_name: str, frame_id: str, base: int) -> tuple[list, int]:
         ("frame_id", f"S{n}", base + 16),
     ]
     off = 4 + ((12 + n + 7) // 8) * 8  # first double, 8-aligned relative to offset 4
-    for name, count in _BODY_FIELDS[type_name]:
+    for name, count in BODY_FIELDS[type_name]:
         fields.append((name, ("<f8", (count,)), base + off))
         off += 8 * count
     return fields, off
-
-
-def payload_size(type_name: str, frame_id: str) -> int:
-    """Serialized size in bytes (with the 4-byte encapsulation header)."""
-    return _fields(type_name, frame_id, 0)[1]
-
-
-def payload_dtype(type_name: str, frame_id: str) -> np.dtype:
-    """Structured dtype of one serialized message (itemsize = :func:`payload_size`)."""
-    fields, size = _fields(type_name, frame_id, 0)
-    return _make_dtype(fields, size)
 
 
 def message_record_dtype(type_name: str, frame_id: str, itemsize: int | None = None) -> np.dtype:
@@ -148,3 +145,124 @@ def split_stamp(t_ns) -> tuple[np.ndarray, np.ndarray]:
 def join_stamp(sec, nanosec) -> np.ndarray:
     """(sec, nanosec) -> int64 nanoseconds."""
     return np.asarray(sec, np.int64) * 1_000_000_000 + np.asarray(nanosec, np.int64)
+
+
+def _times(value, n: int, name: str, default: np.ndarray) -> np.ndarray:
+    if value is None:
+        return default
+    a = np.asarray(value)
+    if a.shape != (n,) or a.dtype.kind not in "iu":
+        raise ValueError(f"{name} must be integer ns of shape ({n},), got {a.dtype} {a.shape}")
+    if n and a.min() < 0:
+        raise ValueError(f"{name} must be non-negative (MCAP times are unsigned)")
+    return a.astype(np.int64, copy=False)
+
+
+def _rows(value, n: int, width: int, name: str, default=None) -> np.ndarray:
+    if value is None:
+        return np.broadcast_to(np.asarray(default, np.float64), (n, width))
+    a = np.asarray(value, dtype=np.float64)
+    if a.shape not in ((width,), (n, width)):
+        raise ValueError(f"{name} must have shape ({n}, {width}) or ({width},), got {a.shape}")
+    return np.broadcast_to(a, (n, width))
+
+
+@dataclass
+class MessageBatch:
+    """N messages of one fixed-layout topic as columns, for chunk-wide encoding.
+
+    ``columns`` maps every body field of ``type_name`` (:data:`BODY_FIELDS`) to an (N, w)
+    float64 array (possibly a broadcast view); times are int64 ns."""
+
+    topic: str
+    type_name: str
+    frame_id: str
+    stamp_ns: np.ndarray
+    log_time_ns: np.ndarray
+    publish_time_ns: np.ndarray
+    columns: dict
+
+    def __len__(self) -> int:
+        return int(self.stamp_ns.shape[0])
+
+    def record_dtype(self) -> np.dtype:
+        return message_record_dtype(self.type_name, self.frame_id)
+
+    def take(self, order: np.ndarray) -> MessageBatch:
+        """The batch with its messages in ``order`` (a permutation)."""
+        return MessageBatch(self.topic, self.type_name, self.frame_id, self.stamp_ns[order],
+                            self.log_time_ns[order], self.publish_time_ns[order],
+                            {k: v[order] for k, v in self.columns.items()})
+
+    def constant_columns(self) -> list[str]:
+        """Body fields that are one value broadcast to every message (stride 0)."""
+        return [k for k, v in self.columns.items() if len(self) and v.strides[0] == 0]
+
+    def fill(self, recs: np.ndarray, lo: int, hi: int, skip=()) -> None:
+        """Write messages ``lo:hi`` into structured records (the header constants, and the
+        body fields in ``skip``, are set by the caller once per buffer): stamp, times and
+        the body fields."""
+        sec, nsec = split_stamp(self.stamp_ns[lo:hi])
+        recs["sec"] = sec
+        recs["nanosec"] = nsec
+        recs["log_time"] = self.log_time_ns[lo:hi]
+        recs["publish_time"] = self.publish_time_ns[lo:hi]
+        for name, arr in self.columns.items():
+            if name not in skip:
+                recs[name] = arr[lo:hi]
+
+
+def _batch(topic, type_name, frame_id, stamp_ns, log_time_ns, publish_time_ns,
+           columns) -> MessageBatch:
+    _frame_bytes(frame_id)
+    stamps = np.asarray(stamp_ns)
+    if stamps.ndim != 1 or stamps.dtype.kind not in "iu":
+        raise ValueError(f"stamp_ns must be 1-D integer ns, got {stamps.dtype} {stamps.shape}")
+    n = stamps.shape[0]
+    split_stamp(stamps)  # range check of the seconds
+    stamps = stamps.astype(np.int64, copy=False)
+    log = _times(log_time_ns, n, "log_time_ns", stamps)
+    if n and log.min() < 0:
+        raise ValueError("log_time_ns must be non-negative (MCAP times are unsigned)")
+    pub = _times(publish_time_ns, n, "publish_time_ns", log)
+    return MessageBatch(topic, type_name, frame_id, stamps, log, pub, columns)
+
+
+def imu_batch(topic: str, stamp_ns, angular_velocity, linear_acceleration=None,
+              orientation=None, *, frame_id: str = "imu_link", orientation_covariance=None,
+              angular_velocity_covariance=None, linear_acceleration_covariance=None,
+              log_time_ns=None, publish_time_ns=None) -> MessageBatch:
+    """N ``sensor_msgs/msg/Imu`` messages from arrays.
+
+    ``stamp_ns`` (N,) int ns -> header.stamp (and log/publish time unless given);
+    ``angular_velocity`` (N, 3) rad/s; ``linear_acceleration`` (N, 3) m/s² specific force or
+    None (zeros, covariance[0] = -1); ``orientation`` (N, 4) x, y, z, w or None (identity,
+    covariance[0] = -1: "no estimate"); covariances (N, 9) or (9,), default all zeros
+    ("unknown") for the fields that are given.
+    """
+    n = np.shape(stamp_ns)[0] if np.ndim(stamp_ns) == 1 else -1
+    no_estimate = np.zeros(9)
+    no_estimate[0] = -1.0
+    columns = {
+        "orientation": _rows(orientation, n, 4, "orientation", [0.0, 0.0, 0.0, 1.0]),
+        "orientation_covariance": _rows(orientation_covariance, n, 9, "orientation_covariance",
+                                        no_estimate if orientation is None else np.zeros(9)),
+        "angular_velocity": _rows(angular_velocity, n, 3, "angular_velocity"),
+        "angular_velocity_covariance": _rows(angular_velocity_covariance, n, 9,
+                                             "angular_velocity_covariance", np.zeros(9)),
+        "linear_acceleration": _rows(linear_acceleration, n, 3, "linear_acceleration",
+                                     np.zeros(3)),
+        "linear_acceleration_covariance": _rows(
+            linear_acceleration_covariance, n, 9, "linear_acceleration_covariance",
+            no_estimate if linear_acceleration is None else np.zeros(9)),
+    }
+    return _batch(topic, IMU_TYPE, frame_id, stamp_ns, log_time_ns, publish_time_ns, columns)
+
+
+def quaternion_stamped_batch(topic: str, stamp_ns, quaternion, *, frame_id: str = "map",
+                             log_time_ns=None, publish_time_ns=None) -> MessageBatch:
+    """N ``geometry_msgs/msg/QuaternionStamped`` (x, y, z, w) messages from arrays."""
+    n = np.shape(stamp_ns)[0] if np.ndim(stamp_ns) == 1 else -1
+    columns = {"quaternion": _rows(quaternion, n, 4, "quaternion")}
+    return _batch(topic, QUATERNION_STAMPED_TYPE, frame_id, stamp_ns, log_time_ns,
+                  publish_time_ns, columns)

@@ -14,8 +14,6 @@ the same way.
 
 from __future__ import annotations
 
-import os
-import struct
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -27,17 +25,8 @@ from gyro_attitude.io.mcap_reader import (
     McapStreamReader,
     iter_chunk_records,
     match_topic,
-    resolve_mcap_path,
 )
-from gyro_attitude.io.mcap_records import (
-    MAGIC,
-    OP_CHANNEL,
-    OP_FOOTER,
-    OP_MESSAGE,
-    OP_STATISTICS,
-    RECORD_HEADER,
-    BodyReader,
-)
+from gyro_attitude.io.mcap_records import MESSAGE_FIXED, OP_MESSAGE, RECORD_HEADER
 
 __all__ = [
     "ImuArrays",
@@ -47,15 +36,7 @@ __all__ = [
     "read_topic_arrays",
 ]
 
-_IMU_FIELDS = {
-    "orientation": 4,
-    "orientation_covariance": 9,
-    "angular_velocity": 3,
-    "angular_velocity_covariance": 9,
-    "linear_acceleration": 3,
-    "linear_acceleration_covariance": 9,
-}
-_FIELDS = {IMU_TYPE: _IMU_FIELDS, QUATERNION_STAMPED_TYPE: {"quaternion": 4}}
+_FIELDS = {type_name: dict(fields) for type_name, fields in cdr_arrays.BODY_FIELDS.items()}
 
 
 @dataclass
@@ -175,8 +156,9 @@ class _Collector:
         else:
             self.parts.append(part)
 
-    def add_messages(self, msgs: list[tuple[int, int, bytes]]) -> None:
-        """Per-message fallback: rclpy deserialization (log_time, publish_time, data)."""
+    def add_messages(self, msgs: list[tuple[int, int, bytes]]) -> list[str]:
+        """Per-message fallback: rclpy deserialization of (log_time, publish_time, data).
+        Messages that do not deserialize are left out; returns what was wrong with them."""
         from rclpy.serialization import deserialize_message  # lazy: no rclpy at io top
 
         if self.type_name == IMU_TYPE:
@@ -185,36 +167,27 @@ class _Collector:
             from geometry_msgs.msg import QuaternionStamped as msg_type
         cols: dict[str, list] = {k: [] for k in ("stamp_ns", "log_time_ns", "publish_time_ns",
                                                  *_FIELDS[self.type_name])}
+        bad: list[str] = []
         for log, pub, data in msgs:
             try:
                 m = deserialize_message(data, msg_type)
             except Exception as exc:  # rclpy raises plain exceptions on bad CDR
-                raise ValueError(f"{self.topic}: message at log time {log} does not "
-                                 f"deserialize as {self.type_name}: {exc}") from exc
+                bad.append(f"{self.topic}: message at log time {log} does not deserialize "
+                           f"as {self.type_name} ({str(exc).splitlines()[0][:80]})")
+                continue
             cols["stamp_ns"].append(m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec)
             cols["log_time_ns"].append(log)
             cols["publish_time_ns"].append(pub)
             self.frame_ids.append(m.header.frame_id)
-            if self.type_name == IMU_TYPE:
-                q = m.orientation
-                cols["orientation"].append((q.x, q.y, q.z, q.w))
-                cols["orientation_covariance"].append(tuple(m.orientation_covariance))
-                v = m.angular_velocity
-                cols["angular_velocity"].append((v.x, v.y, v.z))
-                cols["angular_velocity_covariance"].append(tuple(m.angular_velocity_covariance))
-                a = m.linear_acceleration
-                cols["linear_acceleration"].append((a.x, a.y, a.z))
-                cols["linear_acceleration_covariance"].append(
-                    tuple(m.linear_acceleration_covariance))
-            else:
-                q = m.quaternion
-                cols["quaternion"].append((q.x, q.y, q.z, q.w))
+            for name in _FIELDS[self.type_name]:
+                cols[name].append(_message_field(m, name))
         part = {k: np.asarray(v, dtype=np.int64) for k, v in cols.items()
                 if k in ("stamp_ns", "log_time_ns", "publish_time_ns")}
         for name, width in self.fields.items():
             part[name] = np.asarray(cols[name], dtype=np.float64).reshape(-1, width)
         self._add_part(part)
-        self.fallback += len(msgs)
+        self.fallback += len(msgs) - len(bad)
+        return bad
 
     def result(self, damage: str | None):
         keys = ("stamp_ns", "log_time_ns", "publish_time_ns", *self.fields)
@@ -236,6 +209,15 @@ class _Collector:
                    fallback_messages=self.fallback, damage=damage, **out)
 
 
+def _message_field(msg, name: str) -> tuple:
+    """A message's array field as a flat tuple (vectors as x, y, z[, w])."""
+    value = getattr(msg, name)
+    if hasattr(value, "x"):
+        return ((value.x, value.y, value.z, value.w) if hasattr(value, "w")
+                else (value.x, value.y, value.z))
+    return tuple(value)
+
+
 def _frame_at(records: bytes, off: int) -> str | None:
     """frame_id of the CDR-LE message record at ``off`` (None when it does not parse)."""
     p = off + cdr_arrays.MESSAGE_RECORD_PREFIX
@@ -251,10 +233,12 @@ def _frame_at(records: bytes, off: int) -> str | None:
 
 
 def _decode_chunk_channel(col: _Collector, records: bytes, offsets: np.ndarray,
-                          cid: int) -> None:
-    """Decode the records of channel ``cid`` at ``offsets`` (ascending) of one chunk."""
+                          cid: int) -> list[str]:
+    """Decode the records of channel ``cid`` at ``offsets`` (ascending) of one chunk;
+    returns the damage found (records that are not messages, messages that do not decode),
+    which is left out."""
     if offsets.size == 0:
-        return
+        return []
     frame = _frame_at(records, int(offsets[0]))
     ok = np.zeros(offsets.size, dtype=bool)
     recs = None
@@ -269,19 +253,24 @@ def _decode_chunk_channel(col: _Collector, records: bytes, offsets: np.ndarray,
             recs = np.ndarray((offsets.size,), dtype=dtype, buffer=records,
                               offset=int(offsets[0]), strides=(stride,))
         else:
+            # Gather rows through a sliding-window view: one fancy index per record.
             buf = np.frombuffer(records, dtype=np.uint8)
             safe = np.where(inside, offsets, 0)
-            rows = buf[safe[:, None] + np.arange(size)]
-            recs = rows.view(dtype).reshape(-1)
+            if len(buf) >= size:
+                rows = np.lib.stride_tricks.sliding_window_view(buf, size)[safe]
+                recs = np.ascontiguousarray(rows).view(dtype).reshape(-1)
+            else:
+                recs = np.zeros(offsets.size, dtype)
         fb = frame.encode("utf-8") + b"\x00"
-        ok = (inside & (recs["opcode"] == 0x05) & (recs["record_length"] == size - 9)
+        ok = (inside & (recs["opcode"] == OP_MESSAGE) & (recs["record_length"] == size - 9)
               & (recs["channel_id"] == cid)
               & (recs["encapsulation"] == cdr_arrays.CDR_LE_HEADER_U32)
               & (recs["frame_id_len"] == len(fb)) & (recs["frame_id"] == fb[:-1]))
     if ok.all():
         col.add_records(recs)
         col.frame_ids.append(frame)
-        return
+        return []
+    damage: list[str] = []
     # Irregular records (or a mix): keep the file order, regular ones still array-wide.
     start = 0
     n = offsets.size
@@ -294,20 +283,27 @@ def _decode_chunk_channel(col: _Collector, records: bytes, offsets: np.ndarray,
             col.frame_ids.append(frame)
         else:
             msgs = []
-            for off in offsets[start:stop]:
-                off = int(off)
-                if off + RECORD_HEADER.size + 22 > len(records):
-                    raise ValueError(f"{col.topic}: message index points past the chunk end")
+            for off in offsets[start:stop].tolist():
+                if off + RECORD_HEADER.size + MESSAGE_FIXED.size > len(records):
+                    damage.append(f"{col.topic}: message index points past the chunk end")
+                    continue
                 op, length = RECORD_HEADER.unpack_from(records, off)
                 body = off + RECORD_HEADER.size
-                if op != 0x05 or length < 22 or body + length > len(records):
-                    raise ValueError(f"{col.topic}: message index points at a record that "
-                                     f"is not a message of this chunk (offset {off})")
-                log = int.from_bytes(records[body + 6:body + 14], "little")
-                pub = int.from_bytes(records[body + 14:body + 22], "little")
-                msgs.append((log, pub, bytes(records[body + 22:body + length])))
-            col.add_messages(msgs)
+                if op != OP_MESSAGE or length < MESSAGE_FIXED.size \
+                        or body + length > len(records):
+                    damage.append(f"{col.topic}: message index points at a record that is "
+                                  f"not a message of this chunk (offset {off})")
+                    continue
+                msg_cid, _, log, pub = MESSAGE_FIXED.unpack_from(records, body)
+                if msg_cid != cid:
+                    damage.append(f"{col.topic}: message index points at a message of "
+                                  f"channel {msg_cid} (offset {off})")
+                    continue
+                msgs.append((log, pub, bytes(records[body + MESSAGE_FIXED.size:
+                                                     body + length])))
+            damage.extend(col.add_messages(msgs))
         start = stop
+    return damage
 
 
 def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
@@ -353,22 +349,23 @@ def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
             by_channel[cid] = col
         return by_channel[cid]
 
-    counts = summary_message_counts(path)
-    if counts:
-        recorded = list(counts)
+    summary = reader.summary()
+    if summary is not None and summary.message_counts:
+        # Pre-size the outputs from the summary's counts, only as far as the declared chunk
+        # bytes could hold such messages (a forged count must not allocate).
+        recorded = [ch.topic for ch in summary.channels.values()]
         for t, c in collectors.items():
             topic = match_topic(recorded, t)
-            if topic is not None:
-                c.preallocate(counts[topic])
+            cids = [cid for cid, ch in summary.channels.items() if ch.topic == topic]
+            count = sum(summary.message_counts.get(cid, 0) for cid in cids)
+            if topic is not None and count * c.dtype("").itemsize <= summary.uncompressed_bytes:
+                c.preallocate(count)
     for chunk in reader.iter_chunks():
         index = chunk.message_index
         if index is None:
-            # No usable index: walk the records once to find each channel's offsets.
-            try:
-                offs = _walk_offsets(chunk.records)
-            except ValueError as exc:
-                reader._damaged(f"corrupt chunk records ({exc})", chunk.file_offset)
-                break
+            # No usable index: walk the records once to find each channel's offsets (the
+            # reader has cut the chunk at its last whole record).
+            offs = _walk_offsets(chunk.records)
             index = {cid: np.stack([np.zeros(len(o), np.uint64), np.asarray(o, np.uint64)], 1)
                      for cid, o in offs.items()}
         for cid, entries in index.items():
@@ -376,7 +373,8 @@ def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
             if col is None:
                 continue
             offsets = np.sort(entries[:, 1].astype(np.int64), kind="stable")
-            _decode_chunk_channel(col, chunk.records, offsets, cid)
+            for what in _decode_chunk_channel(col, chunk.records, offsets, cid):
+                reader._damaged(what, chunk.file_offset)
         if progress is not None:
             progress(chunk.file_offset + 1, total)
     if progress is not None:
@@ -391,54 +389,6 @@ def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
             continue
         out[t] = c.result(reader.damage)
     return out
-
-
-def summary_message_counts(path) -> dict[str, int] | None:
-    """{topic: message count} from the Statistics of an intact file's summary, or None
-    (no footer/summary, damaged, in-memory input): used only to pre-size arrays."""
-    if isinstance(path, bytes | bytearray | memoryview):
-        return None
-    try:
-        p = resolve_mcap_path(path)
-        with open(p, "rb") as f:
-            size = f.seek(0, os.SEEK_END)
-            if size < 8 + 9 + 20 + 8:
-                return None
-            f.seek(size - 8 - 29)
-            tail = f.read(29 + 8)
-            if tail[-8:] != MAGIC or tail[0] != OP_FOOTER:
-                return None
-            summary_start, summary_offset_start = struct.unpack_from("<QQ", tail, 9)
-            end = summary_offset_start or size - 8 - 29
-            if not 0 < summary_start <= end <= size or end - summary_start > 1 << 28:
-                return None
-            f.seek(summary_start)
-            buf = f.read(end - summary_start)
-        topics: dict[int, str] = {}
-        counts: dict[int, int] | None = None
-        pos = 0
-        while pos + 9 <= len(buf):
-            op, length = RECORD_HEADER.unpack_from(buf, pos)
-            body = buf[pos + 9:pos + 9 + length]
-            if op == OP_CHANNEL:
-                r = BodyReader(body)
-                cid = r.u16()
-                r.u16()
-                topics[cid] = r.string()
-            elif op == OP_STATISTICS:
-                r = BodyReader(body, 8 + 2 + 4 + 4 + 4 + 4 + 8 + 8)
-                n = r.u32()
-                entries = body[r.pos:r.pos + n]
-                counts = {}
-                for k in range(0, len(entries) - 9, 10):
-                    cid, cnt = struct.unpack_from("<HQ", entries, k)
-                    counts[cid] = cnt
-            pos += 9 + length
-        if counts is None:
-            return None
-        return {topics[c]: n for c, n in counts.items() if c in topics}
-    except (OSError, ValueError, IndexError, struct.error, UnicodeDecodeError):
-        return None
 
 
 def _walk_offsets(records: bytes) -> dict[int, list[int]]:

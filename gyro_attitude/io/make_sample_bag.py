@@ -4,7 +4,8 @@
 
 20 s of the shipped ``coning`` scene (closed-form truth) sampled at 200 Hz:
 ``/imu/data_raw`` (sensor_msgs/Imu, frame ``imu_link``) and ``/truth/attitude``
-(geometry_msgs/QuaternionStamped, frame ``enu``), zstd-compressed chunks.  The same
+(geometry_msgs/QuaternionStamped, frame ``enu``), merged by log time into zstd-compressed
+chunks.  The same
 scene, rate, duration and seed give byte-identical files.
 """
 
@@ -13,6 +14,16 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+
+from gyro_attitude.core.scene import SceneSimulator
+from gyro_attitude.io.cdr_arrays import (
+    IMU_TYPE,
+    QUATERNION_STAMPED_TYPE,
+    imu_batch,
+    quaternion_stamped_batch,
+)
+from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
+from gyro_attitude.io.scene_file import load_scene
 
 SAMPLE_NAME = "coning_200hz.mcap"
 
@@ -25,11 +36,6 @@ def make_sample_bag(out, *, scene: str = "coning", seconds: float = 20.0,
                     rate_hz: float = 200.0, seed: int | None = None,
                     compression: str = "zstd") -> dict:
     """Simulate ``scene`` and record it; returns {topic: message count}."""
-    from gyro_attitude.core.scene import SceneSimulator
-    from gyro_attitude.io.cdr_arrays import IMU_TYPE, QUATERNION_STAMPED_TYPE
-    from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
-    from gyro_attitude.io.scene_file import load_scene
-
     if not seconds > 0 or not rate_hz > 0:
         raise ValueError(f"seconds and rate_hz must be positive, got {seconds}, {rate_hz}")
     spec = load_scene(scene)
@@ -42,10 +48,12 @@ def make_sample_bag(out, *, scene: str = "coning", seconds: float = 20.0,
     with Rosbag2McapWriter(out, compression=compression) as w:
         w.add_topic("imu/data_raw", IMU_TYPE)
         w.add_topic("truth/attitude", QUATERNION_STAMPED_TYPE)
-        w.write_imu_array("imu/data_raw", block.t_ns, block.omega_ib_b, block.specific_force_b,
-                          frame_id="imu_link")
-        w.write_quaternion_stamped_array("truth/attitude", block.t_ns, block.truth_q_nb,
-                                         frame_id="enu")
+        w.write_batches([
+            imu_batch("imu/data_raw", block.t_ns, block.omega_ib_b, block.specific_force_b,
+                      frame_id="imu_link"),
+            quaternion_stamped_batch("truth/attitude", block.t_ns, block.truth_q_nb,
+                                     frame_id="enu"),
+        ])
         return w.topic_counts()
 
 

@@ -1,94 +1,78 @@
-"""rosbag2-compatible MCAP writer (the files ``ros2 bag record -s mcap`` writes in Jazzy).
+"""rosbag2-compatible MCAP writer: chunks, indexes, summary (the file
+``ros2 bag record -s mcap`` writes in Jazzy; profile details in :mod:`.rosbag2_profile`).
 
-What goes into the file (compared against real rosbag2 output in the tests):
+Messages go into chunks (zstd by default, as rosbag2's MCAP storage; lz4 or none on
+request; CRC over the uncompressed records), each chunk followed by its Message Index
+records; :meth:`Rosbag2McapWriter.finish` adds the ``rosbag2`` Metadata record, Data End and
+the summary (schemas, channels, Statistics, Chunk Indexes, Metadata Index, Summary
+Offsets, Footer with the summary CRC).  Schema and Channel records are written straight
+into the data section when a topic is added, so a file cut short by a crash still
+describes every channel.  Chunks are closed when they reach ``chunk_size`` bytes, when
+:meth:`flush` is called and, with ``max_chunk_interval_s``, when the open chunk is older
+than that: a killed process loses at most the open chunk.
 
-* header profile ``ros2``; one Schema per message type, encoding ``ros2msg``, data built
-  from the installed ``.msg`` files exactly as rosbag2 builds it (:mod:`.ros2_schema`);
-* one Channel per topic, message encoding ``cdr``, metadata ``offered_qos_profiles``
-  (rosbag2 version-9 YAML, :mod:`.qos`) and ``topic_type_hash`` (``RIHS01_...``);
-* messages in chunks (optionally zstd or lz4 compressed, CRC over the uncompressed
-  records), each chunk followed by its Message Index records;
-* a ``rosbag2`` Metadata record with ``serialized_metadata`` (rosbag2's metadata YAML),
-  Data End with the data-section CRC, and the summary: schemas, channels, Statistics,
-  Chunk Indexes, Metadata Index, Summary Offsets, Footer (with the summary CRC);
-* optionally a bag directory: ``<dir>/<dir>_0.mcap`` plus ``metadata.yaml`` (version 9).
-
-Schema and Channel records are written straight into the data section (outside chunks)
-when a topic is added, so a file cut short by a crash still describes every channel.
-Chunks are closed when they reach ``chunk_size`` bytes, when :meth:`flush` is called and,
-with ``max_chunk_interval_s``, when the open chunk is older than that: a killed process
-loses at most the open chunk.
-
-The chunk assembly is written by hand (not with the ``mcap`` package's Writer) because
-the array paths (:meth:`write_imu_array`, :meth:`write_quaternion_stamped_array`) build
-whole chunks as one numpy structured array: a per-message Python call would cap
-throughput near 10^5 messages per second.
+:meth:`Rosbag2McapWriter.write_batches` writes whole arrays of messages of several topics
+(:class:`.cdr_arrays.MessageBatch`) merged by log time into chunks: every reader then sees
+the messages in log-time order across channels.  The chunk assembly is written by hand
+(not with the ``mcap`` package's Writer) because chunks are built as numpy buffers: a
+per-message Python call caps throughput near 10^5 messages per second.
 """
 
 from __future__ import annotations
 
-import struct
 import time
 import zlib
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import lz4.frame
 import numpy as np
-import yaml
+import zstandard
 
 from gyro_attitude import __version__
 from gyro_attitude.io import cdr_arrays
 from gyro_attitude.io.mcap_records import (
-    CHUNK_FIXED,
     MAGIC,
     MESSAGE_FIXED,
     OP_CHANNEL,
-    OP_CHUNK,
     OP_CHUNK_INDEX,
-    OP_DATA_END,
-    OP_FOOTER,
-    OP_HEADER,
     OP_MESSAGE,
-    OP_MESSAGE_INDEX,
-    OP_METADATA,
     OP_METADATA_INDEX,
     OP_SCHEMA,
     OP_STATISTICS,
-    OP_SUMMARY_OFFSET,
     RECORD_HEADER,
-    pack_bytes32,
-    pack_str,
-    pack_str_map,
-    record,
+    chunk_index_record,
+    chunk_record_head,
+    data_end_record,
+    footer_head,
+    header_record,
+    message_index_record,
+    metadata_index_record,
+    statistics_record,
+    summary_offset_record,
 )
-from gyro_attitude.io.qos import DEFAULT_QOS_YAML, parse_qos_profiles
-from gyro_attitude.io.ros2_schema import full_msg_definition, normalize_type_name, type_hash
+from gyro_attitude.io.rosbag2_profile import (
+    PROFILE,
+    Rosbag2Topic,
+    bag_directory_file,
+    full_type_name,
+    normalize_topic,
+    ros2_schema_record,
+    rosbag2_metadata,
+    rosbag2_metadata_record,
+    write_bag_metadata_yaml,
+)
 
-__all__ = ["Rosbag2McapWriter", "normalize_topic", "COMPRESSIONS"]
+__all__ = ["Rosbag2McapWriter", "normalize_topic", "COMPRESSIONS", "DEFAULT_COMPRESSION"]
 
 COMPRESSIONS = ("", "zstd", "lz4")
+DEFAULT_COMPRESSION = "zstd"
 DEFAULT_CHUNK_SIZE = 768 * 1024  # libmcap's default, used by rosbag2
 _U64_MAX = 2**64 - 1
-
-
-def normalize_topic(topic: str) -> str:
-    """Fully qualified topic name as rosbag2 stores it (leading ``/``)."""
-    if not isinstance(topic, str) or not topic.strip("/"):
-        raise ValueError(f"topic name must be a non-empty string, got {topic!r}")
-    return topic if topic.startswith("/") else "/" + topic
-
-
-@dataclass
-class _Channel:
-    id: int
-    topic: str
-    type_name: str
-    schema_id: int
-    qos_yaml: str
-    type_hash: str
-    count: int = 0
-    sequence: int = 0
+# Array paths: chunks being filled, compressed or written at once, and compression threads.
+_PIPELINE_DEPTH = 4
+_COMPRESS_THREADS = 2
 
 
 @dataclass
@@ -100,6 +84,28 @@ class _OpenChunk:
     opened_at: float = 0.0
 
 
+def _zstd_compress(records) -> bytes:
+    return zstandard.ZstdCompressor(level=1).compress(records)
+
+
+def merge_positions(logs: list[np.ndarray]) -> list[np.ndarray]:
+    """Positions in the merged stream of several log-time-sorted sequences: stable, a
+    sequence listed earlier goes first among equal times (an O(N log N) merge by binary
+    search instead of sorting the concatenation)."""
+    k = len(logs)
+    if k > 1 and all(lc.shape == logs[0].shape and np.array_equal(lc, logs[0]) for lc in logs):
+        # Same log times in every sequence (a replay's outputs): a plain round robin.
+        return [np.arange(logs[0].shape[0], dtype=np.int64) * k + c for c in range(k)]
+    out = []
+    for c, lc in enumerate(logs):
+        pos = np.arange(lc.shape[0], dtype=np.int64)
+        for d, ld in enumerate(logs):
+            if d != c:
+                pos += np.searchsorted(ld, lc, side="right" if d < c else "left")
+        out.append(pos)
+    return out
+
+
 class Rosbag2McapWriter:
     """Write a rosbag2 (Jazzy) compatible MCAP file.
 
@@ -108,10 +114,12 @@ class Rosbag2McapWriter:
     path:
         Output ``.mcap`` file, or with ``bag_directory=True`` a directory to create that
         will hold ``<name>_0.mcap`` and ``metadata.yaml`` (it must not exist or be empty).
+        Safe replacement of an existing file is the caller's business
+        (:mod:`gyro_attitude.io.safe_output`).
     chunk_size:
         Close a chunk once its uncompressed records reach this many bytes.
     compression:
-        ``""`` (none, rosbag2's reference files), ``"zstd"`` or ``"lz4"``.
+        ``"zstd"`` (default, as rosbag2's MCAP storage), ``"lz4"`` or ``""`` (none).
     max_chunk_interval_s:
         Also close the open chunk (and flush the file) when a message arrives and the chunk
         is older than this; recorders call :meth:`flush` from a timer as well.
@@ -132,7 +140,7 @@ class Rosbag2McapWriter:
         *,
         bag_directory: bool = False,
         chunk_size: int = DEFAULT_CHUNK_SIZE,
-        compression: str = "",
+        compression: str = DEFAULT_COMPRESSION,
         max_chunk_interval_s: float | None = None,
         ros_distro: str = "jazzy",
         data_section_crc: bool = False,
@@ -150,29 +158,23 @@ class Rosbag2McapWriter:
         path = Path(path)
         self.bag_directory: Path | None = None
         if bag_directory:
-            if path.exists() and (not path.is_dir() or any(path.iterdir())):
-                raise ValueError(f"bag directory {path} exists and is not an empty directory")
-            path.mkdir(parents=True, exist_ok=True)
             self.bag_directory = path
-            path = path / f"{path.name}_0.mcap"
+            path = bag_directory_file(path)
         else:
             path.parent.mkdir(parents=True, exist_ok=True)
         self.path = path
         self._compressor = None
         if compression == "zstd":
-            import zstandard
-
-            self._compressor = zstandard.ZstdCompressor(level=1).compress
+            # A ZstdCompressor must not be shared by threads: one context per chunk.
+            self._compressor = _zstd_compress
         elif compression == "lz4":
-            import lz4.frame
-
             self._compressor = lz4.frame.compress
         self._file = open(path, "wb")  # closed in finish()
         self._pos = 0
         self._data_crc = 0
         self._crc_data = bool(data_section_crc)
         self._schemas: dict[str, tuple[int, bytes]] = {}  # type -> (id, record)
-        self._channels: dict[str, _Channel] = {}
+        self._channels: dict[str, Rosbag2Topic] = {}
         self._channel_records: list[bytes] = []
         self._chunk_indexes: list[bytes] = []
         self._chunk = _OpenChunk()
@@ -182,7 +184,7 @@ class Rosbag2McapWriter:
         self._end = 0
         self._finished = False
         self._emit(MAGIC)
-        self._emit(record(OP_HEADER, pack_str("ros2") + pack_str(f"gyro_attitude {__version__}")))
+        self._emit(header_record(PROFILE, f"gyro_attitude {__version__}"))
 
     # ----------------------------------------------------------------- plumbing
     def _emit(self, data) -> None:
@@ -199,7 +201,10 @@ class Rosbag2McapWriter:
         return self
 
     def __exit__(self, exc_type, exc, tb):
-        self.finish()
+        if exc_type is None:
+            self.finish()
+        else:
+            self.abandon()  # an error mid-way: no summary that would pass for complete
         return False
 
     # ----------------------------------------------------------------- topics
@@ -212,38 +217,27 @@ class Rosbag2McapWriter:
         """
         self._check_open()
         topic = normalize_topic(topic)
-        pkg, name = normalize_type_name(type_name)
-        type_name = f"{pkg}/msg/{name}"
+        type_name = full_type_name(type_name)
         if topic in self._channels:
             ch = self._channels[topic]
             if ch.type_name != type_name:
                 raise ValueError(f"topic {topic} already added with type {ch.type_name}")
             return ch.id
-        qos = DEFAULT_QOS_YAML if qos_profiles_yaml is None else qos_profiles_yaml
-        parse_qos_profiles(qos)  # validate before anything reaches the file
+        schema_id = (self._schemas[type_name][0] if type_name in self._schemas
+                     else len(self._schemas) + 1)
+        ch = Rosbag2Topic.create(len(self._channels) + 1, topic, type_name, schema_id,
+                                 qos_profiles_yaml)
         if type_name not in self._schemas:
-            text = full_msg_definition(type_name).encode("utf-8")
-            sid = len(self._schemas) + 1
-            rec = record(
-                OP_SCHEMA,
-                struct.pack("<H", sid) + pack_str(type_name) + pack_str("ros2msg")
-                + pack_bytes32(text),
-            )
-            self._schemas[type_name] = (sid, rec)
+            rec = ros2_schema_record(schema_id, type_name)
+            self._schemas[type_name] = (schema_id, rec)
             self._emit(rec)
-        sid = self._schemas[type_name][0]
-        ch = _Channel(len(self._channels) + 1, topic, type_name, sid, qos, type_hash(type_name))
-        rec = record(
-            OP_CHANNEL,
-            struct.pack("<HH", ch.id, sid) + pack_str(topic) + pack_str("cdr")
-            + pack_str_map({"offered_qos_profiles": qos, "topic_type_hash": ch.type_hash}),
-        )
+        rec = ch.channel_record()
         self._channels[topic] = ch
         self._channel_records.append(rec)
         self._emit(rec)
         return ch.id
 
-    def _channel(self, topic: str) -> _Channel:
+    def _channel(self, topic: str) -> Rosbag2Topic:
         try:
             return self._channels[normalize_topic(topic)]
         except KeyError:
@@ -252,7 +246,7 @@ class Rosbag2McapWriter:
     # ----------------------------------------------------------------- messages
     def write(self, topic: str, serialized_cdr, log_time_ns: int,
               publish_time_ns: int | None = None) -> None:
-        """Append one serialized (CDR) message of an added topic."""
+        """Append one serialized (CDR) message of an added topic (call in log-time order)."""
         self._check_open()
         ch = self._channel(topic)
         log_time = int(log_time_ns)
@@ -297,105 +291,154 @@ class Rosbag2McapWriter:
         })
         self._chunk = _OpenChunk()
 
+    def _prepare_chunk(self, records) -> tuple[int, object]:
+        """(CRC of the uncompressed records, the bytes to store): thread-safe."""
+        crc = zlib.crc32(records)
+        return crc, records if self._compressor is None else self._compressor(records)
+
     def _write_chunk(self, records, start: int, end: int,
-                     index: dict[int, np.ndarray]) -> None:
+                     index: dict[int, np.ndarray], prepared=None) -> None:
         """Chunk record + its Message Index records; remembers the Chunk Index.
 
         ``records``: bytes or a byte-format memoryview (the array paths pass a view of
-        their record buffer to avoid a copy)."""
-        crc = zlib.crc32(records)
-        data = records if self._compressor is None else self._compressor(records)
+        their record buffer to avoid a copy); ``prepared``: a future of
+        :meth:`_prepare_chunk` already running elsewhere."""
+        crc, data = self._prepare_chunk(records) if prepared is None else prepared.result()
         chunk_start = self._pos
-        head = CHUNK_FIXED.pack(start, end, len(records), crc) + pack_str(self.compression)
-        body_len = len(head) + 8 + len(data)
-        self._emit(RECORD_HEADER.pack(OP_CHUNK, body_len) + head + struct.pack("<Q", len(data)))
+        self._emit(chunk_record_head(start, end, len(records), crc, self.compression,
+                                     len(data)))
         self._emit(data)
         chunk_length = self._pos - chunk_start
         offsets = {}
         for cid in sorted(index):
             entries = np.ascontiguousarray(index[cid], dtype="<u8").reshape(-1, 2)
-            payload = entries.tobytes()
             offsets[cid] = self._pos
-            self._emit(RECORD_HEADER.pack(OP_MESSAGE_INDEX, 2 + 4 + len(payload))
-                       + struct.pack("<HI", cid, len(payload)) + payload)
-        index_length = self._pos - chunk_start - chunk_length
-        omap = b"".join(struct.pack("<HQ", cid, o) for cid, o in offsets.items())
-        self._chunk_indexes.append(record(
-            OP_CHUNK_INDEX,
-            struct.pack("<QQQQ", start, end, chunk_start, chunk_length)
-            + struct.pack("<I", len(omap)) + omap
-            + struct.pack("<Q", index_length) + pack_str(self.compression)
-            + struct.pack("<QQ", len(data), len(records)),
-        ))
+            self._emit(message_index_record(cid, entries.tobytes()))
+        self._chunk_indexes.append(chunk_index_record(
+            start, end, chunk_start, chunk_length, offsets,
+            self._pos - chunk_start - chunk_length, self.compression, len(data),
+            len(records)))
         self._chunk_count += 1
 
     # ----------------------------------------------------------------- array paths
-    def _write_array(self, topic: str, type_name: str, frame_id: str, stamp_ns,
-                     log_time_ns, publish_time_ns, fill) -> None:
+    def write_batches(self, batches: list[cdr_arrays.MessageBatch]) -> None:
+        """Write message batches of several topics, merged by log time into chunks.
+
+        Within a batch, messages keep their order among equal log times (a batch out of
+        log-time order is sorted, stably); among batches, an earlier one goes first at
+        equal times.  Sequence numbers count per channel in written order.
+        """
         self._check_open()
-        ch = self._channel(topic)
-        if ch.type_name != type_name:
-            raise ValueError(f"topic {ch.topic} has type {ch.type_name}, not {type_name}")
-        stamps = np.asarray(stamp_ns)
-        if stamps.ndim != 1:
-            raise ValueError(f"stamp_ns must be 1-D, got shape {stamps.shape}")
-        n = stamps.shape[0]
-        sec, nsec = cdr_arrays.split_stamp(stamps)
-        log = stamps.astype(np.int64) if log_time_ns is None else np.asarray(log_time_ns)
-        pub = log if publish_time_ns is None else np.asarray(publish_time_ns)
-        for name, arr in (("log_time_ns", log), ("publish_time_ns", pub)):
-            if arr.shape != (n,) or arr.dtype.kind not in "iu":
-                raise ValueError(f"{name} must be integer ns of shape ({n},), got "
-                                 f"{arr.dtype} {arr.shape}")
-            if n and arr.min() < 0:
-                raise ValueError(f"{name} must be non-negative (MCAP times are unsigned)")
+        batches = [b for b in batches if len(b)]
+        for b in batches:
+            ch = self._channel(b.topic)
+            if ch.type_name != b.type_name:
+                raise ValueError(f"topic {ch.topic} has type {ch.type_name}, not {b.type_name}")
         self._close_chunk()  # keep the order: pending per-message records first
-        if n == 0:
+        if not batches:
             return
-        dtype = cdr_arrays.message_record_dtype(type_name, frame_id)
-        rec_size = dtype.itemsize
-        per_chunk = max(1, self.chunk_size // rec_size)
-        frame = frame_id.encode("utf-8") + b"\x00"
-        # Two record buffers, reused for every chunk (fresh pages per chunk cost page
-        # faults), so that one is filled here while a worker thread CRCs, compresses and
-        # writes the other: numpy's copies, zlib.crc32, the compressors and file writes all
-        # release the GIL, so the two overlap on a multi-core machine.  The worker runs
-        # chunks in submission order (one thread) and is the only one touching the file
-        # until the last chunk is done.  Zeroed once, constant fields set once: the fields
+        for i, b in enumerate(batches):
+            if (np.diff(b.log_time_ns) < 0).any():
+                batches[i] = b.take(np.argsort(b.log_time_ns, kind="stable"))
+        channels = [self._channel(b.topic) for b in batches]
+        dtypes = [b.record_dtype() for b in batches]
+        sizes = np.array([d.itemsize for d in dtypes], dtype=np.int64)
+        positions = merge_positions([b.log_time_ns for b in batches])
+        total = sum(len(b) for b in batches)
+        # Byte offset of every message in the merged stream.
+        rec_size = np.empty(total, dtype=np.int64)
+        for pos, size in zip(positions, sizes, strict=True):
+            rec_size[pos] = size
+        starts = np.zeros(total + 1, dtype=np.int64)
+        np.cumsum(rec_size, out=starts[1:])
+        # Chunk boundaries (merged positions): a chunk closes once it reaches chunk_size.
+        bounds = [0]
+        while bounds[-1] < total:
+            p0 = bounds[-1]
+            bounds.append(max(p0 + 1, int(np.searchsorted(starts, starts[p0] + self.chunk_size,
+                                                          side="left"))))
+            bounds[-1] = min(bounds[-1], total)
+        max_bytes = int(np.diff(starts[bounds]).max())
+        # Buffer sets reused for every chunk (fresh pages per chunk cost page faults): one
+        # is filled here while other chunks are CRC'd and compressed by a pool of threads
+        # and written, in submission order, by one writer thread (the only one touching the
+        # file until the last chunk is done).  numpy's copies, zlib.crc32, the compressors
+        # and file writes all release the GIL, so these overlap on a multi-core machine.
+        # Record buffers are zeroed once and their constant fields set once: the fields
         # cover every byte except the CDR padding after frame_id, which so stays 0.
-        bufs = [np.zeros(min(n, per_chunk), dtype=dtype) for _ in range(2)]
-        for b in bufs:  # the fields that are the same in every record, set once
-            b["opcode"] = OP_MESSAGE
-            b["record_length"] = rec_size - 9
-            b["channel_id"] = ch.id
-            b["encapsulation"] = cdr_arrays.CDR_LE_HEADER_U32
-            b["frame_id_len"] = len(frame)
-            b["frame_id"] = frame
-        busy: list = [None, None]
+        slots = _PIPELINE_DEPTH
+        rec_bufs = []
+        for b, ch, dt in zip(batches, channels, dtypes, strict=True):
+            cap = min(len(b), max_bytes // dt.itemsize + 1)
+            buffers = [np.zeros(cap, dtype=dt) for _ in range(slots)]
+            frame = b.frame_id.encode("utf-8") + b"\x00"
+            for r in buffers:
+                r["opcode"] = OP_MESSAGE
+                r["record_length"] = dt.itemsize - RECORD_HEADER.size
+                r["channel_id"] = ch.id
+                r["encapsulation"] = cdr_arrays.CDR_LE_HEADER_U32
+                r["frame_id_len"] = len(frame)
+                r["frame_id"] = frame
+                for name in b.constant_columns():
+                    r[name] = b.columns[name][0]
+            rec_bufs.append(buffers)
+        constants = [set(b.constant_columns()) for b in batches]
+        chunk_bufs = [np.zeros(max_bytes, dtype=np.uint8) for _ in range(slots)] \
+            if len(batches) > 1 else None
+        busy: list = [None] * slots
+        compressors = ThreadPoolExecutor(max_workers=_COMPRESS_THREADS,
+                                         thread_name_prefix="mcap_chunk_compress")
         worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mcap_chunk_writer")
         try:
-            for i, lo in enumerate(range(0, n, per_chunk)):
-                hi = min(n, lo + per_chunk)
-                m = hi - lo
-                if busy[i % 2] is not None:
-                    busy[i % 2].result()  # that buffer is written out: reuse it
-                recs = bufs[i % 2][:m]
-                recs["sequence"] = (ch.sequence + np.arange(m, dtype=np.int64)) & 0xFFFFFFFF
-                recs["log_time"] = log[lo:hi]
-                recs["publish_time"] = pub[lo:hi]
-                recs["sec"] = sec[lo:hi]
-                recs["nanosec"] = nsec[lo:hi]
-                fill(recs, lo, hi)
-                ch.sequence += m
-                ch.count += m
-                lt = log[lo:hi].astype(np.uint64)
-                start, end = int(lt.min()), int(lt.max())
-                index = np.empty((m, 2), dtype=np.uint64)
-                index[:, 0] = lt
-                index[:, 1] = np.arange(m, dtype=np.uint64) * rec_size
-                busy[i % 2] = worker.submit(self._write_chunk, memoryview(recs.view(np.uint8)),
-                                            start, end, {ch.id: index})
-                self._message_count += m
+            for i in range(len(bounds) - 1):
+                p0, p1 = bounds[i], bounds[i + 1]
+                slot = i % slots
+                if busy[slot] is not None:
+                    busy[slot].result()  # that buffer is written out: reuse it
+                nbytes = int(starts[p1] - starts[p0])
+                index = {}
+                start, end = _U64_MAX, 0
+                records = None
+                for bi, (b, ch, pos, bufs) in enumerate(zip(batches, channels, positions,
+                                                            rec_bufs, strict=True)):
+                    lo, hi = (int(v) for v in np.searchsorted(pos, [p0, p1]))
+                    m = hi - lo
+                    if m == 0:
+                        continue
+                    recs = bufs[slot][:m]
+                    recs["sequence"] = (ch.sequence + np.arange(m, dtype=np.int64)) & 0xFFFFFFFF
+                    b.fill(recs, lo, hi, skip=constants[bi])
+                    ch.sequence += m
+                    ch.count += m
+                    offs = starts[pos[lo:hi]] - starts[p0]
+                    lt = b.log_time_ns[lo:hi].astype(np.uint64)
+                    start, end = min(start, int(lt[0])), max(end, int(lt[-1]))
+                    entries = np.empty((m, 2), dtype=np.uint64)
+                    entries[:, 0] = lt
+                    entries[:, 1] = offs
+                    index[ch.id] = entries
+                    raw = recs.view(np.uint8).reshape(m, -1)
+                    if chunk_bufs is None:
+                        records = memoryview(raw.reshape(-1))  # one topic: records in place
+                    else:
+                        # Scatter whole records to their merged byte offsets through a
+                        # sliding-window view (one row copy per record).
+                        out = chunk_bufs[slot][:nbytes]
+                        steps = np.diff(offs)
+                        if m > 1 and (steps == steps[0]).all():
+                            # evenly interleaved: one strided copy
+                            np.ndarray((m, raw.shape[1]), np.uint8, buffer=out,
+                                       offset=int(offs[0]),
+                                       strides=(int(steps[0]), 1))[:] = raw
+                        else:
+                            win = np.lib.stride_tricks.sliding_window_view(
+                                out, raw.shape[1], writeable=True)
+                            win[offs] = raw
+                        records = memoryview(out)
+                prepared = compressors.submit(self._prepare_chunk, records)
+                busy[slot] = worker.submit(self._write_chunk, records, start, end, index,
+                                           prepared)
+                self._message_count += p1 - p0
                 self._start = min(self._start, start)
                 self._end = max(self._end, end)
             for f in busy:
@@ -403,66 +446,21 @@ class Rosbag2McapWriter:
                     f.result()  # re-raises a write error here
         finally:
             worker.shutdown(wait=True)
-
-    @staticmethod
-    def _rows(value, n: int, width: int, name: str, default=None) -> np.ndarray:
-        if value is None:
-            return np.broadcast_to(np.asarray(default, np.float64), (n, width))
-        a = np.asarray(value, dtype=np.float64)
-        if a.shape not in ((width,), (n, width)):
-            raise ValueError(f"{name} must have shape ({n}, {width}) or ({width},), got {a.shape}")
-        return np.broadcast_to(a, (n, width))
+            compressors.shutdown(wait=True)
 
     def write_imu_array(self, topic: str, stamp_ns, angular_velocity, linear_acceleration=None,
-                        orientation=None, *, frame_id: str = "imu_link",
-                        orientation_covariance=None, angular_velocity_covariance=None,
-                        linear_acceleration_covariance=None, log_time_ns=None,
-                        publish_time_ns=None) -> None:
-        """Write N ``sensor_msgs/msg/Imu`` messages from arrays, chunk-wide.
+                        orientation=None, **kwargs) -> None:
+        """Write N ``sensor_msgs/msg/Imu`` messages from arrays (arguments of
+        :func:`.cdr_arrays.imu_batch`); to interleave with other topics use
+        :meth:`write_batches`."""
+        self.write_batches([cdr_arrays.imu_batch(topic, stamp_ns, angular_velocity,
+                                                 linear_acceleration, orientation, **kwargs)])
 
-        ``stamp_ns`` (N,) int ns -> header.stamp (and log/publish time unless given);
-        ``angular_velocity`` (N, 3) rad/s; ``linear_acceleration`` (N, 3) m/s² specific
-        force or None (zeros, covariance[0] = -1); ``orientation`` (N, 4) x, y, z, w or None
-        (identity, covariance[0] = -1: "no estimate"); covariances (N, 9) or (9,), default
-        all zeros ("unknown") for the fields that are given.
-        """
-        n = np.shape(stamp_ns)[0] if np.ndim(stamp_ns) == 1 else -1
-        no_est = np.zeros(9)
-        no_est[0] = -1.0
-        cols = {
-            "angular_velocity": self._rows(angular_velocity, n, 3, "angular_velocity"),
-            "linear_acceleration": self._rows(linear_acceleration, n, 3, "linear_acceleration",
-                                              np.zeros(3)),
-            "orientation": self._rows(orientation, n, 4, "orientation", [0.0, 0.0, 0.0, 1.0]),
-            "orientation_covariance": self._rows(
-                orientation_covariance, n, 9, "orientation_covariance",
-                no_est if orientation is None else np.zeros(9)),
-            "angular_velocity_covariance": self._rows(
-                angular_velocity_covariance, n, 9, "angular_velocity_covariance", np.zeros(9)),
-            "linear_acceleration_covariance": self._rows(
-                linear_acceleration_covariance, n, 9, "linear_acceleration_covariance",
-                no_est if linear_acceleration is None else np.zeros(9)),
-        }
-
-        def fill(recs, lo, hi):
-            for key, arr in cols.items():
-                recs[key] = arr[lo:hi]
-
-        self._write_array(topic, cdr_arrays.IMU_TYPE, frame_id, stamp_ns, log_time_ns,
-                          publish_time_ns, fill)
-
-    def write_quaternion_stamped_array(self, topic: str, stamp_ns, quaternion, *,
-                                       frame_id: str = "map", log_time_ns=None,
-                                       publish_time_ns=None) -> None:
-        """Write N ``geometry_msgs/msg/QuaternionStamped`` (x, y, z, w) messages, chunk-wide."""
-        n = np.shape(stamp_ns)[0] if np.ndim(stamp_ns) == 1 else -1
-        quat = self._rows(quaternion, n, 4, "quaternion")
-
-        def fill(recs, lo, hi):
-            recs["quaternion"] = quat[lo:hi]
-
-        self._write_array(topic, cdr_arrays.QUATERNION_STAMPED_TYPE, frame_id, stamp_ns,
-                          log_time_ns, publish_time_ns, fill)
+    def write_quaternion_stamped_array(self, topic: str, stamp_ns, quaternion, **kwargs) -> None:
+        """Write N ``geometry_msgs/msg/QuaternionStamped`` (x, y, z, w) messages from arrays
+        (arguments of :func:`.cdr_arrays.quaternion_stamped_batch`)."""
+        self.write_batches([cdr_arrays.quaternion_stamped_batch(topic, stamp_ns, quaternion,
+                                                                **kwargs)])
 
     # ----------------------------------------------------------------- finishing
     def flush(self) -> None:
@@ -480,40 +478,8 @@ class Rosbag2McapWriter:
         return {t: ch.count for t, ch in self._channels.items()}
 
     def _rosbag2_metadata(self) -> dict:
-        start = 0 if self._message_count == 0 else self._start
-        duration = 0 if self._message_count == 0 else self._end - self._start
-        name = self.path.name
-        topics = []
-        for ch in sorted(self._channels.values(), key=lambda c: c.topic):
-            topics.append({
-                "topic_metadata": {
-                    "name": ch.topic,
-                    "type": ch.type_name,
-                    "serialization_format": "cdr",
-                    "offered_qos_profiles": parse_qos_profiles(ch.qos_yaml),
-                    "type_description_hash": ch.type_hash,
-                },
-                "message_count": ch.count,
-            })
-        return {
-            "version": 9,
-            "storage_identifier": "mcap",
-            "duration": {"nanoseconds": duration},
-            "starting_time": {"nanoseconds_since_epoch": start},
-            "message_count": self._message_count,
-            "topics_with_message_count": topics,
-            "compression_format": "",
-            "compression_mode": "",
-            "relative_file_paths": [name],
-            "files": [{
-                "path": name,
-                "starting_time": {"nanoseconds_since_epoch": start},
-                "duration": {"nanoseconds": duration},
-                "message_count": self._message_count,
-            }],
-            "custom_data": None,
-            "ros_distro": self.ros_distro,
-        }
+        return rosbag2_metadata(list(self._channels.values()), self.path.name,
+                                self._message_count, self._start, self._end, self.ros_distro)
 
     def finish(self) -> None:
         """Close the last chunk, write metadata, summary and footer; close the file."""
@@ -521,12 +487,10 @@ class Rosbag2McapWriter:
             return
         self._close_chunk()
         meta = self._rosbag2_metadata()
-        meta_text = yaml.safe_dump(meta, sort_keys=False, default_flow_style=False).strip()
         meta_offset = self._pos
-        meta_rec = record(OP_METADATA, pack_str("rosbag2")
-                          + pack_str_map({"serialized_metadata": meta_text}))
+        meta_rec = rosbag2_metadata_record(meta)
         self._emit(meta_rec)
-        self._emit(record(OP_DATA_END, struct.pack("<I", self._data_crc)))
+        self._emit(data_end_record(self._data_crc))
 
         summary_start = self._pos
         summary = bytearray()
@@ -540,36 +504,27 @@ class Rosbag2McapWriter:
 
         group(OP_SCHEMA, [rec for _, rec in sorted(self._schemas.values())])
         group(OP_CHANNEL, self._channel_records)
-        counts = b"".join(struct.pack("<HQ", ch.id, ch.count) for ch in self._channels.values())
-        stats = record(OP_STATISTICS, struct.pack(
-            "<QHIIII", self._message_count, len(self._schemas), len(self._channels), 0, 1,
-            self._chunk_count) + struct.pack(
-            "<QQ", 0 if not self._message_count else self._start, self._end)
-            + struct.pack("<I", len(counts)) + counts)
-        group(OP_STATISTICS, [stats])
+        group(OP_STATISTICS, [statistics_record(
+            self._message_count, len(self._schemas), len(self._channels), 0, 1,
+            self._chunk_count, 0 if not self._message_count else self._start, self._end,
+            {ch.id: ch.count for ch in self._channels.values()})])
         group(OP_CHUNK_INDEX, self._chunk_indexes)
-        group(OP_METADATA_INDEX, [record(OP_METADATA_INDEX, struct.pack(
-            "<QQ", meta_offset, len(meta_rec)) + pack_str("rosbag2"))])
+        group(OP_METADATA_INDEX, [metadata_index_record(meta_offset, len(meta_rec), "rosbag2")])
         summary_offset_start = summary_start + len(summary)
         for opcode, start, length in groups:
-            summary.extend(record(OP_SUMMARY_OFFSET, struct.pack("<BQQ", opcode, start, length)))
-        footer_head = RECORD_HEADER.pack(OP_FOOTER, 20) + struct.pack(
-            "<QQ", summary_start, summary_offset_start)
-        summary_crc = zlib.crc32(footer_head, zlib.crc32(summary))
+            summary.extend(summary_offset_record(opcode, start, length))
+        foot = footer_head(summary_start, summary_offset_start)
+        summary_crc = zlib.crc32(foot, zlib.crc32(summary))
         self._file.write(summary)
-        self._file.write(footer_head + struct.pack("<I", summary_crc))
+        self._file.write(foot + summary_crc.to_bytes(4, "little"))
         self._file.write(MAGIC)
         self._file.close()
         self._finished = True
         if self.bag_directory is not None:
-            doc = {"rosbag2_bagfile_information": meta}
-            with open(self.bag_directory / "metadata.yaml", "w", encoding="utf-8") as f:
-                yaml.safe_dump(doc, f, sort_keys=False, default_flow_style=False)
+            write_bag_metadata_yaml(self.bag_directory, meta)
 
     def abandon(self) -> None:
         """Close the file without summary (what a crash leaves); for tests and error paths."""
         if not self._finished:
             self._file.close()
             self._finished = True
-
-

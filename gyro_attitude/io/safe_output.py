@@ -1,10 +1,10 @@
-"""Output files that never clobber: refuse an existing output, write under a temporary name.
+"""Safe output files: refuse to overwrite an input or an existing file, write under a temporary
+name beside the output and rename it into place only when complete.
 
-:func:`check_output_path` refuses an output that exists (unless forced) or that is one of the
-inputs; :class:`AtomicOutput` hands out a temporary path next to the requested one and renames
-it to the requested name only when the output is complete, so an interrupted or failed
-writer leaves the requested name untouched (a ``kill -9`` leaves the partial output in a
-hidden ``.<name>.*.partial`` folder beside it).
+Used by ``replay``, ``simulate``, ``allan`` and the recorder: a failed or interrupted run never
+leaves a half-written file under the requested name (a ``kill -9`` leaves the partial output in
+a hidden ``.<name>.*.partial`` folder beside it), and never destroys its own input (also when the
+output names it through a symlink, a relative path or the bag directory).
 """
 
 from __future__ import annotations
@@ -12,45 +12,67 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
+from collections.abc import Iterable
 from pathlib import Path
 
-__all__ = ["check_output_path", "AtomicOutput"]
+__all__ = ["OutputPathError", "check_output_path", "SafeOutput"]
 
 
-def check_output_path(out, inputs=(), force: bool = False) -> Path:
-    """``out`` as a Path if it may be written; ValueError naming the problem otherwise."""
+class OutputPathError(ValueError):
+    """The requested output path cannot be used (names an input, exists, unwritable)."""
+
+
+def _identity(path: Path) -> set:
+    """Real paths a path stands for: itself, and for a bag directory its .mcap files."""
+    real = Path(os.path.realpath(path))
+    out = {real}
+    if real.is_dir():
+        out.update(Path(os.path.realpath(p)) for p in real.glob("*.mcap"))
+    return out
+
+
+def check_output_path(out, *, inputs: Iterable = (), force: bool = False,
+                      what: str = "output") -> Path:
+    """Check ``out`` before any work: not one of ``inputs`` (after resolving symlinks,
+    relative parts and bag directories), not an existing file unless ``force``, not a
+    directory, and its directory exists and is writable.  Returns ``out`` as a Path;
+    raises :class:`OutputPathError` naming what is wrong."""
     if not isinstance(out, str | os.PathLike) or not str(out).strip():
-        raise ValueError(f"output path must be a non-empty path, got {out!r}")
-    path = Path(out)
+        raise OutputPathError(f"{what} path must be a non-empty path, got {out!r}")
+    out = Path(out)
+    real = Path(os.path.realpath(out))
     for inp in inputs:
-        try:
-            same = Path(inp).exists() and path.exists() and path.samefile(inp)
-        except OSError:
-            same = False
-        if same or Path(os.path.abspath(inp)) == Path(os.path.abspath(path)):
-            raise ValueError(f"output {path} is also an input")
-    if path.exists() and not force:
-        raise ValueError(f"output {path} exists (set force to replace it)")
-    parent = path.parent
-    while not parent.exists() and parent != parent.parent:
-        parent = parent.parent
+        ids = _identity(Path(inp))
+        same = real in ids or (out.exists() and any(
+            p.exists() and os.path.samefile(real, p) for p in ids))
+        if same:
+            raise OutputPathError(f"{what} {out} is the input {inp}: refusing to overwrite it")
+    if real.is_dir():
+        raise OutputPathError(f"{what} {out} is a directory")
+    if (out.exists() or out.is_symlink()) and not force:
+        raise OutputPathError(f"{what} {out} exists (use --force, or force:=true for a node, "
+                              "to overwrite it)")
+    parent = real.parent
     if not parent.is_dir():
-        raise ValueError(f"output {path}: {parent} is not a directory")
-    return path
+        raise OutputPathError(f"{what} directory {parent} does not exist")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise OutputPathError(f"{what} directory {parent} is not writable")
+    return out
 
 
-class AtomicOutput:
-    """A temporary path in the output's directory, renamed to the output on success.
+class SafeOutput:
+    """A temporary path beside ``path`` that becomes ``path`` on :meth:`commit`.
 
-    The temporary path has the output's own base name (inside a hidden folder beside it),
-    so writers that derive names from it (a rosbag2 bag directory names its file after the
-    directory) produce the same content they would under the final name. Use as a context
-    manager (commit on normal exit, discard on an exception) or call :meth:`open`,
-    :meth:`commit`, :meth:`discard`.
+    The temporary path has the output's own base name, inside a hidden folder in the same
+    directory, so writers that derive names from it (a rosbag2 bag directory names its file
+    after the directory) write what they would under the final name, and the rename is atomic
+    (same file system).  ``with SafeOutput(path) as tmp: write(tmp)`` commits when the block
+    ends without an exception and discards otherwise; or call :meth:`open`, :meth:`commit`,
+    :meth:`discard`.  An output that appeared meanwhile is replaced only with ``force``.
     """
 
-    def __init__(self, out, *, force: bool = False):
-        self.path = Path(out)
+    def __init__(self, path, *, force: bool = False):
+        self.path = Path(path)
         self.force = bool(force)
         self.temp_path: Path | None = None
         self._temp_dir: Path | None = None
@@ -58,9 +80,9 @@ class AtomicOutput:
     def open(self) -> Path:
         """Create the hidden folder and return the temporary path to write."""
         if self.temp_path is None:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
+            directory = Path(os.path.realpath(self.path)).parent
             self._temp_dir = Path(tempfile.mkdtemp(
-                prefix=f".{self.path.name}.", suffix=".partial", dir=self.path.parent))
+                prefix=f".{self.path.name}.", suffix=".partial", dir=directory))
             self.temp_path = self._temp_dir / self.path.name
         return self.temp_path
 
@@ -70,11 +92,11 @@ class AtomicOutput:
             return self.path
         if self.path.exists() or self.path.is_symlink():
             if not self.force:
-                raise ValueError(f"output {self.path} appeared meanwhile; the finished output "
-                                 f"stays at {self.temp_path}")
+                raise OutputPathError(f"output {self.path} appeared meanwhile; the finished "
+                                      f"output stays at {self.temp_path}")
             if self.path.is_dir() and not self.path.is_symlink():
                 shutil.rmtree(self.path)
-        os.replace(self.temp_path, self.path)  # atomic for a file on the same file system
+        os.replace(self.temp_path, self.path)
         shutil.rmtree(self._temp_dir, ignore_errors=True)
         self.temp_path = self._temp_dir = None
         return self.path

@@ -1,10 +1,10 @@
 """``mcap_player``: republish a recording with its original timing, a rate factor,
 looping and ``/clock``.
 
-Messages are published serialized (no decode) in log-time order: a file with a summary is
-streamed in log-time order through the ``mcap`` package's indexed reader (memory: one chunk
-per overlapping chunk); a file without one (a recorder killed with ``kill -9``) is read by
-the damage-tolerant reader, its complete chunks sorted in memory.  Publishers get the
+Messages are published serialized (no decode) in log-time order, read by the package's one
+MCAP reader (:class:`gyro_attitude.io.mcap_reader.McapStreamReader`): streamed chunk by chunk
+when the summary says where chunks start, else (a recorder killed with ``kill -9``) every
+readable message sorted in memory.  Publishers get the
 recorded offered QoS (reliable / transient-local only if every recorded publisher was).
 
 Parameters: :func:`parameter_specs` (``config/mcap_player.yaml`` lists them all). An input
@@ -72,60 +72,29 @@ def check_recording_start(path) -> None:
 
 def iter_log_time_order(path, topics: list[str] | None):
     """(topic, type_name, offered_qos_yaml, log_time, data) in log-time order."""
-    from mcap.exceptions import McapError
-    from mcap.reader import make_reader
-
-    path = resolve_mcap_path(path)
-    yielded = 0
-    try:
-        with open(path, "rb") as f:
-            reader = make_reader(f, validate_crcs=True)
-            summary = reader.get_summary()
-            if summary is None:
-                raise McapError("no summary")
-            recorded = [c.topic for c in summary.channels.values()]
-            wanted = None if topics is None else {match_topic(recorded, t) for t in topics}
-            for schema, channel, message in reader.iter_messages(log_time_order=True):
-                if wanted is not None and channel.topic not in wanted:
-                    continue
-                yield (channel.topic, schema.name if schema else "",
-                       channel.metadata.get("offered_qos_profiles", ""), message.log_time,
-                       message.data)
-                yielded += 1
-            return
-    except (McapError, ValueError, OSError, EOFError):
-        if yielded:
-            return  # damage after the start: stop there (no replay of what was played)
-        # no usable summary: fall back to the damage-tolerant walk
     reader = McapStreamReader(path, on_damage="warn")
-    msgs = list(reader.iter_messages(topics))
-    msgs.sort(key=lambda m: m.log_time)
-    for m in msgs:
+    wanted = None
+    if topics is not None:
+        summary = reader.summary()
+        recorded = [c.topic for c in (summary.channels if summary else reader.channels).values()]
+        wanted = [match_topic(recorded, t) or t for t in topics]
+    for m in reader.iter_messages(wanted, log_time_order=True):
         yield (m.channel.topic, m.channel.type_name,
                m.channel.metadata.get("offered_qos_profiles", ""), m.log_time, m.data)
 
 
 def recorded_channels(path, topics: list[str] | None) -> list[tuple[str, str, str]]:
     """(topic, type_name, offered_qos_yaml) of the recorded channels (optionally a subset)."""
-    from mcap.exceptions import McapError
-    from mcap.reader import make_reader
-
-    chans = None
-    try:
-        with open(resolve_mcap_path(path), "rb") as f:
-            summary = make_reader(f).get_summary()
-        if summary is not None:
-            chans = [(c.topic, summary.schemas[c.schema_id].name if c.schema_id else "",
-                      c.metadata.get("offered_qos_profiles", ""))
-                     for c in summary.channels.values()]
-    except (McapError, ValueError, OSError, EOFError, KeyError):
-        chans = None
-    if chans is None:  # no summary: walk the file, channels register as met
-        reader = McapStreamReader(path, on_damage="warn")
+    reader = McapStreamReader(path, on_damage="warn")
+    summary = reader.summary()
+    if summary is not None and summary.channels:
+        channels = summary.channels
+    else:  # no summary: walk the file, channels register as met
         for _ in reader.iter_chunks():
             pass
-        chans = [(c.topic, c.type_name, c.metadata.get("offered_qos_profiles", ""))
-                 for c in reader.channels.values()]
+        channels = reader.channels
+    chans = [(c.topic, c.type_name, c.metadata.get("offered_qos_profiles", ""))
+             for c in channels.values()]
     recorded = [c[0] for c in chans]
     wanted = None if topics is None else {match_topic(recorded, t) for t in topics}
     return [c for c in chans if wanted is None or c[0] in wanted]

@@ -31,7 +31,7 @@ from rclpy.node import Node
 
 from gyro_attitude.io.mcap_writer import COMPRESSIONS, Rosbag2McapWriter
 from gyro_attitude.io.qos import qos_profile, qos_profiles_yaml
-from gyro_attitude.io.safe_output import AtomicOutput, check_output_path
+from gyro_attitude.io.safe_output import SafeOutput, check_output_path
 from gyro_attitude.ros.node_main import run_node
 from gyro_attitude.ros.params import ParameterError, ParamSpec, check_update, declare_all
 from gyro_attitude.ros.qos import adapted_qos, offered_profiles
@@ -100,7 +100,7 @@ class McapRecorderNode(Node):
             self.output = check_output_path(out, force=p["force"])
             # Written under a temporary name beside the output and renamed by close(): a
             # failed or killed recording never replaces what the output name holds.
-            self._atomic = AtomicOutput(self.output, force=p["force"])
+            self._atomic = SafeOutput(self.output, force=p["force"])
             self._writer = Rosbag2McapWriter(
                 self._atomic.open(), bag_directory=bool(p["bag_directory"]),
                 compression=p["compression"], max_chunk_interval_s=float(p["flush_period_s"]))

@@ -20,16 +20,18 @@ def test_quick_run_reports_all_rows(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("GYRO_BENCH_TMPDIR", str(tmp_path))
     rows = bench.run(True, tmp_path / "out")
     names = [r["name"] for r in rows]
-    assert names == ["write_input", "peer/mcap_ros2_decode", "replay/coning4/cold",
+    assert names == ["write_input", "peer/mcap_read", "peer/mcap_ros2_decode", "replay/coning4/cold",
                      "replay/coning4/warm", "replay/rotvec_cubic/cold",
                      "replay/rotvec_cubic/warm"]
-    for r in rows[2:]:
+    assert rows[1]["messages"] == 5000
+    for r in rows[3:]:
         assert r["messages"] == r["fast_path_messages"] == 5000 and r["fallback_messages"] == 0
-        assert r["truth_matched"] == 50 and r["speedup_vs_peer"] > 0
+        assert r["truth_matched"] == 50 and r["ratio_vs_mcap_read"] > 0
+        assert r["speedup_vs_decode"] > 0
     # cold (CLI process) and warm (in process) compute the same thing
-    assert rows[2]["max_error_rad"] == rows[3]["max_error_rad"]
+    assert rows[3]["max_error_rad"] == rows[4]["max_error_rad"]
     # closed-form coning at 1 kHz: the 4th-order default tracks the truth closely
-    assert rows[5]["max_error_rad"] < 1e-6
+    assert rows[6]["max_error_rad"] < 1e-6
     assert json.loads((tmp_path / "out" / "replay.json").read_text())[0]["name"] == "write_input"
     assert "replay/rotvec_cubic/cold" in capsys.readouterr().out
     assert not [p for p in tmp_path.iterdir() if p.name.startswith("gyro_replay_bench_")]

@@ -14,10 +14,10 @@ from mcap_ros2.decoder import DecoderFactory
 from scipy.spatial.transform import Rotation
 
 from gyro_attitude.cli import main as cli_main
-from gyro_attitude.commands.replay import replay_file
 from gyro_attitude.core.attitude import NavFrame, integrate_batch
 from gyro_attitude.io.imu_fast import read_imu_arrays, read_quaternion_stamped_arrays
 from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
+from gyro_attitude.offline.replay import replay_file
 
 os.environ.setdefault("AMENT_PREFIX_PATH", sys.prefix)
 REPO = Path(__file__).resolve().parents[2]
@@ -29,8 +29,10 @@ def _record(path, t, w, a=None, truth=None, shuffle=None):
     with Rosbag2McapWriter(path, chunk_size=50_000) as wr:
         wr.add_topic("imu/data_raw", IMU)
         idx = np.arange(t.size) if shuffle is None else shuffle
+        # shuffled: stamps out of order, log times (receive times) increasing in file order
+        log = t[idx] + 1000 if shuffle is None else np.sort(t[idx]) + 1000
         wr.write_imu_array("imu/data_raw", t[idx], w[idx], None if a is None else a[idx],
-                           log_time_ns=t[idx] + 1000)
+                           log_time_ns=log)
         if truth is not None:
             wr.add_topic("truth/attitude", QS)
             wr.write_quaternion_stamped_array("truth/attitude", t, truth, frame_id="enu")
@@ -60,8 +62,8 @@ def test_replay_equals_integrate_batch_inertial(tmp_path, algorithm):
     imu = read_imu_arrays(tmp_path / "out.mcap", "imu/data")
     np.testing.assert_allclose(imu.orientation, expected, rtol=0, atol=1e-12)
     np.testing.assert_array_equal(imu.angular_velocity, w)
-    assert s["messages"] == 3001 and s["fast_path_messages"] == 3001
-    assert s["truth_matched"] == 0 and s["final_error_rad"] is None
+    assert s.messages == 3001 and s.fast_path_messages == 3001
+    assert s.truth_matched == 0 and s.final_error_rad is None
 
 
 def test_replay_equals_integrate_batch_enu(tmp_path):
@@ -106,16 +108,16 @@ def test_truth_errors_against_closed_form(tmp_path):
     exact = np.stack([0 * tt, 0 * tt, np.sin(omega * tt / 2), np.cos(omega * tt / 2)], 1)
     _record(tmp_path / "good.mcap", t, w, truth=exact)
     s = replay_file(tmp_path / "good.mcap", tmp_path / "o1.mcap")
-    assert s["truth_matched"] == n and s["max_error_rad"] < 1e-9
+    assert s.truth_matched == n and s.max_error_rad < 1e-9
     # truth = (0.1 rad about the reference x axis) ⊗ exact: the same motion seen from a
     # reference frame tilted by 0.1 rad, so the error angle is 0.1 throughout.
     shifted = (Rotation.from_rotvec([0.1, 0.0, 0.0]) * Rotation.from_quat(exact)).as_quat()
     _record(tmp_path / "off.mcap", t, w, truth=shifted)
     s = replay_file(tmp_path / "off.mcap", tmp_path / "o2.mcap")
-    assert abs(s["final_error_rad"] - 0.1) < 1e-9 and abs(s["max_error_rad"] - 0.1) < 1e-9
+    assert abs(s.final_error_rad - 0.1) < 1e-9 and abs(s.max_error_rad - 0.1) < 1e-9
     # 'truth' initial attitude: starts on the (shifted) truth, error back to ~0
     s = replay_file(tmp_path / "off.mcap", tmp_path / "o3.mcap", initial_attitude="truth")
-    assert s["max_error_rad"] < 1e-9
+    assert s.max_error_rad < 1e-9
 
 
 def test_unsorted_input_is_sorted_and_duplicates_refused(tmp_path):
@@ -123,9 +125,13 @@ def test_unsorted_input_is_sorted_and_duplicates_refused(tmp_path):
     perm = np.random.default_rng(3).permutation(500)
     _record(tmp_path / "in.mcap", t, w, shuffle=perm)
     s = replay_file(tmp_path / "in.mcap", tmp_path / "out.mcap")
-    assert s["sorted_by_stamp"]
+    assert s.sorted_by_stamp
     att = read_quaternion_stamped_arrays(tmp_path / "out.mcap", "attitude")
-    np.testing.assert_allclose(att.quaternion, integrate_batch(t, w), atol=1e-12, rtol=0)
+    # written in log-time order (each output keeps its input's log time): compare by stamp
+    assert (np.diff(att.log_time_ns) >= 0).all()
+    k = np.argsort(att.stamp_ns)
+    np.testing.assert_array_equal(att.stamp_ns[k], t)
+    np.testing.assert_allclose(att.quaternion[k], integrate_batch(t, w), atol=1e-12, rtol=0)
     dup = np.concatenate([np.arange(500), [7]])
     _record(tmp_path / "dup.mcap", t, w, shuffle=dup)
     with pytest.raises(ValueError, match="duplicate header stamps"):
@@ -143,10 +149,10 @@ def test_cli_json_plot_and_errors(tmp_path, capsys):
     assert out["messages_per_second"] > 0 and out["wall_seconds"] > 0
     assert 0 <= out["final_error_rad"] <= out["max_error_rad"] < 0.01
     assert png.stat().st_size > 1000
-    rc = cli_main(["replay", str(sample), "--out", str(tmp_path / "o.mcap"), "--imu-topic",
+    rc = cli_main(["replay", str(sample), "--out", str(tmp_path / "o2.mcap"), "--imu-topic",
                    "nope"])
     assert rc == 1 and "no Imu topic 'nope'" in capsys.readouterr().err
-    rc = cli_main(["replay", str(sample), "--out", str(tmp_path / "o.mcap"), "--frame", "enu"])
+    rc = cli_main(["replay", str(sample), "--out", str(tmp_path / "o3.mcap"), "--frame", "enu"])
     assert rc == 2 and "--latitude-deg" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         cli_main(["replay", str(sample), "--out", "x.mcap", "--initial-attitude", "1,2"])
@@ -173,3 +179,163 @@ def test_damaged_input_replays_what_precedes_the_damage(tmp_path, capsys):
     captured = capsys.readouterr()
     assert rc == 0 and "warning: input damaged" in captured.err
     assert "replayed 1000 Imu messages" in captured.out
+
+
+def _one_line(err: str) -> str:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+def _listing(d):
+    return sorted(p.name for p in d.iterdir())
+
+
+def test_output_never_overwrites_the_input(tmp_path, capsys):
+    t, w = _tumbling(200)
+    src = tmp_path / "in.mcap"
+    _record(src, t, w)
+    before = src.read_bytes()
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "bag_0.mcap").write_bytes(before)
+    (tmp_path / "link.mcap").symlink_to(src)
+    for inp, out in [(src, src), (src, tmp_path / "link.mcap"), (tmp_path / "link.mcap", src),
+                     (bag, bag / "bag_0.mcap")]:
+        rc = cli_main(["replay", str(inp), "--out", str(out), "--force"])
+        assert rc == 1 and "is the input" in _one_line(capsys.readouterr().err)
+    assert src.read_bytes() == before and (bag / "bag_0.mcap").read_bytes() == before
+
+
+def test_existing_output_needs_force(tmp_path, capsys):
+    t, w = _tumbling(200)
+    _record(tmp_path / "in.mcap", t, w)
+    out = tmp_path / "out.mcap"
+    out.write_bytes(b"precious")
+    rc = cli_main(["replay", str(tmp_path / "in.mcap"), "--out", str(out)])
+    assert rc == 1 and "exists (use --force" in _one_line(capsys.readouterr().err)
+    assert out.read_bytes() == b"precious"
+    assert cli_main(["replay", str(tmp_path / "in.mcap"), "--out", str(out), "--force"]) == 0
+    assert len(read_quaternion_stamped_arrays(out, "attitude")) == 200
+    assert _listing(tmp_path) == ["in.mcap", "out.mcap"]  # no temporary file left
+
+
+def test_absurd_rate_fails_clearly_and_writes_nothing(tmp_path, capsys):
+    t, w = _tumbling(2000)
+    w[100] = [1e155, 1e155, 0.0]  # finite, but the default algorithm's attitude goes NaN
+    _record(tmp_path / "in.mcap", t, w)
+    rc = cli_main(["replay", str(tmp_path / "in.mcap"), "--out", str(tmp_path / "o.mcap")])
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 1 and "not finite" in line and "1e+155 rad/s at sample 100" in line
+    assert _listing(tmp_path) == ["in.mcap"]
+
+
+@pytest.mark.parametrize("content, message", [
+    (b"", "empty file"),
+    (b"PK\x03\x04 a zip file, not MCAP", "not an MCAP file (bad magic)"),
+])
+def test_unusable_files_say_what_is_wrong(tmp_path, capsys, content, message):
+    (tmp_path / "in.mcap").write_bytes(content)
+    rc = cli_main(["replay", str(tmp_path / "in.mcap"), "--out", str(tmp_path / "o.mcap")])
+    assert rc == 1 and message in _one_line(capsys.readouterr().err)
+    assert _listing(tmp_path) == ["in.mcap"]
+
+
+def test_file_cut_inside_its_first_chunk_names_the_damage(tmp_path, capsys):
+    t, w = _tumbling(2000)
+    _record(tmp_path / "full.mcap", t, w)
+    raw = (tmp_path / "full.mcap").read_bytes()
+    with open(tmp_path / "full.mcap", "rb") as f:
+        first = make_reader(f).get_summary().chunk_indexes[0]
+    (tmp_path / "in.mcap").write_bytes(raw[:first.chunk_start_offset + 100])
+    rc = cli_main(["replay", str(tmp_path / "in.mcap"), "--out", str(tmp_path / "o.mcap")])
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 1 and "has no messages" in line
+    assert f"damaged at byte {first.chunk_start_offset}" in line
+
+
+def test_output_paths_are_checked_before_the_work(tmp_path, capsys):
+    sample = REPO / "bags" / "coning_200hz.mcap"
+    out = tmp_path / "o.mcap"
+    rc = cli_main(["replay", str(sample), "--out", str(out), "--plot",
+                   str(tmp_path / "no_such_dir" / "err.png")])
+    assert rc == 1 and "plot directory" in _one_line(capsys.readouterr().err)
+    assert not out.exists()
+    rc = cli_main(["replay", str(sample), "--out", str(tmp_path / "nodir" / "o.mcap")])
+    assert rc == 1 and "does not exist" in _one_line(capsys.readouterr().err)
+
+
+def test_bad_arguments_one_line_exit_2(tmp_path, capsys):
+    sample = REPO / "bags" / "coning_200hz.mcap"
+    for extra in (["--latitude-deg", "nan", "--frame", "enu"], ["--compression", "gzip"],
+                  ["--initial-attitude", "1,2"], ["--velocity-enu", "1,inf,0"]):
+        with pytest.raises(SystemExit) as exc:
+            cli_main(["replay", str(sample), "--out", str(tmp_path / "o.mcap"), *extra])
+        assert exc.value.code == 2
+        assert "error:" in _one_line(capsys.readouterr().err)
+    assert _listing(tmp_path) == []
+
+
+def test_interrupt_leaves_no_partial_output(tmp_path, capsys, monkeypatch):
+    import gyro_attitude.io.mcap_writer as mw
+
+    sample = REPO / "bags" / "coning_200hz.mcap"
+    calls = {"n": 0}
+    real = mw.Rosbag2McapWriter._write_chunk
+
+    def interrupted(self, *args, **kwargs):
+        calls["n"] += 1
+        real(self, *args, **kwargs)
+        raise KeyboardInterrupt  # Ctrl-C after the first chunk reached the file
+
+    monkeypatch.setattr(mw.Rosbag2McapWriter, "_write_chunk", interrupted)
+    rc = cli_main(["replay", str(sample), "--out", str(tmp_path / "o.mcap"),
+                   "--compression", "none"])
+    assert rc == 130 and "interrupted" in _one_line(capsys.readouterr().err)
+    assert calls["n"] >= 1 and _listing(tmp_path) == []
+
+
+def test_default_output_is_zstd_in_log_time_order(tmp_path):
+    sample = REPO / "bags" / "coning_200hz.mcap"
+    out = tmp_path / "o.mcap"
+    assert cli_main(["replay", str(sample), "--out", str(out), "--json"]) == 0
+    for path in (sample, out):
+        with open(path, "rb") as f:
+            reader = make_reader(f, validate_crcs=True)
+            assert {c.compression for c in reader.get_summary().chunk_indexes} == {"zstd"}
+            logs = [m.log_time for _, _, m in reader.iter_messages(log_time_order=False)]
+        assert len(logs) == 8000 and all(a <= b for a, b in zip(logs, logs[1:], strict=False))
+    assert cli_main(["replay", str(sample), "--out", str(tmp_path / "n.mcap"),
+                     "--compression", "none", "--json"]) == 0
+    with open(tmp_path / "n.mcap", "rb") as f:
+        assert {c.compression for c in make_reader(f).get_summary().chunk_indexes} == {""}
+
+
+def test_ctrl_c_in_a_real_process(tmp_path):
+    """SIGINT while the output is being written: exit 130, one line, nothing left under
+    the requested name nor beside it."""
+    import signal
+    import subprocess
+    import time
+
+    n = 300_000
+    t = 10**9 + np.arange(n, dtype=np.int64) * 1_000_000
+    with Rosbag2McapWriter(tmp_path / "in.mcap", chunk_size=1 << 20) as wr:
+        wr.add_topic("imu/data_raw", IMU)
+        wr.write_imu_array("imu/data_raw", t, np.tile([0.1, 0.2, 0.3], (n, 1)))
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "gyro_attitude.cli", "replay", str(tmp_path / "in.mcap"),
+         "--out", str(out_dir / "o.mcap"), "--compression", "none"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    deadline = time.monotonic() + 60
+    while not any(out_dir.iterdir()) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.001)  # wait for the temporary output file: the write has begun
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    if proc.returncode == 0:
+        pytest.skip("the replay finished before the signal arrived")
+    assert proc.returncode == 130 and "interrupted" in _one_line(err)
+    assert _listing(out_dir) == []

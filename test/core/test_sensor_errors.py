@@ -165,7 +165,7 @@ def _gm_avar_closed_form(sigma, tau_c, tau):
 
 
 def _oadev(rate: np.ndarray, dt: float, m: int) -> np.ndarray:
-    """Overlapping Allan deviation (DESIGN.md formula) per column at τ = m·dt."""
+    """Overlapping Allan deviation (docs/equations.md formula) per column at τ = m·dt."""
     theta = np.concatenate([np.zeros((1, rate.shape[1])), np.cumsum(rate, axis=0) * dt])
     d = theta[2 * m:] - 2 * theta[m:-m] + theta[:-2 * m]
     return np.sqrt(np.mean(d**2, axis=0) / (2 * (m * dt) ** 2))

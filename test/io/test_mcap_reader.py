@@ -75,6 +75,10 @@ def test_truncated_at_every_byte(small_file, tmp_path):
     # In memory (the same code path as files; a file system write per cut would dominate).
     for cut in range(len(raw)):
         cut_path = raw[:cut]
+        if cut < 8:  # nothing of the file is there: refused whatever on_damage says
+            with pytest.raises(McapDamagedError, match="empty file|inside the MCAP magic"):
+                list(McapStreamReader(cut_path, on_damage="warn").iter_messages())
+            continue
         reader = McapStreamReader(cut_path, on_damage="warn")
         got = [(m.channel.topic, m.log_time, m.data) for m in reader.iter_messages()]
         # Everything readable is a prefix of the file's messages ...
@@ -128,10 +132,15 @@ def test_corrupted_chunk_keeps_earlier_chunks(small_file, tmp_path):
     bad = tmp_path / "bad.mcap"
     bad.write_bytes(bytes(raw))
     reader = McapStreamReader(bad, on_damage="warn")
-    got = list(reader.iter_messages())
-    assert len(got) == _msgs_in_chunk(small_file, 0)
-    assert "CRC mismatch" in reader.damage and str(second.chunk_start_offset) in reader.damage
-    with pytest.raises(McapDamagedError, match="CRC mismatch"):
+    got = [(m.channel.topic, m.log_time, m.data) for m in reader.iter_messages()]
+    full = [(m.channel.topic, m.log_time, m.data)
+            for m in McapStreamReader(small_file).iter_messages()]
+    # the damaged chunk is skipped, every other chunk read
+    n0, n1 = _msgs_in_chunk(small_file, 0), _msgs_in_chunk(small_file, 1)
+    assert got == full[:n0] + full[n0 + n1:] and len(idx) > 2
+    assert str(second.chunk_start_offset) in reader.damage
+    assert "CRC mismatch" in reader.damage or "Data corruption" in reader.damage  # zstd's own
+    with pytest.raises(McapDamagedError, match="CRC mismatch|Data corruption"):
         list(McapStreamReader(bad).iter_messages())
 
 
@@ -139,8 +148,9 @@ def test_corrupted_chunk_keeps_earlier_chunks(small_file, tmp_path):
     (b"", "empty file"),
     (b"hello world, not mcap at all", "not an MCAP file"),
     (b"\x89MCA", "inside the MCAP magic"),
-    (b"\x89MCAP0\r\n\x01" + (2**62).to_bytes(8, "little"), "longer than the rest"),
-    (b"\x89MCAP0\r\n\x01\x00\x00", "record header truncated"),
+    (b"\x89MCAP0\r\n\x01" + (2**62).to_bytes(8, "little"),
+     "damaged at byte 8: .* declares 4611686018427387904 bytes, the file has 0 left"),
+    (b"\x89MCAP0\r\n\x01\x00\x00", "damaged at byte 8: record header cut"),
 ])
 def test_bad_files_give_clear_errors(tmp_path, content, match):
     p = tmp_path / "x.mcap"
@@ -186,6 +196,6 @@ def test_chunk_size_cap_bounds_memory(tmp_path):
     with Rosbag2McapWriter(path, compression="zstd") as wr:
         wr.add_topic("imu/data_raw", IMU)
         wr.write_imu_array("imu/data_raw", np.arange(1000), np.zeros((1000, 3)))
-    with pytest.raises(McapDamagedError, match="exceeds max_chunk_bytes"):
+    with pytest.raises(McapDamagedError, match="declares .* uncompressed bytes .limit 10000"):
         list(McapStreamReader(path, max_chunk_bytes=10_000).iter_messages())
     assert len(list(McapStreamReader(path).iter_messages())) == 1000

@@ -18,6 +18,8 @@ from mcap_ros2.decoder import DecoderFactory
 from sensor_msgs.msg import Imu
 from std_msgs.msg import String
 
+from gyro_attitude.io.cdr_arrays import imu_batch, quaternion_stamped_batch
+from gyro_attitude.io.imu_fast import read_imu_arrays, read_quaternion_stamped_arrays
 from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
 from gyro_attitude.io.qos import DEFAULT_QOS_YAML, qos_profile, qos_profiles_yaml
 
@@ -207,14 +209,15 @@ def test_array_paths_are_byte_identical_to_rclpy(tmp_path, frame):
         b = rclpy_serialization.serialize_message(msg)
         return b[:pad_lo] + b"\x00" * (pad_hi - pad_lo) + b[pad_hi:]
 
-    for k in range(n):
-        assert msgs["/imu"][k] == ser(_imu_msg(t[k], frame, w[k], a[k]))
-        assert msgs["/imu2"][k] == ser(_imu_msg(t[k], frame, w[k], a[k], q[k], cov[k]))
+    # The writer puts messages in log-time order (here the stamps), stable among equals.
+    for j, k in enumerate(np.argsort(t, kind="stable")):
+        assert msgs["/imu"][j] == ser(_imu_msg(t[k], frame, w[k], a[k]))
+        assert msgs["/imu2"][j] == ser(_imu_msg(t[k], frame, w[k], a[k], q[k], cov[k]))
         qs = QuaternionStamped()
         qs.header.stamp.sec, qs.header.stamp.nanosec = divmod(int(t[k]), 10**9)
         qs.header.frame_id = frame
         qs.quaternion.x, qs.quaternion.y, qs.quaternion.z, qs.quaternion.w = map(float, q[k])
-        assert msgs["/att"][k] == ser(qs)
+        assert msgs["/att"][j] == ser(qs)
 
 
 def test_flush_leaves_a_readable_file_without_summary(tmp_path):
@@ -270,7 +273,7 @@ def test_writer_errors(tmp_path):
             wr.write_imu_array("att", np.arange(3), np.zeros((3, 3)))
         with pytest.raises(ValueError, match="angular_velocity must have shape"):
             wr.write_imu_array("imu", np.arange(3), np.zeros((2, 3)))
-        with pytest.raises(ValueError, match="integer nanoseconds"):
+        with pytest.raises(ValueError, match="integer n"):
             wr.write_imu_array("imu", np.arange(3) * 1.0, np.zeros((3, 3)))
         with pytest.raises(ValueError, match="non-negative"):
             wr.write("imu", b"", -1)
@@ -282,3 +285,69 @@ def test_writer_errors(tmp_path):
     (tmp_path / "full" / "f").write_text("x")
     with pytest.raises(ValueError, match="not an empty directory"):
         Rosbag2McapWriter(tmp_path / "full", bag_directory=True)
+
+
+def test_batches_are_merged_by_log_time_across_channels(tmp_path):
+    """Oracle: Python's stable sort of the concatenated batches by log time (batch order
+    breaks ties), against the mcap package's reader in file order."""
+    rng = np.random.default_rng(8)
+    specs = [("imu", 700), ("att", 300), ("imu2", 50)]
+    batches, expected = [], []
+    pub_id = 0
+    for topic, n in specs:
+        log = rng.integers(0, 400, size=n).astype(np.int64) * 1000  # ties and disorder
+        pub = np.arange(pub_id, pub_id + n, dtype=np.int64)  # message identity
+        pub_id += n
+        if topic == "att":
+            batches.append(quaternion_stamped_batch(topic, log, [0, 0, 0, 1.0],
+                                                    log_time_ns=log, publish_time_ns=pub))
+        else:
+            batches.append(imu_batch(topic, log, np.zeros((n, 3)), log_time_ns=log,
+                                     publish_time_ns=pub, frame_id=topic))
+        order = np.argsort(log, kind="stable")
+        expected += [("/" + topic, int(log[k]), int(pub[k])) for k in order]
+    expected.sort(key=lambda m: m[1])  # stable: batch order among equal times
+    path = tmp_path / "m.mcap"
+    with Rosbag2McapWriter(path, chunk_size=5000) as wr:
+        wr.add_topic("imu", "sensor_msgs/msg/Imu")
+        wr.add_topic("att", "geometry_msgs/msg/QuaternionStamped")
+        wr.add_topic("imu2", "sensor_msgs/msg/Imu")
+        wr.write_batches(batches)
+    with open(path, "rb") as f:
+        reader = make_reader(f, validate_crcs=True)
+        got = [(ch.topic, m.log_time, m.publish_time)
+               for _, ch, m in reader.iter_messages(log_time_order=False)]
+        chunks = reader.get_summary().chunk_indexes
+    assert got == expected
+    assert len(chunks) > 10 and {c.compression for c in chunks} == {"zstd"}
+    # each chunk's time range is what it holds, and sequences count per channel
+    with open(path, "rb") as f:
+        seqs = {}
+        for _, ch, m in make_reader(f).iter_messages(log_time_order=False):
+            seqs.setdefault(ch.topic, []).append(m.sequence)
+    assert all(s == list(range(len(s))) for s in seqs.values())
+
+
+def test_batches_with_the_same_log_times_alternate(tmp_path):
+    """A replay's two outputs share log times: round robin in batch order, checked by the
+    mcap package's reader (and the bytes by decoding every message)."""
+    n = 3000
+    log = 10**9 + np.arange(n, dtype=np.int64) * 1000
+    q = random_unit_quaternions(np.random.default_rng(3), n)
+    w = np.random.default_rng(4).normal(size=(n, 3))
+    path = tmp_path / "rr.mcap"
+    with Rosbag2McapWriter(path, chunk_size=20_000) as wr:
+        wr.add_topic("attitude", "geometry_msgs/msg/QuaternionStamped")
+        wr.add_topic("imu/data", "sensor_msgs/msg/Imu")
+        wr.write_batches([quaternion_stamped_batch("attitude", log, q),
+                          imu_batch("imu/data", log, w, None, q)])
+    with open(path, "rb") as f:
+        got = [(ch.topic, m.log_time)
+               for _, ch, m in make_reader(f, validate_crcs=True).iter_messages(
+                   log_time_order=False)]
+    assert got == [(t, int(x)) for x in log for t in ("/attitude", "/imu/data")]
+    att = read_quaternion_stamped_arrays(path, "attitude")
+    imu = read_imu_arrays(path, "imu/data")
+    np.testing.assert_array_equal(att.quaternion, q)
+    np.testing.assert_array_equal(imu.orientation, q)
+    np.testing.assert_array_equal(imu.angular_velocity, w)

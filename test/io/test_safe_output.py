@@ -1,9 +1,11 @@
-"""check_output_path / AtomicOutput: the requested name holds a finished output or what it
+"""check_output_path / SafeOutput: the requested name holds a finished output or what it
 held before, never a partial one."""
+
+import os
 
 import pytest
 
-from gyro_attitude.io.safe_output import AtomicOutput, check_output_path
+from gyro_attitude.io.safe_output import OutputPathError, SafeOutput, check_output_path
 
 
 def test_existing_output_refused_unless_forced_and_never_an_input(tmp_path):
@@ -13,10 +15,10 @@ def test_existing_output_refused_unless_forced_and_never_an_input(tmp_path):
     with pytest.raises(ValueError, match="exists"):
         check_output_path(out)
     assert check_output_path(out, force=True) == out
-    with pytest.raises(ValueError, match="also an input"):
+    with pytest.raises(ValueError, match="is the input"):
         check_output_path(out, inputs=[tmp_path / "." / "a.mcap"], force=True)
     (tmp_path / "file").write_bytes(b"")
-    with pytest.raises(ValueError, match="not a directory"):
+    with pytest.raises(ValueError, match="does not exist"):
         check_output_path(tmp_path / "file" / "x.mcap")
     for bad in ("", None, 5):
         with pytest.raises(ValueError, match="non-empty path"):
@@ -26,14 +28,14 @@ def test_existing_output_refused_unless_forced_and_never_an_input(tmp_path):
 def test_atomic_output_renames_on_success_and_keeps_the_old_file_on_failure(tmp_path):
     out = tmp_path / "a.mcap"
     out.write_bytes(b"old")
-    with pytest.raises(RuntimeError), AtomicOutput(out, force=True) as temp:
+    with pytest.raises(RuntimeError), SafeOutput(out, force=True) as temp:
         temp.write_bytes(b"partial")
         assert temp.parent.parent == tmp_path and temp.name == out.name
         assert out.read_bytes() == b"old"
         raise RuntimeError("writer failed")
     assert out.read_bytes() == b"old"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.mcap"]  # temporary removed
-    with AtomicOutput(out, force=True) as temp:
+    with SafeOutput(out, force=True) as temp:
         temp.write_bytes(b"new")
         assert out.read_bytes() == b"old"
     assert out.read_bytes() == b"new"
@@ -42,7 +44,7 @@ def test_atomic_output_renames_on_success_and_keeps_the_old_file_on_failure(tmp_
 
 def test_atomic_output_does_not_clobber_a_file_that_appeared_meanwhile(tmp_path):
     out = tmp_path / "a.mcap"
-    atomic = AtomicOutput(out)
+    atomic = SafeOutput(out)
     temp = atomic.open()
     temp.write_bytes(b"mine")
     out.write_bytes(b"someone else's")
@@ -53,7 +55,76 @@ def test_atomic_output_does_not_clobber_a_file_that_appeared_meanwhile(tmp_path)
 
 def test_atomic_output_of_a_directory_keeps_inner_names(tmp_path):
     out = tmp_path / "bag"
-    with AtomicOutput(out) as temp:
+    with SafeOutput(out) as temp:
         temp.mkdir()
         (temp / f"{temp.name}_0.mcap").write_bytes(b"x")  # a bag names its file after itself
     assert (out / "bag_0.mcap").read_bytes() == b"x"
+# The input is never the output (directly, through a symlink, a relative path or its bag
+# directory), an existing file needs force, and a failed write leaves nothing under the name.
+
+
+@pytest.fixture()
+def files(tmp_path):
+    src = tmp_path / "in.mcap"
+    src.write_bytes(b"input bytes")
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "bag_0.mcap").write_bytes(b"bag bytes")
+    link = tmp_path / "link.mcap"
+    link.symlink_to(src)
+    return tmp_path, src, bag, link
+
+
+def test_output_resolving_to_the_input_is_refused_even_with_force(files):
+    tmp, src, bag, link = files
+    rel = os.path.relpath(src, os.getcwd())
+    for out, inp in [(src, src), (link, src), (src, link), (rel, src),
+                     (tmp / "sub" / ".." / "in.mcap", src), (bag / "bag_0.mcap", bag)]:
+        if not (tmp / "sub").exists():
+            (tmp / "sub").mkdir()
+        with pytest.raises(OutputPathError, match="is the input"):
+            check_output_path(out, inputs=[inp], force=True)
+    assert src.read_bytes() == b"input bytes"
+
+
+def test_existing_output_needs_force_and_bad_places_are_named(files):
+    tmp, src, _, _ = files
+    other = tmp / "other.mcap"
+    other.write_bytes(b"x")
+    with pytest.raises(OutputPathError, match="exists .use --force"):
+        check_output_path(other, inputs=[src])
+    assert check_output_path(other, inputs=[src], force=True) == other
+    assert check_output_path(tmp / "new.mcap", inputs=[src]) == tmp / "new.mcap"
+    with pytest.raises(OutputPathError, match="is a directory"):
+        check_output_path(tmp, inputs=[src], force=True)
+    with pytest.raises(OutputPathError, match="does not exist"):
+        check_output_path(tmp / "missing" / "o.mcap", inputs=[src])
+    ro = tmp / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        if not os.access(ro, os.W_OK):  # root can write anywhere: then nothing to check
+            with pytest.raises(OutputPathError, match="not writable"):
+                check_output_path(ro / "o.mcap", inputs=[src])
+    finally:
+        ro.chmod(0o700)
+
+
+def test_commit_on_success_nothing_on_failure(tmp_path):
+    out = tmp_path / "o.bin"
+    out.write_bytes(b"old")
+    with pytest.raises(RuntimeError):
+        with SafeOutput(out) as tmp:
+            tmp.write_bytes(b"half")
+            raise RuntimeError("boom")
+    assert out.read_bytes() == b"old" and sorted(p.name for p in tmp_path.iterdir()) == ["o.bin"]
+    with pytest.raises(KeyboardInterrupt):
+        with SafeOutput(tmp_path / "new.bin") as tmp:
+            tmp.write_bytes(b"half")
+            raise KeyboardInterrupt
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["o.bin"]
+    with SafeOutput(out, force=True) as tmp:
+        assert tmp.parent.parent == out.parent and tmp != out
+        tmp.write_bytes(b"new")
+        assert out.read_bytes() == b"old"  # replaced only at the end
+    assert out.read_bytes() == b"new" and sorted(p.name for p in tmp_path.iterdir()) == ["o.bin"]

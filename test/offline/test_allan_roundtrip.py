@@ -10,7 +10,7 @@ from gyro_attitude.offline.simulate import simulate
 
 
 def _oadev(rate: np.ndarray, dt: float, m: np.ndarray) -> np.ndarray:
-    """Overlapping Allan deviation straight from DESIGN.md: θ = ∫ rate,
+    """Overlapping Allan deviation straight from docs/equations.md: θ = ∫ rate,
     σ²(τ) = ⟨(θ_{k+2m} − 2θ_{k+m} + θ_k)²⟩ / (2τ²), τ = m·dt."""
     theta = np.concatenate(([0.0], np.cumsum(rate) * dt))
     out = []

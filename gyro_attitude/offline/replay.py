@@ -1,0 +1,293 @@
+"""Offline replay: integrate every Imu message of an MCAP recording into attitude and write
+``attitude`` and ``imu/data`` to a new MCAP file (no ROS graph).
+
+Pipeline (:func:`replay_file`): read the Imu (and truth) topic array-wide
+(:mod:`gyro_attitude.io.imu_fast`), put the samples in stamp order, integrate them in one
+call (:func:`integrate_attitude`: the single integration step, which returns the attitude
+per input sample and a mask of which samples got one), refuse to write anything
+non-finite, write the output through a temporary file renamed into place
+(:mod:`gyro_attitude.io.safe_output`) with both topics merged by log time, and compare with
+the truth at coinciding stamps.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, NavFrame, integrate_batch
+from gyro_attitude.core.rotation import quat_angle_between
+from gyro_attitude.io.cdr_arrays import (
+    IMU_TYPE,
+    QUATERNION_STAMPED_TYPE,
+    imu_batch,
+    quaternion_stamped_batch,
+)
+from gyro_attitude.io.imu_fast import read_topic_arrays
+from gyro_attitude.io.mcap_writer import DEFAULT_COMPRESSION, Rosbag2McapWriter
+from gyro_attitude.io.safe_output import SafeOutput, check_output_path
+
+__all__ = [
+    "DEFAULT_IMU_TOPIC",
+    "TRUTH_TOPIC",
+    "AttitudeSeries",
+    "ReplayResult",
+    "integrate_attitude",
+    "replay_file",
+    "write_error_plot",
+]
+
+DEFAULT_IMU_TOPIC = "imu/data_raw"
+TRUTH_TOPIC = "truth/attitude"
+OUTPUT_CHUNK_SIZE = 4 * 1024 * 1024
+
+
+@dataclass
+class AttitudeSeries:
+    """Attitude per input sample: ``q`` (N, 4) x, y, z, w, meaningful where ``valid``."""
+
+    q: np.ndarray
+    valid: np.ndarray
+
+
+def integrate_attitude(t_ns: np.ndarray, omega: np.ndarray, q0, algorithm: str,
+                       nav: NavFrame | None) -> AttitudeSeries:
+    """The integration step of the replay: strictly increasing ``t_ns`` (N,), rates
+    ``omega`` (N, 3) rad/s, attitude ``q0`` at ``t_ns[0]``.  Every sample gets an attitude
+    here (``valid`` all True); a stream policy that skips samples returns them masked."""
+    # An absurd but finite rate (1e155 rad/s) overflows inside the update: the caller
+    # checks the result for non-finite values and says which sample, instead of numpy's
+    # overflow warnings.
+    with np.errstate(over="ignore", invalid="ignore"):
+        q = integrate_batch(t_ns, omega, q0=q0, algorithm=algorithm, nav=nav)
+    return AttitudeSeries(q=q, valid=np.ones(len(t_ns), dtype=bool))
+
+
+@dataclass
+class ReplayResult:
+    """What a replay did.  :meth:`summary` gives the scalar fields (the ``--json`` output);
+    the arrays are ``t_ns`` (stamp order), ``q`` and ``valid`` (:class:`AttitudeSeries`
+    fields) and the error series ``error_t_ns``/``error_rad`` (empty without truth)."""
+
+    input: str
+    output: str
+    imu_topic: str
+    algorithm: str
+    frame: str
+    compression: str
+    messages: int
+    attitude_messages: int
+    fast_path_messages: int
+    fallback_messages: int
+    frame_ids: list[str]
+    sorted_by_stamp: bool
+    duration_s: float
+    wall_seconds: float
+    read_seconds: float
+    integrate_seconds: float
+    write_seconds: float
+    messages_per_second: float
+    input_damage: str | None
+    truth_topic: str | None = None
+    truth_matched: int = 0
+    final_error_rad: float | None = None
+    max_error_rad: float | None = None
+    rms_error_rad: float | None = None
+    t_ns: np.ndarray = field(default=None, repr=False)
+    q: np.ndarray = field(default=None, repr=False)
+    valid: np.ndarray = field(default=None, repr=False)
+    error_t_ns: np.ndarray = field(default=None, repr=False)
+    error_rad: np.ndarray = field(default=None, repr=False)
+
+    _ARRAYS = ("t_ns", "q", "valid", "error_t_ns", "error_rad")
+
+    def summary(self) -> dict:
+        return {k: v for k, v in asdict(self).items() if k not in self._ARRAYS}
+
+
+def _check_inputs(frame: str, nav, algorithm: str, initial_attitude) -> None:
+    if frame not in ("inertial", "enu"):
+        raise ValueError(f"frame must be 'inertial' or 'enu', got {frame!r}")
+    if (frame == "enu") != (nav is not None):
+        raise ValueError("frame 'enu' needs a NavFrame (latitude); 'inertial' takes none")
+    if isinstance(initial_attitude, str) and initial_attitude != "truth":
+        raise ValueError(f"initial_attitude must be 4 numbers or 'truth', got "
+                         f"{initial_attitude!r}")
+
+
+def _initial_attitude(initial_attitude, truth, truth_topic: str, t0: int):
+    if not isinstance(initial_attitude, str):
+        return initial_attitude
+    at0 = (np.flatnonzero(truth.stamp_ns == t0) if truth is not None
+           else np.zeros(0, dtype=np.int64))
+    if at0.size == 0:
+        raise ValueError(f"initial attitude 'truth': no {truth_topic} message stamped at the "
+                         f"first Imu stamp {t0} ns")
+    return truth.quaternion[at0[0]]
+
+
+def _check_finite(q: np.ndarray, valid: np.ndarray, t: np.ndarray, omega: np.ndarray,
+                  topic: str) -> None:
+    bad = np.flatnonzero(valid & ~np.isfinite(q).all(axis=1))
+    if bad.size:
+        k = int(bad[0])
+        # The attitude goes non-finite at the first sample after an absurd rate.
+        rates = np.abs(omega[:k + 1]).max(axis=1)
+        culprit = int(np.argmax(rates)) if rates.size else k
+        raise ValueError(f"{topic}: the attitude is not finite from sample {k} (stamp "
+                         f"{int(t[k])} ns) on: angular rate {rates[culprit]:.3g} rad/s at "
+                         f"sample {culprit} is not usable; nothing written")
+
+
+def _constant_rows(a: np.ndarray) -> np.ndarray:
+    """``a`` (N, w), or its first row when every row equals it (covariances usually are
+    constant: the writer then sets them once per buffer instead of per message)."""
+    return a[0] if len(a) and (a == a[0]).all() else a
+
+
+def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
+                algorithm: str | None = None, frame: str = "inertial",
+                nav: NavFrame | None = None, initial_attitude=(0.0, 0.0, 0.0, 1.0),
+                truth_topic: str = TRUTH_TOPIC, compression: str = DEFAULT_COMPRESSION,
+                chunk_size: int = OUTPUT_CHUNK_SIZE, force: bool = False,
+                progress: Callable[[int, int], None] | None = None,
+                on_damage: str = "warn") -> ReplayResult:
+    """Integrate every Imu message of ``input_path`` and write ``output_path``.
+
+    ``nav`` is a :class:`gyro_attitude.core.attitude.NavFrame` when ``frame == "enu"``;
+    ``initial_attitude`` 4 numbers (x, y, z, w) or ``"truth"`` (the truth message stamped
+    at the first Imu stamp).  The output must not be the input and must not exist unless
+    ``force``; it appears only complete.  ``progress(bytes_done, bytes_total)`` is called
+    while reading.  Raises ValueError (bad arguments, unusable input, nothing to write) and
+    OSError.
+    """
+    _check_inputs(frame, nav, algorithm or DEFAULT_ALGORITHM, initial_attitude)
+    algorithm = algorithm or DEFAULT_ALGORITHM
+    check_output_path(output_path, inputs=[input_path], force=force)
+    t_start = time.perf_counter()
+    arrays = read_topic_arrays(input_path, {imu_topic: IMU_TYPE,
+                                            truth_topic: QUATERNION_STAMPED_TYPE},
+                               on_damage=on_damage, progress=progress, required=False,
+                               fields={imu_topic: ("angular_velocity", "linear_acceleration",
+                                                   "angular_velocity_covariance",
+                                                   "linear_acceleration_covariance")})
+    damage = next((a.damage for a in arrays.values() if a.damage), None)
+    if imu_topic not in arrays:
+        raise ValueError(f"{input_path}: no Imu topic {imu_topic!r} (use --imu-topic)"
+                         + (f"; {damage}" if damage else ""))
+    imu = arrays[imu_topic]
+    if len(imu) == 0:
+        raise ValueError(f"{input_path}: topic {imu.topic} has no messages"
+                         + (f"; {damage}" if damage else ""))
+    t_read = time.perf_counter()
+
+    t = imu.stamp_ns
+    order = None
+    if np.any(np.diff(t) <= 0):  # file order is not stamp order: sort, refuse duplicates
+        order = np.argsort(t, kind="stable")
+        t = t[order]
+        dup = np.flatnonzero(np.diff(t) == 0)
+        if dup.size:
+            raise ValueError(f"{imu.topic}: {dup.size} duplicate header stamps (first at "
+                             f"{int(t[dup[0]])} ns); cannot integrate")
+
+    def ordered(a):
+        return a if order is None else a[order]
+
+    omega = ordered(imu.angular_velocity)
+    truth = arrays.get(truth_topic)
+    q0 = _initial_attitude(initial_attitude, truth, truth_topic, int(t[0]))
+    att = integrate_attitude(t, omega, q0, algorithm, nav)
+    q, valid = att.q, att.valid
+    _check_finite(q, valid, t, omega, imu.topic)
+    t_int = time.perf_counter()
+
+    every = bool(valid.all())
+
+    def kept(a):
+        """Only the samples that got an attitude (no copy when all did)."""
+        return a if every else a[valid]
+
+    log, pub = kept(ordered(imu.log_time_ns)), kept(ordered(imu.publish_time_ns))
+    tv, qv = kept(t), kept(q)
+    batches = [
+        quaternion_stamped_batch("attitude", tv, qv, frame_id=frame, log_time_ns=log,
+                                 publish_time_ns=pub),
+        imu_batch("imu/data", tv, kept(omega), kept(ordered(imu.linear_acceleration)), qv,
+                  frame_id=imu.frame_id, orientation_covariance=np.zeros(9),
+                  angular_velocity_covariance=_constant_rows(kept(ordered(
+                      imu.angular_velocity_covariance))),
+                  linear_acceleration_covariance=_constant_rows(kept(ordered(
+                      imu.linear_acceleration_covariance))),
+                  log_time_ns=log, publish_time_ns=pub),
+    ]
+    with SafeOutput(output_path, force=force) as tmp:
+        with Rosbag2McapWriter(tmp, compression=compression, chunk_size=chunk_size) as w:
+            w.add_topic("attitude", QUATERNION_STAMPED_TYPE)
+            w.add_topic("imu/data", IMU_TYPE)
+            w.write_batches(batches)
+    t_end = time.perf_counter()
+
+    result = ReplayResult(
+        input=str(input_path), output=str(output_path), imu_topic=imu.topic,
+        algorithm=algorithm, frame=frame, compression=compression, messages=len(imu),
+        attitude_messages=int(valid.sum()), fast_path_messages=int(imu.fast_messages),
+        fallback_messages=int(imu.fallback_messages), frame_ids=sorted(imu.frame_ids),
+        sorted_by_stamp=order is not None, duration_s=float((t[-1] - t[0]) * 1e-9),
+        wall_seconds=t_end - t_start, read_seconds=t_read - t_start,
+        integrate_seconds=t_int - t_read, write_seconds=t_end - t_int,
+        messages_per_second=len(imu) / max(t_end - t_start, 1e-12), input_damage=damage,
+        t_ns=t, q=q, valid=valid, error_t_ns=np.zeros(0, np.int64), error_rad=np.zeros(0))
+    if truth is not None and len(truth):
+        idx = np.searchsorted(tv, truth.stamp_ns)
+        idx_c = np.minimum(idx, tv.size - 1)
+        hit = tv[idx_c] == truth.stamp_ns
+        if hit.any():
+            err = quat_angle_between(qv[idx_c[hit]], truth.quaternion[hit])
+            tt = truth.stamp_ns[hit]
+            k = np.argsort(tt, kind="stable")
+            err, tt = err[k], tt[k]
+            result.truth_topic = truth.topic
+            result.truth_matched = int(hit.sum())
+            result.final_error_rad = float(err[-1])
+            result.max_error_rad = float(err.max())
+            result.rms_error_rad = float(np.sqrt(np.mean(err**2)))
+            result.error_t_ns, result.error_rad = tt, err
+    return result
+
+
+def write_error_plot(result: ReplayResult, png, *, force: bool = True) -> None:
+    """PNG of the error against truth over time (or, without truth, the rotation from the
+    initial attitude), written through a temporary file renamed into place."""
+    # matplotlib is imported here: it costs ~0.5 s of start-up that a replay without
+    # --plot does not need.
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    check_output_path(png, inputs=[result.input, result.output], force=force, what="plot")
+    fig, ax = plt.subplots(figsize=(8, 4), constrained_layout=True)
+    t0 = result.t_ns[0]
+    if result.error_rad.size:
+        t = (result.error_t_ns - t0) * 1e-9
+        ax.semilogy(t, np.maximum(np.degrees(result.error_rad), 1e-16), lw=1)
+        ax.set_ylabel("attitude error vs truth [deg]")
+    else:
+        q = result.q[result.valid]
+        t = (result.t_ns[result.valid] - t0) * 1e-9
+        ax.plot(t, np.degrees(quat_angle_between(q, q[0])), lw=1)
+        ax.set_ylabel("rotation from the initial attitude [deg] (no truth in file)")
+    ax.set_xlabel("time since first Imu stamp [s]")
+    ax.set_title(f"replay {Path(result.input).name}: {result.algorithm}, {result.frame}, "
+                 f"{result.messages} msgs")
+    ax.grid(True, which="both", alpha=0.3)
+    try:
+        with SafeOutput(png, force=force) as tmp:
+            fig.savefig(tmp, dpi=110, format="png")
+    finally:
+        plt.close(fig)
