@@ -14,7 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from gyro_attitude.core.attitude import ALGORITHMS, DEFAULT_ALGORITHM, NavFrame
+from gyro_attitude.core.attitude import ALGORITHMS, DEFAULT_OFFLINE_ALGORITHM, NavFrame
+from gyro_attitude.core.attitude import validation as iv
+from gyro_attitude.core.attitude.stream import StreamConfig
 from gyro_attitude.io.mcap_writer import COMPRESSIONS, DEFAULT_COMPRESSION
 from gyro_attitude.io.safe_output import check_output_path
 from gyro_attitude.offline.replay import (
@@ -67,8 +69,21 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="overwrite an existing OUT (and --plot file)")
     parser.add_argument("--imu-topic", default=DEFAULT_IMU_TOPIC,
                         help=f"sensor_msgs/Imu topic to integrate (default {DEFAULT_IMU_TOPIC})")
-    parser.add_argument("--algorithm", default=DEFAULT_ALGORITHM, choices=sorted(ALGORITHMS),
-                        help=f"attitude update algorithm (default {DEFAULT_ALGORITHM})")
+    parser.add_argument("--algorithm", default=DEFAULT_OFFLINE_ALGORITHM,
+                        choices=sorted(ALGORITHMS),
+                        help=f"attitude update algorithm (default {DEFAULT_OFFLINE_ALGORITHM}, "
+                        "which uses samples after each interval; the node's causal default is "
+                        "rotvec_cubic)")
+    # The attitude-stream policy of the attitude_integrator node, same names and defaults.
+    parser.add_argument("--max-gap-s", type=_positive, default=0.1,
+                        help="a forward stamp step longer than this is a gap: not integrated "
+                        "across, attitude held (default 0.1)")
+    parser.add_argument("--time-jump-threshold-s", type=_positive, default=1.0,
+                        help="a backward stamp jump longer than this resets the attitude "
+                        "(default 1.0); shorter backward steps are skipped as out of order")
+    parser.add_argument("--max-rate-rad-s", type=_positive, default=iv.DEFAULT_MAX_RATE_RAD_S,
+                        help="a sample with a larger rate on any axis is skipped as implausible "
+                        f"(default {iv.DEFAULT_MAX_RATE_RAD_S:g})")
     parser.add_argument("--frame", choices=("inertial", "enu"), default="inertial",
                         help="inertial: q_ib; enu: q_nb with Earth and transport rate removed")
     parser.add_argument("--latitude-deg", type=_finite, default=None, help="(enu) latitude")
@@ -116,9 +131,23 @@ def _progress_bar(args):
     return bar, update
 
 
+def _positive(text: str) -> float:
+    value = _finite(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
+    return value
+
+
+def _stream_config(args) -> StreamConfig:
+    return StreamConfig(max_gap_ns=int(round(args.max_gap_s * 1e9)),
+                        time_jump_ns=int(round(args.time_jump_threshold_s * 1e9)),
+                        max_rate_rad_s=float(args.max_rate_rad_s))
+
+
 def run(args) -> int:
     try:
         nav = _nav(args)
+        config = _stream_config(args)
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -134,7 +163,7 @@ def run(args) -> int:
             args.input, args.out, imu_topic=args.imu_topic, algorithm=args.algorithm,
             frame=args.frame, nav=nav, initial_attitude=args.initial_attitude,
             truth_topic=args.truth_topic, compression=args.compression, force=args.force,
-            progress=update)
+            progress=update, config=config)
         if bar is not None:
             bar.close()
             bar = None
@@ -153,12 +182,31 @@ def run(args) -> int:
     if out["input_damage"]:
         print(f"warning: input damaged, replayed everything readable: {out['input_damage']}",
               file=sys.stderr)
+    # once per reason: how many, and the first case in words
+    events = {**out["skipped"], iv.GAP: out["gaps"], "time_jump": out["time_jump_resets"],
+              "invalid_covariance": out["invalid_covariances"]}
+    for reason, n in events.items():
+        if n:
+            what = {iv.GAP: "gap(s) not integrated across, attitude held",
+                    "time_jump": "backward time jump(s): attitude reset",
+                    "invalid_covariance": "invalid angular_velocity_covariance(s) treated as "
+                                          "unknown"}.get(reason, f"sample(s) skipped ({reason})")
+            print(f"warning: {n} {what}; first: {out['details'].get(reason, '')}",
+                  file=sys.stderr)
+    if len(out["frame_ids"]) > 1:
+        print(f"warning: frame_id changes inside {out['imu_topic']} ({out['frame_ids']}): "
+              "integrated as one frame", file=sys.stderr)
     if args.json:
         print(json.dumps(out, indent=2))
         return 0
     print(f"replayed {out['messages']} Imu messages from {out['imu_topic']} "
           f"({out['duration_s']:.3f} s of data) with {out['algorithm']} in the "
           f"{out['frame']} frame")
+    skipped = sum(out["skipped"].values())
+    print(f"  {out['attitude_messages']} attitudes; skipped {skipped}"
+          + (f" ({', '.join(f'{n} {r}' for r, n in out['skipped'].items() if n)})"
+             if skipped else "")
+          + f"; gaps {out['gaps']}; time-jump resets {out['time_jump_resets']}")
     print(f"  wall {out['wall_seconds']:.3f} s ({out['messages_per_second']:.0f} msg/s): "
           f"read {out['read_seconds']:.3f} s, integrate {out['integrate_seconds']:.3f} s, "
           f"write {out['write_seconds']:.3f} s")

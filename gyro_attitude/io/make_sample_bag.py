@@ -12,6 +12,7 @@ scene, rate, duration and seed give byte-identical files.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -23,9 +24,11 @@ from gyro_attitude.io.cdr_arrays import (
     quaternion_stamped_batch,
 )
 from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
+from gyro_attitude.io.safe_output import SafeOutput, check_output_path
 from gyro_attitude.io.scene_file import load_scene
 
 SAMPLE_NAME = "coning_200hz.mcap"
+START_TIME_NS = 1_000_000_000
 
 
 def default_output() -> Path:
@@ -38,14 +41,16 @@ def make_sample_bag(out, *, scene: str = "coning", seconds: float = 20.0,
     """Simulate ``scene`` and record it; returns {topic: message count}."""
     if not seconds > 0 or not rate_hz > 0:
         raise ValueError(f"seconds and rate_hz must be positive, got {seconds}, {rate_hz}")
-    spec = load_scene(scene)
+    # stamps from 1 s: a zero header stamp means "unset" in ROS, and the attitude-stream
+    # policy (node and replay alike) skips it
+    spec = dataclasses.replace(load_scene(scene), start_time_ns=START_TIME_NS)
     sim = SceneSimulator(spec, rate_hz=rate_hz, seed=seed)
     n = int(round(seconds * rate_hz))
     block = sim.next_block(n)
     out = Path(out)
-    if out.exists():
-        out.unlink()
-    with Rosbag2McapWriter(out, compression=compression) as w:
+    check_output_path(out, force=True)
+    with SafeOutput(out, force=True) as tmp, \
+            Rosbag2McapWriter(tmp, compression=compression) as w:
         w.add_topic("imu/data_raw", IMU_TYPE)
         w.add_topic("truth/attitude", QUATERNION_STAMPED_TYPE)
         w.write_batches([

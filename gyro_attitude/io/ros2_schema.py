@@ -55,8 +55,8 @@ def package_share(package: str) -> Path:
 
         try:
             candidates.append(Path(get_package_share_directory(package)))
-        except (PackageNotFoundError, LookupError, ValueError):
-            pass
+        except (PackageNotFoundError, LookupError, ValueError, OSError):
+            pass  # OSError: AMENT_PREFIX_PATH unset (a plain venv): the prefixes below
     except ImportError:  # ament_index_python absent: look in the known prefixes
         pass
     for prefix in [*os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep), sys.prefix]:

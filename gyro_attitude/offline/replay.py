@@ -2,12 +2,13 @@
 ``attitude`` and ``imu/data`` to a new MCAP file (no ROS graph).
 
 Pipeline (:func:`replay_file`): read the Imu (and truth) topic array-wide
-(:mod:`gyro_attitude.io.imu_fast`), put the samples in stamp order, integrate them in one
-call (:func:`integrate_attitude`: the single integration step, which returns the attitude
-per input sample and a mask of which samples got one), refuse to write anything
-non-finite, write the output through a temporary file renamed into place
-(:mod:`gyro_attitude.io.safe_output`) with both topics merged by log time, and compare with
-the truth at coinciding stamps.
+(:mod:`gyro_attitude.io.imu_fast`), run the samples in file order -- the order a live node
+receives them -- through the attitude-stream policy the ``attitude_integrator`` node applies
+(:class:`gyro_attitude.core.attitude.stream.AttitudeStream`: bad samples skipped and counted by
+reason, no integration across gaps, reset on backward time jumps, orientation variance), write
+the samples that got an attitude through a temporary file renamed into place
+(:mod:`gyro_attitude.io.safe_output`) with both topics merged by log time, and compare with the
+truth at coinciding stamps.  Samples are never re-sorted.
 """
 
 from __future__ import annotations
@@ -19,7 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, NavFrame, integrate_batch
+from gyro_attitude.core.attitude import DEFAULT_OFFLINE_ALGORITHM, NavFrame
+from gyro_attitude.core.attitude import validation as iv
+from gyro_attitude.core.attitude.stream import AttitudeStream, StreamConfig
 from gyro_attitude.core.rotation import quat_angle_between
 from gyro_attitude.io.cdr_arrays import (
     IMU_TYPE,
@@ -34,9 +37,7 @@ from gyro_attitude.io.safe_output import SafeOutput, check_output_path
 __all__ = [
     "DEFAULT_IMU_TOPIC",
     "TRUTH_TOPIC",
-    "AttitudeSeries",
     "ReplayResult",
-    "integrate_attitude",
     "replay_file",
     "write_error_plot",
 ]
@@ -47,31 +48,13 @@ OUTPUT_CHUNK_SIZE = 4 * 1024 * 1024
 
 
 @dataclass
-class AttitudeSeries:
-    """Attitude per input sample: ``q`` (N, 4) x, y, z, w, meaningful where ``valid``."""
-
-    q: np.ndarray
-    valid: np.ndarray
-
-
-def integrate_attitude(t_ns: np.ndarray, omega: np.ndarray, q0, algorithm: str,
-                       nav: NavFrame | None) -> AttitudeSeries:
-    """The integration step of the replay: strictly increasing ``t_ns`` (N,), rates
-    ``omega`` (N, 3) rad/s, attitude ``q0`` at ``t_ns[0]``.  Every sample gets an attitude
-    here (``valid`` all True); a stream policy that skips samples returns them masked."""
-    # An absurd but finite rate (1e155 rad/s) overflows inside the update: the caller
-    # checks the result for non-finite values and says which sample, instead of numpy's
-    # overflow warnings.
-    with np.errstate(over="ignore", invalid="ignore"):
-        q = integrate_batch(t_ns, omega, q0=q0, algorithm=algorithm, nav=nav)
-    return AttitudeSeries(q=q, valid=np.ones(len(t_ns), dtype=bool))
-
-
-@dataclass
 class ReplayResult:
     """What a replay did.  :meth:`summary` gives the scalar fields (the ``--json`` output);
-    the arrays are ``t_ns`` (stamp order), ``q`` and ``valid`` (:class:`AttitudeSeries`
-    fields) and the error series ``error_t_ns``/``error_rad`` (empty without truth)."""
+    the arrays are ``index`` (positions in the input of the samples that got an attitude),
+    their stamps ``t_ns`` and attitudes ``q`` (file order), and the error series
+    ``error_t_ns``/``error_rad`` (empty without truth).  ``skipped`` counts skipped samples by
+    reason; ``gaps`` and ``time_jump_resets`` count the policy's other events; ``details``
+    holds the first log line per reason."""
 
     input: str
     output: str
@@ -84,7 +67,11 @@ class ReplayResult:
     fast_path_messages: int
     fallback_messages: int
     frame_ids: list[str]
-    sorted_by_stamp: bool
+    skipped: dict[str, int]
+    gaps: int
+    time_jump_resets: int
+    invalid_covariances: int
+    details: dict[str, str]
     duration_s: float
     wall_seconds: float
     read_seconds: float
@@ -97,13 +84,13 @@ class ReplayResult:
     final_error_rad: float | None = None
     max_error_rad: float | None = None
     rms_error_rad: float | None = None
+    index: np.ndarray = field(default=None, repr=False)
     t_ns: np.ndarray = field(default=None, repr=False)
     q: np.ndarray = field(default=None, repr=False)
-    valid: np.ndarray = field(default=None, repr=False)
     error_t_ns: np.ndarray = field(default=None, repr=False)
     error_rad: np.ndarray = field(default=None, repr=False)
 
-    _ARRAYS = ("t_ns", "q", "valid", "error_t_ns", "error_rad")
+    _ARRAYS = ("index", "t_ns", "q", "error_t_ns", "error_rad")
 
     def summary(self) -> dict:
         return {k: v for k, v in asdict(self).items() if k not in self._ARRAYS}
@@ -130,19 +117,6 @@ def _initial_attitude(initial_attitude, truth, truth_topic: str, t0: int):
     return truth.quaternion[at0[0]]
 
 
-def _check_finite(q: np.ndarray, valid: np.ndarray, t: np.ndarray, omega: np.ndarray,
-                  topic: str) -> None:
-    bad = np.flatnonzero(valid & ~np.isfinite(q).all(axis=1))
-    if bad.size:
-        k = int(bad[0])
-        # The attitude goes non-finite at the first sample after an absurd rate.
-        rates = np.abs(omega[:k + 1]).max(axis=1)
-        culprit = int(np.argmax(rates)) if rates.size else k
-        raise ValueError(f"{topic}: the attitude is not finite from sample {k} (stamp "
-                         f"{int(t[k])} ns) on: angular rate {rates[culprit]:.3g} rad/s at "
-                         f"sample {culprit} is not usable; nothing written")
-
-
 def _constant_rows(a: np.ndarray) -> np.ndarray:
     """``a`` (N, w), or its first row when every row equals it (covariances usually are
     constant: the writer then sets them once per buffer instead of per message)."""
@@ -155,18 +129,19 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                 truth_topic: str = TRUTH_TOPIC, compression: str = DEFAULT_COMPRESSION,
                 chunk_size: int = OUTPUT_CHUNK_SIZE, force: bool = False,
                 progress: Callable[[int, int], None] | None = None,
-                on_damage: str = "warn") -> ReplayResult:
+                on_damage: str = "warn", config: StreamConfig | None = None) -> ReplayResult:
     """Integrate every Imu message of ``input_path`` and write ``output_path``.
 
     ``nav`` is a :class:`gyro_attitude.core.attitude.NavFrame` when ``frame == "enu"``;
     ``initial_attitude`` 4 numbers (x, y, z, w) or ``"truth"`` (the truth message stamped
-    at the first Imu stamp).  The output must not be the input and must not exist unless
+    at the first Imu stamp).  ``config`` the attitude-stream thresholds (the node's defaults).
+    The output must not be the input and must not exist unless
     ``force``; it appears only complete.  ``progress(bytes_done, bytes_total)`` is called
     while reading.  Raises ValueError (bad arguments, unusable input, nothing to write) and
     OSError.
     """
-    _check_inputs(frame, nav, algorithm or DEFAULT_ALGORITHM, initial_attitude)
-    algorithm = algorithm or DEFAULT_ALGORITHM
+    _check_inputs(frame, nav, algorithm or DEFAULT_OFFLINE_ALGORITHM, initial_attitude)
+    algorithm = algorithm or DEFAULT_OFFLINE_ALGORITHM
     check_output_path(output_path, inputs=[input_path], force=force)
     t_start = time.perf_counter()
     arrays = read_topic_arrays(input_path, {imu_topic: IMU_TYPE,
@@ -186,43 +161,45 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     t_read = time.perf_counter()
 
     t = imu.stamp_ns
-    order = None
-    if np.any(np.diff(t) <= 0):  # file order is not stamp order: sort, refuse duplicates
-        order = np.argsort(t, kind="stable")
-        t = t[order]
-        dup = np.flatnonzero(np.diff(t) == 0)
-        if dup.size:
-            raise ValueError(f"{imu.topic}: {dup.size} duplicate header stamps (first at "
-                             f"{int(t[dup[0]])} ns); cannot integrate")
-
-    def ordered(a):
-        return a if order is None else a[order]
-
-    omega = ordered(imu.angular_velocity)
+    omega = imu.angular_velocity
     truth = arrays.get(truth_topic)
     q0 = _initial_attitude(initial_attitude, truth, truth_topic, int(t[0]))
-    att = integrate_attitude(t, omega, q0, algorithm, nav)
-    q, valid = att.q, att.valid
-    _check_finite(q, valid, t, omega, imu.topic)
+    # One frame per decoded message is not kept by the array reader: the first frame stands
+    # for all (the node would also reject samples whose frame_id changes: see frame_ids).
+    stream = AttitudeStream(algorithm, q0=q0, nav=nav, config=config)
+    with np.errstate(over="ignore", invalid="ignore"):
+        res = stream.run(t, omega, imu.frame_id, imu.angular_velocity_covariance)
+    if res.index.size == 0:
+        reasons = ", ".join(f"{n} {r}" for r, n in res.counts.items() if n and r != iv.GAP)
+        raise ValueError(f"{input_path}: no usable sample on {imu.topic}: all {len(imu)} "
+                         f"skipped ({reasons})")
     t_int = time.perf_counter()
 
-    every = bool(valid.all())
+    keep = res.index
+    every = keep.size == len(imu)
 
     def kept(a):
         """Only the samples that got an attitude (no copy when all did)."""
-        return a if every else a[valid]
+        return a if every else a[keep]
 
-    log, pub = kept(ordered(imu.log_time_ns)), kept(ordered(imu.publish_time_ns))
-    tv, qv = kept(t), kept(q)
+    log, pub = kept(imu.log_time_ns), kept(imu.publish_time_ns)
+    tv, qv = kept(t), res.q
+    orientation_cov = np.zeros(9)
+    if res.variance is not None:
+        # the diagonal of the published 3x3 orientation covariance; zeros (unknown) on rows
+        # before the first input with a gyro covariance, as the node publishes them
+        orientation_cov = np.zeros((keep.size, 9))
+        orientation_cov[:, [0, 4, 8]] = np.where(res.variance_known[:, None], res.variance, 0.0)
     batches = [
         quaternion_stamped_batch("attitude", tv, qv, frame_id=frame, log_time_ns=log,
                                  publish_time_ns=pub),
-        imu_batch("imu/data", tv, kept(omega), kept(ordered(imu.linear_acceleration)), qv,
-                  frame_id=imu.frame_id, orientation_covariance=np.zeros(9),
-                  angular_velocity_covariance=_constant_rows(kept(ordered(
-                      imu.angular_velocity_covariance))),
-                  linear_acceleration_covariance=_constant_rows(kept(ordered(
-                      imu.linear_acceleration_covariance))),
+        imu_batch("imu/data", tv, kept(omega), kept(imu.linear_acceleration), qv,
+                  frame_id=imu.frame_id, orientation_covariance=_constant_rows(orientation_cov)
+                  if orientation_cov.ndim == 2 else orientation_cov,
+                  angular_velocity_covariance=_constant_rows(kept(
+                      imu.angular_velocity_covariance)),
+                  linear_acceleration_covariance=_constant_rows(kept(
+                      imu.linear_acceleration_covariance)),
                   log_time_ns=log, publish_time_ns=pub),
     ]
     with SafeOutput(output_path, force=force) as tmp:
@@ -235,19 +212,24 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     result = ReplayResult(
         input=str(input_path), output=str(output_path), imu_topic=imu.topic,
         algorithm=algorithm, frame=frame, compression=compression, messages=len(imu),
-        attitude_messages=int(valid.sum()), fast_path_messages=int(imu.fast_messages),
+        attitude_messages=int(keep.size), fast_path_messages=int(imu.fast_messages),
         fallback_messages=int(imu.fallback_messages), frame_ids=sorted(imu.frame_ids),
-        sorted_by_stamp=order is not None, duration_s=float((t[-1] - t[0]) * 1e-9),
+        skipped={r: n for r, n in res.counts.items() if r in iv.REJECT_REASONS and r != iv.GAP},
+        gaps=res.counts[iv.GAP], time_jump_resets=res.time_jump_resets,
+        invalid_covariances=res.counts["invalid_covariance"], details=res.details,
+        duration_s=float((tv.max() - tv.min()) * 1e-9),
         wall_seconds=t_end - t_start, read_seconds=t_read - t_start,
         integrate_seconds=t_int - t_read, write_seconds=t_end - t_int,
         messages_per_second=len(imu) / max(t_end - t_start, 1e-12), input_damage=damage,
-        t_ns=t, q=q, valid=valid, error_t_ns=np.zeros(0, np.int64), error_rad=np.zeros(0))
+        index=keep, t_ns=tv, q=qv, error_t_ns=np.zeros(0, np.int64), error_rad=np.zeros(0))
     if truth is not None and len(truth):
-        idx = np.searchsorted(tv, truth.stamp_ns)
-        idx_c = np.minimum(idx, tv.size - 1)
-        hit = tv[idx_c] == truth.stamp_ns
+        # match in stamp order (the output is in file order and may jump back in time)
+        order = np.argsort(tv, kind="stable")
+        ts = tv[order]
+        idx = np.minimum(np.searchsorted(ts, truth.stamp_ns), ts.size - 1)
+        hit = ts[idx] == truth.stamp_ns
         if hit.any():
-            err = quat_angle_between(qv[idx_c[hit]], truth.quaternion[hit])
+            err = quat_angle_between(qv[order[idx[hit]]], truth.quaternion[hit])
             tt = truth.stamp_ns[hit]
             k = np.argsort(tt, kind="stable")
             err, tt = err[k], tt[k]
@@ -278,8 +260,8 @@ def write_error_plot(result: ReplayResult, png, *, force: bool = True) -> None:
         ax.semilogy(t, np.maximum(np.degrees(result.error_rad), 1e-16), lw=1)
         ax.set_ylabel("attitude error vs truth [deg]")
     else:
-        q = result.q[result.valid]
-        t = (result.t_ns[result.valid] - t0) * 1e-9
+        q = result.q
+        t = (result.t_ns - t0) * 1e-9
         ax.plot(t, np.degrees(quat_angle_between(q, q[0])), lw=1)
         ax.set_ylabel("rotation from the initial attitude [deg] (no truth in file)")
     ax.set_xlabel("time since first Imu stamp [s]")

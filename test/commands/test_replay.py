@@ -71,7 +71,8 @@ def test_replay_equals_integrate_batch_enu(tmp_path):
     _record(tmp_path / "in.mcap", t, w)
     nav = NavFrame(latitude_rad=np.radians(45.0), height_m=100.0,
                    velocity_enu=np.array([10.0, 5.0, 0.0]))
-    replay_file(tmp_path / "in.mcap", tmp_path / "out.mcap", frame="enu", nav=nav)
+    replay_file(tmp_path / "in.mcap", tmp_path / "out.mcap", frame="enu", nav=nav,
+                algorithm="rotvec_cubic")
     expected = integrate_batch(t, w, nav=nav)
     att = read_quaternion_stamped_arrays(tmp_path / "out.mcap", "attitude")
     np.testing.assert_allclose(att.quaternion, expected, rtol=0, atol=1e-12)
@@ -81,7 +82,7 @@ def test_replay_equals_integrate_batch_enu(tmp_path):
 def test_output_is_read_by_mcap_ros2(tmp_path):
     t, w = _tumbling(50)
     _record(tmp_path / "in.mcap", t, w, a=np.tile([0.0, 0.0, 9.8], (50, 1)))
-    replay_file(tmp_path / "in.mcap", tmp_path / "out.mcap")
+    replay_file(tmp_path / "in.mcap", tmp_path / "out.mcap", algorithm="rotvec_cubic")
     q = integrate_batch(t, w)
     with open(tmp_path / "out.mcap", "rb") as f:
         reader = make_reader(f, validate_crcs=True, decoder_factories=[DecoderFactory()])
@@ -120,22 +121,24 @@ def test_truth_errors_against_closed_form(tmp_path):
     assert s.max_error_rad < 1e-9
 
 
-def test_unsorted_input_is_sorted_and_duplicates_refused(tmp_path):
+def test_samples_are_never_sorted_out_of_order_ones_skipped_duplicates_counted(tmp_path):
+    """File order is the stream order (as a live node receives it): a shuffled recording is
+    not re-sorted; samples stamped before the last accepted one are skipped as out of order
+    (backward steps under the 1 s time-jump threshold), a repeated stamp as a duplicate."""
     t, w = _tumbling(500, seed=2)
-    perm = np.random.default_rng(3).permutation(500)
-    _record(tmp_path / "in.mcap", t, w, shuffle=perm)
-    s = replay_file(tmp_path / "in.mcap", tmp_path / "out.mcap")
-    assert s.sorted_by_stamp
+    order = np.arange(500)
+    order[[100, 101]] = order[[101, 100]]  # one swapped pair
+    order = np.concatenate([order, [499]])  # and a repeated last sample
+    _record(tmp_path / "in.mcap", t, w, shuffle=order)
+    s = replay_file(tmp_path / "in.mcap", tmp_path / "out.mcap", algorithm="exp_map")
+    assert s.skipped["out_of_order"] == 1 and s.skipped["duplicate_stamp"] == 1
+    assert s.attitude_messages == 499
     att = read_quaternion_stamped_arrays(tmp_path / "out.mcap", "attitude")
-    # written in log-time order (each output keeps its input's log time): compare by stamp
-    assert (np.diff(att.log_time_ns) >= 0).all()
-    k = np.argsort(att.stamp_ns)
-    np.testing.assert_array_equal(att.stamp_ns[k], t)
-    np.testing.assert_allclose(att.quaternion[k], integrate_batch(t, w), atol=1e-12, rtol=0)
-    dup = np.concatenate([np.arange(500), [7]])
-    _record(tmp_path / "dup.mcap", t, w, shuffle=dup)
-    with pytest.raises(ValueError, match="duplicate header stamps"):
-        replay_file(tmp_path / "dup.mcap", tmp_path / "out2.mcap")
+    keep = np.delete(np.arange(500), 100)  # sample 100 came after 101: skipped
+    np.testing.assert_array_equal(att.stamp_ns, t[keep])
+    np.testing.assert_allclose(att.quaternion, integrate_batch(t[keep], w[keep],
+                                                               algorithm="exp_map"),
+                               atol=1e-12, rtol=0)
 
 
 def test_cli_json_plot_and_errors(tmp_path, capsys):
@@ -158,7 +161,7 @@ def test_cli_json_plot_and_errors(tmp_path, capsys):
         cli_main(["replay", str(sample), "--out", "x.mcap", "--initial-attitude", "1,2"])
     rc = cli_main(["replay", str(sample), "--out", str(tmp_path / "enu.mcap"), "--frame", "enu",
                    "--latitude-deg", "45", "--height-m", "10", "--velocity-enu", "1,2,0",
-                   "--json"])
+                   "--algorithm", "rotvec_cubic", "--json"])
     out = json.loads(capsys.readouterr().out)
     assert rc == 0 and out["frame"] == "enu"
     imu = read_imu_arrays(sample)
@@ -220,14 +223,27 @@ def test_existing_output_needs_force(tmp_path, capsys):
     assert _listing(tmp_path) == ["in.mcap", "out.mcap"]  # no temporary file left
 
 
-def test_absurd_rate_fails_clearly_and_writes_nothing(tmp_path, capsys):
+def test_absurd_rate_is_skipped_counted_and_never_nan(tmp_path, capsys):
     t, w = _tumbling(2000)
-    w[100] = [1e155, 1e155, 0.0]  # finite, but the default algorithm's attitude goes NaN
+    w[100] = [1e155, 1e155, 0.0]  # finite, but it would overflow any attitude update
     _record(tmp_path / "in.mcap", t, w)
-    rc = cli_main(["replay", str(tmp_path / "in.mcap"), "--out", str(tmp_path / "o.mcap")])
+    rc = cli_main(["replay", str(tmp_path / "in.mcap"), "--out", str(tmp_path / "o.mcap"),
+                   "--json"])
+    cap = capsys.readouterr()
+    assert rc == 0
+    out = json.loads(cap.out)
+    assert out["skipped"]["implausible_rate"] == 1 and out["attitude_messages"] == 1999
+    warnings = [ln for ln in cap.err.splitlines() if ln.startswith("warning:")]
+    assert len(warnings) == 1 and "implausible_rate" in warnings[0]
+    att = read_quaternion_stamped_arrays(tmp_path / "o.mcap", "attitude")
+    assert len(att) == 1999 and np.isfinite(att.quaternion).all()
+    # a recording with no usable sample at all is an error, and writes nothing
+    w[:] = np.nan
+    _record(tmp_path / "nan.mcap", t, w)
+    rc = cli_main(["replay", str(tmp_path / "nan.mcap"), "--out", str(tmp_path / "o2.mcap")])
     line = _one_line(capsys.readouterr().err)
-    assert rc == 1 and "not finite" in line and "1e+155 rad/s at sample 100" in line
-    assert _listing(tmp_path) == ["in.mcap"]
+    assert rc == 1 and "no usable sample" in line and "2000 non_finite" in line
+    assert not (tmp_path / "o2.mcap").exists()
 
 
 @pytest.mark.parametrize("content, message", [

@@ -36,6 +36,7 @@ from gyro_attitude.core.attitude import (
     DEFAULT_ALGORITHM,
     NavFrame,
     StreamingIntegrator,
+    get_algorithm,
     integrate_batch,
 )
 from gyro_attitude.core.attitude import validation as v
@@ -128,7 +129,8 @@ class StreamResult:
 class AttitudeStream:
     """Imu samples in, attitude out, under the one policy of the module docstring.
 
-    ``algorithm`` a name from the registry; ``q0`` the initial attitude (also the one a time
+    ``algorithm`` a name from the registry (an offline one serves :meth:`run` only: it needs
+    samples after each interval, so :meth:`push` refuses it); ``q0`` the initial attitude (also the one a time
     jump resets to); ``nav`` a :class:`NavFrame` for q_nb (Earth and transport rate removed) or
     None for q_ib; ``config`` the thresholds.
     """
@@ -139,7 +141,8 @@ class AttitudeStream:
         self.q_initial = _unit_quat(q0)
         self.nav = nav
         self.algorithm = algorithm
-        self.integrator = StreamingIntegrator(algorithm=algorithm, q0=self.q_initial, nav=nav)
+        self.integrator = (StreamingIntegrator(algorithm=algorithm, q0=self.q_initial, nav=nav)
+                           if get_algorithm(algorithm).causal else None)
         self.validator = v.ImuStreamValidator(self.config.check_config())
         self.intervals = v.IntervalStatistics(window=2000)
         self.counts_extra = {INVALID_COVARIANCE: 0, INTEGRATOR_ERROR: 0}
@@ -168,7 +171,7 @@ class AttitudeStream:
 
     @property
     def last_t_ns(self) -> int | None:
-        return self.integrator.last_t_ns
+        return self.validator.last_t_ns
 
     @property
     def quaternion(self) -> np.ndarray:
@@ -211,6 +214,9 @@ class AttitudeStream:
     def push(self, t_ns: int, omega, frame_id: str = "",
              angular_velocity_covariance=None) -> tuple[v.Verdict, np.ndarray | None]:
         """One sample: its verdict and the attitude at ``t_ns`` (None when it was skipped)."""
+        if self.integrator is None:
+            raise ValueError(f"{self.algorithm} is an offline algorithm: it cannot stream "
+                             "(use run() over the whole recording, or a causal algorithm)")
         verdict = self.validator.check(t_ns, omega, frame_id)
         if verdict.rejected:
             self.details.setdefault(verdict.reason, verdict.detail)
@@ -362,7 +368,8 @@ class AttitudeStream:
             val.last_t_ns = int(t[valid[-1]])
             val.frame_id = cls.frame_id
             self._last_q = q_out[-1].copy()
-            self.integrator.reset(self._last_q, int(t[valid[-1]]))
+            if self.integrator is not None:
+                self.integrator.reset(self._last_q, int(t[valid[-1]]))
 
     def _run_pushing(self, t, w, frame_id, covariance) -> StreamResult:
         """Per-sample path over the whole recording (the batch met a non-finite attitude)."""
