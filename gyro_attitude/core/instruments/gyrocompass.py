@@ -261,7 +261,8 @@ class Gyrocompass:
             raise ValueError(f"params must be GyrocompassParams, got {type(params).__name__}")
         self.params = params
 
-    def _rhs(self, carrier: Motion, height: float):
+    def rhs(self, carrier: Motion, height: float):
+        """Right-hand side ``ẏ(t, y)`` of the solver state ``(s_E, s_N, s_U, L)``."""
         H = self.params.angular_momentum
         ml = self.params.pendulous_moment
         d_over_h = self.params.damping / H
@@ -285,6 +286,43 @@ class Gyrocompass:
 
         return rhs
 
+    #: Joints published for a scene (rad): the indication, the spin axis and the azimuth gimbal.
+    JOINTS = ("heading_indicated", "spin_axis_azimuth", "spin_axis_elevation", "gimbal_azimuth")
+
+    def initial_state(self, carrier: Motion, latitude: float, height: float = 0.0,
+                      azimuth0: float = 0.0, elevation0: float | None = None) -> np.ndarray:
+        """Solver state ``(s_E, s_N, s_U, L)`` from the initial spin axis (rad; elevation
+        default: the static equilibrium tilt at ``latitude``)."""
+        if not isinstance(carrier, Motion):
+            raise ValueError(f"carrier must be a core.motion.Motion, got {type(carrier).__name__}")
+        lat0 = _lat(latitude)
+        height = finite(height, "height")
+        a0 = finite(azimuth0, "azimuth0")
+        p_over_h = self.params.pendulous_moment * _g(lat0, height) / self.params.angular_momentum
+        b0 = _static_tilt(p_over_h, lat0) if elevation0 is None else finite(elevation0, "elevation0")
+        if abs(b0) > math.radians(80.0):
+            raise ValueError(f"elevation0 must be within ±80°, got {math.degrees(b0):.6g}°")
+        return np.array([math.cos(b0) * math.sin(a0), math.cos(b0) * math.cos(a0), math.sin(b0), lat0])
+
+    def outputs(self, tc: np.ndarray, yc: np.ndarray, carrier: Motion,
+                height: float = 0.0) -> GyrocompassOutput:
+        """The indication and gimbal angles of solver states ``yc`` at times ``tc``."""
+        s = yc[:, :3] / np.linalg.norm(yc[:, :3], axis=1, keepdims=True)
+        lat = yc[:, 3]
+        if np.any(np.abs(lat) >= math.radians(89.0)):
+            raise ValueError("the carrier reached ±89° latitude: the gyrocompass model ends there")
+        alpha = np.arctan2(s[:, 0], s[:, 1])
+        beta = np.arcsin(np.clip(s[:, 2], -1.0, 1.0))
+        heading = carrier_truth(carrier, tc, lat, height).heading
+        gimbal = wrap_pi(alpha - heading)
+        return GyrocompassOutput(tc, heading, wrap_2pi(-gimbal), alpha, beta, gimbal, lat)
+
+    @staticmethod
+    def joint_positions(out: GyrocompassOutput) -> np.ndarray:
+        """``(n, 4)`` angles in the order of :attr:`JOINTS`."""
+        return np.stack((out.heading_indicated, out.spin_axis_azimuth, out.spin_axis_elevation,
+                         out.gimbal_azimuth), axis=1)
+
     def iter_chunks(self, t_grid, carrier: Motion, latitude: float, height: float = 0.0,
                     azimuth0: float = 0.0, elevation0: float | None = None, chunk: int = 4096,
                     rtol: float = 1e-10, atol: float = 1e-12,
@@ -295,28 +333,12 @@ class Gyrocompass:
         equilibrium tilt at ``latitude``).  ``t_grid[0]`` is the initial time.
         """
         t = check_times(t_grid)
-        if not isinstance(carrier, Motion):
-            raise ValueError(f"carrier must be a core.motion.Motion, got {type(carrier).__name__}")
-        lat0 = _lat(latitude)
         height = finite(height, "height")
-        a0 = finite(azimuth0, "azimuth0")
-        p_over_h = self.params.pendulous_moment * _g(lat0, height) / self.params.angular_momentum
-        b0 = _static_tilt(p_over_h, lat0) if elevation0 is None else finite(elevation0, "elevation0")
-        if abs(b0) > math.radians(80.0):
-            raise ValueError(f"elevation0 must be within ±80°, got {math.degrees(b0):.6g}°")
-        y0 = [math.cos(b0) * math.sin(a0), math.cos(b0) * math.cos(a0), math.sin(b0), lat0]
+        y0 = self.initial_state(carrier, latitude, height, azimuth0, elevation0)
         positive(rtol, "rtol")
         positive(atol, "atol")
-        for tc, yc in integrate_chunked(self._rhs(carrier, height), y0, t, chunk, rtol, atol, max_step):
-            s = yc[:, :3] / np.linalg.norm(yc[:, :3], axis=1, keepdims=True)
-            lat = yc[:, 3]
-            if np.any(np.abs(lat) >= math.radians(89.0)):
-                raise ValueError("the carrier reached ±89° latitude: the gyrocompass model ends there")
-            alpha = np.arctan2(s[:, 0], s[:, 1])
-            beta = np.arcsin(np.clip(s[:, 2], -1.0, 1.0))
-            heading = carrier_truth(carrier, tc, lat, height).heading
-            gimbal = wrap_pi(alpha - heading)
-            yield GyrocompassOutput(tc, heading, wrap_2pi(-gimbal), alpha, beta, gimbal, lat)
+        for tc, yc in integrate_chunked(self.rhs(carrier, height), y0, t, chunk, rtol, atol, max_step):
+            yield self.outputs(tc, yc, carrier, height)
 
     def simulate(self, t_grid, carrier: Motion, latitude: float, **kwargs) -> GyrocompassOutput:
         """The whole run at once (see :meth:`iter_chunks` for the arguments)."""
