@@ -8,8 +8,8 @@ Publishes (relative names, so a namespace applies):
   (``SceneSimulator.imu_variances()``) on the diagonal, all zeros when the model gives no
   estimate; element 0 = −1 for orientation (a raw gyro has none) and for
   linear_acceleration without accelerometers. ``header.stamp`` = sample time.
-* ``gyro/joint_states`` (sensor_msgs/JointState): gimbal angles [rad] and rates [rad/s],
-  only when the scene has a gimballed free gyro.
+* ``gyro/joint_states`` (sensor_msgs/JointState): the named joints of the scene's gimballed
+  instrument (gimbal angles and indications [rad], their rates [rad/s]), only when it has one.
 * ``truth/attitude`` (geometry_msgs/QuaternionStamped): true q_nb, frame ``world_frame_id``.
 * ``truth/odom`` (nav_msgs/Odometry): position in the local ENU plane of the start point
   [m], orientation q_nb; twist in ``frame_id``: body-frame velocity and ω_nb^b.
@@ -227,8 +227,8 @@ class GyroSimNode(Node):
         pos_l = pos.tolist()
         vb_l = v_body.tolist()
         wnb_l = np.asarray(b.truth_omega_nb_b, float).tolist()
-        g_ang = None if gimbal is None else np.asarray(gimbal.angles, float).tolist()
-        g_rate = None if gimbal is None else np.asarray(gimbal.rates, float).tolist()
+        g_ang = None if gimbal is None else np.asarray(gimbal.positions, float).tolist()
+        g_rate = None if gimbal is None else np.asarray(gimbal.velocities, float).tolist()
         for k in range(n):
             rows.append((
                 t_list[k], omega[k], None if sf is None else sf[k], q_l[k], pos_l[k], vb_l[k],

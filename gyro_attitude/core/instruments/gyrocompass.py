@@ -70,6 +70,7 @@ __all__ = [
     "schuler_period",
     "speed_error",
     "gyrocompass_equilibrium",
+    "gyrocompass_settle_point",
     "ballistic_throw",
 ]
 
@@ -195,6 +196,18 @@ def gyrocompass_equilibrium(params: GyrocompassParams, latitude: float, v_enu=(0
     beta_ref = _static_tilt(p_over_h, lat) if params.latitude_correction else 0.0
     alpha = (w_e + params.damping / params.angular_momentum * (beta - beta_ref)) / w_n
     return alpha, beta
+
+
+def gyrocompass_settle_point(params: GyrocompassParams, latitude: float,
+                             v_enu=(0.0, 0.0, 0.0)) -> tuple[float, float]:
+    """Settle point ``(α_eq, β_eq)`` (rad) on a steady horizontal course ``v_enu``: the
+    equilibrium of :func:`gyrocompass_equilibrium` with the Coriolis part of the specific force
+    that the pendulum feels at that velocity."""
+    lat = _lat(latitude)
+    v = np.asarray(v_enu, dtype=np.float64)
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise ValueError("v_enu must be 3 finite numbers")
+    return gyrocompass_equilibrium(params, lat, v, _coriolis_horizontal(lat, v))
 
 
 def ballistic_throw(params: GyrocompassParams, latitude: float, v_before, v_after) -> dict[str, float]:
