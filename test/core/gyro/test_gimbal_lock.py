@@ -17,7 +17,7 @@ from gyro_attitude.core.scene import SceneSimulator, SceneSpec
 from gyro_attitude.io.scene_file import load_scene
 
 SLOW = dict(spin_inertia=1e-4, transverse_inertia=6e-5, spin_rate=50.0, model="full",
-            inner_gimbal_inertia=(2e-5, 2e-5, 2e-5), outer_gimbal_inertia=(3e-5, 3e-5, 3e-5),
+            inner_gimbal_inertia=(2e-5, 2.5e-5, 1.5e-5), outer_gimbal_inertia=(3e-5, 3.5e-5, 4e-5),
             initial_angles=(0.0, math.radians(80.0)), initial_rates=(0.0, 2.0), max_step=1e-3)
 
 
