@@ -42,7 +42,7 @@ def test_full_model_flips_through_the_lock_conserving_energy_and_momentum():
         momenta.append(sim.angular_momentum())
     beta = np.array(angles)[:, 1]
     assert np.max(beta) > math.radians(100.0)  # over the top ...
-    assert np.min(beta[beta.argmax():]) < math.radians(80.0)  # ... and back: through twice
+    assert np.min(beta[beta.argmax():]) < math.radians(90.0)  # ... and back: through twice
     s = spin_axis_from_free_gyro_angles(np.array(angles))
     az = np.arctan2(s[:, 1], s[:, 0])
     assert np.ptp(np.abs(az)) > math.radians(170.0)  # the spin axis's azimuth flips by ~180°
