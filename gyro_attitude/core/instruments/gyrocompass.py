@@ -164,6 +164,15 @@ class GyrocompassParams:
         return cls._with_damping(h, p / _g(lat), lat, damping_ratio, latitude_correction)
 
     @classmethod
+    def with_damping_ratio(cls, angular_momentum: float, pendulous_moment: float, latitude: float,
+                           damping_ratio: float = 0.0,
+                           latitude_correction: bool = True) -> GyrocompassParams:
+        """Given ``m l``, the damping D for a damping ratio ``damping_ratio`` at ``latitude``."""
+        return cls._with_damping(positive(angular_momentum, "angular_momentum"),
+                                 positive(pendulous_moment, "pendulous_moment"), _lat(latitude),
+                                 damping_ratio, latitude_correction)
+
+    @classmethod
     def _with_damping(cls, h, ml, lat, damping_ratio, latitude_correction):
         zeta = nonnegative(damping_ratio, "damping_ratio")
         undamped = cls(h, ml, 0.0, latitude_correction)

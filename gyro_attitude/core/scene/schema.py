@@ -493,7 +493,7 @@ def _build_instrument(f: _Fields, earth_spec: EarthSpec, motion: Motion) -> Inst
                            "period_s")
         else:
             ml = f.number("pendulous_moment", lo=0.0, lo_open=True)
-            params = built(lambda: GyrocompassParams._with_damping(h, ml, lat, zeta, corr),
+            params = built(lambda: GyrocompassParams.with_damping_ratio(h, ml, lat, zeta, corr),
                            "pendulous_moment")
         if f.boolean("start_settled", False):
             if f.has("azimuth0_deg") or f.has("elevation0_deg"):
