@@ -1,5 +1,6 @@
 """Gimbal lock: the full free-gyro model goes through β = ±90° with its energy and angular
-momentum conserved (about the outer axis); the precession model refuses there, saying why; the gimbal_lock_flip scene."""
+momentum conserved (about the outer axis); the precession model refuses there, saying why;
+the gimbal_lock_flip scene."""
 
 from __future__ import annotations
 
