@@ -108,6 +108,6 @@ class SimTopics:
             velocity_body=v_body,
             omega_nb_b=np.asarray(b.truth_omega_nb_b, dtype=np.float64),
             gimbal_names=None if g is None else tuple(str(x) for x in g.names),
-            gimbal_angles=None if g is None else np.asarray(g.angles, dtype=np.float64),
-            gimbal_rates=None if g is None else np.asarray(g.rates, dtype=np.float64),
+            gimbal_angles=None if g is None else np.asarray(g.positions, dtype=np.float64),
+            gimbal_rates=None if g is None else np.asarray(g.velocities, dtype=np.float64),
         )

@@ -8,8 +8,8 @@ Publishes (relative names, so a namespace applies):
   (``SceneSimulator.imu_variances()``) on the diagonal, all zeros when the model gives no
   estimate; element 0 = −1 for orientation (a raw gyro has none) and for
   linear_acceleration without accelerometers. ``header.stamp`` = sample time.
-* ``gyro/joint_states`` (sensor_msgs/JointState): gimbal angles [rad] and rates [rad/s],
-  only when the scene has a gimballed free gyro.
+* ``gyro/joint_states`` (sensor_msgs/JointState): the named joints of the scene's gimballed
+  instrument (gimbal angles and indications [rad], their rates [rad/s]), only when it has one.
 * ``truth/attitude`` (geometry_msgs/QuaternionStamped): true q_nb, frame ``world_frame_id``.
 * ``truth/odom`` (nav_msgs/Odometry): position in the local ENU plane of the start point
   [m], orientation q_nb; twist in ``frame_id``: body-frame velocity and ω_nb^b.

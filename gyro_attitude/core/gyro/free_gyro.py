@@ -13,7 +13,14 @@ inner gimbal turns by β (``inner_gimbal``) about ``y_o = y_g``; the rotor spins
 
 With α = β = 0 the spin axis lies along the case x axis and the outer axis along case z
 (a directional gyro: α measures azimuth, β tilt).  |β| < 90° reaches every spin
-direction; β = ±90° is gimbal lock and raises ``ValueError``.
+direction; β = ±90° is gimbal lock: the spin axis lies along the outer axis.  The precession
+model divides by cos β there and has no solution, so it raises ``ValueError`` saying so.  The
+full model stays regular through the lock as long as the outer axis keeps an inertia
+(``M_11 = I_oz + I_gx sin²β + (J_t + I_gz) cos²β > 0``, i.e. I_oz or I_gx nonzero): the
+inner gimbal goes over the top (|β| passes 90°, the flip — the spin axis crosses the outer
+axis and its azimuth turns by 180°), and :meth:`FreeGyroSimulator.kinetic_energy` and the
+outer-axis component of :meth:`FreeGyroSimulator.angular_momentum` keep the bookkeeping of
+the free motion.
 The rotor is symmetric and no torque acts about its spin axis, so its axial angular
 momentum ``H = J_s (ω_gx + φ̇)`` is constant (``H = spin_inertia · spin_rate``).
 
@@ -189,8 +196,11 @@ class FreeGyroParams:
         if not all(isinstance(i, ImpactTorque) for i in imp):
             raise ValueError("impacts must be ImpactTorque instances")
         object.__setattr__(self, "impacts", imp)
-        if abs(self.initial_angles[1]) > 0.5 * math.pi - 1e-6:
-            raise ValueError("initial inner gimbal angle is at ±90° (gimbal lock)")
+        if (abs(math.cos(self.initial_angles[1])) < 1e-6
+                and (self.model == "precession" or self.initial_rates is None)):
+            raise ValueError("initial inner gimbal angle is at ±90° (gimbal lock): the "
+                             "precession rates divide by cos β; start the full model there "
+                             "with initial_rates")
 
     @property
     def spin_momentum(self) -> float:
@@ -410,7 +420,9 @@ class FreeGyroSimulator:
         gyro_o = (ioy - iox) * wo0 * wo1  # (ω_o × I_o ω_o)_z
         m11 = ioz + igx * sb * sb + az * cb * cb
         if m11 <= 0.0:
-            raise ValueError(f"outer-axis inertia vanished at t = {t:.6g} s (gimbal lock)")
+            raise ValueError(f"outer-axis inertia vanished at t = {t:.6g} s (gimbal lock at "
+                             "β = ±90° with no outer-gimbal inertia): give outer_gimbal_inertia "
+                             "z or inner_gimbal_inertia x > 0 to pass through the lock")
         add = (ma - ioz * ao2 - gyro_o - (-sb * tg0 + cb * tg2)) / m11
         bdd = (mb - tg1) / ay
         self.rhs_evaluations += 1
@@ -602,10 +614,23 @@ class FreeGyroSimulator:
     def _check_lock(self, y, t) -> None:
         if not (math.isfinite(y[0]) and math.isfinite(y[1])):
             raise ValueError(f"free-gyro state became non-finite at t = {float(t):.6g} s")
-        # |β| < 90° covers every spin direction; reaching (or stepping across) ±90° means
-        # the spin axis met the outer axis: gimbal lock, where the equations are singular
+        # Reaching (or stepping across) β = ±90° means the spin axis met the outer axis:
+        # gimbal lock, where the precession equations divide by cos β = 0.  The full model's
+        # mass matrix stays regular there (its own check is on M_11), so it goes through.
+        # A step may jump across the lock, so |β| beyond 90° counts as reaching it (the
+        # precession model's β lives in (−90°, 90°); without I_oz and I_gx neither can the
+        # full model's, M_11 → 0 there).
         if abs(y[1]) > 0.5 * math.pi - 1e-6:
-            raise ValueError(f"inner gimbal reached ±90° at t = {float(t):.6g} s (gimbal lock)")
+            if self.params.model == "precession":
+                raise ValueError(
+                    f"inner gimbal reached ±90° at t = {float(t):.6g} s (gimbal lock): the "
+                    "precession model divides by cos β and has no solution there; use model "
+                    "'full' with gimbal inertia to pass through the lock")
+            if self._io[2] + self._ig[0] <= 0.0 and abs(y[1]) < 0.5 * math.pi + 1e-3:
+                raise ValueError(
+                    f"outer-axis inertia vanished at t = {float(t):.6g} s (gimbal lock at β = "
+                    "±90° with no outer-gimbal inertia): give outer_gimbal_inertia z or "
+                    "inner_gimbal_inertia x > 0 to pass through the lock")
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         """Current (angles (2,), relative gimbal rates (2,))."""
@@ -644,6 +669,30 @@ class FreeGyroSimulator:
             rates = np.array([self._precession_rates(float(t_out[i]), *states[i], *w[i])
                               for i in range(m)]).reshape(m, 2)
         return angles, rates
+
+    def _body_rates(self):
+        """Inertial angular velocities of the outer gimbal (o axes) and inner assembly (g axes)."""
+        al, be, ad, bd = self._y
+        wc = self._base_rates(np.array([self.t]))[0]
+        v, _, (ca, sa, cb, sb) = _rot_to_gimbal(al, be, *wc)
+        wo = np.array([v[0], v[1], v[2] + ad])
+        wg = np.array([cb * wo[0] - sb * wo[2], wo[1] + bd, sb * wo[0] + cb * wo[2]])
+        return wo, wg, (ca, sa, cb, sb)
+
+    def angular_momentum(self) -> np.ndarray:
+        """Total angular momentum of rotor + gimbals about the pivot (full model), in case
+        axes (N·m·s): ``C_co (I_o ω_o + C_og h_g)``, ``h_g = [H + I_gx ω_gx, A_y ω_gy, A_z ω_gz]``.
+        The case holds the outer axis (its bearings take torques about x_c and y_c), so on a
+        base at rest with no outer-axis torque the z component (about the outer axis) is the
+        conserved one, and it changes by the outer-axis torque's impulse otherwise."""
+        if self.params.model != "full":
+            raise ValueError("angular_momentum needs model='full'")
+        wo, wg, (ca, sa, cb, sb) = self._body_rates()
+        ig = self._ig
+        hg = np.array([self._h + ig[0] * wg[0], self._ay * wg[1], self._az * wg[2]])
+        lo = np.array(self._io) * wo + np.array([cb * hg[0] + sb * hg[2], hg[1],
+                                                 -sb * hg[0] + cb * hg[2]])
+        return np.array([ca * lo[0] - sa * lo[1], sa * lo[0] + ca * lo[1], lo[2]])
 
     def kinetic_energy(self) -> float:
         """Kinetic energy of rotor + gimbals (full model) at the current state, in J."""

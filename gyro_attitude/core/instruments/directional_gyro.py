@@ -139,7 +139,8 @@ class DirectionalGyro:
             raise ValueError(f"params must be DirectionalGyroParams, got {type(params).__name__}")
         self.params = params
 
-    def _rhs(self, carrier: Motion, height: float):
+    def rhs(self, carrier: Motion, height: float):
+        """Right-hand side ``ẏ(t, y)`` of the solver state ``(r_E, r_N, r_U, L)``."""
         nut = 0.0 if self.params.latitude_nut is None else OMEGA_IE * math.sin(self.params.latitude_nut)
         k_l = self.params.leveling_gain
 
@@ -156,25 +157,42 @@ class DirectionalGyro:
 
         return rhs
 
+    #: Joints published for a scene (rad): the card reading and the two gimbal angles.
+    JOINTS = ("heading_indicated", "outer_gimbal", "inner_gimbal")
+
+    def initial_state(self, carrier: Motion, latitude: float, height: float = 0.0) -> np.ndarray:
+        """Solver state ``(r_E, r_N, r_U, L)``: the rotor set along north."""
+        if not isinstance(carrier, Motion):
+            raise ValueError(f"carrier must be a core.motion.Motion, got {type(carrier).__name__}")
+        finite(height, "height")
+        return np.array([0.0, 1.0, 0.0, float(check_latitude(finite(latitude, "latitude")))])
+
+    def outputs(self, tc: np.ndarray, yc: np.ndarray, carrier: Motion,
+                height: float = 0.0) -> DirectionalGyroOutput:
+        """Card reading and gimbal angles of solver states ``yc`` at times ``tc``."""
+        r = yc[:, :3] / np.linalg.norm(yc[:, :3], axis=1, keepdims=True)
+        tr = carrier_truth(carrier, tc, yc[:, 3], height)
+        r_b = quat_rotate(quat_conjugate(tr.q_nb), r)
+        outer = np.arctan2(r_b[:, 1], r_b[:, 0])
+        inner = -np.arcsin(np.clip(r_b[:, 2], -1.0, 1.0))
+        return DirectionalGyroOutput(tc, tr.heading, wrap_2pi(outer), outer, inner, yc[:, 3])
+
+    @staticmethod
+    def joint_positions(out: DirectionalGyroOutput) -> np.ndarray:
+        """``(n, 3)`` angles in the order of :attr:`JOINTS`."""
+        return np.stack((out.heading_indicated, out.outer_gimbal, out.inner_gimbal), axis=1)
+
     def iter_chunks(self, t_grid, carrier: Motion, latitude: float, height: float = 0.0,
                     chunk: int = 4096, rtol: float = 1e-11, atol: float = 1e-13,
                     max_step: float = 10.0) -> Iterator[DirectionalGyroOutput]:
         """Yield :class:`DirectionalGyroOutput` pieces of at most ``chunk`` samples."""
         t = check_times(t_grid)
-        if not isinstance(carrier, Motion):
-            raise ValueError(f"carrier must be a core.motion.Motion, got {type(carrier).__name__}")
-        lat0 = float(check_latitude(finite(latitude, "latitude")))
         height = finite(height, "height")
+        y0 = self.initial_state(carrier, latitude, height)
         positive(rtol, "rtol")
         positive(atol, "atol")
-        y0 = [0.0, 1.0, 0.0, lat0]
-        for tc, yc in integrate_chunked(self._rhs(carrier, height), y0, t, chunk, rtol, atol, max_step):
-            r = yc[:, :3] / np.linalg.norm(yc[:, :3], axis=1, keepdims=True)
-            tr = carrier_truth(carrier, tc, yc[:, 3], height)
-            r_b = quat_rotate(quat_conjugate(tr.q_nb), r)
-            outer = np.arctan2(r_b[:, 1], r_b[:, 0])
-            inner = -np.arcsin(np.clip(r_b[:, 2], -1.0, 1.0))
-            yield DirectionalGyroOutput(tc, tr.heading, wrap_2pi(outer), outer, inner, yc[:, 3])
+        for tc, yc in integrate_chunked(self.rhs(carrier, height), y0, t, chunk, rtol, atol, max_step):
+            yield self.outputs(tc, yc, carrier, height)
 
     def simulate(self, t_grid, carrier: Motion, latitude: float, **kwargs) -> DirectionalGyroOutput:
         """The whole run at once (see :meth:`iter_chunks`)."""

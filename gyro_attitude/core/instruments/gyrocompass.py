@@ -70,6 +70,7 @@ __all__ = [
     "schuler_period",
     "speed_error",
     "gyrocompass_equilibrium",
+    "gyrocompass_settle_point",
     "ballistic_throw",
 ]
 
@@ -163,6 +164,15 @@ class GyrocompassParams:
         return cls._with_damping(h, p / _g(lat), lat, damping_ratio, latitude_correction)
 
     @classmethod
+    def with_damping_ratio(cls, angular_momentum: float, pendulous_moment: float, latitude: float,
+                           damping_ratio: float = 0.0,
+                           latitude_correction: bool = True) -> GyrocompassParams:
+        """Given ``m l``, the damping D for a damping ratio ``damping_ratio`` at ``latitude``."""
+        return cls._with_damping(positive(angular_momentum, "angular_momentum"),
+                                 positive(pendulous_moment, "pendulous_moment"), _lat(latitude),
+                                 damping_ratio, latitude_correction)
+
+    @classmethod
     def _with_damping(cls, h, ml, lat, damping_ratio, latitude_correction):
         zeta = nonnegative(damping_ratio, "damping_ratio")
         undamped = cls(h, ml, 0.0, latitude_correction)
@@ -195,6 +205,18 @@ def gyrocompass_equilibrium(params: GyrocompassParams, latitude: float, v_enu=(0
     beta_ref = _static_tilt(p_over_h, lat) if params.latitude_correction else 0.0
     alpha = (w_e + params.damping / params.angular_momentum * (beta - beta_ref)) / w_n
     return alpha, beta
+
+
+def gyrocompass_settle_point(params: GyrocompassParams, latitude: float,
+                             v_enu=(0.0, 0.0, 0.0)) -> tuple[float, float]:
+    """Settle point ``(α_eq, β_eq)`` (rad) on a steady horizontal course ``v_enu``: the
+    equilibrium of :func:`gyrocompass_equilibrium` with the Coriolis part of the specific force
+    that the pendulum feels at that velocity."""
+    lat = _lat(latitude)
+    v = np.asarray(v_enu, dtype=np.float64)
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise ValueError("v_enu must be 3 finite numbers")
+    return gyrocompass_equilibrium(params, lat, v, _coriolis_horizontal(lat, v))
 
 
 def ballistic_throw(params: GyrocompassParams, latitude: float, v_before, v_after) -> dict[str, float]:
@@ -261,7 +283,8 @@ class Gyrocompass:
             raise ValueError(f"params must be GyrocompassParams, got {type(params).__name__}")
         self.params = params
 
-    def _rhs(self, carrier: Motion, height: float):
+    def rhs(self, carrier: Motion, height: float):
+        """Right-hand side ``ẏ(t, y)`` of the solver state ``(s_E, s_N, s_U, L)``."""
         H = self.params.angular_momentum
         ml = self.params.pendulous_moment
         d_over_h = self.params.damping / H
@@ -285,6 +308,43 @@ class Gyrocompass:
 
         return rhs
 
+    #: Joints published for a scene (rad): the indication, the spin axis and the azimuth gimbal.
+    JOINTS = ("heading_indicated", "spin_axis_azimuth", "spin_axis_elevation", "gimbal_azimuth")
+
+    def initial_state(self, carrier: Motion, latitude: float, height: float = 0.0,
+                      azimuth0: float = 0.0, elevation0: float | None = None) -> np.ndarray:
+        """Solver state ``(s_E, s_N, s_U, L)`` from the initial spin axis (rad; elevation
+        default: the static equilibrium tilt at ``latitude``)."""
+        if not isinstance(carrier, Motion):
+            raise ValueError(f"carrier must be a core.motion.Motion, got {type(carrier).__name__}")
+        lat0 = _lat(latitude)
+        height = finite(height, "height")
+        a0 = finite(azimuth0, "azimuth0")
+        p_over_h = self.params.pendulous_moment * _g(lat0, height) / self.params.angular_momentum
+        b0 = _static_tilt(p_over_h, lat0) if elevation0 is None else finite(elevation0, "elevation0")
+        if abs(b0) > math.radians(80.0):
+            raise ValueError(f"elevation0 must be within ±80°, got {math.degrees(b0):.6g}°")
+        return np.array([math.cos(b0) * math.sin(a0), math.cos(b0) * math.cos(a0), math.sin(b0), lat0])
+
+    def outputs(self, tc: np.ndarray, yc: np.ndarray, carrier: Motion,
+                height: float = 0.0) -> GyrocompassOutput:
+        """The indication and gimbal angles of solver states ``yc`` at times ``tc``."""
+        s = yc[:, :3] / np.linalg.norm(yc[:, :3], axis=1, keepdims=True)
+        lat = yc[:, 3]
+        if np.any(np.abs(lat) >= math.radians(89.0)):
+            raise ValueError("the carrier reached ±89° latitude: the gyrocompass model ends there")
+        alpha = np.arctan2(s[:, 0], s[:, 1])
+        beta = np.arcsin(np.clip(s[:, 2], -1.0, 1.0))
+        heading = carrier_truth(carrier, tc, lat, height).heading
+        gimbal = wrap_pi(alpha - heading)
+        return GyrocompassOutput(tc, heading, wrap_2pi(-gimbal), alpha, beta, gimbal, lat)
+
+    @staticmethod
+    def joint_positions(out: GyrocompassOutput) -> np.ndarray:
+        """``(n, 4)`` angles in the order of :attr:`JOINTS`."""
+        return np.stack((out.heading_indicated, out.spin_axis_azimuth, out.spin_axis_elevation,
+                         out.gimbal_azimuth), axis=1)
+
     def iter_chunks(self, t_grid, carrier: Motion, latitude: float, height: float = 0.0,
                     azimuth0: float = 0.0, elevation0: float | None = None, chunk: int = 4096,
                     rtol: float = 1e-10, atol: float = 1e-12,
@@ -295,28 +355,12 @@ class Gyrocompass:
         equilibrium tilt at ``latitude``).  ``t_grid[0]`` is the initial time.
         """
         t = check_times(t_grid)
-        if not isinstance(carrier, Motion):
-            raise ValueError(f"carrier must be a core.motion.Motion, got {type(carrier).__name__}")
-        lat0 = _lat(latitude)
         height = finite(height, "height")
-        a0 = finite(azimuth0, "azimuth0")
-        p_over_h = self.params.pendulous_moment * _g(lat0, height) / self.params.angular_momentum
-        b0 = _static_tilt(p_over_h, lat0) if elevation0 is None else finite(elevation0, "elevation0")
-        if abs(b0) > math.radians(80.0):
-            raise ValueError(f"elevation0 must be within ±80°, got {math.degrees(b0):.6g}°")
-        y0 = [math.cos(b0) * math.sin(a0), math.cos(b0) * math.cos(a0), math.sin(b0), lat0]
+        y0 = self.initial_state(carrier, latitude, height, azimuth0, elevation0)
         positive(rtol, "rtol")
         positive(atol, "atol")
-        for tc, yc in integrate_chunked(self._rhs(carrier, height), y0, t, chunk, rtol, atol, max_step):
-            s = yc[:, :3] / np.linalg.norm(yc[:, :3], axis=1, keepdims=True)
-            lat = yc[:, 3]
-            if np.any(np.abs(lat) >= math.radians(89.0)):
-                raise ValueError("the carrier reached ±89° latitude: the gyrocompass model ends there")
-            alpha = np.arctan2(s[:, 0], s[:, 1])
-            beta = np.arcsin(np.clip(s[:, 2], -1.0, 1.0))
-            heading = carrier_truth(carrier, tc, lat, height).heading
-            gimbal = wrap_pi(alpha - heading)
-            yield GyrocompassOutput(tc, heading, wrap_2pi(-gimbal), alpha, beta, gimbal, lat)
+        for tc, yc in integrate_chunked(self.rhs(carrier, height), y0, t, chunk, rtol, atol, max_step):
+            yield self.outputs(tc, yc, carrier, height)
 
     def simulate(self, t_grid, carrier: Motion, latitude: float, **kwargs) -> GyrocompassOutput:
         """The whole run at once (see :meth:`iter_chunks` for the arguments)."""

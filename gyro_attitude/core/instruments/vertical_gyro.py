@@ -125,7 +125,8 @@ class VerticalGyro:
             raise ValueError(f"params must be VerticalGyroParams, got {type(params).__name__}")
         self.params = params
 
-    def _rhs(self, carrier: Motion, height: float):
+    def rhs(self, carrier: Motion, height: float):
+        """Right-hand side ``ẏ(t, y)`` of the solver state ``(s_E, s_N, s_U, L)``."""
         p = self.params
         proportional = p.erection_law == "proportional"
         sin_lin = math.sin(p.linear_zone)
@@ -144,6 +145,40 @@ class VerticalGyro:
 
         return rhs
 
+    #: Joints published for a scene (rad): outer gimbal = indicated roll, inner = indicated pitch.
+    JOINTS = ("roll_indicated", "pitch_indicated")
+
+    def initial_state(self, carrier: Motion, latitude: float, height: float = 0.0,
+                      spin_axis0=(0.0, 0.0, 1.0)) -> np.ndarray:
+        """Solver state ``(s_E, s_N, s_U, L)``; ``spin_axis0`` in ENU (normalized)."""
+        if not isinstance(carrier, Motion):
+            raise ValueError(f"carrier must be a core.motion.Motion, got {type(carrier).__name__}")
+        lat0 = float(check_latitude(finite(latitude, "latitude")))
+        finite(height, "height")
+        s0 = np.asarray(spin_axis0, dtype=np.float64)
+        if s0.shape != (3,) or not np.all(np.isfinite(s0)) or np.linalg.norm(s0) == 0.0:
+            raise ValueError(f"spin_axis0 must be a finite nonzero 3-vector, got {spin_axis0!r}")
+        s0 = s0 / np.linalg.norm(s0)
+        if s0[2] <= 0.0:
+            raise ValueError("spin_axis0 must point above the horizon")
+        return np.array([s0[0], s0[1], s0[2], lat0])
+
+    def outputs(self, tc: np.ndarray, yc: np.ndarray, carrier: Motion,
+                height: float = 0.0) -> VerticalGyroOutput:
+        """Indicated and true roll/pitch of solver states ``yc`` at times ``tc``."""
+        s = yc[:, :3] / np.linalg.norm(yc[:, :3], axis=1, keepdims=True)
+        tr = carrier_truth(carrier, tc, yc[:, 3], height)
+        q_bn = quat_conjugate(tr.q_nb)
+        roll_i, pitch_i = roll_pitch_from_up(quat_rotate(q_bn, s))
+        roll_t, pitch_t = roll_pitch_from_up(quat_rotate(q_bn, [0.0, 0.0, 1.0]))
+        tilt = np.arccos(np.clip(s[:, 2], -1.0, 1.0))
+        return VerticalGyroOutput(tc, roll_i, pitch_i, roll_t, pitch_t, tilt, yc[:, 3])
+
+    @staticmethod
+    def joint_positions(out: VerticalGyroOutput) -> np.ndarray:
+        """``(n, 2)`` angles in the order of :attr:`JOINTS`."""
+        return np.stack((out.roll_indicated, out.pitch_indicated), axis=1)
+
     def iter_chunks(self, t_grid, carrier: Motion, latitude: float, height: float = 0.0,
                     spin_axis0=(0.0, 0.0, 1.0), chunk: int = 4096, rtol: float = 1e-10,
                     atol: float = 1e-12, max_step: float = 1.0) -> Iterator[VerticalGyroOutput]:
@@ -152,27 +187,12 @@ class VerticalGyro:
         ``spin_axis0``: initial spin axis in ENU (normalized; default the true vertical).
         """
         t = check_times(t_grid)
-        if not isinstance(carrier, Motion):
-            raise ValueError(f"carrier must be a core.motion.Motion, got {type(carrier).__name__}")
-        lat0 = float(check_latitude(finite(latitude, "latitude")))
         height = finite(height, "height")
-        s0 = np.asarray(spin_axis0, dtype=np.float64)
-        if s0.shape != (3,) or not np.all(np.isfinite(s0)) or np.linalg.norm(s0) == 0.0:
-            raise ValueError(f"spin_axis0 must be a finite nonzero 3-vector, got {spin_axis0!r}")
-        s0 = s0 / np.linalg.norm(s0)
-        if s0[2] <= 0.0:
-            raise ValueError("spin_axis0 must point above the horizon")
+        y0 = self.initial_state(carrier, latitude, height, spin_axis0)
         positive(rtol, "rtol")
         positive(atol, "atol")
-        y0 = [s0[0], s0[1], s0[2], lat0]
-        for tc, yc in integrate_chunked(self._rhs(carrier, height), y0, t, chunk, rtol, atol, max_step):
-            s = yc[:, :3] / np.linalg.norm(yc[:, :3], axis=1, keepdims=True)
-            tr = carrier_truth(carrier, tc, yc[:, 3], height)
-            q_bn = quat_conjugate(tr.q_nb)
-            roll_i, pitch_i = roll_pitch_from_up(quat_rotate(q_bn, s))
-            roll_t, pitch_t = roll_pitch_from_up(quat_rotate(q_bn, [0.0, 0.0, 1.0]))
-            tilt = np.arccos(np.clip(s[:, 2], -1.0, 1.0))
-            yield VerticalGyroOutput(tc, roll_i, pitch_i, roll_t, pitch_t, tilt, yc[:, 3])
+        for tc, yc in integrate_chunked(self.rhs(carrier, height), y0, t, chunk, rtol, atol, max_step):
+            yield self.outputs(tc, yc, carrier, height)
 
     def simulate(self, t_grid, carrier: Motion, latitude: float, **kwargs) -> VerticalGyroOutput:
         """The whole run at once (see :meth:`iter_chunks`)."""

@@ -37,6 +37,9 @@ Schema (SI units; angles in the file are degrees where the key says ``_deg``)::
     # "3 deg/h", "12 deg/h/sqrt(h)"; gyro_attitude.core.units), scalar or 3 values;
     # bias_instability is the Allan floor B (not a Gauss–Markov σ: that is *_rad_s + tau).
     free_gyro: {...}                      # optional: fields of core.gyro.free_gyro.FreeGyroParams
+    instrument:                           # optional (not with free_gyro): one of the book's
+      type: gyrocompass | vertical_gyro | directional_gyro     # instruments, keys per type below
+      max_step_s: 10.0                    # solver step limit (< the shortest manoeuvre)
 
 Motion keys per type (``attitude: {roll_deg, pitch_deg, yaw_deg}`` is ROS roll/pitch/yaw,
 ``q_nb = Rz(yaw) Ry(pitch) Rx(roll)``, yaw counter-clockwise from East; see
@@ -55,6 +58,16 @@ Motion keys per type (``attitude: {roll_deg, pitch_deg, yaw_deg}`` is ROS roll/p
     profile:             attitude, velocity_enu_mps, segments: [{duration_s,
                          angular_rate_deg_s (body), acceleration_enu_mps2}, ...]
 
+Instrument keys per type (the instrument sees the full Earth: rotation and transport rate;
+its joints, published on ``gyro/joint_states``, are named in :mod:`gyro_attitude.core.instruments`)::
+
+    gyrocompass:       angular_momentum (N·m·s, required); exactly one of pendulous_moment (kg·m),
+                       schuler_tuned: true (at the scene latitude) or period_s; damping_ratio (0);
+                       latitude_correction (true); azimuth0_deg (0), elevation0_deg (default: the
+                       static tilt) or start_settled: true (the settle point of the initial velocity)
+    vertical_gyro:     erection_law (proportional | constant_rate), erection_gain (1/s),
+                       erection_rate_deg_s, linear_zone_deg, spin_axis0 (ENU, default up)
+    directional_gyro:  latitude_nut_deg (none: no nut), leveling_gain (1/s)
 
 Sizes that drive allocation or work are bounded here, so that a valid scene cannot ask for
 unbounded memory: ``rate_hz`` (at most :data:`MAX_RATE_HZ`), ``duration_s`` (at most
@@ -75,6 +88,17 @@ import numpy as np
 
 from gyro_attitude.core.gyro.free_gyro import FreeGyroParams, HarmonicTorque, ImpactTorque
 from gyro_attitude.core.gyro.rate_gyro import RateGyroParams
+from gyro_attitude.core.instruments.directional_gyro import DirectionalGyro, DirectionalGyroParams
+from gyro_attitude.core.instruments.gyrocompass import (
+    Gyrocompass,
+    GyrocompassParams,
+    gyrocompass_settle_point,
+)
+from gyro_attitude.core.instruments.vertical_gyro import (
+    ERECTION_LAWS,
+    VerticalGyro,
+    VerticalGyroParams,
+)
 from gyro_attitude.core.motion import (
     ClassicalConing,
     ConstantVelocity,
@@ -91,6 +115,8 @@ from gyro_attitude.core.units import to_si
 
 __all__ = [
     "SceneSpec",
+    "InstrumentSpec",
+    "INSTRUMENT_TYPES",
     "EarthSpec",
     "MOTION_TYPES",
     "MAX_RATE_HZ",
@@ -132,6 +158,18 @@ MOTION_KEYS = {
         "spin_rate_hz", "half_angle_deg", "coning_frequency_hz", "speed_mps", "attitude",
     ),
     "profile": ("attitude", "velocity_enu_mps", "segments"),
+}
+
+INSTRUMENT_TYPES = ("gyrocompass", "vertical_gyro", "directional_gyro")
+
+# Allowed keys per instrument type (besides "type" and "max_step_s").
+INSTRUMENT_KEYS = {
+    "gyrocompass": ("angular_momentum", "pendulous_moment", "schuler_tuned", "period_s",
+                    "damping_ratio", "latitude_correction", "azimuth0_deg", "elevation0_deg",
+                    "start_settled"),
+    "vertical_gyro": ("erection_law", "erection_gain", "erection_rate_deg_s", "linear_zone_deg",
+                      "spin_axis0"),
+    "directional_gyro": ("latitude_nut_deg", "leveling_gain"),
 }
 
 # YAML error keys -> SensorErrorParams field, per instrument.
@@ -446,6 +484,92 @@ def _instrument_params(cls, d: Any, path: str):
         raise ValueError(f"{path}: {exc}") from exc
 
 
+@dataclass(frozen=True)
+class InstrumentSpec:
+    """One of the book's instruments in a scene: ``type``, the ``instrument`` object (with
+    ``JOINTS``, ``initial_state``, ``rhs``, ``outputs``), the keyword arguments of its
+    ``initial_state`` and the solver's ``max_step`` (s)."""
+
+    type: str
+    instrument: object
+    initial: dict
+    max_step: float
+
+
+def _build_instrument(f: _Fields, earth_spec: EarthSpec, motion: Motion) -> InstrumentSpec:
+    kind = f.string("type", choices=INSTRUMENT_TYPES)
+    _Fields(f.d, f.path, ("type", "max_step_s") + INSTRUMENT_KEYS[kind])
+    max_step = f.number("max_step_s", 10.0 if kind != "vertical_gyro" else 1.0,
+                        lo=1e-6, hi=3600.0)
+    lat = earth_spec.latitude_rad
+    if not (earth_spec.rotation and earth_spec.transport_rate):
+        raise ValueError(f"{f.path}: the instruments always see the Earth's rotation and the "
+                         "transport rate; set earth.rotation and earth.transport_rate true")
+
+    def built(fn, key):
+        try:
+            return fn()
+        except ValueError as exc:
+            raise ValueError(f"{f.key(key)}: {exc}") from exc
+
+    initial: dict = {}
+    if kind == "gyrocompass":
+        h = f.number("angular_momentum", lo=0.0, lo_open=True)
+        zeta = f.number("damping_ratio", 0.0, lo=0.0, hi=10.0)
+        corr = f.boolean("latitude_correction", True)
+        given = [k for k in ("pendulous_moment", "schuler_tuned", "period_s") if f.has(k)]
+        if len(given) != 1:
+            raise ValueError(f"{f.path}: give exactly one of pendulous_moment, schuler_tuned, "
+                             f"period_s (got {', '.join(given) or 'none'})")
+        if given[0] == "schuler_tuned":
+            if not f.boolean("schuler_tuned"):
+                raise ValueError(f"{f.key('schuler_tuned')}: must be true when given")
+            params = built(lambda: GyrocompassParams.schuler_tuned(h, lat, zeta, corr),
+                           "schuler_tuned")
+        elif given[0] == "period_s":
+            period = f.number("period_s", lo=0.0, lo_open=True, hi=1.0e6)
+            params = built(lambda: GyrocompassParams.with_period(h, period, lat, zeta, corr),
+                           "period_s")
+        else:
+            ml = f.number("pendulous_moment", lo=0.0, lo_open=True)
+            params = built(lambda: GyrocompassParams.with_damping_ratio(h, ml, lat, zeta, corr),
+                           "pendulous_moment")
+        if f.boolean("start_settled", False):
+            if f.has("azimuth0_deg") or f.has("elevation0_deg"):
+                raise ValueError(f"{f.key('start_settled')}: not with azimuth0_deg/elevation0_deg")
+            v0 = motion.evaluate(np.zeros(1)).velocity_enu[0]
+            a0, b0 = built(lambda: gyrocompass_settle_point(params, lat, v0), "start_settled")
+            initial = {"azimuth0": a0, "elevation0": b0}
+        else:
+            initial = {"azimuth0": math.radians(f.number("azimuth0_deg", 0.0, -180.0, 180.0))}
+            if f.has("elevation0_deg"):
+                initial["elevation0"] = math.radians(f.number("elevation0_deg", lo=-80.0, hi=80.0))
+        instrument = Gyrocompass(params)
+    elif kind == "vertical_gyro":
+        law = f.string("erection_law", "proportional", choices=ERECTION_LAWS)
+        kw = {"erection_law": law}
+        if f.has("erection_gain"):
+            kw["erection_gain"] = f.number("erection_gain", lo=0.0, lo_open=True, hi=1.0e3)
+        if f.has("erection_rate_deg_s"):
+            kw["erection_rate"] = math.radians(f.number("erection_rate_deg_s", lo=0.0,
+                                                        lo_open=True, hi=1.0e3))
+        if f.has("linear_zone_deg"):
+            kw["linear_zone"] = math.radians(f.number("linear_zone_deg", lo=0.0, lo_open=True,
+                                                      hi=89.0))
+        instrument = VerticalGyro(built(lambda: VerticalGyroParams(**kw), "erection_law"))
+        if f.has("spin_axis0"):
+            s0 = f.array("spin_axis0", (3,))
+            if not np.linalg.norm(s0) > 0.0 or s0[2] <= 0.0:
+                raise ValueError(f"{f.key('spin_axis0')}: must point above the horizon")
+            initial = {"spin_axis0": tuple(s0)}
+    else:
+        nut = (math.radians(f.number("latitude_nut_deg", lo=-90.0, hi=90.0))
+               if f.has("latitude_nut_deg") else None)
+        instrument = DirectionalGyro(built(lambda: DirectionalGyroParams(
+            nut, f.number("leveling_gain", 0.0, lo=0.0, hi=1.0e3)), "leveling_gain"))
+    return InstrumentSpec(kind, instrument, initial, max_step)
+
+
 # --------------------------------------------------------------------------- spec
 @dataclass(frozen=True)
 class EarthSpec:
@@ -478,6 +602,7 @@ class SceneSpec:
     gravity: bool = True
     accel_errors: SensorErrorParams = dataclasses.field(default_factory=SensorErrorParams)
     free_gyro_params: FreeGyroParams | None = None
+    instrument: InstrumentSpec | None = None
     source: dict = dataclasses.field(default_factory=dict)
 
     @classmethod
@@ -485,7 +610,7 @@ class SceneSpec:
         """Validate a scene mapping; ``ValueError`` names the offending key's path."""
         top = _Fields(d, "", (
             "description", "seed", "start_time_ns", "rate_hz", "duration_s", "earth", "motion",
-            "gyro", "accelerometer", "free_gyro",
+            "gyro", "accelerometer", "free_gyro", "instrument",
         ))
         description = top.string("description")
         seed = top.integer("seed", lo=0)
@@ -535,10 +660,20 @@ class SceneSpec:
         if top.has("free_gyro"):
             free_params = _instrument_params(FreeGyroParams, top.raw("free_gyro"), "free_gyro")
 
+        instrument = None
+        if top.has("instrument"):
+            if free_params is not None:
+                raise ValueError("instrument: a scene has one gimballed instrument; "
+                                 "remove free_gyro or instrument")
+            i = top.section("instrument", ("type", "max_step_s")
+                            + tuple({k for v in INSTRUMENT_KEYS.values() for k in v}))
+            instrument = _build_instrument(i, earth_spec, motion)
+
         return cls(
             name=name, description=description, seed=seed, earth=earth_spec, motion=motion,
             motion_type=motion.name, start_time_ns=start_time_ns, rate_hz=rate_hz,
             duration_s=duration_s, gyro_model=gyro_model, rate_gyro_params=rate_params,
             gyro_errors=gyro_errors, accelerometer=accel, gravity=gravity,
-            accel_errors=accel_errors, free_gyro_params=free_params, source=dict(d),
+            accel_errors=accel_errors, free_gyro_params=free_params, instrument=instrument,
+            source=dict(d),
         )

@@ -23,6 +23,7 @@ import numpy as np
 from gyro_attitude.core import earth
 from gyro_attitude.core.gyro.free_gyro import FreeGyroSimulator
 from gyro_attitude.core.gyro.rate_gyro import RateGyroTriad
+from gyro_attitude.core.instruments.common import InstrumentStepper
 from gyro_attitude.core.motion import Motion, Stationary
 from gyro_attitude.core.rotation import quat_conjugate, quat_rotate
 from gyro_attitude.core.scene.schema import MAX_RATE_HZ, SceneSpec
@@ -103,12 +104,23 @@ def integrate_position(motion: Motion, t0: float, llh0, t) -> np.ndarray:
 # --------------------------------------------------------------------------- simulator
 @dataclass
 class GimbalBlock:
-    """Gimbal state of a gimballed instrument: ``names (k,)``, ``angles (n,k)`` rad,
-    ``rates (n,k)`` rad/s."""
+    """Named joints of a gimballed instrument, as published on ``gyro/joint_states``:
+    ``names (k,)``, ``positions (n,k)`` rad (gimbal angles and indications),
+    ``velocities (n,k)`` rad/s."""
 
     names: tuple[str, ...]
-    angles: np.ndarray
-    rates: np.ndarray
+    positions: np.ndarray
+    velocities: np.ndarray
+
+    @property
+    def angles(self) -> np.ndarray:
+        """The ``positions`` (free-gyro name)."""
+        return self.positions
+
+    @property
+    def rates(self) -> np.ndarray:
+        """The ``velocities`` (free-gyro name)."""
+        return self.velocities
 
 
 @dataclass
@@ -119,7 +131,7 @@ class SimBlock:
     ``specific_force_b (n,3)`` measured accelerometer output (m/s²) or ``None`` when the scene
     has no accelerometer; truth: ``truth_q_nb (n,4)``, ``truth_omega_nb_b (n,3)``,
     ``truth_omega_ib_b (n,3)``, ``position_llh (n,3)`` (rad, rad, m), ``velocity_enu (n,3)``;
-    ``gimbal`` (free gyro) or ``None``.
+    ``gimbal`` (named joints of the free gyro or the scene's instrument) or ``None``.
     """
 
     t_ns: np.ndarray
@@ -144,8 +156,8 @@ def _concatenate(blocks: list[SimBlock]) -> SimBlock:
     gimbal = None
     if first.gimbal is not None:
         gimbal = GimbalBlock(first.gimbal.names,
-                             np.concatenate([b.gimbal.angles for b in blocks]),
-                             np.concatenate([b.gimbal.rates for b in blocks]))
+                             np.concatenate([b.gimbal.positions for b in blocks]),
+                             np.concatenate([b.gimbal.velocities for b in blocks]))
     return SimBlock(**{f: cat(f) for f in ("t_ns", "omega_ib_b", "specific_force_b",
                                            "truth_q_nb", "truth_omega_nb_b", "truth_omega_ib_b",
                                            "position_llh", "velocity_enu")}, gimbal=gimbal)
@@ -160,8 +172,8 @@ class SceneSimulator:
     when ``rate_hz`` is an integer, else rounded); truth is evaluated at exactly those stamps.
     ``effects_run`` is the set of effect names actually evaluated so far, e.g.
     ``motion.coning``, ``earth_rate``, ``transport_rate``, ``position``, ``gravity``,
-    ``coriolis``, ``specific_force``, ``rate_gyro``, ``free_gyro``, ``gyro.white_noise``,
-    ``accelerometer.bias``.
+    ``coriolis``, ``specific_force``, ``rate_gyro``, ``free_gyro``, ``instrument.gyrocompass``,
+    ``gyro.white_noise``, ``accelerometer.bias``.
     """
 
     def __init__(self, spec: SceneSpec, rate_hz: float, seed: int | None = None):
@@ -190,6 +202,12 @@ class SceneSimulator:
             self._rate_gyro = RateGyroTriad(spec.rate_gyro_params, self.dt)
         if spec.free_gyro_params is not None:
             self._free_gyro = FreeGyroSimulator(spec.free_gyro_params, self._case_rate, t0=0.0)
+        self._instrument = None
+        if spec.instrument is not None:
+            ins = spec.instrument
+            self._instrument = InstrumentStepper(
+                ins.instrument, spec.motion, ea.latitude_rad, ea.height_m, t0=0.0,
+                max_step=ins.max_step, **ins.initial)
 
     # ------------------------------------------------------------------ pieces
     def _stamps(self, n: int) -> np.ndarray:
@@ -319,6 +337,9 @@ class SceneSimulator:
             angles, rates = self._free_gyro.run_until(t)
             gimbal = GimbalBlock(tuple(self._free_gyro.names), np.asarray(angles),
                                  np.asarray(rates))
+        elif self._instrument is not None:
+            self.effects_run.add(f"instrument.{spec.instrument.type}")
+            gimbal = GimbalBlock(*self._instrument.advance(t))
 
         return SimBlock(
             t_ns=t_ns, omega_ib_b=gyro_out, specific_force_b=f_b, truth_q_nb=sample.q_nb,
