@@ -42,6 +42,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Header
 
+from gyro_attitude.core.scene import BLOCK_SAMPLES
 from gyro_attitude.core.sim_topics import (
     DEFAULT_FRAME_ID,
     DEFAULT_WORLD_FRAME_ID,
@@ -123,7 +124,9 @@ class GyroSimNode(Node):
         self._frame_id = p["frame_id"]
         self._world = p["world_frame_id"]
         self._fast = p["time_mode"] == "fast"
-        self._block_n = max(1, int(round(p["block_s"] * p["rate_hz"])))
+        # at most BLOCK_SAMPLES per block: the memory of a block (Python lists of every message
+        # field) stays bounded whatever block_s x rate_hz a scene and the parameters ask for
+        self._block_n = min(BLOCK_SAMPLES, max(1, int(round(p["block_s"] * p["rate_hz"]))))
         self._n_total = int(round(p["duration_s"] * p["rate_hz"])) if p["duration_s"] > 0 else 0
 
         self._pub_imu = self.create_publisher(
