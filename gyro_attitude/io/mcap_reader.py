@@ -93,6 +93,11 @@ MAX_COMPRESSION_RATIO = 1000
 MAX_SUMMARY_BYTES = 64 * 1024 * 1024
 
 
+# A file that ends at a record boundary without Data End and footer: what a writer killed
+# mid-recording leaves (every record before it is whole).
+UNFINISHED = "file ends without Data End and footer (truncated, or writer killed)"
+
+
 class McapDamagedError(ValueError):
     """The file is not MCAP, or is damaged at ``offset`` (what precedes it was readable)."""
 
@@ -315,9 +320,8 @@ class McapStreamReader:
                     if pending is not None:  # its index may be incomplete: do not trust it
                         pending.message_index = None
                         yield from self._finish_chunk(pending)
-                    self._damaged("file ends without Data End and footer (truncated, or "
-                                  "writer killed)" if not head else "record header cut "
-                                  "by the end of the file", pos)
+                    self._damaged(UNFINISHED if not head else "record header cut by the end "
+                                  "of the file", pos)
                     return
                 opcode, length = RECORD_HEADER.unpack(head)
                 body_pos = pos + RECORD_HEADER.size

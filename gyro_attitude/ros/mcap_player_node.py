@@ -23,7 +23,12 @@ from mcap.exceptions import McapError
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
-from gyro_attitude.io.mcap_reader import McapStreamReader, match_topic, resolve_mcap_path
+from gyro_attitude.io.mcap_reader import (
+    UNFINISHED,
+    McapStreamReader,
+    match_topic,
+    resolve_mcap_path,
+)
 from gyro_attitude.io.mcap_records import MAGIC
 from gyro_attitude.io.qos import parse_qos_profiles
 from gyro_attitude.ros.mcap_recorder_node import message_class
@@ -70,8 +75,9 @@ def check_recording_start(path) -> None:
         raise InputError(f"{path}: not an MCAP file (no MCAP magic at the start)")
 
 
-def iter_log_time_order(path, topics: list[str] | None):
-    """(topic, type_name, offered_qos_yaml, log_time, data) in log-time order."""
+def iter_log_time_order(path, topics: list[str] | None, damages: list[str] | None = None):
+    """(topic, type_name, offered_qos_yaml, log_time, data) in log-time order; damage met
+    on the way (skipped by the reader) is appended to ``damages`` when given."""
     reader = McapStreamReader(path, on_damage="warn")
     wanted = None
     if topics is not None:
@@ -81,6 +87,8 @@ def iter_log_time_order(path, topics: list[str] | None):
     for m in reader.iter_messages(wanted, log_time_order=True):
         yield (m.channel.topic, m.channel.type_name,
                m.channel.metadata.get("offered_qos_profiles", ""), m.log_time, m.data)
+    if damages is not None:
+        damages.extend(d for d in reader.damages if d not in damages)
 
 
 def recorded_channels(path, topics: list[str] | None) -> list[tuple[str, str, str]]:
@@ -131,6 +139,8 @@ class McapPlayerNode(Node):
             self._clock_cls = Clock
             self._clock_pub = self.create_publisher(Clock, "/clock", 10)
         self.published = 0
+        self.damages: list[str] = []  # damage the reader met and skipped, in file order
+        self.damage_reported = False
 
     def _on_set_parameters(self, params) -> SetParametersResult:
         reason = check_update(self._specs, params)
@@ -179,7 +189,7 @@ class McapPlayerNode(Node):
         for topic, type_name, qos_yaml in recorded_channels(self.path, self.topics):
             self._publisher(topic, type_name, qos_yaml)
         self._wait_for_subscribers(list(self._pubs))
-        msgs = iter_log_time_order(self.path, self.topics)
+        msgs = iter_log_time_order(self.path, self.topics, self.damages)
         first = next(msgs, None)
         if first is None:
             return 0
@@ -219,11 +229,20 @@ def _play(node: McapPlayerNode) -> None:
     try:
         while rclpy.ok():
             n = node.play_once()
+            if node.damages and not node.damage_reported:
+                node.damage_reported = True
+                node.get_logger().warning(f"{node.damages[0]} (skipped; "
+                                          f"{len(node.damages)} damaged place(s) in all)")
             if n == 0 or not node.loop:
                 break
     except (ValueError, OSError, EOFError, struct.error, McapError) as exc:
         # whatever reading the recording raises (the mcap package's own errors included)
         raise InputError(f"{node.path}: {exc}") from exc
+    damaged = [d for d in node.damages if not d.endswith(UNFINISHED)]
+    if damaged:
+        # everything readable was played; the exit status still says the input was damaged
+        # (an unfinished recording -- a killed recorder's leftover -- is only warned about)
+        raise InputError(f"{damaged[0]} (played the {node.published} readable messages)")
 
 
 def _report(node: McapPlayerNode) -> None:

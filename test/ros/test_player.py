@@ -134,3 +134,30 @@ def test_reading_errors_become_input_errors(error):
         assert str(caught.value) == f"in.mcap: {error}"
     finally:
         rclpy.shutdown()
+
+
+def test_damaged_chunk_plays_the_rest_and_exits_1(launch, ros_node, tmp_path):
+    """A chunk whose CRC fails is skipped: every other message is played, the damage is named
+    in one line, and the exit status says the input was damaged (1), never 0."""
+    from mcap.reader import make_reader
+
+    path = tmp_path / "in.mcap"
+    t = _recording(path, n=200)
+    with open(path, "rb") as f:
+        chunks = sorted(make_reader(f).get_summary().chunk_indexes,
+                        key=lambda c: c.chunk_start_offset)
+    assert len(chunks) >= 3
+    bad = chunks[1]
+    data = bytearray(path.read_bytes())
+    mid = bad.chunk_start_offset + bad.chunk_length // 2
+    data[mid] ^= 0xFF
+    path.write_bytes(bytes(data))
+    got, _ = _subscribe(ros_node)
+    proc = launch(MODULE, "-p", f"input:={path}", "-p", "namespace_topics:=true",
+                  "-p", "wait_for_subscribers:=1", "-p", "publish_clock:=false", "-p", "rate:=4.0")
+    assert proc.wait(timeout=30) == 1, proc.output()
+    ros_node.spin_until(lambda: False, 0.5)
+    out = proc.output()
+    assert "damaged at byte" in out and "Traceback" not in out
+    played = {g[2] for g in got}
+    assert 0 < len(played) < len(t) and played <= set(t.tolist())
