@@ -9,6 +9,8 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
+from gyro_attitude.core.attitude import ALGORITHMS
+
 Q0 = np.array([0.2, 0.1, -0.3, 0.9]) / np.linalg.norm([0.2, 0.1, -0.3, 0.9])
 
 
@@ -115,3 +117,14 @@ def nav_rate_written_out(lat, h, v_enu):
     return np.stack((-vn / (r_m + h),
                      _OMEGA_IE * np.cos(lat) + ve / (r_n + h),
                      _OMEGA_IE * np.sin(lat) + ve * np.tan(lat) / (r_n + h)), axis=-1)
+
+
+# Algorithm groups the tests parametrize over (what each algorithm declares of itself).
+RATE_ALGS = [a for a, i in ALGORITHMS.items() if i.consumes == "rate"]
+INCR_ALGS = [a for a, i in ALGORITHMS.items() if i.consumes == "increment"]
+QUAT_RATE_ALGS = [a for a in RATE_ALGS if not ALGORITHMS[a].sequential]
+CAUSAL_QUAT_RATE_ALGS = [a for a in QUAT_RATE_ALGS if ALGORITHMS[a].causal]
+
+# A moving carrier for the nav-frame tests: latitude [rad], height [m], velocities ENU [m/s].
+NAV_LAT, NAV_H = 0.87, 3000.0
+NAV_VELS = [(120.0, 0.0, 0.0), (84.9, 84.9, 1.0), (0.0, 120.0, -2.0)]

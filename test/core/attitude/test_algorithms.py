@@ -8,7 +8,9 @@ import math
 import numpy as np
 import pytest
 from attitude_truth import (
+    INCR_ALGS,
     Q0,
+    QUAT_RATE_ALGS,
     angle_between,
     coning_truth,
     ode_truth,
@@ -28,11 +30,6 @@ from gyro_attitude.core.attitude import (
     integrate_batch,
     integrate_increments_batch,
 )
-
-RATE_ALGS = [a for a, i in ALGORITHMS.items() if i.consumes == "rate"]
-INCR_ALGS = [a for a, i in ALGORITHMS.items() if i.consumes == "increment"]
-QUAT_RATE_ALGS = [a for a in RATE_ALGS if not ALGORITHMS[a].sequential]
-CAUSAL_QUAT_RATE_ALGS = [a for a in QUAT_RATE_ALGS if ALGORITHMS[a].causal]
 
 
 @pytest.fixture(scope="module")

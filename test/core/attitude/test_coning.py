@@ -20,17 +20,11 @@ from attitude_truth import (
 from scipy.spatial.transform import Rotation
 
 from gyro_attitude.core.attitude import (
-    ALGORITHMS,
     CONING_DRIFT_RHO,
     increments_from_rates,
     integrate_batch,
     integrate_increments_batch,
 )
-
-RATE_ALGS = [a for a, i in ALGORITHMS.items() if i.consumes == "rate"]
-INCR_ALGS = [a for a, i in ALGORITHMS.items() if i.consumes == "increment"]
-QUAT_RATE_ALGS = [a for a in RATE_ALGS if not ALGORITHMS[a].sequential]
-CAUSAL_QUAT_RATE_ALGS = [a for a in QUAT_RATE_ALGS if ALGORITHMS[a].causal]
 
 
 @pytest.fixture(scope="module")

@@ -8,6 +8,9 @@ import math
 import numpy as np
 import pytest
 from attitude_truth import (
+    NAV_H,
+    NAV_LAT,
+    NAV_VELS,
     Q0,
     angle_between,
     nav_rate_written_out,
@@ -15,20 +18,13 @@ from attitude_truth import (
 from scipy.spatial.transform import Rotation
 
 from gyro_attitude.core.attitude import (
-    ALGORITHMS,
     DEFAULT_ALGORITHM,
     NavFrame,
     StreamingIntegrator,
     integrate_batch,
 )
 
-RATE_ALGS = [a for a, i in ALGORITHMS.items() if i.consumes == "rate"]
-INCR_ALGS = [a for a, i in ALGORITHMS.items() if i.consumes == "increment"]
-QUAT_RATE_ALGS = [a for a in RATE_ALGS if not ALGORITHMS[a].sequential]
-CAUSAL_QUAT_RATE_ALGS = [a for a in QUAT_RATE_ALGS if ALGORITHMS[a].causal]
-
-_LAT, _H = 0.87, 3000.0
-_VELS = [(120.0, 0.0, 0.0), (84.9, 84.9, 1.0), (0.0, 120.0, -2.0)]
+_LAT, _H, _VELS = NAV_LAT, NAV_H, NAV_VELS
 
 
 def test_earth_rate_only_one_hour_at_rest():

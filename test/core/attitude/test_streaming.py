@@ -6,6 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from attitude_truth import (
+    CAUSAL_QUAT_RATE_ALGS,
+    INCR_ALGS,
+    NAV_H,
+    NAV_LAT,
+    NAV_VELS,
     Q0,
     angle_between,
     smooth_increments,
@@ -24,13 +29,7 @@ from gyro_attitude.core.attitude import (
     integrate_increments_batch,
 )
 
-RATE_ALGS = [a for a, i in ALGORITHMS.items() if i.consumes == "rate"]
-INCR_ALGS = [a for a, i in ALGORITHMS.items() if i.consumes == "increment"]
-QUAT_RATE_ALGS = [a for a in RATE_ALGS if not ALGORITHMS[a].sequential]
-CAUSAL_QUAT_RATE_ALGS = [a for a in QUAT_RATE_ALGS if ALGORITHMS[a].causal]
-
-_LAT, _H = 0.87, 3000.0
-_VELS = [(120.0, 0.0, 0.0), (84.9, 84.9, 1.0), (0.0, 120.0, -2.0)]
+_LAT, _H, _VELS = NAV_LAT, NAV_H, NAV_VELS
 
 
 def _stream(algorithm, t_ns, w, q0, nav=None, quadrature="trapezoid"):
