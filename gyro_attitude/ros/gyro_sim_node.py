@@ -37,6 +37,7 @@ from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.serialization import serialize_message
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState
@@ -50,6 +51,8 @@ from gyro_attitude.core.sim_topics import (
     SimTopics,
     local_enu_position,  # noqa: F401  (re-exported: its home moved to core.sim_topics)
 )
+from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
+from gyro_attitude.io.safe_output import SafeOutput, check_output_path
 from gyro_attitude.ros import convert
 from gyro_attitude.ros.node_main import run_node
 from gyro_attitude.ros.params import ParameterError, ParamSpec, check_update, declare_all
@@ -138,6 +141,7 @@ class GyroSimNode(Node):
         self._pub_clock = self.create_publisher(Clock, "/clock", 10) if self._fast else None
 
         self._writer = None
+        self._record_output: SafeOutput | None = None
         self._serialize = None
         if p["record_path"]:
             self._open_recorder(p["record_path"])
@@ -163,15 +167,17 @@ class GyroSimNode(Node):
 
     # ------------------------------------------------------------------ recording
     def _open_recorder(self, path: str) -> None:
-        from rclpy.serialization import serialize_message
-
-        from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
-
+        # an existing file is never replaced, and the recording appears under its name only
+        # when finished (a killed simulator leaves it in a hidden .NAME.*.partial folder)
         try:
-            self._writer = Rosbag2McapWriter(path)
+            check_output_path(path, what="record_path")
+            self._record_output = SafeOutput(path)
+            self._writer = Rosbag2McapWriter(self._record_output.open())
             for topic, type_name in TOPICS.items():
                 self._writer.add_topic(self._resolve(topic), type_name)
         except (OSError, ValueError) as exc:
+            if self._record_output is not None:
+                self._record_output.discard()
             raise ParameterError(f"parameter 'record_path': {exc}") from exc
         self._serialize = serialize_message
 
@@ -187,6 +193,7 @@ class GyroSimNode(Node):
         if self._writer is not None:
             self._writer.finish()
             self._writer = None
+            self._record_output.commit()
 
     # ------------------------------------------------------------------ parameters
     def _on_set_parameters(self, params) -> SetParametersResult:

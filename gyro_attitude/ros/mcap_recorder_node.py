@@ -29,7 +29,7 @@ from pathlib import Path
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
-from gyro_attitude.io.mcap_writer import COMPRESSIONS, Rosbag2McapWriter
+from gyro_attitude.io.mcap_writer import COMPRESSIONS, DEFAULT_COMPRESSION, Rosbag2McapWriter
 from gyro_attitude.io.qos import qos_profile, qos_profiles_yaml
 from gyro_attitude.io.safe_output import SafeOutput, check_output_path
 from gyro_attitude.ros.node_main import run_node
@@ -51,7 +51,9 @@ def parameter_specs() -> list[ParamSpec]:
         ParamSpec("force", False, "replace an existing output (refused otherwise)"),
         ParamSpec("bag_directory", False,
                   "write a rosbag2 bag directory (MCAP file + metadata.yaml)"),
-        ParamSpec("compression", "", "chunk compression ('' = none)", choices=COMPRESSIONS),
+        ParamSpec("compression", DEFAULT_COMPRESSION,
+                  "chunk compression (zstd as rosbag2's MCAP storage; '' = none)",
+                  choices=COMPRESSIONS),
         ParamSpec("flush_period_s", 0.5, "close the open chunk and flush the file this often "
                   "[s]: the most a kill -9 loses", low=0.01, high=MAX_FLUSH_PERIOD_S),
         ParamSpec("discovery_period_s", 0.2, "poll the graph for new topics this often [s]",

@@ -331,3 +331,15 @@ def test_fast_mode_gimbal_scene_recording_clock_and_enu_at_rest(launch, ros_node
     # /clock carries the sample stamps in fast mode (monotonic, on the 20 ms grid)
     c = np.array([convert.stamp_to_ns(m.clock) for m in clock])
     assert np.all(np.diff(c) > 0) and np.all(np.diff(c) % 20_000_000 == 0)
+
+
+def test_gyro_sim_refuses_to_overwrite_a_recording(launch, tmp_path):
+    """record_path naming an existing file: one line, exit 2, the file untouched."""
+    bag = tmp_path / "old.mcap"
+    bag.write_bytes(b"precious")
+    proc = launch("gyro_attitude.ros.gyro_sim_node", "-p", "scene:=coning", "-p",
+                  "time_mode:=fast", "-p", "duration_s:=0.5", "-p", f"record_path:={bag}")
+    assert proc.wait(timeout=30) == 2, proc.output()
+    out = proc.output()
+    assert "record_path" in out and "exists" in out and "Traceback" not in out
+    assert bag.read_bytes() == b"precious"
