@@ -1,4 +1,4 @@
-"""Single-gimbal rate gyro and integrating gyro (two degrees of freedom, §4-2): models, exact discretization, closed forms.
+"""Single-gimbal rate gyro and integrating gyro (§4-2): models, exact discretization, closed forms.
 
 Section numbers (§) refer to the gyroscope-mechanics textbook (``docs/equations.md``).
 SI units: rad, rad/s, N·m, kg·m², seconds as floats (the scene layer converts its
