@@ -67,6 +67,29 @@ unique solution for every ε and tends to the Filippov (set-valued friction) sol
 interest.  Result of §5-2 reproduced: outer-axis friction M_c makes the inner gimbal drift
 at M_c/(H cos β).
 
+g-sensitive drift (§5-3, ``mass_unbalance`` m·l, kg·m, + toward the +spin end): the rotor's
+centre of mass sits ``l`` along the spin axis s, and the specific force f (case axes, from
+``specific_force_fn``) acts on it as ``−m f``: the torque ``M = m l (f × s)``, i.e. on the
+gimbal axes ::
+
+    M_α = m l cos β (f_x sin α − f_y cos α),   M_β = m l (sin β (f_x cos α + f_y sin α) + f_z cos β)
+
+so the spin axis precesses at ``ω_d = (m l / H) (f − (f·s) s)`` (a level rotor at rest turns
+about the vertical at ``m l g / H``).  f is taken at the midpoint of each integration step.
+
+Gimbal stops (full model only): ``inner_gimbal_stops`` / ``outer_gimbal_stops`` = (low, high)
+angles (rad) of hard stops on the relative gimbal angle.  A gimbal reaching a stop impacts it:
+Newton's restitution on the joint rate, ``q̇⁺ = −e q̇⁻`` (``stop_restitution`` e ∈ [0, 1]).  The
+mass matrix is diagonal in (α̈, β̈), so the stop's impulse changes that joint's rate alone; the
+kinetic energy drops by ``½ M_qq (q̇⁻² − q̇⁺²)`` on a base at rest (``M_11`` or ``A_y``), and
+an inner-stop impulse is internal to the outer gimbal, so it leaves the angular momentum about
+the outer axis unchanged.  The impact time is located inside the step (regula falsi on the
+step length, to 1e-12 s) and the step is finished from there.  A rebound slower than
+``stop_rest_rate`` (and every impact with e = 0) leaves the gimbal resting on the stop: its rate
+and acceleration are held at zero while the free acceleration pushes into the stop, and it
+lifts off when that acceleration turns away (decided at the start of each step).
+``stop_impacts`` lists ``(t, axis, rate before, rate after)`` of every impact.
+
 Numerics.  Precession model: classical RK4 on (α, β) with fixed sub-steps
 (≤ ``max_step``, ≤ 1/16 of a harmonic-torque period), pulse edges and output times on
 the step grid; the rates solve the algebraic friction equation by safeguarded Newton.
@@ -161,6 +184,11 @@ class FreeGyroParams:
     max_step: float = 0.01
     steps_per_nutation: float = 20.0
     base_rate_derivative_step: float = 1e-5
+    mass_unbalance: float = 0.0
+    outer_gimbal_stops: tuple[float, float] | None = None
+    inner_gimbal_stops: tuple[float, float] | None = None
+    stop_restitution: float = 0.5
+    stop_rest_rate: float = 1e-6
 
     def __post_init__(self):
         check_positive(self.spin_inertia, "spin_inertia")
@@ -188,6 +216,24 @@ class FreeGyroParams:
         check_positive(self.max_step, "max_step")
         check_positive(self.steps_per_nutation, "steps_per_nutation")
         check_positive(self.base_rate_derivative_step, "base_rate_derivative_step")
+        check_finite(self.mass_unbalance, "mass_unbalance")
+        e = check_finite(self.stop_restitution, "stop_restitution")
+        if not 0.0 <= e <= 1.0:
+            raise ValueError(f"stop_restitution must lie in [0, 1], got {e!r}")
+        check_positive(self.stop_rest_rate, "stop_rest_rate")
+        for axis, name in enumerate(("outer_gimbal_stops", "inner_gimbal_stops")):
+            stops = getattr(self, name)
+            if stops is None:
+                continue
+            lo, hi = pair(stops, name)
+            if not lo < hi:
+                raise ValueError(f"{name} must be (low, high) with low < high, got {stops!r}")
+            if self.model != "full":
+                raise ValueError(f"{name} need model='full' (an impact needs gimbal inertia)")
+            if not lo < self.initial_angles[axis] < hi:
+                raise ValueError(f"{name}: the initial angle {self.initial_angles[axis]!r} must "
+                                 "lie strictly between the stops")
+            object.__setattr__(self, name, (lo, hi))
         harm = tuple(self.harmonic_torques)
         if not all(isinstance(h, HarmonicTorque) for h in harm):
             raise ValueError("harmonic_torques must be HarmonicTorque instances")
@@ -261,7 +307,8 @@ class FreeGyroSimulator:
 
     def __init__(self, params: FreeGyroParams,
                  omega_base_fn: Callable[[np.ndarray], np.ndarray], t0: float = 0.0,
-                 omega_base_dot_fn: Callable[[np.ndarray], np.ndarray] | None = None):
+                 omega_base_dot_fn: Callable[[np.ndarray], np.ndarray] | None = None,
+                 specific_force_fn: Callable[[np.ndarray], np.ndarray] | None = None):
         if not isinstance(params, FreeGyroParams):
             raise ValueError("params must be a FreeGyroParams")
         if not callable(omega_base_fn):
@@ -269,6 +316,14 @@ class FreeGyroSimulator:
         self.params = params
         self._omega_fn = omega_base_fn
         self._omega_dot_fn = omega_base_dot_fn
+        if params.mass_unbalance != 0.0 and not callable(specific_force_fn):
+            raise ValueError("mass_unbalance needs specific_force_fn: t (m,) -> (m, 3) m/s² "
+                             "in case axes")
+        self._force_fn = specific_force_fn if params.mass_unbalance != 0.0 else None
+        self._force_step: tuple[float, float, float] | None = None  # f held over a step
+        self._stops = (params.outer_gimbal_stops, params.inner_gimbal_stops)
+        self._held = [False, False]  # joint resting on a stop
+        self.stop_impacts: list[tuple[float, int, float, float]] = []
         self.t = check_finite(t0, "t0")
         p = params
         self._h = p.spin_momentum
@@ -331,6 +386,23 @@ class FreeGyroSimulator:
                 mb += imp.impulse[1] / imp.duration
         return ma, mb
 
+    def _specific_force(self, t: float) -> tuple[float, float, float]:
+        """f in case axes: the value held over the current step, or evaluated at ``t``."""
+        if self._force_step is not None:
+            return self._force_step
+        f = np.asarray(self._force_fn(np.array([t], dtype=np.float64)), dtype=np.float64)
+        if f.shape != (1, 3) or not np.all(np.isfinite(f)):
+            raise ValueError("specific_force_fn must return finite (m, 3) values")
+        return tuple(f[0].tolist())
+
+    def _unbalance_torque(self, t: float, al: float, be: float) -> tuple[float, float]:
+        """(M_α, M_β) of the mass unbalance m l (f × s) (module docstring)."""
+        fx, fy, fz = self._specific_force(t)
+        ml = self.params.mass_unbalance
+        ca, sa, cb, sb = math.cos(al), math.sin(al), math.cos(be), math.sin(be)
+        return (ml * cb * (fx * sa - fy * ca),
+                ml * (sb * (fx * ca + fy * sa) + fz * cb))
+
     def _friction(self, axis: int, rate: float) -> tuple[float, float]:
         """Friction torque on one axis and its derivative d/d(rate) (both ≤ 0 slope)."""
         p = self.params
@@ -348,6 +420,9 @@ class FreeGyroSimulator:
         if abs(cb) < 1e-9:
             raise ValueError(f"inner gimbal reached ±90° at t = {t:.6g} s (gimbal lock)")
         ma, mb = self._torques(t)
+        if self._force_fn is not None:
+            ua, ub = self._unbalance_torque(t, al, be)
+            ma, mb = ma + ua, mb + ub
         if not self._fric:
             return (mb / h - w[2]) / cb, -ma / (h * cb) - w[1]
         # g(b) = b + M_α(a(b))/(H c) + w_y with a(b) = (M_β(b)/H − w_z)/c; g' ≥ 1, so the
@@ -410,6 +485,9 @@ class FreeGyroSimulator:
         tg1 = ay * ag1 + (wg2 * hx - wg0 * hz)
         tg2 = az * ag2 + (wg0 * hy - wg1 * hx)
         ma, mb = self._torques(t)
+        if self._force_fn is not None:
+            ua, ub = self._unbalance_torque(t, al, be)
+            ma, mb = ma + ua, mb + ub
         if self._fric:
             if with_coulomb:
                 ma += self._friction(0, ad)[0]
@@ -426,6 +504,10 @@ class FreeGyroSimulator:
         add = (ma - ioz * ao2 - gyro_o - (-sb * tg0 + cb * tg2)) / m11
         bdd = (mb - tg1) / ay
         self.rhs_evaluations += 1
+        if self._held[0]:  # resting on an outer stop: the stop takes the torque
+            ad = add = 0.0
+        if self._held[1]:
+            bd = bdd = 0.0
         return ad, bd, add, bdd
 
     def _step_midpoint(self, t, hstep, y0, wc, wcd):
@@ -591,8 +673,10 @@ class FreeGyroSimulator:
             if model == "full" and integ == "midpoint":
                 wc = self._base_rates(tm).tolist()
                 wcd = self._base_accel(tm).tolist()
+                f = self._forces(tm)
                 for i in range(hs.shape[0]):
-                    y = self._step_midpoint(float(left[i]), float(hs[i]), y, wc[i], wcd[i])
+                    self._force_step = f[i]
+                    y = self._step(float(left[i]), float(hs[i]), y, wc[i], wcd[i])
                     self._check_lock(y, right[i])
                     for m_i in rec_all.get(i, ()):
                         out[m_i] = y
@@ -601,15 +685,121 @@ class FreeGyroSimulator:
                 w = self._base_rates(tt).reshape(-1, 3, 3).tolist()
                 wd = (self._base_accel(tt).reshape(-1, 3, 3).tolist() if model == "full"
                       else [[None, None, None]] * hs.shape[0])
+                f = self._forces(tm)
                 for i in range(hs.shape[0]):
-                    y = self._step_rk4(float(left[i]), float(hs[i]), y, w[i], wd[i])
+                    self._force_step = f[i]
+                    y = self._step(float(left[i]), float(hs[i]), y, w[i], wd[i])
                     self._check_lock(y, right[i])
                     for m_i in rec_all.get(i, ()):
                         out[m_i] = y
+            self._force_step = None
             self._y = y
             self.steps += hs.shape[0]
         self.t = t_end
         return out
+
+    def _forces(self, tm: np.ndarray) -> list:
+        """Specific force at the step midpoints ``tm`` (None entries without unbalance)."""
+        if self._force_fn is None:
+            return [None] * tm.shape[0]
+        f = np.asarray(self._force_fn(tm), dtype=np.float64)
+        if f.shape != (tm.shape[0], 3) or not np.all(np.isfinite(f)):
+            raise ValueError(f"specific_force_fn must return finite ({tm.shape[0]}, 3) values")
+        return [tuple(r) for r in f.tolist()]
+
+    def _raw_step(self, t, h, y, w, wd):
+        if self.params.model == "full" and self.params.integrator == "midpoint":
+            return self._step_midpoint(t, h, y, w, wd)
+        return self._step_rk4(t, h, y, w, wd)
+
+    def _stage_inputs(self, t: float, h: float):
+        """Base rates/accelerations of a step of length h from t (for a re-taken sub-step)."""
+        if self.params.model == "full" and self.params.integrator == "midpoint":
+            tm = np.array([t + 0.5 * h])
+            return self._base_rates(tm)[0].tolist(), self._base_accel(tm)[0].tolist()
+        tt = np.array([t, t + 0.5 * h, t + h])
+        wd = (self._base_accel(tt).tolist() if self.params.model == "full" else [None] * 3)
+        return self._base_rates(tt).tolist(), wd
+
+    def _step(self, t, h, y, w, wd):
+        """One step from t to t + h, with impacts on the gimbal stops located inside it."""
+        if self._stops == (None, None):
+            return self._raw_step(t, h, y, w, wd)
+        t_end = t + h
+        for _ in range(1000):  # impacts within one step; more means a chattering stop
+            self._update_held(t, y, w, wd)
+            y1 = self._raw_step(t, h, y, w, wd)
+            hit = self._first_crossing(y, y1)
+            if hit is None:
+                return y1
+            axis, stop = hit
+            # regula falsi (Illinois) on the step length for the crossing of the stop
+            lo, hi, g_lo, g_hi = 0.0, h, y[axis] - stop, y1[axis] - stop
+            y_hit, side = y, 0
+            while hi - lo > 1e-12:
+                hh = (lo * g_hi - hi * g_lo) / (g_hi - g_lo)
+                if not lo < hh < hi:
+                    hh = 0.5 * (lo + hi)
+                wh, wdh = self._stage_inputs(t, hh)
+                yh = self._raw_step(t, hh, y, wh, wdh)
+                g = yh[axis] - stop
+                if (g > 0) == (g_lo > 0):
+                    lo, g_lo, y_hit = hh, g, yh
+                    if side == -1:
+                        g_hi *= 0.5
+                    side = -1
+                else:
+                    hi, g_hi = hh, g
+                    if side == 1:
+                        g_lo *= 0.5
+                    side = 1
+            if lo == 0.0:
+                wh, wdh = self._stage_inputs(t, hi)
+                y_hit = self._raw_step(t, hi, y, wh, wdh)
+            y = np.array(y_hit, dtype=np.float64)
+            t = t + hi
+            y[axis] = stop
+            before = float(y[axis + 2])
+            after = -self.params.stop_restitution * before
+            if abs(after) < self.params.stop_rest_rate:
+                after = 0.0
+            y[axis + 2] = after
+            self.stop_impacts.append((t, axis, before, after))
+            h = t_end - t
+            if h <= 1e-12:
+                return y
+            w, wd = self._stage_inputs(t, h)
+        raise ValueError(f"gimbal stop chattering at t = {t:.6g} s (over 1000 impacts in one "
+                         "step); reduce max_step or raise stop_rest_rate")
+
+    def _first_crossing(self, y0, y1):
+        """(axis, stop angle) of a stop crossed during the step y0 → y1, or None."""
+        for axis, stops in enumerate(self._stops):
+            if stops is None or self._held[axis]:
+                continue
+            lo, hi = stops
+            if y1[axis] <= lo and y0[axis] > lo:
+                return axis, lo
+            if y1[axis] >= hi and y0[axis] < hi:
+                return axis, hi
+        return None
+
+    def _update_held(self, t, y, w, wd) -> None:
+        """Rest a joint on its stop (zero rate, pushed into it) or lift it off, at step start."""
+        if self.params.model != "full":
+            return
+        wc, wcd = (w, wd) if self.params.integrator == "midpoint" else (w[0], wd[0])
+        for axis, stops in enumerate(self._stops):
+            if stops is None:
+                continue
+            lo, hi = stops
+            at = lo if abs(y[axis] - lo) <= abs(y[axis] - hi) else hi
+            if y[axis] != at or y[axis + 2] != 0.0:
+                self._held[axis] = False
+                continue
+            self._held[axis] = False  # the free acceleration decides
+            acc = self._full_rhs(t, y, wc, wcd)[axis + 2]
+            self._held[axis] = (acc < 0.0) if at == lo else (acc > 0.0)
 
     def _check_lock(self, y, t) -> None:
         if not (math.isfinite(y[0]) and math.isfinite(y[1])):

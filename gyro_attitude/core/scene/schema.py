@@ -23,8 +23,9 @@ Schema (SI units; angles in the file are degrees where the key says ``_deg``)::
             | spinning_projectile | profile
       ...                                 # per type, below
     gyro:                                 # optional (ideal gyro triad)
-      model: ideal | rate_gyro            # rate_gyro: single-gimbal rate gyro per axis
+      model: ideal | rate_gyro | integrating_gyro   # single-gimbal gyro per axis
       rate_gyro: {...}                    # fields of core.gyro.rate_gyro.RateGyroParams
+      integrating_gyro: {...}             # fields of core.gyro.rate_gyro.IntegratingGyroParams
       errors: {bias_rad_s, scale_factor, misalignment_rad, arw_rad_sqrt_s,
                bias_instability_rad_s, bias_instability_tau_s, quantization_rad,
                arw, bias_instability, rate_random_walk}   # last three: datasheet terms
@@ -38,7 +39,7 @@ Schema (SI units; angles in the file are degrees where the key says ``_deg``)::
     # bias_instability is the Allan floor B (not a Gauss–Markov σ: that is *_rad_s + tau).
     free_gyro: {...}                      # optional: fields of core.gyro.free_gyro.FreeGyroParams
     instrument:                           # optional (not with free_gyro): one of the book's
-      type: gyrocompass | vertical_gyro | directional_gyro     # instruments, keys per type below
+      type: gyrocompass | vertical_gyro | directional_gyro | spinning_shell  # keys per type below
       max_step_s: 10.0                    # solver step limit (< the shortest manoeuvre)
 
 Motion keys per type (``attitude: {roll_deg, pitch_deg, yaw_deg}`` is ROS roll/pitch/yaw,
@@ -68,6 +69,9 @@ its joints, published on ``gyro/joint_states``, are named in :mod:`gyro_attitude
     vertical_gyro:     erection_law (proportional | constant_rate), erection_gain (1/s),
                        erection_rate_deg_s, linear_zone_deg, spin_axis0 (ENU, default up)
     directional_gyro:  latitude_nut_deg (none: no nut), leveling_gain (1/s)
+    spinning_shell:    spin_inertia, transverse_inertia (kg·m²), spin_rate (rad/s), exactly one of
+                       overturning_moment (N·m) or stability_factor; theta0_deg (2); the Earth
+                       and the carrier do not enter (a flight of seconds, velocity fixed in space)
 
 Sizes that drive allocation or work are bounded here, so that a valid scene cannot ask for
 unbounded memory: ``rate_hz`` (at most :data:`MAX_RATE_HZ`), ``duration_s`` (at most
@@ -87,13 +91,14 @@ from typing import Any
 import numpy as np
 
 from gyro_attitude.core.gyro.free_gyro import FreeGyroParams, HarmonicTorque, ImpactTorque
-from gyro_attitude.core.gyro.rate_gyro import RateGyroParams
+from gyro_attitude.core.gyro.rate_gyro import IntegratingGyroParams, RateGyroParams
 from gyro_attitude.core.instruments.directional_gyro import DirectionalGyro, DirectionalGyroParams
 from gyro_attitude.core.instruments.gyrocompass import (
     Gyrocompass,
     GyrocompassParams,
     gyrocompass_settle_point,
 )
+from gyro_attitude.core.instruments.stability import ShellParams, SpinningShell
 from gyro_attitude.core.instruments.vertical_gyro import (
     ERECTION_LAWS,
     VerticalGyro,
@@ -160,7 +165,7 @@ MOTION_KEYS = {
     "profile": ("attitude", "velocity_enu_mps", "segments"),
 }
 
-INSTRUMENT_TYPES = ("gyrocompass", "vertical_gyro", "directional_gyro")
+INSTRUMENT_TYPES = ("gyrocompass", "vertical_gyro", "directional_gyro", "spinning_shell")
 
 # Allowed keys per instrument type (besides "type" and "max_step_s").
 INSTRUMENT_KEYS = {
@@ -170,6 +175,8 @@ INSTRUMENT_KEYS = {
     "vertical_gyro": ("erection_law", "erection_gain", "erection_rate_deg_s", "linear_zone_deg",
                       "spin_axis0"),
     "directional_gyro": ("latitude_nut_deg", "leveling_gain"),
+    "spinning_shell": ("spin_inertia", "transverse_inertia", "spin_rate", "overturning_moment",
+                       "stability_factor", "theta0_deg"),
 }
 
 # YAML error keys -> SensorErrorParams field, per instrument.
@@ -502,6 +509,8 @@ def _build_instrument(f: _Fields, earth_spec: EarthSpec, motion: Motion) -> Inst
     max_step = f.number("max_step_s", 10.0 if kind != "vertical_gyro" else 1.0,
                         lo=1e-6, hi=3600.0)
     lat = earth_spec.latitude_rad
+    if kind == "spinning_shell":
+        return _build_shell(f, max_step)
     if not (earth_spec.rotation and earth_spec.transport_rate):
         raise ValueError(f"{f.path}: the instruments always see the Earth's rotation and the "
                          "transport rate; set earth.rotation and earth.transport_rate true")
@@ -570,6 +579,24 @@ def _build_instrument(f: _Fields, earth_spec: EarthSpec, motion: Motion) -> Inst
     return InstrumentSpec(kind, instrument, initial, max_step)
 
 
+def _build_shell(f: _Fields, max_step: float) -> InstrumentSpec:
+    c = f.number("spin_inertia", lo=0.0, lo_open=True)
+    a = f.number("transverse_inertia", lo=0.0, lo_open=True)
+    n = f.number("spin_rate", lo=0.0, lo_open=True, hi=1.0e5)
+    given = [k for k in ("overturning_moment", "stability_factor") if f.has(k)]
+    if len(given) != 1:
+        raise ValueError(f"{f.path}: give exactly one of overturning_moment, stability_factor "
+                         f"(got {', '.join(given) or 'none'})")
+    if given[0] == "stability_factor":
+        params = ShellParams.with_stability_factor(
+            f.number("stability_factor", lo=0.0, lo_open=True, hi=1.0e6), c, a, n)
+    else:
+        params = ShellParams(c, a, f.number("overturning_moment", lo=0.0, lo_open=True), n)
+    theta0 = math.radians(f.number("theta0_deg", 2.0, lo=0.0, hi=179.0))
+    return InstrumentSpec("spinning_shell", SpinningShell(params), {"theta0": theta0},
+                          min(max_step, 0.1))
+
+
 # --------------------------------------------------------------------------- spec
 @dataclass(frozen=True)
 class EarthSpec:
@@ -596,7 +623,7 @@ class SceneSpec:
     rate_hz: float = 200.0
     duration_s: float = 60.0
     gyro_model: str = "ideal"
-    rate_gyro_params: RateGyroParams | None = None
+    rate_gyro_params: RateGyroParams | IntegratingGyroParams | None = None
     gyro_errors: SensorErrorParams = dataclasses.field(default_factory=SensorErrorParams)
     accelerometer: bool = False
     gravity: bool = True
@@ -632,15 +659,17 @@ class SceneSpec:
                         required=True)
         motion = _build_motion(m)
 
-        g = top.section("gyro", ("model", "rate_gyro", "errors"))
+        g = top.section("gyro", ("model", "rate_gyro", "integrating_gyro", "errors"))
         gyro_model, rate_params, gyro_errors = "ideal", None, SensorErrorParams()
         if g is not None:
-            gyro_model = g.string("model", "ideal", choices=("ideal", "rate_gyro"))
-            if gyro_model == "rate_gyro":
-                rate_params = _instrument_params(RateGyroParams, g.raw("rate_gyro"),
-                                                 g.key("rate_gyro"))
-            elif g.has("rate_gyro"):
-                raise ValueError(f"{g.key('rate_gyro')}: given but gyro.model is 'ideal'")
+            gyro_model = g.string("model", "ideal",
+                                  choices=("ideal", "rate_gyro", "integrating_gyro"))
+            for kind, cls_ in (("rate_gyro", RateGyroParams),
+                               ("integrating_gyro", IntegratingGyroParams)):
+                if gyro_model == kind:
+                    rate_params = _instrument_params(cls_, g.raw(kind), g.key(kind))
+                elif g.has(kind):
+                    raise ValueError(f"{g.key(kind)}: given but gyro.model is {gyro_model!r}")
             gyro_errors = _error_params(
                 g.section("errors", tuple(_GYRO_ERROR_KEYS) + tuple(_GYRO_DATASHEET_KEYS)),
                 _GYRO_ERROR_KEYS, _GYRO_DATASHEET_KEYS,

@@ -198,10 +198,18 @@ class SceneSimulator:
         self._rate_gyro = None
         self._free_gyro = None
         self._constant_case_rate = None
-        if spec.gyro_model == "rate_gyro":
+        self._constant_case_force = None
+        self._last_angle = None  # integrating gyro: indicated angle at the last sample
+        if spec.gyro_model in ("rate_gyro", "integrating_gyro"):
             self._rate_gyro = RateGyroTriad(spec.rate_gyro_params, self.dt)
+        # g-sensitive drift of a mass unbalance needs the specific force, accelerometer or not
+        self._gyro_unbalance = (self._rate_gyro is not None
+                                and spec.rate_gyro_params.mass_unbalance != 0.0)
         if spec.free_gyro_params is not None:
-            self._free_gyro = FreeGyroSimulator(spec.free_gyro_params, self._case_rate, t0=0.0)
+            force = (self._case_specific_force if spec.free_gyro_params.mass_unbalance != 0.0
+                     else None)
+            self._free_gyro = FreeGyroSimulator(spec.free_gyro_params, self._case_rate, t0=0.0,
+                                                specific_force_fn=force)
         self._instrument = None
         if spec.instrument is not None:
             ins = spec.instrument
@@ -267,6 +275,19 @@ class SceneSimulator:
             return np.broadcast_to(self._constant_case_rate, (t.shape[0], 3)).copy()
         return self._truth(t, need_accel=False)[4]
 
+    def _case_specific_force(self, t) -> np.ndarray:
+        """Specific force in the case (body) frame ``f^b(t)`` (m/s², error-free) at any times
+        ``t`` (s since the start): what a mass unbalance of the free gyro feels."""
+        t = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        self.effects_run.add("g_sensitive_drift")
+        if isinstance(self.spec.motion, Stationary):  # constant at rest: compute once
+            if self._constant_case_force is None:
+                sample, llh, w_ie, w_en, _ = self._truth(np.zeros(1), need_accel=True)
+                self._constant_case_force = self._specific_force(sample, llh, w_ie, w_en)[0]
+            return np.broadcast_to(self._constant_case_force, (t.shape[0], 3)).copy()
+        sample, llh, w_ie, w_en, _ = self._truth(t, need_accel=True)
+        return self._specific_force(sample, llh, w_ie, w_en)
+
     def _specific_force(self, sample, llh, w_ie, w_en) -> np.ndarray:
         self.effects_run.add("specific_force")
         f_n = sample.accel_enu.copy()
@@ -306,12 +327,17 @@ class SceneSimulator:
         spec = self.spec
         t_ns = self._stamps(n)
         t = (t_ns - spec.start_time_ns).astype(np.float64) / 1e9
-        sample, llh, w_ie, w_en, w_ib = self._truth(t, need_accel=spec.accelerometer)
+        sample, llh, w_ie, w_en, w_ib = self._truth(
+            t, need_accel=spec.accelerometer or self._gyro_unbalance)
 
         gyro_out = w_ib
         if self._rate_gyro is not None:
-            self.effects_run.add("rate_gyro")
-            gyro_out = np.asarray(self._rate_gyro.step_block(w_ib), dtype=np.float64)
+            self.effects_run.add(spec.gyro_model)
+            f_gyro = None
+            if self._gyro_unbalance:
+                self.effects_run.add("g_sensitive_drift")
+                f_gyro = self._specific_force(sample, llh, w_ie, w_en)
+            gyro_out = self._gyro_indication(w_ib, f_gyro)
         if self._gyro_errors is not None:
             gyro_out = self._gyro_errors.apply(gyro_out)
             self.effects_run.update(f"gyro.{e}" for e in self._gyro_errors.effects_run)
@@ -346,6 +372,29 @@ class SceneSimulator:
             truth_omega_nb_b=sample.omega_nb_b, truth_omega_ib_b=w_ib, position_llh=llh,
             velocity_enu=sample.velocity_enu, gimbal=gimbal,
         )
+
+    def _gyro_indication(self, w_ib: np.ndarray, f_b: np.ndarray | None) -> np.ndarray:
+        """Rate-gyro output, or for integrating gyros the mean rate over each sample interval
+        (indicated-angle increment / dt, as a delta-angle IMU reports it)."""
+        triad = self._rate_gyro
+        if not triad.integrating:
+            return np.asarray(triad.step_block(w_ib, f_b), dtype=np.float64)
+        n = w_ib.shape[0]
+        if n == 0:
+            return np.empty((0, 3))
+        k0 = 0
+        out = np.empty((n, 3))
+        if self._last_angle is None:  # first sample: the indicated rate θ̇ of the initial state
+            first = triad.step_block(w_ib[:1], None if f_b is None else f_b[:1])
+            out[0] = triad.state[:, 1]
+            self._last_angle = first[0]
+            k0 = 1
+        theta = triad.step_block(w_ib[k0:], None if f_b is None else f_b[k0:])
+        if theta.shape[0]:
+            prev = np.concatenate((self._last_angle[None, :], theta[:-1]))
+            out[k0:] = (theta - prev) / self.dt
+            self._last_angle = theta[-1].copy()
+        return out
 
     def imu_variances(self) -> tuple[np.ndarray | None, np.ndarray | None]:
         """Per-axis variance per sample of the gyro ((rad/s)²) and accelerometer ((m/s²)²)

@@ -13,6 +13,7 @@ from gyro_attitude.core.earth import OMEGA_IE
 from gyro_attitude.core.instruments.common import heading_from_quat, wrap_pi
 from gyro_attitude.core.instruments.directional_gyro import cardan_indicated_heading
 from gyro_attitude.core.instruments.gyrocompass import speed_error
+from gyro_attitude.core.instruments.stability import shell_nutation_ratio, simulate_shell
 from gyro_attitude.core.instruments.vertical_gyro import vertical_gyro_turn_indication
 from gyro_attitude.core.scene import SceneSimulator, SceneSpec
 from gyro_attitude.io.scene_file import load_scene
@@ -214,3 +215,89 @@ def test_only_the_instrument_is_evaluated(monkeypatch):
     assert b.gimbal.names == ("heading_indicated", "outer_gimbal", "inner_gimbal")
     assert sim.effects_run >= {"instrument.directional_gyro"}
     assert "specific_force" not in sim.effects_run
+
+
+def test_spinning_shell_stays_up_for_s_above_1_and_tumbles_below():
+    """s = 1.2: θ nutates between θ₀ and ≈ θ₀/√(1 − 1/s) (linear theory, 2 % at 2°) and matches
+    the phase-1 implicit-midpoint run of the same equations (independent integrator; its
+    O((n dt)²) phase error at dt = 1e-4 s leaves ~1e-5 rad after 5 s, measured).  s = 0.8: θ grows
+    as e^{σt} (σ = 2.5/s) past 45° within 2 s — over 20 θ₀ — before the nonlinear terms
+    turn it back (the shell has tumbled)."""
+    spec, sim, block, t, j, r = _run("spinning_shell", 100.0, 5.0)
+    theta = j["angle_of_attack"]
+    p = spec.instrument.instrument.params
+    assert p.stability_factor == pytest.approx(1.2, rel=1e-12)
+    th0 = math.radians(2.0)
+    assert np.max(theta) == pytest.approx(th0 * shell_nutation_ratio(1.2), rel=0.02)
+    ref = simulate_shell(p, th0, 5.0, dt=1e-4, record_every=100)
+    np.testing.assert_allclose(theta, ref.theta, rtol=0, atol=2e-5)
+    _, _, _, t2, j2, _ = _run("spinning_shell", 100.0, 2.0, **{"instrument.stability_factor": 0.8})
+    assert np.max(j2["angle_of_attack"]) > math.radians(45.0)
+
+
+def test_g_sensitive_drift_scene_turns_at_ml_f_over_h():
+    """Level rotor at rest (Earth rotation off): the outer gimbal turns about the vertical at
+    m·l·|f|/H with f the scene's own accelerometer truth (closed form, §5-3)."""
+    spec, sim, block, t, j, r = _run("g_sensitive_drift", 1.0, 600.0)
+    p = spec.free_gyro_params
+    f = np.linalg.norm(block.specific_force_b[0])
+    rate = p.mass_unbalance * f / p.spin_momentum
+    np.testing.assert_allclose(j["outer_gimbal"], rate * t, rtol=1e-9, atol=0)
+    np.testing.assert_allclose(r["outer_gimbal"], rate, rtol=1e-12, atol=0)
+    assert "g_sensitive_drift" in sim.effects_run
+
+
+def test_gimbal_stop_scene_bounces_with_restitution():
+    """The inner gimbal stays between its stops; each impact reverses its rate times e."""
+    spec, sim, block, t, j, r = _run("gimbal_stop_bounce", 500.0, 1.0)
+    lo, hi = spec.free_gyro_params.inner_gimbal_stops
+    e = spec.free_gyro_params.stop_restitution
+    assert np.all((j["inner_gimbal"] >= lo - 1e-12) & (j["inner_gimbal"] <= hi + 1e-12))
+    impacts = sim._free_gyro.stop_impacts
+    assert len(impacts) >= 3
+    for _, _, before, after in impacts:
+        assert after == pytest.approx(-e * before, rel=1e-14, abs=0)
+
+
+@pytest.mark.parametrize(("instrument", "match"), [
+    ({"type": "spinning_shell", "spin_inertia": 0.02, "transverse_inertia": 0.2,
+      "spin_rate": 100.0}, r"instrument: give exactly one of overturning_moment"),
+    ({"type": "spinning_shell", "spin_inertia": 0.02, "transverse_inertia": 0.2,
+      "spin_rate": 100.0, "stability_factor": 1.2, "spin": 3}, r"instrument\.spin: unknown key"),
+    ({"type": "spinning_shell", "spin_inertia": -1, "transverse_inertia": 0.2,
+      "spin_rate": 100.0, "stability_factor": 1.2}, r"instrument\.spin_inertia: must be >"),
+])
+def test_bad_shell_sections_name_the_key(instrument, match):
+    with pytest.raises(ValueError, match=match):
+        SceneSpec.from_dict(_base(**instrument))
+
+
+def test_bad_gyro_options_name_the_key():
+    d = _base(type="directional_gyro")
+    del d["instrument"]
+    d["free_gyro"] = {"spin_inertia": 1e-4, "transverse_inertia": 6e-5, "spin_rate": 2000.0,
+                      "inner_gimbal_stops": [-1, 1]}
+    with pytest.raises(ValueError, match=r"free_gyro: inner_gimbal_stops need model='full'"):
+        SceneSpec.from_dict(d)
+    d = _base(type="directional_gyro")
+    del d["instrument"]
+    d["gyro"] = {"model": "integrating_gyro", "integrating_gyro": {"time_constant_s": 0.01,
+                                                                   "wobble": 1}}
+    with pytest.raises(ValueError, match=r"gyro\.integrating_gyro\.wobble: unknown key"):
+        SceneSpec.from_dict(d)
+
+
+def test_integrating_gyro_scene_reports_the_mean_rate_over_each_sample():
+    """A delta-angle output: the mean of the indicated rate over each interval; with a constant
+    rate started steady it is that rate times cos β (β = (H/D)θ grows: 0.5 rad/s for 2 s)."""
+    d = _base(type="directional_gyro")
+    del d["instrument"]
+    d["earth"]["rotation"] = False
+    d["motion"] = {"type": "profile", "segments": [{"duration_s": 2.0,
+                                                    "angular_rate_deg_s": [0.0, 0.0, 10.0]}]}
+    d["gyro"] = {"model": "integrating_gyro",
+                 "integrating_gyro": {"time_constant_s": 1e-3, "gimbal_gain": 1e-9}}
+    sim = SceneSimulator(SceneSpec.from_dict(d), 100.0)
+    out = np.concatenate([sim.next_block(m).omega_ib_b for m in (1, 50, 149)])
+    np.testing.assert_allclose(out[:, 2], math.radians(10.0), rtol=1e-12, atol=0)
+    assert "integrating_gyro" in sim.effects_run
