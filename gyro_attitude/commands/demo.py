@@ -188,7 +188,7 @@ def run(args: argparse.Namespace) -> int:
         # the sim starts once both the integrator and this monitor listen to imu/data_raw
         node.create_subscription(Imu, "imu/data_raw", on_raw, imu_qos("best_effort", 20000))
         node.create_subscription(QuaternionStamped, "truth/attitude", on_truth, qos)
-        node.create_subscription(QuaternionStamped, "attitude", on_att, qos)
+        att_sub = node.create_subscription(QuaternionStamped, "attitude", on_att, qos)
         node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 50)
 
         integ_log = open(log_dir / f"attitude_integrator_{stamp}.log", "w")
@@ -198,6 +198,13 @@ def run(args: argparse.Namespace) -> int:
             + _integrator_params(spec, args.algorithm, args.reliable),
             env=env, stdout=integ_log, stderr=subprocess.STDOUT, start_new_session=True)
         procs.append(integ)
+        # The sim waits for its subscribers, but nothing waits for the integrator's attitude
+        # publisher to match this monitor: on a loaded machine discovery can take longer than a
+        # short run, and every attitude would be lost. Start the sim once it has matched.
+        match_deadline = time.monotonic() + 30.0
+        while (att_sub.get_publisher_count() < 1 and integ.poll() is None
+               and time.monotonic() < match_deadline):
+            rclpy.spin_once(node, timeout_sec=0.05)
         sim_args = ["-p", f"scene:={args.scene}", "-p", f"rate_hz:={rate!r}",
                     "-p", f"duration_s:={args.duration!r}", "-p", "wait_for_subscribers:=2",
                     "-p", "wait_timeout_s:=30.0"]
