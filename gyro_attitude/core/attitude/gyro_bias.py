@@ -15,8 +15,11 @@ Modes:
   rest, see rest.py).  A rest counts once its samples span ``min_rest_s`` (default 1 s, i.e.
   1.5 s of rest with the 0.5 s window): from then on, while it lasts, and after it, the bias is
   the mean over all qualifying rests so far, each weighted by its length (the pooled sample
-  mean).  During motion the bias is held.  Before the first qualifying rest it is 0 (or the
-  optional ``initial`` bias) and the report says so.
+  mean).  During motion the bias is held.  A window must show at least
+  :data:`~gyro_attitude.core.attitude.rest.NOISE_FLOOR_RAD_S` of gyro noise (unless ``rest``
+  says otherwise): on noise-free simulated data a constant slow rotation or the Earth rate
+  would otherwise be taken for a bias; an ideal gyro has none to estimate.  Before the first
+  qualifying rest it is 0 (or the optional ``initial`` bias) and the report says so.
 
 Report (:class:`GyroBiasReport`): value, rests used, standard error per axis, and whether the
 Earth rate was removed.  The standard error is the larger of (a) the white-noise figure
@@ -35,7 +38,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gyro_attitude.core.attitude.rest import RestDetector, check_sample, check_samples, detect_rest
+from gyro_attitude.core.attitude.rest import (
+    NOISE_FLOOR_RAD_S,
+    RestDetector,
+    check_sample,
+    check_samples,
+    detect_rest,
+)
 from gyro_attitude.core.earth import check_latitude, earth_rate_enu
 from gyro_attitude.core.rotation import as_quat_array, quat_conjugate, quat_normalize, quat_rotate
 
@@ -137,9 +146,23 @@ class GyroBiasEstimator:
         self._earth_n = None
         if latitude_rad is not None:
             self._earth_n = earth_rate_enu(check_latitude(float(latitude_rad), "latitude_rad"))
-        self._rest_params = dict(rest or {})
+        self._rest_params = {"gyro_std_min": NOISE_FLOOR_RAD_S, **(rest or {})}
         self.detector = RestDetector(**self._rest_params)
         self.reset()
+
+    def break_window(self) -> None:
+        """The stream broke (gap, time jump, unusable accelerometer sample): close the open rest
+        and start a fresh window; the rests pooled so far and the estimate are kept."""
+        if self._seg is not None:
+            self._close()
+        self.detector.reset()
+        self._pending.clear()
+        self._last_acc = -1
+
+    @property
+    def standard_error(self) -> np.ndarray:
+        """Standard error (3,) of the current estimate, NaN before the first qualifying rest."""
+        return np.array(self._se)
 
     def reset(self) -> None:
         """Forget rests and the window (the fixed/initial bias stays)."""
@@ -153,6 +176,7 @@ class GyroBiasEstimator:
             self._initial if self.mode == "auto" else (0.0, 0.0, 0.0))
         self._se = (math.nan,) * 3
         self._k = self._n = 0
+        self.updated = False  # the last update() published a new estimate
 
     @property
     def bias(self) -> np.ndarray:
@@ -160,6 +184,7 @@ class GyroBiasEstimator:
 
     def update(self, t_ns: int, gyro, accel=None, q_nb=None) -> np.ndarray:
         """Consume one sample; return the bias (3,) rad/s to subtract from it."""
+        self.updated = False
         if self.mode != "auto":
             check_sample(t_ns, gyro, accel)
             return np.array(self._bias)
@@ -214,6 +239,7 @@ class GyroBiasEstimator:
     def _publish(self, est, earth_open: bool) -> None:
         bias, se, self._k, self._n = est
         self._bias, self._se = tuple(bias), tuple(se)
+        self.updated = True
         self._earth_now = self._earth_all and earth_open
 
     def report(self) -> GyroBiasReport:
