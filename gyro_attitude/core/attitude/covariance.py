@@ -11,6 +11,9 @@ walks, ``δb' = δb + w``:
   ``N`` [rad/s/√Hz]; ``K`` [rad/s/√s] is the bias random walk (bias-uncertainty growth);
 * a zero-rate update at a rest (gyro_bias ``auto``) re-estimates the bias from averaged samples
   independent of the past attitude error: ``bb = SE²`` (its standard error), ``tb = 0``;
+  when the stream was still since its start and the attitude was corrected back to it with the
+  first estimate (stream.py), the attitude error is ``−δb·Δt`` plus the noise so far:
+  ``tt = tt₀ + Σq + bb Δt²``, ``tb = −bb Δt`` (:meth:`AttitudeCovariance.first_rest_update`);
 * alignment sets ``tt`` to the levelling variance on the tilt axes and the heading variance on
   the third; a time-jump reset goes back to that initial ``tt`` with ``tb = 0`` (``bb`` stays:
   the bias knowledge survives a jump of the clock);
@@ -44,11 +47,19 @@ class AttitudeCovariance:
         self.tb = np.zeros(3)
         self.bb = np.full(3, float(bias_sigma) ** 2)
         self.k2 = float(bias_rw) ** 2
+        self.noise = np.zeros(3)  # Σ q since the attitude was last set
+
+    def first_rest_update(self, standard_error: np.ndarray, elapsed_s: float) -> None:
+        """The first bias estimate, applied back to the start ``elapsed_s`` ago (still since)."""
+        self.bb = np.asarray(standard_error, dtype=np.float64) ** 2
+        self.tt = self.initial_tt + self.noise + (elapsed_s * elapsed_s) * self.bb
+        self.tb = -elapsed_s * self.bb
 
     def propagate(self, dt_s: float, q: np.ndarray) -> None:
         """One accepted interval of ``dt_s`` seconds with angle-random-walk increment ``q`` (3,)."""
         tb, bb = self.tb, self.bb
         self.tt = self.tt + ((q - (2.0 * dt_s) * tb) + (dt_s * dt_s) * bb)
+        self.noise = self.noise + q
         self.tb = tb + -(dt_s * bb)
         self.bb = bb + self.k2 * dt_s
 
@@ -62,11 +73,13 @@ class AttitudeCovariance:
         self.initial_tt = np.broadcast_to(np.asarray(tt, dtype=np.float64), (3,)).copy()
         self.tt = self.initial_tt.copy()
         self.tb = np.zeros(3)
+        self.noise = np.zeros(3)
 
     def reset_attitude(self) -> None:
         """Back to the initial attitude (time-jump reset)."""
         self.tt = self.initial_tt.copy()
         self.tb = np.zeros(3)
+        self.noise = np.zeros(3)
 
     def aid_tilt(self, kp_dt: float, floor_var: float) -> None:
         """Gravity aiding over one interval (loop gain × dt): tilt axes 0 and 1 relax to the floor."""

@@ -21,9 +21,11 @@ whole recording (:meth:`AttitudeStream.run`, replay) and applies the same rules 
 
 Real-IMU steps, applied to every ACCEPTED sample in this order (bad samples never reach them):
 rest detection → gyro bias (:mod:`.gyro_bias`: ``none`` | ``parameter`` | ``auto``, zero-rate
-updates at rests, Earth rate taken out when the latitude is known) → alignment (:mod:`.alignment`,
-``initial_attitude="level"``: no attitude while ``phase == "aligning"``; the attitude starts
-when the first rest of ``min_rest_s`` ends, from the levelled attitude, with the samples since
+updates at rests, Earth rate taken out when the latitude is known; with a given initial
+attitude and a stream that rests from its first sample, the first estimate is also applied back
+to the start — the attitude is corrected by ``−Δb·Δt``, as the still body did not turn) →
+alignment (:mod:`.alignment`, ``initial_attitude="level"``: no attitude while
+``phase == "aligning"``; the attitude starts when the first rest of ``min_rest_s`` ends, from the levelled attitude, with the samples since
 the last rest sample integrated) → gravity aiding (:mod:`.gravity_aiding`, ``aiding="gravity"``)
 → integration of ``ω − bias``.  A gap or a time jump breaks the rest windows (a rest never spans
 one); an accelerometer sample that is not finite or absurd is counted (``invalid_accel``),
@@ -62,7 +64,7 @@ from gyro_attitude.core.integrate import (
     StreamingIntegrator,
     integrate_batch,
 )
-from gyro_attitude.core.rotation import quat_normalize
+from gyro_attitude.core.rotation import quat_from_rotvec, quat_multiply, quat_normalize
 
 INVALID_COVARIANCE = "invalid_covariance"
 INTEGRATOR_ERROR = "integrator_error"
@@ -309,6 +311,8 @@ class AttitudeStream:
         self._var_known = bool(cfg.gyro_noise_density > 0 or cfg.gyro_bias_sigma_rad_s > 0
                                or cfg.initial_attitude == "level")
         self._accel_present: bool | None = None
+        self._start_t: int | None = None
+        self._first_rest_pending = cfg.gyro_bias == "auto" and cfg.initial_attitude == "given"
         self.alignment: AlignmentResult | None = None
         self.alignment_error: str | None = None
         self.phase = RUNNING
@@ -414,6 +418,8 @@ class AttitudeStream:
         if action == v.RESET_TIME_JUMP:
             self.details.setdefault("time_jump", verdict.detail)
         a = self._accel(accel)
+        if self._start_t is None:
+            self._start_t = t_ns
         if action != v.ACCEPT:
             self._break_windows()  # a rest never spans a gap, a jump or a restart
         w = np.asarray(omega, dtype=np.float64)
@@ -468,13 +474,29 @@ class AttitudeStream:
                     q_nb = level_quaternion(a, math.radians(self.config.initial_heading_deg))[0]
                 except ValueError:
                     q_nb = None
+        previous = est.bias
         try:
             bias = est.update(t_ns, w, a, q_nb)
         except ValueError:  # a value the rest statistics refuse (e.g. > 1e6): no rest here
             est.break_window()
             return est.bias
         if est.updated:
-            self.covariance.zero_rate_update(est.standard_error)
+            seg = est._seg
+            t_prev = self.integrator.last_t_ns
+            if self._first_rest_pending and self.phase == RUNNING and seg is not None \
+                    and seg[0] == self._start_t and t_prev is not None and est._pool.k == 0:
+                # Still since the start: the samples so far were integrated with the previous
+                # bias; the body did not turn, so the attitude error is the bias change times
+                # the elapsed time, a body-frame rotation taken back here.
+                elapsed = (t_prev - self._start_t) * 1e-9
+                q_fix = quat_multiply(self.integrator.quaternion,
+                                      quat_from_rotvec(-(bias - previous) * elapsed))
+                self.integrator.reset(q_fix, t_prev)
+                self._last_q = q_fix
+                self.covariance.first_rest_update(est.standard_error, elapsed)
+            else:
+                self.covariance.zero_rate_update(est.standard_error)
+            self._first_rest_pending = False
         return bias
 
     def _align_step(self, t_ns, w, a, var, action, bias):
