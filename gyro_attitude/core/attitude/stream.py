@@ -25,7 +25,8 @@ updates at rests, Earth rate taken out when the latitude is known; with a given 
 attitude and a stream that rests from its first sample, the first estimate is also applied back
 to the start — the attitude is corrected by ``−Δb·Δt``, as the still body did not turn) →
 alignment (:mod:`.alignment`, ``initial_attitude="level"``: no attitude while
-``phase == "aligning"``; the attitude starts when the first rest of ``min_rest_s`` ends, from the levelled attitude, with the samples since
+``phase == "aligning"``; the attitude starts when the first rest of ``min_rest_s`` ends, from
+the levelled attitude, with the samples since
 the last rest sample integrated) → gravity aiding (:mod:`.gravity_aiding`, ``aiding="gravity"``)
 → integration of ``ω − bias``.  A gap or a time jump breaks the rest windows (a rest never spans
 one); an accelerometer sample that is not finite or absurd is counted (``invalid_accel``),
