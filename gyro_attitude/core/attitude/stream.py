@@ -536,7 +536,10 @@ class AttitudeStream:
         heading_var = (self.config.initial_variance if res.heading_source == "given"
                        else res.heading_error_expected ** 2)
         lv = res.level_error_expected ** 2
-        self.covariance.align([lv, lv, heading_var])
+        # q_nb = Rz(ψ) Ry(θ) Rx(φ): a roll error δφ is a rotation about Rz Ry(θ) e_x, whose
+        # vertical component −sin θ·δφ turns the heading too when the body is pitched.
+        s_p = math.sin(res.pitch)
+        self.covariance.align([lv, lv, heading_var + s_p * s_p * lv])
         self.q_initial = res.q_nb
         self._last_q = res.q_nb
         self._resume_q = None
