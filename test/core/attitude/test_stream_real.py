@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation, Slerp
+from sim_static import OMEGA_IE, G, rest_motion_rest, static_imu
 
 from gyro_attitude.core.attitude.stream import (
     ALIGNING,
@@ -17,8 +18,6 @@ from gyro_attitude.core.attitude.stream import (
 )
 from gyro_attitude.core.attitude.truth import initial_attitude_from_truth, truth_at
 from gyro_attitude.core.integrate import NavFrame
-
-from sim_static import G, OMEGA_IE, rest_motion_rest, static_imu
 
 MODES = {
     "auto": StreamConfig(),
