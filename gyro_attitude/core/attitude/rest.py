@@ -187,6 +187,10 @@ class RestDetector:
     def update(self, t_ns: int, gyro, accel=None) -> bool:
         """Add one sample; return whether the window ending at it is at rest."""
         t, g, a = check_sample(t_ns, gyro, accel)
+        return self.update_checked(t, g, a)
+
+    def update_checked(self, t: int, g: tuple, a: tuple | None) -> bool:
+        """:meth:`update` for a sample already through :func:`check_sample`."""
         if self.last_t_ns is not None and t <= self.last_t_ns:
             raise ValueError(f"t_ns must increase: {t} after {self.last_t_ns}")
         if self._has_accel is None:
