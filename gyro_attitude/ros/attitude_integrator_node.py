@@ -177,6 +177,10 @@ def parameter_specs() -> list[ParamSpec]:
                   "'gravity': tilt pulled toward the accelerometer's vertical with gyro-bias "
                   "feedback, gated in fast motion; heading stays gyro-only and drifts without "
                   "a magnetometer", choices=("none", "gravity")),
+        ParamSpec("aiding_accel_lowpass_s", 1.0,
+                  "gravity aiding: time constant of the nav-frame low-pass of the specific "
+                  "force (averages out hand and vehicle accelerations; 0 = off) [s]",
+                  low=0.0, high=100.0),
         ParamSpec("world_frame_id", "",
                   "header.frame_id of the attitude output ('' = 'enu' or 'inertial' per frame)"),
         ParamSpec("qos_reliability", "best_effort",
@@ -298,6 +302,7 @@ class AttitudeIntegratorNode(Node):
             accel_bias_sigma=float(p["accel_bias_sigma"]),
             heading_error_limit_deg=float(p["heading_error_limit_deg"]),
             aiding=p["aiding"],
+            aiding_accel_lowpass_s=float(p["aiding_accel_lowpass_s"]),
         )
 
     def _on_set_parameters(self, params) -> SetParametersResult:

@@ -171,6 +171,7 @@ class StreamConfig:
     aiding_ki: float = 0.002
     aiding_accel_tol: float = 2.0
     aiding_rate_max: float = 1.0
+    aiding_accel_lowpass_s: float = 1.0
 
     def __post_init__(self):
         self.check_config()  # raises ValueError naming the field
@@ -185,7 +186,7 @@ class StreamConfig:
         _num("initial_heading_deg", self.initial_heading_deg, -1e6, 1e6)
         _num("latitude_rad", self.latitude_rad, -math.pi / 2, math.pi / 2, allow_none=True)
         for name in ("accel_bias_sigma", "heading_error_limit_deg", "aiding_kp", "aiding_ki",
-                     "aiding_accel_tol", "aiding_rate_max"):
+                     "aiding_accel_tol", "aiding_rate_max", "aiding_accel_lowpass_s"):
             _num(name, getattr(self, name), 0.0, 1e6)
         b = self.gyro_bias_rad_s
         if isinstance(b, str) or not hasattr(b, "__len__") or len(b) != 3:
@@ -305,7 +306,8 @@ class AttitudeStream:
         self.aiding = None
         if cfg.aiding == "gravity":
             self.aiding = GravityAiding(cfg.aiding_kp, cfg.aiding_ki, cfg.aiding_accel_tol,
-                                        cfg.aiding_rate_max)
+                                        cfg.aiding_rate_max,
+                                        accel_lowpass_s=cfg.aiding_accel_lowpass_s)
         self.covariance = AttitudeCovariance(cfg.initial_variance, cfg.gyro_bias_sigma_rad_s,
                                              cfg.gyro_bias_rw)
         self._n2 = cfg.gyro_noise_density * cfg.gyro_noise_density
