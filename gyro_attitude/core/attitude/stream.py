@@ -22,7 +22,7 @@ whole recording (:meth:`AttitudeStream.run`, replay) and applies the same rules 
 Real-IMU steps, applied to every ACCEPTED sample in this order (bad samples never reach them):
 rest detection → gyro bias (:mod:`.gyro_bias`: ``none`` | ``parameter`` | ``auto``, zero-rate
 updates at rests, Earth rate taken out when the latitude is known; with a given initial
-attitude and a stream that rests from its first sample, the first estimate is also applied back
+attitude and a stream that rests from its start (within one rest window), the first estimate is applied back
 to the start — the attitude is corrected by ``−Δb·Δt``, as the still body did not turn) →
 alignment (:mod:`.alignment`, ``initial_attitude="level"``: no attitude while
 ``phase == "aligning"``; the attitude starts when the first rest of ``min_rest_s`` ends, from
@@ -487,7 +487,10 @@ class AttitudeStream:
             seg = est._seg
             t_prev = self.integrator.last_t_ns
             if self._first_rest_pending and self.phase == RUNNING and seg is not None \
-                    and seg[0] == self._start_t and t_prev is not None and est._pool.k == 0:
+                    and seg[0] - self._start_t <= est.detector._window_ns \
+                    and t_prev is not None and est._pool.k == 0:
+                # (a full window is needed before the first decision, so the first rest sample
+                # is at best the second sample of the stream)
                 # Still since the start: the samples so far were integrated with the previous
                 # bias; the body did not turn, so the attitude error is the bias change times
                 # the elapsed time, a body-frame rotation taken back here.
