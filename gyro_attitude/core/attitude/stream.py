@@ -512,6 +512,7 @@ class AttitudeStream:
             self.alignment_error = ("alignment needs the accelerometer: no usable "
                                     "linear_acceleration")
             return None
+        self.alignment_error = None
         al = self._aligner
         try:
             done = al.update(t_ns, w, a)
