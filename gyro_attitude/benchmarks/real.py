@@ -8,13 +8,18 @@ end of the motion, RMS error over the motion, tilt error at the end, cost per sa
 
 End of the motion: the start of the final rest found by the rest detector (rest.py) on the data
 itself (the first sample of the last rest run that reaches the end of the recording), evaluated
-at the last truth sample at or before it.  Modes (all start from the first truth attitude except
-``level``): ``none`` raw gyro; ``auto`` bias from rests; ``level`` roll/pitch from the initial
-rest's specific force, heading from the truth (the truth's north is magnetic); ``gravity`` auto
-bias + gravity aiding.  Peers in the same run on the same data: naive exponential map without
-bias, ``vqf`` (VQF 6D, no magnetometer) and ``imufusion`` (Madgwick's Fusion AHRS, 6D); their
-heading is not observable, so their full-attitude error is taken after aligning the heading at
-the start and their tilt error is the fair comparison.
+at the last truth sample at or before it.  Every mode runs :meth:`AttitudeStream.run
+<gyro_attitude.core.attitude.stream.AttitudeStream.run>` (the policy of the node and of replay,
+so these are the figures users get), in the ENU frame at the recording's latitude (TU Berlin,
+52.5°N: the Earth rate is taken out of the bias), from the truth at the first Imu stamp
+(``initial_attitude_from_truth``) except ``level``: ``none`` raw gyro (batch path); ``auto``
+bias from rests; ``level`` roll/pitch from the initial rest's specific force, heading from the
+truth (the truth's north is magnetic), auto bias; ``gravity`` auto bias + gravity aiding;
+``level+gravity`` both.  ``none/push`` is ``none`` through the per-sample path (the cost of the
+sequential path against the batch one, same numbers).  Peers in the same run on the same data:
+naive exponential map without bias, ``vqf`` (VQF 6D, no magnetometer) and ``imufusion``
+(Madgwick's Fusion AHRS, 6D); their heading is not observable, so their full-attitude error is
+taken after aligning the heading at the start and their tilt error is the fair comparison.
 """
 
 from __future__ import annotations
@@ -25,14 +30,25 @@ import time
 
 import numpy as np
 
-from gyro_attitude.core.attitude import integrate_batch
-from gyro_attitude.core.attitude.alignment import align
-from gyro_attitude.core.attitude.gravity_aiding import gravity_aided_attitude
-from gyro_attitude.core.attitude.gyro_bias import estimate_gyro_bias
+from gyro_attitude.core.attitude import NavFrame, integrate_batch
 from gyro_attitude.core.attitude.rest import detect_rest, rest_segments
+from gyro_attitude.core.attitude.stream import AttitudeStream, StreamConfig
+from gyro_attitude.core.attitude.truth import initial_attitude_from_truth
 from gyro_attitude.core.rotation import quat_angle_between, quat_as_matrix, quat_multiply
 
 RECORDINGS = ("broad_05_slow_rotation_with_breaks", "broad_16_fast_translation")
+LATITUDE_RAD = np.radians(52.5)  # TU Berlin, where BROAD was recorded
+MODES = ("none", "none/push", "auto", "level", "gravity", "level+gravity")
+
+
+def stream_config(mode: str, heading_deg: float = 0.0) -> StreamConfig:
+    """The StreamConfig of a benchmark mode (what node parameters / replay flags give)."""
+    kw: dict = {"gyro_bias": "none"} if mode.startswith("none") else {}
+    if "level" in mode:
+        kw |= {"initial_attitude": "level", "initial_heading_deg": heading_deg}
+    if "gravity" in mode:
+        kw["aiding"] = "gravity"
+    return StreamConfig(**kw)
 
 
 def real_dir() -> pathlib.Path:
@@ -84,46 +100,61 @@ def _yaw_align(q_est, q_true0):
     return quat_multiply(rz, q_est)
 
 
-def evaluate(name: str, directory=None, modes=("none", "auto", "level", "gravity"), peers=True,
+def evaluate(name: str, directory=None, modes=MODES, peers=True,
              histories: dict | None = None) -> list[dict]:
     t, g, a, tt, tq = load(name, directory)
+    q_first, first, _ = initial_attitude_from_truth(t, tt, tq)
     ke_imu = end_of_motion(t, g, a)
     kt_end = int(np.searchsorted(tt, t[ke_imu], side="right")) - 1
     idx = np.searchsorted(t, tt)  # truth stamps are IMU stamps
     motion = slice(0, kt_end + 1)
     rows = []
 
-    def row(mode, q, seconds, peer=False):
+    def row(mode, q, seconds, peer=False, valid=None):
         qe = q[idx]
         if peer:
             qe = _yaw_align(qe, tq[0])
         err = quat_angle_between(qe, tq)
         tilt = tilt_error(qe, tq)
-        if histories is not None:
+        if valid is not None:  # truth samples before the first attitude (aligning): no error
+            err = np.where(valid, err, np.nan)
+            tilt = np.where(valid, tilt, np.nan)
+        if histories is not None and mode != "none/push":
             histories[(name, mode)] = ((tt - tt[0]) * 1e-9, np.degrees(err), np.degrees(tilt))
+        m = err[motion][np.isfinite(err[motion])]
+        mt = tilt[motion][np.isfinite(tilt[motion])]
         rows.append({"recording": name, "mode": mode, "peer": peer,
                      "end_error_deg": float(np.degrees(err[kt_end])),
-                     "rms_error_deg": float(np.degrees(np.sqrt(np.mean(err[motion] ** 2)))),
+                     "rms_error_deg": float(np.degrees(np.sqrt(np.mean(m ** 2)))),
                      "end_tilt_deg": float(np.degrees(tilt[kt_end])),
-                     "rms_tilt_deg": float(np.degrees(np.sqrt(np.mean(tilt[motion] ** 2)))),
+                     "rms_tilt_deg": float(np.degrees(np.sqrt(np.mean(mt ** 2)))),
                      "ns_per_sample": seconds / t.size * 1e9,
                      "end_of_motion_s": float((tt[kt_end] - tt[0]) * 1e-9)})
 
+    c0 = quat_as_matrix(q_first)
+    heading = float(np.degrees(np.pi / 2 - np.arctan2(c0[1, 0], c0[0, 0])))
+    nav = NavFrame(latitude_rad=LATITUDE_RAD)
     for mode in modes:
         t0 = time.perf_counter()
-        if mode == "none":
-            q = integrate_batch(t, g, q0=tq[0])
+        stream = AttitudeStream(q0=q_first, nav=nav, config=stream_config(mode, heading))
+        if mode == "none/push":
+            q_rows = [stream.push(int(t[k]), g[k], "imu_link", None, a[k])[1]
+                      for k in range(first, t.size)]
+            index = first + np.flatnonzero([x is not None for x in q_rows])
+            q_res = np.array([x for x in q_rows if x is not None])
         else:
-            bias, _ = estimate_gyro_bias(t, g, a)
-            if mode == "auto":
-                q = integrate_batch(t, g - bias, q0=tq[0])
-            elif mode == "level":
-                heading = np.pi / 2 - np.arctan2(quat_as_matrix(tq[0])[1, 0], quat_as_matrix(tq[0])[0, 0])
-                res = align(t, g, a, float(np.degrees(heading)))
-                q = integrate_batch(t, g - bias, q0=res.q_nb)
-            else:
-                q, _ = gravity_aided_attitude(t, g - bias, a, tq[0])
-        row(mode, q, time.perf_counter() - t0)
+            res = stream.run(t[first:], g[first:], "imu_link", None, a[first:])
+            index, q_res = first + res.index, res.q
+        seconds = time.perf_counter() - t0
+        # the attitude at every Imu sample (held before the first one: masked in the error)
+        q = np.empty((t.size, 4))
+        q[:] = q_res[0]
+        q[index] = q_res
+        has = np.zeros(t.size, bool)
+        has[index[0]:] = True
+        row(mode, q, seconds, valid=has[idx])
+        rows[-1]["bias_note"] = stream.bias_report.note
+        rows[-1]["batch_path"] = stream.batch_path and mode != "none/push"
     if peers:
         t0 = time.perf_counter()
         q = integrate_batch(t, g, q0=tq[0], algorithm="exp_map")

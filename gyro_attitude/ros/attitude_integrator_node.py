@@ -2,7 +2,8 @@
 
 Subscribes ``imu/data_raw`` (sensor_msgs/Imu, ω_ib^b in rad/s) and, when
 ``initial_attitude_source`` is ``truth``, ``truth/attitude`` (geometry_msgs/QuaternionStamped,
-q_nb) once to take the starting attitude, and with ``frame: enu`` and a non-empty
+q_nb) to take the starting attitude (slerped to the first Imu stamp it covers; Imu samples
+before the first truth are skipped and counted), and with ``frame: enu`` and a non-empty
 ``odometry_topic`` a nav_msgs/Odometry topic whose velocity sets the transport rate (below).
 Publishes
 
@@ -14,7 +15,22 @@ Publishes
 * ``attitude``: geometry_msgs/QuaternionStamped, same quaternion, header frame =
   ``world_frame_id``;
 * ``/diagnostics``: diagnostic_msgs/DiagnosticArray about every ``diagnostics_period_s``:
-  input rate, dt jitter, accepted samples and rejected samples by reason.
+  input rate, dt jitter, accepted samples and rejected samples by reason, the phase
+  (``aligning`` | ``running`` | ``failed``), the gyro bias estimate, its standard error, the
+  rests used, whether the Earth rate was removed from it or absorbed, and the alignment result.
+
+Real IMUs (all in the shared policy, below): ``gyro_bias`` ``auto`` (default) estimates the
+bias at every rest of at least ``min_rest_s`` and holds it in motion (``none``,
+``parameter`` + ``gyro_bias_rad_s`` otherwise); with ``frame: enu`` the Earth rate is taken
+out of it, with ``frame: inertial`` it is absorbed (the diagnostics say which).
+``initial_attitude_source: level`` levels from the specific force over the first rest, with
+``initial_heading_deg`` or ``heading_source: gyrocompass``; while aligning, no attitude is
+published, only diagnostics; the attitude then starts with the alignment's covariance.
+``aiding: gravity`` pulls the tilt toward the accelerometer's vertical (heading gyro-only:
+it drifts without a magnetometer). The orientation covariance grows with the gyro noise
+(input covariance or ``gyro_noise_density``) and the bias uncertainty, and shrinks with
+alignment, rests and aiding (core/attitude/covariance.py). ``linear_acceleration_covariance[0]
+= -1`` means no accelerometer.
 
 Every input sample goes through :class:`gyro_attitude.core.attitude.stream.AttitudeStream`,
 the policy ``gyro-attitude replay`` applies too: non-finite rates, rates beyond
@@ -47,6 +63,7 @@ transport rate itself.
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from collections import deque
@@ -64,11 +81,16 @@ from std_msgs.msg import Header
 from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, NavFrame, causal_algorithms
 from gyro_attitude.core.attitude import validation as iv
 from gyro_attitude.core.attitude.stream import (
+    ALIGNING,
+    FAILED,
     INTEGRATOR_ERROR,
+    INVALID_ACCEL,
     INVALID_COVARIANCE,
+    RUNNING,
     AttitudeStream,
     StreamConfig,
 )
+from gyro_attitude.core.attitude.truth import truth_at
 from gyro_attitude.core.rotation import quat_normalize
 from gyro_attitude.ros import convert
 from gyro_attitude.ros.node_main import run_node
@@ -86,7 +108,8 @@ def parameter_specs() -> list[ParamSpec]:
         ParamSpec("frame", "inertial",
                   "'inertial': integrate q_ib; 'enu': q_nb with Earth and transport rate removed",
                   choices=("inertial", "enu")),
-        ParamSpec("latitude_rad", 0.0, "geodetic latitude for frame=enu [rad]",
+        ParamSpec("latitude_rad", 0.0, "geodetic latitude for frame=enu and for gyrocompassing "
+                  "[rad] (with frame=enu the Earth rate is taken out of the gyro bias)",
                   low=-1.5707963267948966, high=1.5707963267948966),
         ParamSpec("longitude_rad", 0.0, "longitude for frame=enu [rad]",
                   low=-3.141592653589793, high=3.141592653589793),
@@ -99,12 +122,65 @@ def parameter_specs() -> list[ParamSpec]:
                   "rate (frame=enu; twist in child_frame_id, rotated to ENU with the pose "
                   "orientation); '' = off, velocity_enu is used"),
         ParamSpec("initial_attitude_source", "parameter",
-                  "'parameter': initial_attitude; 'truth': first truth/attitude message "
-                  "whose stamp equals an Imu stamp", choices=("parameter", "truth")),
+                  "'parameter': initial_attitude; 'truth': truth/attitude interpolated (slerp) "
+                  "at the first Imu stamp it covers; 'level': roll and pitch from the specific "
+                  "force over the first rest, heading per heading_source (no attitude is "
+                  "published while aligning)", choices=("parameter", "truth", "level")),
         ParamSpec("initial_attitude", (0.0, 0.0, 0.0, 1.0),
                   "initial attitude quaternion (x, y, z, w), normalized on use", length=4),
         ParamSpec("initial_attitude_variance", 0.0,
-                  "initial per-axis attitude variance [rad^2]", low=0.0, high=10.0),
+                  "initial per-axis attitude variance [rad^2] (level: of the given heading)",
+                  low=0.0, high=10.0),
+        ParamSpec("initial_heading_deg", 0.0,
+                  "level: heading of the body x axis, clockwise from north [deg]",
+                  low=-360.0, high=360.0),
+        ParamSpec("heading_source", "parameter",
+                  "level: 'parameter' (initial_heading_deg) or 'gyrocompass' (needs "
+                  "gyro_bias=parameter with gyro_bias_sigma_rad_s and latitude_rad; refused "
+                  "when the expected heading error exceeds heading_error_limit_deg)",
+                  choices=("parameter", "gyrocompass")),
+        ParamSpec("heading_error_limit_deg", 5.0, "largest expected gyrocompass error [deg]",
+                  low=0.0, high=180.0),
+        ParamSpec("accel_bias_sigma", 0.05,
+                  "1-sigma accelerometer bias [m/s^2]: levelling error = this / g", low=0.0,
+                  high=10.0),
+        ParamSpec("gyro_bias", "auto",
+                  "'auto': estimated at every rest (zero-rate update) and held in motion; "
+                  "'none'; 'parameter': gyro_bias_rad_s", choices=("auto", "none", "parameter")),
+        ParamSpec("gyro_bias_rad_s", (0.0, 0.0, 0.0),
+                  "fixed gyro bias (x, y, z) subtracted with gyro_bias=parameter [rad/s]",
+                  length=3),
+        ParamSpec("gyro_bias_sigma_rad_s", 0.0,
+                  "1-sigma of the bias subtracted when not estimated (none: sensor spread; "
+                  "parameter: calibration; auto: before the first rest) [rad/s]",
+                  low=0.0, high=10.0),
+        ParamSpec("gyro_bias_rw", 0.0, "gyro bias random walk [rad/s/sqrt(s)] for the "
+                  "covariance", low=0.0, high=1.0),
+        ParamSpec("gyro_noise_density", 0.0,
+                  "gyro noise density [rad/s/sqrt(Hz)] for the covariance when the input's "
+                  "angular_velocity_covariance is unknown (0 = none)", low=0.0, high=1.0),
+        ParamSpec("min_rest_s", 1.0, "shortest rest used for bias and alignment [s]",
+                  low=0.01, high=3600.0),
+        ParamSpec("rest_window_s", 0.5, "rest detector window [s]", low=0.01, high=60.0),
+        ParamSpec("rest_gyro_std_max", 0.01,
+                  "rest: largest gyro deviation from the window mean, over 3 axes [rad/s]",
+                  low=1e-6, high=10.0),
+        ParamSpec("rest_gyro_mean_max", 0.1,
+                  "rest: largest window-mean rate, the largest plausible bias [rad/s]",
+                  low=1e-6, high=10.0),
+        ParamSpec("rest_accel_std_max", 0.25,
+                  "rest: largest specific-force deviation, over 3 axes [m/s^2]",
+                  low=1e-4, high=100.0),
+        ParamSpec("rest_accel_norm_tol", 0.5, "rest: largest | |f| - g | [m/s^2]",
+                  low=1e-4, high=100.0),
+        ParamSpec("aiding", "none",
+                  "'gravity': tilt pulled toward the accelerometer's vertical with gyro-bias "
+                  "feedback, gated in fast motion; heading stays gyro-only and drifts without "
+                  "a magnetometer", choices=("none", "gravity")),
+        ParamSpec("aiding_accel_lowpass_s", 1.0,
+                  "gravity aiding: time constant of the nav-frame low-pass of the specific "
+                  "force (averages out hand and vehicle accelerations; 0 = off) [s]",
+                  low=0.0, high=100.0),
         ParamSpec("world_frame_id", "",
                   "header.frame_id of the attitude output ('' = 'enu' or 'inertial' per frame)"),
         ParamSpec("qos_reliability", "best_effort",
@@ -150,14 +226,19 @@ class AttitudeIntegratorNode(Node):
             )
         self._world_frame = p["world_frame_id"] or p["frame"]
         try:
-            self._stream = AttitudeStream(p["algorithm"], q0=q_init, nav=self._nav,
-                                          config=self._stream_config(p))
+            config = self._stream_config(p)
+        except ValueError as exc:  # the message names the setting
+            raise ParameterError(f"invalid parameters: {exc}") from exc
+        try:
+            self._stream = AttitudeStream(p["algorithm"], q0=q_init, nav=self._nav, config=config)
         except ValueError as exc:  # e.g. an Euler-angle algorithm with frame=enu
+            if "gyrocompass" in str(exc):
+                raise ParameterError(f"parameter 'heading_source': {exc}") from exc
             raise ParameterError(f"parameter 'algorithm' = {p['algorithm']!r}: {exc}") from exc
         self._awaiting_truth = p["initial_attitude_source"] == "truth"
-        self._truth_by_stamp: dict[int, np.ndarray] = {}
-        self._truth_order: deque[int] = deque()
-        self._pending: deque[Imu] = deque(maxlen=5000)
+        self._truth: deque[tuple[int, np.ndarray]] = deque(maxlen=self._TRUTH_KEPT)
+        self._pending: deque[Imu] = deque(maxlen=self._TRUTH_KEPT)
+        self._phase_seen = self._stream.phase
         self.skipped_before_init = 0
         self._last_warn: dict[str, float] = {}
         self._last_period_rejected = 0
@@ -196,11 +277,32 @@ class AttitudeIntegratorNode(Node):
     # ------------------------------------------------------------------ set-up helpers
     @staticmethod
     def _stream_config(p) -> StreamConfig:
+        gyrocompass = p["heading_source"] == "gyrocompass"
         return StreamConfig(
             max_gap_ns=int(round(p["max_gap_s"] * 1e9)),
             time_jump_ns=int(round(p["time_jump_threshold_s"] * 1e9)),
             max_rate_rad_s=float(p["max_rate_rad_s"]),
             initial_variance=float(p["initial_attitude_variance"]),
+            gyro_noise_density=float(p["gyro_noise_density"]),
+            gyro_bias=p["gyro_bias"],
+            gyro_bias_rad_s=tuple(float(c) for c in p["gyro_bias_rad_s"]),
+            gyro_bias_sigma_rad_s=float(p["gyro_bias_sigma_rad_s"]),
+            gyro_bias_rw=float(p["gyro_bias_rw"]),
+            min_rest_s=float(p["min_rest_s"]),
+            rest_window_s=float(p["rest_window_s"]),
+            rest_gyro_std_max=float(p["rest_gyro_std_max"]),
+            rest_gyro_mean_max=float(p["rest_gyro_mean_max"]),
+            rest_accel_std_max=float(p["rest_accel_std_max"]),
+            rest_accel_norm_tol=float(p["rest_accel_norm_tol"]),
+            initial_attitude="level" if p["initial_attitude_source"] == "level" else "given",
+            initial_heading_deg=float(p["initial_heading_deg"]),
+            heading_source=p["heading_source"],
+            # frame=enu passes the latitude with the nav frame; inertial: for gyrocompass only
+            latitude_rad=float(p["latitude_rad"]) if gyrocompass else None,
+            accel_bias_sigma=float(p["accel_bias_sigma"]),
+            heading_error_limit_deg=float(p["heading_error_limit_deg"]),
+            aiding=p["aiding"],
+            aiding_accel_lowpass_s=float(p["aiding_accel_lowpass_s"]),
         )
 
     def _on_set_parameters(self, params) -> SetParametersResult:
@@ -230,6 +332,8 @@ class AttitudeIntegratorNode(Node):
             self.get_logger().warning(text)
 
     # ------------------------------------------------------------------ callbacks
+    _TRUTH_KEPT = 5000  # truth samples and Imu messages kept while waiting for the truth
+
     def _on_truth(self, msg: QuaternionStamped) -> None:
         if not self._awaiting_truth:
             return
@@ -238,19 +342,40 @@ class AttitudeIntegratorNode(Node):
         if not np.all(np.isfinite(q)) or np.linalg.norm(q) < 1e-9:
             self._warn("truth", "ignoring a non-finite or zero truth/attitude quaternion")
             return
-        self._truth_by_stamp[t_ns] = q / np.linalg.norm(q)
-        self._truth_order.append(t_ns)
-        while len(self._truth_order) > 5000:
-            self._truth_by_stamp.pop(self._truth_order.popleft(), None)
-        # an Imu sample with this stamp may already be waiting
-        pending = list(self._pending)
-        for j, m in enumerate(pending):
-            if convert.stamp_to_ns(m.header.stamp) in self._truth_by_stamp:
-                self.skipped_before_init += j
-                self._pending.clear()
-                for later in pending[j:]:
-                    self._on_imu(later)
-                return
+        if self._truth and t_ns <= self._truth[-1][0]:
+            self._warn("truth", "ignoring a truth/attitude message not after the previous one")
+            return
+        self._truth.append((t_ns, q / np.linalg.norm(q)))
+        self._start_from_truth()
+
+    def _start_from_truth(self) -> None:
+        """Start at the first waiting Imu sample the truth covers, with the truth slerped to
+        its stamp (core.attitude.truth); Imu samples before the first truth are skipped."""
+        truth, pending = self._truth, self._pending
+        while pending and truth:
+            t_ns = convert.stamp_to_ns(pending[0].header.stamp)
+            if t_ns > truth[-1][0]:
+                return  # the truth around it has not arrived yet
+            if t_ns >= truth[0][0]:
+                try:
+                    q0 = truth_at(np.array([x[0] for x in truth]),
+                                  np.array([x[1] for x in truth]), t_ns)
+                except ValueError as exc:  # inside a truth gap: try the next sample
+                    self._warn("truth", f"no truth at an Imu stamp: {exc}")
+                else:
+                    self._awaiting_truth = False
+                    truth.clear()
+                    self._stream.restart(q0)
+                    self.get_logger().info(
+                        "initial attitude from truth/attitude interpolated at the Imu stamp "
+                        f"{t_ns} ns ({self.skipped_before_init} Imu sample(s) skipped before it)")
+                    waiting = list(pending)
+                    pending.clear()
+                    for m in waiting:
+                        self._on_imu(m)
+                    return
+            pending.popleft()  # before the first truth sample (or in a gap): skipped
+            self.skipped_before_init += 1
 
     _ODOM_QUEUE = 1000  # Odometry messages waiting for the Imu time line
 
@@ -326,22 +451,26 @@ class AttitudeIntegratorNode(Node):
             self._on_imu(taken[0])
 
     def _on_imu(self, msg: Imu) -> None:
-        t_ns, frame_id, omega, _ = convert.imu_arrays(msg)
         if self._awaiting_truth:
-            q_truth = self._truth_by_stamp.get(t_ns)
-            if q_truth is None:
-                self._pending.append(msg)
-                return
-            self._awaiting_truth = False
-            self._truth_by_stamp.clear()
-            self._truth_order.clear()
-            self._stream.restart(q_truth)
-            self.get_logger().info("initial attitude taken from truth/attitude")
+            if len(self._pending) == self._pending.maxlen:
+                self.skipped_before_init += 1  # the oldest waiting sample is dropped
+            self._pending.append(msg)
+            self._start_from_truth()
+            return
+        t_ns, frame_id, omega, accel = convert.imu_arrays(msg)
+        if msg.linear_acceleration_covariance[0] == -1.0:  # REP-145: no accelerometer
+            accel = None
         if self._sub_odom is not None:
             self._apply_odometry(t_ns)
-        verdict, q = self._stream.push(t_ns, omega, frame_id, msg.angular_velocity_covariance)
+        st = self._stream
+        verdict, q = st.push(t_ns, omega, frame_id, msg.angular_velocity_covariance, accel)
+        if st.phase != self._phase_seen:
+            self._phase_seen = st.phase
+            self._log_phase()
         if q is None:
-            self._warn(verdict.reason, f"rejected Imu sample ({verdict.reason}): {verdict.detail}")
+            if verdict.rejected:
+                self._warn(verdict.reason,
+                           f"rejected Imu sample ({verdict.reason}): {verdict.detail}")
             return
         if verdict.action == iv.RESET_TIME_JUMP:
             self._warn("time_jump", f"{verdict.detail}: attitude reset")
@@ -349,6 +478,13 @@ class AttitudeIntegratorNode(Node):
         elif verdict.action == iv.RESTART_AFTER_GAP:
             self._warn("gap", f"{verdict.detail}: not integrated across, attitude held")
         self._publish(msg, q)
+
+    def _log_phase(self) -> None:
+        st = self._stream
+        if st.phase == RUNNING and st.alignment is not None:
+            self.get_logger().info(f"aligned: {alignment_summary(st.alignment)}")
+        elif st.phase == FAILED:
+            self.get_logger().error(f"alignment failed: {st.alignment_error}")
 
     def _publish(self, msg: Imu, q: np.ndarray) -> None:
         x, y, z, w = q.tolist()
@@ -386,7 +522,24 @@ class AttitudeIntegratorNode(Node):
             "integrator_errors": str(counts[INTEGRATOR_ERROR]),
             "invalid_covariances": str(counts[INVALID_COVARIANCE]),
             "odometry_updates": str(self.odometry_updates),
+            "invalid_accels": str(counts[INVALID_ACCEL]),
+            "phase": st.phase,
         }
+        rep = st.bias_report
+        values["gyro_bias_mode"] = rep.mode
+        values["gyro_bias_rad_s"] = _vec(rep.bias)
+        values["gyro_bias_std_error_rad_s"] = _vec(rep.standard_error)
+        values["gyro_bias_rests_used"] = str(rep.rests_used)
+        values["earth_rate"] = ("removed from the bias" if rep.earth_rate_removed else
+                                "absorbed into the bias" if rep.rests_used else "n/a")
+        values["gyro_bias_note"] = rep.note
+        if st.alignment is not None:
+            values["alignment"] = alignment_summary(st.alignment)
+        elif st.phase == ALIGNING:
+            values["alignment"] = st.alignment_error or (
+                f"aligning: keep the IMU still for {st.config.min_rest_s:g} s, then move")
+        elif st.phase == FAILED:
+            values["alignment"] = f"failed: {st.alignment_error}"
         for reason in iv.REJECT_REASONS:
             values[f"rejected_{reason}" if reason != iv.GAP else "gaps"] = str(counts[reason])
         return values
@@ -401,7 +554,13 @@ class AttitudeIntegratorNode(Node):
         status = DiagnosticStatus()
         status.name = f"{self.get_name()}: imu input"
         status.hardware_id = v.validator.frame_id or ""
-        if new_rejected > 0:
+        if v.phase == FAILED:
+            status.level = DiagnosticStatus.ERROR
+            status.message = f"alignment failed: {v.alignment_error}"
+        elif v.phase == ALIGNING and new_accepted > 0:
+            status.level = DiagnosticStatus.OK
+            status.message = values["alignment"]
+        elif new_rejected > 0:
             status.level = DiagnosticStatus.WARN
             status.message = f"{new_rejected} sample(s) rejected in the last period"
         elif new_accepted == 0:
@@ -415,6 +574,20 @@ class AttitudeIntegratorNode(Node):
         arr.header.stamp = self.get_clock().now().to_msg()
         arr.status = [status]
         self._pub_diag.publish(arr)
+
+
+def _vec(x) -> str:
+    return "[" + ", ".join(f"{float(c):.6g}" for c in x) + "]"
+
+
+def alignment_summary(res) -> str:
+    """One line on an alignment result (degrees)."""
+    heading = f"{math.degrees(res.heading):.2f}° ({res.heading_source}"
+    if res.heading_source == "gyrocompass":
+        heading += f", ±{math.degrees(res.heading_error_expected):.2g}°"
+    return (f"roll {math.degrees(res.roll):.2f}°, pitch {math.degrees(res.pitch):.2f}° "
+            f"(±{math.degrees(res.level_error_expected):.2g}°), heading {heading}) over "
+            f"{res.samples} rest samples")
 
 
 def main(args=None) -> int:

@@ -15,8 +15,11 @@ Modes:
   rest, see rest.py).  A rest counts once its samples span ``min_rest_s`` (default 1 s, i.e.
   1.5 s of rest with the 0.5 s window): from then on, while it lasts, and after it, the bias is
   the mean over all qualifying rests so far, each weighted by its length (the pooled sample
-  mean).  During motion the bias is held.  Before the first qualifying rest it is 0 (or the
-  optional ``initial`` bias) and the report says so.
+  mean).  During motion the bias is held.  A window must show at least
+  :data:`~gyro_attitude.core.attitude.rest.NOISE_FLOOR_RAD_S` of gyro noise (unless ``rest``
+  says otherwise): on noise-free simulated data a constant slow rotation or the Earth rate
+  would otherwise be taken for a bias; an ideal gyro has none to estimate.  Before the first
+  qualifying rest it is 0 (or the optional ``initial`` bias) and the report says so.
 
 Report (:class:`GyroBiasReport`): value, rests used, standard error per axis, and whether the
 Earth rate was removed.  The standard error is the larger of (a) the white-noise figure
@@ -35,9 +38,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gyro_attitude.core.attitude.rest import RestDetector, check_sample, check_samples, detect_rest
+from gyro_attitude.core.attitude.rest import (
+    NOISE_FLOOR_RAD_S,
+    RestDetector,
+    check_sample,
+    check_samples,
+    detect_rest,
+)
 from gyro_attitude.core.earth import check_latitude, earth_rate_enu
-from gyro_attitude.core.rotation import as_quat_array, quat_conjugate, quat_normalize, quat_rotate
+from gyro_attitude.core.rotation import as_quat_array
 
 __all__ = ["BIAS_MODES", "GyroBiasEstimator", "GyroBiasReport", "estimate_gyro_bias"]
 
@@ -116,6 +125,26 @@ class _Pool:
         return bias, se, k, n
 
 
+def _earth_rate_body(q_nb, w_n) -> tuple[float, float, float]:
+    """``C_bn ω_ie^n`` in plain floats (per sample: numpy's call overhead would dominate)."""
+    x, y, z, w = (float(c) for c in q_nb)
+    n = x * x + y * y + z * z + w * w
+    if not (math.isfinite(n) and n > 1e-18):
+        raise ValueError(f"q_nb must be a finite non-zero quaternion, got {q_nb!r}")
+    return _c_bn_times(x, y, z, w, 2.0 / n, w_n)
+
+
+def _c_bn_times(x, y, z, w, s, w_n):
+    """``C_bn ω`` with ``s = 2/|q|²``; floats or arrays alike (same operations, same bits)."""
+    e0, e1, e2 = float(w_n[0]), float(w_n[1]), float(w_n[2])
+    # C_nb from the quaternion (scalar last); C_bn = C_nbᵀ: rows of C_bn are columns of C_nb
+    c00, c01, c02 = 1 - s * (y * y + z * z), s * (x * y - z * w), s * (x * z + y * w)
+    c10, c11, c12 = s * (x * y + z * w), 1 - s * (x * x + z * z), s * (y * z - x * w)
+    c20, c21, c22 = s * (x * z - y * w), s * (y * z + x * w), 1 - s * (x * x + y * y)
+    return (c00 * e0 + c10 * e1 + c20 * e2, c01 * e0 + c11 * e1 + c21 * e2,
+            c02 * e0 + c12 * e1 + c22 * e2)
+
+
 class GyroBiasEstimator:
     """Streaming gyro bias (see the module docstring for modes and the contract)."""
 
@@ -137,9 +166,23 @@ class GyroBiasEstimator:
         self._earth_n = None
         if latitude_rad is not None:
             self._earth_n = earth_rate_enu(check_latitude(float(latitude_rad), "latitude_rad"))
-        self._rest_params = dict(rest or {})
+        self._rest_params = {"gyro_std_min": NOISE_FLOOR_RAD_S, **(rest or {})}
         self.detector = RestDetector(**self._rest_params)
         self.reset()
+
+    def break_window(self) -> None:
+        """The stream broke (gap, time jump, unusable accelerometer sample): close the open rest
+        and start a fresh window; the rests pooled so far and the estimate are kept."""
+        if self._seg is not None:
+            self._close()
+        self.detector.reset()
+        self._pending.clear()
+        self._last_acc = -1
+
+    @property
+    def standard_error(self) -> np.ndarray:
+        """Standard error (3,) of the current estimate, NaN before the first qualifying rest."""
+        return np.array(self._se)
 
     def reset(self) -> None:
         """Forget rests and the window (the fixed/initial bias stays)."""
@@ -153,6 +196,7 @@ class GyroBiasEstimator:
             self._initial if self.mode == "auto" else (0.0, 0.0, 0.0))
         self._se = (math.nan,) * 3
         self._k = self._n = 0
+        self.updated = False  # the last update() published a new estimate
 
     @property
     def bias(self) -> np.ndarray:
@@ -160,16 +204,16 @@ class GyroBiasEstimator:
 
     def update(self, t_ns: int, gyro, accel=None, q_nb=None) -> np.ndarray:
         """Consume one sample; return the bias (3,) rad/s to subtract from it."""
+        self.updated = False
         if self.mode != "auto":
             check_sample(t_ns, gyro, accel)
             return np.array(self._bias)
-        at_rest = self.detector.update(t_ns, gyro, accel)
-        t, g, _ = check_sample(t_ns, gyro, accel)
+        t, g, a = check_sample(t_ns, gyro, accel)
+        at_rest = self.detector.update_checked(t, g, a)
         value = g
         if self._earth_n is not None and q_nb is not None:
-            e = quat_rotate(quat_conjugate(quat_normalize(as_quat_array(q_nb, "q_nb"))),
-                            self._earth_n)
-            value = (g[0] - float(e[0]), g[1] - float(e[1]), g[2] - float(e[2]))
+            e = _earth_rate_body(q_nb, self._earth_n)
+            value = (g[0] - e[0], g[1] - e[1], g[2] - e[2])
             earth = True
         else:
             earth = False
@@ -214,6 +258,7 @@ class GyroBiasEstimator:
     def _publish(self, est, earth_open: bool) -> None:
         bias, se, self._k, self._n = est
         self._bias, self._se = tuple(bias), tuple(se)
+        self.updated = True
         self._earth_now = self._earth_all and earth_open
 
     def report(self) -> GyroBiasReport:
@@ -256,7 +301,9 @@ def estimate_gyro_bias(t_ns, gyro, accel=None, q_nb=None, *, mode: str = "auto",
         q = as_quat_array(q_nb, "q_nb")
         if q.shape != (t.size, 4):
             raise ValueError(f"q_nb must have shape ({t.size}, 4), got {q.shape}")
-        value = g - quat_rotate(quat_conjugate(quat_normalize(q)), est._earth_n)
+        x, y, z, w = (q[:, i] for i in range(4))
+        e = _c_bn_times(x, y, z, w, 2.0 / (x * x + y * y + z * z + w * w), est._earth_n)
+        value = g - np.column_stack(e)
     earth = latitude_rad is not None and q_nb is not None
     r = detect_rest(t, g, a, **est._rest_params)
     # Accumulation events: window k at rest whose oldest sample is new.

@@ -13,7 +13,9 @@ rest average.  :func:`detect_rest` is the batch form over arrays and gives bit-i
 A window is at rest when all hold:
 
 * it spans a full ``window_s`` of data since the first sample (no decision on a partial window);
-* ``gyro_std_max``: the gyro's deviation from the window mean, ``sqrt(Σ_axes var)``, is small.
+* ``gyro_std_max``: the gyro's deviation from the window mean, ``sqrt(Σ_axes var)``, is small
+  (and at least ``gyro_std_min``, default 0; the gyro-bias estimator asks for
+  :data:`NOISE_FLOOR_RAD_S`, see gyro_bias.py);
   The deviation, not the magnitude, is tested so that a constant bias (0.1–5 °/s for consumer
   MEMS) does not block rest detection;
 * ``gyro_mean_max``: the window-mean rate is below the largest plausible bias, so a smooth
@@ -46,9 +48,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["RestDetector", "RestWindows", "detect_rest", "rest_segments", "check_samples"]
+__all__ = ["NOISE_FLOOR_RAD_S", "RestDetector", "RestWindows", "detect_rest", "rest_segments",
+           "check_samples"]
 
 STANDARD_GRAVITY = 9.80665  # m/s², the default magnitude for the |‖f‖ − g| test
+# Every real gyro shows noise at rest (a navigation-grade one still ~1e-6 rad/s per sample at
+# 100 Hz), so a window whose output is constant to rounding is a noise-free simulation or a stuck
+# sensor, not evidence of rest.
+NOISE_FLOOR_RAD_S = 1e-9
 
 
 def _check_param(name: str, value, allow_zero: bool = False) -> float:
@@ -119,11 +126,16 @@ class RestThresholds:
     accel_std_max: float = 0.25  # m/s², deviation from the window mean, over three axes
     accel_norm_tol: float = 0.5  # m/s², |‖mean f‖ − gravity|
     gravity: float = STANDARD_GRAVITY
+    gyro_std_min: float = 0.0  # rad/s: a window less noisy than this is not a rest
 
     def checked(self) -> RestThresholds:
         for name in ("window_s", "gyro_std_max", "gyro_mean_max", "accel_std_max",
                      "accel_norm_tol", "gravity"):
             _check_param(name, getattr(self, name))
+        _check_param("gyro_std_min", self.gyro_std_min, allow_zero=True)
+        if not self.gyro_std_min < self.gyro_std_max:
+            raise ValueError(f"gyro_std_min ({self.gyro_std_min!r}) must be below gyro_std_max "
+                             f"({self.gyro_std_max!r})")
         return self
 
 
@@ -149,9 +161,10 @@ class RestDetector:
 
     def __init__(self, window_s: float = 0.5, gyro_std_max: float = 0.01,
                  gyro_mean_max: float = 0.1, accel_std_max: float = 0.25,
-                 accel_norm_tol: float = 0.5, gravity: float = STANDARD_GRAVITY):
+                 accel_norm_tol: float = 0.5, gravity: float = STANDARD_GRAVITY,
+                 gyro_std_min: float = 0.0):
         self.thresholds = RestThresholds(window_s, gyro_std_max, gyro_mean_max, accel_std_max,
-                                         accel_norm_tol, gravity).checked()
+                                         accel_norm_tol, gravity, gyro_std_min).checked()
         self._window_ns = int(round(self.thresholds.window_s * 1e9))
         self.reset()
 
@@ -174,6 +187,10 @@ class RestDetector:
     def update(self, t_ns: int, gyro, accel=None) -> bool:
         """Add one sample; return whether the window ending at it is at rest."""
         t, g, a = check_sample(t_ns, gyro, accel)
+        return self.update_checked(t, g, a)
+
+    def update_checked(self, t: int, g: tuple, a: tuple | None) -> bool:
+        """:meth:`update` for a sample already through :func:`check_sample`."""
         if self.last_t_ns is not None and t <= self.last_t_ns:
             raise ValueError(f"t_ns must increase: {t} after {self.last_t_ns}")
         if self._has_accel is None:
@@ -214,7 +231,7 @@ class RestDetector:
         full = t - self._t_first >= self._window_ns
         if not full:
             self.gyro_std = math.nan
-        ok = full and self.gyro_std <= th.gyro_std_max and math.sqrt(
+        ok = full and th.gyro_std_min <= self.gyro_std <= th.gyro_std_max and math.sqrt(
             self.gyro_mean[0] * self.gyro_mean[0] + self.gyro_mean[1] * self.gyro_mean[1]
             + self.gyro_mean[2] * self.gyro_mean[2]) <= th.gyro_mean_max
         if self._has_accel:
@@ -230,10 +247,11 @@ class RestDetector:
 
 def detect_rest(t_ns, gyro, accel=None, window_s: float = 0.5, gyro_std_max: float = 0.01,
                 gyro_mean_max: float = 0.1, accel_std_max: float = 0.25,
-                accel_norm_tol: float = 0.5, gravity: float = STANDARD_GRAVITY) -> RestWindows:
+                accel_norm_tol: float = 0.5, gravity: float = STANDARD_GRAVITY,
+                gyro_std_min: float = 0.0) -> RestWindows:
     """Batch :class:`RestDetector` over arrays (bit-identical decisions, vectorized)."""
     th = RestThresholds(window_s, gyro_std_max, gyro_mean_max, accel_std_max, accel_norm_tol,
-                        gravity).checked()
+                        gravity, gyro_std_min).checked()
     t, g, a = check_samples(t_ns, gyro, accel)
     window_ns = int(round(th.window_s * 1e9))
     oldest = np.searchsorted(t, t - window_ns, side="left")
@@ -254,7 +272,8 @@ def detect_rest(t_ns, gyro, accel=None, window_s: float = 0.5, gyro_std_max: flo
 
     gyro_std, gyro_norm = window_stats(g, g[0])
     with np.errstate(invalid="ignore"):
-        ok = full & (gyro_std <= th.gyro_std_max) & (gyro_norm <= th.gyro_mean_max)
+        ok = full & (gyro_std >= th.gyro_std_min) & (gyro_std <= th.gyro_std_max) & (
+            gyro_norm <= th.gyro_mean_max)
         accel_std = np.full(t.size, np.nan)
         if a is not None:
             accel_std, accel_norm = window_stats(a, a[0])

@@ -19,15 +19,36 @@ whole recording (:meth:`AttitudeStream.run`, replay) and applies the same rules 
   quaternion, the stream restores the last good attitude, restarts its time base at the next
   sample and counts an ``integrator_error`` instead.
 
+Real-IMU steps, applied to every ACCEPTED sample in this order (bad samples never reach them):
+rest detection → gyro bias (:mod:`.gyro_bias`: ``none`` | ``parameter`` | ``auto``, zero-rate
+updates at rests, Earth rate taken out when the latitude is known; with a given initial
+attitude and a stream that rests from its start (within one rest window), the first estimate is applied back
+to the start — the attitude is corrected by ``−Δb·Δt``, as the still body did not turn) →
+alignment (:mod:`.alignment`, ``initial_attitude="level"``: no attitude while
+``phase == "aligning"``; the attitude starts when the first rest of ``min_rest_s`` ends, from
+the levelled attitude, with the samples since
+the last rest sample integrated) → gravity aiding (:mod:`.gravity_aiding`, ``aiding="gravity"``)
+→ integration of ``ω − bias``.  A gap or a time jump breaks the rest windows (a rest never spans
+one); an accelerometer sample that is not finite or absurd is counted (``invalid_accel``),
+breaks the windows and is not used for aiding; the gyro sample is still integrated.  The
+orientation variance is the per-axis attitude/bias error covariance of :mod:`.covariance`
+(gyro noise, bias uncertainty, alignment, aiding).
+
 The two paths give the same attitudes sample for sample: :meth:`run` classifies the whole
 recording with :func:`.validation.classify` and integrates each run of accepted samples in one
-batch call (the batch and streaming integrators agree to ~1e-16); it falls back to the per-sample
-path from the first segment that would produce a non-finite attitude.
+batch call (the batch and streaming integrators agree to ~1e-16) with ``ω − fixed bias`` and
+the covariance as cumulative sums; it falls back to the per-sample path from the first segment
+that would produce a non-finite attitude.  That fast path holds for ``gyro_bias`` ``none`` /
+``parameter`` with a given initial attitude and no aiding.  Bias estimation at rests, alignment
+and aiding are sequential filters (each sample's bias and correction depend on the attitude and
+the rests before it), so :meth:`run` then runs the per-sample path itself (its cost against the
+batch is printed by ``gyro-attitude bench --suite real``).
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
@@ -40,10 +61,21 @@ from gyro_attitude.core.attitude import (
     integrate_batch,
 )
 from gyro_attitude.core.attitude import validation as v
-from gyro_attitude.core.rotation import quat_normalize
+from gyro_attitude.core.attitude.alignment import AlignmentResult, StaticAligner, level_quaternion
+from gyro_attitude.core.attitude.covariance import AttitudeCovariance, propagate_batch
+from gyro_attitude.core.attitude.gravity_aiding import GravityAiding
+from gyro_attitude.core.attitude.gyro_bias import BIAS_MODES, GyroBiasEstimator, GyroBiasReport
+from gyro_attitude.core.earth import OMEGA_IE
+from gyro_attitude.core.rotation import quat_from_rotvec, quat_multiply, quat_normalize
 
 INVALID_COVARIANCE = "invalid_covariance"
 INTEGRATOR_ERROR = "integrator_error"
+INVALID_ACCEL = "invalid_accel"
+
+INITIAL_ATTITUDE_MODES = ("given", "level")
+HEADING_SOURCES = ("parameter", "gyrocompass")
+AIDING_MODES = ("none", "gravity")
+ALIGNING, RUNNING, FAILED = "aligning", "running", "failed"  # values of AttitudeStream.phase
 
 
 def gyro_variances(covariance) -> tuple[np.ndarray | None, bool]:
@@ -79,37 +111,146 @@ def gyro_variances_array(covariance: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return np.where(known[:, None], d, 0.0), known, invalid
 
 
+def _num(name: str, value, lo: float = 0.0, hi: float = 1e12, allow_none: bool = False):
+    if value is None and allow_none:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating) \
+            or not (math.isfinite(value) and lo <= value <= hi):
+        raise ValueError(f"{name} must be a finite number in [{lo:g}, {hi:g}], got {value!r}")
+    return float(value)
+
+
+def _choice(name: str, value, choices) -> str:
+    if value not in choices:
+        raise ValueError(f"{name} must be one of {choices}, got {value!r}")
+    return value
+
+
 @dataclass(frozen=True)
 class StreamConfig:
-    """Thresholds of the policy (see the module docstring); times in ns."""
+    """Settings of the policy (see the module docstring); times in ns, SI units.
+
+    Validation: ``max_gap_ns``, ``time_jump_ns``, ``max_rate_rad_s``.  Covariance:
+    ``initial_variance`` per-axis variance [rad²] of a given initial attitude (with ``level``:
+    of the given heading); ``gyro_noise_density`` N [rad/s/√Hz] used when a sample carries no
+    gyro covariance; ``gyro_bias_sigma_rad_s`` 1σ of the bias subtracted when it is not
+    estimated (``none``: the sensor's bias spread; ``parameter``: the calibration's uncertainty;
+    ``auto``: before the first rest); ``gyro_bias_rw`` bias random walk [rad/s/√s].
+    Bias: ``gyro_bias`` ``auto`` | ``none`` | ``parameter`` (+ ``gyro_bias_rad_s``); rests:
+    ``min_rest_s`` and the ``rest_*`` thresholds of :class:`.rest.RestDetector`.  Initial
+    attitude: ``initial_attitude`` ``given`` | ``level``; ``initial_heading_deg`` (clockwise
+    from north) or ``heading_source="gyrocompass"`` (needs ``gyro_bias="parameter"`` and
+    ``gyro_bias_sigma_rad_s``: a bias estimated at rest has absorbed the Earth rate);
+    ``latitude_rad`` (when no nav frame gives it) for gyrocompassing and for taking the Earth
+    rate out of the bias; ``accel_bias_sigma`` [m/s²] for the levelling error;
+    ``heading_error_limit_deg``.  Aiding: ``aiding`` ``none`` | ``gravity`` and its gains.
+    """
 
     max_gap_ns: int = 100_000_000
     time_jump_ns: int = 1_000_000_000
     max_rate_rad_s: float = v.DEFAULT_MAX_RATE_RAD_S
     initial_variance: float = 0.0
+    gyro_noise_density: float = 0.0
+    gyro_bias: str = "auto"
+    gyro_bias_rad_s: tuple = (0.0, 0.0, 0.0)
+    gyro_bias_sigma_rad_s: float = 0.0
+    gyro_bias_rw: float = 0.0
+    min_rest_s: float = 1.0
+    rest_window_s: float = 0.5
+    rest_gyro_std_max: float = 0.01
+    rest_gyro_mean_max: float = 0.1
+    rest_accel_std_max: float = 0.25
+    rest_accel_norm_tol: float = 0.5
+    initial_attitude: str = "given"
+    initial_heading_deg: float = 0.0
+    heading_source: str = "parameter"
+    latitude_rad: float | None = None
+    accel_bias_sigma: float = 0.05
+    heading_error_limit_deg: float = 5.0
+    aiding: str = "none"
+    aiding_kp: float = 1.0
+    aiding_ki: float = 0.002
+    aiding_accel_tol: float = 2.0
+    aiding_rate_max: float = 1.0
+    aiding_accel_lowpass_s: float = 1.0
 
     def __post_init__(self):
         self.check_config()  # raises ValueError naming the field
-        iv = self.initial_variance
-        if isinstance(iv, bool) or not isinstance(iv, int | float | np.integer | np.floating) \
-                or not (math.isfinite(iv) and iv >= 0):
-            raise ValueError(f"initial_variance must be a finite number >= 0, got {iv!r}")
+        _num("initial_variance", self.initial_variance, 0.0, 1e6)
+        _num("gyro_noise_density", self.gyro_noise_density, 0.0, 1e3)
+        _num("gyro_bias_sigma_rad_s", self.gyro_bias_sigma_rad_s, 0.0, 1e3)
+        _num("gyro_bias_rw", self.gyro_bias_rw, 0.0, 1e3)
+        _choice("gyro_bias", self.gyro_bias, BIAS_MODES)
+        _choice("initial_attitude", self.initial_attitude, INITIAL_ATTITUDE_MODES)
+        _choice("heading_source", self.heading_source, HEADING_SOURCES)
+        _choice("aiding", self.aiding, AIDING_MODES)
+        _num("initial_heading_deg", self.initial_heading_deg, -1e6, 1e6)
+        _num("latitude_rad", self.latitude_rad, -math.pi / 2, math.pi / 2, allow_none=True)
+        for name in ("accel_bias_sigma", "heading_error_limit_deg", "aiding_kp", "aiding_ki",
+                     "aiding_accel_tol", "aiding_rate_max", "aiding_accel_lowpass_s"):
+            _num(name, getattr(self, name), 0.0, 1e6)
+        b = self.gyro_bias_rad_s
+        if isinstance(b, str) or not hasattr(b, "__len__") or len(b) != 3:
+            raise ValueError(f"gyro_bias_rad_s must be 3 numbers (rad/s), got {b!r}")
+        for c in b:
+            _num("gyro_bias_rad_s", c, -1e3, 1e3)
+        self.rest_params()  # thresholds checked by the detector
+        GyroBiasEstimator("auto", min_rest_s=self.min_rest_s, rest=self.rest_params())
+        if self.heading_source == "gyrocompass":
+            if self.initial_attitude != "level":
+                raise ValueError("heading_source 'gyrocompass' needs initial_attitude 'level'")
+            if self.gyro_bias != "parameter" or not self.gyro_bias_sigma_rad_s > 0:
+                raise ValueError("gyrocompass needs gyro_bias 'parameter' with its 1σ "
+                                 "gyro_bias_sigma_rad_s > 0 (a bias estimated at rest has "
+                                 "absorbed the Earth rate and cannot find north)")
+            if self.latitude_rad is not None:
+                check_gyrocompass(self, self.latitude_rad)
 
     def check_config(self) -> v.ImuCheckConfig:
         return v.ImuCheckConfig(self.max_gap_ns, self.time_jump_ns, self.max_rate_rad_s)
+
+    def rest_params(self) -> dict:
+        return {"window_s": self.rest_window_s, "gyro_std_max": self.rest_gyro_std_max,
+                "gyro_mean_max": self.rest_gyro_mean_max,
+                "accel_std_max": self.rest_accel_std_max,
+                "accel_norm_tol": self.rest_accel_norm_tol}
+
+
+def check_gyrocompass(cfg: StreamConfig, latitude_rad: float) -> None:
+    """Refuse gyrocompassing whose heading error from the bias uncertainty alone,
+    ``σ_b / (ω_ie cos L)``, already exceeds ``heading_error_limit_deg`` (alignment.py checks
+    the full figure with the measured noise at the end of the rest)."""
+    horizontal = OMEGA_IE * math.cos(latitude_rad)
+    sigma = cfg.gyro_bias_sigma_rad_s / max(horizontal, 1e-300)
+    if not math.degrees(sigma) <= cfg.heading_error_limit_deg:
+        raise ValueError(
+            f"gyrocompass refused: gyro bias uncertainty {math.degrees(cfg.gyro_bias_sigma_rad_s) * 3600:.3g}"
+            f" °/h against a horizontal Earth rate of {math.degrees(horizontal) * 3600:.3g} °/h "
+            f"gives a heading error of {min(math.degrees(sigma), 1e9):.3g}° > the limit "
+            f"{cfg.heading_error_limit_deg:g}°; give initial_heading_deg instead")
+
+
+def bias_summary(report: GyroBiasReport) -> str:
+    """One line on the gyro bias for a summary or a log (rad/s and °/s)."""
+    if report.mode != "auto" or report.rests_used == 0:
+        return f"gyro bias {report.mode}: {np.round(report.bias, 6).tolist()} rad/s ({report.note})"
+    return (f"gyro bias auto: {np.round(report.bias, 6).tolist()} rad/s "
+            f"(± {np.round(report.standard_error, 7).tolist()}, {report.rests_used} rest(s), "
+            f"{report.rest_samples} samples); {report.note}")
 
 
 @dataclass
 class StreamResult:
     """Attitudes of :meth:`AttitudeStream.run` over N input samples.
 
-    ``index`` (M,) input positions that got an attitude (the others were skipped); ``q`` (M, 4)
-    scalar-last, finite and unit; ``variance`` (M, 3) per-axis orientation variance [rad²] and
-    ``variance_known`` (M,) whether a gyro covariance had been seen by that row (None, None when
-    no input carried one); ``action`` (N,) verdict codes
+    ``index`` (M,) input positions that got an attitude (the others were skipped, or came
+    while aligning); ``q`` (M, 4) scalar-last, finite and unit; ``variance`` (M, 3) per-axis
+    orientation variance [rad²] and ``variance_known`` (M,) whether it is an estimate by that
+    row (None, None when nothing gives one); ``action`` (N,) verdict codes
     (:data:`.validation.ACTION_CODES`); ``counts`` per reason (rejections, ``gap``,
-    ``invalid_covariance``, ``integrator_error``); ``time_jump_resets``; ``details`` the first
-    log line per reason.
+    ``invalid_covariance``, ``invalid_accel``, ``integrator_error``); ``time_jump_resets``;
+    ``details`` the first log line per reason; ``bias`` the final :class:`GyroBiasReport`;
+    ``alignment`` the :class:`AlignmentResult` (``level``) or None.
     """
 
     index: np.ndarray
@@ -120,6 +261,8 @@ class StreamResult:
     counts: dict[str, int]
     time_jump_resets: int
     details: dict[str, str] = field(default_factory=dict)
+    bias: GyroBiasReport | None = None
+    alignment: AlignmentResult | None = None
 
     @property
     def skipped(self) -> int:
@@ -129,28 +272,71 @@ class StreamResult:
 class AttitudeStream:
     """Imu samples in, attitude out, under the one policy of the module docstring.
 
-    ``algorithm`` a name from the registry (an offline one serves :meth:`run` only: it needs
-    samples after each interval, so :meth:`push` refuses it); ``q0`` the initial attitude (also the one a time
-    jump resets to); ``nav`` a :class:`NavFrame` for q_nb (Earth and transport rate removed) or
-    None for q_ib; ``config`` the thresholds.
+    ``algorithm`` a name from the registry (an offline one serves the batch path of :meth:`run`
+    only: it needs samples after each interval, so :meth:`push` refuses it); ``q0`` the initial
+    attitude (also the one a time jump resets to; with ``initial_attitude="level"`` the alignment replaces it); ``nav`` a
+    :class:`NavFrame` for q_nb (Earth and transport rate removed) or None for q_ib; ``config``
+    the settings.  With ``nav`` (or ``config.latitude_rad``) the Earth rate is taken out of the
+    bias estimate, using the current attitude as q_nb (for q_ib that takes the inertial frame
+    as the nav frame at the start: right to ω_ie·t, a few °/h of Earth-rate direction).
     """
 
     def __init__(self, algorithm: str = DEFAULT_ALGORITHM, q0=(0.0, 0.0, 0.0, 1.0),
                  nav: NavFrame | None = None, config: StreamConfig | None = None):
-        self.config = config if config is not None else StreamConfig()
+        self.config = cfg = config if config is not None else StreamConfig()
         self.q_initial = _unit_quat(q0)
         self.nav = nav
         self.algorithm = algorithm
         self.integrator = (StreamingIntegrator(algorithm=algorithm, q0=self.q_initial, nav=nav)
                            if get_algorithm(algorithm).causal else None)
-        self.validator = v.ImuStreamValidator(self.config.check_config())
+        self.validator = v.ImuStreamValidator(cfg.check_config())
         self.intervals = v.IntervalStatistics(window=2000)
-        self.counts_extra = {INVALID_COVARIANCE: 0, INTEGRATOR_ERROR: 0}
+        self.counts_extra = {INVALID_COVARIANCE: 0, INVALID_ACCEL: 0, INTEGRATOR_ERROR: 0}
         self.details: dict[str, str] = {}
         self._resume_q: np.ndarray | None = None
         self._last_q: np.ndarray = self.q_initial
-        self._angle_var = np.full(3, float(self.config.initial_variance))
-        self._var_known = False
+        lat = nav.latitude_rad if nav is not None else cfg.latitude_rad
+        self.latitude_rad = None if lat is None else float(np.asarray(lat).reshape(-1)[0])
+        if cfg.heading_source == "gyrocompass":
+            if self.latitude_rad is None:
+                raise ValueError("gyrocompass needs the latitude (frame enu or latitude_rad)")
+            check_gyrocompass(cfg, self.latitude_rad)
+        fixed = cfg.gyro_bias_rad_s if cfg.gyro_bias == "parameter" else None
+        self.bias_estimator = GyroBiasEstimator(
+            cfg.gyro_bias, fixed, min_rest_s=cfg.min_rest_s, latitude_rad=self.latitude_rad,
+            rest=cfg.rest_params())
+        self._fixed_bias = self.bias_estimator.bias
+        self.aiding = None
+        if cfg.aiding == "gravity":
+            self.aiding = GravityAiding(cfg.aiding_kp, cfg.aiding_ki, cfg.aiding_accel_tol,
+                                        cfg.aiding_rate_max,
+                                        accel_lowpass_s=cfg.aiding_accel_lowpass_s)
+        self.covariance = AttitudeCovariance(cfg.initial_variance, cfg.gyro_bias_sigma_rad_s,
+                                             cfg.gyro_bias_rw)
+        self._n2 = cfg.gyro_noise_density * cfg.gyro_noise_density
+        self._var_known = bool(cfg.gyro_noise_density > 0 or cfg.gyro_bias_sigma_rad_s > 0
+                               or cfg.initial_attitude == "level")
+        self._accel_present: bool | None = None
+        self._start_t: int | None = None
+        self._first_rest_pending = cfg.gyro_bias == "auto" and cfg.initial_attitude == "given"
+        self.alignment: AlignmentResult | None = None
+        self.alignment_error: str | None = None
+        self.phase = RUNNING
+        if cfg.initial_attitude == "level":
+            self.phase = ALIGNING
+            self._new_aligner()
+
+    def _new_aligner(self) -> None:
+        cfg = self.config
+        gc = cfg.heading_source == "gyrocompass"
+        self._aligner = StaticAligner(
+            cfg.initial_heading_deg, gyrocompass=gc, latitude_rad=self.latitude_rad if gc else None,
+            gyro_bias=cfg.gyro_bias_rad_s if cfg.gyro_bias == "parameter" else (0.0, 0.0, 0.0),
+            gyro_bias_sigma=cfg.gyro_bias_sigma_rad_s if gc else None,
+            accel_bias_sigma=cfg.accel_bias_sigma,
+            heading_error_limit_deg=cfg.heading_error_limit_deg, min_rest_s=cfg.min_rest_s,
+            rest=cfg.rest_params())
+        self._align_buffer: deque = deque()
 
     # ------------------------------------------------------------------ state and settings
     @property
@@ -179,12 +365,19 @@ class AttitudeStream:
 
     @property
     def variance(self) -> np.ndarray | None:
-        """Per-axis orientation variance [rad²]; None while no gyro covariance was seen."""
-        return self._angle_var.copy() if self._var_known else None
+        """Per-axis orientation variance [rad²]; None while nothing gives an estimate."""
+        return self.covariance.tt.copy() if self._var_known else None
+
+    @property
+    def bias_report(self) -> GyroBiasReport:
+        return self.bias_estimator.report()
 
     def set_config(self, config: StreamConfig) -> None:
-        """New thresholds from the next sample on (state kept)."""
-        self.config = config
+        """New validation thresholds from the next sample on (state kept; the bias, alignment
+        and aiding settings stay those of construction)."""
+        self.config = replace(self.config, max_gap_ns=config.max_gap_ns,
+                              time_jump_ns=config.time_jump_ns,
+                              max_rate_rad_s=config.max_rate_rad_s)
         self.validator.config = config.check_config()
 
     def set_algorithm(self, algorithm: str) -> None:
@@ -209,11 +402,13 @@ class AttitudeStream:
         self._resume_q = None
         self.validator.reset()
         self.intervals.clear()
+        self._break_windows()
 
     # ------------------------------------------------------------------ one sample
-    def push(self, t_ns: int, omega, frame_id: str = "",
-             angular_velocity_covariance=None) -> tuple[v.Verdict, np.ndarray | None]:
-        """One sample: its verdict and the attitude at ``t_ns`` (None when it was skipped)."""
+    def push(self, t_ns: int, omega, frame_id: str = "", angular_velocity_covariance=None,
+             accel=None) -> tuple[v.Verdict, np.ndarray | None]:
+        """One sample: its verdict and the attitude at ``t_ns`` (None when it was skipped or
+        while aligning).  ``accel`` the specific force (3,) m/s² or None."""
         if self.integrator is None:
             raise ValueError(f"{self.algorithm} is an offline algorithm: it cannot stream "
                              "(use run() over the whole recording, or a causal algorithm)")
@@ -226,26 +421,182 @@ class AttitudeStream:
         if invalid:
             self._count(INVALID_COVARIANCE, "angular_velocity_covariance with a non-finite or "
                                             "negative diagonal: treated as unknown")
+        if var is not None:
+            self._var_known = True
+        action = verdict.action
+        if action == v.RESET_TIME_JUMP:
+            self.details.setdefault("time_jump", verdict.detail)
+        a = self._accel(accel)
+        if self._start_t is None:
+            self._start_t = t_ns
+        if action != v.ACCEPT:
+            self._break_windows()  # a rest never spans a gap, a jump or a restart
+        w = np.asarray(omega, dtype=np.float64)
+        bias = self._bias_update(t_ns, w, a)
+        if self.phase != RUNNING:
+            return verdict, self._align_step(t_ns, w, a, var, action, bias)
+        return self._integrate(verdict, t_ns, w - bias, a, var)
+
+    def _accel(self, accel):
+        """The sample's specific force as 3 floats, or None (absent or unusable, counted)."""
+        if accel is None:
+            a = None
+        else:
+            try:
+                x, y, z = (float(c) for c in accel)
+            except (TypeError, ValueError):
+                x = y = z = math.nan
+            if math.isfinite(x) and math.isfinite(y) and math.isfinite(z) and \
+                    max(abs(x), abs(y), abs(z)) <= 1e6:
+                a = (x, y, z)
+            else:
+                self._count(INVALID_ACCEL, f"accelerometer sample {accel!r} is not 3 finite "
+                                           "numbers: not used for rests or aiding")
+                self._break_windows()
+                self._accel_present = None
+                return None
+        if self._accel_present is not None and (a is not None) != self._accel_present:
+            self._break_windows()  # the rest detectors need the accelerometer for all or none
+        self._accel_present = a is not None
+        return a
+
+    def _break_windows(self) -> None:
+        self.bias_estimator.break_window()
+        if self.phase == ALIGNING and self._aligner._seg is not None:
+            self._new_aligner()  # alignment needs one unbroken rest
+        elif self.phase == ALIGNING:
+            self._aligner.detector.reset()
+            self._align_buffer.clear()
+        if self.aiding is not None:
+            self.aiding.last_t_ns = None
+
+    def _bias_update(self, t_ns: int, w: np.ndarray, a) -> np.ndarray:
+        est = self.bias_estimator
+        if est.mode != "auto":
+            return self._fixed_bias
+        q_nb = None
+        if self.latitude_rad is not None:
+            if self.phase == RUNNING:
+                q_nb = self._last_q
+            elif a is not None:  # aligning: level from this sample with the given heading
+                try:
+                    q_nb = level_quaternion(a, math.radians(self.config.initial_heading_deg))[0]
+                except ValueError:
+                    q_nb = None
+        previous = est.bias
+        try:
+            bias = est.update(t_ns, w, a, q_nb)
+        except ValueError:  # a value the rest statistics refuse (e.g. > 1e6): no rest here
+            est.break_window()
+            return est.bias
+        if est.updated:
+            seg = est._seg
+            t_prev = self.integrator.last_t_ns
+            if self._first_rest_pending and self.phase == RUNNING and seg is not None \
+                    and seg[0] - self._start_t <= est.detector._window_ns \
+                    and t_prev is not None and est._pool.k == 0:
+                # (a full window is needed before the first decision, so the first rest sample
+                # is at best the second sample of the stream)
+                # Still since the start: the samples so far were integrated with the previous
+                # bias; the body did not turn, so the attitude error is the bias change times
+                # the elapsed time, a body-frame rotation taken back here.
+                elapsed = (t_prev - self._start_t) * 1e-9
+                q_fix = quat_multiply(self.integrator.quaternion,
+                                      quat_from_rotvec(-(bias - previous) * elapsed))
+                self.integrator.reset(q_fix, t_prev)
+                self._last_q = q_fix
+                self.covariance.first_rest_update(est.standard_error, elapsed)
+            else:
+                self.covariance.zero_rate_update(est.standard_error)
+            self._first_rest_pending = False
+        return bias
+
+    def _align_step(self, t_ns, w, a, var, action, bias):
+        if self.phase == FAILED:
+            return None
+        if a is None:
+            self.alignment_error = ("alignment needs the accelerometer: no usable "
+                                    "linear_acceleration")
+            return None
+        self.alignment_error = None
+        al = self._aligner
+        try:
+            done = al.update(t_ns, w, a)
+        except ValueError:
+            self._new_aligner()
+            return None
+        buf = self._align_buffer
+        buf.append((t_ns, w, a, var))
+        seg = al._seg
+        if seg is None:
+            while len(buf) > 1:
+                buf.popleft()
+        else:  # keep the samples from the last rest sample on: integrated once aligned
+            while buf[0][0] < seg[1]:
+                buf.popleft()
+        if not done:
+            return None
+        try:
+            res = al.result()
+        except ValueError as exc:
+            self.phase = FAILED
+            self.alignment_error = str(exc)
+            return None
+        self.alignment = res
+        self.alignment_error = None
+        self.phase = RUNNING
+        heading_var = (self.config.initial_variance if res.heading_source == "given"
+                       else res.heading_error_expected ** 2)
+        lv = res.level_error_expected ** 2
+        # q_nb = Rz(ψ) Ry(θ) Rx(φ): a roll error δφ is a rotation about Rz Ry(θ) e_x, whose
+        # vertical component −sin θ·δφ turns the heading too when the body is pitched.
+        s_p = math.sin(res.pitch)
+        self.covariance.align([lv, lv, heading_var + s_p * s_p * lv])
+        self.q_initial = res.q_nb
+        self._last_q = res.q_nb
+        self._resume_q = None
+        entries = list(buf)
+        buf.clear()
+        integ = self.integrator
+        integ.reset(res.q_nb, None)
+        if self.aiding is not None:
+            self.aiding.last_t_ns = None
+        t0, w0, a0, var0 = entries[0]
+        verdict0 = v.Verdict(v.START, "", "")
+        _, q = self._integrate(verdict0, t0, w0 - bias, a0, var0, fresh=True)
+        for tk, wk, ak, vk in entries[1:]:
+            _, q = self._integrate(v.Verdict(v.ACCEPT, "", ""), tk, wk - bias, ak, vk)
+        return q
+
+    def _integrate(self, verdict: v.Verdict, t_ns: int, rate: np.ndarray, a, var,
+                   fresh: bool = False):
         integ = self.integrator
         action = verdict.action
         last_t = integ.last_t_ns
+        aid = self.aiding
         try:
             if action == v.ACCEPT:
-                q = integ.update(t_ns, omega)
+                if aid is not None:
+                    rate = aid.update(t_ns, rate, a, self._last_q)
+                q = integ.update(t_ns, rate)
             else:
                 if action == v.RESET_TIME_JUMP:
-                    self.details.setdefault("time_jump", verdict.detail)
                     q0 = self.q_initial
-                    self._angle_var[:] = self.config.initial_variance
+                    self.covariance.reset_attitude()
                     self.intervals.clear()
                 elif action == v.RESTART_AFTER_GAP:
                     self.details.setdefault(v.GAP, verdict.detail)
                     q0 = self._last_q
+                elif fresh:
+                    q0 = self.q_initial
                 else:  # START
                     q0 = self.q_initial if self._resume_q is None else self._resume_q
                     self._resume_q = None
                 integ.reset(q0, None)
-                q = integ.update(t_ns, omega)
+                if aid is not None:
+                    aid.last_t_ns = None
+                    rate = aid.update(t_ns, rate, a, q0)
+                q = integ.update(t_ns, rate)
         except ValueError as exc:  # defensive: the validator should have caught it
             return self._integrator_error(verdict, f"integrator refused a sample: {exc}")
         x, y, z, w = q.tolist()
@@ -254,15 +605,22 @@ class AttitudeStream:
         if action == v.ACCEPT:
             dt = t_ns - last_t
             self.intervals.add(dt)
-            if var is not None:
-                # angle random walk: each interval adds an independent angle error of variance
-                # σ_ω² dt² per axis, so the variance grows linearly in time (σ_ω² dt · T).
-                dt_s = dt * 1e-9
-                self._angle_var += var * (dt_s * dt_s)
-        if var is not None:
-            self._var_known = True
+            dt_s = dt * 1e-9
+            # angle random walk: each interval adds an independent angle error of variance
+            # σ_ω² dt² per axis (σ_ω² per sample), i.e. N² dt with the noise density N.
+            qv = var * (dt_s * dt_s) if var is not None else self._n2 * dt_s * _ONES
+            cov = self.covariance
+            cov.propagate(dt_s, qv)
+            if aid is not None and aid.aided_samples != self._aided_seen:
+                cov.aid_tilt(aid.kp * dt_s, (self.alignment.level_error_expected
+                                             if self.alignment is not None
+                                             else self.config.accel_bias_sigma / 9.81) ** 2)
+        if aid is not None:
+            self._aided_seen = aid.aided_samples
         self._last_q = q
         return verdict, q
+
+    _aided_seen = 0
 
     def _count(self, key: str, detail: str) -> None:
         self.counts_extra[key] += 1
@@ -273,35 +631,55 @@ class AttitudeStream:
         self._resume_q = self._last_q
         self.integrator.reset(self._last_q, None)
         self.validator.last_t_ns = None  # next sample starts a fresh time base
+        if self.aiding is not None:
+            self.aiding.last_t_ns = None
         return v.Verdict(v.REJECT, INTEGRATOR_ERROR, detail), None
 
     # ------------------------------------------------------------------ a whole recording
+    @property
+    def batch_path(self) -> bool:
+        """Whether :meth:`run` can integrate in batch (no sequential filter configured)."""
+        cfg = self.config
+        return cfg.gyro_bias != "auto" and cfg.initial_attitude == "given" and cfg.aiding == "none"
+
     def run(self, t_ns, omega, frame_id: str | list[str] | None = "",
-            angular_velocity_covariance=None) -> StreamResult:
+            angular_velocity_covariance=None, accel=None) -> StreamResult:
         """All samples of a recording, in file order, on a fresh stream: what :meth:`push`
         would give sample by sample (the stream is left in the state after the last one).
 
         ``t_ns`` (N,) int stamps; ``omega`` (N, 3) rad/s; ``frame_id`` one for all or one per
-        sample; ``angular_velocity_covariance`` (N, 9) or None.
+        sample; ``angular_velocity_covariance`` (N, 9) or None; ``accel`` (N, 3) m/s² or None.
+        Raises ValueError when ``initial_attitude="level"`` cannot align on the recording.
         """
         if self.validator.last_t_ns is not None or self.validator.accepted:
             raise ValueError("run() needs a fresh AttitudeStream (it replays a whole recording)")
         t = np.asarray(t_ns)
         w = np.asarray(omega, dtype=np.float64)
-        cls = v.classify(t, w, frame_id, self.config.check_config())
         n = w.shape[0]
-        t = t.astype(np.int64, copy=False)
-        codes = v.ACTION_CODES
-        act = cls.action
-        valid = np.flatnonzero(act != codes[v.REJECT])
+        cov = None
         if angular_velocity_covariance is not None:
             cov = np.asarray(angular_velocity_covariance, dtype=np.float64)
             if cov.shape != (n, 9):
                 raise ValueError(f"angular_velocity_covariance must have shape ({n}, 9), got "
                                  f"{cov.shape}")
+        acc = None
+        if accel is not None:
+            acc = np.asarray(accel, dtype=np.float64)
+            if acc.shape != (n, 3):
+                raise ValueError(f"accel must have shape ({n}, 3), got {acc.shape}")
+        if not self.batch_path:
+            cls = v.classify(t, w, frame_id, self.config.check_config())  # checks the input
+            return self._run_pushing(t.astype(np.int64, copy=False), w, frame_id, cov, acc)
+        cls = v.classify(t, w, frame_id, self.config.check_config())
+        t = t.astype(np.int64, copy=False)
+        codes = v.ACTION_CODES
+        act = cls.action
+        valid = np.flatnonzero(act != codes[v.REJECT])
+        if cov is not None:
             var_all, known_all, invalid_all = gyro_variances_array(cov)
         else:
             var_all = known_all = invalid_all = None
+        w_corr = w - self._fixed_bias
 
         # Each run of accepted samples (from a START, a restart after a gap or a time-jump
         # reset up to the next one) is one batch integration.
@@ -311,49 +689,50 @@ class AttitudeStream:
             seg = valid[p0:p1]
             # START and a time-jump reset begin at the initial attitude; a gap holds the last
             q0 = q_out[p0 - 1] if act[seg[0]] == codes[v.RESTART_AFTER_GAP] else self.q_initial
-            q_seg = integrate_batch(t[seg], w[seg], q0=q0, algorithm=self.algorithm,
+            q_seg = integrate_batch(t[seg], w_corr[seg], q0=q0, algorithm=self.algorithm,
                                     nav=_nav_rows(self.nav, seg, n))
             if not np.isfinite(q_seg).all():
-                return self._run_pushing(t, w, frame_id, angular_velocity_covariance)
+                return self._run_pushing(t, w, frame_id, cov, acc)
             q_out[p0:p1] = q_seg
 
-        # Orientation variance: cumulative σ_ω² dt² over accepted intervals, restarting from the
-        # initial variance at every time-jump reset, exactly as push() accumulates it.
+        # Orientation variance: the covariance recurrence over accepted intervals as cumulative
+        # sums (covariance.propagate_batch), restarting at every time-jump reset, as push() does.
         counts = dict(cls.counts)
+        counts[INVALID_COVARIANCE] = 0
         variance = variance_known = None
+        known_v = np.zeros(valid.size, dtype=bool)
         if var_all is not None:
             counts[INVALID_COVARIANCE] = int(np.count_nonzero(invalid_all[valid]))
             known_v = known_all[valid]
-            if known_v.any():
-                dt = np.zeros(valid.size)
-                acc = act[valid] == codes[v.ACCEPT]
-                tv = t[valid]
-                dt[1:] = (tv[1:] - tv[:-1]) * 1e-9
-                grow = np.where((acc & known_v)[:, None], var_all[valid] * (dt * dt)[:, None],
-                                0.0)
-                variance = np.empty((valid.size, 3))
-                resets = np.flatnonzero(act[valid] == codes[v.RESET_TIME_JUMP])
-                bounds = np.concatenate(([0], resets, [valid.size]))
-                init = float(self.config.initial_variance)
-                for b0, b1 in zip(bounds[:-1], bounds[1:], strict=True):
-                    if b1 > b0:
-                        g = grow[b0:b1].copy()
-                        g[0] += init
-                        variance[b0:b1] = np.cumsum(g, axis=0)
-                # rows before the first known covariance have no estimate (as push: None)
-                variance_known = np.maximum.accumulate(known_v)
-                variance[~variance_known] = 0.0
             if counts[INVALID_COVARIANCE]:
                 k = int(valid[np.flatnonzero(invalid_all[valid])[0]])
                 cls.details.setdefault(INVALID_COVARIANCE, f"angular_velocity_covariance "
                                        f"{cov[k].tolist()} has a non-finite or negative "
                                        "diagonal: treated as unknown")
-        else:
-            counts[INVALID_COVARIANCE] = 0
+        if known_v.any() or self._var_known:
+            acc_rows = act[valid] == codes[v.ACCEPT]
+            tv = t[valid]
+            dt = np.zeros(valid.size)
+            dt[1:] = (tv[1:] - tv[:-1]) * 1e-9
+            dt[~acc_rows] = 0.0
+            qv = self._n2 * dt[:, None] * _ONES
+            if var_all is not None:
+                qv = np.where(known_v[:, None], var_all[valid] * (dt * dt)[:, None], qv)
+            c = self.covariance
+            variance, tb_end, bb_end = propagate_batch(
+                dt, qv, act[valid] == codes[v.RESET_TIME_JUMP], c.initial_tt, c.bb, c.k2)
+            if valid.size:  # the state push() would hold after the last row
+                c.tt, c.tb, c.bb = variance[-1].copy(), tb_end, bb_end
+            # rows before anything gives an estimate have none (as push: None)
+            variance_known = np.maximum.accumulate(known_v) | self._var_known
+            variance[~variance_known] = 0.0
+        counts[INVALID_ACCEL] = 0
         counts[INTEGRATOR_ERROR] = 0
         self._adopt_batch_state(cls, t, w, valid, q_out, counts)
+        if known_v.any():
+            self._var_known = True
         return StreamResult(valid, q_out, variance, variance_known, act, counts,
-                            cls.time_jump_resets, dict(cls.details))
+                            cls.time_jump_resets, dict(cls.details), self.bias_report, None)
 
     def _adopt_batch_state(self, cls, t, w, valid, q_out, counts) -> None:
         """Leave the stream as push() would after the recording (counts, attitude)."""
@@ -371,28 +750,41 @@ class AttitudeStream:
             if self.integrator is not None:
                 self.integrator.reset(self._last_q, int(t[valid[-1]]))
 
-    def _run_pushing(self, t, w, frame_id, covariance) -> StreamResult:
-        """Per-sample path over the whole recording (the batch met a non-finite attitude)."""
+    def _run_pushing(self, t, w, frame_id, covariance, accel) -> StreamResult:
+        """Per-sample path over the whole recording (sequential filters, or the batch met a
+        non-finite attitude)."""
         n = w.shape[0]
         frames = [frame_id] * n if frame_id is None or isinstance(frame_id, str) else frame_id
         index, qs, variances = [], [], []
         action = np.zeros(n, np.int8)
+        codes = v.ACTION_CODES
+        push = self.push
         for k in range(n):
             cov_k = None if covariance is None else covariance[k]
-            verdict, q = self.push(int(t[k]), w[k], frames[k] or "", cov_k)
+            acc_k = None if accel is None else accel[k]
+            verdict, q = push(int(t[k]), w[k], frames[k] or "", cov_k, acc_k)
+            action[k] = codes[verdict.action]
             if q is None:
                 continue
-            action[k] = v.ACTION_CODES[verdict.action]
             index.append(k)
             qs.append(q)
-            variances.append(self._angle_var.copy() if self._var_known else None)
+            variances.append(self.covariance.tt.copy() if self._var_known else None)
+        if self.phase != RUNNING:
+            raise ValueError(self.alignment_error or (
+                f"cannot align: no rest of at least {self.config.min_rest_s:g} s followed by "
+                "motion in the recording (initial_attitude 'level' needs the IMU still at the "
+                "start)"))
         q_arr = np.array(qs).reshape(-1, 4)
         var_rows = known = None
         if any(x is not None for x in variances):
             known = np.array([x is not None for x in variances])
             var_rows = np.array([x if x is not None else np.zeros(3) for x in variances])
         return StreamResult(np.array(index, dtype=np.int64), q_arr, var_rows, known, action,
-                            self.counts, self.time_jump_resets, dict(self.details))
+                            self.counts, self.time_jump_resets, dict(self.details),
+                            self.bias_report, self.alignment)
+
+
+_ONES = np.ones(3)
 
 
 def _unit_quat(q) -> np.ndarray:

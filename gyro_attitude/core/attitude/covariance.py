@@ -1,0 +1,123 @@
+"""Honest orientation covariance: per-axis attitude/bias error propagation (noise, bias, alignment, aiding).
+
+Per axis ``i`` the error state is ``x = [δθ_i, δb_i]`` (attitude error [rad], error of the gyro
+bias subtracted [rad/s]) with covariance ``P = [[tt, tb], [tb, bb]]``.  Over an accepted interval
+``dt`` the attitude error integrates the bias error, ``δθ' = δθ − δb dt + n``, and the bias error
+walks, ``δb' = δb + w``:
+
+* ``tt += q − 2 dt·tb + dt²·bb``; ``tb −= dt·bb``; ``bb += K² dt``;
+* ``q`` is the angle-random-walk increment: ``σ_ω² dt²`` with ``σ_ω²`` the per-sample gyro variance
+  of the message's ``angular_velocity_covariance``, else ``N² dt`` from the stated noise density
+  ``N`` [rad/s/√Hz]; ``K`` [rad/s/√s] is the bias random walk (bias-uncertainty growth);
+* a zero-rate update at a rest (gyro_bias ``auto``) re-estimates the bias from averaged samples
+  independent of the past attitude error: ``bb = SE²`` (its standard error), ``tb = 0``;
+  when the stream was still since its start and the attitude was corrected back to it with the
+  first estimate (stream.py), the attitude error is ``−δb·Δt`` plus the noise so far:
+  ``tt = tt₀ + Σq + bb Δt²``, ``tb = −bb Δt`` (:meth:`AttitudeCovariance.first_rest_update`);
+* alignment sets ``tt`` to the levelling variance on the tilt axes and the heading variance on
+  the third; a time-jump reset goes back to that initial ``tt`` with ``tb = 0`` (``bb`` stays:
+  the bias knowledge survives a jump of the clock);
+* gravity aiding relaxes the tilt axes (0, 1) toward the levelling floor ``σ_level²`` (the
+  accelerometer-bias term, which averaging does not beat) with the loop gain ``k_p``:
+  ``tt ← a² tt + (1 − a²) σ_level²``, ``tb ← a tb``, ``a = 1 − k_p dt``; the heading axis stays
+  gyro-only and its variance keeps growing.
+
+The axes are the output's (nav) axes fed with the body-axis figures of the same index: exact for a
+sensor whose three axes have equal noise and bias uncertainty (then ``C_nb δb`` has the same
+statistics as ``δb``), a per-axis approximation otherwise.  Correlations between axes are not
+carried (a 3×3 diagonal covariance is published).
+
+:func:`propagate_batch` is the same recurrence over arrays for a stretch without zero-rate or
+aiding updates (cumulative sums in the same order as the per-sample adds: identical numbers).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["AttitudeCovariance", "propagate_batch"]
+
+
+class AttitudeCovariance:
+    """Per-axis 2×2 attitude/bias error covariance (see the module docstring)."""
+
+    def __init__(self, initial_tt, bias_sigma: float = 0.0, bias_rw: float = 0.0):
+        self.initial_tt = np.broadcast_to(np.asarray(initial_tt, dtype=np.float64), (3,)).copy()
+        self.tt = self.initial_tt.copy()
+        self.tb = np.zeros(3)
+        self.bb = np.full(3, float(bias_sigma) ** 2)
+        self.k2 = float(bias_rw) ** 2
+        self.noise = np.zeros(3)  # Σ q since the attitude was last set
+
+    def first_rest_update(self, standard_error: np.ndarray, elapsed_s: float) -> None:
+        """The first bias estimate, applied back to the start ``elapsed_s`` ago (still since)."""
+        self.bb = np.asarray(standard_error, dtype=np.float64) ** 2
+        self.tt = self.initial_tt + self.noise + (elapsed_s * elapsed_s) * self.bb
+        self.tb = -elapsed_s * self.bb
+
+    def propagate(self, dt_s: float, q: np.ndarray) -> None:
+        """One accepted interval of ``dt_s`` seconds with angle-random-walk increment ``q`` (3,)."""
+        tb, bb = self.tb, self.bb
+        self.tt = self.tt + ((q - (2.0 * dt_s) * tb) + (dt_s * dt_s) * bb)
+        self.noise = self.noise + q
+        self.tb = tb + -(dt_s * bb)
+        self.bb = bb + self.k2 * dt_s
+
+    def zero_rate_update(self, standard_error: np.ndarray) -> None:
+        """A new bias estimate from a rest with per-axis standard error (3,) rad/s."""
+        self.bb = np.asarray(standard_error, dtype=np.float64) ** 2
+        self.tb = np.zeros(3)
+
+    def align(self, tt) -> None:
+        """The attitude became known with per-axis variance ``tt`` (also the reset value)."""
+        self.initial_tt = np.broadcast_to(np.asarray(tt, dtype=np.float64), (3,)).copy()
+        self.tt = self.initial_tt.copy()
+        self.tb = np.zeros(3)
+        self.noise = np.zeros(3)
+
+    def reset_attitude(self) -> None:
+        """Back to the initial attitude (time-jump reset)."""
+        self.tt = self.initial_tt.copy()
+        self.tb = np.zeros(3)
+        self.noise = np.zeros(3)
+
+    def aid_tilt(self, kp_dt: float, floor_var: float) -> None:
+        """Gravity aiding over one interval (loop gain × dt): tilt axes 0 and 1 relax to the floor."""
+        a = 1.0 - min(kp_dt, 1.0)
+        for i in (0, 1):
+            self.tt[i] = a * a * self.tt[i] + (1.0 - a * a) * floor_var
+            self.tb[i] = a * self.tb[i]
+
+
+def propagate_batch(dt_s: np.ndarray, q: np.ndarray, reset: np.ndarray, tt0: np.ndarray,
+                    bb0: np.ndarray, k2: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``tt`` (M, 3) after each row of a stretch without zero-rate or aiding updates, and
+    ``tb``, ``bb`` (3,) after the last row.
+
+    ``dt_s`` (M,) interval ending at each row (0 where nothing is integrated: the first row, a
+    restart after a gap, a reset); ``q`` (M, 3) angle-random-walk increments (0 likewise);
+    ``reset`` (M,) bool rows where the attitude is reset to ``tt0`` (row 0 always starts there);
+    ``bb0`` (3,) bias variance at row 0.  Same operations in the same order as
+    :meth:`AttitudeCovariance.propagate`, as sequential cumulative sums.
+    """
+    m = dt_s.shape[0]
+    d = dt_s[:, None]
+    g = np.empty((m, 3))
+    g[0] = bb0
+    g[1:] = k2 * d[1:]
+    bb = np.cumsum(g, axis=0)
+    out = np.empty((m, 3))
+    tb = np.zeros((1, 3))
+    starts = np.flatnonzero(reset)
+    bounds = np.concatenate(([0], starts[starts > 0], [m]))
+    for b0, b1 in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
+        gtb = np.empty((b1 - b0, 3))
+        gtb[0] = 0.0
+        gtb[1:] = -(d[b0 + 1:b1] * bb[b0:b1 - 1])
+        tb = np.cumsum(gtb, axis=0)
+        gtt = np.empty((b1 - b0, 3))
+        gtt[0] = tt0
+        dd = d[b0 + 1:b1]
+        gtt[1:] = (q[b0 + 1:b1] - (2.0 * dd) * tb[:-1]) + (dd * dd) * bb[b0:b1 - 1]
+        out[b0:b1] = np.cumsum(gtt, axis=0)
+    return out, tb[-1].copy(), bb[-1].copy()

@@ -1,0 +1,245 @@
+"""Real-IMU steps of the attitude stream: run() equals push() in every mode (hostile samples in a
+rest included), the bias is removed at rests, level alignment and gyrocompass refusal, the
+first-rest correction, and the truth at an Imu stamp (scipy Slerp as the oracle)."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation, Slerp
+from sim_static import OMEGA_IE, G, rest_motion_rest, static_imu
+
+from gyro_attitude.core.attitude import NavFrame
+from gyro_attitude.core.attitude.stream import (
+    ALIGNING,
+    INVALID_ACCEL,
+    RUNNING,
+    AttitudeStream,
+    StreamConfig,
+)
+from gyro_attitude.core.attitude.truth import initial_attitude_from_truth, truth_at
+
+MODES = {
+    "auto": StreamConfig(),
+    "auto_noise": StreamConfig(gyro_noise_density=1e-4, gyro_bias_sigma_rad_s=0.01),
+    "parameter": StreamConfig(gyro_bias="parameter", gyro_bias_rad_s=(0.02, -0.01, 0.05),
+                              gyro_bias_sigma_rad_s=1e-3, gyro_bias_rw=1e-4,
+                              gyro_noise_density=1e-4),
+    "none_rw": StreamConfig(gyro_bias="none", gyro_bias_sigma_rad_s=0.05, gyro_bias_rw=1e-3),
+    "level": StreamConfig(initial_attitude="level", initial_heading_deg=30.0),
+    "gravity": StreamConfig(aiding="gravity", gyro_noise_density=1e-4),
+    "level_gravity": StreamConfig(initial_attitude="level", aiding="gravity"),
+}
+
+
+def hostile_rest_motion_rest():
+    """rest–motion–rest–motion–rest at 200 Hz with, in the middle of the first rest (2.0–2.2 s)
+    and the second one: NaN and 1e300 rates, a NaN and a 1e300 accelerometer sample, a duplicate
+    and an out-of-order stamp, a zero stamp, a 0.3 s gap and a 2 s backward jump."""
+    t, g, a, _ = rest_motion_rest(rests=(4.0, 3.0, 3.0))
+    g, a = g.copy(), a.copy()
+    g[400] = [np.nan, 0, 0]
+    g[405] = [1e300, 0, 0]
+    a[410] = [np.nan, 0, 0]
+    a[415] = [0, 1e300, 0]
+    t[420] = t[419]
+    t[425] = t[424] - 2_000_000
+    t[430] = 0
+    second_rest = 800 + 300  # 4 s rest + 1... inside the second rest (after the first motion)
+    a[second_rest] = [np.inf, 0, 0]
+    t[second_rest + 50:] += 300_000_000  # gap
+    t[-200:] -= 2_500_000_000  # backward jump
+    cov = np.tile(np.diag([4e-6, 4e-6, 4e-6]).reshape(9), (t.size, 1))
+    return t, g, a, cov
+
+
+def push_all(stream, t, g, a, cov):
+    out = []
+    for k in range(t.size):
+        _, q = stream.push(int(t[k]), g[k], "imu", cov[k], a[k])
+        if q is not None:
+            out.append((k, q, stream.variance))
+    return out
+
+
+@pytest.mark.parametrize("mode", sorted(MODES))
+def test_run_equals_push_in_every_mode(mode):
+    t, g, a, cov = hostile_rest_motion_rest()
+    cfg = MODES[mode]
+    pushed = push_all(AttitudeStream("rotvec_cubic", config=cfg), t, g, a, cov)
+    s = AttitudeStream("rotvec_cubic", config=cfg)
+    res = s.run(t, g, "imu", cov, a)
+    assert res.index.tolist() == [k for k, _, _ in pushed]
+    assert np.max(np.abs(res.q - np.array([q for _, q, _ in pushed]))) <= 1e-12
+    np.testing.assert_allclose(res.variance, np.array([v for _, _, v in pushed]), rtol=1e-12,
+                               atol=0)
+    assert np.all(np.isfinite(res.q)) and np.all(np.isfinite(res.variance))
+    assert res.counts[INVALID_ACCEL] == (0 if s.batch_path else 3)
+    if cfg.initial_attitude == "level":
+        assert res.alignment is not None and res.index[0] > 600  # no attitude while aligning
+
+
+def test_fast_path_taken_only_without_sequential_filters():
+    assert AttitudeStream(config=MODES["parameter"]).batch_path
+    assert AttitudeStream(config=MODES["none_rw"]).batch_path
+    for mode in ("auto", "level", "gravity"):
+        assert not AttitudeStream(config=MODES[mode]).batch_path
+
+
+def test_auto_bias_removed_and_first_rest_applied_back():
+    """Closed form: the motion's rate sin(2πs/T)·axis integrates to zero turn, so the truth at
+    the end is the start attitude; the residual is the bias-estimate error × time + noise."""
+    bias = (0.02, -0.01, 0.05)
+    t, g, a, _ = rest_motion_rest(bias=bias, rests=(3.0, 2.0, 3.0))
+    cov = np.tile(np.diag([0.002 ** 2] * 3).reshape(9), (t.size, 1))
+    s = AttitudeStream("rotvec_cubic", config=StreamConfig())
+    res = s.run(t, g, "imu", cov, a)
+    err = Rotation.from_quat(res.q[-1]).magnitude()
+    raw = AttitudeStream("rotvec_cubic", config=StreamConfig(gyro_bias="none")).run(t, g, "imu")
+    raw_err = Rotation.from_quat(raw.q[-1]).magnitude()
+    assert raw_err > 0.4  # |bias| · 11.5 s
+    # 3σ of the stream's own per-axis variance (≈ 1.5e-4 rad each); measured ≈ 1e-4
+    assert err <= 3 * math.sqrt(np.sum(res.variance[-1])), (err, res.variance[-1])
+    rep = res.bias
+    assert rep.rests_used == 3
+    np.testing.assert_allclose(rep.bias, bias, rtol=0, atol=4 * np.max(rep.standard_error))
+    assert not rep.earth_rate_removed and "absorbed" in rep.note
+
+
+def test_first_rest_correction_goes_red_without_it(monkeypatch):
+    """At 1.5 s into the initial rest the attitude had integrated the whole bias (0.055 rad/s
+    · 1.5 s = 0.08 rad); the correction takes it back so that the rest stays at the start."""
+    t, g, a = static_imu(1200, 200.0, (0, 0, 0, 1), 0.0, gyro_bias=(0.03, -0.02, 0.04),
+                         gyro_noise=0.001, accel_noise=0.02)
+    res = AttitudeStream(config=StreamConfig()).run(t, g, "imu", None, a)
+    assert Rotation.from_quat(res.q[-1]).magnitude() < 2e-3
+
+
+def test_earth_rate_taken_out_in_enu():
+    """Static at 50°N in ENU, no bias: the rest average is the Earth rate, which the estimator
+    takes out (the bias ≈ 0) and the q_nb stays put."""
+    lat = math.radians(50.0)
+    q_nb = Rotation.from_euler("z", 20, degrees=True).as_quat()
+    t, g, a = static_imu(1000, 100.0, q_nb, lat, gyro_noise=2e-5, accel_noise=0.01, seed=3)
+    s = AttitudeStream("rotvec_cubic", q0=q_nb, nav=NavFrame(latitude_rad=lat))
+    res = s.run(t, g, "imu", None, a)
+    assert res.bias.earth_rate_removed
+    assert np.max(np.abs(res.bias.bias)) < 5 * np.max(res.bias.standard_error) + 1e-7
+    assert np.max(np.abs(res.bias.bias)) < 0.05 * OMEGA_IE * 10
+    ang = (Rotation.from_quat(res.q[-1]) * Rotation.from_quat(q_nb).inv()).magnitude()
+    # noise alone: ≈ 1e-5 rad; the Earth rate absorbed and removed again by the nav frame
+    # would turn it by ω_ie · 8.5 s ≈ 6e-4 rad
+    assert ang < 1e-4
+
+
+def test_level_alignment_from_specific_force_and_given_heading():
+    q_true = Rotation.from_euler("ZYX", [60.0, 3.0, -4.0], degrees=True)  # yaw 60° from east
+    t, g, a = static_imu(400, 100.0, q_true.as_quat(), 0.0, gyro_noise=1e-3,
+                         accel_noise=0.02, seed=2)
+    # then a rotation about z at 0.5 rad/s for 1 s so that the rest ends
+    t2 = t[-1] + np.arange(1, 101) * 10_000_000
+    g2 = np.tile([0.0, 0.0, 0.5], (100, 1)) + 1e-3 * np.random.default_rng(5).normal(size=(100, 3))
+    a2 = np.tile(a[-1], (100, 1))
+    cfg = StreamConfig(initial_attitude="level", initial_heading_deg=30.0)  # 90° − 60°
+    s = AttitudeStream(config=cfg)
+    phases = []
+    for k in range(500):
+        tk, gk, ak = (t[k], g[k], a[k]) if k < 400 else (t2[k - 400], g2[k - 400], a2[k - 400])
+        _, q = s.push(int(tk), gk, "imu", None, ak)
+        phases.append((s.phase, q is not None))
+    assert all(p == ALIGNING and not got for p, got in phases[:400])
+    assert phases[-1] == (RUNNING, True)
+    res = s.alignment
+    err = (Rotation.from_quat(res.q_nb) * q_true.inv()).magnitude()
+    assert err < 3 * res.level_error_expected  # noise only (no accel bias): well below 1σ
+    assert math.isclose(math.degrees(res.heading), 30.0, abs_tol=1e-9)
+
+
+def test_level_on_a_recording_that_never_rests_is_a_clear_error():
+    rng = np.random.default_rng(0)
+    t = np.arange(2000, dtype=np.int64) * 5_000_000
+    g = np.cumsum(rng.normal(scale=0.05, size=(2000, 3)), axis=0)
+    a = np.tile([0.0, 0.0, G], (2000, 1)) + rng.normal(scale=1.0, size=(2000, 3))
+    with pytest.raises(ValueError, match="cannot align"):
+        AttitudeStream(config=StreamConfig(initial_attitude="level")).run(t, g, "imu", None, a)
+    with pytest.raises(ValueError, match="accelerometer"):
+        AttitudeStream(config=StreamConfig(initial_attitude="level")).run(t, g, "imu")
+
+
+def test_gyrocompass_refused_for_a_mems_bias_and_needs_a_stated_bias():
+    with pytest.raises(ValueError, match="gyrocompass needs gyro_bias 'parameter'"):
+        StreamConfig(initial_attitude="level", heading_source="gyrocompass", latitude_rad=0.8)
+    mems = dict(initial_attitude="level", heading_source="gyrocompass", gyro_bias="parameter",
+                gyro_bias_sigma_rad_s=math.radians(0.01))  # 36 °/h
+    with pytest.raises(ValueError, match="gyrocompass refused"):
+        StreamConfig(latitude_rad=0.8, **mems)
+    with pytest.raises(ValueError, match="gyrocompass refused"):
+        AttitudeStream(nav=NavFrame(latitude_rad=0.8), config=StreamConfig(**mems))
+    # navigation grade (0.01 °/h at 45°: 0.05°) is accepted
+    StreamConfig(latitude_rad=0.8, **{**mems, "gyro_bias_sigma_rad_s": math.radians(0.01 / 3600)})
+
+
+@pytest.mark.parametrize(("bad", "name"), [
+    ({"gyro_bias": "automatic"}, "gyro_bias"), ({"gyro_bias_rad_s": (0.0, math.nan, 0.0)},
+                                                "gyro_bias_rad_s"),
+    ({"gyro_bias_rad_s": "0,0,0"}, "gyro_bias_rad_s"), ({"initial_attitude": "truth"},
+                                                         "initial_attitude"),
+    ({"aiding": "magnetometer"}, "aiding"), ({"gyro_noise_density": -1.0}, "gyro_noise_density"),
+    ({"gyro_noise_density": math.inf}, "gyro_noise_density"), ({"min_rest_s": 0.0}, "min_rest_s"),
+    ({"rest_gyro_std_max": math.nan}, "gyro_std_max"), ({"latitude_rad": 2.0}, "latitude_rad"),
+    ({"initial_heading_deg": 1e300}, "initial_heading_deg"),
+    ({"gyro_bias_sigma_rad_s": True}, "gyro_bias_sigma_rad_s"),
+])
+def test_bad_settings_name_the_field(bad, name):
+    with pytest.raises(ValueError, match=name):
+        StreamConfig(**bad)
+
+
+def test_auto_does_nothing_on_noise_free_data():
+    """An ideal gyro in a constant slow turn (0.05 rad/s, below the largest plausible bias) or at
+    rest seeing the Earth rate has no bias to find: the default auto mode leaves it alone."""
+    n = 3000
+    t = (1 + np.arange(n, dtype=np.int64)) * 10_000_000
+    g = np.tile([0.0, 0.0, 0.05], (n, 1))
+    res = AttitudeStream("rotvec_cubic").run(t, g, "imu")
+    assert res.bias.rests_used == 0
+    angle = Rotation.from_quat(res.q[-1]).as_rotvec()[2]
+    assert math.isclose(angle, 0.05 * (n - 1) * 0.01, rel_tol=1e-12)
+
+
+# ---------------------------------------------------------------------- truth at an Imu stamp
+def truth_series():
+    tt = 1_000_000_000 + np.arange(50, dtype=np.int64) * 10_000_000
+    q = Rotation.from_rotvec(np.outer(np.linspace(0, 1, 50), [0.3, -0.2, 0.9])
+                             + [0.1, 0.0, 0.0]).as_quat()
+    return tt, q
+
+
+def test_truth_at_matches_scipy_slerp_and_refuses_extrapolation():
+    tt, q = truth_series()
+    oracle = Slerp(tt * 1e-9, Rotation.from_quat(q))
+    for t_ns in (tt[0], tt[3] + 2_500_000, tt[-2] + 9_999_999, tt[-1]):
+        got = Rotation.from_quat(truth_at(tt, q, int(t_ns)))
+        assert (got * oracle([t_ns * 1e-9]).inv()).magnitude()[0] < 1e-9
+    with pytest.raises(ValueError, match="no extrapolation"):
+        truth_at(tt, q, int(tt[-1]) + 1)
+    with pytest.raises(ValueError, match="no extrapolation"):
+        truth_at(tt, q, int(tt[0]) - 1)
+    gap = np.delete(np.arange(50), np.arange(10, 20))
+    with pytest.raises(ValueError, match="truth gap"):
+        truth_at(tt[gap], q[gap], int(tt[15]))
+
+
+def test_initial_attitude_from_truth_skips_imu_before_the_truth():
+    tt, q = truth_series()
+    imu = 900_000_000 + np.arange(300, dtype=np.int64) * 3_500_000  # starts 0.1 s earlier
+    q0, first, skipped = initial_attitude_from_truth(imu, tt, q)
+    assert first == skipped == int(np.argmax(imu >= tt[0]))
+    oracle = Slerp(tt * 1e-9, Rotation.from_quat(q))([imu[first] * 1e-9])
+    assert (Rotation.from_quat(q0) * oracle.inv()).magnitude()[0] < 1e-9
+    q0, first, skipped = initial_attitude_from_truth(tt + 5, tt, q)
+    assert (first, skipped) == (0, 0)
+    with pytest.raises(ValueError, match="no Imu stamp"):
+        initial_attitude_from_truth(imu[:5], tt, q)
+    with pytest.raises(ValueError, match="not finite"):
+        initial_attitude_from_truth(imu, tt, np.where(np.arange(50)[:, None] == 3, np.nan, q))
