@@ -47,19 +47,26 @@ def _scene_yaml(result, source: str) -> str:
     return head + yaml.safe_dump(scene, sort_keys=False, allow_unicode=True)
 
 
+def _write_text(path: str, text: str, force: bool) -> None:
+    from gyro_attitude.io.safe_output import SafeOutput
+
+    with SafeOutput(path, force=force) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
 def run(args: argparse.Namespace) -> int:
     from gyro_attitude.core.units import format_si
+    from gyro_attitude.io.safe_output import SafeOutput, check_output_path
     from gyro_attitude.offline.allan import AXES, analyse_mcap, plot
 
-    outs = [p for p in (args.json, args.plot, args.scene_out) if p]
-    for p in outs:
-        if Path(p).resolve() == Path(args.input).resolve():
-            print(f"allan: error: output {p} is the input", file=sys.stderr)
-            return 1
-        if Path(p).exists() and not args.force:
-            print(f"allan: error: output {p} exists (use --force to overwrite)", file=sys.stderr)
-            return 1
+    outs = [(p, what) for p, what in ((args.json, "JSON"), (args.plot, "plot"),
+                                      (args.scene_out, "scene")) if p]
     try:
+        # Before any work: never the input (also through a symlink), never an existing
+        # file without --force, never one output twice.
+        for i, (p, what) in enumerate(outs):
+            check_output_path(p, inputs=[args.input, *(q for q, _ in outs[:i])],
+                              force=args.force, what=f"{what} output")
         result = analyse_mcap(args.input, args.imu_topic)
     except (ValueError, OSError) as exc:
         print(f"allan: error: {exc}", file=sys.stderr)
@@ -81,16 +88,17 @@ def run(args: argparse.Namespace) -> int:
         print(f"[allan] note: {note}")
     try:
         if args.json:
-            Path(args.json).write_text(json.dumps(result.to_json(), indent=1), encoding="utf-8")
+            _write_text(args.json, json.dumps(result.to_json(), indent=1), args.force)
             print(f"[allan] JSON -> {args.json}")
         if args.scene_out:
-            Path(args.scene_out).write_text(_scene_yaml(result, Path(args.input).name),
-                                            encoding="utf-8")
+            _write_text(args.scene_out, _scene_yaml(result, Path(args.input).name), args.force)
             print(f"[allan] scene -> {args.scene_out}")
         if args.plot:
-            plot(result, args.plot, title=f"{Path(args.input).name} {result.topic}")
+            with SafeOutput(args.plot, force=args.force) as tmp:
+                # matplotlib picks the format from the name: keep the requested suffix
+                plot(result, tmp, title=f"{Path(args.input).name} {result.topic}")
             print(f"[allan] plot -> {args.plot}")
-    except OSError as exc:
+    except (ValueError, OSError) as exc:
         print(f"allan: error: cannot write output: {exc}", file=sys.stderr)
         return 1
     return 0

@@ -32,6 +32,9 @@ def run(args: argparse.Namespace) -> int:
     except (ValueError, OSError) as exc:
         print(f"simulate: error: {exc}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        print("simulate: interrupted; no output written", file=sys.stderr)
+        return 130
     topics = ", ".join(f"{t} {n}" for t, n in r.messages.items())
     print(f"[simulate] scene '{r.scene}' at {r.rate_hz:g} Hz, seed {r.seed}: {r.samples} samples "
           f"in {r.wall_s:.2f} s ({r.samples_per_s:,.0f} samples/s) -> {r.path}")

@@ -1,8 +1,10 @@
-"""Array-wide CDR codec for ``sensor_msgs/msg/Imu`` and ``geometry_msgs/msg/QuaternionStamped``.
+"""Array-wide CDR layouts and batch builders: Imu, QuaternionStamped, Odometry, JointState.
 
-Both messages have a fixed serialized size once the header's ``frame_id`` is fixed, so a
-batch of serialized messages is a numpy structured array: one record per message, the
-fields at fixed byte offsets.  Layout (XCDR1, little endian, as rclpy/Fast DDS write it):
+Each of these messages has a fixed serialized size once its strings (frame ids, joint
+names) and the number of joints are fixed, so a batch of serialized messages is a numpy
+structured array: one record per message, the fields at fixed byte offsets
+(:class:`CdrLayout` computes them).  Layout of Imu and QuaternionStamped (XCDR1, little
+endian, as rclpy/Fast DDS write it):
 
 ======  =====================================================================
 offset  field
@@ -15,11 +17,13 @@ offset  field
 
 Imu doubles: orientation (x, y, z, w), orientation_covariance[9], angular_velocity[3],
 angular_velocity_covariance[9], linear_acceleration[3], linear_acceleration_covariance[9].
-QuaternionStamped: quaternion (x, y, z, w).
+QuaternionStamped: quaternion (x, y, z, w).  Odometry: child_frame_id, pose (position,
+orientation, covariance[36]), twist (linear, angular, covariance[36]).  JointState:
+name[], position[], velocity[], effort[] (sequences: uint32 count, then the elements).
 
 :class:`MessageBatch` holds N messages of one topic as columns (what the MCAP writer
-encodes chunk by chunk); :func:`imu_batch` and :func:`quaternion_stamped_batch` build and
-validate them.
+encodes chunk by chunk); :func:`imu_batch`, :func:`quaternion_stamped_batch`,
+:func:`odometry_batch` and :func:`joint_state_batch` build and validate them.
 
 Written by hand because no library decodes CDR array-wide: per-message decoders
 (rclpy, mcap-ros2-support) run at tens of thousands of messages per second in Python.
@@ -35,6 +39,9 @@ import numpy as np
 __all__ = [
     "IMU_TYPE",
     "QUATERNION_STAMPED_TYPE",
+    "ODOMETRY_TYPE",
+    "JOINT_STATE_TYPE",
+    "CdrLayout",
     "CDR_LE_HEADER",
     "MESSAGE_RECORD_PREFIX",
     "message_record_dtype",
@@ -44,10 +51,14 @@ __all__ = [
     "MessageBatch",
     "imu_batch",
     "quaternion_stamped_batch",
+    "odometry_batch",
+    "joint_state_batch",
 ]
 
 IMU_TYPE = "sensor_msgs/msg/Imu"
 QUATERNION_STAMPED_TYPE = "geometry_msgs/msg/QuaternionStamped"
+ODOMETRY_TYPE = "nav_msgs/msg/Odometry"
+JOINT_STATE_TYPE = "sensor_msgs/msg/JointState"
 CDR_LE_HEADER = b"\x00\x01\x00\x00"
 # The 4 encapsulation bytes read as one little-endian uint32.
 CDR_LE_HEADER_U32 = int.from_bytes(CDR_LE_HEADER, "little")
@@ -78,44 +89,100 @@ def _frame_bytes(frame_id: str) -> bytes:
     return b + b"\x00"
 
 
+class CdrLayout:
+    """Field offsets of one serialized message (encapsulation header included), built
+    field by field with XCDR1 alignment counted from offset 4 (after the header)."""
+
+    def __init__(self):
+        self.fields: list[tuple[str, object, int]] = [("encapsulation", "<u4", 0)]
+        self.off = 4
+
+    def _align(self, n: int) -> None:
+        rel = self.off - 4
+        self.off = 4 + (rel + n - 1) // n * n
+
+    def u32(self, name: str) -> None:
+        self._align(4)
+        self.fields.append((name, "<u4", self.off))
+        self.off += 4
+
+    def i32(self, name: str) -> None:
+        self._align(4)
+        self.fields.append((name, "<i4", self.off))
+        self.off += 4
+
+    def string(self, name: str, text: str) -> bytes:
+        """A CDR string (uint32 length including the NUL, the bytes); returns the bytes."""
+        if not isinstance(text, str):
+            raise ValueError(f"{name} must be a str, got {type(text).__name__}")
+        b = text.encode("utf-8")
+        if b"\x00" in b:
+            raise ValueError(f"{name} {text!r} contains a NUL byte")
+        b += b"\x00"
+        self.u32(f"{name}_len")
+        self.fields.append((name, f"S{len(b)}", self.off))
+        self.off += len(b)
+        return b
+
+    def doubles(self, name: str, count: int) -> None:
+        self._align(8)
+        self.fields.append((name, ("<f8", (count,)), self.off))
+        self.off += 8 * count
+
+    def header(self, frame_id: str) -> bytes:
+        """std_msgs/Header: stamp sec, nanosec, frame_id; returns the frame_id bytes."""
+        self.i32("sec")
+        self.u32("nanosec")
+        return self.string("frame_id", frame_id)
+
+    def size(self) -> int:
+        """Serialized size: Fast DDS pads the payload to a multiple of 8 after the header
+        (rclpy's serialize_message returns those bytes too)."""
+        self._align(8)
+        return self.off
+
+
 def _fields(type_name: str, frame_id: str, base: int) -> tuple[list, int]:
+    """Fields of Imu or QuaternionStamped at ``base`` and the message size."""
     if type_name not in BODY_FIELDS:
         raise ValueError(f"no array codec for {type_name!r}; have {sorted(BODY_FIELDS)}")
-    fb = _frame_bytes(frame_id)
-    n = len(fb)
-    fields = [
-        ("encapsulation", "<u4", base + 0),
-        ("sec", "<i4", base + 4),
-        ("nanosec", "<u4", base + 8),
-        ("frame_id_len", "<u4", base + 12),
-        ("frame_id", f"S{n}", base + 16),
-    ]
-    off = 4 + ((12 + n + 7) // 8) * 8  # first double, 8-aligned relative to offset 4
+    _frame_bytes(frame_id)
+    lay = CdrLayout()
+    lay.header(frame_id)
     for name, count in BODY_FIELDS[type_name]:
-        fields.append((name, ("<f8", (count,)), base + off))
-        off += 8 * count
-    return fields, off
+        lay.doubles(name, count)
+    size = lay.size()
+    return [(n, f, base + o) for n, f, o in lay.fields], size
+
+
+_RECORD_PREFIX_FIELDS = [
+    ("opcode", "u1", 0),
+    ("record_length", "<u8", 1),
+    ("channel_id", "<u2", 9),
+    ("sequence", "<u4", 11),
+    ("log_time", "<u8", 15),
+    ("publish_time", "<u8", 23),
+]
+
+
+def _record_dtype(payload_fields: list, payload_size: int, itemsize: int | None) -> np.dtype:
+    """MCAP Message record dtype around a payload whose fields start at offset 0."""
+    fields = [(n, f, MESSAGE_RECORD_PREFIX + o) for n, f, o in payload_fields]
+    size = MESSAGE_RECORD_PREFIX + payload_size
+    if itemsize is not None and itemsize < size:
+        raise ValueError(f"itemsize {itemsize} is smaller than the record ({size} bytes)")
+    return _make_dtype(_RECORD_PREFIX_FIELDS + fields, size if itemsize is None else itemsize)
 
 
 def message_record_dtype(type_name: str, frame_id: str, itemsize: int | None = None) -> np.dtype:
-    """Structured dtype of one MCAP Message record carrying this message.
+    """Structured dtype of one MCAP Message record carrying this message (Imu or
+    QuaternionStamped).
 
     ``itemsize`` > record size gives a strided view over records interleaved with others
     (the extra bytes belong to the other records).
     """
-    fields, size = _fields(type_name, frame_id, MESSAGE_RECORD_PREFIX)
-    prefix = [
-        ("opcode", "u1", 0),
-        ("record_length", "<u8", 1),
-        ("channel_id", "<u2", 9),
-        ("sequence", "<u4", 11),
-        ("log_time", "<u8", 15),
-        ("publish_time", "<u8", 23),
-    ]
-    size += MESSAGE_RECORD_PREFIX
-    if itemsize is not None and itemsize < size:
-        raise ValueError(f"itemsize {itemsize} is smaller than the record ({size} bytes)")
-    return _make_dtype(prefix + fields, size if itemsize is None else itemsize)
+    fields, size = _fields(type_name, frame_id, 0)
+    return _record_dtype(fields, size, itemsize)
 
 
 def _make_dtype(fields: list, itemsize: int) -> np.dtype:
@@ -171,8 +238,13 @@ def _rows(value, n: int, width: int, name: str, default=None) -> np.ndarray:
 class MessageBatch:
     """N messages of one fixed-layout topic as columns, for chunk-wide encoding.
 
-    ``columns`` maps every body field of ``type_name`` (:data:`BODY_FIELDS`) to an (N, w)
-    float64 array (possibly a broadcast view); times are int64 ns."""
+    ``columns`` maps payload fields to arrays of N rows: the body fields of ``type_name``
+    ((N, w) float64, possibly broadcast views) and, for types with more strings or
+    sequences than the header's, their constant length, count and text fields (broadcast,
+    stride 0, so the writer sets them once per buffer).  ``layout`` is ``(fields, size)``
+    of the payload (offsets from its start); ``None`` means the fixed Imu /
+    QuaternionStamped layout of :data:`BODY_FIELDS`.  Fields in neither stay 0 (the
+    padding, and zero covariances).  Times are int64 ns."""
 
     topic: str
     type_name: str
@@ -181,18 +253,38 @@ class MessageBatch:
     log_time_ns: np.ndarray
     publish_time_ns: np.ndarray
     columns: dict
+    layout: tuple[list, int] | None = None
 
     def __len__(self) -> int:
         return int(self.stamp_ns.shape[0])
 
+    def _payload_layout(self) -> tuple[list, int]:
+        return self.layout if self.layout is not None else _fields(self.type_name,
+                                                                   self.frame_id, 0)
+
     def record_dtype(self) -> np.dtype:
-        return message_record_dtype(self.type_name, self.frame_id)
+        """Structured dtype of the MCAP Message record of one message of this batch."""
+        return _record_dtype(*self._payload_layout(), None)
+
+    def payloads(self) -> np.ndarray:
+        """``(N, size)`` uint8: the serialized CDR messages, one per row (for per-message
+        writers and tests; the MCAP writer builds records without this copy)."""
+        fields, size = self._payload_layout()
+        recs = np.zeros(len(self), dtype=_make_dtype(fields, size))
+        frame = _frame_bytes(self.frame_id)
+        recs["encapsulation"] = CDR_LE_HEADER_U32
+        recs["frame_id_len"] = len(frame)
+        recs["frame_id"] = frame
+        recs["sec"], recs["nanosec"] = split_stamp(self.stamp_ns)
+        for name, arr in self.columns.items():
+            recs[name] = arr
+        return recs.view(np.uint8).reshape(len(self), size)
 
     def take(self, order: np.ndarray) -> MessageBatch:
         """The batch with its messages in ``order`` (a permutation)."""
         return MessageBatch(self.topic, self.type_name, self.frame_id, self.stamp_ns[order],
                             self.log_time_ns[order], self.publish_time_ns[order],
-                            {k: v[order] for k, v in self.columns.items()})
+                            {k: v[order] for k, v in self.columns.items()}, self.layout)
 
     def constant_columns(self) -> list[str]:
         """Body fields that are one value broadcast to every message (stride 0)."""
@@ -213,7 +305,7 @@ class MessageBatch:
 
 
 def _batch(topic, type_name, frame_id, stamp_ns, log_time_ns, publish_time_ns,
-           columns) -> MessageBatch:
+           columns, layout=None) -> MessageBatch:
     _frame_bytes(frame_id)
     stamps = np.asarray(stamp_ns)
     if stamps.ndim != 1 or stamps.dtype.kind not in "iu":
@@ -225,7 +317,7 @@ def _batch(topic, type_name, frame_id, stamp_ns, log_time_ns, publish_time_ns,
     if n and log.min() < 0:
         raise ValueError("log_time_ns must be non-negative (MCAP times are unsigned)")
     pub = _times(publish_time_ns, n, "publish_time_ns", log)
-    return MessageBatch(topic, type_name, frame_id, stamps, log, pub, columns)
+    return MessageBatch(topic, type_name, frame_id, stamps, log, pub, columns, layout)
 
 
 def imu_batch(topic: str, stamp_ns, angular_velocity, linear_acceleration=None,
@@ -266,3 +358,84 @@ def quaternion_stamped_batch(topic: str, stamp_ns, quaternion, *, frame_id: str 
     columns = {"quaternion": _rows(quaternion, n, 4, "quaternion")}
     return _batch(topic, QUATERNION_STAMPED_TYPE, frame_id, stamp_ns, log_time_ns,
                   publish_time_ns, columns)
+
+
+def _n_stamps(stamp_ns) -> int:
+    return np.shape(stamp_ns)[0] if np.ndim(stamp_ns) == 1 else -1
+
+
+def _constant(value, n: int, dtype: str) -> np.ndarray:
+    """One value broadcast to ``n`` rows (stride 0: the writer sets it once per buffer)."""
+    return np.broadcast_to(np.array(value, dtype=dtype), (max(n, 0),))
+
+
+def odometry_batch(topic: str, stamp_ns, position, orientation, linear_velocity,
+                   angular_velocity, *, frame_id: str = "map", child_frame_id: str = "base_link",
+                   log_time_ns=None, publish_time_ns=None) -> MessageBatch:
+    """N ``nav_msgs/msg/Odometry`` messages from arrays (covariances zero).
+
+    ``position`` (N, 3) and ``orientation`` (N, 4) x, y, z, w in ``frame_id``; twist
+    ``linear_velocity``, ``angular_velocity`` (N, 3) in ``child_frame_id``."""
+    n = _n_stamps(stamp_ns)
+    lay = CdrLayout()
+    lay.header(frame_id)
+    child = lay.string("child_frame_id", child_frame_id)
+    lay.doubles("position", 3)
+    lay.doubles("orientation", 4)
+    lay.doubles("pose_covariance", 36)
+    lay.doubles("linear", 3)
+    lay.doubles("angular", 3)
+    lay.doubles("twist_covariance", 36)
+    size = lay.size()
+    columns = {
+        "child_frame_id_len": _constant(len(child), n, "<u4"),
+        "child_frame_id": _constant(child, n, f"S{len(child)}"),
+        "position": _exact_rows(position, n, 3, "position"),
+        "orientation": _exact_rows(orientation, n, 4, "orientation"),
+        "linear": _exact_rows(linear_velocity, n, 3, "linear_velocity"),
+        "angular": _exact_rows(angular_velocity, n, 3, "angular_velocity"),
+    }
+    return _batch(topic, ODOMETRY_TYPE, frame_id, stamp_ns, log_time_ns, publish_time_ns,
+                  columns, (lay.fields, size))
+
+
+def joint_state_batch(topic: str, stamp_ns, names, positions, velocities, *,
+                      frame_id: str = "", log_time_ns=None,
+                      publish_time_ns=None) -> MessageBatch:
+    """N ``sensor_msgs/msg/JointState`` messages (no effort) of the same joints.
+
+    ``names``: the k >= 1 joint names; ``positions``, ``velocities`` (N, k)."""
+    if isinstance(names, str) or not all(isinstance(x, str) for x in names):
+        raise ValueError("joint names must be a sequence of str")
+    names = list(names)
+    if not names:
+        raise ValueError("a JointState batch needs at least one joint name")
+    n = _n_stamps(stamp_ns)
+    k = len(names)
+    lay = CdrLayout()
+    lay.header(frame_id)
+    lay.u32("name_count")
+    encoded = [lay.string(f"name{i}", name) for i, name in enumerate(names)]
+    lay.u32("position_count")
+    lay.doubles("position", k)
+    lay.u32("velocity_count")
+    lay.doubles("velocity", k)
+    lay.u32("effort_count")  # 0: no effort
+    size = lay.size()
+    columns = {"name_count": _constant(k, n, "<u4")}
+    for i, b in enumerate(encoded):
+        columns[f"name{i}_len"] = _constant(len(b), n, "<u4")
+        columns[f"name{i}"] = _constant(b, n, f"S{len(b)}")
+    columns["position_count"] = _constant(k, n, "<u4")
+    columns["velocity_count"] = _constant(k, n, "<u4")
+    columns["position"] = _exact_rows(positions, n, k, "positions")
+    columns["velocity"] = _exact_rows(velocities, n, k, "velocities")
+    return _batch(topic, JOINT_STATE_TYPE, frame_id, stamp_ns, log_time_ns, publish_time_ns,
+                  columns, (lay.fields, size))
+
+
+def _exact_rows(value, n: int, width: int, name: str) -> np.ndarray:
+    a = np.asarray(value, dtype=np.float64)
+    if a.shape != (n, width):
+        raise ValueError(f"{name} must have shape ({n}, {width}), got {a.shape}")
+    return a

@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import math
-import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from gyro_attitude.core.scene import SceneSimulator, SceneSpec
+from gyro_attitude.core.scene import MAX_RATE_HZ, SceneSimulator, SceneSpec
 from gyro_attitude.core.sim_topics import (
     DEFAULT_FRAME_ID,
     DEFAULT_WORLD_FRAME_ID,
@@ -21,8 +20,15 @@ from gyro_attitude.core.sim_topics import (
     TRUTH_TOPIC,
     SimTopics,
 )
-from gyro_attitude.io.cdr_encode import encode_joint_state, encode_odometry
+from gyro_attitude.io.cdr_arrays import (
+    MessageBatch,
+    imu_batch,
+    joint_state_batch,
+    odometry_batch,
+    quaternion_stamped_batch,
+)
 from gyro_attitude.io.mcap_writer import Rosbag2McapWriter, normalize_topic
+from gyro_attitude.io.safe_output import SafeOutput, check_output_path
 from gyro_attitude.io.scene_file import load_scene
 
 __all__ = ["SimulateResult", "simulate", "BLOCK_SAMPLES", "MAX_SAMPLES"]
@@ -55,13 +61,6 @@ def _diag9(var) -> np.ndarray:
     return np.diag(np.asarray(var, dtype=np.float64)).reshape(9)
 
 
-def _check_output(out: Path, force: bool) -> None:
-    if out.exists() and out.is_dir():
-        raise ValueError(f"output {out} is a directory")
-    if out.exists() and not force:
-        raise ValueError(f"output {out} exists (use --force to overwrite)")
-
-
 def simulate(scene: str | SceneSpec, duration_s: float, out, *, rate_hz: float | None = None,
              seed: int | None = None, force: bool = False, publish_truth: bool = True,
              frame_id: str = DEFAULT_FRAME_ID, world_frame_id: str = DEFAULT_WORLD_FRAME_ID,
@@ -71,17 +70,24 @@ def simulate(scene: str | SceneSpec, duration_s: float, out, *, rate_hz: float |
     scene's own sample times (``start_time_ns`` + k/rate), log time = stamp.
 
     Same messages as gyro_sim with the same scene, rate, seed and frames (its stamps are
-    shifted by its wall-clock start). Written to a temporary file in the same directory and
-    renamed at the end, so ``out`` is never half-written. ``ValueError`` (one line) on a bad
-    scene, duration, rate or seed, or an existing ``out`` without ``force``.
+    shifted by its wall-clock start). Every block's messages of all topics go through one
+    :meth:`~.Rosbag2McapWriter.write_batches` call, so the file is in log-time order across
+    channels. Checked by :func:`~.safe_output.check_output_path` (never the scene file,
+    never an existing file without ``force``) and written through :class:`~.SafeOutput`
+    (temporary name, renamed when complete), so ``out`` is never half-written.
+    ``ValueError`` (one line) on a bad scene, duration, rate, seed or output.
     """
     spec = load_scene(scene) if isinstance(scene, str) else scene
     if not isinstance(spec, SceneSpec):
         raise ValueError(f"scene must be a name, a path or a SceneSpec, got {type(scene).__name__}")
+    if rate_hz is not None and (isinstance(rate_hz, bool)
+                                or not isinstance(rate_hz, int | float | np.number)):
+        raise ValueError(f"rate must be a number of Hz, got {rate_hz!r}")
     rate = float(spec.rate_hz if rate_hz is None else rate_hz)
-    if isinstance(rate_hz, bool) or not (math.isfinite(rate) and rate > 0):
-        raise ValueError(f"rate must be a finite number of Hz > 0, got {rate_hz!r}")
-    if isinstance(duration_s, bool) or not isinstance(duration_s, int | float) \
+    if not (math.isfinite(rate) and 0 < rate <= MAX_RATE_HZ):
+        raise ValueError(f"rate must be a finite number of Hz in (0, {MAX_RATE_HZ:g}], "
+                         f"got {rate_hz!r}")
+    if isinstance(duration_s, bool) or not isinstance(duration_s, int | float | np.number) \
             or not (math.isfinite(duration_s) and duration_s > 0):
         raise ValueError(f"duration must be a finite number of seconds > 0, got {duration_s!r}")
     n_total = int(round(duration_s * rate))
@@ -90,10 +96,10 @@ def simulate(scene: str | SceneSpec, duration_s: float, out, *, rate_hz: float |
     if n_total > MAX_SAMPLES:
         raise ValueError(f"duration {duration_s} s at {rate:g} Hz is {n_total} samples; "
                          f"the limit is {MAX_SAMPLES}")
-    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)
+                             or seed < 0):
         raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
-    out = Path(out)
-    _check_output(out, force)
+    out = check_output_path(out, inputs=_scene_inputs(scene), force=force)
 
     sim = SceneSimulator(spec, rate, seed=seed)
     gyro_var, accel_var = sim.imu_variances()
@@ -102,55 +108,36 @@ def simulate(scene: str | SceneSpec, duration_s: float, out, *, rate_hz: float |
     topics = SimTopics()
     names = {t: normalize_topic(t) for t in TOPICS}
     counts = dict.fromkeys(names.values(), 0)
-    tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp")
     t0 = time.perf_counter()
     bar = None
     if progress:
         from tqdm import tqdm
 
         bar = tqdm(total=n_total, unit="sample", unit_scale=True, desc=f"simulate {spec.name}")
-    writer = Rosbag2McapWriter(tmp, compression="zstd")
     try:
-        writer.add_topic(names[IMU_TOPIC], TOPICS[IMU_TOPIC])
-        if spec.free_gyro_params is not None:
-            writer.add_topic(names[JOINT_TOPIC], TOPICS[JOINT_TOPIC])
-        if publish_truth:
-            writer.add_topic(names[TRUTH_TOPIC], TOPICS[TRUTH_TOPIC])
-            writer.add_topic(names[ODOM_TOPIC], TOPICS[ODOM_TOPIC])
-        done = 0
-        while done < n_total:
-            n = min(BLOCK_SAMPLES, n_total - done)
-            f = topics.fields(sim.next_block(n), truth=publish_truth)
-            stamps = f.t_rel_ns + topics.t0_ns
-            writer.write_imu_array(
-                names[IMU_TOPIC], stamps, f.angular_velocity, f.specific_force,
-                frame_id=frame_id, angular_velocity_covariance=gyro_cov,
-                linear_acceleration_covariance=accel_cov,
-            )
-            counts[names[IMU_TOPIC]] += n
-            if f.gimbal_angles is not None:
-                rows = encode_joint_state(stamps, frame_id, f.gimbal_names, f.gimbal_angles,
-                                          f.gimbal_rates)
-                _write_rows(writer, names[JOINT_TOPIC], rows, stamps)
-                counts[names[JOINT_TOPIC]] += n
+        with SafeOutput(out, force=force) as tmp, \
+                Rosbag2McapWriter(tmp, compression="zstd") as writer:
+            writer.add_topic(names[IMU_TOPIC], TOPICS[IMU_TOPIC])
+            if spec.free_gyro_params is not None or spec.instrument is not None:
+                writer.add_topic(names[JOINT_TOPIC], TOPICS[JOINT_TOPIC])
             if publish_truth:
-                writer.write_quaternion_stamped_array(names[TRUTH_TOPIC], stamps, f.q_nb,
-                                                      frame_id=world_frame_id)
-                rows = encode_odometry(stamps, world_frame_id, frame_id, f.position_enu,
-                                       f.q_nb, f.velocity_body, f.omega_nb_b)
-                _write_rows(writer, names[ODOM_TOPIC], rows, stamps)
-                counts[names[TRUTH_TOPIC]] += n
-                counts[names[ODOM_TOPIC]] += n
-            done += n
-            if bar is not None:
-                bar.update(n)
-        writer.finish()
-        _check_output(out, force)  # it may have appeared meanwhile
-        os.replace(tmp, out)
-    except BaseException:
-        writer.abandon()
-        tmp.unlink(missing_ok=True)
-        raise
+                writer.add_topic(names[TRUTH_TOPIC], TOPICS[TRUTH_TOPIC])
+                writer.add_topic(names[ODOM_TOPIC], TOPICS[ODOM_TOPIC])
+            done = 0
+            while done < n_total:
+                n = min(BLOCK_SAMPLES, n_total - done)
+                f = topics.fields(sim.next_block(n), truth=publish_truth)
+                stamps = f.t_rel_ns + topics.t0_ns
+                batches = _block_batches(f, stamps, names, frame_id, world_frame_id, gyro_cov,
+                                         accel_cov, publish_truth)
+                # One call per block with every topic: the writer merges them by log time
+                # (all share the stamps here, so message k of every topic sits together).
+                writer.write_batches(batches)
+                for b in batches:
+                    counts[b.topic] += len(b)
+                done += n
+                if bar is not None:
+                    bar.update(n)
     finally:
         if bar is not None:
             bar.close()
@@ -159,11 +146,25 @@ def simulate(scene: str | SceneSpec, duration_s: float, out, *, rate_hz: float |
                           time.perf_counter() - t0)
 
 
-def _write_rows(writer: Rosbag2McapWriter, topic: str, rows: np.ndarray, stamps) -> None:
-    """Per-message writes of fixed-size serialized rows (the writer has no array path for
-    these types)."""
-    data = memoryview(rows.tobytes())
-    size = rows.shape[1]
-    write = writer.write
-    for k, t in enumerate(stamps.tolist()):
-        write(topic, data[k * size:(k + 1) * size], t, t)
+def _scene_inputs(scene) -> list:
+    """The scene file, when ``scene`` names one: an output must never overwrite it."""
+    return [scene] if isinstance(scene, str) and Path(scene).exists() else []
+
+
+def _block_batches(f, stamps: np.ndarray, names: dict, frame_id: str, world_frame_id: str,
+                   gyro_cov: np.ndarray, accel_cov: np.ndarray | None,
+                   publish_truth: bool) -> list[MessageBatch]:
+    """Every topic's messages of one block, in gyro_sim's publishing order per sample."""
+    batches = [imu_batch(names[IMU_TOPIC], stamps, f.angular_velocity, f.specific_force,
+                         frame_id=frame_id, angular_velocity_covariance=gyro_cov,
+                         linear_acceleration_covariance=accel_cov)]
+    if f.gimbal_angles is not None:
+        batches.append(joint_state_batch(names[JOINT_TOPIC], stamps, f.gimbal_names,
+                                         f.gimbal_angles, f.gimbal_rates, frame_id=frame_id))
+    if publish_truth:
+        batches.append(quaternion_stamped_batch(names[TRUTH_TOPIC], stamps, f.q_nb,
+                                                frame_id=world_frame_id))
+        batches.append(odometry_batch(names[ODOM_TOPIC], stamps, f.position_enu, f.q_nb,
+                                      f.velocity_body, f.omega_nb_b, frame_id=world_frame_id,
+                                      child_frame_id=frame_id))
+    return batches

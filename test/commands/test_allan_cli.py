@@ -104,3 +104,46 @@ def test_no_imu_too_short_missing(tmp_path, capsys, white_bag):
     assert "no topic 'other'" in capsys.readouterr().err
     assert cli_main(["allan", str(path), "--json", str(path)]) == 1
     assert "is the input" in capsys.readouterr().err
+
+
+def test_outputs_are_checked_before_any_work(white_bag, tmp_path, capsys):
+    """Never the input (also through a symlink or a relative path), never an existing file
+    without --force, never one output twice, never into a missing directory; nothing left
+    behind."""
+    path, _ = white_bag
+    before = path.read_bytes()
+    link = tmp_path / "link.json"
+    link.symlink_to(path)
+    rel = os.path.relpath(path)
+    for flag, out, match in (("--json", link, "is the input"), ("--plot", rel, "is the input"),
+                             ("--scene-out", path, "is the input"),
+                             ("--json", tmp_path / "nodir" / "a.json", "does not exist"),
+                             ("--json", tmp_path, "is a directory")):
+        assert cli_main(["allan", str(path), flag, str(out), "--force"]) == 1
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and match in err, err
+    assert path.read_bytes() == before
+    existing = tmp_path / "a.json"
+    existing.write_text("keep")
+    assert cli_main(["allan", str(path), "--json", str(existing)]) == 1
+    assert "exists" in capsys.readouterr().err and existing.read_text() == "keep"
+    twice = tmp_path / "b.out"
+    assert cli_main(["allan", str(path), "--json", str(twice), "--scene-out", str(twice)]) == 1
+    assert "is the input" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "link.json"]
+    # with --force the existing one is replaced, atomically (no temporary left)
+    assert cli_main(["allan", str(path), "--json", str(existing), "--force"]) == 0
+    assert json.loads(existing.read_text())["samples"] == 60_000
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "link.json"]
+
+
+def test_bad_input_leaves_no_output(tmp_path, capsys):
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(b"\x89MCAP0\r\n" + bytes(64))  # magic, then garbage: truncated
+    for p in (bad, tmp_path / "empty.mcap"):
+        p.touch()
+        assert cli_main(["allan", str(p), "--json", str(tmp_path / "o.json"),
+                         "--plot", str(tmp_path / "o.png")]) == 1
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.mcap", "empty.mcap"]

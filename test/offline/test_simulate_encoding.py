@@ -1,4 +1,4 @@
-"""simulate's CDR array encoders for Odometry and JointState against rclpy's own serialization."""
+"""Odometry and JointState message batches (simulate's array encoders) against rclpy's own serialization."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ rclpy_serialization = pytest.importorskip("rclpy.serialization")
 from nav_msgs.msg import Odometry  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
-from gyro_attitude.io.cdr_encode import encode_joint_state, encode_odometry  # noqa: E402
+from gyro_attitude.io.cdr_arrays import joint_state_batch, odometry_batch  # noqa: E402
 from gyro_attitude.ros import convert  # noqa: E402
 
 STAMPS = np.array([0, 1, 10**9 + 5, 123_456_789_012, 2**31 * 10**9 - 1], dtype=np.int64)
@@ -20,7 +20,8 @@ def test_odometry_matches_rclpy(frame, child):
     rng = np.random.default_rng(1)
     n = STAMPS.size
     pos, q, v, w = (rng.normal(size=(n, k)) for k in (3, 4, 3, 3))
-    rows = encode_odometry(STAMPS, frame, child, pos, q, v, w)
+    rows = odometry_batch("truth/odom", STAMPS, pos, q, v, w, frame_id=frame,
+                          child_frame_id=child).payloads()
     for k in range(n):
         ref = convert.odometry_msg(int(STAMPS[k]), frame, child, pos[k], q[k], v[k], w[k])
         raw = rclpy_serialization.serialize_message(ref)
@@ -28,12 +29,14 @@ def test_odometry_matches_rclpy(frame, child):
         assert rclpy_serialization.deserialize_message(rows[k].tobytes(), Odometry) == ref
 
 
-@pytest.mark.parametrize("names", [["outer_gimbal", "inner_gimbal"], ["a"], ["x", "yy", "zzz"]])
+@pytest.mark.parametrize("names", [["outer_gimbal", "inner_gimbal"], ["a"], ["x", "yy", "zzz"],
+                                   ["spin_axis_azimuth", "spin_axis_elevation", "äöü", "k"]])
 def test_joint_state_matches_rclpy(names):
     rng = np.random.default_rng(2)
     n, k = STAMPS.size, len(names)
     p, r = rng.normal(size=(n, k)), rng.normal(size=(n, k))
-    rows = encode_joint_state(STAMPS, "imu_link", names, p, r)
+    rows = joint_state_batch("gyro/joint_states", STAMPS, names, p, r,
+                             frame_id="imu_link").payloads()
     for i in range(n):
         ref = convert.joint_state_msg(int(STAMPS[i]), names, p[i], r[i])
         ref.header.frame_id = "imu_link"
@@ -44,9 +47,17 @@ def test_joint_state_matches_rclpy(names):
 
 def test_bad_input_refused():
     with pytest.raises(ValueError, match="position"):
-        encode_odometry(STAMPS, "a", "b", np.zeros((2, 3)), np.zeros((5, 4)), np.zeros((5, 3)),
-                        np.zeros((5, 3)))
+        odometry_batch("o", STAMPS, np.zeros((2, 3)), np.zeros((5, 4)), np.zeros((5, 3)),
+                       np.zeros((5, 3)))
     with pytest.raises(ValueError, match="NUL"):
-        encode_joint_state(STAMPS[:1], "a\x00b", ["j"], [[0.0]], [[0.0]])
+        joint_state_batch("j", STAMPS[:1], ["j"], [[0.0]], [[0.0]], frame_id="a\x00b")
+    with pytest.raises(ValueError, match="NUL"):
+        joint_state_batch("j", STAMPS[:1], ["j\x00"], [[0.0]], [[0.0]])
     with pytest.raises(ValueError, match="int32"):
-        encode_joint_state(np.array([2**31 * 10**9]), "a", ["j"], [[0.0]], [[0.0]])
+        joint_state_batch("j", np.array([2**31 * 10**9]), ["j"], [[0.0]], [[0.0]])
+    with pytest.raises(ValueError, match="at least one joint"):
+        joint_state_batch("j", STAMPS[:1], [], np.zeros((1, 0)), np.zeros((1, 0)))
+    with pytest.raises(ValueError, match="str"):
+        joint_state_batch("j", STAMPS[:1], "abc", [[0.0]], [[0.0]])
+    with pytest.raises(ValueError, match="velocities"):
+        joint_state_batch("j", STAMPS[:2], ["a", "b"], np.zeros((2, 2)), np.zeros((2, 3)))

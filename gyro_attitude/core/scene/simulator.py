@@ -36,12 +36,17 @@ __all__ = [
     "integrate_position",
     "BLOCK_SAMPLES",
     "MAX_SAMPLES_PER_CALL",
+    "POSITION_SEGMENT",
 ]
 
 #: Largest piece generated at once; a longer request is assembled from such pieces.
 BLOCK_SAMPLES = 65_536
 #: Most samples one ``next_block`` call returns (about 3 GB of results): ask in pieces.
 MAX_SAMPLES_PER_CALL = 1 << 24
+#: Position integration runs on a fixed grid of segments of this many samples (segment s
+#: holds samples s·N … (s+1)·N − 1, integrated from the last sample of segment s − 1), so
+#: positions are bit for bit the same however the run is split into blocks.
+POSITION_SEGMENT = 4096
 
 # --------------------------------------------------------------------------- position
 def _simpson_cumulative(h, f_a, f_m, f_b):
@@ -52,6 +57,21 @@ def _simpson_cumulative(h, f_a, f_m, f_b):
 def _hermite_mid(y_a, y_b, f_a, f_b, h):
     """Cubic Hermite value at an interval's midpoint from end values and slopes."""
     return 0.5 * (y_a + y_b) + h / 8.0 * (f_a - f_b)
+
+
+def _lat_rate(lat, height, v_north):
+    r_m, _ = earth.radii_of_curvature(lat)
+    return v_north / (r_m + height)
+
+
+def _lon_rate(lat, height, v_east):
+    _, r_n = earth.radii_of_curvature(lat)
+    return v_east / ((r_n + height) * np.cos(lat))
+
+
+def _wrap_lon(lon):
+    """Longitude wrapped into [-π, π)."""
+    return (lon + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def integrate_position(motion: Motion, t0: float, llh0, t) -> np.ndarray:
@@ -76,29 +96,44 @@ def integrate_position(motion: Motion, t0: float, llh0, t) -> np.ndarray:
                                                              v_n[1:, 2])))
     hgt_m = _hermite_mid(hgt[:-1], hgt[1:], v_n[:-1, 2], v_n[1:, 2], h)
 
-    def lat_rate(lat, height, v_north):
-        r_m, _ = earth.radii_of_curvature(lat)
-        return v_north / (r_m + height)
-
     lat = np.full(nodes.shape, lat0)
     for _ in range(3):
-        f_n = lat_rate(lat, hgt, v_n[:, 1])
+        f_n = _lat_rate(lat, hgt, v_n[:, 1])
         lat_m = _hermite_mid(lat[:-1], lat[1:], f_n[:-1], f_n[1:], h)
-        f_m = lat_rate(lat_m, hgt_m, v_m[:, 1])
+        f_m = _lat_rate(lat_m, hgt_m, v_m[:, 1])
         lat = np.concatenate(([lat0], lat0 + _simpson_cumulative(h, f_n[:-1], f_m, f_n[1:])))
 
-    def lon_rate(lat_, height, v_east):
-        _, r_n = earth.radii_of_curvature(lat_)
-        return v_east / ((r_n + height) * np.cos(lat_))
-
-    f_n = lat_rate(lat, hgt, v_n[:, 1])
+    f_n = _lat_rate(lat, hgt, v_n[:, 1])
     lat_m = _hermite_mid(lat[:-1], lat[1:], f_n[:-1], f_n[1:], h)
-    g_n = lon_rate(lat, hgt, v_n[:, 0])
-    g_m = lon_rate(lat_m, hgt_m, v_m[:, 0])
+    g_n = _lon_rate(lat, hgt, v_n[:, 0])
+    g_m = _lon_rate(lat_m, hgt_m, v_m[:, 0])
     lon = lon0 + _simpson_cumulative(h, g_n[:-1], g_m, g_n[1:])
-    # Longitude is reported wrapped into [-π, π).
-    lon = (lon + np.pi) % (2.0 * np.pi) - np.pi
-    return np.stack((lat[1:], lon, hgt[1:]), axis=-1)
+    return np.stack((lat[1:], _wrap_lon(lon), hgt[1:]), axis=-1)
+
+
+def _position_steps(motion: Motion, t_a: np.ndarray, llh_a: np.ndarray,
+                    t_b: np.ndarray) -> np.ndarray:
+    """Positions at ``t_b (m,)``, each integrated over the one interval from its own start
+    ``t_a (m,)``, ``llh_a (m, 3)``: the same Simpson step and Picard sweeps as
+    :func:`integrate_position`, element-wise, so every result depends only on its own
+    interval (not on which other times are asked for at once)."""
+    h = t_b - t_a
+    v_a, v_m, v_b = (motion.velocity(x) for x in (t_a, t_a + 0.5 * h, t_b))
+    lat_a, lon_a, hgt_a = llh_a.T
+    hgt_b = hgt_a + h / 6.0 * (v_a[:, 2] + 4.0 * v_m[:, 2] + v_b[:, 2])
+    hgt_m = _hermite_mid(hgt_a, hgt_b, v_a[:, 2], v_b[:, 2], h)
+    f_a = _lat_rate(lat_a, hgt_a, v_a[:, 1])
+    lat_b = lat_a
+    for _ in range(3):
+        f_b = _lat_rate(lat_b, hgt_b, v_b[:, 1])
+        lat_m = _hermite_mid(lat_a, lat_b, f_a, f_b, h)
+        lat_b = lat_a + h / 6.0 * (f_a + 4.0 * _lat_rate(lat_m, hgt_m, v_m[:, 1]) + f_b)
+    f_b = _lat_rate(lat_b, hgt_b, v_b[:, 1])
+    lat_m = _hermite_mid(lat_a, lat_b, f_a, f_b, h)
+    lon_b = lon_a + h / 6.0 * (_lon_rate(lat_a, hgt_a, v_a[:, 0])
+                               + 4.0 * _lon_rate(lat_m, hgt_m, v_m[:, 0])
+                               + _lon_rate(lat_b, hgt_b, v_b[:, 0]))
+    return np.stack((lat_b, _wrap_lon(lon_b), hgt_b), axis=-1)
 
 
 # --------------------------------------------------------------------------- simulator
@@ -187,8 +222,11 @@ class SceneSimulator:
         self.effects_run: set[str] = set()
         self._k = 0
         ea = spec.earth
-        self._anchor_t = 0.0
-        self._anchor_llh = np.array([ea.latitude_rad, ea.longitude_rad, ea.height_m])
+        self._llh0 = np.array([ea.latitude_rad, ea.longitude_rad, ea.height_m])
+        # Position segments: {s: (t, llh)} the point segment s is integrated from, and
+        # {s: positions} of the segments computed (the recent ones are kept).
+        self._segment_anchor: dict[int, tuple[float, np.ndarray]] = {0: (0.0, self._llh0)}
+        self._segment_llh: dict[int, np.ndarray] = {}
         gyro_ss, accel_ss = np.random.SeedSequence(self.seed).spawn(2)
         self._gyro_errors = (SensorErrorModel(spec.gyro_errors, self.dt, gyro_ss)
                              if spec.gyro_errors.active_effects() else None)
@@ -219,7 +257,10 @@ class SceneSimulator:
 
     # ------------------------------------------------------------------ pieces
     def _stamps(self, n: int) -> np.ndarray:
-        k = np.arange(self._k, self._k + n, dtype=np.int64)
+        return self._stamps_at(np.arange(self._k, self._k + n, dtype=np.int64))
+
+    def _stamps_at(self, k: np.ndarray) -> np.ndarray:
+        """Stamps [ns] of samples with indices ``k``."""
         if self.rate_hz.is_integer():
             # exact k·10⁹/r in int64 without forming k·10⁹, which overflows after 9.2e9
             # samples (2.6 h at 1 MHz): whole seconds plus the remainder's nanoseconds
@@ -229,15 +270,58 @@ class SceneSimulator:
             offset = np.rint(k * (1e9 / self.rate_hz)).astype(np.int64)
         return self.spec.start_time_ns + offset
 
-    def _positions(self, t: np.ndarray) -> np.ndarray:
+    def _times_at(self, k: np.ndarray) -> np.ndarray:
+        """Times [s since the first sample] of samples ``k``, as the blocks compute them."""
+        return (self._stamps_at(k) - self.spec.start_time_ns).astype(np.float64) / 1e9
+
+    def _segment_positions(self, s: int) -> np.ndarray:
+        """Positions of the POSITION_SEGMENT samples of segment ``s`` (computing the
+        segments before it first when their anchors are not known yet)."""
+        if s in self._segment_llh:
+            return self._segment_llh[s]
+        first = s
+        while first not in self._segment_anchor:
+            first -= 1
+        for j in range(first, s + 1):
+            t = self._times_at(np.arange(j * POSITION_SEGMENT, (j + 1) * POSITION_SEGMENT,
+                                         dtype=np.int64))
+            llh = integrate_position(self.spec.motion, *self._segment_anchor[j], t)
+            self._segment_anchor[j + 1] = (float(t[-1]), llh[-1].copy())
+            self._segment_llh[j] = llh
+        # Keep what a later request can still need: the free gyro's sub-steps cover the
+        # piece just generated (at most BLOCK_SAMPLES) and reach into the one before.
+        keep = s - 2 - BLOCK_SAMPLES // POSITION_SEGMENT
+        for table in (self._segment_anchor, self._segment_llh):
+            for old in [j for j in table if j < keep]:
+                del table[old]
+        return self._segment_llh[s]
+
+    def _grid_positions(self, k0: int, n: int) -> np.ndarray:
+        """Positions of samples ``k0 … k0+n−1``, from their fixed segments."""
         if not self.spec.motion.moves:
-            return np.broadcast_to(self._anchor_llh, (t.shape[0], 3)).copy()
+            return np.broadcast_to(self._llh0, (n, 3)).copy()
         self.effects_run.add("position")
-        order = np.argsort(t, kind="stable")
-        out = np.empty((t.shape[0], 3))
-        out[order] = integrate_position(self.spec.motion, self._anchor_t, self._anchor_llh,
-                                        t[order])
+        out = np.empty((n, 3))
+        k = k0
+        while k < k0 + n:
+            s, i = divmod(k, POSITION_SEGMENT)
+            m = min(POSITION_SEGMENT - i, k0 + n - k)
+            out[k - k0:k - k0 + m] = self._segment_positions(s)[i:i + m]
+            k += m
         return out
+
+    def _positions(self, t: np.ndarray) -> np.ndarray:
+        """Positions at any times ``t`` [s] (the free gyro's sub-steps): one step from the
+        sample at or before each time, so they too are the same whatever the blocks."""
+        if not self.spec.motion.moves:
+            return np.broadcast_to(self._llh0, (t.shape[0], 3)).copy()
+        self.effects_run.add("position")
+        k = np.maximum(np.floor(t * self.rate_hz), 0).astype(np.int64)
+        lowest = min(self._segment_anchor) * POSITION_SEGMENT
+        k = np.maximum(k, lowest)  # never before the oldest segment kept
+        k0 = int(k.min())
+        llh_k = self._grid_positions(k0, int(k.max()) - k0 + 1)[k - k0]
+        return _position_steps(self.spec.motion, self._times_at(k), llh_k, t)
 
     def _nav_rates(self, llh: np.ndarray, v: np.ndarray):
         """``(ω_ie^n, ω_en^n)``; ``None`` for an effect the scene does not call for."""
@@ -251,10 +335,12 @@ class SceneSimulator:
             w_en = earth.transport_rate_enu(llh[:, 0], llh[:, 2], v)
         return w_ie, w_en
 
-    def _truth(self, t: np.ndarray, need_accel: bool):
+    def _truth(self, t: np.ndarray, need_accel: bool, llh: np.ndarray | None = None):
+        """Truth at times ``t``; ``llh`` the positions when known (the sample grid)."""
         sample = self.spec.motion.evaluate(t, need_accel=need_accel)
         self.effects_run.add(f"motion.{self.spec.motion.name}")
-        llh = self._positions(t)
+        if llh is None:
+            llh = self._positions(t)
         w_ie, w_en = self._nav_rates(llh, sample.velocity_enu)
         if w_ie is None and w_en is None:
             w_ib = sample.omega_nb_b.copy()
@@ -328,7 +414,8 @@ class SceneSimulator:
         t_ns = self._stamps(n)
         t = (t_ns - spec.start_time_ns).astype(np.float64) / 1e9
         sample, llh, w_ie, w_en, w_ib = self._truth(
-            t, need_accel=spec.accelerometer or self._gyro_unbalance)
+            t, need_accel=spec.accelerometer or self._gyro_unbalance,
+            llh=self._grid_positions(self._k, n))
 
         gyro_out = w_ib
         if self._rate_gyro is not None:
@@ -352,9 +439,6 @@ class SceneSimulator:
                 self.effects_run.update(f"accelerometer.{e}"
                                         for e in self._accel_errors.effects_run)
 
-        if n:
-            self._anchor_t = float(t[-1])
-            self._anchor_llh = llh[-1].copy()
         self._k += n
 
         gimbal = None
