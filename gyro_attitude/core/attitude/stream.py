@@ -275,8 +275,8 @@ class AttitudeStream:
     ``algorithm`` a name from the registry (an offline one serves the batch path of :meth:`run`
     only: it needs samples after each interval, so :meth:`push` refuses it); ``q0`` the initial
     attitude (also the one a time jump resets to; with ``initial_attitude="level"`` the
-    alignment replaces it); ``nav`` a :class:`NavFrame` for q_nb (Earth and transport rate removed) or None for q_ib; ``config``
-    the settings.  With ``nav`` (or ``config.latitude_rad``) the Earth rate is taken out of the
+    alignment replaces it); ``nav`` a :class:`NavFrame` for q_nb (Earth and transport rate
+    removed) or None for q_ib; ``config`` the settings.  With ``nav`` (or ``config.latitude_rad``) the Earth rate is taken out of the
     bias estimate, using the current attitude as q_nb (for q_ib that takes the inertial frame
     as the nav frame at the start: right to ω_ie·t, a few °/h of Earth-rate direction).
     """
