@@ -48,9 +48,15 @@ def _finite(text: str) -> float:
 
 
 def _initial_attitude(text: str):
-    if text.strip().lower() == "truth":
-        return "truth"
+    if text.strip().lower() in ("truth", "level"):
+        return text.strip().lower()
     return _floats(text, 4, "--initial-attitude")
+
+
+def _gyro_bias(text: str):
+    if text.strip().lower() in ("auto", "none"):
+        return text.strip().lower()
+    return _floats(text, 3, "--gyro-bias")
 
 
 def _one_line_error(parser: argparse.ArgumentParser):
@@ -69,11 +75,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="overwrite an existing OUT (and --plot file)")
     parser.add_argument("--imu-topic", default=DEFAULT_IMU_TOPIC,
                         help=f"sensor_msgs/Imu topic to integrate (default {DEFAULT_IMU_TOPIC})")
-    parser.add_argument("--algorithm", default=DEFAULT_OFFLINE_ALGORITHM,
+    parser.add_argument("--algorithm", default=None,
                         choices=sorted(ALGORITHMS),
                         help=f"attitude update algorithm (default {DEFAULT_OFFLINE_ALGORITHM}, "
-                        "which uses samples after each interval; the node's causal default is "
-                        "rotvec_cubic)")
+                        "which uses samples after each interval; the node's causal default "
+                        "rotvec_cubic when a per-sample filter acts on the recording: "
+                        "levelling, aiding, or auto gyro bias with a rest)")
     # The attitude-stream policy of the attitude_integrator node, same names and defaults.
     parser.add_argument("--max-gap-s", type=_positive, default=0.1,
                         help="a forward stamp step longer than this is a gap: not integrated "
@@ -92,9 +99,28 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--velocity-enu", type=lambda s: _floats(s, 3, "--velocity-enu"),
                         default=(0.0, 0.0, 0.0), metavar="E,N,U", help="(enu) velocity m/s")
     parser.add_argument("--initial-attitude", type=_initial_attitude,
-                        default=(0.0, 0.0, 0.0, 1.0), metavar="X,Y,Z,W|truth",
-                        help="attitude at the first Imu stamp (default identity); 'truth' "
-                        "takes it from the truth topic at that stamp")
+                        default=(0.0, 0.0, 0.0, 1.0), metavar="X,Y,Z,W|truth|level",
+                        help="attitude at the first Imu stamp (default identity); 'truth': the "
+                        "truth topic interpolated at the first Imu stamp it covers; 'level': "
+                        "roll and pitch from the accelerometer over the initial rest, heading "
+                        "from --initial-heading-deg or --heading-source gyrocompass")
+    parser.add_argument("--initial-heading-deg", type=_finite, default=0.0,
+                        help="(level) heading, clockwise from north (default 0)")
+    parser.add_argument("--heading-source", choices=("parameter", "gyrocompass"),
+                        default="parameter",
+                        help="(level) heading from --initial-heading-deg, or found by "
+                        "gyrocompassing (needs --frame enu or --latitude-deg, a fixed "
+                        "--gyro-bias and --gyro-bias-sigma; refused when the gyro cannot find "
+                        "north)")
+    parser.add_argument("--gyro-bias", type=_gyro_bias, default="auto", metavar="auto|none|X,Y,Z",
+                        help="auto (default): estimated at every rest and subtracted; none; or "
+                        "a fixed bias in rad/s")
+    parser.add_argument("--gyro-bias-sigma", type=_finite, default=0.0,
+                        help="1-sigma of a fixed or unestimated gyro bias [rad/s] (covariance, "
+                        "gyrocompassing)")
+    parser.add_argument("--aiding", choices=("none", "gravity"), default="none",
+                        help="gravity: tilt corrected toward the accelerometer's vertical (heading "
+                        "stays gyro-only and drifts without a magnetometer)")
     parser.add_argument("--truth-topic", default=TRUTH_TOPIC,
                         help=f"QuaternionStamped truth to compare with (default {TRUTH_TOPIC})")
     parser.add_argument("--compression", choices=COMPRESSIONS, default=DEFAULT_COMPRESSION,
@@ -139,9 +165,19 @@ def _positive(text: str) -> float:
 
 
 def _stream_config(args) -> StreamConfig:
+    bias = args.gyro_bias
+    fixed = isinstance(bias, tuple)
     return StreamConfig(max_gap_ns=int(round(args.max_gap_s * 1e9)),
                         time_jump_ns=int(round(args.time_jump_threshold_s * 1e9)),
-                        max_rate_rad_s=float(args.max_rate_rad_s))
+                        max_rate_rad_s=float(args.max_rate_rad_s),
+                        gyro_bias="parameter" if fixed else bias,
+                        gyro_bias_rad_s=bias if fixed else (0.0, 0.0, 0.0),
+                        gyro_bias_sigma_rad_s=float(args.gyro_bias_sigma),
+                        initial_heading_deg=float(args.initial_heading_deg),
+                        heading_source=args.heading_source,
+                        latitude_rad=(None if args.latitude_deg is None
+                                      else float(np.radians(args.latitude_deg))),
+                        aiding=args.aiding)
 
 
 def run(args) -> int:
@@ -206,7 +242,15 @@ def run(args) -> int:
     print(f"  {out['attitude_messages']} attitudes; skipped {skipped}"
           + (f" ({', '.join(f'{n} {r}' for r, n in out['skipped'].items() if n)})"
              if skipped else "")
-          + f"; gaps {out['gaps']}; time-jump resets {out['time_jump_resets']}")
+          + f"; gaps {out['gaps']}; time-jump resets {out['time_jump_resets']}"
+          + (f"; {out['skipped_before_truth']} before the truth starts"
+             if out["skipped_before_truth"] else ""))
+    print(f"  {out['gyro_bias']}")
+    if out["alignment"]:
+        a = out["alignment"]
+        print(f"  levelled over {a['rest_s']:.1f} s of rest: roll {a['roll_deg']:.3f}°, pitch "
+              f"{a['pitch_deg']:.3f}° (expected error {a['level_error_expected_deg']:.3f}°), "
+              f"heading {a['heading_deg']:.2f}° ({a['heading_source']})")
     print(f"  wall {out['wall_seconds']:.3f} s ({out['messages_per_second']:.0f} msg/s): "
           f"read {out['read_seconds']:.3f} s, integrate {out['integrate_seconds']:.3f} s, "
           f"write {out['write_seconds']:.3f} s")

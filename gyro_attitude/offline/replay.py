@@ -13,6 +13,8 @@ truth at coinciding stamps.  Samples are never re-sorted.
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
@@ -20,9 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
-from gyro_attitude.core.attitude import DEFAULT_OFFLINE_ALGORITHM, NavFrame
+from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, DEFAULT_OFFLINE_ALGORITHM, NavFrame
 from gyro_attitude.core.attitude import validation as iv
-from gyro_attitude.core.attitude.stream import AttitudeStream, StreamConfig
+from gyro_attitude.core.attitude.stream import AttitudeStream, StreamConfig, bias_summary
+from gyro_attitude.core.attitude.truth import initial_attitude_from_truth
 from gyro_attitude.core.rotation import quat_angle_between
 from gyro_attitude.io.cdr_arrays import (
     IMU_TYPE,
@@ -72,6 +75,10 @@ class ReplayResult:
     time_jump_resets: int
     invalid_covariances: int
     details: dict[str, str]
+    skipped_before_truth: int
+    gyro_bias: str
+    gyro_bias_rad_s: list[float]
+    alignment: dict | None
     duration_s: float
     wall_seconds: float
     read_seconds: float
@@ -101,20 +108,18 @@ def _check_inputs(frame: str, nav, algorithm: str, initial_attitude) -> None:
         raise ValueError(f"frame must be 'inertial' or 'enu', got {frame!r}")
     if (frame == "enu") != (nav is not None):
         raise ValueError("frame 'enu' needs a NavFrame (latitude); 'inertial' takes none")
-    if isinstance(initial_attitude, str) and initial_attitude != "truth":
-        raise ValueError(f"initial_attitude must be 4 numbers or 'truth', got "
+    if isinstance(initial_attitude, str) and initial_attitude not in ("truth", "level"):
+        raise ValueError(f"initial_attitude must be 4 numbers, 'truth' or 'level', got "
                          f"{initial_attitude!r}")
 
 
-def _initial_attitude(initial_attitude, truth, truth_topic: str, t0: int):
-    if not isinstance(initial_attitude, str):
-        return initial_attitude
-    at0 = (np.flatnonzero(truth.stamp_ns == t0) if truth is not None
-           else np.zeros(0, dtype=np.int64))
-    if at0.size == 0:
-        raise ValueError(f"initial attitude 'truth': no {truth_topic} message stamped at the "
-                         f"first Imu stamp {t0} ns")
-    return truth.quaternion[at0[0]]
+def _alignment_summary(a) -> dict:
+    return {"roll_deg": math.degrees(a.roll), "pitch_deg": math.degrees(a.pitch),
+            "heading_deg": math.degrees(a.heading), "heading_source": a.heading_source,
+            "level_error_expected_deg": math.degrees(a.level_error_expected),
+            "heading_error_expected_deg": (None if math.isnan(a.heading_error_expected)
+                                           else math.degrees(a.heading_error_expected)),
+            "rest_s": (a.rest_end_ns - a.rest_start_ns) * 1e-9}
 
 
 def _constant_rows(a: np.ndarray) -> np.ndarray:
@@ -133,15 +138,17 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     """Integrate every Imu message of ``input_path`` and write ``output_path``.
 
     ``nav`` is a :class:`gyro_attitude.core.attitude.NavFrame` when ``frame == "enu"``;
-    ``initial_attitude`` 4 numbers (x, y, z, w) or ``"truth"`` (the truth message stamped
-    at the first Imu stamp).  ``config`` the attitude-stream thresholds (the node's defaults).
-    The output must not be the input and must not exist unless
-    ``force``; it appears only complete.  ``progress(bytes_done, bytes_total)`` is called
-    while reading.  Raises ValueError (bad arguments, unusable input, nothing to write) and
-    OSError.
+    ``initial_attitude`` 4 numbers (x, y, z, w), ``"truth"`` (the truth interpolated at the
+    first Imu stamp it covers; earlier samples are skipped and counted) or ``"level"`` (roll and
+    pitch from the specific force over the initial rest, heading from ``config``).  ``algorithm``
+    None: the offline default, or the node's causal default when a sequential filter of
+    ``config`` acts on the recording (levelling, aiding, auto bias with a rest).  ``config``
+    the attitude-stream settings (default: the node's defaults).  The output must not be the
+    input and must not exist unless ``force``; it appears only complete.
+    ``progress(bytes_done, bytes_total)`` is called while reading.  Raises ValueError (bad
+    arguments, unusable input, nothing to write) and OSError.
     """
     _check_inputs(frame, nav, algorithm or DEFAULT_OFFLINE_ALGORITHM, initial_attitude)
-    algorithm = algorithm or DEFAULT_OFFLINE_ALGORITHM
     check_output_path(output_path, inputs=[input_path], force=force)
     t_start = time.perf_counter()
     arrays = read_topic_arrays(input_path, {imu_topic: IMU_TYPE,
@@ -160,23 +167,47 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                          + (f"; {damage}" if damage else ""))
     t_read = time.perf_counter()
 
-    t = imu.stamp_ns
-    omega = imu.angular_velocity
     truth = arrays.get(truth_topic)
-    q0 = _initial_attitude(initial_attitude, truth, truth_topic, int(t[0]))
+    t_all = imu.stamp_ns
+    # 'truth': the truth interpolated at the first Imu stamp it covers; integration starts
+    # there (the samples before it are counted as skipped_before_truth)
+    first = 0
+    q0 = (0.0, 0.0, 0.0, 1.0)
+    if isinstance(initial_attitude, str) and initial_attitude == "level":
+        config = dataclasses.replace(config or StreamConfig(), initial_attitude="level")
+    if isinstance(initial_attitude, str) and initial_attitude == "truth":
+        if truth is None or len(truth) == 0:
+            raise ValueError(f"initial attitude 'truth': no {truth_topic} messages in the input")
+        q0, first, _ = initial_attitude_from_truth(t_all, truth.stamp_ns, truth.quaternion)
+    elif not isinstance(initial_attitude, str):
+        q0 = initial_attitude
+    t, omega = t_all[first:], imu.angular_velocity[first:]
+    cov = imu.angular_velocity_covariance[first:]
+    # the accelerometer feeds rest detection, levelling and aiding, when the Imu has one
+    # (element 0 of its covariance is -1 when it has none, REP-145)
+    has_accel = bool(len(imu) and imu.linear_acceleration_covariance[0, 0] != -1.0)
+    accel = imu.linear_acceleration[first:] if has_accel else None
     # One frame per decoded message is not kept by the array reader: the first frame stands
     # for all (the node would also reject samples whose frame_id changes: see frame_ids).
-    stream = AttitudeStream(algorithm, q0=q0, nav=nav, config=config)
+    stream = AttitudeStream(algorithm or DEFAULT_OFFLINE_ALGORITHM, q0=q0, nav=nav,
+                            config=config)
+    if algorithm is None and stream.needs_per_sample_path(t, omega, accel):
+        # a sequential filter acts on this recording (levelling, aiding, auto bias with a
+        # rest): the offline algorithm cannot run sample by sample, the node's default can
+        stream = AttitudeStream(DEFAULT_ALGORITHM, q0=q0, nav=nav, config=config)
+    algorithm = stream.algorithm
     with np.errstate(over="ignore", invalid="ignore"):
-        res = stream.run(t, omega, imu.frame_id, imu.angular_velocity_covariance)
+        res = stream.run(t, omega, imu.frame_id, cov, accel)
     if res.index.size == 0:
         reasons = ", ".join(f"{n} {r}" for r, n in res.counts.items() if n and r != iv.GAP)
-        raise ValueError(f"{input_path}: no usable sample on {imu.topic}: all {len(imu)} "
+        raise ValueError(f"{input_path}: no usable sample on {imu.topic}: all {len(t)} "
                          f"skipped ({reasons})")
     t_int = time.perf_counter()
 
-    keep = res.index
+    keep = res.index + first
     every = keep.size == len(imu)
+    t = t_all
+    omega = imu.angular_velocity
 
     def kept(a):
         """Only the samples that got an attitude (no copy when all did)."""
@@ -217,6 +248,9 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         skipped={r: n for r, n in res.counts.items() if r in iv.REJECT_REASONS and r != iv.GAP},
         gaps=res.counts[iv.GAP], time_jump_resets=res.time_jump_resets,
         invalid_covariances=res.counts["invalid_covariance"], details=res.details,
+        skipped_before_truth=first, gyro_bias=bias_summary(res.bias),
+        gyro_bias_rad_s=np.asarray(res.bias.bias, float).tolist(),
+        alignment=None if res.alignment is None else _alignment_summary(res.alignment),
         duration_s=float((tv.max() - tv.min()) * 1e-9),
         wall_seconds=t_end - t_start, read_seconds=t_read - t_start,
         integrate_seconds=t_int - t_read, write_seconds=t_end - t_int,

@@ -65,12 +65,15 @@ from gyro_attitude.core.attitude.alignment import AlignmentResult, StaticAligner
 from gyro_attitude.core.attitude.covariance import AttitudeCovariance, propagate_batch
 from gyro_attitude.core.attitude.gravity_aiding import GravityAiding
 from gyro_attitude.core.attitude.gyro_bias import BIAS_MODES, GyroBiasEstimator, GyroBiasReport
+from gyro_attitude.core.attitude.rest import NOISE_FLOOR_RAD_S, detect_rest
 from gyro_attitude.core.earth import OMEGA_IE
 from gyro_attitude.core.rotation import quat_from_rotvec, quat_multiply, quat_normalize
 
 INVALID_COVARIANCE = "invalid_covariance"
 INTEGRATOR_ERROR = "integrator_error"
 INVALID_ACCEL = "invalid_accel"
+# m/s²: a specific force beyond this (1e5 g) is no accelerometer reading
+ACCEL_ABSURD = 1e6
 
 INITIAL_ATTITUDE_MODES = ("given", "level")
 HEADING_SOURCES = ("parameter", "gyrocompass")
@@ -276,9 +279,10 @@ class AttitudeStream:
     only: it needs samples after each interval, so :meth:`push` refuses it); ``q0`` the initial
     attitude (also the one a time jump resets to; with ``initial_attitude="level"`` the
     alignment replaces it); ``nav`` a :class:`NavFrame` for q_nb (Earth and transport rate
-    removed) or None for q_ib; ``config`` the settings.  With ``nav`` (or ``config.latitude_rad``) the Earth rate is taken out of the
-    bias estimate, using the current attitude as q_nb (for q_ib that takes the inertial frame
-    as the nav frame at the start: right to ω_ie·t, a few °/h of Earth-rate direction).
+    removed) or None for q_ib; ``config`` the settings.  With ``nav`` (or
+    ``config.latitude_rad``) the Earth rate is taken out of the bias estimate, using the current
+    attitude as q_nb (for q_ib that takes the inertial frame as the nav frame at the start:
+    right to ω_ie·t, a few °/h of Earth-rate direction).
     """
 
     def __init__(self, algorithm: str = DEFAULT_ALGORITHM, q0=(0.0, 0.0, 0.0, 1.0),
@@ -447,7 +451,7 @@ class AttitudeStream:
             except (TypeError, ValueError):
                 x = y = z = math.nan
             if math.isfinite(x) and math.isfinite(y) and math.isfinite(z) and \
-                    max(abs(x), abs(y), abs(z)) <= 1e6:
+                    max(abs(x), abs(y), abs(z)) <= ACCEL_ABSURD:
                 a = (x, y, z)
             else:
                 self._count(INVALID_ACCEL, f"accelerometer sample {accel!r} is not 3 finite "
@@ -638,9 +642,47 @@ class AttitudeStream:
     # ------------------------------------------------------------------ a whole recording
     @property
     def batch_path(self) -> bool:
-        """Whether :meth:`run` can integrate in batch (no sequential filter configured)."""
+        """Whether :meth:`run` integrates in batch whatever the data (no sequential filter
+        configured; with ``gyro_bias="auto"`` it also does on a recording with no rest)."""
         cfg = self.config
         return cfg.gyro_bias != "auto" and cfg.initial_attitude == "given" and cfg.aiding == "none"
+
+    def needs_per_sample_path(self, t_ns, omega, accel=None) -> bool:
+        """Whether :meth:`run` on this recording has to run the per-sample path (a sequential
+        filter that acts on it: levelling, aiding, or ``auto`` bias on data with a rest)."""
+        cfg = self.config
+        if cfg.initial_attitude != "given" or cfg.aiding != "none":
+            return True
+        if cfg.gyro_bias != "auto":
+            return False
+        t = np.asarray(t_ns)
+        w = np.asarray(omega, dtype=np.float64)
+        cls = v.classify(t, w, "", cfg.check_config())
+        return self._auto_bias_may_act(t.astype(np.int64, copy=False), w, accel, cls.action)
+
+    def _auto_bias_may_act(self, t, w, accel, act) -> bool:
+        """Whether the ``auto`` bias estimator could find a rest: the batch rest detector over
+        each run of accepted samples (the streaming detector breaks its windows at gaps and
+        jumps, and at unusable accelerometer samples, so it finds no rest where this finds
+        none: then the bias stays at its initial value and the batch path is exact)."""
+        codes = v.ACTION_CODES
+        valid = np.flatnonzero(act != codes[v.REJECT])
+        if valid.size == 0:
+            return False
+        a = None if accel is None else np.asarray(accel, dtype=np.float64)
+        if a is not None and not (np.isfinite(a[valid]).all()
+                                  and np.abs(a[valid]).max() <= ACCEL_ABSURD):
+            return True  # unusable accelerometer samples: let the per-sample path count them
+        bounds = np.append(np.flatnonzero(act[valid] != codes[v.ACCEPT]), valid.size)
+        params = {"gyro_std_min": NOISE_FLOOR_RAD_S, **self.config.rest_params()}
+        for p0, p1 in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
+            seg = valid[p0:p1]
+            if seg.size < 2:
+                continue
+            rest = detect_rest(t[seg], w[seg], None if a is None else a[seg], **params)
+            if rest.at_rest.any():
+                return True
+        return False
 
     def run(self, t_ns, omega, frame_id: str | list[str] | None = "",
             angular_velocity_covariance=None, accel=None) -> StreamResult:
@@ -667,11 +709,17 @@ class AttitudeStream:
             acc = np.asarray(accel, dtype=np.float64)
             if acc.shape != (n, 3):
                 raise ValueError(f"accel must have shape ({n}, 3), got {acc.shape}")
-        if not self.batch_path:
-            cls = v.classify(t, w, frame_id, self.config.check_config())  # checks the input
-            return self._run_pushing(t.astype(np.int64, copy=False), w, frame_id, cov, acc)
-        cls = v.classify(t, w, frame_id, self.config.check_config())
+        cls = v.classify(t, w, frame_id, self.config.check_config())  # checks the input too
         t = t.astype(np.int64, copy=False)
+        cfg = self.config
+        if (cfg.initial_attitude != "given" or cfg.aiding != "none"
+                or (cfg.gyro_bias == "auto" and self._auto_bias_may_act(t, w, acc, cls.action))):
+            if self.integrator is None:
+                raise ValueError(f"{self.algorithm} is an offline algorithm and runs in batch "
+                                 "only, but this recording needs the per-sample path (levelling, "
+                                 "aiding, or auto gyro bias with a rest in the data): use a "
+                                 "causal algorithm, or gyro bias none or a fixed value")
+            return self._run_pushing(t, w, frame_id, cov, acc)
         codes = v.ACTION_CODES
         act = cls.action
         valid = np.flatnonzero(act != codes[v.REJECT])
@@ -727,6 +775,11 @@ class AttitudeStream:
             variance_known = np.maximum.accumulate(known_v) | self._var_known
             variance[~variance_known] = 0.0
         counts[INVALID_ACCEL] = 0
+        if acc is not None and valid.size:
+            with np.errstate(invalid="ignore"):
+                usable = np.isfinite(acc[valid]).all(axis=1) & (
+                    np.abs(acc[valid]).max(axis=1) <= ACCEL_ABSURD)
+            counts[INVALID_ACCEL] = int(np.count_nonzero(~usable))
         counts[INTEGRATOR_ERROR] = 0
         self._adopt_batch_state(cls, t, w, valid, q_out, counts)
         if known_v.any():
