@@ -50,7 +50,7 @@ FULL_SECONDS = 600
 QUICK_SECONDS = 60
 TRUTH_EVERY = 100  # truth at 10 Hz
 PEER_SUBSET = 20_000
-ALGORITHMS = ("coning4", "rotvec_cubic")  # fastest vectorized and the default
+ALGORITHMS = ("rotvec_cubic", "magnus6_quintic")  # the node's default and replay's default
 HALF_ANGLE = np.radians(1.0)
 CONE_HZ = 1.0
 

@@ -20,9 +20,9 @@ def test_quick_run_reports_all_rows(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("GYRO_BENCH_TMPDIR", str(tmp_path))
     rows = bench.run(True, tmp_path / "out")
     names = [r["name"] for r in rows]
-    assert names == ["write_input", "peer/mcap_read", "peer/mcap_ros2_decode", "replay/coning4/cold",
-                     "replay/coning4/warm", "replay/rotvec_cubic/cold",
-                     "replay/rotvec_cubic/warm"]
+    assert names == ["write_input", "peer/mcap_read", "peer/mcap_ros2_decode",
+                     "replay/rotvec_cubic/cold", "replay/rotvec_cubic/warm",
+                     "replay/magnus6_quintic/cold", "replay/magnus6_quintic/warm"]
     assert rows[1]["messages"] == 5000
     for r in rows[3:]:
         assert r["messages"] == r["fast_path_messages"] == 5000 and r["fallback_messages"] == 0
@@ -30,8 +30,10 @@ def test_quick_run_reports_all_rows(tmp_path, monkeypatch, capsys):
         assert r["speedup_vs_decode"] > 0
     # cold (CLI process) and warm (in process) compute the same thing
     assert rows[3]["max_error_rad"] == rows[4]["max_error_rad"]
-    # closed-form coning at 1 kHz: the 4th-order default tracks the truth closely
-    assert rows[6]["max_error_rad"] < 1e-6
+    # closed-form coning at 1 kHz: the node's 4th-order default and replay's 6th-order one
+    # track the truth closely, the 6th-order one closer
+    assert rows[4]["max_error_rad"] < 1e-6
+    assert rows[6]["max_error_rad"] < rows[4]["max_error_rad"]
     assert json.loads((tmp_path / "out" / "replay.json").read_text())[0]["name"] == "write_input"
     assert "replay/rotvec_cubic/cold" in capsys.readouterr().out
     assert not [p for p in tmp_path.iterdir() if p.name.startswith("gyro_replay_bench_")]
