@@ -35,6 +35,7 @@ from gyro_attitude.core.attitude.rest import detect_rest, rest_segments
 from gyro_attitude.core.attitude.stream import AttitudeStream, StreamConfig
 from gyro_attitude.core.attitude.truth import initial_attitude_from_truth
 from gyro_attitude.core.rotation import quat_angle_between, quat_as_matrix, quat_multiply
+from gyro_attitude.io.imu_fast import read_imu_arrays, read_quaternion_stamped_arrays
 
 RECORDINGS = ("broad_05_slow_rotation_with_breaks", "broad_16_fast_translation")
 LATITUDE_RAD = np.radians(52.5)  # TU Berlin, where BROAD was recorded
@@ -66,7 +67,6 @@ def real_dir() -> pathlib.Path:
 
 def load(name: str, directory: pathlib.Path | None = None):
     """(t_ns, gyro, accel, truth_t_ns, truth_q) of one recording."""
-    from gyro_attitude.io.imu_fast import read_imu_arrays, read_quaternion_stamped_arrays
 
     path = (directory or real_dir()) / f"{name}.mcap"
     imu = read_imu_arrays(path, "/imu/data_raw")

@@ -7,6 +7,10 @@ import json
 import sys
 from pathlib import Path
 
+from gyro_attitude.core.units import format_si
+from gyro_attitude.io.safe_output import SafeOutput, check_output_path
+from gyro_attitude.offline.allan import AXES, analyse_mcap, plot
+
 _GYRO_UNITS = (("random_walk", "N (ARW)", "angle random walk"),
                ("bias_instability", "B (bias inst.)", "angular rate"),
                ("rate_random_walk", "K (RRW)", "rate random walk"))
@@ -48,16 +52,12 @@ def _scene_yaml(result, source: str) -> str:
 
 
 def _write_text(path: str, text: str, force: bool) -> None:
-    from gyro_attitude.io.safe_output import SafeOutput
 
     with SafeOutput(path, force=force) as tmp:
         tmp.write_text(text, encoding="utf-8")
 
 
 def run(args: argparse.Namespace) -> int:
-    from gyro_attitude.core.units import format_si
-    from gyro_attitude.io.safe_output import SafeOutput, check_output_path
-    from gyro_attitude.offline.allan import AXES, analyse_mcap, plot
 
     outs = [(p, what) for p, what in ((args.json, "JSON"), (args.plot, "plot"),
                                       (args.scene_out, "scene")) if p]

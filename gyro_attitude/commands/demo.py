@@ -26,6 +26,9 @@ import time
 from datetime import UTC, datetime
 from pathlib import Path
 
+from gyro_attitude.core.rotation import quat_angle_between
+from gyro_attitude.io.scene_file import load_scene
+
 PACKAGE = "gyro_attitude"
 DEFAULT_SCENE = "coning"
 
@@ -119,7 +122,6 @@ def run(args: argparse.Namespace) -> int:
     if not (args.duration > 0 and math.isfinite(args.duration)):
         print(f"--duration must be > 0 s, got {args.duration}", file=sys.stderr)
         return 2
-    from gyro_attitude.io.scene_file import load_scene
 
     try:
         spec = load_scene(args.scene)
@@ -151,6 +153,7 @@ def run(args: argparse.Namespace) -> int:
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import Imu
 
+    # ROS modules load rclpy: imported only when the demo runs (not for --help)
     from gyro_attitude.ros import convert
     from gyro_attitude.ros.qos import imu_qos
 
@@ -250,7 +253,6 @@ def _summarize(spec, rate, args, truth, attitude, diagnostics, bag, plot, wall, 
                integ_code, raw_received) -> int:
     import numpy as np
 
-    from gyro_attitude.core.rotation import quat_angle_between
 
     n_expected = int(round(args.duration * rate))
     stamps = sorted(set(truth) & set(attitude))

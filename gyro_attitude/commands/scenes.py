@@ -5,6 +5,14 @@ from __future__ import annotations
 import argparse
 import sys
 
+from gyro_attitude.io.scene_file import (
+    find_scene_file,
+    list_scenes,
+    load_scene,
+    read_scene_text,
+    validate_scene_text,
+)
+
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("name", nargs="?",
@@ -14,14 +22,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from gyro_attitude.io.scene_file import (
-        find_scene_file,
-        list_scenes,
-        load_scene,
-        read_scene_text,
-        validate_scene_text,
-    )
-
     if args.name:
         # Only a valid scene is printed: a path to any other file gets one line and exit 1.
         try:

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from gyro_attitude.offline.simulate import simulate
+
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scene", help="scene name (gyro-attitude scenes) or YAML path")
@@ -23,7 +25,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from gyro_attitude.offline.simulate import simulate
 
     try:
         r = simulate(args.scene, args.duration, args.out, rate_hz=args.rate, seed=args.seed,

@@ -43,7 +43,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Header
 
-from gyro_attitude.core.scene import BLOCK_SAMPLES
+from gyro_attitude.core.scene import BLOCK_SAMPLES, SceneSimulator
 from gyro_attitude.core.sim_topics import (
     DEFAULT_FRAME_ID,
     DEFAULT_WORLD_FRAME_ID,
@@ -53,6 +53,7 @@ from gyro_attitude.core.sim_topics import (
 )
 from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
 from gyro_attitude.io.safe_output import SafeOutput, check_output_path
+from gyro_attitude.io.scene_file import load_scene
 from gyro_attitude.ros import convert
 from gyro_attitude.ros.node_main import run_node
 from gyro_attitude.ros.params import ParameterError, ParamSpec, check_update, declare_all
@@ -104,8 +105,6 @@ class GyroSimNode(Node):
         self._specs = {s.name: s for s in specs}
         p = declare_all(self, specs)
         self._p = p
-        from gyro_attitude.core.scene import SceneSimulator
-        from gyro_attitude.io.scene_file import load_scene
 
         try:
             spec = load_scene(p["scene"])
