@@ -127,6 +127,18 @@ def test_mixed_frame_ids_fall_back_per_message(tmp_path):
     _check(arrays, _expected(msgs))  # file order kept across the two paths
 
 
+def test_frame_ids_of_the_same_length_are_told_apart(tmp_path):
+    """The fixed CDR layout depends only on the frame_id's length: a different frame_id of the
+    same length must still be recognised as different (not decoded as the first one)."""
+    rng = np.random.default_rng(13)
+    frames = ["imu_link", "imu_link", "imu_lonk"]
+    msgs = _write_messages(tmp_path / "a.mcap", rng, 90, frames)
+    arrays = read_imu_arrays(tmp_path / "a.mcap")
+    assert arrays.frame_ids == {"imu_link", "imu_lonk"}
+    assert arrays.fallback_messages > 0
+    _check(arrays, _expected(msgs))
+
+
 def test_file_without_index_or_summary(tmp_path):
     """A crash-truncated recording: chunks closed by flush, no summary; still array-read."""
     rng = np.random.default_rng(13)
