@@ -125,7 +125,16 @@ def ros_node(ros_domain_id, namespace):
             executor.spin_once(timeout_sec=0.02)
         return bool(predicate())
 
+    def wait_for_publishers(topic: str, count: int = 1, timeout: float = 30.0) -> bool:
+        """Until ``count`` publishers of ``topic`` are discovered, then a short settle: a
+        node started next must not publish before this probe's subscriptions have matched
+        the publishers it listens to (on a loaded machine discovery takes seconds)."""
+        found = spin_until(lambda: node.count_publishers(topic) >= count, timeout)
+        spin_until(lambda: False, 0.3)
+        return found
+
     node.spin_until = spin_until
+    node.wait_for_publishers = wait_for_publishers
     node.executor_ = executor
     yield node
     executor.shutdown()

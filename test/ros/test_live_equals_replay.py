@@ -55,6 +55,7 @@ def test_player_and_integrator_equal_replay(launch, ros_node, tmp_path):
         QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE))
     integ = launch("gyro_attitude.ros.attitude_integrator_node",
                    "-p", f"algorithm:={ALGORITHM}", "-p", "qos_reliability:=reliable")
+    assert ros_node.wait_for_publishers("attitude"), integ.output()
     player = launch("gyro_attitude.ros.mcap_player_node", "-p", f"input:={rec}",
                     "-p", "namespace_topics:=true", "-p", "wait_for_subscribers:=1",
                     "-p", "publish_clock:=false")

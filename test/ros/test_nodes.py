@@ -68,6 +68,7 @@ def test_sim_to_integrator_coning_against_truth(launch, ros_node):
     integ = launch(INTEGRATOR, "--params-file", str(config / "attitude_integrator.yaml"),
                    "-p", "initial_attitude_source:=truth",
                    "-p", "qos_reliability:=reliable", "-p", "diagnostics_period_s:=0.5")
+    assert ros_node.wait_for_publishers("attitude"), integ.output()
     sim = launch(SIM, "--params-file", str(config / "gyro_sim.yaml"),
                  "-p", "scene:=coning", "-p", f"rate_hz:={rate}",
                  "-p", f"duration_s:={duration}", "-p", "wait_for_subscribers:=2",
@@ -156,6 +157,7 @@ def test_integrator_rejects_bad_input_and_refuses_bad_parameters(launch, ros_nod
     imu_out = _collect(ros_node, Imu, "imu/data")
     diag = _collect(ros_node, DiagnosticArray, "/diagnostics", 100)
     pub = ros_node.create_publisher(Imu, "imu/data_raw", RELIABLE)
+    assert ros_node.wait_for_publishers("attitude"), integ.output()
     assert ros_node.spin_until(lambda: pub.get_subscription_count() >= 1, timeout=20), (
         integ.output()
     )
@@ -295,6 +297,7 @@ def test_fast_mode_gimbal_scene_recording_clock_and_enu_at_rest(launch, ros_node
     lat = math.radians(45.0)  # the scene's latitude
     integ = launch(INTEGRATOR, "-p", "frame:=enu", "-p", f"latitude_rad:={lat!r}",
                    "-p", "initial_attitude_source:=truth", "-p", "qos_reliability:=reliable")
+    assert ros_node.wait_for_publishers("attitude"), integ.output()
     sim = launch(SIM, "-p", "scene:=free_gyro_drift", "-p", "time_mode:=fast",
                  "-p", "duration_s:=4.0", "-p", f"record_path:={bag}",
                  "-p", "qos_reliability:=reliable",

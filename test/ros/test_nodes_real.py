@@ -50,6 +50,8 @@ def test_level_alignment_and_auto_bias_on_handheld_scene(launch, ros_node):
     auto = launch(INTEGRATOR, *common, "-p", "initial_attitude_source:=truth",
                   "-r", "__node:=integrator_auto", "-r", "attitude:=attitude_auto",
                   "-r", "imu/data:=imu/data_auto")
+    assert ros_node.wait_for_publishers("attitude") and ros_node.wait_for_publishers(
+        "attitude_auto"), level.output() + auto.output()
     # real time (20 s): fast mode outruns two per-sample integrators on a loaded machine
     sim = launch(SIM, "-p", "scene:=handheld_mems", "-p", "duration_s:=20.0",
                  "-p", "qos_reliability:=reliable", "-p", "wait_for_subscribers:=3",

@@ -34,6 +34,7 @@ def test_live_integrator_equals_offline_replay(launch, ros_node, namespace, tmp_
 
     probe = []  # a second, independent listener: tells a silent integrator from the recorder
     ros_node.create_subscription(QuaternionStamped, "attitude", probe.append, 1000)
+    assert ros_node.wait_for_publishers("attitude"), integ.output()
     sim = launch("gyro_attitude.ros.gyro_sim_node", "-p", "scene:=coning", "-p",
                  "rate_hz:=200.0", "-p", "duration_s:=2.0", "-p", f"record_path:={sim_bag}",
                  "-p", "wait_for_subscribers:=1")  # the integrator (discovery can be slow)
