@@ -49,10 +49,14 @@ def check_output_path(out, *, inputs: Iterable = (), force: bool = False,
             raise OutputPathError(f"{what} {out} is the input {inp}: refusing to overwrite it")
     if real.is_dir():
         raise OutputPathError(f"{what} {out} is a directory")
+    if real.exists() and not real.is_file():
+        # a device (/dev/null), FIFO or socket: renaming a file over it would replace the node
+        raise OutputPathError(f"{what} {out} is not a regular file (a device, FIFO or socket): "
+                              "refusing to replace it, even with --force")
     if (out.exists() or out.is_symlink()) and not force:
         raise OutputPathError(f"{what} {out} exists (use --force, or force:=true for a node, "
                               "to overwrite it)")
-    parent = real.parent
+    parent = Path(os.path.abspath(out)).parent
     if not parent.is_dir():
         raise OutputPathError(f"{what} directory {parent} does not exist")
     if not os.access(parent, os.W_OK | os.X_OK):
@@ -80,7 +84,9 @@ class SafeOutput:
     def open(self) -> Path:
         """Create the hidden folder and return the temporary path to write."""
         if self.temp_path is None:
-            directory = Path(os.path.realpath(self.path)).parent
+            # beside the requested name (not the symlink's target): the rename then stays on
+            # one file system and replaces the name itself
+            directory = Path(os.path.abspath(self.path)).parent
             self._temp_dir = Path(tempfile.mkdtemp(
                 prefix=f".{self.path.name}.", suffix=".partial", dir=directory))
             self.temp_path = self._temp_dir / self.path.name
@@ -90,6 +96,9 @@ class SafeOutput:
         """Move the finished output to its requested name (idempotent); returns that name."""
         if self.temp_path is None:
             return self.path
+        if self.path.exists() and not (self.path.is_file() or self.path.is_dir()):
+            raise OutputPathError(f"output {self.path} is not a regular file (a device, FIFO or "
+                                  f"socket); the finished output stays at {self.temp_path}")
         if self.path.exists() or self.path.is_symlink():
             if not self.force:
                 raise OutputPathError(f"output {self.path} appeared meanwhile; the finished "

@@ -128,3 +128,30 @@ def test_commit_on_success_nothing_on_failure(tmp_path):
         tmp.write_bytes(b"new")
         assert out.read_bytes() == b"old"  # replaced only at the end
     assert out.read_bytes() == b"new" and sorted(p.name for p in tmp_path.iterdir()) == ["o.bin"]
+
+
+@pytest.mark.parametrize("special", ["/dev/null", "fifo"])
+def test_devices_and_fifos_are_never_replaced_even_with_force(tmp_path, special):
+    """``--out /dev/null --force`` once replaced the device node with a regular file."""
+    if special == "fifo":
+        special = tmp_path / "pipe"
+        os.mkfifo(special)
+    with pytest.raises(OutputPathError, match="not a regular file"):
+        check_output_path(special, force=True)
+    if special != "/dev/null":
+        assert os.path.exists(special) and not os.path.isfile(special)
+
+
+def test_a_symlink_output_is_replaced_beside_the_link_not_at_its_target(tmp_path):
+    target_dir = tmp_path / "elsewhere"
+    target_dir.mkdir()
+    target = target_dir / "t.mcap"
+    target.write_bytes(b"target")
+    link = tmp_path / "link.mcap"
+    link.symlink_to(target)
+    check_output_path(link, force=True)
+    with SafeOutput(link, force=True) as tmp:
+        assert tmp.parent.parent == tmp_path  # same directory (file system) as the name
+        tmp.write_bytes(b"new")
+    assert link.read_bytes() == b"new" and not link.is_symlink()
+    assert target.read_bytes() == b"target"  # the link's target is left alone
