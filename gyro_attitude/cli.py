@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import signal
 import sys
 import threading
@@ -46,8 +47,9 @@ class _Interrupt:
 
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
-    def __init__(self) -> None:
+    def __init__(self, process_main: bool = False) -> None:
         self.received = False
+        self.process_main = process_main
         self._previous: dict[int, object] = {}
 
     def _handle(self, _signum, _frame) -> None:
@@ -61,6 +63,11 @@ class _Interrupt:
         return self
 
     def __exit__(self, *exc) -> bool:
+        if self.received and self.process_main:
+            # the process is stopping: a repeated signal arriving after this block must not
+            # find the default handler again (a traceback, or death by the signal)
+            self.ignore_from_now_on()
+            return False
         for sig, handler in self._previous.items():
             signal.signal(sig, handler)
         return False
@@ -74,9 +81,13 @@ class _Interrupt:
                 signal.signal(sig, signal.SIG_IGN)
 
 
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, what a shell reports for a command stopped by Ctrl-C
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run a subcommand; exit status 0 also after SIGINT/SIGTERM (the subcommand stopped
-    cleanly). ``argv`` None = this is the process's entry point."""
+    """Run a subcommand. SIGINT/SIGTERM stop it cleanly (no partial output, no traceback) with
+    one line and exit status 130: the work was not completed. ``argv`` None = this is the
+    process's entry point."""
     is_process_main = argv is None
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser()
@@ -85,22 +96,36 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()  # no subcommand given
         return 2
     name = argv[0]
-    ensure_ament_prefix_path()  # before any subcommand loads rclpy or starts node processes
-    module = importlib.import_module(f"gyro_attitude.commands.{name}")
-    sub = argparse.ArgumentParser(prog=f"gyro-attitude {name}", description=SUBCOMMANDS[name])
-    module.configure(sub)
-    args = sub.parse_args(argv[1:])
-    interrupt = _Interrupt()
+    interrupt = _Interrupt(process_main=is_process_main)
     try:
+        # the handler is in place before the subcommand's (slow) imports: a Ctrl-C at any time
+        # ends the same way
         with interrupt:
+            ensure_ament_prefix_path()  # before any subcommand loads rclpy or starts nodes
+            module = importlib.import_module(f"gyro_attitude.commands.{name}")
+            sub = argparse.ArgumentParser(prog=f"gyro-attitude {name}",
+                                          description=SUBCOMMANDS[name])
+            module.configure(sub)
+            args = sub.parse_args(argv[1:])
             status = int(module.run(args) or 0)
-    except KeyboardInterrupt:
-        status = 0
+    except KeyboardInterrupt:  # stopped outside the subcommand's own clean-up
+        print(f"gyro-attitude {name}: interrupted; no output written under the requested names",
+              file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # the reader of our output went away (`... --json | head`): nothing more to say
+        if is_process_main:
+            sys.stdout = open(os.devnull, "w")  # no second error when Python flushes at exit
+        return 1
     finally:
         if is_process_main:
             _Interrupt.ignore_from_now_on()
-    # a subcommand that caught the interrupt itself reports its own status (e.g. 130)
-    return 0 if interrupt.received else status
+    if interrupt.received:
+        if status != EXIT_INTERRUPTED:  # the subcommand did not say it was interrupted
+            print(f"gyro-attitude {name}: interrupted; no output written under the requested "
+                  "names", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    return status
 
 
 if __name__ == "__main__":
