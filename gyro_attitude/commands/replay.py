@@ -82,13 +82,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "rotvec_cubic when a per-sample filter acts on the recording: "
                         "levelling, aiding, or auto gyro bias with a rest)")
     # The attitude-stream policy of the attitude_integrator node, same names and defaults.
-    parser.add_argument("--max-gap-s", type=_positive, default=0.1,
+    parser.add_argument("--max-gap-s", type=_positive_up_to(1e6), default=0.1,
                         help="a forward stamp step longer than this is a gap: not integrated "
                         "across, attitude held (default 0.1)")
-    parser.add_argument("--time-jump-threshold-s", type=_positive, default=1.0,
+    parser.add_argument("--time-jump-threshold-s", type=_positive_up_to(1e6), default=1.0,
                         help="a backward stamp jump longer than this resets the attitude "
                         "(default 1.0); shorter backward steps are skipped as out of order")
-    parser.add_argument("--max-rate-rad-s", type=_positive, default=iv.DEFAULT_MAX_RATE_RAD_S,
+    parser.add_argument("--max-rate-rad-s", type=_positive_up_to(iv.MAX_RATE_LIMIT_RAD_S),
+                        default=iv.DEFAULT_MAX_RATE_RAD_S,
                         help="a sample with a larger rate on any axis is skipped as implausible "
                         f"(default {iv.DEFAULT_MAX_RATE_RAD_S:g})")
     parser.add_argument("--frame", choices=("inertial", "enu"), default="inertial",
@@ -157,11 +158,22 @@ def _progress_bar(args):
     return bar, update
 
 
-def _positive(text: str) -> float:
-    value = _finite(text)
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
-    return value
+# warning words per policy event (the rest are skipped samples, named by their reason)
+_EVENT_WORDS = {
+    iv.GAP: "gap(s) not integrated across, attitude held",
+    "time_jump": "backward time jump(s): attitude reset",
+    "invalid_covariance": "invalid angular_velocity_covariance(s) treated as unknown",
+    "integrator_error": "non-finite update(s): last good attitude restored",
+}
+
+
+def _positive_up_to(limit: float):
+    def parse(text: str) -> float:
+        value = _finite(text)
+        if not 0 < value <= limit:
+            raise argparse.ArgumentTypeError(f"must be > 0 and <= {limit:g}, got {text!r}")
+        return value
+    return parse
 
 
 def _stream_config(args) -> StreamConfig:
@@ -220,13 +232,11 @@ def run(args) -> int:
               file=sys.stderr)
     # once per reason: how many, and the first case in words
     events = {**out["skipped"], iv.GAP: out["gaps"], "time_jump": out["time_jump_resets"],
-              "invalid_covariance": out["invalid_covariances"]}
+              "invalid_covariance": out["invalid_covariances"],
+              "integrator_error": out["integrator_errors"]}
     for reason, n in events.items():
         if n:
-            what = {iv.GAP: "gap(s) not integrated across, attitude held",
-                    "time_jump": "backward time jump(s): attitude reset",
-                    "invalid_covariance": "invalid angular_velocity_covariance(s) treated as "
-                                          "unknown"}.get(reason, f"sample(s) skipped ({reason})")
+            what = _EVENT_WORDS.get(reason, f"sample(s) skipped ({reason})")
             print(f"warning: {n} {what}; first: {out['details'].get(reason, '')}",
                   file=sys.stderr)
     if len(out["frame_ids"]) > 1:

@@ -74,6 +74,7 @@ class ReplayResult:
     gaps: int
     time_jump_resets: int
     invalid_covariances: int
+    integrator_errors: int
     details: dict[str, str]
     skipped_before_truth: int
     gyro_bias: str
@@ -247,7 +248,8 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         fallback_messages=int(imu.fallback_messages), frame_ids=sorted(imu.frame_ids),
         skipped={r: n for r, n in res.counts.items() if r in iv.REJECT_REASONS and r != iv.GAP},
         gaps=res.counts[iv.GAP], time_jump_resets=res.time_jump_resets,
-        invalid_covariances=res.counts["invalid_covariance"], details=res.details,
+        invalid_covariances=res.counts["invalid_covariance"],
+        integrator_errors=res.counts["integrator_error"], details=res.details,
         skipped_before_truth=first, gyro_bias=bias_summary(res.bias),
         gyro_bias_rad_s=np.asarray(res.bias.bias, float).tolist(),
         alignment=None if res.alignment is None else _alignment_summary(res.alignment),

@@ -194,7 +194,7 @@ def parameter_specs() -> list[ParamSpec]:
                   low=1e-6, high=1e6, runtime=True),
         ParamSpec("max_rate_rad_s", iv.DEFAULT_MAX_RATE_RAD_S,
                   "a sample with a larger rate on any axis is implausible and rejected [rad/s]",
-                  low=1e-3, high=1e9, runtime=True),
+                  low=1e-3, high=iv.MAX_RATE_LIMIT_RAD_S, runtime=True),
         ParamSpec("drain_queue", True,
                   "take all queued Imu messages per executor wakeup (less overhead at high "
                   "rates); false: one message per wakeup (plain rclpy)"),
@@ -224,6 +224,10 @@ class AttitudeIntegratorNode(Node):
                 height_m=p["height_m"],
                 velocity_enu=np.asarray(p["velocity_enu"], dtype=float),
             )
+            try:
+                self._nav.rate_enu()  # height and velocity within what a carrier can have
+            except ValueError as exc:
+                raise ParameterError(f"parameters 'height_m'/'velocity_enu': {exc}") from exc
         self._world_frame = p["world_frame_id"] or p["frame"]
         try:
             config = self._stream_config(p)

@@ -355,3 +355,16 @@ def test_ctrl_c_in_a_real_process(tmp_path):
         pytest.skip("the replay finished before the signal arrived")
     assert proc.returncode == 130 and "interrupted" in _one_line(err)
     assert _listing(out_dir) == []
+
+
+@pytest.mark.parametrize("flag, value", [("--max-gap-s", "1e300"), ("--time-jump-threshold-s",
+                                                                     "inf"),
+                                          ("--max-rate-rad-s", "1e300"), ("--max-gap-s", "-1")])
+def test_policy_flags_out_of_range_are_one_line_exit_2(tmp_path, capsys, flag, value):
+    sample = REPO / "bags" / "coning_200hz.mcap"
+    with pytest.raises(SystemExit) as exc:
+        cli_main(["replay", str(sample), "--out", str(tmp_path / "o.mcap"), flag, value])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert flag in err and "Traceback" not in err
+    assert not (tmp_path / "o.mcap").exists()

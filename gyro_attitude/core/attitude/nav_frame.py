@@ -8,6 +8,12 @@ import numpy as np
 
 from gyro_attitude.core.earth import check_latitude, nav_rate_enu
 
+# A carrier near the Earth: from the deepest mines to far above orbit heights, and well above
+# orbital speed (8 km/s); beyond them the transport-rate formulas describe no carrier.
+MIN_HEIGHT_M = -1.0e4
+MAX_HEIGHT_M = 1.0e6
+MAX_SPEED_M_S = 1.0e5
+
 
 @dataclass(frozen=True)
 class NavFrame:
@@ -41,6 +47,12 @@ class NavFrame:
             raise ValueError(f"velocity_enu must have shape (3,) or (N, 3), got {v.shape}")
         if not (np.all(np.isfinite(h)) and np.all(np.isfinite(v))):
             raise ValueError("NavFrame height_m / velocity_enu contain non-finite values")
+        if np.any(h < MIN_HEIGHT_M) or np.any(h > MAX_HEIGHT_M):
+            raise ValueError(f"NavFrame height_m must be within [{MIN_HEIGHT_M:g}, "
+                             f"{MAX_HEIGHT_M:g}] m, got {np.min(h):g}..{np.max(h):g}")
+        if np.any(np.abs(v) > MAX_SPEED_M_S):
+            raise ValueError(f"NavFrame velocity_enu must be within ±{MAX_SPEED_M_S:g} m/s per "
+                             f"axis, got {np.max(np.abs(v)):g}")
         series = lat.ndim > 0 or h.ndim > 0 or v.ndim > 1
         if series:
             if n_samples is None:

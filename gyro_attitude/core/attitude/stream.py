@@ -14,7 +14,8 @@ whole recording (:meth:`AttitudeStream.run`, replay) and applies the same rules 
 * the orientation variance grows per axis with the gyro noise (angle random walk: each accepted
   interval adds ``σ_ω² dt²``, σ_ω² from the diagonal of ``angular_velocity_covariance``); a
   covariance that says "no estimate" (element 0 = −1, or all zeros) adds nothing, and one with a
-  non-finite or negative diagonal is treated as unknown and counted (``invalid_covariance``);
+  non-finite, negative or absurd (> 1e6 (rad/s)²) diagonal is treated as unknown and counted
+  (``invalid_covariance``);
 * every attitude handed out is finite and unit: should an update ever produce a non-finite
   quaternion, the stream restores the last good attitude, restarts its time base at the next
   sample and counts an ``integrator_error`` instead.
@@ -70,6 +71,9 @@ from gyro_attitude.core.earth import OMEGA_IE
 from gyro_attitude.core.rotation import quat_from_rotvec, quat_multiply, quat_normalize
 
 INVALID_COVARIANCE = "invalid_covariance"
+# (rad/s)²: a gyro variance beyond this (σ = 1000 rad/s) is no estimate of a real gyro's noise,
+# and summed over an attitude it would overflow the orientation variance
+MAX_GYRO_VARIANCE = 1.0e6
 INTEGRATOR_ERROR = "integrator_error"
 INVALID_ACCEL = "invalid_accel"
 # m/s²: a specific force beyond this (1e5 g) is no accelerometer reading
@@ -85,7 +89,8 @@ def gyro_variances(covariance) -> tuple[np.ndarray | None, bool]:
     """(per-axis variances, invalid) of a row-major 3x3 ``angular_velocity_covariance``.
 
     ``None, False`` when it carries no estimate (element 0 = −1, REP-145) or is all zeros
-    (unknown); ``None, True`` when its diagonal is non-finite or negative (treated as unknown).
+    (unknown); ``None, True`` when its diagonal is non-finite, negative or beyond
+    MAX_GYRO_VARIANCE (treated as unknown).
     """
     if covariance is None:
         return None, False
@@ -95,7 +100,7 @@ def gyro_variances(covariance) -> tuple[np.ndarray | None, bool]:
     if c[0] == -1.0:
         return None, False
     d = c[[0, 4, 8]]
-    if not np.all(np.isfinite(d)) or np.any(d < 0):
+    if not np.all(np.isfinite(d)) or np.any(d < 0) or np.any(d > MAX_GYRO_VARIANCE):
         return None, True
     if not np.any(c):
         return None, False
@@ -108,7 +113,8 @@ def gyro_variances_array(covariance: np.ndarray) -> tuple[np.ndarray, np.ndarray
     d = c[:, [0, 4, 8]]
     no_estimate = c[:, 0] == -1.0
     with np.errstate(invalid="ignore"):
-        invalid = ~no_estimate & (~np.isfinite(d).all(axis=1) | (d < 0).any(axis=1))
+        invalid = ~no_estimate & (~np.isfinite(d).all(axis=1) | (d < 0).any(axis=1)
+                                  | (d > MAX_GYRO_VARIANCE).any(axis=1))
         zeros = ~np.any(c != 0, axis=1)
     known = ~no_estimate & ~invalid & ~zeros
     return np.where(known[:, None], d, 0.0), known, invalid
@@ -740,6 +746,10 @@ class AttitudeStream:
             q_seg = integrate_batch(t[seg], w_corr[seg], q0=q0, algorithm=self.algorithm,
                                     nav=_nav_rows(self.nav, seg, n))
             if not np.isfinite(q_seg).all():
+                if self.integrator is None:  # the bounds on rates and nav frames prevent it
+                    raise ValueError(f"{self.algorithm} produced a non-finite attitude and, an "
+                                     "offline algorithm, cannot take the per-sample path that "
+                                     "restores the last good one: use a causal algorithm")
                 return self._run_pushing(t, w, frame_id, cov, acc)
             q_out[p0:p1] = q_seg
 
@@ -755,7 +765,7 @@ class AttitudeStream:
             if counts[INVALID_COVARIANCE]:
                 k = int(valid[np.flatnonzero(invalid_all[valid])[0]])
                 cls.details.setdefault(INVALID_COVARIANCE, f"angular_velocity_covariance "
-                                       f"{cov[k].tolist()} has a non-finite or negative "
+                                       f"{cov[k].tolist()} has a non-finite, negative or absurd "
                                        "diagonal: treated as unknown")
         if known_v.any() or self._var_known:
             acc_rows = act[valid] == codes[v.ACCEPT]

@@ -62,6 +62,10 @@ _REASON_CODES: dict[str, int] = {r: i + 1 for i, r in enumerate(REJECT_REASONS)}
 # Far above any real gyro's range (tactical and MEMS gyros saturate at 40..200 rad/s), far
 # below what overflows a rotation angle in float64 over any step.
 DEFAULT_MAX_RATE_RAD_S = 1.0e4
+# Upper bounds of the settings: a rate limit above 1e6 rad/s or a gap/jump threshold above
+# 1e6 s lets through steps whose rotation angle no longer means anything.
+MAX_RATE_LIMIT_RAD_S = 1.0e6
+MAX_THRESHOLD_NS = 1_000_000 * 1_000_000_000
 
 
 @dataclass(frozen=True)
@@ -83,13 +87,15 @@ class ImuCheckConfig:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | np.integer):
                 raise ValueError(f"{name} must be an integer number of nanoseconds, got {value!r}")
-            if value <= 0:
-                raise ValueError(f"{name} must be > 0 ns, got {value}")
+            if not 0 < value <= MAX_THRESHOLD_NS:
+                raise ValueError(f"{name} must be > 0 ns and <= {MAX_THRESHOLD_NS} ns (1e6 s), "
+                                 f"got {value}")
         rate = self.max_rate_rad_s
         if isinstance(rate, bool) or not isinstance(rate, int | float | np.integer | np.floating):
             raise ValueError(f"max_rate_rad_s must be a number, got {rate!r}")
-        if not (math.isfinite(rate) and rate > 0):
-            raise ValueError(f"max_rate_rad_s must be finite and > 0, got {rate!r}")
+        if not (math.isfinite(rate) and 0 < rate <= MAX_RATE_LIMIT_RAD_S):
+            raise ValueError(f"max_rate_rad_s must be > 0 and <= {MAX_RATE_LIMIT_RAD_S:g}, got "
+                             f"{rate!r}")
 
 
 @dataclass(frozen=True)

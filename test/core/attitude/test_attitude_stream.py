@@ -245,3 +245,29 @@ def test_fuzz_never_non_finite_and_paths_agree(steps, rates, covs, algorithm, st
         assert np.max(np.abs(res.q - q_push)) <= 1e-12
         if res.variance is not None:
             assert np.isfinite(res.variance).all()
+
+
+def test_settings_and_inputs_beyond_any_gyro_are_refused_or_unknown():
+    """Bounds that keep every update finite: rate limit <= 1e6 rad/s, thresholds <= 1e6 s, a
+    carrier's height and speed; an absurd gyro variance (1e308) counts as unknown, and the
+    orientation variance stays finite."""
+    from gyro_attitude.core.attitude import NavFrame
+
+    for bad in (1e300, 2e6):
+        with pytest.raises(ValueError, match="max_rate_rad_s"):
+            StreamConfig(max_rate_rad_s=bad)
+    with pytest.raises(ValueError, match="max_gap_ns"):
+        StreamConfig(max_gap_ns=10**16)
+    for kw, match in (({"velocity_enu": (1e300, 0.0, 0.0)}, "velocity_enu"),
+                      ({"height_m": -7e6}, "height_m")):
+        with pytest.raises(ValueError, match=match):
+            NavFrame(latitude_rad=0.7, **kw).rate_enu()
+    n = 1000
+    t = np.arange(1, n + 1, dtype=np.int64) * 90 * MS
+    cov = np.tile(np.diag([1e308, 1e308, 1e308]).reshape(9), (n, 1))
+    cov[:10] = np.diag([1e-6, 1e-6, 1e-6]).reshape(9)
+    res = AttitudeStream("exp_map", config=StreamConfig(max_gap_ns=10**9)).run(
+        t, np.zeros((n, 3)), "imu", cov)
+    assert res.counts[INVALID_COVARIANCE] == n - 10
+    assert np.isfinite(res.variance).all()
+    assert gyro_variances(np.diag([1e308, 1.0, 1.0]).reshape(9)) == (None, True)
