@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
@@ -105,6 +106,8 @@ class ReplayResult:
 
 
 def _check_inputs(frame: str, nav, algorithm: str, initial_attitude) -> None:
+    if nav is not None and not isinstance(nav, NavFrame):
+        raise ValueError(f"nav must be a NavFrame or None, got {type(nav).__name__}")
     if frame not in ("inertial", "enu"):
         raise ValueError(f"frame must be 'inertial' or 'enu', got {frame!r}")
     if (frame == "enu") != (nav is not None):
@@ -149,6 +152,17 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     ``progress(bytes_done, bytes_total)`` is called while reading.  Raises ValueError (bad
     arguments, unusable input, nothing to write) and OSError.
     """
+    for name, value in (("input_path", input_path), ("output_path", output_path)):
+        if not isinstance(value, str | os.PathLike):
+            raise ValueError(f"{name} must be a path, got {type(value).__name__}")
+    for name, value in (("imu_topic", imu_topic), ("truth_topic", truth_topic)):
+        if not isinstance(value, str) or not value:
+            raise ValueError(f"{name} must be a topic name, got {value!r}")
+    if config is not None and not isinstance(config, StreamConfig):
+        raise ValueError(f"config must be a StreamConfig, got {type(config).__name__}")
+    if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or \
+            not 1024 <= chunk_size <= 1 << 30:
+        raise ValueError(f"chunk_size must be an int from 1 KiB to 1 GiB, got {chunk_size!r}")
     _check_inputs(frame, nav, algorithm or DEFAULT_OFFLINE_ALGORITHM, initial_attitude)
     check_output_path(output_path, inputs=[input_path], force=force)
     t_start = time.perf_counter()

@@ -67,3 +67,27 @@ def test_skipped_samples_are_not_written_and_the_rest_is_integrated_around_them(
     np.testing.assert_allclose(att.quaternion, integrate_batch(t[keep], w[keep],
                                                                algorithm="exp_map"),
                                rtol=0, atol=1e-15)
+
+
+def test_library_arguments_of_the_wrong_type_are_value_errors(tmp_path):
+    """Library callers get ValueError naming the argument, never TypeError/AttributeError."""
+    import pytest
+
+    from gyro_attitude.core.attitude.stream import AttitudeStream
+
+    _input(tmp_path / "in.mcap")
+    good = {"input_path": tmp_path / "in.mcap", "output_path": tmp_path / "o.mcap"}
+    for bad, name in (({"input_path": None}, "input_path"), ({"output_path": 5}, "output_path"),
+                      ({"imu_topic": None}, "imu_topic"), ({"truth_topic": b"x"}, "truth_topic"),
+                      ({"nav": "abc", "frame": "enu"}, "nav"), ({"config": "abc"}, "config"),
+                      ({"chunk_size": 1e300}, "chunk_size")):
+        args = {**good, **bad}
+        with pytest.raises(ValueError, match=name):
+            replay_file(args.pop("input_path"), args.pop("output_path"), **args)
+    assert not (tmp_path / "o.mcap").exists()
+    with pytest.raises(ValueError, match="frame_id"):
+        AttitudeStream().run(np.array([1, 2]), np.zeros((2, 3)), frame_id=5)
+    with pytest.raises(ValueError, match="t_ns"):
+        AttitudeStream().push(1.5, [0.0, 0.0, 0.0])
+    q = AttitudeStream(q0=(1e300, 0.0, 0.0, 1.0)).quaternion  # scaled, not overflowed
+    np.testing.assert_allclose(q, [1.0, 0.0, 0.0, 0.0], rtol=0, atol=1e-15)

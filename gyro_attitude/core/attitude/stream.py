@@ -851,10 +851,14 @@ _ONES = np.ones(3)
 
 
 def _unit_quat(q) -> np.ndarray:
-    a = np.asarray(q, dtype=np.float64)
-    if a.shape != (4,) or not np.all(np.isfinite(a)) or not np.linalg.norm(a) > 1e-9:
+    try:
+        a = np.asarray(q, dtype=np.float64)
+    except (TypeError, ValueError):
+        a = np.full(1, np.nan)
+    if a.shape != (4,) or not np.all(np.isfinite(a)) or not np.any(a != 0):
         raise ValueError(f"initial attitude must be 4 finite numbers, not all zero; got {q!r}")
-    return quat_normalize(a)
+    # scaled first: the norm of (1e300, 0, 0, 1) would overflow
+    return quat_normalize(a / np.max(np.abs(a)))
 
 
 def _nav_rows(nav: NavFrame | None, rows: np.ndarray, n: int) -> NavFrame | None:

@@ -168,9 +168,11 @@ class ImuStreamValidator:
         problem = value_problem(omega, self.config.max_rate_rad_s)
         if problem is not None:
             return self._reject(*problem)
+        if isinstance(t_ns, bool) or not isinstance(t_ns, int | np.integer):
+            raise ValueError(f"t_ns must be an integer number of nanoseconds, got {t_ns!r}")
         t_ns = int(t_ns)
         if t_ns <= 0:
-            return self._reject(ZERO_STAMP, f"stamp {t_ns} ns is zero/unset")
+            return self._reject(ZERO_STAMP, f"stamp {t_ns} ns is not positive (0: unset)")
         if self.frame_id is not None and frame_id != self.frame_id:
             return self._reject(
                 FRAME_CHANGED, f"frame_id {frame_id!r} differs from {self.frame_id!r}"
@@ -226,6 +228,9 @@ def _frame_codes(frame_id, n: int) -> tuple[np.ndarray | None, list[str]]:
     """Per-sample frame codes (None: one frame for all) and the names they index."""
     if frame_id is None or isinstance(frame_id, str):
         return None, ["" if frame_id is None else frame_id]
+    if not hasattr(frame_id, "__len__") or len(frame_id) != n:
+        raise ValueError(f"frame_id must be one string or one per sample ({n}), got "
+                         f"{type(frame_id).__name__}")
     names: dict[str, int] = {}
     codes = np.fromiter((names.setdefault(str(f), len(names)) for f in frame_id),
                         dtype=np.int64, count=n)
@@ -272,7 +277,7 @@ def classify(t_ns, omega, frame_id: str | list[str] | None = "",
             details[name] = {NON_FINITE: f"non-finite value(s) {w[k].tolist()}",
                              IMPLAUSIBLE_RATE: f"rate {w[k].tolist()} rad/s beyond "
                                                f"max_rate_rad_s = {cfg.max_rate_rad_s:g}",
-                             ZERO_STAMP: f"stamp {int(t[k])} ns is zero/unset"}[name]
+                             ZERO_STAMP: f"stamp {int(t[k])} ns is not positive (0: unset)"}[name]
     locked = None
     if ok.any():
         # the first sample that passes the local checks is always accepted (START): its
