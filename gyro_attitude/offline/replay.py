@@ -25,7 +25,12 @@ import numpy as np
 
 from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, DEFAULT_OFFLINE_ALGORITHM, NavFrame
 from gyro_attitude.core.attitude import validation as iv
-from gyro_attitude.core.attitude.stream import AttitudeStream, StreamConfig, bias_summary
+from gyro_attitude.core.attitude.stream import (
+    AttitudeStream,
+    PerSamplePathNeeded,
+    StreamConfig,
+    bias_summary,
+)
 from gyro_attitude.core.attitude.truth import initial_attitude_from_truth
 from gyro_attitude.core.rotation import quat_angle_between
 from gyro_attitude.io.cdr_arrays import (
@@ -206,13 +211,16 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     # for all (the node would also reject samples whose frame_id changes: see frame_ids).
     stream = AttitudeStream(algorithm or DEFAULT_OFFLINE_ALGORITHM, q0=q0, nav=nav,
                             config=config)
-    if algorithm is None and stream.needs_per_sample_path(t, omega, accel):
+    try:
+        res = stream.run(t, omega, imu.frame_id, cov, accel)
+    except PerSamplePathNeeded:
+        if algorithm is not None:
+            raise
         # a sequential filter acts on this recording (levelling, aiding, auto bias with a
         # rest): the offline algorithm cannot run sample by sample, the node's default can
         stream = AttitudeStream(DEFAULT_ALGORITHM, q0=q0, nav=nav, config=config)
-    algorithm = stream.algorithm
-    with np.errstate(over="ignore", invalid="ignore"):
         res = stream.run(t, omega, imu.frame_id, cov, accel)
+    algorithm = stream.algorithm
     if res.index.size == 0:
         reasons = ", ".join(f"{n} {r}" for r, n in res.counts.items() if n and r != iv.GAP)
         raise ValueError(f"{input_path}: no usable sample on {imu.topic}: all {len(t)} "

@@ -70,6 +70,12 @@ from gyro_attitude.core.attitude.rest import NOISE_FLOOR_RAD_S, detect_rest
 from gyro_attitude.core.earth import OMEGA_IE
 from gyro_attitude.core.rotation import quat_from_rotvec, quat_multiply, quat_normalize
 
+
+class PerSamplePathNeeded(ValueError):
+    """:meth:`AttitudeStream.run` with an offline algorithm on a recording that a sequential
+    filter acts on (levelling, aiding, auto bias with a rest)."""
+
+
 INVALID_COVARIANCE = "invalid_covariance"
 # (rad/s)²: a gyro variance beyond this (σ = 1000 rad/s) is no estimate of a real gyro's noise,
 # and summed over an attitude it would overflow the orientation variance
@@ -679,6 +685,14 @@ class AttitudeStream:
         if a is not None and not (np.isfinite(a[valid]).all()
                                   and np.abs(a[valid]).max() <= ACCEL_ABSURD):
             return True  # unusable accelerometer samples: let the per-sample path count them
+        # A window at rest has |mean| <= a and spread <= s, so the mean of |ω|² over it is at most
+        # a² + s²: when every sample's |ω|² exceeds that, no window can be at rest (a cheap,
+        # exact pre-check that spares the windowed statistics on moving recordings).
+        cfg = self.config
+        wv = w[valid]
+        if np.einsum("ij,ij->i", wv, wv).min() > (cfg.rest_gyro_mean_max ** 2
+                                                  + cfg.rest_gyro_std_max ** 2):
+            return False
         bounds = np.append(np.flatnonzero(act[valid] != codes[v.ACCEPT]), valid.size)
         params = {"gyro_std_min": NOISE_FLOOR_RAD_S, **self.config.rest_params()}
         for p0, p1 in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
@@ -721,10 +735,11 @@ class AttitudeStream:
         if (cfg.initial_attitude != "given" or cfg.aiding != "none"
                 or (cfg.gyro_bias == "auto" and self._auto_bias_may_act(t, w, acc, cls.action))):
             if self.integrator is None:
-                raise ValueError(f"{self.algorithm} is an offline algorithm and runs in batch "
-                                 "only, but this recording needs the per-sample path (levelling, "
-                                 "aiding, or auto gyro bias with a rest in the data): use a "
-                                 "causal algorithm, or gyro bias none or a fixed value")
+                raise PerSamplePathNeeded(
+                    f"{self.algorithm} is an offline algorithm and runs in batch only, but this "
+                    "recording needs the per-sample path (levelling, aiding, or auto gyro bias "
+                    "with a rest in the data): use a causal algorithm, or gyro bias none or a "
+                    "fixed value")
             return self._run_pushing(t, w, frame_id, cov, acc)
         codes = v.ACTION_CODES
         act = cls.action
