@@ -101,7 +101,7 @@ def test_bad_parameters_one_line(launch, tmp_path, args, code, text):
     (b"", "empty file"),
     (b"hello, this is not a recording\n" * 4, "not an MCAP file"),
     (MAGIC, "no messages"),
-    (MAGIC * 2, "no messages"),
+    (MAGIC * 2, "cut by the end of the file"),  # read as a damaged file: also exit 1
 ])
 def test_unusable_input_one_line_exit_1(launch, tmp_path, content, text):
     path = tmp_path / "in.mcap"
