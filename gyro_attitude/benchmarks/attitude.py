@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import math
 import pathlib
+import signal
 import time
 import warnings
 
@@ -308,6 +309,11 @@ def _run_one(motion, label, alg, kind, rate_hz, duration, stream_cap, euler_cap)
 
 def _npq_child(t, w, q0, conn):
     """Child process: numpy-quaternion's integrator (see :func:`_numpy_quaternion_peer`)."""
+    # A forked child inherits the parent's Python signal handlers: under the CLI, SIGTERM
+    # would raise KeyboardInterrupt inside scipy's ODE callback (swallowed there, so the
+    # hung loop spins on) and repeats are ignored. The default action lets terminate() end it.
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     try:
         import quaternion as npq
         from scipy.interpolate import CubicSpline
@@ -348,9 +354,13 @@ def _numpy_quaternion_peer(t, w, q0, timeout_s):
             return parent.recv()
         return f"hung: no result within {timeout_s:g} s (its ode step loop stopped advancing)"
     finally:
+        parent.close()
         if proc.is_alive():
             proc.terminate()
         proc.join(1.0)
+        if proc.is_alive():  # SIGTERM blocked or ignored after all: SIGKILL cannot be
+            proc.kill()
+            proc.join(1.0)
 
 
 def _peers(motion, rate_hz, duration, cap, npq_duration, npq_timeout=5.0):

@@ -13,11 +13,14 @@ import argparse
 import importlib
 import json
 import math
+import os
 import pathlib
+import sys
 import time
 import traceback
 
 from gyro_attitude.benchmarks import machine_description
+from gyro_attitude.io.safe_output import OutputPathError, SafeOutput, check_output_path
 
 SUITES: dict[str, str] = {
     "attitude": "gyro_attitude.benchmarks.attitude",
@@ -41,6 +44,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out-dir", metavar="DIR", type=pathlib.Path,
                         default=pathlib.Path("bench_out"),
                         help="directory for plots (default: bench_out/)")
+    parser.add_argument("--force", action="store_true",
+                        help="overwrite an existing --json file")
 
 
 def _load_suite(name: str):
@@ -72,10 +77,37 @@ def _clean(value):
     return str(value)
 
 
+def _prepare_outputs(args: argparse.Namespace) -> str | None:
+    """Check (and create) the output locations before any work; a reason when unusable."""
+    if args.json:
+        path = pathlib.Path(args.json)
+        try:
+            if not path.is_dir():  # a directory is refused by the check, not created
+                path.parent.mkdir(parents=True, exist_ok=True)
+            check_output_path(path, force=args.force, what="--json")
+        except FileExistsError:
+            return f"--json {path}: its directory {path.parent} is not a directory"
+        except (OutputPathError, OSError) as exc:
+            return str(exc)
+    out_dir = pathlib.Path(args.out_dir)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        return f"--out-dir {out_dir}: not a directory"
+    except OSError as exc:
+        return f"--out-dir {out_dir}: {exc.strerror or exc}"
+    if not os.access(out_dir, os.W_OK | os.X_OK):
+        return f"--out-dir {out_dir}: not writable"
+    return None
+
+
 def run(args: argparse.Namespace) -> int:
     suites = list(dict.fromkeys(args.suite or ["attitude"]))
+    problem = _prepare_outputs(args)
+    if problem is not None:
+        print(f"gyro-attitude bench: {problem}", file=sys.stderr)
+        return 2
     out_dir = pathlib.Path(args.out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     rows: list[dict] = []
     status: dict[str, str] = {}
     for name in suites:
@@ -108,8 +140,12 @@ def run(args: argparse.Namespace) -> int:
             "quick": bool(args.quick), "suites": status, **machine_description(),
         }
         path = pathlib.Path(args.json)
-        if path.parent != pathlib.Path(""):
-            path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(_clean({"meta": meta, "rows": rows}), indent=1))
+        try:
+            # written beside the output and renamed into place when complete
+            with SafeOutput(path, force=args.force) as tmp:
+                tmp.write_text(json.dumps(_clean({"meta": meta, "rows": rows}), indent=1))
+        except (OutputPathError, OSError) as exc:
+            print(f"gyro-attitude bench: --json {path}: {exc}", file=sys.stderr)
+            return 1
         print(f"wrote {len(rows)} rows to {path}")
     return 1 if "error" in status.values() else 0

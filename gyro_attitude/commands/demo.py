@@ -19,32 +19,74 @@ import argparse
 import math
 import os
 import random
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from datetime import UTC, datetime
 from pathlib import Path
 
+from gyro_attitude.core.attitude import causal_algorithms
 from gyro_attitude.core.rotation import quat_angle_between
+from gyro_attitude.io.safe_output import OutputPathError, SafeOutput, check_output_path
 from gyro_attitude.io.scene_file import load_scene
 
 PACKAGE = "gyro_attitude"
 DEFAULT_SCENE = "coning"
 
 
+MIN_SAMPLES = 2  # an attitude error needs at least one integrated interval
+
+
+def _gyro_sim_limit(name: str) -> float:
+    """Upper bound of gyro_sim's parameter ``name`` (its parameter table is the one home of
+    the limit). Loaded lazily: the node module imports rclpy, which ``--help`` need not pay."""
+    from gyro_attitude.ros.gyro_sim_node import parameter_specs
+
+    (spec,) = [s for s in parameter_specs() if s.name == name]
+    return float(spec.high)
+
+
+def _positive_up_to(param: str, unit: str):
+    """argparse type: a finite float in (0, gyro_sim's limit of ``param``]."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        high = _gyro_sim_limit(param)
+        if not (math.isfinite(value) and 0.0 < value <= high):
+            raise argparse.ArgumentTypeError(
+                f"must be finite, > 0 and <= {high:g} {unit} (gyro_sim's {param} limit), "
+                f"got {text}")
+        return value
+    return parse
+
+
+def _png_path(text: str) -> Path:
+    """argparse type: a path ending in .png (the plot is written as PNG only)."""
+    if Path(text).suffix.lower() != ".png":
+        raise argparse.ArgumentTypeError(f"must end in .png, got {text!r}")
+    return Path(text)
+
+
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scene", default=DEFAULT_SCENE,
                         help=f"scene name or YAML path (default {DEFAULT_SCENE}: closed-form truth)")
-    parser.add_argument("--duration", type=float, default=10.0,
+    parser.add_argument("--duration", type=_positive_up_to("duration_s", "s"), default=10.0,
                         help="simulated seconds (default 10)")
-    parser.add_argument("--rate", type=float, default=0.0,
+    parser.add_argument("--rate", type=_positive_up_to("rate_hz", "Hz"), default=None,
                         help="Imu rate in Hz (default: the scene's own rate)")
-    parser.add_argument("--algorithm", default=None,
-                        help="attitude algorithm (default: the integrator's default)")
+    parser.add_argument("--algorithm", default=None, choices=sorted(causal_algorithms()),
+                        metavar="NAME",
+                        help="attitude algorithm (default: the integrator's default): "
+                             + ", ".join(sorted(causal_algorithms())))
     parser.add_argument("--bag-dir", default="bags", help="where the MCAP recording goes")
-    parser.add_argument("--plot", default=None,
+    parser.add_argument("--plot", default=None, type=_png_path,
                         help="PNG path of the error plot (default: next to the recording)")
+    parser.add_argument("--force", action="store_true", help="overwrite an existing --plot")
     parser.add_argument("--reliable", action="store_true",
                         help="reliable QoS on imu/data_raw (default: best effort, sensor data)")
     parser.add_argument("--no-record", action="store_true", help="do not record MCAP")
@@ -118,28 +160,60 @@ def _stop(proc: subprocess.Popen, timeout: float = 10.0) -> int:
     return proc.returncode
 
 
-def run(args: argparse.Namespace) -> int:
-    if not (args.duration > 0 and math.isfinite(args.duration)):
-        print(f"--duration must be > 0 s, got {args.duration}", file=sys.stderr)
-        return 2
+def _prepare_outputs(args, spec, stamp: str):
+    """Check and create the output locations before any work: (bag, plot) or a reason."""
+    bag_dir = Path(args.bag_dir)
+    try:
+        if bag_dir.exists() and not bag_dir.is_dir():
+            return f"--bag-dir {bag_dir}: not a directory"
+        if not args.no_record or args.plot is None:
+            bag_dir.mkdir(parents=True, exist_ok=True)
+            if not os.access(bag_dir, os.W_OK | os.X_OK):
+                return f"--bag-dir {bag_dir}: not writable"
+        plot = args.plot or bag_dir / f"demo_{spec.name}_{stamp}_error.png"
+        if not plot.is_dir():  # a directory is refused by the check below, not created
+            plot.parent.mkdir(parents=True, exist_ok=True)
+        check_output_path(plot, force=args.force, what="--plot")
+    except OutputPathError as exc:
+        return str(exc)
+    except OSError as exc:  # e.g. a read-only or foreign directory on the way
+        return f"{exc.filename}: {exc.strerror or exc}"
+    bag = None if args.no_record else bag_dir / f"demo_{spec.name}_{stamp}.mcap"
+    return bag, plot
 
+
+def _last_line(log: Path) -> str:
+    """The last non-empty line a node wrote (its one-line error on a bad parameter)."""
+    try:
+        lines = [ln for ln in log.read_text(errors="replace").splitlines() if ln.strip()]
+    except OSError:
+        return ""
+    return lines[-1].strip() if lines else ""
+
+
+def run(args: argparse.Namespace) -> int:
     try:
         spec = load_scene(args.scene)
     except (ValueError, OSError) as exc:
         print(f"--scene {args.scene!r}: {exc}", file=sys.stderr)
         return 2
-    rate = args.rate if args.rate > 0 else float(spec.rate_hz)
+    rate = args.rate if args.rate is not None else float(spec.rate_hz)
+    n_samples = int(round(args.duration * rate))
+    if n_samples < MIN_SAMPLES:
+        # gyro_sim reads 0 samples as "run forever"
+        print(f"--duration {args.duration:g} s at {rate:g} Hz gives {n_samples} samples; "
+              f"need at least {MIN_SAMPLES}", file=sys.stderr)
+        return 2
+    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
+    prepared = _prepare_outputs(args, spec, stamp)
+    if isinstance(prepared, str):
+        print(f"[demo] {prepared}", file=sys.stderr)
+        return 1
+    bag, plot = prepared
     env = demo_environment()
     # this process joins the same graph: set before rclpy.init
     for key in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_DOMAIN_ID", "AMENT_PREFIX_PATH"):
         os.environ[key] = env[key]
-
-    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
-    bag_dir = Path(args.bag_dir)
-    bag = None if args.no_record else bag_dir / f"demo_{spec.name}_{stamp}.mcap"
-    plot = Path(args.plot) if args.plot else bag_dir / f"demo_{spec.name}_{stamp}_error.png"
-    bag_dir.mkdir(parents=True, exist_ok=True)
-    plot.parent.mkdir(parents=True, exist_ok=True)
 
     print(f"[demo] scene '{spec.name}': {spec.description}")
     print(f"[demo] {args.duration:g} s at {rate:g} Hz; ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']}, "
@@ -157,8 +231,16 @@ def run(args: argparse.Namespace) -> int:
     from gyro_attitude.ros import convert
     from gyro_attitude.ros.qos import imu_qos
 
-    log_dir = bag_dir / f"demo_{spec.name}_{stamp}_logs"  # node output, for a post-mortem
-    log_dir.mkdir(exist_ok=True)
+    # node output, for a post-mortem: beside the recording, or a temporary folder (removed
+    # after a clean run) when not recording
+    if bag is not None:
+        log_dir = bag.parent / f"demo_{spec.name}_{stamp}_logs"
+        log_dir.mkdir(exist_ok=True)
+    else:
+        log_dir = Path(tempfile.mkdtemp(prefix=f"gyro_attitude_demo_{spec.name}_"))
+    integ_log_path = log_dir / f"attitude_integrator_{stamp}.log"
+    sim_log_path = log_dir / f"gyro_sim_{stamp}.log"
+    sim_code: int | None = None
     procs: list[subprocess.Popen] = []
     context = None
     try:
@@ -194,8 +276,8 @@ def run(args: argparse.Namespace) -> int:
         att_sub = node.create_subscription(QuaternionStamped, "attitude", on_att, qos)
         node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 50)
 
-        integ_log = open(log_dir / f"attitude_integrator_{stamp}.log", "w")
-        sim_log = open(log_dir / f"gyro_sim_{stamp}.log", "w")
+        integ_log = open(integ_log_path, "w")
+        sim_log = open(sim_log_path, "w")
         integ = subprocess.Popen(
             node_command("attitude_integrator") + ["--ros-args"]
             + _integrator_params(spec, args.algorithm, args.reliable),
@@ -208,6 +290,9 @@ def run(args: argparse.Namespace) -> int:
         while (att_sub.get_publisher_count() < 1 and integ.poll() is None
                and time.monotonic() < match_deadline):
             rclpy.spin_once(node, timeout_sec=0.05)
+        if integ.poll() is not None:  # e.g. a parameter it refused: no point starting the sim
+            integ_log.close()
+            return _node_failed("attitude_integrator", integ.returncode, integ_log_path)
         sim_args = ["-p", f"scene:={args.scene}", "-p", f"rate_hz:={rate!r}",
                     "-p", f"duration_s:={args.duration!r}", "-p", "wait_for_subscribers:=2",
                     "-p", "wait_timeout_s:=30.0"]
@@ -228,7 +313,15 @@ def run(args: argparse.Namespace) -> int:
         while time.monotonic() < end:
             rclpy.spin_once(node, timeout_sec=0.05)
         wall = time.monotonic() - t_wall
-        sim_code = sim.wait(timeout=5) if sim.poll() is None else sim.returncode
+        if sim.poll() is None:
+            try:
+                sim_code = sim.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                _stop(sim)
+                print(f"[demo] gyro_sim did not finish {args.duration:g} s within "
+                      f"{time.monotonic() - t_wall:.0f} s; logs in {log_dir}", file=sys.stderr)
+                return 1
+        sim_code = sim.returncode
         integ_code = _stop(integ)
         integ_log.close()
         sim_log.close()
@@ -242,11 +335,22 @@ def run(args: argparse.Namespace) -> int:
         if context is not None:
             rclpy.try_shutdown()
 
-    if sim_code != 0 or integ_code != 0:
-        print(f"[demo] node exit codes: gyro_sim {sim_code}, attitude_integrator {integ_code}; "
-              f"logs in {log_dir}", file=sys.stderr)
+    if sim_code != 0:
+        return _node_failed("gyro_sim", sim_code, sim_log_path)
+    if integ_code != 0:
+        return _node_failed("attitude_integrator", integ_code, integ_log_path)
+    if bag is None:
+        shutil.rmtree(log_dir, ignore_errors=True)
     return _summarize(spec, rate, args, truth, attitude, diagnostics, bag, plot, wall,
                       sim_code, integ_code, raw_count[0])
+
+
+def _node_failed(name: str, code: int, log: Path) -> int:
+    """One line for a node that exited with an error; the demo's exit status (1)."""
+    said = _last_line(log)
+    print(f"[demo] {name} exited with status {code}" + (f": {said}" if said else "")
+          + f" (log: {log})", file=sys.stderr)
+    return 1
 
 
 def _summarize(spec, rate, args, truth, attitude, diagnostics, bag, plot, wall, sim_code,
@@ -300,7 +404,14 @@ def _summarize(spec, rate, args, truth, attitude, diagnostics, bag, plot, wall, 
     ax.set_title(f"{spec.name}: attitude_integrator ({algo}) vs truth, {rate:g} Hz")
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
-    fig.savefig(plot, dpi=110)
-    plt.close(fig)
+    try:
+        # written beside the plot and renamed into place when complete
+        with SafeOutput(plot, force=args.force) as tmp:
+            fig.savefig(tmp, dpi=110, format="png")
+    except (OutputPathError, OSError) as exc:
+        print(f"[demo] --plot {plot}: {exc}", file=sys.stderr)
+        return 1
+    finally:
+        plt.close(fig)
     print(f"[demo] plot: {plot}")
     return 0 if sim_code == 0 and integ_code == 0 else 1

@@ -92,7 +92,8 @@ def iter_log_time_order(path, topics: list[str] | None, damages: list[str] | Non
 
 
 def recorded_channels(path, topics: list[str] | None) -> list[tuple[str, str, str]]:
-    """(topic, type_name, offered_qos_yaml) of the recorded channels (optionally a subset)."""
+    """(topic, type_name, offered_qos_yaml) of the recorded channels (optionally a subset);
+    InputError naming the recorded topics when a requested topic is not among them."""
     reader = McapStreamReader(path, on_damage="warn")
     summary = reader.summary()
     if summary is not None and summary.channels:
@@ -104,8 +105,14 @@ def recorded_channels(path, topics: list[str] | None) -> list[tuple[str, str, st
     chans = [(c.topic, c.type_name, c.metadata.get("offered_qos_profiles", ""))
              for c in channels.values()]
     recorded = [c[0] for c in chans]
-    wanted = None if topics is None else {match_topic(recorded, t) for t in topics}
-    return [c for c in chans if wanted is None or c[0] in wanted]
+    if topics is None:
+        return chans
+    missing = [t for t in topics if match_topic(recorded, t) is None]
+    if missing:
+        raise InputError(f"parameter 'topics': {', '.join(missing)} not in the recording; "
+                         f"it has: {', '.join(sorted(recorded)) or 'no topics'}")
+    wanted = {match_topic(recorded, t) for t in topics}
+    return [c for c in chans if c[0] in wanted]
 
 
 class McapPlayerNode(Node):
@@ -219,7 +226,7 @@ class McapPlayerNode(Node):
             if pub is not None:
                 pub.publish(data)
                 count += 1
-        self.published += count
+                self.published += 1  # counted at once: an interrupted pass reports it too
         return count
 
 
@@ -235,10 +242,16 @@ def _play(node: McapPlayerNode) -> None:
                                           f"{len(node.damages)} damaged place(s) in all)")
             if n == 0 or not node.loop:
                 break
+    except InputError:
+        raise
     except (ValueError, OSError, EOFError, struct.error, McapError) as exc:
         # whatever reading the recording raises (the mcap package's own errors included)
         raise InputError(f"{node.path}: {exc}") from exc
     damaged = [d for d in node.damages if not d.endswith(UNFINISHED)]
+    if node.published == 0 and not damaged and rclpy.ok():
+        # e.g. a file holding only the MCAP magic: playing nothing is not success
+        raise InputError(f"{node.path}: no messages"
+                         + (f" on {', '.join(node.topics)}" if node.topics else ""))
     if damaged:
         # everything readable was played; the exit status still says the input was damaged
         # (an unfinished recording -- a killed recorder's leftover -- is only warned about)

@@ -22,12 +22,15 @@ Parameters: :func:`parameter_specs` (``config/mcap_recorder.yaml`` lists them al
 from __future__ import annotations
 
 import importlib
+import os
 import sys
 import time
 from pathlib import Path
 
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
+from rclpy.validate_full_topic_name import validate_full_topic_name
+from rclpy.validate_topic_name import validate_topic_name
 
 from gyro_attitude.io.mcap_writer import COMPRESSIONS, DEFAULT_COMPRESSION, Rosbag2McapWriter
 from gyro_attitude.io.qos import qos_profile, qos_profiles_yaml
@@ -74,6 +77,27 @@ def message_class(type_name: str):
         raise ValueError(f"message type {type_name} is not installed: {exc}") from exc
 
 
+def _is_bag_directory(path: Path) -> bool:
+    """A rosbag2 bag directory (or an empty one): only ``metadata.yaml`` and ``.mcap`` files.
+    Anything else in it is not ours to delete, even with force."""
+    if path.is_symlink() or not path.is_dir():
+        return False
+    return all(e.is_file() and not e.is_symlink()
+               and (e.name == "metadata.yaml" or e.suffix == ".mcap") for e in path.iterdir())
+
+
+def _checked_output(out: str, *, force: bool) -> Path:
+    """:func:`check_output_path`, except that with ``force`` an existing bag directory may be
+    replaced (the check refuses every directory; :class:`SafeOutput` replaces one on commit)."""
+    path = Path(out)
+    if force and _is_bag_directory(path):
+        parent = path.resolve().parent
+        if not os.access(parent, os.W_OK | os.X_OK):
+            raise ValueError(f"output directory {parent} is not writable")
+        return path
+    return check_output_path(path, force=force)
+
+
 def offered_qos_yaml(endpoint_infos) -> str:
     """rosbag2 ``offered_qos_profiles`` YAML from ``get_publishers_info_by_topic``."""
     profiles = offered_profiles(endpoint_infos)
@@ -89,7 +113,7 @@ class McapRecorderNode(Node):
         self._specs = {s.name: s for s in specs}
         p = declare_all(self, specs)  # raises ParameterError naming a bad parameter
         self.add_on_set_parameters_callback(self._on_set_parameters)
-        self._topics = [self.resolve_topic_name(t) for t in p["topics"] if t]
+        self._topics = [self._resolved_topic(t) for t in p["topics"] if t]
         self._all = bool(p["all_topics"])
         if not self._topics and not self._all:
             raise ParameterError("parameter 'topics': empty list and all_topics is false")
@@ -99,7 +123,7 @@ class McapRecorderNode(Node):
         self._writer = None
         self._atomic = None
         try:
-            self.output = check_output_path(out, force=p["force"])
+            self.output = _checked_output(out, force=bool(p["force"]))
             # Written under a temporary name beside the output and renamed by close(): a
             # failed or killed recording never replaces what the output name holds.
             self._atomic = SafeOutput(self.output, force=p["force"])
@@ -118,6 +142,19 @@ class McapRecorderNode(Node):
         self.get_logger().info(
             f"recording {'all topics' if self._all else ', '.join(self._topics)} "
             f"to {self.output} (until finished: {self.partial_path})")
+
+    def _resolved_topic(self, name: str) -> str:
+        """The fully qualified name of ``name``; ParameterError naming it when invalid (rcl
+        would otherwise fail later with a C source location)."""
+        try:
+            validate_topic_name(name)
+            full = self.resolve_topic_name(name)
+            validate_full_topic_name(full)
+        except Exception as exc:  # rclpy's InvalidTopicNameException, or rcl's ValueError
+            reason = str(exc).splitlines()[0].split(", at /")[0]
+            raise ParameterError(f"parameter 'topics': {name!r} is not a valid topic name "
+                                 f"({reason})") from None
+        return full
 
     def _on_set_parameters(self, params) -> SetParametersResult:
         reason = check_update(self._specs, params)

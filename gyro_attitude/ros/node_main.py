@@ -1,17 +1,18 @@
 """The one ``main()`` life cycle every gyro_attitude node shares (demo_nodes_py style).
 
 init → build the node → ``gc.freeze()`` → spin → the node's own ``finish`` → destroy →
-shutdown. Exit status: 0 when the node is done or on SIGINT/SIGTERM (also when the signal is
-repeated during shutdown: ``ros2 launch`` forwards the terminal's Ctrl-C, so every node gets
-it twice); 2 with one line on an invalid parameter
-(:class:`~gyro_attitude.ros.params.ParameterError`, also a missing or unreadable
-``--params-file``); 1 with one line when the node's input is unusable
+shutdown. Exit status: 0 when the node is done or on SIGINT/SIGTERM/SIGHUP (a closed
+terminal is an orderly shutdown too; also when the signal is repeated during shutdown:
+``ros2 launch`` forwards the terminal's Ctrl-C, so every node gets it twice); 2 with one
+line on an invalid parameter (:class:`~gyro_attitude.ros.params.ParameterError`, also a
+missing or unreadable ``--params-file``); 1 with one line when the node's input is unusable
 (:class:`InputError`). Never a traceback for any of these.
 """
 
 from __future__ import annotations
 
 import gc
+import os
 import signal
 import sys
 import threading
@@ -40,8 +41,8 @@ class InputError(ValueError):
 
 
 class ShutdownSignals:
-    """SIGINT/SIGTERM handlers that turn the first signal into an orderly shutdown request
-    and ignore every later one.
+    """SIGINT/SIGTERM/SIGHUP handlers that turn the first signal into an orderly shutdown
+    request and ignore every later one.
 
     Python's default SIGINT handler raises ``KeyboardInterrupt`` wherever the main thread is,
     including inside ``destroy_node`` or a file's ``finish`` when the signal repeats; its
@@ -52,9 +53,13 @@ class ShutdownSignals:
     false for hand-written loops. A shutdown must not be started from here: a Python handler
     runs between two bytecodes of the main thread, possibly while it holds the context's
     (non-reentrant) lock.
+
+    SIGHUP (the terminal was closed) would kill the process without finishing anything, and
+    rclpy has no handler for it: its handler sends this process a SIGTERM, which rclpy's
+    handler turns into the same shutdown.
     """
 
-    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+    SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
     def __init__(self) -> None:
         self.received: int | None = None
@@ -70,6 +75,8 @@ class ShutdownSignals:
     def _handle(self, signum, _frame) -> None:
         if self.received is None:
             self.received = signum
+            if signum == signal.SIGHUP:
+                os.kill(os.getpid(), signal.SIGTERM)
 
     def _unraisable(self, info) -> None:
         # After a shutdown signal, rclpy objects whose construction the shutdown cut short
@@ -83,7 +90,7 @@ class ShutdownSignals:
         sys.unraisablehook = self._unraisable
 
     def ignore_from_now_on(self) -> None:
-        """Ignore both signals for the rest of the process (only once it is exiting).
+        """Ignore the signals for the rest of the process (only once it is exiting).
 
         Interpreter finalization resets signals that have a Python handler to the default
         action, so a repeat arriving then would kill the process with -SIGINT; an ignored
@@ -125,8 +132,8 @@ def run_node(name: str, make_node: Callable[[], Node], args=None, *,
              finish: Callable[[Node], None] | None = None) -> int:
     """Run a node until it is done or signalled; returns the process exit status.
 
-    Meant as the whole of a node process's ``main()``: it installs SIGINT/SIGTERM handlers
-    and leaves both signals ignored when it returns.
+    Meant as the whole of a node process's ``main()``: it installs SIGINT/SIGTERM/SIGHUP
+    handlers and leaves these signals ignored when it returns.
     """
     signals = ShutdownSignals()
     signals.install()

@@ -36,3 +36,19 @@ def test_demo_runs_records_and_plots(ros_env, tmp_path):
     bound = alpha**2 * big_omega * (big_omega * h) ** 2 / 12 * 1.5
     max_err = float(re.search(r"\[demo\] max ([0-9.e+-]+) rad", out).group(1))
     assert max_err < bound, (max_err, bound)
+
+
+def test_node_error_reported_in_one_line(ros_env, tmp_path):
+    """gyro_sim refuses rate_hz below 1 Hz (exit 2): the demo names it and prints no summary;
+    with --no-record nothing is left in the bag directory (logs went to a temporary folder)."""
+    proc = subprocess.run(
+        [sys.executable, "-m", "gyro_attitude.cli", "demo", "--rate", "0.5", "--duration", "10",
+         "--no-record", "--plot", str(tmp_path / "p.png"), "--bag-dir", str(tmp_path / "bags")],
+        env=ros_env, capture_output=True, text=True, timeout=100, cwd=tmp_path)
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
+    line = lines[0]
+    assert "gyro_sim exited with status 2" in line and "rate_hz" in line, line
+    assert "[demo] samples" not in proc.stdout and "attitude error" not in proc.stdout
+    assert sorted(p.name for p in tmp_path.iterdir()) == []

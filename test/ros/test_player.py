@@ -9,6 +9,7 @@ import time
 import numpy as np
 import pytest
 
+from gyro_attitude.io.mcap_records import MAGIC
 from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
 
 pytestmark = pytest.mark.ros
@@ -99,6 +100,8 @@ def test_bad_parameters_one_line(launch, tmp_path, args, code, text):
 @pytest.mark.parametrize("content, text", [
     (b"", "empty file"),
     (b"hello, this is not a recording\n" * 4, "not an MCAP file"),
+    (MAGIC, "no messages"),
+    (MAGIC * 2, "cut by the end of the file"),  # read as a damaged file: also exit 1
 ])
 def test_unusable_input_one_line_exit_1(launch, tmp_path, content, text):
     path = tmp_path / "in.mcap"
@@ -161,3 +164,29 @@ def test_damaged_chunk_plays_the_rest_and_exits_1(launch, ros_node, tmp_path):
     assert "damaged at byte" in out and "Traceback" not in out
     played = {g[2] for g in got}
     assert 0 < len(played) < len(t) and played <= set(t.tolist())
+
+
+def test_topics_not_recorded_one_line_exit_1(launch, tmp_path):
+    _recording(tmp_path / "in.mcap", n=5)
+    proc = launch(MODULE, "-p", f"input:={tmp_path / 'in.mcap'}", "-p", "topics:=['nope']",
+                  "-p", "rate:=100.0")
+    assert proc.wait(timeout=30) == 1, proc.output()
+    out = proc.output()
+    (line,) = [ln for ln in out.splitlines() if "unusable input" in ln]
+    assert "nope" in line and "imu/data_raw" in line and "Traceback" not in out, out
+
+
+def test_interrupted_pass_reports_what_it_published(launch, ros_node, tmp_path):
+    """Stopped mid-pass, the player reports the messages it did publish (not 0)."""
+    import re
+    import signal
+
+    _recording(tmp_path / "in.mcap", n=500, rate_hz=100)  # 5 s of recording
+    got, _ = _subscribe(ros_node)
+    proc = launch(MODULE, "-p", f"input:={tmp_path / 'in.mcap'}", "-p", "namespace_topics:=true",
+                  "-p", "wait_for_subscribers:=1", "-p", "publish_clock:=false")
+    assert ros_node.spin_until(lambda: len(got) >= 20, 30.0), proc.output()
+    assert proc.stop(sig=signal.SIGINT, timeout=15.0) == 0, proc.output()
+    ros_node.spin_until(lambda: False, 0.3)
+    published = int(re.search(r"published (\d+) messages", proc.output()).group(1))
+    assert len(got) <= published < 500, (len(got), published)

@@ -172,6 +172,9 @@ def test_existing_output_refused_unless_forced(launch, tmp_path):
     (["-p", "flush_period_s:=2.0"], "flush_period_s"),
     (["-p", "topics:=5"], "topics"),
     (["-p", "compression:=gzip"], "compression"),
+    (["-p", "topics:=['bad topic']"], "topics"),
+    (["-p", "topics:=['imu/data_raw', '1starts_with_digit']"], "topics"),
+    (["-p", "topics:=['/a//b']"], "topics"),
 ])
 def test_bad_parameters_one_line_exit_2(launch, tmp_path, args, name):
     proc = launch(MODULE, "-p", f"output:={tmp_path / 'x.mcap'}", *args)
@@ -180,3 +183,34 @@ def test_bad_parameters_one_line_exit_2(launch, tmp_path, args, name):
     assert f"'{name}'" in out and "Traceback" not in out, out
     assert not (tmp_path / "x.mcap").exists()
     assert [p.name for p in tmp_path.iterdir() if not p.name.endswith(".log")] == []
+
+
+def test_forced_output_replaces_an_existing_bag_directory(launch, ros_node, tmp_path):
+    """force:=true replaces an existing bag directory (refused without force); a directory
+    holding anything else than a bag is never replaced."""
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("old")
+    (bag / "bag_0.mcap").write_bytes(b"old")
+    refused = _start(launch, bag, "-p", "bag_directory:=true")
+    assert refused.wait(timeout=30) == 2, refused.output()
+    assert "parameter 'output'" in refused.output() and "Traceback" not in refused.output()
+    other = tmp_path / "notabag"
+    other.mkdir()
+    (other / "notes.txt").write_text("keep")
+    not_bag = _start(launch, other, "-p", "bag_directory:=true", "-p", "force:=true")
+    assert not_bag.wait(timeout=30) == 2, not_bag.output()
+    assert (other / "notes.txt").read_text() == "keep"
+
+    forced = _start(launch, bag, "-p", "bag_directory:=true", "-p", "force:=true")
+    pub, publish = _publisher(ros_node)
+    _wait_subscribed(ros_node, pub, forced)
+    for k in range(20):
+        publish(k)
+        ros_node.executor_.spin_once(timeout_sec=0.002)
+    time.sleep(1.0)
+    assert forced.stop(sig=signal.SIGTERM, timeout=15.0) == 0, forced.output()
+    (mcap_file,) = bag.glob("*.mcap")
+    assert (bag / "metadata.yaml").read_text() != "old"
+    with open(mcap_file, "rb") as f:
+        assert sum(1 for _ in make_reader(f).iter_messages()) == 20

@@ -1,6 +1,6 @@
-"""SIGINT/SIGTERM, single and repeated within milliseconds (what ``ros2 launch`` does on a
-terminal's Ctrl-C), against every node executable: exit 0, no traceback, every time; the
-recorder's file is finished under its requested name."""
+"""SIGINT/SIGTERM/SIGHUP (a closed terminal), single and repeated within milliseconds (what
+``ros2 launch`` does on a terminal's Ctrl-C), against every node executable: exit 0, no
+traceback, every time; the recorder's file is finished under its requested name."""
 
 from __future__ import annotations
 
@@ -44,14 +44,16 @@ def _wait_for(proc, text: str, timeout: float) -> None:
     raise AssertionError(f"{proc.module} never logged {text!r}:\n{proc.output()}")
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=lambda s: s.name)
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP],
+                         ids=lambda s: s.name)
 def test_signal_single_and_repeated_exit_zero_without_traceback(sig, launch, tmp_path):
     """Every node x (one signal, two within a few ms) x REPETITIONS, all processes at once
-    (start-up dominates the time)."""
+    (start-up dominates the time); SIGHUP, handled by the same shutdown, once each."""
     rng = random.Random(int(sig))
+    repetitions = 1 if sig == signal.SIGHUP else REPETITIONS
     runs = []
     for k, (node, count) in enumerate(
-            itertools.product(sorted(NODES), (1, 2) * REPETITIONS)):
+            itertools.product(sorted(NODES), (1, 2) * repetitions)):
         module, params, ready = NODES[node]
         extra = list(params)
         out = None
