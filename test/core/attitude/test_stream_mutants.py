@@ -411,3 +411,124 @@ def test_bias_summary_line():
     assert line.startswith(f"gyro bias auto: {np.round(rep.bias, 6).tolist()} rad/s (± "
                            f"{np.round(rep.standard_error, 7).tolist()}, {rep.rests_used} "
                            f"rest(s), {rep.rest_samples} samples); ")
+
+
+# ------------------------------------------------------------------------- stamp boundaries
+def test_stamp_boundaries_array_wide_and_per_sample():
+    # max_gap 50 ms, time jump 1 s; stamps chosen on each boundary, verdicts written out
+    cfg = iv.ImuCheckConfig(max_gap_ns=50 * MS, time_jump_ns=1000 * MS)
+    base = 5_000 * MS
+    steps = [  # (stamp, action, reason)
+        (base, iv.START, None),
+        (base + 1, iv.ACCEPT, None),  # 1 ns step
+        (base + 1 + 50 * MS, iv.ACCEPT, None),  # exactly the gap limit
+        (base + 2 + 100 * MS, iv.RESTART_AFTER_GAP, iv.GAP),  # 1 ns beyond it
+        (base + 2 + 100 * MS, iv.REJECT, iv.DUPLICATE_STAMP),
+        (base + 2 + 100 * MS - 1000 * MS, iv.REJECT, iv.OUT_OF_ORDER),  # exactly the jump
+        (base + 1 + 100 * MS - 1000 * MS, iv.RESET_TIME_JUMP, None),  # 1 ns beyond it
+        (base + 2 + 100 * MS - 1000 * MS, iv.ACCEPT, None),
+        (base - 3000 * MS, iv.RESET_TIME_JUMP, None),  # a second jump
+    ]
+    t = np.array([s for s, _, _ in steps], dtype=np.int64)
+    w = np.zeros((t.size, 3))
+    cls = iv.classify(t, w, "imu", cfg)
+    codes = {c: a for a, c in iv.ACTION_CODES.items()}
+    assert [codes[int(c)] for c in cls.action] == [a for _, a, _ in steps]
+    assert cls.time_jump_resets == 2
+    assert cls.details[iv.GAP] == "gap of 50.000 ms"
+    assert cls.details["time_jump"] == "time jumped back by 1.000 s"
+    assert cls.details[iv.DUPLICATE_STAMP] == (f"stamp {base + 2 + 100 * MS} ns repeats the "
+                                               "previous one")
+    assert cls.details[iv.OUT_OF_ORDER] == (f"stamp {base + 2 - 900 * MS} ns is 1000.000 ms "
+                                            "before the previous")
+    val = iv.ImuStreamValidator(cfg)
+    for s, action, reason in steps:
+        verdict = val.check(s, [0.0, 0.0, 0.0], "imu")
+        assert verdict.action == action and (reason is None or verdict.reason == reason), s
+    assert val.time_jump_resets == 2
+
+
+# ------------------------------------------------------------------------- counted details
+def test_counted_problems_keep_their_first_detail():
+    s = AttitudeStream("exp_map", config=StreamConfig(gyro_bias="none"))
+    s.push(MS, [0.0, 0.0, 0.1], "imu", [1.0, 0, 0, 0, -1.0, 0, 0, 0, 1.0])
+    s.push(2 * MS, [0.0, 0.0, 0.1], "imu", None, [math.nan, 0.0, 0.0])
+    assert s.details["invalid_covariance"].startswith("angular_velocity_covariance with a "
+                                                      "non-finite or negative diagonal")
+    assert s.details["invalid_accel"].startswith("accelerometer sample [nan, 0.0, 0.0] is not")
+
+
+def test_integrator_error_verdict(monkeypatch):
+    s = AttitudeStream("exp_map", config=StreamConfig(gyro_bias="none"))
+    s.push(MS, [0.0, 0.0, 1.0], "imu")
+    monkeypatch.setattr(s.integrator, "update", lambda t_ns, omega: np.full(4, np.nan))
+    verdict, q = s.push(2 * MS, [0.0, 0.0, 1.0], "imu")
+    assert q is None and verdict.rejected and verdict.reason == INTEGRATOR_ERROR
+    assert verdict.detail == "non-finite attitude: last good one restored"
+    assert s.details[INTEGRATOR_ERROR] == verdict.detail
+    assert s.validator.last_t_ns is None  # the next sample starts a fresh time base
+
+
+# ------------------------------------------------------------------------- auto bias decision
+def test_per_sample_path_decision_uses_accelerometer_and_every_segment():
+    rng = np.random.default_rng(3)
+    n = 300
+    t = np.arange(1, n + 1, dtype=np.int64) * 10 * MS
+    still = 1e-4 * rng.normal(size=(n, 3))
+    level = np.tile([0.0, 0.0, G], (n, 1))
+    shaken = level + np.column_stack([3.0 * np.sin(np.arange(n) * 0.7), np.zeros(n),
+                                      np.zeros(n)])
+    s = AttitudeStream()
+    assert s.needs_per_sample_path(t, still, level)
+    # the gyro is still but the accelerometer shakes: the streaming detector finds no rest
+    assert not s.needs_per_sample_path(t, still, shaken)
+    # an unusable accelerometer sample: the per-sample path counts it
+    bad = shaken.copy()
+    bad[7] = [1e300, 0.0, 0.0]
+    assert s.needs_per_sample_path(t, still, bad)
+    # a lone first sample before a gap is a segment of its own: the rest after it still counts
+    t_gap = t.copy()
+    t_gap[1:] += 1_000 * MS
+    assert s.needs_per_sample_path(t_gap, still)
+
+
+# ------------------------------------------------------------------------- aligner settings
+def test_gyrocompass_levelling_finds_north_with_the_stated_bias():
+    # Static at 45° N, heading 30° (ENU yaw 60°), pitch 4°, roll −2°; the gyro measures
+    # C_bn ω_ie^n + b (b stated), noise 1e-7 rad/s; then a turn about body z ends the rest.
+    lat = math.radians(45.0)
+    q_true = Rotation.from_euler("ZYX", [60.0, 4.0, -2.0], degrees=True)
+    b = np.array([2e-5, -1e-5, 3e-5])
+    n, m = 400, 300
+    rng = np.random.default_rng(4)
+    t = np.arange(1, n + 1, dtype=np.int64) * 10 * MS
+    g = q_true.inv().apply([0.0, OMEGA_IE * math.cos(lat), OMEGA_IE * math.sin(lat)]) + b
+    g = np.tile(g, (n, 1)) + 1e-7 * rng.normal(size=(n, 3))
+    g[m:, 2] += 0.5
+    f = np.tile(q_true.inv().apply([0.0, 0.0, G]), (n, 1))
+    cfg = StreamConfig(initial_attitude="level", heading_source="gyrocompass",
+                       gyro_bias="parameter", gyro_bias_rad_s=tuple(b), gyro_bias_sigma_rad_s=1e-7,
+                       initial_heading_deg=123.0, latitude_rad=lat)
+    s = AttitudeStream(config=cfg)
+    for k in range(n):
+        s.push(int(t[k]), g[k], "imu", None, f[k])
+    al = s.alignment
+    assert s.phase == RUNNING and al.heading_source == "gyrocompass"
+    # σ_noise/(ω_ie cos L)/√samples ≈ 1e-7/5.2e-5/17 ≈ 1e-4 rad; an ignored bias (3.6e-5 rad/s
+    # horizontal) would cost ~0.6 rad, the given 123° instead ~1.6 rad
+    assert abs(al.heading - math.radians(30.0)) < 1e-3
+
+
+def test_levelling_honours_the_configured_rest_thresholds():
+    # gyro noise 1e-3 rad/s: a rest for the default thresholds, none for rest_gyro_std_max 1e-4
+    n = 300
+    rng = np.random.default_rng(5)
+    t = np.arange(1, n + 1, dtype=np.int64) * 10 * MS
+    g = 1e-3 * rng.normal(size=(n, 3))
+    g[250:, 2] += 0.5
+    f = np.tile([0.0, 0.0, G], (n, 1))
+    for std_max, aligned in ((0.01, True), (1e-4, False)):
+        s = AttitudeStream(config=StreamConfig(initial_attitude="level", rest_gyro_std_max=std_max))
+        for k in range(n):
+            s.push(int(t[k]), g[k], "imu", None, f[k])
+        assert (s.phase == RUNNING) == aligned, std_max
