@@ -574,3 +574,39 @@ def test_gravity_aiding_in_the_stream_closes_the_tilt_loop_and_relaxes_the_varia
     np.testing.assert_allclose(var[:, 2], v0, rtol=1e-9, atol=0)
     res = AttitudeStream("exp_map", q0=q0, config=cfg).run(t, g, "imu", cov, f)
     np.testing.assert_allclose(res.q, np.array(qs), rtol=0, atol=1e-15)
+
+
+# ------------------------------------------------------------------------- classify() details
+def test_classify_reasons_counts_details_and_locked_frame_written_out():
+    t = np.array([5, 0, -3, 1, 7, 8, 9, 10], dtype=np.int64)
+    w = np.zeros((8, 3))
+    w[0] = [np.nan, 0.0, 0.0]  # non-finite (and its frame "x" is not locked)
+    w[1] = [0.0, 2e4, 0.0]  # implausible at a zero stamp: the value is named, not the stamp
+    w[5] = [0.0, 0.0, 3e4]
+    frames = ["x", "imu", "imu", "imu", "imu", "imu", "other", "imu"]
+    cls = iv.classify(t, w, frames)  # default thresholds (1e4 rad/s)
+    codes = iv._REASON_CODES
+    assert cls.reason.tolist() == [codes[iv.NON_FINITE], codes[iv.IMPLAUSIBLE_RATE],
+                                   codes[iv.ZERO_STAMP], 0, 0, codes[iv.IMPLAUSIBLE_RATE],
+                                   codes[iv.FRAME_CHANGED], 0]
+    a = iv.ACTION_CODES
+    assert cls.action.tolist() == [0, 0, 0, a[iv.START], a[iv.ACCEPT], 0, 0, a[iv.ACCEPT]]
+    assert cls.frame_id == "imu" and cls.accepted == 3
+    assert {r: cls.counts[r] for r in iv.REJECT_REASONS} == {
+        iv.NON_FINITE: 1, iv.IMPLAUSIBLE_RATE: 2, iv.ZERO_STAMP: 1, iv.DUPLICATE_STAMP: 0,
+        iv.OUT_OF_ORDER: 0, iv.FRAME_CHANGED: 1, iv.GAP: 0}
+    assert cls.details == {
+        iv.NON_FINITE: "non-finite value(s) [nan, 0.0, 0.0]",
+        iv.IMPLAUSIBLE_RATE: "rate [0.0, 20000.0, 0.0] rad/s beyond max_rate_rad_s = 10000",
+        iv.ZERO_STAMP: "stamp -3 ns is zero/unset",
+        iv.FRAME_CHANGED: "frame_id 'other' differs from 'imu'"}
+    # one frame for all, or None (no frame: ""), is what gets locked
+    assert iv.classify(t[3:], w[3:] * 0, "imu").frame_id == "imu"
+    assert iv.classify(t[3:], w[3:] * 0, None).frame_id == ""
+
+
+def test_classify_refuses_float_stamps_but_takes_an_empty_recording():
+    with pytest.raises(ValueError, match="integer array of nanoseconds"):
+        iv.classify(np.array([1.5]), np.zeros((1, 3)))
+    cls = iv.classify(np.array([]), np.zeros((0, 3)))
+    assert cls.accepted == 0 and cls.frame_id is None and not any(cls.counts.values())
