@@ -9,9 +9,12 @@ output names it through a symlink, a relative path or the bag directory).
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
+import signal
 import tempfile
+import threading
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -64,6 +67,21 @@ def check_output_path(out, *, inputs: Iterable = (), force: bool = False,
     return out
 
 
+@contextlib.contextmanager
+def _signals_held():
+    """SIGINT/SIGTERM wait until the block is done: a temporary folder is never created, renamed
+    or removed halfway by a Ctrl-C (which would leave it behind)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = {signal.SIGINT, signal.SIGTERM}
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
 class SafeOutput:
     """A temporary path beside ``path`` that becomes ``path`` on :meth:`commit`.
 
@@ -87,9 +105,10 @@ class SafeOutput:
             # beside the requested name (not the symlink's target): the rename then stays on
             # one file system and replaces the name itself
             directory = Path(os.path.abspath(self.path)).parent
-            self._temp_dir = Path(tempfile.mkdtemp(
-                prefix=f".{self.path.name}.", suffix=".partial", dir=directory))
-            self.temp_path = self._temp_dir / self.path.name
+            with _signals_held():
+                self._temp_dir = Path(tempfile.mkdtemp(
+                    prefix=f".{self.path.name}.", suffix=".partial", dir=directory))
+                self.temp_path = self._temp_dir / self.path.name
         return self.temp_path
 
     def commit(self) -> Path:
@@ -105,16 +124,18 @@ class SafeOutput:
                                       f"output stays at {self.temp_path}")
             if self.path.is_dir() and not self.path.is_symlink():
                 shutil.rmtree(self.path)
-        os.replace(self.temp_path, self.path)
-        shutil.rmtree(self._temp_dir, ignore_errors=True)
-        self.temp_path = self._temp_dir = None
+        with _signals_held():
+            os.replace(self.temp_path, self.path)
+            shutil.rmtree(self._temp_dir, ignore_errors=True)
+            self.temp_path = self._temp_dir = None
         return self.path
 
     def discard(self) -> None:
         """Remove the temporary output (idempotent); the requested name is untouched."""
-        if self._temp_dir is not None:
-            shutil.rmtree(self._temp_dir, ignore_errors=True)
-        self.temp_path = self._temp_dir = None
+        with _signals_held():
+            if self._temp_dir is not None:
+                shutil.rmtree(self._temp_dir, ignore_errors=True)
+            self.temp_path = self._temp_dir = None
 
     def __enter__(self) -> Path:
         return self.open()

@@ -598,7 +598,7 @@ def test_classify_reasons_counts_details_and_locked_frame_written_out():
     assert cls.details == {
         iv.NON_FINITE: "non-finite value(s) [nan, 0.0, 0.0]",
         iv.IMPLAUSIBLE_RATE: "rate [0.0, 20000.0, 0.0] rad/s beyond max_rate_rad_s = 10000",
-        iv.ZERO_STAMP: "stamp -3 ns is zero/unset",
+        iv.ZERO_STAMP: "stamp -3 ns is not positive (0: unset)",
         iv.FRAME_CHANGED: "frame_id 'other' differs from 'imu'"}
     # one frame for all, or None (no frame: ""), is what gets locked
     assert iv.classify(t[3:], w[3:] * 0, "imu").frame_id == "imu"
