@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -289,3 +289,12 @@ class InstrumentStepper:
         behind = self._positions(t - d, y - d * ydot)
         velocities = wrap_pi(ahead - behind) / (2.0 * d)
         return self.names, positions, velocities
+
+
+class ChunkedOutput:
+    """Mixin of an instrument's output dataclass (arrays over time): ``concatenate`` joins the
+    chunks of :func:`integrate_chunked` field by field."""
+
+    @classmethod
+    def concatenate(cls, parts: list) -> ChunkedOutput:
+        return cls(*(np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(cls)))

@@ -43,6 +43,7 @@ import numpy as np
 
 from gyro_attitude.core.earth import OMEGA_IE, check_latitude, radii_of_curvature
 from gyro_attitude.core.instruments.common import (
+    ChunkedOutput,
     carrier_point,
     carrier_truth,
     check_times,
@@ -110,7 +111,7 @@ class DirectionalGyroParams:
 
 
 @dataclass(frozen=True)
-class DirectionalGyroOutput:
+class DirectionalGyroOutput(ChunkedOutput):
     """Per sample: ``t`` (s), ``heading_true``/``heading_indicated`` (rad clockwise from north,
     [0, 2π)), ``outer_gimbal``/``inner_gimbal`` angles (rad), ``latitude`` (rad)."""
 
@@ -121,10 +122,6 @@ class DirectionalGyroOutput:
     inner_gimbal: np.ndarray
     latitude: np.ndarray
 
-    @staticmethod
-    def concatenate(parts: list[DirectionalGyroOutput]) -> DirectionalGyroOutput:
-        return DirectionalGyroOutput(*(np.concatenate([getattr(p, f) for p in parts])
-                                       for f in DirectionalGyroOutput.__dataclass_fields__))
 
 
 class DirectionalGyro:

@@ -48,6 +48,7 @@ from gyro_attitude.core.earth import (
     radii_of_curvature,
 )
 from gyro_attitude.core.instruments.common import (
+    ChunkedOutput,
     carrier_point,
     carrier_truth,
     check_times,
@@ -252,7 +253,7 @@ def _coriolis_horizontal(lat: float, v: np.ndarray) -> tuple[float, float]:
 
 
 @dataclass(frozen=True)
-class GyrocompassOutput:
+class GyrocompassOutput(ChunkedOutput):
     """Per sample: ``t`` (s), ``heading_true``/``heading_indicated`` (rad clockwise from north,
     [0, 2π)), ``spin_axis_azimuth`` α (rad east of north), ``spin_axis_elevation`` β (rad),
     ``gimbal_azimuth`` (the element's azimuth from the bow, clockwise, = −(indicated heading)),
@@ -266,10 +267,6 @@ class GyrocompassOutput:
     gimbal_azimuth: np.ndarray
     latitude: np.ndarray
 
-    @staticmethod
-    def concatenate(parts: list[GyrocompassOutput]) -> GyrocompassOutput:
-        return GyrocompassOutput(*(np.concatenate([getattr(p, f) for p in parts])
-                                   for f in GyrocompassOutput.__dataclass_fields__))
 
 
 class Gyrocompass:

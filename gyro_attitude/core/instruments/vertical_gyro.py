@@ -49,6 +49,7 @@ import numpy as np
 
 from gyro_attitude.core.earth import OMEGA_IE, check_latitude
 from gyro_attitude.core.instruments.common import (
+    ChunkedOutput,
     carrier_point,
     carrier_truth,
     check_times,
@@ -96,7 +97,7 @@ class VerticalGyroParams:
 
 
 @dataclass(frozen=True)
-class VerticalGyroOutput:
+class VerticalGyroOutput(ChunkedOutput):
     """Per sample: ``t`` (s), ``roll_indicated``/``pitch_indicated`` (the outer and inner gimbal
     angles, rad, REP-103 signs), ``roll_true``/``pitch_true`` (rad), ``spin_axis_tilt`` (angle of
     ``s`` from the true vertical, rad), ``latitude`` (rad)."""
@@ -109,10 +110,6 @@ class VerticalGyroOutput:
     spin_axis_tilt: np.ndarray
     latitude: np.ndarray
 
-    @staticmethod
-    def concatenate(parts: list[VerticalGyroOutput]) -> VerticalGyroOutput:
-        return VerticalGyroOutput(*(np.concatenate([getattr(p, f) for p in parts])
-                                    for f in VerticalGyroOutput.__dataclass_fields__))
 
 
 class VerticalGyro:
