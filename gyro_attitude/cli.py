@@ -62,6 +62,13 @@ class _Interrupt:
             self._previous = {s: signal.signal(s, self._handle) for s in self.SIGNALS}
         return self
 
+    @staticmethod
+    def _default_in_child() -> None:
+        """A forked worker (multiprocessing) must not inherit the one-shot handler: its
+        terminate() would raise there instead of ending it."""
+        for sig in _Interrupt.SIGNALS:
+            signal.signal(sig, signal.SIG_DFL)
+
     def __exit__(self, *exc) -> bool:
         if self.received and self.process_main:
             # the process is stopping: a repeated signal arriving after this block must not
@@ -97,6 +104,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     name = argv[0]
     interrupt = _Interrupt(process_main=is_process_main)
+    if is_process_main:
+        os.register_at_fork(after_in_child=_Interrupt._default_in_child)
     try:
         # the handler is in place before the subcommand's (slow) imports: a Ctrl-C at any time
         # ends the same way
