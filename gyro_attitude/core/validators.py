@@ -10,9 +10,10 @@ __all__ = ["check_finite", "check_nonnegative", "check_positive", "pair", "tripl
 
 
 def _as_float(value, name: str) -> float:
-    # bool is an int to Python; a True where a number belongs is a mistake, not 1.0
-    if isinstance(value, bool):
-        raise ValueError(f"{name} must be a number, got {value!r}")
+    # bool is an int to Python and float("1.5") parses: a True or a string where a number
+    # belongs is a mistake, not a value
+    if isinstance(value, bool | str | bytes):
+        raise ValueError(f"{name} must be a number, got {type(value).__name__} {value!r}")
     try:
         return float(value)
     except (TypeError, ValueError):
@@ -29,17 +30,17 @@ def check_finite(value, name: str) -> float:
 
 def check_positive(value, name: str) -> float:
     """``value`` as a float; ValueError naming it unless finite and > 0."""
-    v = _as_float(value, name)
-    if not math.isfinite(v) or v <= 0.0:
-        raise ValueError(f"{name} must be a positive finite number, got {v!r}")
+    v = check_finite(value, name)
+    if v <= 0.0:
+        raise ValueError(f"{name} must be > 0, got {v!r}")
     return v
 
 
 def check_nonnegative(value, name: str) -> float:
     """``value`` as a float; ValueError naming it unless finite and >= 0."""
-    v = _as_float(value, name)
-    if not math.isfinite(v) or v < 0.0:
-        raise ValueError(f"{name} must be a non-negative finite number, got {v!r}")
+    v = check_finite(value, name)
+    if v < 0.0:
+        raise ValueError(f"{name} must be >= 0, got {v!r}")
     return v
 
 

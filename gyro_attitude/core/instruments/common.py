@@ -33,6 +33,11 @@ from gyro_attitude.core.earth import (
 from gyro_attitude.core.motion import Motion
 from gyro_attitude.core.rotation import quat_rotate
 
+# the shared parameter checks, under the short names the instrument modules use
+from gyro_attitude.core.validators import check_finite as finite
+from gyro_attitude.core.validators import check_nonnegative as nonnegative
+from gyro_attitude.core.validators import check_positive as positive
+
 __all__ = [
     "positive",
     "nonnegative",
@@ -54,36 +59,6 @@ __all__ = [
 #: :class:`InstrumentStepper`): instrument states move at ≲ 1 rad/s, so the truncation error
 #: (∝ step²) and the round-off (∝ 1e-16/step) both stay below 1e-9 rad/s.
 JOINT_RATE_STEP_S = 1e-4
-
-
-def positive(value, name: str) -> float:
-    """``value`` as a float; ValueError naming ``name`` unless finite and > 0."""
-    v = _float(value, name)
-    if v <= 0.0:
-        raise ValueError(f"{name} must be > 0, got {value!r}")
-    return v
-
-
-def nonnegative(value, name: str) -> float:
-    """``value`` as a float; ValueError naming ``name`` unless finite and >= 0."""
-    v = _float(value, name)
-    if v < 0.0:
-        raise ValueError(f"{name} must be >= 0, got {value!r}")
-    return v
-
-
-def finite(value, name: str) -> float:
-    """``value`` as a float; ValueError naming ``name`` unless finite."""
-    return _float(value, name)
-
-
-def _float(value, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
-        raise ValueError(f"{name} must be a number, got {type(value).__name__} {value!r}")
-    v = float(value)
-    if not math.isfinite(v):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return v
 
 
 def wrap_2pi(a):
