@@ -33,7 +33,6 @@ import heapq
 import io
 import os
 import struct
-import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -62,6 +61,7 @@ from gyro_attitude.io.mcap_records import (
     OP_STATISTICS,
     RECORD_HEADER,
     RecordParseError,
+    crc32,
     parse_record,
 )
 
@@ -420,7 +420,7 @@ class McapStreamReader:
         check_declared_size(usize, clen, compression, self.max_chunk_bytes)
         data = body[p:p + clen]
         records = decompress_bounded(compression, data, usize)
-        if self.validate_crc and crc != 0 and zlib.crc32(records) != crc:
+        if self.validate_crc and crc != 0 and crc32(records) != crc:
             raise ValueError("chunk CRC mismatch")
         if compression == "":
             records = bytes(records)  # detach from the reused read buffer

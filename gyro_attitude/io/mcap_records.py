@@ -17,6 +17,16 @@ from mcap import records as mcap_records
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import EndOfFile
 
+try:
+    # The MCAP checksum is zlib's CRC-32; ISA-L computes it with carry-less multiplies at
+    # ~24 GB/s here against zlib's 2.3 GB/s (a 600 k-message replay checks ~200 MB and
+    # writes ~270 MB of chunk records).  Optional: requirements.txt installs it.
+    from isal import isal_zlib as _crc_impl
+except ImportError:  # pragma: no cover - the same checksum, slower
+    import zlib as _crc_impl
+
+crc32 = _crc_impl.crc32
+
 MAGIC = b"\x89MCAP0\r\n"
 
 OP_HEADER = 0x01

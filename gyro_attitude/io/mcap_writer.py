@@ -21,7 +21,6 @@ per-message Python call caps throughput near 10^5 messages per second.
 from __future__ import annotations
 
 import time
-import zlib
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,6 +43,7 @@ from gyro_attitude.io.mcap_records import (
     RECORD_HEADER,
     chunk_index_record,
     chunk_record_head,
+    crc32,
     data_end_record,
     footer_head,
     header_record,
@@ -190,7 +190,7 @@ class Rosbag2McapWriter:
     def _emit(self, data) -> None:
         self._file.write(data)
         if self._crc_data:
-            self._data_crc = zlib.crc32(data, self._data_crc)
+            self._data_crc = crc32(data, self._data_crc)
         self._pos += len(data)
 
     def _check_open(self) -> None:
@@ -293,7 +293,7 @@ class Rosbag2McapWriter:
 
     def _prepare_chunk(self, records) -> tuple[int, object]:
         """(CRC of the uncompressed records, the bytes to store): thread-safe."""
-        crc = zlib.crc32(records)
+        crc = crc32(records)
         return crc, records if self._compressor is None else self._compressor(records)
 
     def _write_chunk(self, records, start: int, end: int,
@@ -362,7 +362,7 @@ class Rosbag2McapWriter:
         # Buffer sets reused for every chunk (fresh pages per chunk cost page faults): one
         # is filled here while other chunks are CRC'd and compressed by a pool of threads
         # and written, in submission order, by one writer thread (the only one touching the
-        # file until the last chunk is done).  numpy's copies, zlib.crc32, the compressors
+        # file until the last chunk is done).  numpy's copies, the CRC, the compressors
         # and file writes all release the GIL, so these overlap on a multi-core machine.
         # Record buffers are zeroed once and their constant fields set once: the fields
         # cover every byte except the CDR padding after frame_id, which so stays 0.
@@ -514,7 +514,7 @@ class Rosbag2McapWriter:
         for opcode, start, length in groups:
             summary.extend(summary_offset_record(opcode, start, length))
         foot = footer_head(summary_start, summary_offset_start)
-        summary_crc = zlib.crc32(foot, zlib.crc32(summary))
+        summary_crc = crc32(foot, crc32(summary))
         self._file.write(summary)
         self._file.write(foot + summary_crc.to_bytes(4, "little"))
         self._file.write(MAGIC)

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import math
+import os
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -82,37 +85,96 @@ def compose_chunked(n_samples: int, q0: np.ndarray, n_per_update: int, increment
     samples per update, ``Q`` is the attitude at the last completed N-block and the
     primed increments are the partial ones since that block.  Chunks bound memory and
     keep the scans in cache; the carried attitude is normalized at chunk boundaries.
+
+    Everything of a chunk but the attitude carried into it (its increments and their
+    prefix products: most of the work) is independent of the other chunks, so on a
+    multi-core machine two chunks are prepared at once by worker threads (numpy releases
+    the GIL in its loops) while this thread carries the attitude through the chunks in
+    order.  ``increments`` must therefore be a pure function of ``k``.  The arithmetic is
+    the same in either case.
     """
     q = np.empty((n_samples, 4))
     q[0] = q0
-    start = q0
-    for k0 in range(1, n_samples, CHUNK):
-        k = np.arange(k0, min(k0 + CHUNK, n_samples))
-        b, a = increments(k)
-        if n_per_update == 1:
-            out = _qmul(start, prefix_product(b))
-            if a is not None:
-                out = _qmul(prefix_product_left(a), out)
-        else:
-            nfull = k.size // n_per_update
-            major = slice(n_per_update - 1, nfull * n_per_update, n_per_update)
-            nblk = -(-k.size // n_per_update)
-            # Attitude before each block: Q_{m-1} = A_{m-1} ⊗ start ⊗ B_{m-1}.
-            q_before = np.empty((nblk, 4))
-            q_before[0] = start
-            if nblk > 1:
-                qb = _qmul(start, prefix_product(b[major][: nblk - 1]))
-                if a is not None:
-                    qb = _qmul(prefix_product_left(a[major][: nblk - 1]), qb)
-                q_before[1:] = normalize_rows(qb)
-            qrep = np.repeat(q_before, n_per_update, axis=0)[: k.size]
-            out = _qmul(qrep, b)
-            if a is not None:
-                out = _qmul(a, out)
-        out = normalize_rows(out)
-        q[k] = out
-        start = out[-1]
+    chunks = [(k0, min(k0 + CHUNK, n_samples)) for k0 in range(1, n_samples, CHUNK)]
+
+    def prepare(bounds):
+        k = np.arange(*bounds)
+        return _chunk_local(k, n_per_update, *increments(k))
+
+    start = np.asarray(q0, dtype=np.float64)
+    for (k0, k1), local in zip(chunks, _in_order(prepare, chunks), strict=True):
+        _chunk_attitudes(local, start, q[k0:k1])
+        start = q[k1 - 1]
     return q
+
+
+def _in_order(fn, items):
+    """``fn(item)`` for each item, in order; with several chunks and cores, computed ahead by
+    two worker threads (at most two results waiting: memory stays a few chunks)."""
+    if len(items) < 2 or (os.cpu_count() or 1) < 2:
+        yield from map(fn, items)
+        return
+    with ThreadPoolExecutor(max_workers=2, thread_name_prefix="attitude_chunk") as pool:
+        pending = deque(pool.submit(fn, it) for it in items[:3])
+        for it in items[3:]:
+            yield pending.popleft().result()
+            pending.append(pool.submit(fn, it))
+        while pending:
+            yield pending.popleft().result()
+
+
+def _chunk_local(k, n_per_update, b, a):
+    """The part of a chunk that does not depend on the attitude carried into it."""
+    if n_per_update == 1:
+        return (1, k.size, prefix_product(b), None if a is None else prefix_product_left(a))
+    nfull = k.size // n_per_update
+    major = slice(n_per_update - 1, nfull * n_per_update, n_per_update)
+    nblk = -(-k.size // n_per_update)
+    bm = am = None
+    if nblk > 1:
+        bm = prefix_product(b[major][: nblk - 1])
+        if a is not None:
+            am = prefix_product_left(a[major][: nblk - 1])
+    return (n_per_update, k.size, (b, bm), None if a is None else (a, am))
+
+
+def _chunk_attitudes(local, start, out) -> None:
+    """Normalized attitudes of one chunk into ``out`` from its local part and the attitude
+    ``start`` carried into it."""
+    n_per_update, m, b, a = local
+    if n_per_update == 1:
+        if a is None:
+            # start ⊗ B_k is linear in B_k: one (m, 4) @ (4, 4) product (BLAS), the hot
+            # path of every replay without a nav frame.
+            np.matmul(b, _left_product_matrix(start).T, out=out)
+        else:
+            out[:] = _qmul(a, _qmul(start, b))
+        out /= np.sqrt(np.einsum("ij,ij->i", out, out))[:, None]
+        return
+    (b, bm), (a, am) = b, (a if a is not None else (None, None))
+    nblk = -(-m // n_per_update)
+    # Attitude before each block: Q_{m-1} = A_{m-1} ⊗ start ⊗ B_{m-1}.
+    q_before = np.empty((nblk, 4))
+    q_before[0] = start
+    if nblk > 1:
+        qb = _qmul(start, bm)
+        if am is not None:
+            qb = _qmul(am, qb)
+        q_before[1:] = normalize_rows(qb)
+    qrep = np.repeat(q_before, n_per_update, axis=0)[:m]
+    res = _qmul(qrep, b)
+    if a is not None:
+        res = _qmul(a, res)
+    out[:] = normalize_rows(res)
+
+
+def _left_product_matrix(p: np.ndarray) -> np.ndarray:
+    """The 4x4 matrix ``L`` with ``p ⊗ q = L q`` (x, y, z, w order; :func:`_qmul`)."""
+    x, y, z, w = (float(c) for c in p)
+    return np.array([[w, -z, y, x],
+                     [z, w, -x, y],
+                     [-y, x, w, z],
+                     [-x, -y, -z, w]])
 
 
 def first_interval_output(q0, b1, t, rate_n):

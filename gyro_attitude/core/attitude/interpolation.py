@@ -16,7 +16,8 @@ def lagrange_eval(x_nodes: np.ndarray, y_nodes: np.ndarray, x_eval: np.ndarray) 
 
     ``x_nodes`` (M, n) in s, ``y_nodes`` (M, n, 3), ``x_eval`` (M, p) → (M, p, 3).  Each
     row has its own (non-uniform) nodes; Lagrange form, n ≤ 6 so the O(n²) weights are
-    cheap and exact enough (nodes are distinct, spacing ≥ 1 ns).
+    cheap and exact enough (nodes are distinct, spacing ≥ 1 ns).  For rows gathered one by
+    one (ends of a record); runs of rows use :func:`sliding_fit_rates`.
     """
     n = x_nodes.shape[1]
     out = np.zeros(x_eval.shape + (3,))
@@ -27,6 +28,104 @@ def lagrange_eval(x_nodes: np.ndarray, y_nodes: np.ndarray, x_eval: np.ndarray) 
                 w = w * (x_eval - x_nodes[:, j:j + 1]) / (x_nodes[:, i:i + 1] - x_nodes[:, j:j + 1])
         out += w[..., None] * y_nodes[:, None, i, :]
     return out
+
+
+def sliding_fit_rates(t_ns: np.ndarray, omega: np.ndarray, k0: int, k1: int, offset: int,
+                      n: int, fractions) -> np.ndarray:
+    """Rates at ``t_{k-1} + f h_k`` for the intervals ``k0 ≤ k < k1`` from the polynomial
+    through the ``n`` samples ``k-offset … k-offset+n-1`` (all inside the record).
+
+    Returns (len(fractions), k1-k0, 3).  Same fit as :func:`lagrange_eval` on gathered
+    rows, computed on slices: node positions in units of ``h_k`` from int64 differences,
+    the Lagrange denominators once for all fractions.  When the samples are equally
+    spaced (equal int64 steps over the whole run), every row has the same weights:
+    they are computed once and the fit is n scaled sums of slices.
+    """
+    m = k1 - k0
+    s0 = k0 - offset  # window start of the first row
+    fr = [float(f) for f in fractions]
+    out = np.empty((len(fr), m, 3))
+    if m <= 0:
+        return out
+    steps = np.diff(t_ns[s0:s0 + m + n - 1])
+    if (steps == steps[0]).all():
+        # Equally spaced: node j sits at (j - offset + 1) h from t_{k-1}.
+        u = [float(j - offset + 1) for j in range(n)]
+        weights = [[_lagrange_weight(u, j, e) for j in range(n)] for e in fr]
+    else:
+        t_left = t_ns[k0 - 1:k1 - 1]
+        h = (t_ns[k0:k1] - t_left).astype(np.float64)
+        # u_j = (t_{start+j} − t_{k-1}) / h_k; the interval's own ends are exactly 0 and 1
+        # (plain floats: their terms cost no array operation)
+        u = [float(j - offset + 1) if offset - 1 <= j <= offset
+             else (t_ns[s0 + j:s0 + j + m] - t_left) / h for j in range(n)]
+        inv_den = []
+        for j in range(n):
+            d = None
+            for i in range(n):
+                if i != j:
+                    d = u[j] - u[i] if d is None else d * (u[j] - u[i])
+            inv_den.append(1.0 / d)
+        weights = []
+        for e in fr:
+            diff = [e - ui for ui in u]
+            # numerator of weight j: ∏_{i≠j} (e − u_i) from prefix and suffix products
+            pre = [None] * n
+            acc = None
+            for j in range(n):
+                pre[j] = acc
+                acc = diff[j] if acc is None else acc * diff[j]
+            row, acc = [None] * n, None
+            for j in range(n - 1, -1, -1):
+                num = pre[j] if acc is None else (acc if pre[j] is None else pre[j] * acc)
+                wj = num * inv_den[j]
+                row[j] = wj[:, None] if np.ndim(wj) else wj  # float: both nodes exact
+                acc = diff[j] if acc is None else acc * diff[j]
+            weights.append(row)
+    tmp = np.empty((m, 3))
+    for f, row in enumerate(weights):
+        o = out[f]
+        np.multiply(omega[s0:s0 + m], row[0], out=o)
+        for j in range(1, n):
+            np.multiply(omega[s0 + j:s0 + j + m], row[j], out=tmp)
+            o += tmp
+    return out
+
+
+def _lagrange_weight(u, j, e) -> float:
+    w = 1.0
+    for i, ui in enumerate(u):
+        if i != j:
+            w *= (e - ui) / (u[j] - ui)
+    return w
+
+
+def fitted_rates(t_ns: np.ndarray, omega: np.ndarray, k: np.ndarray, fractions,
+                 offset: int, n_nodes: int, gathered) -> np.ndarray:
+    """Rates (len(k), len(fractions), 3) at ``t_{k-1} + f h_k`` from the polynomial through
+    samples ``k-offset … k-offset+n_nodes-1``.
+
+    The rows whose window lies inside the record take :func:`sliding_fit_rates` when ``k``
+    is a run of consecutive intervals (what the batch integrators pass); the others (the
+    ends of the record, where a method fits fewer or shifted samples, or scattered ``k``)
+    come from ``gathered(k_rows)`` → (len(k_rows), len(fractions), 3).
+    """
+    k = np.asarray(k)
+    m = k.size
+    lo, hi = offset, t_ns.size - n_nodes + offset  # intervals with the whole window inside
+    if m == 0 or not (k[-1] - k[0] == m - 1 and (m == 1 or (np.diff(k) == 1).all())):
+        return gathered(k)
+    i0 = min(max(lo - int(k[0]), 0), m)
+    i1 = max(min(hi - int(k[0]) + 1, m), i0)
+    if i1 == i0:
+        return gathered(k)
+    out = np.empty((len(fractions), m, 3))
+    out[:, i0:i1] = sliding_fit_rates(t_ns, omega, int(k[i0]), int(k[i1 - 1]) + 1, offset,
+                                      n_nodes, fractions)
+    for r0, r1 in ((0, i0), (i1, m)):
+        if r1 > r0:
+            out[:, r0:r1] = gathered(k[r0:r1]).transpose(1, 0, 2)
+    return out.transpose(1, 0, 2)
 
 
 def causal_rates_at(t_ns: np.ndarray, omega: np.ndarray, k: np.ndarray,
@@ -44,6 +143,12 @@ def causal_rates_at(t_ns: np.ndarray, omega: np.ndarray, k: np.ndarray,
     from the causal linear fit and then, once sample 2 is in, redo interval 1 with this
     fit before going on.
     """
+    return fitted_rates(t_ns, omega, k, fractions, 3, 4,
+                        lambda kk: _gathered_causal_rates(t_ns, omega, kk, fractions,
+                                                          lookahead))
+
+
+def _gathered_causal_rates(t_ns, omega, k, fractions, lookahead):
     out = np.empty((k.size, len(fractions), 3))
     fr = np.asarray(fractions, dtype=np.float64)
     first_fix = lookahead and t_ns.size >= 3

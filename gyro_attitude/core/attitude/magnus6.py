@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from gyro_attitude.core.attitude.algorithm import RateAlgorithm
-from gyro_attitude.core.attitude.interpolation import lagrange_eval
+from gyro_attitude.core.attitude.interpolation import fitted_rates, lagrange_eval
 from gyro_attitude.core.rotation import _exp_rotvec
 
 _S15 = math.sqrt(15.0)
@@ -60,14 +60,21 @@ class Magnus6Quintic(RateAlgorithm):
     causal = False
 
     def body_increments(self, t_ns, omega, k, lookahead=False):
-        n_fit = min(_FIT_SAMPLES, t_ns.size)
-        idx = quintic_window_start(k, t_ns.size)[:, None] + np.arange(n_fit)[None, :]
-        # Times relative to the interval's left end from int64 differences (no precision
-        # loss on long records); the Lagrange weights are ratios of these.
-        x = (t_ns[idx] - t_ns[k - 1][:, None]) * 1e-9
         h = ((t_ns[k] - t_ns[k - 1]) * 1e-9)[:, None]
-        g = lagrange_eval(x, omega[idx], h * np.asarray(GAUSS3)[None, :])
+        g = fitted_rates(t_ns, omega, k, GAUSS3, _BEFORE + 1, _FIT_SAMPLES,
+                         lambda kk: _gathered_rates(t_ns, omega, kk))
         return _exp_rotvec(magnus6_rotation_vector(g[:, 0], g[:, 1], g[:, 2], h))
+
+
+def _gathered_rates(t_ns, omega, k):
+    """Gauss-point rates of intervals ``k`` with their (shifted) windows gathered row by row."""
+    n_fit = min(_FIT_SAMPLES, t_ns.size)
+    idx = quintic_window_start(k, t_ns.size)[:, None] + np.arange(n_fit)[None, :]
+    # Times relative to the interval's left end from int64 differences (no precision
+    # loss on long records); the Lagrange weights are ratios of these.
+    x = (t_ns[idx] - t_ns[k - 1][:, None]) * 1e-9
+    h = ((t_ns[k] - t_ns[k - 1]) * 1e-9)[:, None]
+    return lagrange_eval(x, omega[idx], h * np.asarray(GAUSS3)[None, :])
 
 
 MAGNUS6_QUINTIC = Magnus6Quintic(

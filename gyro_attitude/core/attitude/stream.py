@@ -682,14 +682,13 @@ class AttitudeStream:
         if valid.size == 0:
             return False
         a = None if accel is None else np.asarray(accel, dtype=np.float64)
-        if a is not None and not (np.isfinite(a[valid]).all()
-                                  and np.abs(a[valid]).max() <= ACCEL_ABSURD):
+        if a is not None and not _usable_accel(_rows(a, valid)).all():
             return True  # unusable accelerometer samples: let the per-sample path count them
         # A window at rest has |mean| <= a and spread <= s, so the mean of |ω|² over it is at most
         # a² + s²: when every sample's |ω|² exceeds that, no window can be at rest (a cheap,
         # exact pre-check that spares the windowed statistics on moving recordings).
         cfg = self.config
-        wv = w[valid]
+        wv = _rows(w, valid)
         if np.einsum("ij,ij->i", wv, wv).min() > (cfg.rest_gyro_mean_max ** 2
                                                   + cfg.rest_gyro_std_max ** 2):
             return False
@@ -699,7 +698,8 @@ class AttitudeStream:
             seg = valid[p0:p1]
             if seg.size < 2:
                 continue
-            rest = detect_rest(t[seg], w[seg], None if a is None else a[seg], **params)
+            rest = detect_rest(_rows(t, seg), _rows(w, seg),
+                               None if a is None else _rows(a, seg), **params)
             if rest.at_rest.any():
                 return True
         return False
@@ -753,20 +753,27 @@ class AttitudeStream:
         # Each run of accepted samples (from a START, a restart after a gap or a time-jump
         # reset up to the next one) is one batch integration.
         bounds = np.append(np.flatnonzero(act[valid] != codes[v.ACCEPT]), valid.size)
-        q_out = np.empty((valid.size, 4))
+        q_out = None
         for p0, p1 in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
             seg = valid[p0:p1]
             # START and a time-jump reset begin at the initial attitude; a gap holds the last
             q0 = q_out[p0 - 1] if act[seg[0]] == codes[v.RESTART_AFTER_GAP] else self.q_initial
-            q_seg = integrate_batch(t[seg], w_corr[seg], q0=q0, algorithm=self.algorithm,
-                                    nav=_nav_rows(self.nav, seg, n))
+            q_seg = integrate_batch(_rows(t, seg), _rows(w_corr, seg), q0=q0,
+                                    algorithm=self.algorithm, nav=_nav_rows(self.nav, seg, n))
             if not np.isfinite(q_seg).all():
                 if self.integrator is None:  # the bounds on rates and nav frames prevent it
                     raise ValueError(f"{self.algorithm} produced a non-finite attitude and, an "
                                      "offline algorithm, cannot take the per-sample path that "
                                      "restores the last good one: use a causal algorithm")
                 return self._run_pushing(t, w, frame_id, cov, acc)
+            if p0 == 0 and p1 == valid.size:
+                q_out = q_seg  # one run: no copy
+                continue
+            if q_out is None:
+                q_out = np.empty((valid.size, 4))
             q_out[p0:p1] = q_seg
+        if q_out is None:
+            q_out = np.empty((0, 4))
 
         # Orientation variance: the covariance recurrence over accepted intervals as cumulative
         # sums (covariance.propagate_batch), restarting at every time-jump reset, as push() does.
@@ -775,22 +782,22 @@ class AttitudeStream:
         variance = variance_known = None
         known_v = np.zeros(valid.size, dtype=bool)
         if var_all is not None:
-            counts[INVALID_COVARIANCE] = int(np.count_nonzero(invalid_all[valid]))
-            known_v = known_all[valid]
+            counts[INVALID_COVARIANCE] = int(np.count_nonzero(_rows(invalid_all, valid)))
+            known_v = _rows(known_all, valid)
             if counts[INVALID_COVARIANCE]:
-                k = int(valid[np.flatnonzero(invalid_all[valid])[0]])
+                k = int(valid[np.flatnonzero(_rows(invalid_all, valid))[0]])
                 cls.details.setdefault(INVALID_COVARIANCE, f"angular_velocity_covariance "
                                        f"{cov[k].tolist()} has a non-finite, negative or absurd "
                                        "diagonal: treated as unknown")
         if known_v.any() or self._var_known:
             acc_rows = act[valid] == codes[v.ACCEPT]
-            tv = t[valid]
+            tv = _rows(t, valid)
             dt = np.zeros(valid.size)
             dt[1:] = (tv[1:] - tv[:-1]) * 1e-9
             dt[~acc_rows] = 0.0
             qv = self._n2 * dt[:, None] * _ONES
             if var_all is not None:
-                qv = np.where(known_v[:, None], var_all[valid] * (dt * dt)[:, None], qv)
+                qv = np.where(known_v[:, None], _rows(var_all, valid) * (dt * dt)[:, None], qv)
             c = self.covariance
             variance, tb_end, bb_end = propagate_batch(
                 dt, qv, act[valid] == codes[v.RESET_TIME_JUMP], c.initial_tt, c.bb, c.k2)
@@ -801,10 +808,8 @@ class AttitudeStream:
             variance[~variance_known] = 0.0
         counts[INVALID_ACCEL] = 0
         if acc is not None and valid.size:
-            with np.errstate(invalid="ignore"):
-                usable = np.isfinite(acc[valid]).all(axis=1) & (
-                    np.abs(acc[valid]).max(axis=1) <= ACCEL_ABSURD)
-            counts[INVALID_ACCEL] = int(np.count_nonzero(~usable))
+            counts[INVALID_ACCEL] = int(valid.size - np.count_nonzero(
+                _usable_accel(_rows(acc, valid))))
         counts[INTEGRATOR_ERROR] = 0
         self._adopt_batch_state(cls, t, w, valid, q_out, counts)
         if known_v.any():
@@ -863,6 +868,21 @@ class AttitudeStream:
 
 
 _ONES = np.ones(3)
+
+
+def _rows(a: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """``a[rows]`` for sorted row indices; a view when they are consecutive (the usual
+    case: a recording without bad samples), sparing a copy of the whole recording."""
+    if rows.size and int(rows[-1]) - int(rows[0]) == rows.size - 1:
+        return a[int(rows[0]):int(rows[-1]) + 1]
+    return a[rows]
+
+
+def _usable_accel(a: np.ndarray) -> np.ndarray:
+    """Rows of specific force (M, 3) that are finite and within ACCEL_ABSURD (one pass:
+    NaN fails the comparison, as inf does)."""
+    with np.errstate(invalid="ignore"):
+        return (np.abs(a) <= ACCEL_ABSURD).all(axis=1)
 
 
 def _unit_quat(q) -> np.ndarray:
