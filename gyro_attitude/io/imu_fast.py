@@ -61,8 +61,10 @@ class ImuArrays(_TopicArrays):
 
     ``stamp_ns`` header stamps, ``log_time_ns``/``publish_time_ns`` MCAP times (int64 ns);
     ``orientation`` (N, 4) x, y, z, w; ``angular_velocity`` (N, 3) rad/s;
-    ``linear_acceleration`` (N, 3) m/s²; covariances (N, 9) row-major.  ``frame_id`` is
-    the first message's; ``frame_ids`` all seen.  ``damage`` is None for an intact file,
+    ``linear_acceleration`` (N, 3) m/s²; covariances (N, 9) row-major -- when every
+    message carries the same covariance (what IMU drivers publish), a read-only broadcast
+    view of that row, which costs no memory.  ``frame_id`` is the first message's;
+    ``frame_ids`` all seen.  ``damage`` is None for an intact file,
     else what stopped the read (with ``on_damage="warn"``).
     """
 
@@ -97,6 +99,11 @@ class _Collector:
         self.parts: list[dict[str, np.ndarray]] = []
         self.out: dict[str, np.ndarray] | None = None  # preallocated (count from summary)
         self.pos = 0
+        # Covariance columns are held as one row while every message repeats it (bit for
+        # bit): writing 2 x 9 doubles per message into fresh memory was a third of the read.
+        self.constant: dict[str, np.ndarray | None] = {
+            k: None for k in self.fields if k.endswith("_covariance")}
+        self._count = 0
         self.frame_ids: list[str] = []
         self.fast = 0
         self.fallback = 0
@@ -111,17 +118,48 @@ class _Collector:
     def preallocate(self, count: int) -> None:
         """Size the output for ``count`` messages (from the file's summary statistics):
         chunks are then copied straight into place, with no final concatenation."""
+        self._count = count
         self.out = {k: np.empty(count, np.int64)
                     for k in ("stamp_ns", "log_time_ns", "publish_time_ns")}
         for name, width in self.fields.items():
-            self.out[name] = np.empty((count, width), np.float64)
+            if name not in self.constant:
+                self.out[name] = np.empty((count, width), np.float64)
 
     def _room(self, m: int) -> bool:
         if self.out is not None and self.pos + m > len(self.out["stamp_ns"]):
             # The summary's count was wrong (or stale): keep what is in place as a part.
-            self.parts.append({k: v[:self.pos] for k, v in self.out.items()})
+            part = {k: v[:self.pos] for k, v in self.out.items()}
+            for name, row in self.constant.items():
+                if name not in part:
+                    part[name] = self._repeat(name, row, self.pos)
+            self.parts.append(part)
             self.out = None
         return self.out is not None
+
+    def _repeat(self, name: str, row, m: int) -> np.ndarray:
+        """``row`` as ``m`` rows (a read-only view; no row yet only when ``m`` is 0)."""
+        return np.broadcast_to(np.zeros(self.fields[name]) if row is None else row,
+                               (m, self.fields[name]))
+
+    def _still_constant(self, name: str, column: np.ndarray) -> bool:
+        """Whether ``column`` (m, w) repeats the held row of a constant-candidate field;
+        when it does not, the field is materialized from here on (never again held)."""
+        if name not in self.constant:
+            return False
+        row = self.constant[name]
+        if row is None:  # the first rows of this topic: hold the first one
+            row = self.constant[name] = np.array(column[0], dtype=np.float64)
+        bits = row.view(np.uint64)
+        if (np.asarray(column, dtype=np.float64).view(np.uint64) == bits).all():
+            return True
+        # Per message from here on: the rows so far are the held row (parts hold it as
+        # views, which result() concatenates).
+        del self.constant[name]
+        if self.out is not None:
+            full = np.empty((len(self.out["stamp_ns"]), self.fields[name]), np.float64)
+            full[:self.pos] = row
+            self.out[name] = full
+        return False
 
     def add_records(self, recs: np.ndarray) -> None:
         m = len(recs)
@@ -134,7 +172,8 @@ class _Collector:
             o["log_time_ns"][sl] = recs["log_time"]
             o["publish_time_ns"][sl] = recs["publish_time"]
             for name in self.fields:
-                o[name][sl] = recs[name]
+                if not self._still_constant(name, recs[name]):
+                    o[name][sl] = recs[name]
             self.pos += m
         else:
             part = {
@@ -143,12 +182,17 @@ class _Collector:
                 "publish_time_ns": recs["publish_time"].astype(np.int64),
             }
             for name in self.fields:
-                part[name] = np.array(recs[name], dtype=np.float64)
+                part[name] = (self._repeat(name, self.constant[name], m)
+                              if self._still_constant(name, recs[name])
+                              else np.array(recs[name], dtype=np.float64))
             self.parts.append(part)
         self.fast += m
 
     def _add_part(self, part: dict[str, np.ndarray]) -> None:
         m = len(part["stamp_ns"])
+        for name in list(self.constant):
+            if m and self._still_constant(name, part[name]):
+                part[name] = self._repeat(name, self.constant[name], m)
         if self._room(m):
             for k, v in self.out.items():
                 v[self.pos:self.pos + m] = part[k]
@@ -195,7 +239,10 @@ class _Collector:
         if self.out is not None and self.parts:  # cannot happen: _room() empties out first
             raise AssertionError("preallocated output and parts at once")
         for k in keys:
-            if self.out is not None:
+            if k in self.constant:  # the same row in every message
+                n = self.pos if self.out is not None else sum(len(p[k]) for p in self.parts)
+                out[k] = self._repeat(k, self.constant[k], n)
+            elif self.out is not None:
                 out[k] = self.out[k][:self.pos]
             elif self.parts:
                 out[k] = np.concatenate([p[k] for p in self.parts])

@@ -134,7 +134,9 @@ def _alignment_summary(a) -> dict:
 def _constant_rows(a: np.ndarray) -> np.ndarray:
     """``a`` (N, w), or its first row when every row equals it (covariances usually are
     constant: the writer then sets them once per buffer instead of per message)."""
-    return a[0] if len(a) and (a == a[0]).all() else a
+    if len(a) and (a.strides[0] == 0 or (a == a[0]).all()):  # stride 0: one row repeated
+        return a[0]
+    return a
 
 
 def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,

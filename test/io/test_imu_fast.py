@@ -240,3 +240,66 @@ def test_messages_that_are_not_what_the_schema_says(tmp_path):
         wr.write("imu/data_raw", rclpy_serialization.serialize_message(String(data="hi")), 1)
     with pytest.raises(ValueError, match="does not deserialize as sensor_msgs/msg/Imu"):
         read_imu_arrays(tmp_path / "a.mcap")
+
+
+def _write_with_covariances(path, rng, n, cov_of, frames=("imu_link",)):
+    """Imu messages whose three covariances are ``cov_of(k)`` (9 floats each)."""
+    msgs = []
+    with Rosbag2McapWriter(path, chunk_size=4000) as wr:  # ~10 messages a chunk
+        wr.add_topic("imu/data_raw", "sensor_msgs/msg/Imu")
+        for k in range(n):
+            t = 10**9 + k * 1_000_000
+            m = _random_imu(rng, t, frames[k % len(frames)])
+            m.orientation_covariance = [float(x) for x in cov_of(k)]
+            m.angular_velocity_covariance = [float(x) for x in cov_of(k)]
+            m.linear_acceleration_covariance = [float(x) for x in cov_of(k)]
+            msgs.append(m)
+            wr.write_message("imu/data_raw", m, t)
+    return msgs
+
+
+CONSTANT = [1e-6, 0, 0, 0, 2e-6, 0, 0, 0, 3e-6]
+NEGATIVE_ZERO = [1e-6, -0.0, 0, 0, 2e-6, 0, 0, 0, 3e-6]  # equal as numbers, not as bits
+
+
+@pytest.mark.parametrize(("name", "cov_of", "held"), [
+    ("constant", lambda k: CONSTANT, True),
+    ("unknown (-1)", lambda k: [-1.0] + [0.0] * 8, True),
+    ("NaN throughout", lambda k: [float("nan")] * 9, True),
+    ("changes in a later chunk", lambda k: CONSTANT if k < 57 else [4e-6] * 9, False),
+    ("changes in the first chunk", lambda k: CONSTANT if k != 3 else [5e-6] * 9, False),
+    ("only the sign of a zero changes", lambda k: CONSTANT if k < 80 else NEGATIVE_ZERO, False),
+    ("changes back and forth", lambda k: CONSTANT if (k // 25) % 2 else [7e-6] * 9, False),
+])
+@pytest.mark.parametrize("frames", [("imu_link",), ("imu_link", "imu_link", "other")],
+                         ids=["array path", "with per-message fallback"])
+@pytest.mark.parametrize("count", [None, 0, 50, 2**40], ids=lambda c: f"summary={c}")
+def test_repeated_covariances_are_held_as_one_row(tmp_path, monkeypatch, name, cov_of, held,
+                                                  frames, count):
+    """Covariances every message repeats come back as a read-only view of one row; any
+    change (even of a zero's sign) gives the per-message values, bit for bit, whichever
+    path (array, per-message fallback, right/wrong/absent summary count) read them."""
+    from gyro_attitude.io.mcap_reader import McapStreamReader
+
+    rng = np.random.default_rng(21)
+    msgs = _write_with_covariances(tmp_path / "a.mcap", rng, 160, cov_of, frames)
+    if count is not None:
+        real_summary = McapStreamReader.summary
+
+        def forged(self):
+            out = real_summary(self)
+            out.message_counts = {cid: count for cid in out.message_counts}
+            return out
+
+        monkeypatch.setattr(McapStreamReader, "summary", forged)
+    arrays = read_imu_arrays(tmp_path / "a.mcap")
+    exp = _expected(msgs)
+    for key in ("orientation_covariance", "angular_velocity_covariance",
+                "linear_acceleration_covariance"):
+        got = getattr(arrays, key)
+        assert got.shape == (160, 9)
+        # bit-exact: the sign of zero and NaN payloads included
+        np.testing.assert_array_equal(got.view(np.uint64), exp[key].view(np.uint64), err_msg=key)
+        assert (got.strides[0] == 0) == held, key
+        assert got.flags.writeable != held
+    _check(arrays, {k: v for k, v in exp.items() if not k.endswith("_covariance")})

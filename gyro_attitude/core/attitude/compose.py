@@ -144,9 +144,10 @@ def _chunk_attitudes(local, start, out) -> None:
     n_per_update, m, b, a = local
     if n_per_update == 1:
         if a is None:
-            # start ⊗ B_k is linear in B_k: one (m, 4) @ (4, 4) product (BLAS), the hot
-            # path of every replay without a nav frame.
-            np.matmul(b, _left_product_matrix(start).T, out=out)
+            # start ⊗ B_k is linear in B_k: one (m, 4) x (4, 4) product, the hot path of
+            # every replay without a nav frame.  einsum's own loop, not matmul: OpenBLAS
+            # would start threads that spin on the core the chunk workers need.
+            np.einsum("ij,kj->ik", b, _left_product_matrix(start), out=out)
         else:
             out[:] = _qmul(a, _qmul(start, b))
         out /= np.sqrt(np.einsum("ij,ij->i", out, out))[:, None]

@@ -116,6 +116,12 @@ def gyro_variances(covariance) -> tuple[np.ndarray | None, bool]:
 def gyro_variances_array(covariance: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Array form of :func:`gyro_variances` for (N, 9): (variances (N, 3), known, invalid)."""
     c = np.asarray(covariance, dtype=np.float64)
+    if c.ndim == 2 and c.shape[0] > 1 and c.strides[0] == 0:
+        # one row repeated (a broadcast view: every message carried the same covariance)
+        var, known, invalid = gyro_variances_array(c[:1])
+        n = c.shape[0]
+        return (np.broadcast_to(var, (n, 3)), np.broadcast_to(known, (n,)),
+                np.broadcast_to(invalid, (n,)))
     d = c[:, [0, 4, 8]]
     no_estimate = c[:, 0] == -1.0
     with np.errstate(invalid="ignore"):
@@ -882,6 +888,8 @@ def _usable_accel(a: np.ndarray) -> np.ndarray:
     """Rows of specific force (M, 3) that are finite and within ACCEL_ABSURD (one pass:
     NaN fails the comparison, as inf does)."""
     with np.errstate(invalid="ignore"):
+        if a.size and np.max(a) <= ACCEL_ABSURD and np.min(a) >= -ACCEL_ABSURD:
+            return np.ones(a.shape[0], dtype=bool)  # all usable: whole-array reductions
         return (np.abs(a) <= ACCEL_ABSURD).all(axis=1)
 
 

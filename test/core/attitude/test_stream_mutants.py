@@ -143,6 +143,13 @@ def test_covariance_rows_array_form_written_out():
         scalar, scalar_bad = gyro_variances(cov)
         assert scalar_bad == bad and (scalar is None) == (expected is None)
     assert var.dtype == np.float64
+    # one row repeated as a read-only view (what the array reader returns for a constant
+    # covariance): the same verdicts, row by row
+    for cov, expected, bad in COV_TABLE:
+        var, known, invalid = gyro_variances_array(np.broadcast_to(cov, (5, 9)))
+        assert var.shape == (5, 3) and known.shape == invalid.shape == (5,)
+        assert invalid.tolist() == [bad] * 5 and known.tolist() == [expected is not None] * 5
+        np.testing.assert_array_equal(var, [expected if expected is not None else [0.0] * 3] * 5)
 
 
 # ------------------------------------------------------------------------- interval statistics

@@ -243,3 +243,23 @@ def test_initial_attitude_from_truth_skips_imu_before_the_truth():
         initial_attitude_from_truth(imu[:5], tt, q)
     with pytest.raises(ValueError, match="not finite"):
         initial_attitude_from_truth(imu, tt, np.where(np.arange(50)[:, None] == 3, np.nan, q))
+
+
+def test_run_counts_negative_absurd_values_like_push():
+    """Large negative rates and specific forces are as bad as large positive ones (the
+    whole-array checks look at both ends)."""
+    n = 200
+    t = 10**9 + np.arange(n, dtype=np.int64) * 5_000_000
+    g = np.tile([0.1, -0.2, 0.3], (n, 1))
+    a = np.tile([0.0, 0.0, 9.81], (n, 1))
+    g[50] = [0.0, -2e4, 0.0]  # beyond the default max_rate_rad_s = 1e4
+    g[60] = [-np.inf, 0.0, 0.0]
+    a[70] = [0.0, 0.0, -2e6]  # beyond ACCEL_ABSURD = 1e6
+    a[80] = [-np.inf, 0.0, 0.0]
+    cfg = MODES["parameter"]
+    res = AttitudeStream("rotvec_cubic", config=cfg).run(t, g, "imu", None, a)
+    pushed = push_all(AttitudeStream("rotvec_cubic", config=cfg), t, g, a, [None] * n)
+    assert res.index.tolist() == [k for k, _, _ in pushed]
+    assert 50 not in res.index and 60 not in res.index
+    assert res.counts["implausible_rate"] == 1 and res.counts["non_finite"] == 1
+    assert res.counts[INVALID_ACCEL] == 2
