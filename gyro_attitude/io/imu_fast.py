@@ -382,7 +382,8 @@ def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
             ch = reader.channels.get(cid)
             col = None
             if ch is not None:
-                recorded = [c.topic for c in reader.channels.values()]
+                # a snapshot: the read-ahead thread may be adding channels
+                recorded = [c.topic for c in tuple(reader.channels.values())]
                 for t, c in collectors.items():
                     if match_topic(recorded, t) == ch.topic:
                         if ch.type_name != c.type_name:
@@ -407,7 +408,8 @@ def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
             count = sum(summary.message_counts.get(cid, 0) for cid in cids)
             if topic is not None and count * c.dtype("").itemsize <= summary.uncompressed_bytes:
                 c.preallocate(count)
-    for chunk in reader.iter_chunks():
+    # two chunks read ahead: their file reads, decompression and CRC overlap the decoding
+    for chunk in reader.iter_chunks(read_ahead=2):
         index = chunk.message_index
         if index is None:
             # No usable index: walk the records once to find each channel's offsets (the

@@ -20,6 +20,11 @@ before anything is allocated; a chunk's uncompressed size must be at most
 and decompression stops at the declared size.  Counts from the summary are checked against
 what the file's bytes can hold.
 
+Read-ahead: ``iter_chunks(read_ahead=n)`` reads, decompresses and CRC-checks up to ``n``
+chunks ahead in a worker thread (file reads, zstd/lz4 and the CRC release the GIL) while the
+caller decodes the current one; the chunks, the damage records and the errors reach the caller
+in the same order as without read-ahead.
+
 Damage: an empty or non-MCAP file raises :class:`McapDamagedError` at once.  Damage inside
 the file (a corrupt chunk, CRC mismatch, bad message index, unparsable record, message on
 an unknown channel) is skipped and recorded in :attr:`McapStreamReader.damages`; truncation
@@ -32,7 +37,9 @@ from __future__ import annotations
 import heapq
 import io
 import os
+import queue
 import struct
+import threading
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -276,6 +283,8 @@ class McapStreamReader:
         self.channels: dict[int, ChannelInfo] = {}
         self.size = (len(self._buffer) if self._buffer is not None
                      else os.path.getsize(self.path))
+        self._read_ahead_thread: int | None = None  # ident of the read-ahead worker
+        self._read_ahead_damage: list[tuple[str, int]] = []
 
     @property
     def damage(self) -> str | None:
@@ -292,7 +301,11 @@ class McapStreamReader:
     # ---------------------------------------------------------------- walking
     def _damaged(self, what: str, offset: int) -> None:
         msg = f"{self.path}: damaged at byte {offset}: {what}"
-        self.damages.append(msg)
+        if threading.get_ident() == self._read_ahead_thread:
+            # found ahead of the caller: recorded when the caller gets there (same order)
+            self._read_ahead_damage.append((msg, offset))
+        else:
+            self.damages.append(msg)
         if self.on_damage == "raise":
             raise McapDamagedError(msg, offset)
 
@@ -306,8 +319,57 @@ class McapStreamReader:
                                        f"ends inside the MCAP magic", len(magic))
             raise McapDamagedError(f"{self.path}: not an MCAP file (bad magic)", 0)
 
-    def iter_chunks(self) -> Iterator[RawChunk]:
-        """Yield the chunks (and loose messages) of the data section in file order."""
+    def iter_chunks(self, read_ahead: int = 0) -> Iterator[RawChunk]:
+        """Yield the chunks (and loose messages) of the data section in file order;
+        ``read_ahead`` > 0: prepared that many chunks ahead by a worker thread."""
+        if read_ahead <= 0 or self._read_ahead_thread is not None:
+            yield from self._walk_chunks()
+            return
+        # (kind, item, damage found before it) in file order; kind "chunk", "end", "error"
+        items: queue.Queue = queue.Queue(maxsize=read_ahead)
+        stop = threading.Event()
+
+        def put(entry) -> bool:
+            while not stop.is_set():
+                try:
+                    items.put(entry, timeout=0.05)
+                    return True
+                except queue.Full:
+                    continue
+            return False
+
+        def damage_so_far() -> list[tuple[str, int]]:
+            found, self._read_ahead_damage = self._read_ahead_damage, []
+            return found
+
+        def produce() -> None:
+            self._read_ahead_thread = threading.get_ident()
+            try:
+                for chunk in self._walk_chunks():
+                    if not put(("chunk", chunk, damage_so_far())):
+                        return
+                put(("end", None, damage_so_far()))
+            except BaseException as exc:  # re-raised in the caller, in order
+                put(("error", exc, damage_so_far()))
+
+        worker = threading.Thread(target=produce, name="mcap_read_ahead", daemon=True)
+        worker.start()
+        try:
+            while True:
+                kind, item, damage = items.get()
+                self.damages.extend(msg for msg, _ in damage)
+                if kind == "chunk":
+                    yield item
+                elif kind == "end":
+                    return
+                else:
+                    raise item
+        finally:
+            stop.set()
+            worker.join()
+            self._read_ahead_thread = None
+
+    def _walk_chunks(self) -> Iterator[RawChunk]:
         size = self.size
         with self._open() as f:
             self._check_magic(f)

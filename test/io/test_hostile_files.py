@@ -183,9 +183,8 @@ def _mutations(raw: bytes, rng: np.random.Generator, chunk_offsets: list[int]):
     return bytes(data)
 
 
-def test_fuzz_reader_arrays_and_replay(tmp_path):
-    """~20 s: never a traceback other than the documented ValueError family, never a
-    hang, bounded memory."""
+def _fuzz_source(tmp_path):
+    """A 400-message Imu + truth file in ~40 small chunks, and its chunk offsets."""
     src = tmp_path / "src.mcap"
     n = 400
     t = 10**9 + np.arange(n, dtype=np.int64) * 10**6
@@ -205,6 +204,99 @@ def test_fuzz_reader_arrays_and_replay(tmp_path):
             break
         pos += RECORD_HEADER.size + length
     assert len(chunk_offsets) > 5
+    return raw, chunk_offsets
+
+
+def _outcome(fn):
+    try:
+        return ("ok", fn())
+    except (McapDamagedError, ValueError) as exc:
+        return (type(exc).__name__, str(exc))
+
+
+def test_read_ahead_gives_what_the_plain_walk_gives(tmp_path, monkeypatch):
+    """Chunks prepared ahead by the worker thread reach the caller with the same records,
+    indexes, damage records (in the same order, also interleaved with the caller's own decode
+    damage) and errors as the plain walk, on seeded mutated files, in both damage modes."""
+    raw, chunk_offsets = _fuzz_source(tmp_path)
+    rng = np.random.default_rng(77)
+    path = tmp_path / "m.mcap"
+
+    def walk(ahead, mode):
+        reader = McapStreamReader(path, on_damage=mode, reuse_buffers=True)
+        got = []
+        try:
+            for c in reader.iter_chunks(read_ahead=ahead):
+                idx = None if c.message_index is None else {
+                    k: v.tolist() for k, v in c.message_index.items()}
+                got.append((bytes(c.records), idx, c.file_offset))
+        except McapDamagedError as exc:
+            got.append(("raised", str(exc)))
+        return got, reader.damages, sorted(reader.channels)
+
+    real_iter = McapStreamReader.iter_chunks
+    for case in range(60):
+        path.write_bytes(_mutations(raw, rng, chunk_offsets) if case else raw)
+        for mode in ("warn", "raise"):
+            assert walk(2, mode) == walk(0, mode), (case, mode)
+        # through the array reader: the caller's own damage records interleave the same way
+        monkeypatch.setattr(McapStreamReader, "iter_chunks",
+                            lambda self, read_ahead=0: real_iter(self, 0))
+        plain = _outcome(lambda: read_topic_arrays(path, {"imu/data_raw": IMU}, on_damage="warn",
+                                                   required=False))
+        monkeypatch.setattr(McapStreamReader, "iter_chunks", real_iter)
+        ahead = _outcome(lambda: read_topic_arrays(path, {"imu/data_raw": IMU}, on_damage="warn",
+                                                   required=False))
+        assert plain[0] == ahead[0], case
+        if plain[0] != "ok":
+            assert plain == ahead, case
+        elif "imu/data_raw" in plain[1]:
+            a, b = plain[1]["imu/data_raw"], ahead[1]["imu/data_raw"]
+            assert a.damage == b.damage, case
+            np.testing.assert_array_equal(a.angular_velocity, b.angular_velocity)
+            np.testing.assert_array_equal(a.stamp_ns, b.stamp_ns)
+
+
+def test_read_ahead_damage_is_recorded_when_the_caller_gets_there(tmp_path):
+    """Damage the worker finds ahead (a CRC mismatch in a later chunk) is recorded after what
+    the caller records while it decodes an earlier chunk, as in the plain walk."""
+    raw, chunk_offsets = _fuzz_source(tmp_path)
+    data = bytearray(raw)
+    c = chunk_offsets[3]
+    struct.pack_into("<I", data, c + RECORD_HEADER.size + 24, 12345)  # chunk 3's CRC
+    path = tmp_path / "m.mcap"
+    path.write_bytes(bytes(data))
+    orders = []
+    for ahead in (0, 2):
+        reader = McapStreamReader(path, on_damage="warn")
+        for k, _ in enumerate(reader.iter_chunks(read_ahead=ahead)):
+            if k == 1:
+                time.sleep(0.3)  # the worker is now past chunk 3
+                reader._damaged("what the caller found in chunk 1", 0)
+        orders.append(reader.damages)
+    assert orders[0] == orders[1]
+    assert "caller" in orders[0][0] and "CRC" in orders[0][1]
+
+
+def test_read_ahead_worker_stops_when_the_caller_does(tmp_path):
+    """Leaving the loop early (or an error in the caller) joins the worker thread."""
+    import threading
+
+    raw, _ = _fuzz_source(tmp_path)
+    path = tmp_path / "m.mcap"
+    path.write_bytes(raw)
+    before = threading.active_count()
+    it = McapStreamReader(path).iter_chunks(read_ahead=2)
+    next(it)
+    assert threading.active_count() == before + 1
+    it.close()
+    assert threading.active_count() == before
+
+
+def test_fuzz_reader_arrays_and_replay(tmp_path):
+    """~20 s: never a traceback other than the documented ValueError family, never a
+    hang, bounded memory."""
+    raw, chunk_offsets = _fuzz_source(tmp_path)
     rng = np.random.default_rng(2024)
     deadline = time.monotonic() + 20
     cases = 0
