@@ -90,27 +90,32 @@ def _zstd_compress(records) -> bytes:
     return zstandard.ZstdCompressor(level=1).compress(records)
 
 
-def merge_positions(logs: list[np.ndarray]) -> list[np.ndarray]:
-    """Positions in the merged stream of several log-time-sorted sequences: stable, a
-    sequence listed earlier goes first among equal times (an O(N log N) merge by binary
-    search instead of sorting the concatenation)."""
+def merge_offsets(logs: list[np.ndarray], sizes: list[int]) -> list[np.ndarray]:
+    """Where every element of several log-time-sorted sequences starts in their merged
+    stream, an element of sequence c taking ``sizes[c]`` units (bytes; 1 gives merged
+    positions).  The merge is stable, a sequence listed earlier going first among equal
+    times: an element's start counts the elements of every other sequence before it, found
+    by binary search (O(N log N), without sorting the concatenation)."""
     k = len(logs)
     if k > 1 and all(lc.shape == logs[0].shape and np.array_equal(lc, logs[0]) for lc in logs):
         # Same log times in every sequence (a replay's outputs): a plain round robin.
-        return [np.arange(logs[0].shape[0], dtype=np.int64) * k + c for c in range(k)]
+        stride = sum(sizes)
+        return [np.arange(logs[0].shape[0], dtype=np.int64) * stride + sum(sizes[:c])
+                for c in range(k)]
     out = []
     for c, lc in enumerate(logs):
-        pos = np.arange(lc.shape[0], dtype=np.int64)
+        start = np.arange(lc.shape[0], dtype=np.int64) * sizes[c]
         for d, ld in enumerate(logs):
             if d != c:
-                pos += np.searchsorted(ld, lc, side="right" if d < c else "left")
-        out.append(pos)
+                before = np.searchsorted(ld, lc, side="right" if d < c else "left")
+                start += before * np.int64(sizes[d])
+        out.append(start)
     return out
 
 
 class _MergedChunks:
     """The chunks of one :meth:`Rosbag2McapWriter.write_batches` call: where each message
-    goes (merged position, byte offset, chunk, sequence number), all computed up front
+    goes (byte offset, chunk, sequence number), all computed up front
     from the batches' log times, so that any thread can build any chunk."""
 
     def __init__(self, batches: list[cdr_arrays.MessageBatch], channels: list[Rosbag2Topic],
@@ -119,30 +124,31 @@ class _MergedChunks:
         self.channel_ids = [ch.id for ch in channels]
         self.dtypes = [b.record_dtype() for b in batches]
         self.constants = [b.constant_columns() for b in batches]
-        positions = merge_positions([b.log_time_ns for b in batches])
-        total = sum(len(b) for b in batches)
-        # Byte offset of every message in the merged stream.
-        rec_size = np.empty(total, dtype=np.int64)
-        for pos, dt in zip(positions, self.dtypes, strict=True):
-            rec_size[pos] = dt.itemsize
-        starts = np.zeros(total + 1, dtype=np.int64)
-        np.cumsum(rec_size, out=starts[1:])
-        del rec_size
-        # Chunk boundaries (merged positions): a chunk closes once it reaches chunk_size.
-        bounds = [0]
-        while bounds[-1] < total:
-            p0 = bounds[-1]
-            p1 = int(np.searchsorted(starts, starts[p0] + chunk_size, side="left"))
-            bounds.append(min(max(p0 + 1, p1), total))
-        self.bounds = np.asarray(bounds, dtype=np.int64)
-        self.chunk_count = len(bounds) - 1
-        self.chunk_bytes = starts[self.bounds]
+        sizes = [dt.itemsize for dt in self.dtypes]
+        # Byte offset of every message in the merged stream, per batch.
+        offsets = merge_offsets([b.log_time_ns for b in batches], sizes)
+        self.offsets = offsets
+        self.total = sum(len(b) for b in batches)
+        total_bytes = sum(len(b) * size for b, size in zip(batches, sizes, strict=True))
+        # Chunk boundaries: a chunk closes once it reaches chunk_size, i.e. it ends before
+        # the first message starting at or after its start + chunk_size (its own first
+        # message starts before that, so every chunk holds at least one message).
+        # ranges[c][i]: index in batch c of its first message in chunk i.
+        chunk_bytes = [0]
+        ranges = [[0] for _ in batches]
+        while chunk_bytes[-1] < total_bytes:
+            target = chunk_bytes[-1] + chunk_size
+            nxt = total_bytes
+            for off, r in zip(offsets, ranges, strict=True):
+                k = int(np.searchsorted(off, target, side="left"))
+                r.append(k)
+                if k < off.shape[0]:
+                    nxt = min(nxt, int(off[k]))
+            chunk_bytes.append(nxt)
+        self.chunk_bytes = np.asarray(chunk_bytes, dtype=np.int64)
+        self.chunk_count = len(chunk_bytes) - 1
+        self.ranges = [np.asarray(r, dtype=np.int64) for r in ranges]
         self.max_bytes = int(np.diff(self.chunk_bytes).max())
-        self.positions = positions
-        self.starts = starts
-        self.total = total
-        # Message range lo:hi of every batch in every chunk.
-        self.ranges = [np.searchsorted(pos, self.bounds) for pos in positions]
         self.caps = [min(len(b), self.max_bytes // dt.itemsize + 1)
                      for b, dt in zip(batches, self.dtypes, strict=True)]
         # Sequence numbers count per channel in merged order: a batch alone on its channel
@@ -160,10 +166,10 @@ class _MergedChunks:
                 continue
             rank = np.arange(len(batches[bi]), dtype=np.int64)
             for bj in shared:
-                if bj != bi:
-                    rank += np.searchsorted(positions[bj], positions[bi])
+                if bj != bi:  # messages of the other batch before each (offsets are distinct)
+                    rank += np.searchsorted(offsets[bj], offsets[bi])
             self.sequence_base.append(0)
-            self.sequences.append(((base + rank.astype(np.uint64)) & 0xFFFFFFFF)
+            self.sequences.append(((rank + (base & 0xFFFFFFFF)) & 0xFFFFFFFF)
                                   .astype(np.uint32))
         self.start = min(int(b.log_time_ns[0]) for b in batches)
         self.end = max(int(b.log_time_ns[-1]) for b in batches)
@@ -211,7 +217,7 @@ class _MergedChunks:
             else:
                 recs["sequence"] = seq[lo:hi]
             b.fill(recs, lo, hi, skip=self.constants[bi])
-            offs = self.starts[self.positions[bi][lo:hi]] - byte0
+            offs = self.offsets[bi][lo:hi] - byte0
             lt = b.log_time_ns[lo:hi]
             start, end = min(start, int(lt[0])), max(end, int(lt[-1]))
             entries = np.empty((m, 2), dtype=np.uint64)
@@ -480,7 +486,7 @@ class Rosbag2McapWriter:
         if not batches:
             return
         for i, b in enumerate(batches):
-            if (np.diff(b.log_time_ns) < 0).any():
+            if (b.log_time_ns[1:] < b.log_time_ns[:-1]).any():
                 batches[i] = b.take(np.argsort(b.log_time_ns, kind="stable"))
         channels = [self._channel(b.topic) for b in batches]
         plan = _MergedChunks(batches, channels, self.chunk_size)
