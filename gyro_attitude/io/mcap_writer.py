@@ -625,5 +625,8 @@ class Rosbag2McapWriter:
     def abandon(self) -> None:
         """Close the file without summary (what a crash leaves); for tests and error paths."""
         if not self._finished:
-            self._file.close()
             self._finished = True
+            try:
+                self._file.close()
+            except OSError:
+                pass  # the buffered tail could not be written (disk full): given up anyway
