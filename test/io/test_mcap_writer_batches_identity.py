@@ -91,8 +91,19 @@ def _tiny_chunks(rng):
         imu_batch("b", t[::3] + 1, rng.normal(size=(20, 3)))]]
 
 
+def _exact_fit(rng):
+    """chunk_size a multiple of a record pair: chunks fill up to exactly chunk_size."""
+    n = 500
+    t = T0 + np.arange(n, dtype=np.int64) * 1_000
+    att = quaternion_stamped_batch("a", t, _unit_rows(rng, n))
+    imu = imu_batch("b", t, rng.normal(size=(n, 3)))
+    pair = att.record_dtype().itemsize + imu.record_dtype().itemsize
+    return 7 * pair, [("a", "geometry_msgs/msg/QuaternionStamped"),
+                      ("b", "sensor_msgs/msg/Imu")], [[att, imu]]
+
+
 LAYOUTS = {"one_topic": _one_topic, "round_robin": _round_robin, "irregular": _irregular,
-           "stable_sort": _stable_sort, "tiny_chunks": _tiny_chunks}
+           "stable_sort": _stable_sort, "tiny_chunks": _tiny_chunks, "exact_fit": _exact_fit}
 
 # A std_msgs/String "pending" (serialized CDR), written per message before the batches.
 _STRING_CDR = b"\x00\x01\x00\x00\x06\x00\x00\x00hello\x00\x00\x00"
@@ -118,6 +129,9 @@ def write_layout(path, layout: str, compression: str):
 # 6.0.3, zstandard 0.25.0 and lz4 4.4.5.  Later versions of the writer must keep these
 # files byte-identical.
 DIGESTS = {
+    ("exact_fit", ""): "318eb6182df4ecbcd7df104c46b3debfde11dd4b62b767880f699b6bebd53911",
+    ("exact_fit", "zstd"): "21aba2e7d596bd603c6bea6231a7c07d09cee436b1013adf4b75b9d5120ca0f6",
+    ("exact_fit", "lz4"): "f62265eea3fc28350f68d57fb03822b989abbf238b05f8947e5fd7a76000153f",
     ("irregular", ""): "fa31a7a33b7acf5f7bee74108a830bd7de927f1d2717a4e957903709687fc169",
     ("irregular", "zstd"): "4bd0dde7efe2c79cbd87a2af79602ae31f0aaa88f67480e3e526bf10e62de932",
     ("irregular", "lz4"): "1df30acf08c8706bbe56de20aa2aaef9917b79912839c88ba8914e44ff62e065",
