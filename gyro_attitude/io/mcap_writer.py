@@ -115,15 +115,15 @@ def merge_offsets(logs: list[np.ndarray], sizes: list[int]) -> list[np.ndarray]:
 
 class _MergedChunks:
     """The chunks of one :meth:`Rosbag2McapWriter.write_batches` call: where each message
-    goes (byte offset, chunk, sequence number), all computed up front
-    from the batches' log times, so that any thread can build any chunk."""
+    goes (byte offset, chunk, sequence number), all computed up front from the batches'
+    log times, so that any thread can build any chunk."""
 
     def __init__(self, batches: list[cdr_arrays.MessageBatch], channels: list[Rosbag2Topic],
                  chunk_size: int):
         self.batches = batches
         self.channel_ids = [ch.id for ch in channels]
         self.dtypes = [b.record_dtype() for b in batches]
-        self.constants = [b.constant_columns() for b in batches]
+        self.constants = [frozenset(b.constant_columns()) for b in batches]
         sizes = [dt.itemsize for dt in self.dtypes]
         # Byte offset of every message in the merged stream, per batch.
         offsets = merge_offsets([b.log_time_ns for b in batches], sizes)
