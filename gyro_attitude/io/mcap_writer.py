@@ -20,6 +20,7 @@ per-message Python call caps throughput near 10^5 messages per second.
 
 from __future__ import annotations
 
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -70,9 +71,10 @@ COMPRESSIONS = ("", "zstd", "lz4")
 DEFAULT_COMPRESSION = "zstd"
 DEFAULT_CHUNK_SIZE = 768 * 1024  # libmcap's default, used by rosbag2
 _U64_MAX = 2**64 - 1
-# Array paths: chunks being filled, compressed or written at once, and compression threads.
+# Array paths: chunks being built, compressed or written at once (buffer slots), and the
+# threads that build and compress them.
 _PIPELINE_DEPTH = 4
-_COMPRESS_THREADS = 2
+_BUILD_THREADS = 2
 
 
 @dataclass
@@ -88,22 +90,165 @@ def _zstd_compress(records) -> bytes:
     return zstandard.ZstdCompressor(level=1).compress(records)
 
 
-def merge_positions(logs: list[np.ndarray]) -> list[np.ndarray]:
-    """Positions in the merged stream of several log-time-sorted sequences: stable, a
-    sequence listed earlier goes first among equal times (an O(N log N) merge by binary
-    search instead of sorting the concatenation)."""
+def merge_offsets(logs: list[np.ndarray], sizes: list[int]) -> list[np.ndarray]:
+    """Where every element of several log-time-sorted sequences starts in their merged
+    stream, an element of sequence c taking ``sizes[c]`` units (bytes; 1 gives merged
+    positions).  The merge is stable, a sequence listed earlier going first among equal
+    times: an element's start counts the elements of every other sequence before it, found
+    by binary search (O(N log N), without sorting the concatenation)."""
     k = len(logs)
     if k > 1 and all(lc.shape == logs[0].shape and np.array_equal(lc, logs[0]) for lc in logs):
         # Same log times in every sequence (a replay's outputs): a plain round robin.
-        return [np.arange(logs[0].shape[0], dtype=np.int64) * k + c for c in range(k)]
+        stride = sum(sizes)
+        return [np.arange(logs[0].shape[0], dtype=np.int64) * stride + sum(sizes[:c])
+                for c in range(k)]
     out = []
     for c, lc in enumerate(logs):
-        pos = np.arange(lc.shape[0], dtype=np.int64)
+        start = np.arange(lc.shape[0], dtype=np.int64) * sizes[c]
         for d, ld in enumerate(logs):
             if d != c:
-                pos += np.searchsorted(ld, lc, side="right" if d < c else "left")
-        out.append(pos)
+                before = np.searchsorted(ld, lc, side="right" if d < c else "left")
+                start += before * np.int64(sizes[d])
+        out.append(start)
     return out
+
+
+class _MergedChunks:
+    """The chunks of one :meth:`Rosbag2McapWriter.write_batches` call: where each message
+    goes (byte offset, chunk, sequence number), all computed up front from the batches'
+    log times, so that any thread can build any chunk."""
+
+    def __init__(self, batches: list[cdr_arrays.MessageBatch], channels: list[Rosbag2Topic],
+                 chunk_size: int):
+        self.batches = batches
+        self.channel_ids = [ch.id for ch in channels]
+        self.dtypes = [b.record_dtype() for b in batches]
+        self.constants = [frozenset(b.constant_columns()) for b in batches]
+        sizes = [dt.itemsize for dt in self.dtypes]
+        # Byte offset of every message in the merged stream, per batch.
+        offsets = merge_offsets([b.log_time_ns for b in batches], sizes)
+        self.offsets = offsets
+        self.total = sum(len(b) for b in batches)
+        total_bytes = sum(len(b) * size for b, size in zip(batches, sizes, strict=True))
+        # Chunk boundaries: a chunk closes once it reaches chunk_size, i.e. it ends before
+        # the first message starting at or after its start + chunk_size (its own first
+        # message starts before that, so every chunk holds at least one message).
+        # ranges[c][i]: index in batch c of its first message in chunk i.
+        chunk_bytes = [0]
+        ranges = [[0] for _ in batches]
+        while chunk_bytes[-1] < total_bytes:
+            target = chunk_bytes[-1] + chunk_size
+            nxt = total_bytes
+            for off, r in zip(offsets, ranges, strict=True):
+                k = int(np.searchsorted(off, target, side="left"))
+                r.append(k)
+                if k < off.shape[0]:
+                    nxt = min(nxt, int(off[k]))
+            chunk_bytes.append(nxt)
+        self.chunk_bytes = np.asarray(chunk_bytes, dtype=np.int64)
+        self.chunk_count = len(chunk_bytes) - 1
+        self.ranges = [np.asarray(r, dtype=np.int64) for r in ranges]
+        self.max_bytes = int(np.diff(self.chunk_bytes).max())
+        self.caps = [min(len(b), self.max_bytes // dt.itemsize + 1)
+                     for b, dt in zip(batches, self.dtypes, strict=True)]
+        # Sequence numbers count per channel in merged order: a batch alone on its channel
+        # numbers its messages base + index (one counting column, sliced per chunk); a
+        # channel fed by several batches numbers each message by its rank among them.
+        self.counting = np.arange(max(self.caps), dtype=np.uint32)
+        self.sequence_base: list[int] = []
+        self.sequences: list[np.ndarray | None] = []
+        for bi, ch in enumerate(channels):
+            shared = [bj for bj, other in enumerate(channels) if other is ch]
+            base = ch.sequence
+            if len(shared) == 1:
+                self.sequence_base.append(base)
+                self.sequences.append(None)
+                continue
+            rank = np.arange(len(batches[bi]), dtype=np.int64)
+            for bj in shared:
+                if bj != bi:  # messages of the other batch before each (offsets are distinct)
+                    rank += np.searchsorted(offsets[bj], offsets[bi])
+            self.sequence_base.append(0)
+            self.sequences.append(((rank + (base & 0xFFFFFFFF)) & 0xFFFFFFFF)
+                                  .astype(np.uint32))
+        self.start = min(int(b.log_time_ns[0]) for b in batches)
+        self.end = max(int(b.log_time_ns[-1]) for b in batches)
+
+    def new_buffers(self) -> tuple[list[np.ndarray], np.ndarray | None]:
+        """One slot: a record buffer per batch (zeroed, its constant fields set once: they
+        cover every byte except the CDR padding after frame_id, which so stays 0) and,
+        with several batches, the buffer their records are merged into."""
+        recs = []
+        for b, cid, dt, cap, constants in zip(self.batches, self.channel_ids, self.dtypes,
+                                             self.caps, self.constants, strict=True):
+            r = np.zeros(cap, dtype=dt)
+            frame = b.frame_id.encode("utf-8") + b"\x00"
+            r["opcode"] = OP_MESSAGE
+            r["record_length"] = dt.itemsize - RECORD_HEADER.size
+            r["channel_id"] = cid
+            r["encapsulation"] = cdr_arrays.CDR_LE_HEADER_U32
+            r["frame_id_len"] = len(frame)
+            r["frame_id"] = frame
+            for name in constants:
+                r[name] = b.columns[name][0]
+            recs.append(r)
+        merged = np.zeros(self.max_bytes, dtype=np.uint8) if len(self.batches) > 1 else None
+        return recs, merged
+
+    def build(self, i: int, buffers) -> tuple[memoryview, int, int, dict[int, np.ndarray]]:
+        """Chunk ``i`` into a slot's buffers: (records, start, end, message index)."""
+        rec_bufs, merged = buffers
+        byte0 = int(self.chunk_bytes[i])
+        nbytes = int(self.chunk_bytes[i + 1]) - byte0
+        index: dict[int, list] = {}
+        start, end = _U64_MAX, 0
+        records = None
+        for bi, b in enumerate(self.batches):
+            lo, hi = int(self.ranges[bi][i]), int(self.ranges[bi][i + 1])
+            m = hi - lo
+            if m == 0:
+                continue
+            recs = rec_bufs[bi][:m]
+            seq = self.sequences[bi]
+            if seq is None:
+                # uint32 addition wraps modulo 2^32, as MCAP's sequence field does
+                np.add(self.counting[:m], np.uint32((self.sequence_base[bi] + lo) & 0xFFFFFFFF),
+                       out=recs["sequence"])
+            else:
+                recs["sequence"] = seq[lo:hi]
+            b.fill(recs, lo, hi, skip=self.constants[bi])
+            offs = self.offsets[bi][lo:hi] - byte0
+            lt = b.log_time_ns[lo:hi]
+            start, end = min(start, int(lt[0])), max(end, int(lt[-1]))
+            entries = np.empty((m, 2), dtype=np.uint64)
+            entries[:, 0] = lt
+            entries[:, 1] = offs
+            index.setdefault(self.channel_ids[bi], []).append(entries)
+            raw = recs.view(np.uint8).reshape(m, -1)
+            if merged is None:
+                records = memoryview(raw.reshape(-1))  # one topic: records in place
+                continue
+            # Scatter whole records to their merged byte offsets.
+            out = merged[:nbytes]
+            steps = np.diff(offs)
+            if m > 1 and (steps == steps[0]).all():
+                # evenly interleaved: one strided copy
+                np.ndarray((m, raw.shape[1]), np.uint8, buffer=out, offset=int(offs[0]),
+                           strides=(int(steps[0]), 1))[:] = raw
+            else:
+                # one row copy per record through a sliding-window view
+                win = np.lib.stride_tricks.sliding_window_view(out, raw.shape[1],
+                                                               writeable=True)
+                win[offs] = raw
+            records = memoryview(out)
+        merged_index = {}
+        for cid, parts in index.items():
+            if len(parts) == 1:
+                merged_index[cid] = parts[0]
+            else:  # a channel fed by several batches: its entries in file order
+                e = np.concatenate(parts)
+                merged_index[cid] = e[np.argsort(e[:, 1], kind="stable")]
+        return records, start, end, merged_index
 
 
 class Rosbag2McapWriter:
@@ -301,9 +446,9 @@ class Rosbag2McapWriter:
         """Chunk record + its Message Index records; remembers the Chunk Index.
 
         ``records``: bytes or a byte-format memoryview (the array paths pass a view of
-        their record buffer to avoid a copy); ``prepared``: a future of
-        :meth:`_prepare_chunk` already running elsewhere."""
-        crc, data = self._prepare_chunk(records) if prepared is None else prepared.result()
+        their record buffer to avoid a copy); ``prepared``: what :meth:`_prepare_chunk`
+        returned for them, if it already ran elsewhere."""
+        crc, data = self._prepare_chunk(records) if prepared is None else prepared
         chunk_start = self._pos
         self._emit(chunk_record_head(start, end, len(records), crc, self.compression,
                                      len(data)))
@@ -326,7 +471,10 @@ class Rosbag2McapWriter:
 
         Within a batch, messages keep their order among equal log times (a batch out of
         log-time order is sorted, stably); among batches, an earlier one goes first at
-        equal times.  Sequence numbers count per channel in written order.
+        equal times.  Sequence numbers count per channel in written order.  An error
+        while the chunks are written (disk full, interrupt) is re-raised here after the
+        threads have stopped; the file is then abandoned (closed without summary, as a
+        crash leaves it: the chunks before the failed one are complete).
         """
         self._check_open()
         batches = [b for b in batches if len(b)]
@@ -338,115 +486,66 @@ class Rosbag2McapWriter:
         if not batches:
             return
         for i, b in enumerate(batches):
-            if (np.diff(b.log_time_ns) < 0).any():
+            if (b.log_time_ns[1:] < b.log_time_ns[:-1]).any():
                 batches[i] = b.take(np.argsort(b.log_time_ns, kind="stable"))
         channels = [self._channel(b.topic) for b in batches]
-        dtypes = [b.record_dtype() for b in batches]
-        sizes = np.array([d.itemsize for d in dtypes], dtype=np.int64)
-        positions = merge_positions([b.log_time_ns for b in batches])
-        total = sum(len(b) for b in batches)
-        # Byte offset of every message in the merged stream.
-        rec_size = np.empty(total, dtype=np.int64)
-        for pos, size in zip(positions, sizes, strict=True):
-            rec_size[pos] = size
-        starts = np.zeros(total + 1, dtype=np.int64)
-        np.cumsum(rec_size, out=starts[1:])
-        # Chunk boundaries (merged positions): a chunk closes once it reaches chunk_size.
-        bounds = [0]
-        while bounds[-1] < total:
-            p0 = bounds[-1]
-            bounds.append(max(p0 + 1, int(np.searchsorted(starts, starts[p0] + self.chunk_size,
-                                                          side="left"))))
-            bounds[-1] = min(bounds[-1], total)
-        max_bytes = int(np.diff(starts[bounds]).max())
-        # Buffer sets reused for every chunk (fresh pages per chunk cost page faults): one
-        # is filled here while other chunks are CRC'd and compressed by a pool of threads
-        # and written, in submission order, by one writer thread (the only one touching the
-        # file until the last chunk is done).  numpy's copies, the CRC, the compressors
-        # and file writes all release the GIL, so these overlap on a multi-core machine.
-        # Record buffers are zeroed once and their constant fields set once: the fields
-        # cover every byte except the CDR padding after frame_id, which so stays 0.
+        plan = _MergedChunks(batches, channels, self.chunk_size)
+        # Each chunk is built (records filled, indexed, merged), CRC'd and compressed by
+        # one of a pool of threads into one of a few reused buffer slots (fresh pages per
+        # chunk cost page faults), and written, in chunk order, by one writer thread (the
+        # only one touching the file until the last chunk is done).  numpy's copies and
+        # ufuncs, the CRC, the compressors and file writes release the GIL, so chunks are
+        # built and written at once on a multi-core machine; this thread only hands out
+        # chunks and waits for a slot to come free (chunk i reuses the slot of chunk
+        # i - slots once that one is written).
         slots = _PIPELINE_DEPTH
-        rec_bufs = []
-        for b, ch, dt in zip(batches, channels, dtypes, strict=True):
-            cap = min(len(b), max_bytes // dt.itemsize + 1)
-            buffers = [np.zeros(cap, dtype=dt) for _ in range(slots)]
-            frame = b.frame_id.encode("utf-8") + b"\x00"
-            for r in buffers:
-                r["opcode"] = OP_MESSAGE
-                r["record_length"] = dt.itemsize - RECORD_HEADER.size
-                r["channel_id"] = ch.id
-                r["encapsulation"] = cdr_arrays.CDR_LE_HEADER_U32
-                r["frame_id_len"] = len(frame)
-                r["frame_id"] = frame
-                for name in b.constant_columns():
-                    r[name] = b.columns[name][0]
-            rec_bufs.append(buffers)
-        constants = [set(b.constant_columns()) for b in batches]
-        chunk_bufs = [np.zeros(max_bytes, dtype=np.uint8) for _ in range(slots)] \
-            if len(batches) > 1 else None
+        buffers: list = [None] * slots
         busy: list = [None] * slots
-        compressors = ThreadPoolExecutor(max_workers=_COMPRESS_THREADS,
-                                         thread_name_prefix="mcap_chunk_compress")
-        worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mcap_chunk_writer")
+        stop = threading.Event()  # set on failure: queued chunks are no longer written
+
+        def build(i: int) -> tuple:
+            slot = i % slots
+            if buffers[slot] is None:
+                buffers[slot] = plan.new_buffers()
+            records, start, end, index = plan.build(i, buffers[slot])
+            return records, start, end, index, self._prepare_chunk(records)
+
+        def write(built) -> None:
+            if stop.is_set():
+                return
+            try:
+                records, start, end, index, prepared = built.result()
+                self._write_chunk(records, start, end, index, prepared)
+            except BaseException:
+                stop.set()
+                raise
+
+        builders = ThreadPoolExecutor(max_workers=_BUILD_THREADS,
+                                      thread_name_prefix="mcap_chunk_build")
+        writer = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mcap_chunk_writer")
         try:
-            for i in range(len(bounds) - 1):
-                p0, p1 = bounds[i], bounds[i + 1]
+            for i in range(plan.chunk_count):
                 slot = i % slots
                 if busy[slot] is not None:
-                    busy[slot].result()  # that buffer is written out: reuse it
-                nbytes = int(starts[p1] - starts[p0])
-                index = {}
-                start, end = _U64_MAX, 0
-                records = None
-                for bi, (b, ch, pos, bufs) in enumerate(zip(batches, channels, positions,
-                                                            rec_bufs, strict=True)):
-                    lo, hi = (int(v) for v in np.searchsorted(pos, [p0, p1]))
-                    m = hi - lo
-                    if m == 0:
-                        continue
-                    recs = bufs[slot][:m]
-                    recs["sequence"] = (ch.sequence + np.arange(m, dtype=np.int64)) & 0xFFFFFFFF
-                    b.fill(recs, lo, hi, skip=constants[bi])
-                    ch.sequence += m
-                    ch.count += m
-                    offs = starts[pos[lo:hi]] - starts[p0]
-                    lt = b.log_time_ns[lo:hi].astype(np.uint64)
-                    start, end = min(start, int(lt[0])), max(end, int(lt[-1]))
-                    entries = np.empty((m, 2), dtype=np.uint64)
-                    entries[:, 0] = lt
-                    entries[:, 1] = offs
-                    index[ch.id] = entries
-                    raw = recs.view(np.uint8).reshape(m, -1)
-                    if chunk_bufs is None:
-                        records = memoryview(raw.reshape(-1))  # one topic: records in place
-                    else:
-                        # Scatter whole records to their merged byte offsets through a
-                        # sliding-window view (one row copy per record).
-                        out = chunk_bufs[slot][:nbytes]
-                        steps = np.diff(offs)
-                        if m > 1 and (steps == steps[0]).all():
-                            # evenly interleaved: one strided copy
-                            np.ndarray((m, raw.shape[1]), np.uint8, buffer=out,
-                                       offset=int(offs[0]),
-                                       strides=(int(steps[0]), 1))[:] = raw
-                        else:
-                            win = np.lib.stride_tricks.sliding_window_view(
-                                out, raw.shape[1], writeable=True)
-                            win[offs] = raw
-                        records = memoryview(out)
-                prepared = compressors.submit(self._prepare_chunk, records)
-                busy[slot] = worker.submit(self._write_chunk, records, start, end, index,
-                                           prepared)
-                self._message_count += p1 - p0
-                self._start = min(self._start, start)
-                self._end = max(self._end, end)
+                    busy[slot].result()  # that slot's chunk is written: reuse the slot
+                busy[slot] = writer.submit(write, builders.submit(build, i))
             for f in busy:
                 if f is not None:
                     f.result()  # re-raises a write error here
-        finally:
-            worker.shutdown(wait=True)
-            compressors.shutdown(wait=True)
+        except BaseException:
+            stop.set()
+            writer.shutdown(wait=True, cancel_futures=True)
+            builders.shutdown(wait=True, cancel_futures=True)
+            self.abandon()
+            raise
+        writer.shutdown(wait=True)
+        builders.shutdown(wait=True)
+        for b, ch in zip(batches, channels, strict=True):
+            ch.sequence += len(b)
+            ch.count += len(b)
+        self._message_count += plan.total
+        self._start = min(self._start, plan.start)
+        self._end = max(self._end, plan.end)
 
     def write_imu_array(self, topic: str, stamp_ns, angular_velocity, linear_acceleration=None,
                         orientation=None, **kwargs) -> None:
@@ -526,5 +625,8 @@ class Rosbag2McapWriter:
     def abandon(self) -> None:
         """Close the file without summary (what a crash leaves); for tests and error paths."""
         if not self._finished:
-            self._file.close()
             self._finished = True
+            try:
+                self._file.close()
+            except OSError:
+                pass  # the buffered tail could not be written (disk full): given up anyway
