@@ -28,6 +28,8 @@ def test_quick_run_reports_all_rows(tmp_path, monkeypatch, capsys):
         assert r["messages"] == r["fast_path_messages"] == 5000 and r["fallback_messages"] == 0
         assert r["truth_matched"] == 50 and r["ratio_vs_mcap_read"] > 0
         assert r["speedup_vs_decode"] > 0
+    for r in (rows[3], rows[5]):  # the whole CLI process includes the command's own wall
+        assert r["process_wall_seconds"] > r["wall_seconds"]
     # cold (CLI process) and warm (in process) compute the same thing
     assert rows[3]["max_error_rad"] == rows[4]["max_error_rad"]
     # closed-form coning at 1 kHz: the node's 4th-order default and replay's 6th-order one
