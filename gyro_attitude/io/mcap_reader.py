@@ -37,9 +37,9 @@ from __future__ import annotations
 import heapq
 import io
 import os
-import queue
 import struct
 import threading
+from collections import deque
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -92,6 +92,8 @@ __all__ = [
 # A chunk may not declare more uncompressed bytes than this (rosbag2 writes 768 KiB chunks,
 # this package 4 MiB; one large message makes a larger chunk, hence the margin).
 DEFAULT_MAX_CHUNK_BYTES = 256 * 1024 * 1024
+# Read-ahead starts another chunk only while less than this waits for the caller.
+READ_AHEAD_BYTES = 32 * 1024 * 1024
 # Uncompressed / compressed size of one chunk.  Real recordings stay far below (Imu chunks
 # of this package: ~4x with zstd; a chunk of identical messages ~300x); zstd's own limit
 # for zeros is ~32000x, which is what a decompression bomb uses.
@@ -321,42 +323,61 @@ class McapStreamReader:
 
     def iter_chunks(self, read_ahead: int = 0) -> Iterator[RawChunk]:
         """Yield the chunks (and loose messages) of the data section in file order;
-        ``read_ahead`` > 0: prepared that many chunks ahead by a worker thread."""
+        ``read_ahead`` > 0: up to that many chunks prepared ahead by a worker thread, which
+        starts the next one only while less than :data:`READ_AHEAD_BYTES` wait for the
+        caller (so huge chunks are held at most two at a time)."""
         if read_ahead <= 0 or self._read_ahead_thread is not None:
             yield from self._walk_chunks()
             return
         # (kind, item, damage found before it) in file order; kind "chunk", "end", "error"
-        items: queue.Queue = queue.Queue(maxsize=read_ahead)
+        ready: deque = deque()
+        held = [0]  # uncompressed bytes in `ready`
+        cond = threading.Condition()
         stop = threading.Event()
 
-        def put(entry) -> bool:
-            while not stop.is_set():
-                try:
-                    items.put(entry, timeout=0.05)
-                    return True
-                except queue.Full:
-                    continue
-            return False
-
-        def damage_so_far() -> list[tuple[str, int]]:
+        def push(kind, item) -> None:
             found, self._read_ahead_damage = self._read_ahead_damage, []
-            return found
+            with cond:
+                ready.append((kind, item, found))
+                if kind == "chunk":
+                    held[0] += len(item.records)
+                cond.notify_all()
 
         def produce() -> None:
             self._read_ahead_thread = threading.get_ident()
+            walk = self._walk_chunks()
             try:
-                for chunk in self._walk_chunks():
-                    if not put(("chunk", chunk, damage_so_far())):
+                while True:
+                    with cond:
+                        while ready and (len(ready) >= read_ahead
+                                         or held[0] >= READ_AHEAD_BYTES):
+                            if stop.is_set():
+                                return
+                            cond.wait(0.05)
+                    if stop.is_set():
                         return
-                put(("end", None, damage_so_far()))
+                    try:
+                        chunk = next(walk)
+                    except StopIteration:
+                        push("end", None)
+                        return
+                    push("chunk", chunk)
             except BaseException as exc:  # re-raised in the caller, in order
-                put(("error", exc, damage_so_far()))
+                push("error", exc)
+            finally:
+                walk.close()
 
         worker = threading.Thread(target=produce, name="mcap_read_ahead", daemon=True)
         worker.start()
         try:
             while True:
-                kind, item, damage = items.get()
+                with cond:
+                    while not ready:
+                        cond.wait(0.1)
+                    kind, item, damage = ready.popleft()
+                    if kind == "chunk":
+                        held[0] -= len(item.records)
+                    cond.notify_all()
                 self.damages.extend(msg for msg, _ in damage)
                 if kind == "chunk":
                     yield item

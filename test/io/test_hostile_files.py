@@ -278,6 +278,32 @@ def test_read_ahead_damage_is_recorded_when_the_caller_gets_there(tmp_path):
     assert "caller" in orders[0][0] and "CRC" in orders[0][1]
 
 
+@pytest.mark.parametrize(("budget", "ahead"), [(1, 1), (1 << 30, 2)])
+def test_read_ahead_holds_what_its_budget_allows(tmp_path, monkeypatch, budget, ahead):
+    """The worker runs at most ``read_ahead`` chunks ahead of the caller, and only one
+    when a chunk already waiting is over READ_AHEAD_BYTES (huge chunks: two in memory)."""
+    import gyro_attitude.io.mcap_reader as mr
+
+    raw, _ = _fuzz_source(tmp_path)
+    path = tmp_path / "m.mcap"
+    path.write_bytes(raw)
+    monkeypatch.setattr(mr, "READ_AHEAD_BYTES", budget)
+    produced = []
+    real_walk = McapStreamReader._walk_chunks
+
+    def counting_walk(self):
+        for chunk in real_walk(self):
+            produced.append(chunk)
+            yield chunk
+
+    monkeypatch.setattr(McapStreamReader, "_walk_chunks", counting_walk)
+    leads = []
+    for k, _ in enumerate(McapStreamReader(path).iter_chunks(read_ahead=2)):
+        time.sleep(0.02)  # the worker goes as far ahead as it may
+        leads.append(len(produced) - (k + 1))
+    assert max(leads) == ahead and min(leads) >= 0
+
+
 def test_read_ahead_worker_stops_when_the_caller_does(tmp_path):
     """Leaving the loop early (or an error in the caller) joins the worker thread."""
     import threading
