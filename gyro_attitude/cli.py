@@ -96,9 +96,9 @@ def keep_freed_memory() -> None:
     glibc's malloc returns large freed blocks to the kernel at once (blocks above its mmap
     threshold, and free space above the trim threshold at the heap's top), so each new
     recording-sized numpy temporary is page-faulted in again, page by page.  A replay of
-    600 k messages spent ~0.3 s of its ~1 s in the kernel that way; with the thresholds
-    raised it spends ~0.1 s.  Only for the short-lived command process (its peak memory is
-    kept until exit); a no-op where the C library is not glibc.
+    600 k messages spent 0.4-0.5 s of system time that way; with the thresholds raised,
+    0.1-0.15 s.  Only for the short-lived command process (its peak memory is kept until
+    exit); a no-op where the C library is not glibc.
     """
     name = ctypes.util.find_library("c")
     try:
