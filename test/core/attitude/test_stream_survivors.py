@@ -53,6 +53,11 @@ def still_body(n, shaken=0, seed=11):
     return stamps(n), g, f
 
 
+# The correction is for a given initial attitude only: with initial_attitude "level" the first rest
+# is the alignment rest, whose bias updates all come while aligning (zero-rate updates), so that
+# condition has no effect a test can see there.
+
+
 def first_rest_config():
     # auto bias (the default), given attitude; variances chosen so that the bias-estimate term
     # (elapsed² · SE², SE ≈ 1e-7 rad/s) is as large as the others and rtol 1e-9 sees it
