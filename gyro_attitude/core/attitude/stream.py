@@ -713,7 +713,9 @@ class AttitudeStream:
     def run(self, t_ns, omega, frame_id: str | list[str] | None = "",
             angular_velocity_covariance=None, accel=None) -> StreamResult:
         """All samples of a recording, in file order, on a fresh stream: what :meth:`push`
-        would give sample by sample (the stream is left in the state after the last one).
+        would give sample by sample (the stream is left in the state after the last one;
+        the integrator holds the last sample only, so the rate fit of a later push() rebuilds
+        from two samples on, as after a restart).
 
         ``t_ns`` (N,) int stamps; ``omega`` (N, 3) rad/s; ``frame_id`` one for all or one per
         sample; ``angular_velocity_covariance`` (N, 9) or None; ``accel`` (N, 3) m/s² or None.
@@ -809,6 +811,9 @@ class AttitudeStream:
                 dt, qv, act[valid] == codes[v.RESET_TIME_JUMP], c.initial_tt, c.bb, c.k2)
             if valid.size:  # the state push() would hold after the last row
                 c.tt, c.tb, c.bb = variance[-1].copy(), tb_end, bb_end
+                # Σ q since the attitude was last set (the first-rest correction uses it)
+                resets = np.flatnonzero(act[valid] == codes[v.RESET_TIME_JUMP])
+                c.noise = qv[(resets[-1] + 1 if resets.size else 0):].sum(axis=0)
             # rows before anything gives an estimate have none (as push: None)
             variance_known = np.maximum.accumulate(known_v) | self._var_known
             variance[~variance_known] = 0.0
@@ -835,9 +840,13 @@ class AttitudeStream:
         if valid.size:
             val.last_t_ns = int(t[valid[-1]])
             val.frame_id = cls.frame_id
+            self._start_t = int(t[valid[0]])
             self._last_q = q_out[-1].copy()
             if self.integrator is not None:
-                self.integrator.reset(self._last_q, int(t[valid[-1]]))
+                # the last sample is the integrator's history: the next push() integrates
+                # from it (as after a restart: the fit rebuilds from two samples on)
+                self.integrator.reset(self._last_q, None)
+                self.integrator.update(int(t[valid[-1]]), w[valid[-1]] - self._fixed_bias)
 
     def _run_pushing(self, t, w, frame_id, covariance, accel) -> StreamResult:
         """Per-sample path over the whole recording (sequential filters, or the batch met a

@@ -335,9 +335,6 @@ def test_push_after_run_continues_the_covariance_recurrence(name):
         np.testing.assert_allclose(s.variance, v_ref[k], rtol=1e-12, atol=0)
 
 
-@pytest.mark.xfail(strict=True, reason="run()'s batch path does not set the stream's start time "
-                   "(_start_t) nor the noise sum behind the first-rest correction: a rest "
-                   "right after run() is taken for a rest from the start of the stream")
 def test_push_after_run_with_auto_bias_continues_as_push():
     # auto bias on a recording that never rests takes run()'s batch path; the stream then goes
     # on with push() into a rest.  push() from the start sees a rest that begins 4 s after the
@@ -361,9 +358,6 @@ def test_push_after_run_with_auto_bias_continues_as_push():
     assert angle(q, q_ref) < 1e-12
 
 
-@pytest.mark.xfail(strict=True, reason="run()'s batch path resets the integrator at the last "
-                   "stamp without the last rate: the first interval pushed after run() holds the "
-                   "new rate back instead of taking the trapezoid with the previous one")
 def test_first_push_after_run_takes_the_trapezoid_with_the_last_run_sample():
     # exp_map integrates each interval with exp(½(ω_{k−1} + ω_k) h) (exp_map.py): after run()
     # over samples 0..k−1, the push of sample k must give q_{k−1} ⊗ exp(½(ω_{k−1} + ω_k) h),
