@@ -432,3 +432,15 @@ def test_read_ahead_shows_the_caller_only_the_channels_it_has_reached(tmp_path, 
         np.testing.assert_array_equal(plain[1].angular_velocity, ahead[1].angular_velocity)
     else:
         assert plain == ahead
+
+
+def test_topic_matched_by_its_namespace_until_the_exact_one_appears_is_refused(tmp_path):
+    """``imu/data_raw`` names ``/robot/imu/data_raw`` until ``/imu/data_raw`` is defined later
+    in the file: the reader must not interleave the two recordings into one series."""
+    path = _late_channel_file(tmp_path)
+    with pytest.raises(ValueError, match="/robot/imu/data_raw.*/imu/data_raw.*full"):
+        read_imu_arrays(path)
+    own = read_imu_arrays(path, "/imu/data_raw")  # the full names still read
+    robot = read_imu_arrays(path, "/robot/imu/data_raw")
+    assert (len(own), len(robot)) == (12, 7 + 11)  # odd k of 7..29 are own
+    assert (own.angular_velocity[:, 0] == 2.0).all() and (robot.angular_velocity[:, 0] == 1.0).all()
