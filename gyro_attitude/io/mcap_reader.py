@@ -34,13 +34,14 @@ everything before it was yielded; with ``"warn"`` the reader keeps everything re
 
 from __future__ import annotations
 
+import functools
 import heapq
 import io
 import os
 import struct
 import threading
 from collections import deque
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -286,7 +287,10 @@ class McapStreamReader:
         self.size = (len(self._buffer) if self._buffer is not None
                      else os.path.getsize(self.path))
         self._read_ahead_thread: int | None = None  # ident of the read-ahead worker
-        self._read_ahead_damage: list[tuple[str, int]] = []
+        # what the worker found ahead of the caller (damage records, schemas, channels...),
+        # applied in file order when the caller gets there: at every chunk the caller sees
+        # what the plain walk shows (which channels exist decides which topics match)
+        self._read_ahead_pending: list[Callable[[], None]] = []
 
     @property
     def damage(self) -> str | None:
@@ -304,8 +308,7 @@ class McapStreamReader:
     def _damaged(self, what: str, offset: int) -> None:
         msg = f"{self.path}: damaged at byte {offset}: {what}"
         if threading.get_ident() == self._read_ahead_thread:
-            # found ahead of the caller: recorded when the caller gets there (same order)
-            self._read_ahead_damage.append((msg, offset))
+            self._read_ahead_pending.append(functools.partial(self.damages.append, msg))
         else:
             self.damages.append(msg)
         if self.on_damage == "raise":
@@ -329,14 +332,14 @@ class McapStreamReader:
         if read_ahead <= 0 or self._read_ahead_thread is not None:
             yield from self._walk_chunks()
             return
-        # (kind, item, damage found before it) in file order; kind "chunk", "end", "error"
+        # (kind, item, what was found before it) in file order; kind "chunk", "end", "error"
         ready: deque = deque()
         held = [0]  # uncompressed bytes in `ready`
         cond = threading.Condition()
         stop = threading.Event()
 
         def push(kind, item) -> None:
-            found, self._read_ahead_damage = self._read_ahead_damage, []
+            found, self._read_ahead_pending = self._read_ahead_pending, []
             with cond:
                 ready.append((kind, item, found))
                 if kind == "chunk":
@@ -374,11 +377,12 @@ class McapStreamReader:
                 with cond:
                     while not ready:
                         cond.wait(0.1)
-                    kind, item, damage = ready.popleft()
+                    kind, item, found_ahead = ready.popleft()
                     if kind == "chunk":
                         held[0] -= len(item.records)
                     cond.notify_all()
-                self.damages.extend(msg for msg, _ in damage)
+                for apply in found_ahead:
+                    apply()
                 if kind == "chunk":
                     yield item
                 elif kind == "end":
@@ -471,6 +475,12 @@ class McapStreamReader:
 
     def _register(self, opcode: int, body) -> None:
         rec = parse_record(opcode, body)
+        if threading.get_ident() == self._read_ahead_thread:
+            self._read_ahead_pending.append(functools.partial(self._add_record, opcode, rec))
+        else:
+            self._add_record(opcode, rec)
+
+    def _add_record(self, opcode: int, rec) -> None:
         if opcode == OP_HEADER:
             self.profile, self.library = rec.profile, rec.library
         elif opcode == OP_SCHEMA:

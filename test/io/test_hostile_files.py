@@ -368,3 +368,79 @@ def test_descriptive_record_with_a_field_cut_short_is_damage():
         parse_record(0x03, bytes(body))
     assert parse_record(0x03, rec[RECORD_HEADER.size:]).data == b"0123456789"
     assert parse_record(0x03, rec[RECORD_HEADER.size:] + b"pad").data == b"0123456789"
+
+
+def _late_channel_file(tmp_path):
+    """Imu on ``/robot/imu/data_raw`` from the first chunk; ``/imu/data_raw`` defined (by
+    mcap's own writer, which puts Channel records inside chunks) two chunks later."""
+    from mcap.writer import CompressionType, Writer
+
+    from gyro_attitude.io.rosbag2_profile import full_msg_definition
+
+    src = tmp_path / "src.mcap"
+    with Rosbag2McapWriter(src) as w:
+        w.add_topic("imu/data_raw", IMU)
+        w.write_imu_array("imu/data_raw", np.arange(1, 3), [[1.0, 0, 0], [2.0, 0, 0]])
+    robot_cdr, own_cdr = (m.data for m in McapStreamReader(src).iter_messages())
+    path = tmp_path / "late.mcap"
+    with open(path, "wb") as f:
+        w = Writer(f, chunk_size=2000, compression=CompressionType.NONE)  # ~5 Imu a chunk
+        w.start("ros2", "test")
+        sid = w.register_schema(IMU, "ros2msg", full_msg_definition(IMU).encode())
+        robot = w.register_channel("/robot/imu/data_raw", "cdr", sid)
+        for k in range(7):
+            w.add_message(robot, 10**9 + k, robot_cdr, 10**9 + k)
+        own = w.register_channel("/imu/data_raw", "cdr", sid)
+        for k in range(7, 30):
+            w.add_message(own if k % 2 else robot, 10**9 + k, own_cdr if k % 2 else robot_cdr,
+                          10**9 + k)
+        w.finish()
+    return path
+
+
+def test_read_ahead_shows_the_caller_only_the_channels_it_has_reached(tmp_path, monkeypatch):
+    """Channels (and schemas) the worker registers ahead become visible when the caller gets
+    to their chunk: a slow caller sees the same channels at each chunk as the plain walk, and
+    the array reader picks the same channels (not a result that depends on timing)."""
+    path = _late_channel_file(tmp_path)
+
+    def seen(ahead):
+        reader = McapStreamReader(path)
+        out = []
+        for c in reader.iter_chunks(read_ahead=ahead):
+            time.sleep(0.05)  # a busy caller: the worker is as far ahead as it may go
+            out.append((c.file_offset, sorted(ch.topic for ch in reader.channels.values())))
+        return out
+
+    assert seen(2) == seen(0)
+    assert seen(0)[0][1] == ["/robot/imu/data_raw"]
+
+    real_iter = McapStreamReader.iter_chunks
+
+    def slow(self, read_ahead=0):
+        for c in real_iter(self, read_ahead):
+            time.sleep(0.05)
+            yield c
+
+    monkeypatch.setattr(McapStreamReader, "iter_chunks",
+                        lambda self, read_ahead=0: real_iter(self, 0))
+    plain = _outcome(lambda: read_imu_arrays(path))
+    monkeypatch.setattr(McapStreamReader, "iter_chunks", slow)
+    ahead = _outcome(lambda: read_imu_arrays(path))
+    assert plain[0] == ahead[0]
+    if plain[0] == "ok":
+        np.testing.assert_array_equal(plain[1].angular_velocity, ahead[1].angular_velocity)
+    else:
+        assert plain == ahead
+
+
+def test_topic_matched_by_its_namespace_until_the_exact_one_appears_is_refused(tmp_path):
+    """``imu/data_raw`` names ``/robot/imu/data_raw`` until ``/imu/data_raw`` is defined later
+    in the file: the reader must not interleave the two recordings into one series."""
+    path = _late_channel_file(tmp_path)
+    with pytest.raises(ValueError, match="/robot/imu/data_raw.*/imu/data_raw.*full"):
+        read_imu_arrays(path)
+    own = read_imu_arrays(path, "/imu/data_raw")  # the full names still read
+    robot = read_imu_arrays(path, "/robot/imu/data_raw")
+    assert (len(own), len(robot)) == (12, 7 + 11)  # odd k of 7..29 are own
+    assert (own.angular_velocity[:, 0] == 2.0).all() and (robot.angular_velocity[:, 0] == 1.0).all()
