@@ -101,12 +101,11 @@ def keep_freed_memory() -> None:
     exit); a no-op where the C library is not glibc.
     """
     name = ctypes.util.find_library("c")
-    try:
-        libc = ctypes.CDLL(name) if name else None
-        mallopt = libc.mallopt if libc is not None else None
-    except (OSError, AttributeError):
+    if not name:
         return
-    if mallopt is None:
+    try:
+        mallopt = ctypes.CDLL(name).mallopt
+    except (OSError, AttributeError):
         return
     m_trim_threshold, m_top_pad, m_mmap_threshold = -1, -2, -3  # <malloc.h>
     mallopt(m_mmap_threshold, 32 << 20)  # glibc's largest allowed value (64-bit)

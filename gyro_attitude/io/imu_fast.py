@@ -104,7 +104,6 @@ class _Collector:
         # bit): writing 2 x 9 doubles per message into fresh memory was a third of the read.
         self.constant: dict[str, np.ndarray | None] = {
             k: None for k in self.fields if k.endswith("_covariance")}
-        self._count = 0
         self.frame_ids: list[str] = []
         self.fast = 0
         self.fallback = 0
@@ -119,7 +118,6 @@ class _Collector:
     def preallocate(self, count: int) -> None:
         """Size the output for ``count`` messages (from the file's summary statistics):
         chunks are then copied straight into place, with no final concatenation."""
-        self._count = count
         self.out = {k: np.empty(count, np.int64)
                     for k in ("stamp_ns", "log_time_ns", "publish_time_ns")}
         for name, width in self.fields.items():
@@ -383,8 +381,7 @@ def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
             ch = reader.channels.get(cid)
             col = None
             if ch is not None:
-                # a snapshot: the read-ahead thread may be adding channels
-                recorded = [c.topic for c in tuple(reader.channels.values())]
+                recorded = [c.topic for c in reader.channels.values()]
                 for t, c in collectors.items():
                     if match_topic(recorded, t) == ch.topic:
                         if ch.type_name != c.type_name:

@@ -6,6 +6,7 @@ import math
 import os
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
+from typing import NamedTuple
 
 import numpy as np
 
@@ -110,7 +111,7 @@ def compose_chunked(n_samples: int, q0: np.ndarray, n_per_update: int, increment
 
 def _in_order(fn, items):
     """``fn(item)`` for each item, in order; with several chunks and cores, computed ahead by
-    two worker threads (at most two results waiting: memory stays a few chunks)."""
+    two worker threads (at most three submitted ahead: memory stays a few chunks)."""
     if len(items) < 2 or (os.cpu_count() or 1) < 2:
         yield from map(fn, items)
         return
@@ -123,10 +124,23 @@ def _in_order(fn, items):
             yield pending.popleft().result()
 
 
-def _chunk_local(k, n_per_update, b, a):
-    """The part of a chunk that does not depend on the attitude carried into it."""
+class _ChunkLocal(NamedTuple):
+    """The part of a chunk that does not depend on the attitude carried into it.
+
+    One sample per update: ``b``, ``a`` are the prefix products of the increments (``a``
+    None without a nav frame).  N per update: ``b``, ``a`` the partial increments since
+    each block and ``b_blocks``, ``a_blocks`` the prefix products over whole blocks."""
+
+    n_per_update: int
+    b: np.ndarray
+    a: np.ndarray | None
+    b_blocks: np.ndarray | None = None
+    a_blocks: np.ndarray | None = None
+
+
+def _chunk_local(k, n_per_update, b, a) -> _ChunkLocal:
     if n_per_update == 1:
-        return (1, k.size, prefix_product(b), None if a is None else prefix_product_left(a))
+        return _ChunkLocal(1, prefix_product(b), None if a is None else prefix_product_left(a))
     nfull = k.size // n_per_update
     major = slice(n_per_update - 1, nfull * n_per_update, n_per_update)
     nblk = -(-k.size // n_per_update)
@@ -135,14 +149,14 @@ def _chunk_local(k, n_per_update, b, a):
         bm = prefix_product(b[major][: nblk - 1])
         if a is not None:
             am = prefix_product_left(a[major][: nblk - 1])
-    return (n_per_update, k.size, (b, bm), None if a is None else (a, am))
+    return _ChunkLocal(n_per_update, b, a, bm, am)
 
 
-def _chunk_attitudes(local, start, out) -> None:
+def _chunk_attitudes(local: _ChunkLocal, start, out) -> None:
     """Normalized attitudes of one chunk into ``out`` from its local part and the attitude
     ``start`` carried into it."""
-    n_per_update, m, b, a = local
-    if n_per_update == 1:
+    n, b, a = local.n_per_update, local.b, local.a
+    if n == 1:
         if a is None:
             # start ⊗ B_k is linear in B_k: one (m, 4) x (4, 4) product, the hot path of
             # every replay without a nav frame.  einsum's own loop, not matmul: OpenBLAS
@@ -152,17 +166,17 @@ def _chunk_attitudes(local, start, out) -> None:
             out[:] = _qmul(a, _qmul(start, b))
         out /= np.sqrt(np.einsum("ij,ij->i", out, out))[:, None]
         return
-    (b, bm), (a, am) = b, (a if a is not None else (None, None))
-    nblk = -(-m // n_per_update)
+    m = b.shape[0]
+    nblk = -(-m // n)
     # Attitude before each block: Q_{m-1} = A_{m-1} ⊗ start ⊗ B_{m-1}.
     q_before = np.empty((nblk, 4))
     q_before[0] = start
     if nblk > 1:
-        qb = _qmul(start, bm)
-        if am is not None:
-            qb = _qmul(am, qb)
+        qb = _qmul(start, local.b_blocks)
+        if local.a_blocks is not None:
+            qb = _qmul(local.a_blocks, qb)
         q_before[1:] = normalize_rows(qb)
-    qrep = np.repeat(q_before, n_per_update, axis=0)[:m]
+    qrep = np.repeat(q_before, n, axis=0)[:m]
     res = _qmul(qrep, b)
     if a is not None:
         res = _qmul(a, res)

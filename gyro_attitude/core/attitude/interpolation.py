@@ -47,41 +47,41 @@ def sliding_fit_rates(t_ns: np.ndarray, omega: np.ndarray, k0: int, k1: int, off
     out = np.empty((len(fr), m, 3))
     if m <= 0:
         return out
+    # u_j: node j relative to t_{k-1} in units of h_k.  Plain floats where it is the same on
+    # every row (the interval's own ends, 0 and 1; every node when the samples are equally
+    # spaced: (j - offset + 1)), so their terms cost no array operation and, when all are
+    # floats, every row gets the same weights.
     steps = np.diff(t_ns[s0:s0 + m + n - 1])
     if (steps == steps[0]).all():
-        # Equally spaced: node j sits at (j - offset + 1) h from t_{k-1}.
         u = [float(j - offset + 1) for j in range(n)]
-        weights = [[_lagrange_weight(u, j, e) for j in range(n)] for e in fr]
     else:
         t_left = t_ns[k0 - 1:k1 - 1]
         h = (t_ns[k0:k1] - t_left).astype(np.float64)
-        # u_j = (t_{start+j} − t_{k-1}) / h_k; the interval's own ends are exactly 0 and 1
-        # (plain floats: their terms cost no array operation)
         u = [float(j - offset + 1) if offset - 1 <= j <= offset
              else (t_ns[s0 + j:s0 + j + m] - t_left) / h for j in range(n)]
-        inv_den = []
+    inv_den = []
+    for j in range(n):
+        d = None
+        for i in range(n):
+            if i != j:
+                d = u[j] - u[i] if d is None else d * (u[j] - u[i])
+        inv_den.append(1.0 / d)
+    weights = []
+    for e in fr:
+        diff = [e - ui for ui in u]
+        # numerator of weight j: ∏_{i≠j} (e − u_i) from prefix and suffix products
+        pre = [None] * n
+        acc = None
         for j in range(n):
-            d = None
-            for i in range(n):
-                if i != j:
-                    d = u[j] - u[i] if d is None else d * (u[j] - u[i])
-            inv_den.append(1.0 / d)
-        weights = []
-        for e in fr:
-            diff = [e - ui for ui in u]
-            # numerator of weight j: ∏_{i≠j} (e − u_i) from prefix and suffix products
-            pre = [None] * n
-            acc = None
-            for j in range(n):
-                pre[j] = acc
-                acc = diff[j] if acc is None else acc * diff[j]
-            row, acc = [None] * n, None
-            for j in range(n - 1, -1, -1):
-                num = pre[j] if acc is None else (acc if pre[j] is None else pre[j] * acc)
-                wj = num * inv_den[j]
-                row[j] = wj[:, None] if np.ndim(wj) else wj  # float: both nodes exact
-                acc = diff[j] if acc is None else acc * diff[j]
-            weights.append(row)
+            pre[j] = acc
+            acc = diff[j] if acc is None else acc * diff[j]
+        row, acc = [None] * n, None
+        for j in range(n - 1, -1, -1):
+            num = pre[j] if acc is None else (acc if pre[j] is None else pre[j] * acc)
+            wj = num * inv_den[j]
+            row[j] = wj[:, None] if np.ndim(wj) else wj  # per row, or one for all rows
+            acc = diff[j] if acc is None else acc * diff[j]
+        weights.append(row)
     tmp = np.empty((m, 3))
     for f, row in enumerate(weights):
         o = out[f]
@@ -90,14 +90,6 @@ def sliding_fit_rates(t_ns: np.ndarray, omega: np.ndarray, k0: int, k1: int, off
             np.multiply(omega[s0 + j:s0 + j + m], row[j], out=tmp)
             o += tmp
     return out
-
-
-def _lagrange_weight(u, j, e) -> float:
-    w = 1.0
-    for i, ui in enumerate(u):
-        if i != j:
-            w *= (e - ui) / (u[j] - ui)
-    return w
 
 
 def fitted_rates(t_ns: np.ndarray, omega: np.ndarray, k: np.ndarray, fractions,

@@ -807,12 +807,13 @@ class AttitudeStream:
             if var_all is not None:
                 qv = np.where(known_v[:, None], _rows(var_all, valid) * (dt * dt)[:, None], qv)
             c = self.covariance
-            variance, tb_end, bb_end = propagate_batch(
-                dt, qv, act[valid] == codes[v.RESET_TIME_JUMP], c.initial_tt, c.bb, c.k2)
+            reset_rows = act[valid] == codes[v.RESET_TIME_JUMP]
+            variance, tb_end, bb_end = propagate_batch(dt, qv, reset_rows, c.initial_tt, c.bb,
+                                                       c.k2)
             if valid.size:  # the state push() would hold after the last row
                 c.tt, c.tb, c.bb = variance[-1].copy(), tb_end, bb_end
                 # Σ q since the attitude was last set (the first-rest correction uses it)
-                resets = np.flatnonzero(act[valid] == codes[v.RESET_TIME_JUMP])
+                resets = np.flatnonzero(reset_rows)
                 c.noise = qv[(resets[-1] + 1 if resets.size else 0):].sum(axis=0)
             # rows before anything gives an estimate have none (as push: None)
             variance_known = np.maximum.accumulate(known_v) | self._var_known
@@ -896,9 +897,9 @@ def _rows(a: np.ndarray, rows: np.ndarray) -> np.ndarray:
 def _usable_accel(a: np.ndarray) -> np.ndarray:
     """Rows of specific force (M, 3) that are finite and within ACCEL_ABSURD (one pass:
     NaN fails the comparison, as inf does)."""
+    if v.all_within(a, ACCEL_ABSURD):
+        return np.ones(a.shape[0], dtype=bool)
     with np.errstate(invalid="ignore"):
-        if a.size and np.max(a) <= ACCEL_ABSURD and np.min(a) >= -ACCEL_ABSURD:
-            return np.ones(a.shape[0], dtype=bool)  # all usable: whole-array reductions
         return (np.abs(a) <= ACCEL_ABSURD).all(axis=1)
 
 

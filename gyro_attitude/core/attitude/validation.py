@@ -237,6 +237,14 @@ def _frame_codes(frame_id, n: int) -> tuple[np.ndarray | None, list[str]]:
     return codes, list(names)
 
 
+def all_within(a: np.ndarray, limit: float) -> bool:
+    """Whether ``a`` is non-empty and every value is finite and within ±``limit``: two
+    whole-array reductions (NaN fails both comparisons), much cheaper than per-row checks
+    of (N, 3) arrays, which are then needed only when this is False."""
+    with np.errstate(invalid="ignore"):
+        return bool(a.size and np.max(a) <= limit and np.min(a) >= -limit)
+
+
 def classify(t_ns, omega, frame_id: str | list[str] | None = "",
              config: ImuCheckConfig | None = None) -> Classification:
     """The verdicts :class:`ImuStreamValidator` gives to these samples in this order.
@@ -260,15 +268,12 @@ def classify(t_ns, omega, frame_id: str | list[str] | None = "",
     details: dict[str, str] = {}
 
     # Sample-local checks, in the validator's order: values, then stamp, then frame.
-    with np.errstate(invalid="ignore"):
-        r = cfg.max_rate_rad_s
-        if n and np.max(w) <= r and np.min(w) >= -r:
-            # the usual recording: every value finite and plausible (NaN fails both
-            # comparisons); two whole-array reductions instead of two per-row ones
-            finite = plausible = np.ones(n, dtype=bool)
-        else:
+    if all_within(w, cfg.max_rate_rad_s):  # the usual recording: no per-row checks
+        finite = plausible = np.ones(n, dtype=bool)
+    else:
+        with np.errstate(invalid="ignore"):
             finite = np.isfinite(w).all(axis=1)
-            plausible = (np.abs(w) <= r).all(axis=1)
+            plausible = (np.abs(w) <= cfg.max_rate_rad_s).all(axis=1)
     bad_value = ~finite
     rate_bad = finite & ~plausible
     zero = (t <= 0) & finite & plausible
