@@ -60,6 +60,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "rotvec_cubic when a per-sample filter acts on the recording: "
                         "levelling, aiding, or auto gyro bias with a rest)")
     add_estimator_flags(parser)  # the attitude_integrator node's settings, same names
+    parser.add_argument("--odometry-topic", default=None, metavar="TOPIC",
+                        help="nav_msgs/Odometry topic of the recording whose velocity sets the "
+                        "transport rate (--frame enu), time-aligned to the Imu stamps as the "
+                        "node's odometry_topic")
     parser.add_argument("--truth-topic", default=TRUTH_TOPIC,
                         help=f"QuaternionStamped truth to compare with (default {TRUTH_TOPIC})")
     parser.add_argument("--compression", choices=COMPRESSIONS, default=DEFAULT_COMPRESSION,
@@ -120,7 +124,8 @@ def run(args) -> int:
         bar, update = _progress_bar(args)
         result = replay_file(
             args.input, args.out, imu_topic=args.imu_topic, algorithm=args.algorithm,
-            truth_topic=args.truth_topic, compression=args.compression, force=args.force,
+            truth_topic=args.truth_topic, odometry_topic=args.odometry_topic,
+            compression=args.compression, force=args.force,
             progress=update, config=config)
         if bar is not None:
             bar.close()
