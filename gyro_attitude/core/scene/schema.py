@@ -93,11 +93,19 @@ import numpy as np
 from gyro_attitude.core.gyro.free_gyro import FreeGyroParams, HarmonicTorque, ImpactTorque
 from gyro_attitude.core.gyro.rate_gyro import IntegratingGyroParams, RateGyroParams
 from gyro_attitude.core.motion import Motion
-from gyro_attitude.core.scene.fields import MAX_LIST_ITEMS, Fields, list_items
+from gyro_attitude.core.scene.fields import MAX_LIST_ITEMS, Fields, is_number, list_items
+from gyro_attitude.core.scene.limits import (
+    ACCEL_ERROR_LIMITS,
+    GYRO_ERROR_LIMITS,
+    MAX_DESCRIPTION_CHARS,
+    MAX_DURATION_S,
+    MAX_RATE_HZ,
+    MAX_SEED,
+    PARAM_LIMITS,
+)
 from gyro_attitude.core.scene.registry import (
     INSTRUMENT_TYPES,
     INSTRUMENTS,
-    MAX_RATE_HZ,
     MOTION_TYPES,
     MOTIONS,
     build_instrument,
@@ -118,8 +126,6 @@ __all__ = [
     "MAX_LIST_ITEMS",
 ]
 
-#: Longest suggested run (s): about 116 days.
-MAX_DURATION_S = 1.0e7
 #: Latest first stamp (ns), about 146 years: leaves as much again before int64 stamps overflow.
 MAX_START_TIME_NS = 2**62
 
@@ -179,11 +185,25 @@ def _datasheet_terms(f: Fields, datasheet: dict[str, tuple]) -> dict[str, np.nda
     return kw
 
 
+def _check_limits(key: str, value, lo: float, hi: float, unit: str = "") -> None:
+    """Every number in ``value`` (number or nested lists/arrays) within [lo, hi]."""
+    a = np.asarray(value, dtype=np.float64)
+    if a.size and (np.any(a < lo) or np.any(a > hi)):
+        bad = a[(a < lo) | (a > hi)].flat[0]
+        raise ValueError(f"{key}: must lie in [{lo:g}, {hi:g}]{' ' + unit if unit else ''}, "
+                         f"got {bad:g}")
+
+
 def _error_params(f: Fields | None, keys: dict[str, str],
-                  datasheet: dict[str, tuple] | None = None) -> SensorErrorParams:
+                  datasheet: dict[str, tuple] | None = None,
+                  limits: dict[str, tuple[float, float]] | None = None) -> SensorErrorParams:
     if f is None:
         return SensorErrorParams()
+    limits = limits or {}
     kw: dict[str, Any] = _datasheet_terms(f, datasheet or {})
+    for key, (field_name, _, _) in (datasheet or {}).items():
+        if field_name in kw and key in limits:
+            _check_limits(f.key(key), kw[field_name], *limits[key], "(SI)")
     for yaml_key, field_name in keys.items():
         if not f.has(yaml_key):
             continue
@@ -201,6 +221,8 @@ def _error_params(f: Fields | None, keys: dict[str, str],
                 yaml_key, (3,), scalar_ok=True,
                 nonnegative=field_name in ("noise_density", "bias_instability_sigma", "quantum"),
             )
+        if yaml_key in limits:
+            _check_limits(f.key(yaml_key), kw[field_name], *limits[yaml_key])
     return SensorErrorParams(**kw)
 
 
@@ -208,6 +230,7 @@ def _instrument_params(cls, d: Any, path: str):
     """Build an instrument's parameter dataclass from a YAML mapping, naming bad keys."""
     names = tuple(fl.name for fl in dataclasses.fields(cls))
     f = Fields({} if d is None else d, path, names)
+    _check_param_limits(f, cls)
     kw = dict(f.d)
     # Nested torque lists of the free gyro: mappings -> HarmonicTorque / ImpactTorque.
     for key, item_cls in (("harmonic_torques", HarmonicTorque), ("impacts", ImpactTorque)):
@@ -216,6 +239,7 @@ def _instrument_params(cls, d: Any, path: str):
             for i, item in enumerate(list_items(f, key)):
                 item_path = f"{path}.{key}[{i}]"
                 fi = Fields(item, item_path, tuple(fl.name for fl in dataclasses.fields(item_cls)))
+                _check_param_limits(fi, item_cls)
                 try:
                     built.append(item_cls(**fi.d))
                 except (TypeError, ValueError) as exc:
@@ -225,6 +249,18 @@ def _instrument_params(cls, d: Any, path: str):
         return cls(**kw)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"{path}: {exc}") from exc
+
+
+def _check_param_limits(f: Fields, cls) -> None:
+    """The numbers given for a parameter dataclass within :data:`~.limits.PARAM_LIMITS`
+    (the dataclass's own checks, e.g. positive or non-zero, follow when it is built)."""
+    for name, (lo, hi, unit) in PARAM_LIMITS.get(cls.__name__, {}).items():
+        v = f.d.get(name)
+        if v is None or isinstance(v, bool | str):
+            continue
+        items = v if isinstance(v, list | tuple) else [v]
+        if len(items) <= 3 and all(is_number(x) for x in items):
+            _check_limits(f.key(name), items, lo, hi, unit)
 
 
 @dataclass(frozen=True)
@@ -282,7 +318,10 @@ class SceneSpec:
             "gyro", "accelerometer", "free_gyro", "instrument",
         ))
         description = top.string("description")
-        seed = top.integer("seed", lo=0)
+        if len(description) > MAX_DESCRIPTION_CHARS:
+            raise ValueError(f"description: at most {MAX_DESCRIPTION_CHARS} characters, got "
+                             f"{len(description)}")
+        seed = top.integer("seed", lo=0, hi=MAX_SEED)
         start_time_ns = top.integer("start_time_ns", 0, lo=0, hi=MAX_START_TIME_NS)
         rate_hz = top.number("rate_hz", 200.0, lo=0.0, lo_open=True, hi=MAX_RATE_HZ)
         duration_s = top.number("duration_s", 60.0, lo=0.0, lo_open=True, hi=MAX_DURATION_S)
@@ -314,7 +353,7 @@ class SceneSpec:
                     raise ValueError(f"{g.key(kind)}: given but gyro.model is {gyro_model!r}")
             gyro_errors = _error_params(
                 g.section("errors", tuple(_GYRO_ERROR_KEYS) + tuple(_GYRO_DATASHEET_KEYS)),
-                _GYRO_ERROR_KEYS, _GYRO_DATASHEET_KEYS,
+                _GYRO_ERROR_KEYS, _GYRO_DATASHEET_KEYS, GYRO_ERROR_LIMITS,
             )
 
         accel, gravity, accel_errors = False, True, SensorErrorParams()
@@ -324,7 +363,7 @@ class SceneSpec:
             gravity = a.boolean("gravity", True)
             accel_errors = _error_params(
                 a.section("errors", tuple(_ACCEL_ERROR_KEYS) + tuple(_ACCEL_DATASHEET_KEYS)),
-                _ACCEL_ERROR_KEYS, _ACCEL_DATASHEET_KEYS,
+                _ACCEL_ERROR_KEYS, _ACCEL_DATASHEET_KEYS, ACCEL_ERROR_LIMITS,
             )
 
         free_params = None

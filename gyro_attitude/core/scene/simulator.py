@@ -111,6 +111,43 @@ def integrate_position(motion: Motion, t0: float, llh0, t) -> np.ndarray:
     return np.stack((lat[1:], _wrap_lon(lon), hgt[1:]), axis=-1)
 
 
+#: Closest approach to a pole (rad of latitude, 1e-4° ≈ 11 m): the ENU frame has no East
+#: and North at the pole, and the longitude rate v_E/((R_N+h) cos L) diverges as L → ±90°.
+POLE_MARGIN_RAD = np.radians(1e-4)
+
+
+def _pole_error(motion: Motion, t0: float, lat0: float, t: np.ndarray,
+                start_lat: float) -> ValueError:
+    """The error of a run that reaches a pole: when (first order in the latitude rate, with
+    the radius at the start: good to the second order of the distance, enough to say when)."""
+    nodes = np.concatenate(([t0], t))
+    r_m, _ = earth.radii_of_curvature(lat0)
+    v_north = motion.velocity(nodes)[:, 1]
+    lat = lat0 + np.concatenate(([0.0], np.cumsum(np.diff(nodes) * 0.5
+                                                  * (v_north[1:] + v_north[:-1]) / r_m)))
+    over = np.nonzero(np.abs(lat) >= 0.5 * np.pi - POLE_MARGIN_RAD)[0]
+    when = f"t ≈ {nodes[over[0]]:.6g} s" if over.size else f"before t = {nodes[-1]:.6g} s"
+    pole = "North" if (lat[over[0]] if over.size else lat[-1]) > 0 else "South"
+    return ValueError(
+        f"position: the carrier reaches the {pole} pole at {when} (the scene starts at "
+        f"latitude {np.degrees(start_lat):.6g}°): the ENU navigation frame has no East or "
+        "North at a pole, so a scene cannot pass over one; start further from it, shorten the "
+        "run or change the course")
+
+
+def _checked_positions(motion: Motion, t0: float, llh0, t, start_lat: float) -> np.ndarray:
+    """:func:`integrate_position`, with a run that reaches a pole refused saying when."""
+    try:
+        llh = integrate_position(motion, t0, llh0, t)
+    except ValueError as exc:
+        if "latitude" not in str(exc):
+            raise
+        raise _pole_error(motion, t0, float(llh0[0]), t, start_lat) from None
+    if np.any(np.abs(llh[:, 0]) >= 0.5 * np.pi - POLE_MARGIN_RAD):
+        raise _pole_error(motion, t0, float(llh0[0]), t, start_lat)
+    return llh
+
+
 def _position_steps(motion: Motion, t_a: np.ndarray, llh_a: np.ndarray,
                     t_b: np.ndarray) -> np.ndarray:
     """Positions at ``t_b (m,)``, each integrated over the one interval from its own start
@@ -285,7 +322,8 @@ class SceneSimulator:
         for j in range(first, s + 1):
             t = self._times_at(np.arange(j * POSITION_SEGMENT, (j + 1) * POSITION_SEGMENT,
                                          dtype=np.int64))
-            llh = integrate_position(self.spec.motion, *self._segment_anchor[j], t)
+            llh = _checked_positions(self.spec.motion, *self._segment_anchor[j], t,
+                                     float(self._llh0[0]))
             self._segment_anchor[j + 1] = (float(t[-1]), llh[-1].copy())
             self._segment_llh[j] = llh
         # Keep what a later request can still need: the free gyro's sub-steps cover the
