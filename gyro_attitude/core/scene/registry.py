@@ -58,6 +58,11 @@ from gyro_attitude.core.scene.limits import (
     MAX_YAW_AMPLITUDE_DEG,
     MIN_PERIOD_S,
 )
+from gyro_attitude.core.trajectory import (
+    DEFAULT_MAX_GAP_S,
+    TRAJECTORY_FORMATS,
+    TrajectoryRequest,
+)
 
 TWO_PI = 2.0 * math.pi
 
@@ -239,6 +244,25 @@ MOTIONS: dict[str, MotionKind] = {m.name: m for m in (
         _build_profile,
         "scripted segments of constant body rate and ENU acceleration",
         _check_profile,
+    ),
+    MotionKind(
+        "trajectory",
+        (Field("file", Kind.STRING, default=None,
+               help="pose file (relative to the scene file); or simulate --trajectory"),
+         Field("format", Kind.STRING, default=None, choices=TRAJECTORY_FORMATS,
+               help="default: from the extension (.csv, .mcap or a bag directory, else TUM)"),
+         Field("topic", Kind.STRING, default=None, help="MCAP: the pose topic"),
+         Field("child_frame_id", Kind.STRING, default=None,
+               help="MCAP tf2_msgs/TFMessage: the body frame"),
+         # 1 m and 0.5 rad: beyond that the "poses" are not a trajectory a fit can follow
+         Field("position_sigma_m", Kind.NUMBER, "m", 0.0, lo=0.0, hi=1.0,
+               help="expected position noise per axis; 0 interpolates"),
+         Field("attitude_sigma_rad", Kind.NUMBER, "rad", 0.0, lo=0.0, hi=0.5,
+               help="expected attitude noise per axis; 0 interpolates"),
+         Field("max_gap_s", Kind.NUMBER, "s", DEFAULT_MAX_GAP_S, lo=0.0, lo_open=True,
+               hi=3600.0, help="longer gaps between poses are refused")),
+        lambda v: TrajectoryRequest(**v),
+        "the user's own poses (TUM, CSV, MCAP), fitted by smoothing splines",
     ),
 )}
 

@@ -28,6 +28,7 @@ from gyro_attitude.core.motion import Motion, Stationary
 from gyro_attitude.core.rotation import quat_conjugate, quat_rotate
 from gyro_attitude.core.scene.schema import MAX_RATE_HZ, SceneSpec
 from gyro_attitude.core.sensor_errors import SensorErrorModel
+from gyro_attitude.core.trajectory import TrajectoryMotion, TrajectorySample
 
 __all__ = [
     "SceneSimulator",
@@ -339,6 +340,8 @@ class SceneSimulator:
         if not self.spec.motion.moves:
             return np.broadcast_to(self._llh0, (n, 3)).copy()
         self.effects_run.add("position")
+        if isinstance(self.spec.motion, TrajectoryMotion):  # exact, from the fit
+            return self.spec.motion.position_llh(self._times_at(np.arange(k0, k0 + n)))
         out = np.empty((n, 3))
         k = k0
         while k < k0 + n:
@@ -354,6 +357,8 @@ class SceneSimulator:
         if not self.spec.motion.moves:
             return np.broadcast_to(self._llh0, (t.shape[0], 3)).copy()
         self.effects_run.add("position")
+        if isinstance(self.spec.motion, TrajectoryMotion):
+            return self.spec.motion.position_llh(t)
         k = np.maximum(np.floor(t * self.rate_hz), 0).astype(np.int64)
         lowest = min(self._segment_anchor) * POSITION_SEGMENT
         k = np.maximum(k, lowest)  # never before the oldest segment kept
@@ -375,6 +380,8 @@ class SceneSimulator:
 
     def _truth(self, t: np.ndarray, need_accel: bool, llh: np.ndarray | None = None):
         """Truth at times ``t``; ``llh`` the positions when known (the sample grid)."""
+        if isinstance(self.spec.motion, TrajectoryMotion):
+            return self._trajectory_truth(t, need_accel)
         sample = self.spec.motion.evaluate(t, need_accel=need_accel)
         self.effects_run.add(f"motion.{self.spec.motion.name}")
         if llh is None:
@@ -386,6 +393,19 @@ class SceneSimulator:
             w_in = w_ie if w_en is None else (w_en if w_ie is None else w_ie + w_en)
             w_ib = quat_rotate(quat_conjugate(sample.q_nb), w_in) + sample.omega_nb_b
         return sample, llh, w_ie, w_en, w_ib
+
+    def _trajectory_truth(self, t: np.ndarray, need_accel: bool):
+        """A trajectory's truth and ideal sensors from its fit, in the Earth-fixed tangent
+        frame (:mod:`gyro_attitude.core.trajectory`): the transport rate does not enter (the
+        frame does not travel), ``earth.rotation`` switches Earth rate and Coriolis."""
+        motion = self.spec.motion
+        self.effects_run.update(("motion.trajectory", "position"))
+        rotation = self.spec.earth.rotation
+        if rotation:
+            self.effects_run.add("earth_rate")
+        sample = motion.imu(t, earth_rotation=rotation, gravity=self.spec.gravity,
+                            need_force=need_accel)
+        return sample, sample.llh, None, None, sample.omega_ib_b
 
     def _case_rate(self, t) -> np.ndarray:
         """Inertial angular velocity of the instrument case in the case (body) frame,
@@ -414,6 +434,12 @@ class SceneSimulator:
 
     def _specific_force(self, sample, llh, w_ie, w_en) -> np.ndarray:
         self.effects_run.add("specific_force")
+        if isinstance(sample, TrajectorySample):  # computed with the truth, from the fit
+            if self.spec.earth.rotation:
+                self.effects_run.add("coriolis")
+            if self.spec.gravity:
+                self.effects_run.add("gravity")
+            return sample.specific_force_b
         f_n = sample.accel_enu.copy()
         if self.spec.motion.moves and (w_ie is not None or w_en is not None):
             self.effects_run.add("coriolis")
@@ -453,7 +479,8 @@ class SceneSimulator:
         t = (t_ns - spec.start_time_ns).astype(np.float64) / 1e9
         sample, llh, w_ie, w_en, w_ib = self._truth(
             t, need_accel=spec.accelerometer or self._gyro_unbalance,
-            llh=self._grid_positions(self._k, n))
+            llh=(None if isinstance(spec.motion, TrajectoryMotion)  # exact from the fit
+                 else self._grid_positions(self._k, n)))
 
         gyro_out = w_ib
         if self._rate_gyro is not None:
