@@ -116,13 +116,19 @@ def _parse_scene_text(text: str, path: Path) -> dict:
     return data
 
 
-def load_scene(name_or_path: str) -> SceneSpec:
+def load_scene(name_or_path: str, trajectory=None, **trajectory_options) -> SceneSpec:
     """Load and validate a scene by shipped name (``"ship"``) or by file path.
 
+    A ``motion: {type: trajectory}`` has its pose file read (relative to the scene file) and
+    fitted; ``trajectory`` (a path) puts that pose file under any scene instead, with
+    ``trajectory_options`` (:func:`~gyro_attitude.io.trajectory_file.resolve_trajectory`).
     Raises ``ValueError`` naming the bad key (``earth.latitude_deg: ...``) prefixed by the file.
     """
+    from gyro_attitude.io.trajectory_file import resolve_trajectory
+
     path = find_scene_file(str(name_or_path))
-    return validate_scene_text(read_scene_text(path), path)
+    spec = validate_scene_text(read_scene_text(path), path)
+    return resolve_trajectory(spec, path.parent, trajectory, **trajectory_options)
 
 
 def validate_scene_text(text: str, path: Path) -> SceneSpec:
