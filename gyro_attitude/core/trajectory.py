@@ -47,6 +47,7 @@ __all__ = [
     "PoseSeries",
     "check_poses",
     "smoothing_spline",
+    "reinsch_smooth",
     "TangentSample",
     "TrajectorySample",
     "TrajectoryMotion",
@@ -139,6 +140,36 @@ def _q_times(a, b, c, gamma: np.ndarray) -> np.ndarray:
     return out
 
 
+class _Reinsch:
+    """Reinsch's banded system for knots ``t`` and data ``y (n, m)``: :meth:`residual`
+    ``y − g`` of the smoothing spline with parameter λ (one pentadiagonal solve, O(n))."""
+
+    def __init__(self, t: np.ndarray, y: np.ndarray):
+        self.a, self.b, self.c, self.r_diag, self.r_off = _reinsch_parts(t)
+        a, b, c = self.a, self.b, self.c
+        self.qty = a[:, None] * y[:-2] + b[:, None] * y[1:-1] + c[:, None] * y[2:]
+        # QᵀQ bands (pentadiagonal, symmetric)
+        self.qq0 = a * a + b * b + c * c
+        self.qq1 = b[:-1] * a[1:] + c[:-1] * b[1:]
+        self.qq2 = c[:-2] * a[2:]
+
+    def residual(self, lam: float) -> np.ndarray:
+        m = self.r_diag.shape[0]
+        ab = np.zeros((3, m))
+        ab[2] = self.r_diag + lam * self.qq0
+        ab[1, 1:] = self.r_off + lam * self.qq1
+        ab[0, 2:] = lam * self.qq2
+        gamma = solveh_banded(ab, self.qty, check_finite=False)
+        return lam * _q_times(self.a, self.b, self.c, gamma)
+
+
+def reinsch_smooth(t: np.ndarray, y: np.ndarray, lam: float) -> np.ndarray:
+    """Values ``g (n, m)`` at the knots of the cubic smoothing spline minimising
+    Σ|y_i − g(t_i)|² + λ ∫|g''|² (the same criterion as scipy's ``make_smoothing_spline``)."""
+    y = np.asarray(y, dtype=np.float64).reshape(len(t), -1)
+    return y - _Reinsch(np.asarray(t, dtype=np.float64), y).residual(lam)
+
+
 def smoothing_spline(t: np.ndarray, y: np.ndarray, rss_target: float) -> CubicSpline:
     """Cubic spline of ``y (n, m)`` over knots ``t``: interpolating (not-a-knot) when
     ``rss_target`` is 0, else the cubic smoothing spline whose residual Σ|y_i − g(t_i)|²
@@ -152,24 +183,10 @@ def smoothing_spline(t: np.ndarray, y: np.ndarray, rss_target: float) -> CubicSp
     """
     if rss_target <= 0.0 or t.shape[0] < 4:
         return CubicSpline(t, y, bc_type="not-a-knot" if t.shape[0] >= 4 else "natural")
-    a, b, c, r_diag, r_off = _reinsch_parts(t)
-    m = r_diag.shape[0]
-    qty = a[:, None] * y[:-2] + b[:, None] * y[1:-1] + c[:, None] * y[2:]
-    # QᵀQ bands (pentadiagonal)
-    qq0 = a * a + b * b + c * c
-    qq1 = b[:-1] * a[1:] + c[:-1] * b[1:]
-    qq2 = c[:-2] * a[2:]
-
-    def solve(lam: float):
-        ab = np.zeros((3, m))
-        ab[2] = r_diag + lam * qq0
-        ab[1, 1:] = r_off + lam * qq1
-        ab[0, 2:] = lam * qq2
-        gamma = solveh_banded(ab, qty, check_finite=False)
-        return lam * _q_times(a, b, c, gamma)  # residual y − g
+    system = _Reinsch(t, y)
 
     def log_excess(log_lam: float) -> float:
-        rss = float(np.sum(solve(np.exp(log_lam)) ** 2))
+        rss = float(np.sum(system.residual(np.exp(log_lam)) ** 2))
         return np.log(max(rss, 1e-300)) - np.log(rss_target)
 
     # λ has units time³ (per unit of y²): bracket it around the knot spacing's cube
@@ -181,8 +198,7 @@ def smoothing_spline(t: np.ndarray, y: np.ndarray, rss_target: float) -> CubicSp
         log_lam = lo
     else:
         log_lam = brentq(log_excess, lo, hi, xtol=1e-4)
-    g = y - solve(np.exp(log_lam))
-    return CubicSpline(t, g, bc_type="natural")
+    return CubicSpline(t, y - system.residual(np.exp(log_lam)), bc_type="natural")
 
 
 # --------------------------------------------------------------------------- motion
