@@ -80,6 +80,13 @@ class PoseSeries:
     source: str = "poses"
 
 
+def _seconds(ns) -> str:
+    """An int-ns stamp as exact decimal seconds (a float would round epoch stamps)."""
+    ns = int(ns)
+    sign = "-" if ns < 0 else ""
+    return f"{sign}{abs(ns) // 10**9}.{abs(ns) % 10**9:09d}"
+
+
 def check_poses(poses: PoseSeries, max_gap_s: float = DEFAULT_MAX_GAP_S) -> PoseSeries:
     """``poses`` with quaternions normalized, or ``ValueError`` naming the first bad row."""
     t, p, q, lab = poses.t_ns, poses.p, poses.q, poses.labels
@@ -104,14 +111,14 @@ def check_poses(poses: PoseSeries, max_gap_s: float = DEFAULT_MAX_GAP_S) -> Pose
     if bad.any():
         i = int(np.argmax(bad)) + 1
         what = "repeats" if dt[i - 1] == 0 else "goes back from"
-        raise ValueError(f"{src}: {lab[i]}: timestamp {t[i] / 1e9:.9f} s {what} the previous "
-                         f"one ({t[i - 1] / 1e9:.9f} s); poses must be in strictly increasing "
+        raise ValueError(f"{src}: {lab[i]}: timestamp {_seconds(t[i])} s {what} the previous "
+                         f"one ({_seconds(t[i - 1])} s); poses must be in strictly increasing "
                          "time")
     gap = dt > max_gap_s * 1e9
     if gap.any():
         i = int(np.argmax(gap)) + 1
         raise ValueError(f"{src}: {lab[i]}: gap of {dt[i - 1] / 1e9:.6g} s after the previous "
-                         f"pose (at {t[i - 1] / 1e9:.9f} s) is longer than max_gap_s = "
+                         f"pose (at {_seconds(t[i - 1])} s) is longer than max_gap_s = "
                          f"{max_gap_s:g} s; a fit cannot bridge it: split the file or raise "
                          "motion.max_gap_s")
     return PoseSeries(t, p, q / norm[:, None], lab, src)

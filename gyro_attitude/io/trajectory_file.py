@@ -22,6 +22,7 @@ repeated or NaN stamps, non-unit quaternions, a single pose and long gaps.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
@@ -168,8 +169,6 @@ def read_csv(path) -> PoseSeries:
 
 def read_pose_topic(path, topic: str, child_frame_id: str | None = None) -> PoseSeries:
     """The poses of an MCAP topic of one of :data:`POSE_TYPES` (module docstring)."""
-    from rclpy.serialization import deserialize_message  # lazy: ROS only for this format
-
     from gyro_attitude.io.mcap_reader import McapStreamReader, resolve_mcap_path
 
     path = resolve_mcap_path(path)
@@ -193,10 +192,10 @@ def read_pose_topic(path, topic: str, child_frame_id: str | None = None) -> Pose
             if type_name == POSE_TYPES[2] and not child_frame_id:
                 raise ValueError(f"{path}: topic {name} is a TFMessage: say which transform "
                                  "(motion.child_frame_id or --child-frame-id)")
-            msg_type = _message_class(type_name)
+            msg_type = type_name
         try:
-            m = deserialize_message(msg.data, msg_type)
-        except Exception as exc:  # rclpy raises plain exceptions on bad CDR
+            m = _typestore().deserialize_cdr(bytes(msg.data), msg_type)
+        except Exception as exc:  # the CDR decoder raises plain exceptions on bad bytes
             raise ValueError(f"{where}: does not deserialize as {msg.channel.type_name} "
                              f"({str(exc).splitlines()[0][:80]})") from None
         for stamp, pos, rot in _poses_of(m, child_frame_id):
@@ -215,15 +214,13 @@ def read_pose_topic(path, topic: str, child_frame_id: str | None = None) -> Pose
     return _rows_to_series(path, t, rows, labels)
 
 
-def _message_class(type_name: str):
-    if type_name == POSE_TYPES[0]:
-        from nav_msgs.msg import Odometry
-        return Odometry
-    if type_name == POSE_TYPES[1]:
-        from geometry_msgs.msg import PoseStamped
-        return PoseStamped
-    from tf2_msgs.msg import TFMessage
-    return TFMessage
+@functools.lru_cache(maxsize=1)
+def _typestore():
+    """rosbags' bundled Jazzy message types: decodes the three pose types without a ROS
+    install (tf2_msgs is not among the pinned ROS wheels) and without rclpy."""
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores.ROS2_JAZZY)
 
 
 def _poses_of(m, child_frame_id):
