@@ -55,6 +55,16 @@ POSE_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped", "tf2_msg
 
 
 def _stamp_ns(text: str, where: str) -> int:
+    whole, dot, frac = text.partition(".")
+    if (whole.isascii() and whole.isdigit() and frac.isascii() and (not frac or frac.isdigit())
+            and len(frac) <= 9):
+        # the common "seconds.fraction" form, exactly, without Decimal's cost
+        return int(whole) * 1_000_000_000 + int(frac.ljust(9, "0") or 0) if len(whole) < 12 \
+            else _stamp_decimal(text, where)
+    return _stamp_decimal(text, where)
+
+
+def _stamp_decimal(text: str, where: str) -> int:
     try:
         d = Decimal(text)
     except InvalidOperation:
@@ -88,11 +98,6 @@ def _open_text(path: Path):
         raise ValueError(f"{path}: cannot read: {exc.strerror or exc}") from None
 
 
-def _rows_to_series(path: Path, t: list, rows: list, labels: list) -> PoseSeries:
-    a = np.array(rows, dtype=np.float64).reshape(-1, 7)
-    return PoseSeries(np.array(t, dtype=np.int64), a[:, :3], a[:, 3:], tuple(labels), str(path))
-
-
 def _read_lines(path: Path):
     """``(line number, text)`` of a UTF-8 text file, one line at a time."""
     with _open_text(path) as f:
@@ -106,22 +111,38 @@ def _read_lines(path: Path):
 def read_tum(path) -> PoseSeries:
     """A TUM trajectory file (module docstring)."""
     path = Path(path)
-    t, rows, labels = [], [], []
+    stamps, values, labels = [], [], []
     for i, line in _read_lines(path):
         body = line.split("#", 1)[0].strip()
         if not body:
             continue
-        where = f"line {i}"
         parts = body.replace(",", " ").split()
         if len(parts) != 8:
-            raise ValueError(f"{path}: {where}: {len(parts)} values, expected 8 "
+            raise ValueError(f"{path}: line {i}: {len(parts)} values, expected 8 "
                              f"({' '.join(COLUMNS)})")
-        t.append(_stamp_ns(parts[0], f"{path}: {where}"))
-        rows.append([_number(x, f"{path}: {where}", c) for x, c in zip(parts[1:], COLUMNS[1:], strict=True)])
-        labels.append(where)
-        if len(t) > MAX_POSES:
+        stamps.append(parts[0])
+        values.append(parts[1:])
+        labels.append(i)
+        if len(stamps) > MAX_POSES:
             raise ValueError(f"{path}: more than {MAX_POSES} poses")
-    return _rows_to_series(path, t, rows, labels)
+    return _series(path, stamps, values, [f"line {i}" for i in labels], COLUMNS[1:])
+
+
+def _series(path: Path, stamps: list[str], values: list[list[str]], labels: list[str],
+            columns) -> PoseSeries:
+    """Columns of text to a PoseSeries: numpy converts all numbers at once; only when
+    that fails is each row converted alone, to name the first bad one."""
+    try:
+        a = np.array(values, dtype=np.float64).reshape(-1, 7)
+    except ValueError:
+        for row, where in zip(values, labels, strict=True):
+            for x, c in zip(row, columns, strict=True):
+                _number(x, f"{path}: {where}", c)
+        raise
+    t = np.array([_stamp_ns(x, f"{path}: {where}") for x, where in zip(stamps, labels,
+                                                                       strict=True)],
+                 dtype=np.int64).reshape(-1)
+    return PoseSeries(t, a[:, :3], a[:, 3:], tuple(labels), str(path))
 
 
 def read_csv(path) -> PoseSeries:
@@ -129,7 +150,7 @@ def read_csv(path) -> PoseSeries:
     import csv
 
     path = Path(path)
-    t, rows, labels = [], [], []
+    stamps, values, labels = [], [], []
     index = None
     with _open_text(path) as f:
         reader = csv.reader(f)
@@ -147,15 +168,13 @@ def read_csv(path) -> PoseSeries:
                                          f"{', '.join(COLUMNS)}; missing {', '.join(missing)}")
                     index = [names.index(c) for c in COLUMNS]
                     continue
-                where = f"line {i}"
                 if len(record) <= max(index):
-                    raise ValueError(f"{path}: {where}: {len(record)} values, the header has "
+                    raise ValueError(f"{path}: line {i}: {len(record)} values, the header has "
                                      f"{max(index) + 1} or more")
-                t.append(_stamp_ns(record[index[0]].strip(), f"{path}: {where}"))
-                rows.append([_number(record[j], f"{path}: {where}", c)
-                             for j, c in zip(index[1:], COLUMNS[1:], strict=True)])
-                labels.append(where)
-                if len(t) > MAX_POSES:
+                stamps.append(record[index[0]].strip())
+                values.append([record[j] for j in index[1:]])
+                labels.append(f"line {i}")
+                if len(stamps) > MAX_POSES:
                     raise ValueError(f"{path}: more than {MAX_POSES} poses")
         except UnicodeDecodeError as exc:
             raise ValueError(f"{path}: not a text file (byte 0x{exc.object[exc.start]:02x} "
@@ -164,7 +183,7 @@ def read_csv(path) -> PoseSeries:
             raise ValueError(f"{path}: line {reader.line_num}: not CSV: {exc}") from None
     if index is None:
         raise ValueError(f"{path}: empty: no header line")
-    return _rows_to_series(path, t, rows, labels)
+    return _series(path, stamps, values, labels, COLUMNS[1:])
 
 
 def read_pose_topic(path, topic: str, child_frame_id: str | None = None) -> PoseSeries:
@@ -211,7 +230,8 @@ def read_pose_topic(path, topic: str, child_frame_id: str | None = None) -> Pose
     if not t and msg_type is not None and child_frame_id:
         raise ValueError(f"{path}: topic {name} has no transform with child_frame_id "
                          f"{child_frame_id!r}")
-    return _rows_to_series(path, t, rows, labels)
+    a = np.array(rows, dtype=np.float64).reshape(-1, 7)
+    return PoseSeries(np.array(t, dtype=np.int64), a[:, :3], a[:, 3:], tuple(labels), str(path))
 
 
 @functools.lru_cache(maxsize=1)
