@@ -1,4 +1,4 @@
-"""allan --kalibr-out: the fitted terms in Kalibr's imu.yaml convention, and a scene that takes the file back."""
+"""allan --kalibr-out: fitted terms in Kalibr's imu.yaml convention, and a scene that takes the file back."""
 
 import numpy as np
 import pytest
