@@ -34,6 +34,7 @@ from gyro_attitude.core.attitude import NavFrame, integrate_batch
 from gyro_attitude.core.attitude.rest import detect_rest, rest_segments
 from gyro_attitude.core.attitude.stream import AttitudeStream, StreamConfig
 from gyro_attitude.core.attitude.truth import initial_attitude_from_truth
+from gyro_attitude.core.earth import STANDARD_GRAVITY
 from gyro_attitude.core.rotation import quat_angle_between, quat_as_matrix, quat_multiply
 from gyro_attitude.io.imu_fast import read_imu_arrays, read_quaternion_stamped_arrays
 
@@ -46,7 +47,7 @@ def stream_config(mode: str, heading_deg: float = 0.0) -> StreamConfig:
     """The StreamConfig of a benchmark mode (what node parameters / replay flags give)."""
     kw: dict = {"gyro_bias": "none"} if mode.startswith("none") else {}
     if "level" in mode:
-        kw |= {"initial_attitude": "level", "initial_heading_deg": heading_deg}
+        kw |= {"initial_attitude_source": "level", "initial_heading_deg": heading_deg}
     if "gravity" in mode:
         kw["aiding"] = "gravity"
     return StreamConfig(**kw)
@@ -154,7 +155,7 @@ def evaluate(name: str, directory=None, modes=MODES, peers=True,
         has[index[0]:] = True
         row(mode, q, seconds, valid=has[idx])
         rows[-1]["bias_note"] = stream.bias_report.note
-        rows[-1]["batch_path"] = stream.batch_path and mode != "none/push"
+        rows[-1]["batch_path"] = mode != "none/push" and stream.run_form()[0] == "arrays"
     if peers:
         t0 = time.perf_counter()
         q = integrate_batch(t, g, q0=tq[0], algorithm="exp_map")
@@ -180,7 +181,7 @@ def evaluate(name: str, directory=None, modes=MODES, peers=True,
             ahrs.set_sample_period(dt)
             qf = np.empty((t.size, 4))
             gd = np.degrees(g)
-            ag = a / 9.81
+            ag = a / STANDARD_GRAVITY
             for k in range(t.size):
                 ahrs.update_no_magnetometer(gd[k], ag[k])
                 w, x, y, z = ahrs.get_quaternion()  # scalar first
