@@ -67,4 +67,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"[simulate] scene '{r.scene}' at {r.rate_hz:g} Hz, seed {r.seed}: {r.samples} samples "
           f"in {r.wall_s:.2f} s ({r.samples_per_s:,.0f} samples/s) -> {r.path}")
     print(f"[simulate] messages: {topics}")
+    for sensor, count in r.saturated.items():
+        print(f"[simulate] {sensor} output range reached: {count} of {r.samples} samples "
+              "clipped at full scale")
     return 0

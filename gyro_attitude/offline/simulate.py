@@ -51,6 +51,7 @@ class SimulateResult:
     samples: int
     messages: dict[str, int] = field(default_factory=dict)
     wall_s: float = 0.0
+    saturated: dict[str, int] = field(default_factory=dict)
 
     @property
     def samples_per_s(self) -> float:
@@ -169,7 +170,7 @@ def simulate(scene: str | SceneSpec, duration_s: float | None, out, *,
             bar.close()
     return SimulateResult(out, spec.name, rate, sim.seed, n_total,
                           {k: v for k, v in counts.items() if v},
-                          time.perf_counter() - t0)
+                          time.perf_counter() - t0, dict(sim.saturated))
 
 
 def _scene_inputs(scene) -> list:

@@ -206,8 +206,13 @@ class GyroSimNode(Node):
         n = self._block_n
         if self._n_total:
             n = min(n, self._n_total - self._generated)
+        before = sum(self._sim.saturated.values())
         f = self._topics.fields(self._sim.next_block(n))
         self._generated += n
+        if before == 0 and sum(self._sim.saturated.values()) > 0:
+            self.get_logger().warning(
+                "output range reached: samples clipped at full scale "
+                f"({', '.join(f'{k} {v}' for k, v in self._sim.saturated.items())} so far)")
         # plain Python lists: building messages from numpy scalars is several times slower
         cols = [f.t_rel_ns.tolist(), f.angular_velocity.tolist(),
                 None if f.specific_force is None else f.specific_force.tolist(),
@@ -306,7 +311,8 @@ class GyroSimNode(Node):
         self._timer.cancel()
         self.done.set_result(self.published)
         self.close()
-        self.get_logger().info(f"published {self.published} samples; done")
+        sat = "".join(f"; {k} saturated in {v} samples" for k, v in self._sim.saturated.items())
+        self.get_logger().info(f"published {self.published} samples{sat}; done")
 
 
 def _spin_until_done(node: GyroSimNode) -> None:

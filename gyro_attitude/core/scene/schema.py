@@ -112,6 +112,7 @@ from gyro_attitude.core.scene.registry import (
     build_motion,
 )
 from gyro_attitude.core.sensor_errors import SensorErrorParams
+from gyro_attitude.core.sensor_sampling import BANDWIDTH_FILTERS, SamplingParams
 from gyro_attitude.core.units import to_si
 
 __all__ = [
@@ -251,6 +252,45 @@ def _instrument_params(cls, d: Any, path: str):
         raise ValueError(f"{path}: {exc}") from exc
 
 
+GYRO_SAMPLING_KEYS = ("bandwidth", "range_rad_s", "turn_on_bias_rad_s",
+                      "g_sensitivity_rad_s_per_m_s2")
+ACCEL_SAMPLING_KEYS = ("bandwidth", "range_m_s2", "turn_on_bias_m_s2")
+
+
+def _sampling(f: Fields | None, gyro: bool) -> SamplingParams:
+    """``gyro.sampling`` / ``accelerometer.sampling`` (core.sensor_sampling): each key off
+    unless given. Bounds: range up to 1e3 rad/s (MEMS saturate at 35–70 rad/s) or 2e5 m/s²;
+    turn-on bias σ as the error bias limits; g-sensitivity up to 0.02 rad/s per m/s²
+    (MEMS: 1e-4–1e-3); filter order 1–8, cut-off up to 100 kHz (below Nyquist at run time)."""
+    if f is None:
+        return SamplingParams()
+    kw: dict[str, Any] = {}
+    if f.has("bandwidth"):
+        b = f.section("bandwidth", ("filter", "order", "cutoff_hz"))
+        kw["bandwidth"] = b.string("filter", choices=BANDWIDTH_FILTERS)
+        if kw["bandwidth"] == "lowpass":
+            kw["order"] = b.integer("order", 2, lo=1, hi=8)
+            kw["cutoff_hz"] = b.number("cutoff_hz", lo=0.0, lo_open=True, hi=1.0e5)
+        elif b.has("order") or b.has("cutoff_hz"):
+            raise ValueError(f"{b.path}: order and cutoff_hz are for filter: lowpass")
+    unit, r_hi, bias_key = (("rad_s", 1.0e3, "bias_rad_s") if gyro
+                            else ("m_s2", 2.0e5, "bias_m_s2"))
+    if f.has(f"range_{unit}"):
+        kw["range"] = f.number(f"range_{unit}", lo=0.0, lo_open=True, hi=r_hi)
+    if f.has(f"turn_on_bias_{unit}"):
+        sig = f.array(f"turn_on_bias_{unit}", (3,), scalar_ok=True, nonnegative=True)
+        lo, hi = (GYRO_ERROR_LIMITS if gyro else ACCEL_ERROR_LIMITS)[bias_key]
+        _check_limits(f.key(f"turn_on_bias_{unit}"), sig, 0.0, hi)
+        kw["turn_on_bias_sigma"] = sig
+    if gyro and f.has("g_sensitivity_rad_s_per_m_s2"):
+        key = "g_sensitivity_rad_s_per_m_s2"
+        v = f.raw(key)
+        g_mat = (np.eye(3) * f.number(key) if is_number(v) else f.array(key, (3, 3)))
+        _check_limits(f.key(key), g_mat, -0.02, 0.02, "rad/s per m/s²")
+        kw["g_sensitivity"] = g_mat
+    return SamplingParams(**kw)
+
+
 def _check_param_limits(f: Fields, cls) -> None:
     """The numbers given for a parameter dataclass within :data:`~.limits.PARAM_LIMITS`
     (the dataclass's own checks, e.g. positive or non-zero, follow when it is built)."""
@@ -309,6 +349,8 @@ class SceneSpec:
     free_gyro_params: FreeGyroParams | None = None
     instrument: InstrumentSpec | None = None
     source: dict = dataclasses.field(default_factory=dict)
+    gyro_sampling: SamplingParams = dataclasses.field(default_factory=SamplingParams)
+    accel_sampling: SamplingParams = dataclasses.field(default_factory=SamplingParams)
 
     @classmethod
     def from_dict(cls, d: dict, name: str = "scene") -> SceneSpec:
@@ -340,8 +382,9 @@ class SceneSpec:
                         required=True)
         motion = build_motion(m)
 
-        g = top.section("gyro", ("model", "rate_gyro", "integrating_gyro", "errors"))
+        g = top.section("gyro", ("model", "rate_gyro", "integrating_gyro", "errors", "sampling"))
         gyro_model, rate_params, gyro_errors = "ideal", None, SensorErrorParams()
+        gyro_sampling = accel_sampling = SamplingParams()
         if g is not None:
             gyro_model = g.string("model", "ideal",
                                   choices=("ideal", "rate_gyro", "integrating_gyro"))
@@ -355,16 +398,19 @@ class SceneSpec:
                 g.section("errors", tuple(_GYRO_ERROR_KEYS) + tuple(_GYRO_DATASHEET_KEYS)),
                 _GYRO_ERROR_KEYS, _GYRO_DATASHEET_KEYS, GYRO_ERROR_LIMITS,
             )
+            gyro_sampling = _sampling(g.section("sampling", GYRO_SAMPLING_KEYS), gyro=True)
 
         accel, gravity, accel_errors = False, True, SensorErrorParams()
         if "accelerometer" in d:  # even an empty `accelerometer:` asks for accelerometers
             accel = True
-            a = Fields(d["accelerometer"] or {}, "accelerometer", ("gravity", "errors"))
+            a = Fields(d["accelerometer"] or {}, "accelerometer",
+                       ("gravity", "errors", "sampling"))
             gravity = a.boolean("gravity", True)
             accel_errors = _error_params(
                 a.section("errors", tuple(_ACCEL_ERROR_KEYS) + tuple(_ACCEL_DATASHEET_KEYS)),
                 _ACCEL_ERROR_KEYS, _ACCEL_DATASHEET_KEYS, ACCEL_ERROR_LIMITS,
             )
+            accel_sampling = _sampling(a.section("sampling", ACCEL_SAMPLING_KEYS), gyro=False)
 
         free_params = None
         if top.has("free_gyro"):
@@ -388,5 +434,6 @@ class SceneSpec:
             duration_s=duration_s, gyro_model=gyro_model, rate_gyro_params=rate_params,
             gyro_errors=gyro_errors, accelerometer=accel, gravity=gravity,
             accel_errors=accel_errors, free_gyro_params=free_params, instrument=instrument,
+            gyro_sampling=gyro_sampling, accel_sampling=accel_sampling,
             source=dict(d),
         )

@@ -28,6 +28,7 @@ from gyro_attitude.core.motion import Motion, Stationary
 from gyro_attitude.core.rotation import quat_conjugate, quat_rotate
 from gyro_attitude.core.scene.schema import MAX_RATE_HZ, SceneSpec
 from gyro_attitude.core.sensor_errors import SensorErrorModel
+from gyro_attitude.core.sensor_sampling import SensorSampler
 from gyro_attitude.core.trajectory import TrajectoryMotion, TrajectorySample
 
 __all__ = [
@@ -271,6 +272,12 @@ class SceneSimulator:
         self._accel_errors = (SensorErrorModel(spec.accel_errors, self.dt, accel_ss)
                               if spec.accelerometer and spec.accel_errors.active_effects()
                               else None)
+        # sampling options: their own streams (children 2, 3), so the error streams stay
+        samp_g, samp_a = np.random.SeedSequence(self.seed).spawn(4)[2:]
+        self._gyro_sampler = (SensorSampler(spec.gyro_sampling, self.dt, samp_g)
+                              if spec.gyro_sampling.active() else None)
+        self._accel_sampler = (SensorSampler(spec.accel_sampling, self.dt, samp_a)
+                               if spec.accelerometer and spec.accel_sampling.active() else None)
         self._rate_gyro = None
         self._free_gyro = None
         self._constant_case_rate = None
@@ -281,6 +288,7 @@ class SceneSimulator:
         # g-sensitive drift of a mass unbalance needs the specific force, accelerometer or not
         self._gyro_unbalance = (self._rate_gyro is not None
                                 and spec.rate_gyro_params.mass_unbalance != 0.0)
+        self._gyro_g_sensitive = spec.gyro_sampling.g_sensitivity is not None
         if spec.free_gyro_params is not None:
             force = (self._case_specific_force if spec.free_gyro_params.mass_unbalance != 0.0
                      else None)
@@ -477,32 +485,46 @@ class SceneSimulator:
         spec = self.spec
         t_ns = self._stamps(n)
         t = (t_ns - spec.start_time_ns).astype(np.float64) / 1e9
+        need_force = spec.accelerometer or self._gyro_unbalance or self._gyro_g_sensitive
         sample, llh, w_ie, w_en, w_ib = self._truth(
-            t, need_accel=spec.accelerometer or self._gyro_unbalance,
+            t, need_accel=need_force,
             llh=(None if isinstance(spec.motion, TrajectoryMotion)  # exact from the fit
                  else self._grid_positions(self._k, n)))
 
-        gyro_out = w_ib
+        f_ideal = self._specific_force(sample, llh, w_ie, w_en) if need_force else None
+        gyro_in, f_in = self._interval_means(t, w_ib, f_ideal)
+        gyro_out = gyro_in
         if self._rate_gyro is not None:
             self.effects_run.add(spec.gyro_model)
             f_gyro = None
             if self._gyro_unbalance:
                 self.effects_run.add("g_sensitive_drift")
-                f_gyro = self._specific_force(sample, llh, w_ie, w_en)
-            gyro_out = self._gyro_indication(w_ib, f_gyro)
+                f_gyro = f_ideal
+            gyro_out = self._gyro_indication(gyro_in, f_gyro)
+        if self._gyro_sampler is not None:
+            gyro_out = self._gyro_sampler.before_errors(gyro_out, f_ideal)
         if self._gyro_errors is not None:
             gyro_out = self._gyro_errors.apply(gyro_out)
             self.effects_run.update(f"gyro.{e}" for e in self._gyro_errors.effects_run)
         elif gyro_out is w_ib:
             gyro_out = w_ib.copy()
+        if self._gyro_sampler is not None:
+            gyro_out = self._gyro_sampler.clip(gyro_out)
+            self.effects_run.update(f"gyro.{e}" for e in self._gyro_sampler.effects_run)
 
         f_b = None
         if spec.accelerometer:
-            f_b = self._specific_force(sample, llh, w_ie, w_en)
+            f_b = f_in.copy()
+            if self._accel_sampler is not None:
+                f_b = self._accel_sampler.before_errors(f_b)
             if self._accel_errors is not None:
                 f_b = self._accel_errors.apply(f_b)
                 self.effects_run.update(f"accelerometer.{e}"
                                         for e in self._accel_errors.effects_run)
+            if self._accel_sampler is not None:
+                f_b = self._accel_sampler.clip(f_b)
+                self.effects_run.update(f"accelerometer.{e}"
+                                        for e in self._accel_sampler.effects_run)
 
         self._k += n
 
@@ -521,6 +543,33 @@ class SceneSimulator:
             truth_omega_nb_b=sample.omega_nb_b, truth_omega_ib_b=w_ib, position_llh=llh,
             velocity_enu=sample.velocity_enu, gimbal=gimbal,
         )
+
+    def _interval_means(self, t: np.ndarray, w_ib: np.ndarray, f_b: np.ndarray | None):
+        """Gyro and accelerometer inputs: the values at ``t``, or for a sensor whose
+        bandwidth is ``mean`` the mean over each sample interval (quadrature of the truth)."""
+        g_avg = self._gyro_sampler is not None and self._gyro_sampler.averages
+        a_avg = self._accel_sampler is not None and self._accel_sampler.averages
+        if not (g_avg or a_avg):
+            return w_ib, f_b
+        sampler = self._gyro_sampler if g_avg else self._accel_sampler
+        nodes = sampler.node_times(t).reshape(-1)
+        sample, llh, w_ie, w_en, w_nodes = self._truth(nodes, need_accel=a_avg)
+        n = t.shape[0]
+        if g_avg:
+            w_ib = self._gyro_sampler.mean_of(w_nodes.reshape(n, 3, 3))
+        if a_avg:
+            f_nodes = self._specific_force(sample, llh, w_ie, w_en)
+            f_b = self._accel_sampler.mean_of(f_nodes.reshape(n, 3, 3))
+        return w_ib, f_b
+
+    @property
+    def saturated(self) -> dict[str, int]:
+        """Samples with an axis clipped at the output range so far, per named range."""
+        out = {}
+        for name, s in (("gyro", self._gyro_sampler), ("accelerometer", self._accel_sampler)):
+            if s is not None and s.params.range is not None:
+                out[name] = s.saturated
+        return out
 
     def _gyro_indication(self, w_ib: np.ndarray, f_b: np.ndarray | None) -> np.ndarray:
         """Rate-gyro output, or for integrating gyros the mean rate over each sample interval
