@@ -46,6 +46,48 @@ def _best(fn, repeats: int = 3) -> float:
     return best
 
 
+def plot_rates(path: pathlib.Path, seconds: float = 12.0) -> dict:
+    """Simulated vs closed-form body rate of the shipped figure-eight pose file (1 mm / 0.1°
+    noise, fitted with those sigmas), ideal gyro, Earth rotation on; returns the RMS errors."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from scipy.spatial.transform import Rotation
+
+    from gyro_attitude.core import earth
+    from gyro_attitude.core.figure_eight import FigureEight
+    from gyro_attitude.io.make_figure_eight import START_S, default_output
+    from gyro_attitude.io.trajectory_file import read_tum
+
+    poses = read_tum(default_output())
+    motion = TrajectoryMotion(poses, ORIGIN, 1e-3, math.radians(0.1))
+    t = np.arange(int(seconds * IMU_RATE_HZ) + 1) / IMU_RATE_HZ + 4.0
+    sim = motion.imu(t, truth=False)
+    f8 = FigureEight()
+    t_rel = t + poses.t_ns[0] / 1e9 - START_S  # the closed form's own time
+    _, q = f8.poses(t_rel)
+    w_ie = earth.OMEGA_IE * np.array([0.0, math.cos(ORIGIN[0]), math.sin(ORIGIN[0])])
+    ref = f8.body_rate(t_rel) + Rotation.from_quat(q).inv().apply(w_ie)
+    err = sim.omega_ib_b - ref
+    rms = float(np.sqrt(np.mean(np.sum(err ** 2, axis=1))))
+    fig, ax = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+    for k, name in enumerate("xyz"):
+        ax[0].plot(t, ref[:, k], lw=2.5, alpha=0.4, label=f"closed form {name}")
+        ax[0].plot(t, sim.omega_ib_b[:, k], lw=0.8, label=f"simulated {name}")
+        ax[1].plot(t, 1e3 * err[:, k], lw=0.8, label=name)
+    ax[0].set_ylabel("gyro [rad/s]")
+    ax[0].legend(ncol=3, fontsize=7)
+    ax[1].set_ylabel("error [mrad/s]")
+    ax[1].set_xlabel("time since the first pose [s]")
+    ax[0].set_title(f"figure-eight from 120 Hz poses (1 mm, 0.1°), 400 Hz gyro: RMS error "
+                    f"{rms * 1e3:.1f} mrad/s")
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return {"rms_rad_s": rms}
+
+
 def run(quick: bool, out_dir: pathlib.Path) -> list[dict]:
     seconds = 60.0 if quick else 600.0
     t, p, q = figure_eight_poses(seconds, POSE_RATE_HZ)
@@ -113,6 +155,13 @@ def run(quick: bool, out_dir: pathlib.Path) -> list[dict]:
                  f"{TARGET_SAMPLES_PER_S:,.0f}: {'met' if row['meets_target'] else 'NOT met'})"
                  if "ratio_to_scipy_splines" in row else "")
         print(f"{name:<24}{sec:>9.3f} s{n / sec:>14,.0f} samples/s{extra}")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    png = out_dir / "trajectory_rates.png"
+    acc = plot_rates(png)
+    rows.append({"suite": "trajectory", "kind": "figure_eight_rate_error", **acc,
+                 "plot": str(png)})
+    print(f"figure-eight pose file, gyro vs closed form: RMS {acc['rms_rad_s']:.4f} rad/s "
+          f"-> {png}")
     return rows
 
 

@@ -20,7 +20,7 @@ Schema (SI units; angles in the file are degrees where the key says ``_deg``)::
       transport_rate: true                # ω_en from the carrier velocity
     motion:
       type: stationary | constant_velocity | coordinated_turn | ship | coning
-            | spinning_projectile | profile
+            | spinning_projectile | profile | trajectory
       ...                                 # per type, below
     gyro:                                 # optional (ideal gyro triad)
       model: ideal | rate_gyro | integrating_gyro   # single-gimbal gyro per axis
@@ -34,6 +34,10 @@ Schema (SI units; angles in the file are degrees where the key says ``_deg``)::
       errors: {bias_m_s2, scale_factor, misalignment_rad, vrw_m_s_sqrt_s,
                bias_instability_m_s2, bias_instability_tau_s, quantization_m_s,
                vrw, bias_instability, acceleration_random_walk}
+      sampling: {bandwidth: {filter: mean | lowpass, order, cutoff_hz}, range_rad_s,
+                 turn_on_bias_rad_s, g_sensitivity_rad_s_per_m_s2}   # core.sensor_sampling
+    # accelerometer.sampling: {bandwidth, range_m_s2, turn_on_bias_m_s2}
+    # kalibr_imu: imu.yaml  (top level; read by io.scene_file: Kalibr's four noise terms)
     # Datasheet terms take a number (SI) or a string with units ("0.15 deg/sqrt(h)",
     # "3 deg/h", "12 deg/h/sqrt(h)"; gyro_attitude.core.units), scalar or 3 values;
     # bias_instability is the Allan floor B (not a Gauss–Markov σ: that is *_rad_s + tau).
@@ -58,6 +62,13 @@ Motion keys per type (``attitude: {roll_deg, pitch_deg, yaw_deg}`` is ROS roll/p
                          attitude (of the cone axis frame)
     profile:             attitude, velocity_enu_mps, segments: [{duration_s,
                          angular_rate_deg_s (body), acceleration_enu_mps2}, ...]
+    trajectory:          file (relative to the scene file), format (tum | csv | mcap), topic,
+                         child_frame_id, position_sigma_m, attitude_sigma_rad, max_gap_s
+                         (core.trajectory; the file is read by io.scene_file.load_scene)
+
+Every number is bounded at validation (:mod:`gyro_attitude.core.scene.limits`, the choice of
+each limit stated there); the motion and instrument keys are declared in
+:mod:`gyro_attitude.core.scene.registry`.
 
 Instrument keys per type (the instrument sees the full Earth: rotation and transport rate;
 its joints, published on ``gyro/joint_states``, are named in :mod:`gyro_attitude.core.instruments`)::
