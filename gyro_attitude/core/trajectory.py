@@ -32,6 +32,7 @@ truth topics carry) follows from ``C_nt`` (:meth:`TrajectoryMotion.evaluate`).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,6 +52,7 @@ __all__ = [
     "TrajectorySample",
     "TrajectoryMotion",
     "TrajectoryRequest",
+    "LiveTrajectory",
     "TRAJECTORY_FORMATS",
     "DEFAULT_MAX_GAP_S",
     "UNIT_QUATERNION_TOLERANCE",
@@ -429,3 +431,93 @@ class TrajectoryRequest(Motion):
     def evaluate(self, t, need_accel: bool = False) -> MotionSample:
         raise ValueError("motion: the trajectory file has not been read (load the scene with "
                          "gyro_attitude.io.scene_file.load_scene, or give --trajectory)")
+
+
+class LiveTrajectory(TrajectoryMotion):
+    """A trajectory that grows while it is used (``gyro_sim motion_topic``): poses arrive one
+    by one (:meth:`add`), and the fit is that of the last ``window_s`` of them, refitted
+    when new ones came. Times are seconds since ``t0_ns`` (the first pose's stamp). A
+    sample at t is only asked for once the poses reach t + delay (the caller's bounded
+    delay), where later poses no longer move the interpolating fit noticeably (a cubic
+    spline's influence decays ~3.7x per knot)."""
+
+    def __init__(self, origin_llh, t0_ns: int, window_s: float = 2.0,
+                 position_sigma_m: float = 0.0, attitude_sigma_rad: float = 0.0):
+        self.origin_llh = np.asarray(origin_llh, dtype=np.float64)
+        self.t0_ns = int(t0_ns)
+        self.window_ns = int(window_s * 1e9)
+        self.position_sigma_m = float(position_sigma_m)
+        self.attitude_sigma_rad = float(attitude_sigma_rad)
+        self.source = "motion_topic"
+        self._t: list[int] = []
+        self._p: list = []
+        self._q: list = []
+        self._fit: TrajectoryMotion | None = None
+        self.pose_count = 0
+        self.span_s = 0.0
+
+    def add(self, t_ns: int, p, q) -> str | None:
+        """Append one pose; returns why it was refused (None when taken)."""
+        p = np.asarray(p, dtype=np.float64)
+        q = np.asarray(q, dtype=np.float64)
+        if not np.all(np.isfinite(p)):
+            return "position is not finite"
+        norm = float(np.linalg.norm(q))
+        if not abs(norm - 1.0) <= UNIT_QUATERNION_TOLERANCE:
+            return f"quaternion is not a unit quaternion (|q| = {norm:.6g})"
+        if self._t and t_ns <= self._t[-1]:
+            return "stamp not after the previous pose"
+        q = q / norm
+        if self._q and float(np.dot(q, self._q[-1])) < 0.0:
+            q = -q  # sign-continuous, as the file fit does
+        self._t.append(int(t_ns))
+        self._p.append(p)
+        self._q.append(q)
+        cut = 0
+        while len(self._t) - cut > 8 and self._t[-1] - self._t[cut] > self.window_ns:
+            cut += 1
+        if cut:
+            del self._t[:cut], self._p[:cut], self._q[:cut]
+        self._fit = None
+        self.pose_count += 1
+        self.span_s = (self._t[-1] - self.t0_ns) / 1e9
+        return None
+
+    def covers(self) -> tuple[float, float]:
+        """(first, last) time (s since t0) the buffered poses cover."""
+        if not self._t:
+            return (0.0, -1.0)
+        return ((self._t[0] - self.t0_ns) / 1e9, (self._t[-1] - self.t0_ns) / 1e9)
+
+    def _current(self) -> tuple[TrajectoryMotion, float]:
+        if len(self._t) < 2:
+            raise ValueError("motion_topic: fewer than 2 poses to fit")
+        if self._fit is None:
+            labels = tuple(f"pose {i}" for i in range(len(self._t)))
+            poses = PoseSeries(np.array(self._t, dtype=np.int64), np.array(self._p),
+                               np.array(self._q), labels, self.source)
+            self._fit = TrajectoryMotion(poses, self.origin_llh, self.position_sigma_m,
+                                         self.attitude_sigma_rad, max_gap_s=math.inf)
+        return self._fit, (self._t[0] - self.t0_ns) / 1e9
+
+    def tangent(self, t, need_accel: bool = False) -> TangentSample:
+        fit, shift = self._current()
+        return fit.tangent(np.asarray(t, dtype=np.float64) - shift, need_accel)
+
+    def imu(self, t, earth_rotation: bool = True, gravity: bool = True,
+            need_force: bool = True, truth: bool = True) -> TrajectorySample:
+        fit, shift = self._current()
+        return fit.imu(np.asarray(t, dtype=np.float64) - shift, earth_rotation, gravity,
+                       need_force, truth)
+
+    def evaluate(self, t, need_accel: bool = False) -> MotionSample:
+        fit, shift = self._current()
+        return fit.evaluate(np.asarray(t, dtype=np.float64) - shift, need_accel)
+
+    def velocity(self, t) -> np.ndarray:
+        fit, shift = self._current()
+        return fit.velocity(np.asarray(t, dtype=np.float64) - shift)
+
+    def position_llh(self, t) -> np.ndarray:
+        fit, shift = self._current()
+        return fit.position_llh(np.asarray(t, dtype=np.float64) - shift)
