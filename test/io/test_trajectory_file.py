@@ -216,3 +216,43 @@ def test_binary_or_missing_file_is_one_line(tmp_path, capsys):
     rc, _ = _simulate(tmp_path, tmp_path / "missing.tum")
     assert rc == 1 and "trajectory file not found" in capsys.readouterr().err
     assert math.isfinite(1.0)
+
+
+def test_output_never_overwrites_the_pose_file_and_flags_are_checked(tmp_path, capsys):
+    t, p, q = _rows()
+    tum = write_tum(tmp_path / "a.tum", t, p, q)
+    before = tum.read_bytes()
+    assert cli_main(["simulate", "lab_bench", "--trajectory", str(tum), "--out", str(tum),
+                     "--force", "--quiet"]) == 1
+    assert tum.read_bytes() == before and "simulate: error" in capsys.readouterr().err
+    rc, _ = _simulate(tmp_path, tum, "--position-sigma", "nan")
+    assert rc == 1 and "--position-sigma must lie in [0, 1]" in capsys.readouterr().err
+    rc, _ = _simulate(tmp_path, tum, "--duration", "100")
+    err = capsys.readouterr().err
+    assert rc == 1 and "longer than the 0.49 s the trajectory covers" in err
+    assert cli_main(["simulate", "lab_bench", "--out", str(tmp_path / "x.mcap")]) == 1
+    assert "--duration is required" in capsys.readouterr().err
+
+
+def test_scene_with_a_trajectory_reads_its_file_relative_to_itself(tmp_path):
+    import yaml
+
+    from gyro_attitude.io.scene_file import load_scene
+
+    t, p, q = _rows()
+    (tmp_path / "poses").mkdir()
+    write_tum(tmp_path / "poses" / "walk.tum", t, p, q)
+    scene = {"description": "walk", "seed": 1, "earth": {"latitude_deg": 45.0},
+             "motion": {"type": "trajectory", "file": "poses/walk.tum",
+                        "position_sigma_m": 0.0}}
+    (tmp_path / "walk.yaml").write_text(yaml.safe_dump(scene))
+    spec = load_scene(str(tmp_path / "walk.yaml"))
+    assert spec.start_time_ns == T0 and spec.duration_s == pytest.approx(0.49)
+    scene["motion"]["file"] = "nowhere.tum"
+    (tmp_path / "bad.yaml").write_text(yaml.safe_dump(scene))
+    with pytest.raises(ValueError, match="trajectory file not found"):
+        load_scene(str(tmp_path / "bad.yaml"))
+    scene["motion"] = {"type": "trajectory", "file": "poses/walk.tum", "position_sigma_m": 5.0}
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(scene))
+    with pytest.raises(ValueError, match=r"motion\.position_sigma_m: must be <= 1"):
+        load_scene(str(tmp_path / "s.yaml"))
