@@ -483,6 +483,11 @@ class LiveTrajectory(TrajectoryMotion):
         self.span_s = (self._t[-1] - self.t0_ns) / 1e9
         return None
 
+    @property
+    def last_stamp_ns(self) -> int | None:
+        """Stamp of the latest pose taken (None before the first)."""
+        return self._t[-1] if self._t else None
+
     def covers(self) -> tuple[float, float]:
         """(first, last) time (s since t0) the buffered poses cover."""
         if not self._t:

@@ -157,6 +157,7 @@ class GyroSimNode(Node):
         self._pub_odom = self.create_publisher(Odometry, "truth/odom", 100)
         self._pub_clock = self.create_publisher(Clock, "/clock", 10) if self._fast else None
         self._odom_wall: float | None = None  # monotonic time of the last odometry
+        self._created_at = time.monotonic()
         self._odom_intervals: list[int] = []
         self._warned: set[str] = set()
         self.rejected_odometry = 0
@@ -329,8 +330,8 @@ class GyroSimNode(Node):
             self.get_logger().info(f"odometry on {self._p['motion_topic']} resumed")
             self._warned.discard("stopped")
         self._odom_wall = now
-        if self._live is not None and self._live._t:
-            gap = t_ns - self._live._t[-1]
+        if self._live is not None and self._live.last_stamp_ns is not None:
+            gap = t_ns - self._live.last_stamp_ns
             if gap > self._p["motion_timeout_s"] * 1e9:
                 self.get_logger().warning(
                     f"odometry gap of {gap / 1e9:.3g} s in its stamps: the Imu restarts at "
@@ -358,13 +359,11 @@ class GyroSimNode(Node):
                                 "come from the spline fit (its bandwidth is the odometry's)")
 
     def _live_tick(self) -> None:
-        if self._odom_wall is None or time.monotonic() - self._odom_wall > \
-                self._p["motion_timeout_s"]:
-            waited = (time.monotonic() - self._odom_wall if self._odom_wall is not None
-                      else time.monotonic() - self._wait_deadline + self._p["wait_timeout_s"])
-            if waited > self._p["motion_timeout_s"]:
-                self._warn_once("stopped", f"no odometry on {self._p['motion_topic']} for "
-                                f"{waited:.3g} s: the Imu waits for it")
+        last = self._odom_wall if self._odom_wall is not None else self._created_at
+        waited = time.monotonic() - last
+        if waited > self._p["motion_timeout_s"]:
+            self._warn_once("stopped", f"no odometry on {self._p['motion_topic']} for "
+                            f"{waited:.3g} s: the Imu waits for it")
         if self._live is None or self._live.pose_count < 4:
             return
         ready_s = self._live.covers()[1] - self._p["motion_delay_s"]
