@@ -58,6 +58,9 @@ __all__ = [
     "UNIT_QUATERNION_TOLERANCE",
 ]
 
+#: Times this close outside the poses (s) are taken at the end pose: a finite-difference step
+#: of a consumer (the free gyro's base acceleration, 1e-5 s) may reach past the ends.
+EDGE_S = 1e-3
 #: Windows on which the smoothing parameter is searched (module docstring).
 LAMBDA_WINDOWS = 8
 LAMBDA_WINDOW = 1000
@@ -334,10 +337,10 @@ class TrajectoryMotion(Motion):
         t = np.asarray(t, dtype=np.float64)
         if t.ndim != 1 or not np.all(np.isfinite(t)):
             raise ValueError("times must be a 1-D array of finite values")
-        if t.size and (t.min() < -1e-9 or t.max() > self.span_s + 1e-9):
+        if t.size and (t.min() < -EDGE_S or t.max() > self.span_s + EDGE_S):
             raise ValueError(f"{self.source}: time {t.max() if t.max() > self.span_s else t.min():.9g}"
                              f" s is outside the {self.span_s:.9g} s the poses cover")
-        return t
+        return np.clip(t, 0.0, self.span_s)
 
     def tangent(self, t, need_accel: bool = False) -> TangentSample:
         """The fit at times ``t`` (s since the first pose)."""

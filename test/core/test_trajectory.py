@@ -205,6 +205,23 @@ def test_bad_poses_are_refused_naming_the_line(edit, message):
         check_poses(poses)
 
 
+def test_free_gyro_rides_a_trajectory_to_its_last_pose():
+    """The full free-gyro model differentiates the base rate around each step: at the last
+    sample that reaches past the poses (by 1e-5 s), which must not refuse the run."""
+    t = np.arange(121) / 120.0
+    p, q = F8.poses(t)
+    d = {"description": "free gyro walk", "seed": 1, "rate_hz": 100.0,
+         "earth": {"latitude_deg": 45.0}, "motion": {"type": "stationary"},
+         "free_gyro": {"spin_inertia": 1e-4, "transverse_inertia": 6e-5, "spin_rate": 500.0,
+                       "model": "full", "integrator": "rk4",
+                       "inner_gimbal_inertia": [1e-5, 1e-5, 1e-5],
+                       "outer_gimbal_inertia": [1e-5, 1e-5, 1e-5]}}
+    spec = dataclasses.replace(SceneSpec.from_dict(d), motion=TrajectoryMotion(poses_of(t, p, q), ORIGIN),
+                               motion_type="trajectory")
+    b = SceneSimulator(spec, 100.0).next_block(101)
+    assert b.gimbal is not None and np.all(np.isfinite(b.gimbal.positions))
+
+
 def test_times_outside_the_poses_are_refused():
     motion = TrajectoryMotion(mocap(), ORIGIN)
     with pytest.raises(ValueError, match="outside the 30 s the poses cover"):
