@@ -57,10 +57,13 @@ def plot_rates(path: pathlib.Path, seconds: float = 12.0) -> dict:
 
     from gyro_attitude.core import earth
     from gyro_attitude.core.figure_eight import FigureEight
-    from gyro_attitude.io.make_figure_eight import START_S, default_output
+    from gyro_attitude.io.make_figure_eight import START_S
+    from gyro_attitude.io.scene_file import find_scene_file, read_scene_dict
     from gyro_attitude.io.trajectory_file import read_tum
 
-    poses = read_tum(default_output())
+    # the pose file the shipped scene names (source tree or install share, as scenes are found)
+    scene = find_scene_file("figure_eight_walk")
+    poses = read_tum(scene.parent / read_scene_dict(scene)["motion"]["file"])
     motion = TrajectoryMotion(poses, ORIGIN, 1e-3, math.radians(0.1))
     t = np.arange(int(seconds * IMU_RATE_HZ) + 1) / IMU_RATE_HZ + 4.0
     sim = motion.imu(t, truth=False)
