@@ -96,6 +96,7 @@ _EVENT_WORDS = {
     "time_jump": "backward time jump(s): attitude reset",
     "invalid_covariance": "invalid angular_velocity_covariance(s) treated as unknown",
     "integrator_error": "non-finite update(s): last good attitude restored",
+    "saturated": "gyro sample(s) pinned at a repeated extreme (saturated: attitude unreliable)",
     iv.MISSING_SAMPLES: "sample(s) missing inside accepted intervals (integrated across; "
                         "longer holes are gaps: --max-missing-samples)",
 }
@@ -149,7 +150,7 @@ def run(args) -> int:
     events = {**out["skipped"], iv.GAP: out["gaps"], "time_jump": out["time_jump_resets"],
               "invalid_covariance": out["invalid_covariances"],
               "integrator_error": out["integrator_errors"],
-              iv.MISSING_SAMPLES: out["missing_samples"]}
+              iv.MISSING_SAMPLES: out["missing_samples"], "saturated": out["saturated"]}
     for reason, n in events.items():
         if n:
             what = _EVENT_WORDS.get(reason, f"sample(s) skipped ({reason})")

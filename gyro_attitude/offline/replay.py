@@ -85,6 +85,7 @@ class ReplayResult:
     invalid_covariances: int
     integrator_errors: int
     missing_samples: int
+    saturated: int
     details: dict[str, str]
     skipped_before_truth: int
     gyro_bias: str
@@ -307,7 +308,8 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         gaps=res.counts[iv.GAP], time_jump_resets=res.time_jump_resets,
         invalid_covariances=res.counts["invalid_covariance"],
         integrator_errors=res.counts["integrator_error"],
-        missing_samples=res.counts[iv.MISSING_SAMPLES], details=res.details,
+        missing_samples=res.counts[iv.MISSING_SAMPLES], saturated=res.counts["saturated"],
+        details=res.details,
         skipped_before_truth=first, gyro_bias=bias_summary(res.bias),
         gyro_bias_rad_s=np.asarray(res.bias.bias, float).tolist(),
         alignment=None if res.alignment is None else _alignment_summary(res.alignment),
