@@ -77,7 +77,11 @@ def simulate(scene: str | SceneSpec, duration_s: float, out, *, rate_hz: float |
     (temporary name, renamed when complete), so ``out`` is never half-written.
     ``ValueError`` (one line) on a bad scene, duration, rate, seed or output.
     """
-    spec = load_scene(scene) if isinstance(scene, str) else scene
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)
+                             or seed < 0):
+        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+    # a seed given here stands in for the file's (which may then be left out)
+    spec = load_scene(scene, seed=seed) if isinstance(scene, str) else scene
     if not isinstance(spec, SceneSpec):
         raise ValueError(f"scene must be a name, a path or a SceneSpec, got {type(scene).__name__}")
     if rate_hz is not None and (isinstance(rate_hz, bool)
@@ -96,9 +100,6 @@ def simulate(scene: str | SceneSpec, duration_s: float, out, *, rate_hz: float |
     if n_total > MAX_SAMPLES:
         raise ValueError(f"duration {duration_s} s at {rate:g} Hz is {n_total} samples; "
                          f"the limit is {MAX_SAMPLES}")
-    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)
-                             or seed < 0):
-        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
     out = check_output_path(out, inputs=_scene_inputs(scene), force=force)
 
     sim = SceneSimulator(spec, rate, seed=seed)

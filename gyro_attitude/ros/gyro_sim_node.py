@@ -106,11 +106,11 @@ class GyroSimNode(Node):
         p = declare_all(self, specs)
         self._p = p
 
+        seed = None if p["seed"] < 0 else p["seed"]
         try:
-            spec = load_scene(p["scene"])
+            spec = load_scene(p["scene"], seed=seed)  # the parameter stands in for seed:
         except Exception as exc:  # unknown name, unreadable file, YAML syntax, bad key
             raise ParameterError(f"parameter 'scene' = {p['scene']!r}: {exc}") from exc
-        seed = None if p["seed"] < 0 else p["seed"]
         if p["rate_hz"] == 0.0:
             p["rate_hz"] = float(spec.rate_hz)
         elif p["rate_hz"] < 1.0:
