@@ -10,6 +10,7 @@ output names it through a symlink, a relative path or the bag directory).
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import shutil
 import signal
@@ -18,11 +19,46 @@ import threading
 from collections.abc import Iterable
 from pathlib import Path
 
-__all__ = ["OutputPathError", "check_output_path", "SafeOutput"]
+__all__ = ["OutputPathError", "OutputWriteError", "write_error", "is_write_error",
+           "check_output_path", "SafeOutput"]
+
+# What writing (not reading) an output fails with: no space, no quota, a file too large.
+_WRITE_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 
 class OutputPathError(ValueError):
     """The requested output path cannot be used (names an input, exists, unwritable)."""
+
+
+class OutputWriteError(OSError):
+    """Writing an output failed (a full disk): the message is one line naming the file, the
+    free space left and what became of the data (see :func:`write_error`)."""
+
+
+def is_write_error(exc: BaseException) -> bool:
+    """True for an OSError that says the output could not be written (full disk, quota)."""
+    return isinstance(exc, OSError) and not isinstance(exc, OutputWriteError) \
+        and exc.errno in _WRITE_ERRNOS
+
+
+def _free_space(path: Path) -> str:
+    try:
+        free = shutil.disk_usage(Path(os.path.abspath(path)).parent).free
+    except OSError:
+        return "free space unknown"
+    for unit in ("B", "kB", "MB", "GB"):
+        if free < 1000 or unit == "GB":
+            return f"{free:.0f} {unit} free" if unit == "B" else f"{free:.1f} {unit} free"
+        free /= 1000
+    return ""  # not reached
+
+
+def write_error(path, exc: OSError, outcome: str) -> OutputWriteError:
+    """One line for a failed write of ``path``: ``"<path>: No space left on device (0 B free
+    in <dir>); <outcome>"``."""
+    directory = Path(os.path.abspath(path)).parent
+    return OutputWriteError(f"{path}: {exc.strerror or exc} ({_free_space(path)} in "
+                            f"{directory}); {outcome}")
 
 
 def _identity(path: Path) -> set:
@@ -143,6 +179,8 @@ class SafeOutput:
     def __exit__(self, exc_type, exc, tb) -> bool:
         if exc_type is None:
             self.commit()
-        else:
-            self.discard()
+            return False
+        self.discard()
+        if is_write_error(exc):  # a full disk: say which file, and the free space
+            raise write_error(self.path, exc, "nothing written under that name") from exc
         return False

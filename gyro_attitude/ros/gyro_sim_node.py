@@ -51,8 +51,8 @@ from gyro_attitude.core.sim_topics import (
     SimTopics,
     local_enu_position,  # noqa: F401  (re-exported: its home moved to core.sim_topics)
 )
-from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
-from gyro_attitude.io.safe_output import SafeOutput, check_output_path
+from gyro_attitude.io.recording import SafeRecording
+from gyro_attitude.io.safe_output import check_output_path
 from gyro_attitude.io.scene_file import load_scene
 from gyro_attitude.ros import convert
 from gyro_attitude.ros.node_main import run_node
@@ -139,8 +139,7 @@ class GyroSimNode(Node):
         self._pub_odom = self.create_publisher(Odometry, "truth/odom", 100)
         self._pub_clock = self.create_publisher(Clock, "/clock", 10) if self._fast else None
 
-        self._writer = None
-        self._record_output: SafeOutput | None = None
+        self._recording: SafeRecording | None = None
         self._serialize = None
         if p["record_path"]:
             self._open_recorder(p["record_path"])
@@ -170,13 +169,13 @@ class GyroSimNode(Node):
         # when finished (a killed simulator leaves it in a hidden .NAME.*.partial folder)
         try:
             check_output_path(path, what="record_path")
-            self._record_output = SafeOutput(path)
-            self._writer = Rosbag2McapWriter(self._record_output.open())
+            self._recording = SafeRecording(path)
             for topic, type_name in TOPICS.items():
-                self._writer.add_topic(self._resolve(topic), type_name)
+                self._recording.add_topic(self._resolve(topic), type_name)
         except (OSError, ValueError) as exc:
-            if self._record_output is not None:
-                self._record_output.discard()
+            if self._recording is not None:
+                self._recording.discard()
+                self._recording = None
             raise ParameterError(f"parameter 'record_path': {exc}") from exc
         self._serialize = serialize_message
 
@@ -185,14 +184,13 @@ class GyroSimNode(Node):
 
     def _record(self, topic: str, msg, t_ns: int) -> None:
         # log_time = when the sample is published (receive time of an in-process recorder)
-        self._writer.write(self._resolve_cache[topic], self._serialize(msg), t_ns, t_ns)
+        self._recording.write(self._resolve_cache[topic], self._serialize(msg), t_ns, t_ns)
 
     def close(self) -> None:
-        """Finish the recording (idempotent)."""
-        if self._writer is not None:
-            self._writer.finish()
-            self._writer = None
-            self._record_output.commit()
+        """Finish the recording (idempotent); a full disk raises OutputWriteError (one line,
+        the recording so far kept readable under its name)."""
+        if self._recording is not None:
+            self._recording.close()
 
     # ------------------------------------------------------------------ parameters
     def _on_set_parameters(self, params) -> SetParametersResult:
@@ -241,7 +239,7 @@ class GyroSimNode(Node):
             msgs += [("truth/attitude", att), ("truth/odom", odom)]
         if self._pub_clock is not None:
             self._pub_clock.publish(Clock(clock=imu.header.stamp))
-        if self._writer is not None:
+        if self._recording is not None and not self._recording.closed:
             for topic, m in msgs:
                 self._record(topic, m, t_ns)
         self.published += 1
