@@ -16,11 +16,13 @@ from __future__ import annotations
 
 import struct
 import sys
+import threading
 import time
 
 import rclpy
 from mcap.exceptions import McapError
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from gyro_attitude.io.mcap_reader import (
@@ -230,9 +232,34 @@ class McapPlayerNode(Node):
         return count
 
 
+def _serve(executor) -> None:
+    """Spin ``executor`` until it is shut down (the player's services while it plays)."""
+    try:
+        executor.spin()
+    except Exception:  # a signal shut the context down under it: the play loop ends too
+        if rclpy.ok():
+            raise
+
+
 def _play(node: McapPlayerNode) -> None:
     node.get_logger().info(f"playing {node.path} at rate {node.rate:g}"
                            + (" (loop)" if node.loop else ""))
+    # The play loop keeps this thread (it sleeps to the next message's time); parameter
+    # services (set/get/describe/list) are answered meanwhile by an executor on its own
+    # thread. Publishing from one thread while another spins is safe in rclpy.
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    services = threading.Thread(target=_serve, args=(executor,), name="mcap_player_services",
+                                daemon=True)
+    services.start()
+    try:
+        _play_passes(node)
+    finally:
+        executor.shutdown(timeout_sec=1.0)
+        services.join(timeout=2.0)
+
+
+def _play_passes(node: McapPlayerNode) -> None:
     try:
         while rclpy.ok():
             n = node.play_once()
