@@ -8,7 +8,7 @@ receives them -- through the attitude-stream policy the ``attitude_integrator`` 
 reason, no integration across gaps, reset on backward time jumps, orientation variance), write
 the samples that got an attitude through a temporary file renamed into place
 (:mod:`gyro_attitude.io.safe_output`) with both topics merged by log time, and compare with the
-truth at coinciding stamps.  Samples are never re-sorted.
+truth interpolated at the output stamps it covers.  Samples are never re-sorted.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from gyro_attitude.core.attitude.stream import (
     StreamConfig,
     bias_summary,
 )
-from gyro_attitude.core.attitude.truth import initial_attitude_from_truth
+from gyro_attitude.core.attitude.truth import initial_attitude_from_truth, truth_at_stamps
 from gyro_attitude.core.rotation import quat_angle_between
 from gyro_attitude.io.cdr_arrays import (
     IMU_TYPE,
@@ -295,23 +295,32 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         messages_per_second=len(imu) / max(t_end - t_start, 1e-12), input_damage=damage,
         index=keep, t_ns=tv, q=qv, error_t_ns=np.zeros(0, np.int64), error_rad=np.zeros(0))
     if truth is not None and len(truth):
-        # match in stamp order (the output is in file order and may jump back in time)
-        order = np.argsort(tv, kind="stable")
-        ts = tv[order]
-        idx = np.minimum(np.searchsorted(ts, truth.stamp_ns), ts.size - 1)
-        hit = ts[idx] == truth.stamp_ns
-        if hit.any():
-            err = quat_angle_between(qv[order[idx[hit]]], truth.quaternion[hit])
-            tt = truth.stamp_ns[hit]
-            k = np.argsort(tt, kind="stable")
-            err, tt = err[k], tt[k]
-            result.truth_topic = truth.topic
-            result.truth_matched = int(hit.sum())
-            result.final_error_rad = float(err[-1])
-            result.max_error_rad = float(err.max())
-            result.rms_error_rad = float(np.sqrt(np.mean(err**2)))
-            result.error_t_ns, result.error_rad = tt, err
+        _compare_with_truth(result, truth, tv, qv)
     return result
+
+
+def _compare_with_truth(result: ReplayResult, truth, t_ns: np.ndarray, q: np.ndarray) -> None:
+    """Error figures against the truth slerped at every output stamp it covers (the truth
+    runs on its own clock: a tracker at 120 Hz beside a 200 Hz Imu shares no stamp)."""
+    ts, tq = truth.stamp_ns, truth.quaternion
+    usable = np.isfinite(tq).all(axis=1) & (np.linalg.norm(tq, axis=1) > 1e-9)
+    order = np.argsort(ts[usable], kind="stable")
+    ts, tq = ts[usable][order], tq[usable][order]
+    first = np.r_[True, np.diff(ts) > 0] if ts.size else np.zeros(0, bool)
+    ts, tq = ts[first], tq[first]  # a repeated truth stamp: the first one recorded
+    if ts.size == 0:
+        return
+    order = np.argsort(t_ns, kind="stable")  # the output may jump back in time
+    qt, covered = truth_at_stamps(ts, tq, t_ns[order])
+    if not covered.any():
+        return
+    err = quat_angle_between(q[order[covered]], qt)
+    result.truth_topic = truth.topic
+    result.truth_matched = int(covered.sum())
+    result.final_error_rad = float(err[-1])
+    result.max_error_rad = float(err.max())
+    result.rms_error_rad = float(np.sqrt(np.mean(err**2)))
+    result.error_t_ns, result.error_rad = t_ns[order[covered]], err
 
 
 def write_error_plot(result: ReplayResult, png, *, force: bool = True) -> None:

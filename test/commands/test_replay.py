@@ -15,6 +15,7 @@ from scipy.spatial.transform import Rotation
 
 from gyro_attitude.cli import main as cli_main
 from gyro_attitude.core.attitude import NavFrame, integrate_batch
+from gyro_attitude.io.cdr_arrays import imu_batch, quaternion_stamped_batch
 from gyro_attitude.io.imu_fast import read_imu_arrays, read_quaternion_stamped_arrays
 from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
 from gyro_attitude.offline.replay import replay_file
@@ -368,3 +369,34 @@ def test_policy_flags_out_of_range_are_one_line_exit_2(tmp_path, capsys, flag, v
     err = capsys.readouterr().err
     assert flag in err and "Traceback" not in err
     assert not (tmp_path / "o.mcap").exists()
+
+
+def test_truth_on_its_own_clock_is_interpolated_at_the_imu_stamps(tmp_path, capsys):
+    """Truth at 120 Hz, offset 1.3 ms from a 200 Hz Imu: no stamp coincides. The error is
+    taken against the truth slerped at every Imu stamp the truth covers. Constant rate about
+    z, so the slerp of the exact truth is exact: a truth tilted by 0.1 rad gives 0.1."""
+    n, omega = 2001, 0.7
+    t = 10**9 + np.arange(n, dtype=np.int64) * 5_000_000
+    w = np.tile([0.0, 0.0, omega], (n, 1))
+    tt = 10**9 + 1_300_000 + (np.arange(1100, dtype=np.int64) * 10**9) // 120
+    tt = tt[tt <= t[-1] + 5_000_000]
+    s_rel = (tt - t[0]) * 1e-9
+    exact = np.stack([0 * s_rel, 0 * s_rel, np.sin(omega * s_rel / 2),
+                      np.cos(omega * s_rel / 2)], 1)
+    tilted = (Rotation.from_rotvec([0.1, 0.0, 0.0]) * Rotation.from_quat(exact)).as_quat()
+    path = tmp_path / "in.mcap"
+    with Rosbag2McapWriter(path, chunk_size=50_000) as wr:
+        wr.add_topic("imu/data_raw", IMU)
+        wr.add_topic("truth/attitude", QS)
+        wr.write_batches([imu_batch("imu/data_raw", t, w),
+                          quaternion_stamped_batch("truth/attitude", tt, tilted)])
+    s = replay_file(path, tmp_path / "o.mcap")
+    covered = ((t >= tt[0]) & (t <= tt[-1])).sum()
+    assert s.truth_matched == covered and covered > 1800
+    assert abs(s.final_error_rad - 0.1) < 1e-9 and abs(s.max_error_rad - 0.1) < 1e-9
+    assert abs(s.rms_error_rad - 0.1) < 1e-9
+    np.testing.assert_array_equal(s.error_t_ns, t[(t >= tt[0]) & (t <= tt[-1])])
+    # and the CLI prints the figures instead of "no truth topic"
+    assert cli_main(["replay", str(path), "--out", str(tmp_path / "o2.mcap")]) == 0
+    out = capsys.readouterr().out
+    assert "no truth topic" not in out and f"({covered} stamps)" in out
