@@ -14,6 +14,7 @@ the same way.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -34,6 +35,7 @@ __all__ = [
     "read_imu_arrays",
     "read_quaternion_stamped_arrays",
     "read_topic_arrays",
+    "deserialized",
 ]
 
 _FIELDS = {type_name: dict(fields) for type_name, fields in cdr_arrays.BODY_FIELDS.items()}
@@ -54,10 +56,27 @@ class _TopicArrays:
     def __len__(self) -> int:
         return int(self.stamp_ns.shape[0])
 
+    def in_log_time_order(self):
+        """These messages in log-time order, file order among equal log times: the order
+        ``ros2 bag play`` and ``mcap_player`` deliver them (the one order rule of replay and
+        player). ``self`` when already in that order (no copy)."""
+        log = self.log_time_ns
+        if log.size < 2 or not (log[1:] < log[:-1]).any():
+            return self
+        order = np.argsort(log, kind="stable")
+        changes = {}
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == log.size \
+                    and v.strides[0] != 0:  # a broadcast constant row stays as it is
+                changes[f.name] = v[order]
+        return dataclasses.replace(self, **changes)
+
 
 @dataclass
 class ImuArrays(_TopicArrays):
-    """All messages of one ``sensor_msgs/msg/Imu`` topic as arrays, in file order.
+    """All messages of one ``sensor_msgs/msg/Imu`` topic as arrays, in file order
+    (:meth:`in_log_time_order` gives them as a player delivers them).
 
     ``stamp_ns`` header stamps, ``log_time_ns``/``publish_time_ns`` MCAP times (int64 ns);
     ``orientation`` (N, 4) x, y, z, w; ``angular_velocity`` (N, 3) rad/s;
@@ -202,8 +221,6 @@ class _Collector:
     def add_messages(self, msgs: list[tuple[int, int, bytes]]) -> list[str]:
         """Per-message fallback: rclpy deserialization of (log_time, publish_time, data).
         Messages that do not deserialize are left out; returns what was wrong with them."""
-        from rclpy.serialization import deserialize_message  # lazy: no rclpy at io top
-
         if self.type_name == IMU_TYPE:
             from sensor_msgs.msg import Imu as msg_type
         else:
@@ -212,11 +229,9 @@ class _Collector:
                                                  *_FIELDS[self.type_name])}
         bad: list[str] = []
         for log, pub, data in msgs:
-            try:
-                m = deserialize_message(data, msg_type)
-            except Exception as exc:  # rclpy raises plain exceptions on bad CDR
-                bad.append(f"{self.topic}: message at log time {log} does not deserialize "
-                           f"as {self.type_name} ({str(exc).splitlines()[0][:80]})")
+            m, problem = deserialized(data, msg_type, self.topic, self.type_name, log)
+            if problem is not None:
+                bad.append(problem)
                 continue
             cols["stamp_ns"].append(m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec)
             cols["log_time_ns"].append(log)
@@ -253,6 +268,19 @@ class _Collector:
         return cls(topic=self.topic, frame_id=self.frame_ids[0] if self.frame_ids else "",
                    frame_ids=set(self.frame_ids), fast_messages=self.fast,
                    fallback_messages=self.fallback, damage=damage, **out)
+
+
+def deserialized(data, msg_type, topic: str, type_name: str, log_time: int):
+    """``(message, None)``, or ``(None, why)`` when ``data`` does not deserialize as
+    ``msg_type`` (a truncated or foreign CDR payload): the one rule of replay and player,
+    which skip such a message and name it."""
+    from rclpy.serialization import deserialize_message  # lazy: no rclpy at io top
+
+    try:
+        return deserialize_message(data, msg_type), None
+    except Exception as exc:  # rclpy raises plain exceptions on bad CDR
+        return None, (f"{topic}: message at log time {log_time} does not deserialize as "
+                      f"{type_name} ({str(exc).splitlines()[0][:80]})")
 
 
 def _message_field(msg, name: str) -> tuple:

@@ -2,13 +2,14 @@
 ``attitude`` and ``imu/data`` to a new MCAP file (no ROS graph).
 
 Pipeline (:func:`replay_file`): read the Imu (and truth) topic array-wide
-(:mod:`gyro_attitude.io.imu_fast`), run the samples in file order -- the order a live node
-receives them -- through the attitude-stream policy the ``attitude_integrator`` node applies
+(:mod:`gyro_attitude.io.imu_fast`), run the samples in log-time order -- the order a live
+node receives them from ``ros2 bag play`` or ``mcap_player`` -- through the attitude-stream
+policy the ``attitude_integrator`` node applies
 (:class:`gyro_attitude.core.attitude.stream.AttitudeStream`: bad samples skipped and counted by
 reason, no integration across gaps, reset on backward time jumps, orientation variance), write
 the samples that got an attitude through a temporary file renamed into place
 (:mod:`gyro_attitude.io.safe_output`) with both topics merged by log time, and compare with the
-truth interpolated at the output stamps it covers.  Samples are never re-sorted.
+truth interpolated at the output stamps it covers.  Samples are never re-sorted by stamp.
 """
 
 from __future__ import annotations
@@ -59,8 +60,8 @@ OUTPUT_CHUNK_SIZE = 4 * 1024 * 1024
 @dataclass
 class ReplayResult:
     """What a replay did.  :meth:`summary` gives the scalar fields (the ``--json`` output);
-    the arrays are ``index`` (positions in the input of the samples that got an attitude),
-    their stamps ``t_ns`` and attitudes ``q`` (file order), and the error series
+    the arrays are ``index`` (positions, in log-time order, of the samples that got an attitude),
+    their stamps ``t_ns`` and attitudes ``q`` (log-time order), and the error series
     ``error_t_ns``/``error_rad`` (empty without truth).  ``skipped`` counts skipped samples by
     reason; ``gaps`` and ``time_jump_resets`` count the policy's other events; ``details``
     holds the first log line per reason."""
@@ -199,7 +200,9 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     if imu_topic not in arrays:
         raise ValueError(f"{input_path}: no Imu topic {imu_topic!r} (use --imu-topic)"
                          + (f"; {damage}" if damage else ""))
-    imu = arrays[imu_topic]
+    # in log-time order, as ros2 bag play and mcap_player deliver them to the node (a file
+    # written with receive jitter is not stored in that order)
+    imu = arrays[imu_topic].in_log_time_order()
     if len(imu) == 0:
         raise ValueError(f"{input_path}: topic {imu.topic} has no messages"
                          + (f"; {damage}" if damage else ""))

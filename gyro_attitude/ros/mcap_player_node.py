@@ -1,7 +1,9 @@
 """``mcap_player``: republish a recording with its original timing, a rate factor,
 looping and ``/clock``.
 
-Messages are published serialized (no decode) in log-time order, read by the package's one
+Messages are published serialized in log-time order (each one is checked to deserialize
+as its type: one that does not, e.g. truncated, is skipped and named, as replay skips
+it), read by the package's one
 MCAP reader (:class:`gyro_attitude.io.mcap_reader.McapStreamReader`): streamed chunk by chunk
 when the summary says where chunks start, else (a recorder killed with ``kill -9``) every
 readable message sorted in memory.  Publishers get the
@@ -25,6 +27,7 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
+from gyro_attitude.io.imu_fast import deserialized
 from gyro_attitude.io.mcap_reader import (
     UNFINISHED,
     McapStreamReader,
@@ -141,6 +144,7 @@ class McapPlayerNode(Node):
         self.wait_for_subscribers = p["wait_for_subscribers"]
         self.wait_timeout_s = p["wait_timeout_s"]
         self._pubs: dict[str, object] = {}
+        self._classes: dict[str, type] = {}  # message class per played topic
         self._clock_pub = None
         if p["publish_clock"]:
             from rosgraph_msgs.msg import Clock
@@ -149,6 +153,7 @@ class McapPlayerNode(Node):
             self._clock_pub = self.create_publisher(Clock, "/clock", 10)
         self.published = 0
         self.damages: list[str] = []  # damage the reader met and skipped, in file order
+        self.undecodable: dict[str, int] = {}  # topic -> messages skipped as undecodable
         self.damage_reported = False
 
     def _on_set_parameters(self, params) -> SetParametersResult:
@@ -164,6 +169,7 @@ class McapPlayerNode(Node):
                 self.get_logger().warning(f"not playing {topic}: {exc}")
                 self._pubs[topic] = None
                 return None
+            self._classes[topic] = cls
             try:
                 profiles = parse_qos_profiles(qos_yaml)
             except ValueError:
@@ -171,6 +177,19 @@ class McapPlayerNode(Node):
             self._pubs[topic] = self.create_publisher(
                 cls, name, adapted_qos(profiles, PLAYBACK_QUEUE_DEPTH))
         return self._pubs[topic]
+
+    def _decodes(self, topic: str, type_name: str, log_time: int, data) -> bool:
+        """Whether ``data`` deserializes as its type: a message that does not (truncated)
+        is skipped and named, as replay skips it, instead of reaching subscribers that
+        cannot read it."""
+        _, problem = deserialized(data, self._classes[topic], topic, type_name, log_time)
+        if problem is None:
+            return True
+        n = self.undecodable[topic] = self.undecodable.get(topic, 0) + 1
+        if n == 1:  # the first per topic is named; the count is in the final report
+            self.get_logger().warning(f"{problem}: skipped")
+            self.damages.append(problem)
+        return False
 
     def _publish_clock(self, bag_ns: int) -> None:
         msg = self._clock_cls()
@@ -225,7 +244,7 @@ class McapPlayerNode(Node):
                 wake = target if self._clock_pub is None else min(target, next_clock)
                 time.sleep(max(0.0, min(wake - now, 0.05)))
             pub = self._publisher(topic, type_name, qos_yaml)
-            if pub is not None:
+            if pub is not None and self._decodes(topic, type_name, log_time, data):
                 pub.publish(data)
                 count += 1
                 self.published += 1  # counted at once: an interrupted pass reports it too
@@ -286,7 +305,9 @@ def _play_passes(node: McapPlayerNode) -> None:
 
 
 def _report(node: McapPlayerNode) -> None:
-    print(f"mcap_player: published {node.published} messages", flush=True)
+    skipped = "".join(f"; skipped {n} on {t} that did not deserialize"
+                      for t, n in node.undecodable.items())
+    print(f"mcap_player: published {node.published} messages{skipped}", flush=True)
 
 
 def main(args=None) -> int:

@@ -262,3 +262,41 @@ def test_parameter_services_answer_while_playing(launch, ros_node, tmp_path):
     assert n_mid < 3000 and proc.proc.poll() is None  # still playing throughout
     print(f"\n{answered + 1} of {answered + 1} parameter calls answered while playing")
     assert proc.stop(timeout=10) == 0, proc.output()
+
+
+def _truncated_message_recording(path, n=100, bad=40):
+    """n Imu messages at 100 Hz, message ``bad`` cut by one byte (its record stays whole)."""
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import Imu
+
+    t = 10**9 + np.arange(n, dtype=np.int64) * 10**7
+    with Rosbag2McapWriter(path, chunk_size=4000) as wr:
+        wr.add_topic("imu/data_raw", "sensor_msgs/msg/Imu")
+        for k in range(n):
+            m = Imu()
+            m.header.stamp.sec, m.header.stamp.nanosec = divmod(int(t[k]), 10**9)
+            m.header.frame_id = "imu_link"
+            m.angular_velocity.x = float(k)
+            data = serialize_message(m)
+            wr.write("imu/data_raw", data[:-1] if k == bad else data, int(t[k]))
+    return t
+
+
+def test_a_message_that_does_not_decode_is_skipped_and_named_as_replay_does(
+        launch, ros_node, tmp_path):
+    from gyro_attitude.offline.replay import replay_file
+
+    path = tmp_path / "in.mcap"
+    t = _truncated_message_recording(path)
+    r = replay_file(path, tmp_path / "out.mcap")  # the rule replay already follows
+    assert r.attitude_messages == len(t) - 1 and "does not deserialize" in r.input_damage
+    got, _ = _subscribe(ros_node)
+    proc = launch(MODULE, "-p", f"input:={path}", "-p", "namespace_topics:=true",
+                  "-p", "wait_for_subscribers:=1", "-p", "publish_clock:=false", "-p", "rate:=4.0")
+    assert proc.wait(timeout=30) == 1, proc.output()
+    ros_node.spin_until(lambda: len(got) >= len(t) - 1, 5.0)
+    out = proc.output()
+    assert "Traceback" not in out
+    assert f"message at log time {t[40]} does not deserialize as sensor_msgs/msg/Imu" in out
+    assert sorted(g[1] for g in got) == [k for k in range(len(t)) if k != 40]
+    assert "published 99 messages" in out
