@@ -105,7 +105,6 @@ class QuaternionArrays(_TopicArrays):
 class _Collector:
     def __init__(self, topic: str, type_name: str, fields=None):
         self.topic = topic
-        self.matched: str | None = None  # the recorded topic read into this collector
         self.type_name = type_name
         all_fields = _FIELDS[type_name]
         if fields is None:
@@ -418,13 +417,7 @@ def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
                         if ch.message_encoding != "cdr":
                             raise ValueError(f"topic {ch.topic} has message encoding "
                                              f"{ch.message_encoding!r}, expected 'cdr'")
-                        if c.matched is not None and c.matched != ch.topic:
-                            # a relative name matched a namespaced topic until the exact
-                            # one was defined later in the file: never mix the two series
-                            raise ValueError(f"topic {t!r} named {c.matched} until "
-                                             f"{ch.topic} appeared later in the file; "
-                                             "give the full topic name")
-                        c.topic = c.matched = ch.topic
+                        c.topic = ch.topic
                         col = c
             by_channel[cid] = col
         return by_channel[cid]

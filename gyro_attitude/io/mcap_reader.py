@@ -182,18 +182,18 @@ def topic_matches(topic: str, wanted: str) -> bool:
 
 
 def match_topic(recorded: list[str], wanted: str) -> str | None:
-    """The recorded topic ``wanted`` names: equal up to a leading ``/``, or, for a relative
-    name, the one recorded topic ending in ``/<wanted>`` (any namespace).  None if none;
-    ValueError when a relative name fits several namespaces."""
-    exact = [t for t in recorded if topic_matches(t, wanted)]
-    if exact:
-        return exact[0]
+    """The recorded topic ``wanted`` names: for a full name (``/imu``) the topic equal to it;
+    for a relative name (``imu``) the one recorded topic equal to it up to the leading ``/``
+    or ending in ``/<wanted>`` (any namespace).  None if none; ValueError when a relative
+    name fits several topics (``/imu`` and ``/robot/imu`` alike: which one was meant
+    cannot depend on which channel a file happens to define first)."""
     if wanted.startswith("/"):
-        return None
-    ends = sorted({t for t in recorded if t.endswith("/" + wanted)})
-    if len(ends) > 1:
-        raise ValueError(f"topic {wanted!r} is ambiguous: {ends}; give the full name")
-    return ends[0] if ends else None
+        return next((t for t in recorded if topic_matches(t, wanted)), None)
+    fits = sorted({t for t in recorded if topic_matches(t, wanted)
+                   or t.endswith("/" + wanted)})
+    if len(fits) > 1:
+        raise ValueError(f"topic {wanted!r} is ambiguous: {fits}; give the full name")
+    return fits[0] if fits else None
 
 
 def resolve_mcap_path(path) -> Path:
