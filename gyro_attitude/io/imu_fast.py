@@ -24,6 +24,7 @@ from gyro_attitude.io import cdr_arrays
 from gyro_attitude.io.cdr_arrays import IMU_TYPE, QUATERNION_STAMPED_TYPE
 from gyro_attitude.io.mcap_reader import (
     McapStreamReader,
+    bag_files,
     iter_chunk_records,
     match_topic,
 )
@@ -385,6 +386,8 @@ def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
                       required: bool = True, fields: dict | None = None) -> dict:
     """Read several fixed-layout topics in one pass: ``{topic: type_name}`` -> arrays.
 
+    ``path`` an MCAP file or a rosbag2 bag directory (a split bag's files are read in the
+    order its ``metadata.yaml`` lists them, as rosbag2 does, and joined).
     ``type_name`` is ``sensor_msgs/msg/Imu`` or ``geometry_msgs/msg/QuaternionStamped``.
     A relative topic name also matches the one recorded topic ending in ``/<name>`` (any
     namespace).  A topic recorded with another type raises ValueError naming both types;
@@ -396,6 +399,55 @@ def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
     for t, ty in topics.items():
         if ty not in _FIELDS:
             raise ValueError(f"no array reader for {ty!r} (topic {t}); have {sorted(_FIELDS)}")
+    if isinstance(path, bytes | bytearray | memoryview):
+        return _read_file_arrays(path, topics, on_damage, validate_crc, progress, required,
+                                 fields)
+    files = bag_files(path)
+    if len(files) == 1:
+        return _read_file_arrays(files[0], topics, on_damage, validate_crc, progress,
+                                 required, fields)
+    sizes = [f.stat().st_size for f in files]
+    parts: dict[str, list] = {}
+    for k, f in enumerate(files):
+        done = sum(sizes[:k])
+
+        def part_progress(n, _total, done=done):
+            progress(done + n, sum(sizes))
+
+        got = _read_file_arrays(f, topics, on_damage, validate_crc,
+                                None if progress is None else part_progress, False, fields)
+        for t, a in got.items():
+            parts.setdefault(t, []).append(a)
+    missing = [t for t in topics if t not in parts]
+    if required and missing:
+        raise ValueError(f"{path}: no topic {missing[0]!r} in any of its {len(files)} files")
+    return {t: _joined(p) for t, p in parts.items()}
+
+
+def _joined(parts: list):
+    """One topic's arrays of several files, in file order."""
+    if len(parts) == 1:
+        return parts[0]
+    first = parts[0]
+    changes = {}
+    for f in dataclasses.fields(first):
+        vals = [getattr(p, f.name) for p in parts]
+        if not isinstance(vals[0], np.ndarray):
+            continue
+        if all(v.ndim == 2 and v.strides[0] == 0 and len(v) for v in vals) and \
+                all(np.array_equal(v[0], vals[0][0]) for v in vals):
+            n = sum(len(v) for v in vals)  # one constant row in every file: keep it so
+            changes[f.name] = np.broadcast_to(vals[0][0], (n, vals[0].shape[1]))
+        else:
+            changes[f.name] = np.concatenate(vals)
+    return dataclasses.replace(
+        first, frame_ids=set().union(*(p.frame_ids for p in parts)),
+        fast_messages=sum(p.fast_messages for p in parts),
+        fallback_messages=sum(p.fallback_messages for p in parts),
+        damage=next((p.damage for p in parts if p.damage), None), **changes)
+
+
+def _read_file_arrays(path, topics, on_damage, validate_crc, progress, required, fields):
     reader = McapStreamReader(path, validate_crc=validate_crc, on_damage=on_damage,
                               reuse_buffers=True)
     total = reader.size

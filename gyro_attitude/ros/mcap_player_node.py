@@ -20,6 +20,7 @@ import struct
 import sys
 import threading
 import time
+from pathlib import Path
 
 import rclpy
 from mcap.exceptions import McapError
@@ -31,8 +32,8 @@ from gyro_attitude.io.imu_fast import deserialized
 from gyro_attitude.io.mcap_reader import (
     UNFINISHED,
     McapStreamReader,
+    bag_files,
     match_topic,
-    resolve_mcap_path,
 )
 from gyro_attitude.io.mcap_records import MAGIC
 from gyro_attitude.io.qos import parse_qos_profiles
@@ -80,25 +81,26 @@ def check_recording_start(path) -> None:
         raise InputError(f"{path}: not an MCAP file (no MCAP magic at the start)")
 
 
-def iter_log_time_order(path, topics: list[str] | None, damages: list[str] | None = None):
-    """(topic, type_name, offered_qos_yaml, log_time, data) in log-time order; damage met
+def iter_log_time_order(paths, topics: list[str] | None, damages: list[str] | None = None):
+    """(topic, type_name, offered_qos_yaml, log_time, data) in log-time order within each of
+    ``paths`` (a split bag's files, one after the other, as rosbag2 plays them); damage met
     on the way (skipped by the reader) is appended to ``damages`` when given."""
-    reader = McapStreamReader(path, on_damage="warn")
-    wanted = None
-    if topics is not None:
-        summary = reader.summary()
-        recorded = [c.topic for c in (summary.channels if summary else reader.channels).values()]
-        wanted = [match_topic(recorded, t) or t for t in topics]
-    for m in reader.iter_messages(wanted, log_time_order=True):
-        yield (m.channel.topic, m.channel.type_name,
-               m.channel.metadata.get("offered_qos_profiles", ""), m.log_time, m.data)
-    if damages is not None:
-        damages.extend(d for d in reader.damages if d not in damages)
+    for path in paths:
+        reader = McapStreamReader(path, on_damage="warn")
+        wanted = None
+        if topics is not None:
+            summary = reader.summary()
+            recorded = [c.topic for c in (summary.channels if summary else reader.channels)
+                        .values()]
+            wanted = [match_topic(recorded, t) or t for t in topics]
+        for m in reader.iter_messages(wanted, log_time_order=True):
+            yield (m.channel.topic, m.channel.type_name,
+                   m.channel.metadata.get("offered_qos_profiles", ""), m.log_time, m.data)
+        if damages is not None:
+            damages.extend(d for d in reader.damages if d not in damages)
 
 
-def recorded_channels(path, topics: list[str] | None) -> list[tuple[str, str, str]]:
-    """(topic, type_name, offered_qos_yaml) of the recorded channels (optionally a subset);
-    InputError naming the recorded topics when a requested topic is not among them."""
+def _file_channels(path) -> list[tuple[str, str, str]]:
     reader = McapStreamReader(path, on_damage="warn")
     summary = reader.summary()
     if summary is not None and summary.channels:
@@ -107,8 +109,18 @@ def recorded_channels(path, topics: list[str] | None) -> list[tuple[str, str, st
         for _ in reader.iter_chunks():
             pass
         channels = reader.channels
-    chans = [(c.topic, c.type_name, c.metadata.get("offered_qos_profiles", ""))
-             for c in channels.values()]
+    return [(c.topic, c.type_name, c.metadata.get("offered_qos_profiles", ""))
+            for c in channels.values()]
+
+
+def recorded_channels(paths, topics: list[str] | None) -> list[tuple[str, str, str]]:
+    """(topic, type_name, offered_qos_yaml) of the channels recorded in ``paths``
+    (optionally a subset; the first file that records a topic gives its type and QoS);
+    InputError naming the recorded topics when a requested topic is not among them."""
+    chans = []
+    for path in paths:
+        known = {c[0] for c in chans}
+        chans += [c for c in _file_channels(path) if c[0] not in known]
     recorded = [c[0] for c in chans]
     if topics is None:
         return chans
@@ -132,10 +144,12 @@ class McapPlayerNode(Node):
         if not p["input"]:
             raise ParameterError("parameter 'input': the recording to play is required")
         try:
-            self.path = resolve_mcap_path(p["input"])
+            self.paths = bag_files(p["input"])  # a split bag: its files in rosbag2's order
         except ValueError as exc:
             raise ParameterError(f"parameter 'input': {exc}") from exc
-        check_recording_start(self.path)
+        self.path = self.paths[0] if len(self.paths) == 1 else Path(p["input"])
+        for path in self.paths:
+            check_recording_start(path)
         self.rate = p["rate"]
         self.loop = p["loop"]
         self.clock_period = 1.0 / p["clock_rate_hz"]
@@ -214,10 +228,10 @@ class McapPlayerNode(Node):
     def play_once(self) -> int:
         """Publish the whole recording once with its timing; returns messages published."""
         # Publishers for every channel before the clock starts (discovery takes time).
-        for topic, type_name, qos_yaml in recorded_channels(self.path, self.topics):
+        for topic, type_name, qos_yaml in recorded_channels(self.paths, self.topics):
             self._publisher(topic, type_name, qos_yaml)
         self._wait_for_subscribers(list(self._pubs))
-        msgs = iter_log_time_order(self.path, self.topics, self.damages)
+        msgs = iter_log_time_order(self.paths, self.topics, self.damages)
         first = next(msgs, None)
         if first is None:
             return 0

@@ -300,3 +300,29 @@ def test_a_message_that_does_not_decode_is_skipped_and_named_as_replay_does(
     assert f"message at log time {t[40]} does not deserialize as sensor_msgs/msg/Imu" in out
     assert sorted(g[1] for g in got) == [k for k in range(len(t)) if k != 40]
     assert "published 99 messages" in out
+
+
+def test_split_bag_is_played_file_after_file(launch, ros_node, tmp_path):
+    """A rosbag2 split bag (metadata.yaml listing two .mcap files) plays as one recording."""
+    from gyro_attitude.io.strict_yaml import dump_yaml
+
+    bag = tmp_path / "split"
+    bag.mkdir()
+    t0 = _recording(bag / "split_0.mcap", n=60)
+    t1 = t0 + 60 * 10**7
+    wr = Rosbag2McapWriter(bag / "split_1.mcap", chunk_size=4000)
+    wr.add_topic("imu/data_raw", "sensor_msgs/msg/Imu")
+    w = np.zeros((60, 3))
+    w[:, 0] = np.arange(60, 120)
+    wr.write_imu_array("imu/data_raw", t1, w)
+    wr.finish()
+    (bag / "metadata.yaml").write_text(dump_yaml({"rosbag2_bagfile_information": {
+        "version": 9, "storage_identifier": "mcap",
+        "relative_file_paths": ["split_0.mcap", "split_1.mcap"]}}), encoding="utf-8")
+    got, _ = _subscribe(ros_node)
+    proc = launch(MODULE, "-p", f"input:={bag}", "-p", "namespace_topics:=true", "-p", "rate:=4.0",
+                  "-p", "wait_for_subscribers:=1", "-p", "publish_clock:=false")
+    assert ros_node.spin_until(lambda: len(got) >= 120, 30.0), proc.output()
+    assert proc.wait(timeout=15) == 0, proc.output()
+    assert [g[1] for g in got] == list(range(120))
+    assert [g[2] for g in got] == np.r_[t0, t1].tolist()
