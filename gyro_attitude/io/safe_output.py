@@ -12,9 +12,9 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
+import secrets
 import shutil
 import signal
-import tempfile
 import threading
 from collections.abc import Iterable
 from pathlib import Path
@@ -142,8 +142,19 @@ class SafeOutput:
             # one file system and replaces the name itself
             directory = Path(os.path.abspath(self.path)).parent
             with _signals_held():
-                self._temp_dir = Path(tempfile.mkdtemp(
-                    prefix=f".{self.path.name}.", suffix=".partial", dir=directory))
+                # The name is recorded before the folder exists: a Ctrl-C that arrived just
+                # before the signals were held still raises here (Python runs its handler
+                # at the next bytecode), and discard() must then know what to remove.
+                # (tempfile.mkdtemp would create the folder before returning its name.)
+                for _ in range(100):
+                    self._temp_dir = directory / f".{self.path.name}.{secrets.token_hex(4)}.partial"
+                    try:
+                        os.mkdir(self._temp_dir, 0o700)
+                        break
+                    except FileExistsError:
+                        self._temp_dir = None
+                else:
+                    raise FileExistsError(f"no free temporary name beside {self.path}")
                 self.temp_path = self._temp_dir / self.path.name
         return self.temp_path
 
@@ -174,7 +185,13 @@ class SafeOutput:
             self.temp_path = self._temp_dir = None
 
     def __enter__(self) -> Path:
-        return self.open()
+        try:
+            return self.open()
+        except BaseException:
+            # a Ctrl-C held during mkdtemp arrives as soon as signals are unblocked, still
+            # inside open(): __exit__ is not called for an __enter__ that raised
+            self.discard()
+            raise
 
     def __exit__(self, exc_type, exc, tb) -> bool:
         if exc_type is None:

@@ -9,7 +9,7 @@ policy the ``attitude_integrator`` node applies
 reason, no integration across gaps, reset on backward time jumps, orientation variance), write
 the samples that got an attitude through a temporary file renamed into place
 (:mod:`gyro_attitude.io.safe_output`) with both topics merged by log time, and compare with the
-truth interpolated at the output stamps it covers.  Samples are never re-sorted by stamp.
+truth at its own stamps (the attitude slerped there).  Samples are never re-sorted by stamp.
 """
 
 from __future__ import annotations
@@ -55,6 +55,8 @@ __all__ = [
 DEFAULT_IMU_TOPIC = "imu/data_raw"
 TRUTH_TOPIC = "truth/attitude"
 OUTPUT_CHUNK_SIZE = 4 * 1024 * 1024
+# Output messages built and written per write_batches call (bounds the write side's memory).
+OUTPUT_BLOCK_MESSAGES = 1 << 17
 
 
 @dataclass
@@ -139,6 +141,35 @@ def _alignment_summary(a) -> dict:
             "heading_error_expected_deg": (None if math.isnan(a.heading_error_expected)
                                            else math.degrees(a.heading_error_expected)),
             "rest_s": (a.rest_end_ns - a.rest_start_ns) * 1e-9}
+
+
+def _block(a: np.ndarray | None, lo: int, hi: int) -> np.ndarray | None:
+    return None if a is None else a[lo:hi]
+
+
+def _output_batches(imu, rows, t_ns: np.ndarray, q: np.ndarray, variance, variance_known,
+                    frame: str) -> list:
+    """``attitude`` and ``imu/data`` for the input messages ``rows`` (a slice or indices)
+    that got the attitudes ``q`` at ``t_ns``."""
+    log, pub = imu.log_time_ns[rows], imu.publish_time_ns[rows]
+    orientation_cov = np.zeros(9)
+    if variance is not None:
+        # the diagonal of the published 3x3 orientation covariance; zeros (unknown) on rows
+        # before the first input with a gyro covariance, as the node publishes them
+        orientation_cov = np.zeros((t_ns.size, 9))
+        orientation_cov[:, [0, 4, 8]] = np.where(variance_known[:, None], variance, 0.0)
+        orientation_cov = _constant_rows(orientation_cov)
+    return [
+        quaternion_stamped_batch("attitude", t_ns, q, frame_id=frame, log_time_ns=log,
+                                 publish_time_ns=pub),
+        imu_batch("imu/data", t_ns, imu.angular_velocity[rows], imu.linear_acceleration[rows],
+                  q, frame_id=imu.frame_id, orientation_covariance=orientation_cov,
+                  angular_velocity_covariance=_constant_rows(
+                      imu.angular_velocity_covariance[rows]),
+                  linear_acceleration_covariance=_constant_rows(
+                      imu.linear_acceleration_covariance[rows]),
+                  log_time_ns=log, publish_time_ns=pub),
+    ]
 
 
 def _constant_rows(a: np.ndarray) -> np.ndarray:
@@ -247,37 +278,25 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     keep = res.index + first
     every = keep.size == len(imu)
     t = t_all
-    omega = imu.angular_velocity
 
     def kept(a):
         """Only the samples that got an attitude (no copy when all did)."""
         return a if every else a[keep]
 
-    log, pub = kept(imu.log_time_ns), kept(imu.publish_time_ns)
     tv, qv = kept(t), res.q
-    orientation_cov = np.zeros(9)
-    if res.variance is not None:
-        # the diagonal of the published 3x3 orientation covariance; zeros (unknown) on rows
-        # before the first input with a gyro covariance, as the node publishes them
-        orientation_cov = np.zeros((keep.size, 9))
-        orientation_cov[:, [0, 4, 8]] = np.where(res.variance_known[:, None], res.variance, 0.0)
-    batches = [
-        quaternion_stamped_batch("attitude", tv, qv, frame_id=frame, log_time_ns=log,
-                                 publish_time_ns=pub),
-        imu_batch("imu/data", tv, kept(omega), kept(imu.linear_acceleration), qv,
-                  frame_id=imu.frame_id, orientation_covariance=_constant_rows(orientation_cov)
-                  if orientation_cov.ndim == 2 else orientation_cov,
-                  angular_velocity_covariance=_constant_rows(kept(
-                      imu.angular_velocity_covariance)),
-                  linear_acceleration_covariance=_constant_rows(kept(
-                      imu.linear_acceleration_covariance)),
-                  log_time_ns=log, publish_time_ns=pub),
-    ]
     with SafeOutput(output_path, force=force) as tmp:
         with Rosbag2McapWriter(tmp, compression=compression, chunk_size=chunk_size) as w:
             w.add_topic("attitude", QUATERNION_STAMPED_TYPE)
             w.add_topic("imu/data", IMU_TYPE)
-            w.write_batches(batches)
+            # Block by block: what the write side builds (columns, covariance rows, the
+            # chunk plan) is bounded by a block, not by the recording. The input is in
+            # log-time order, so consecutive blocks keep the file in log-time order.
+            for lo in range(0, keep.size, OUTPUT_BLOCK_MESSAGES):
+                hi = min(lo + OUTPUT_BLOCK_MESSAGES, keep.size)
+                rows = slice(keep[lo], keep[hi - 1] + 1) if every else keep[lo:hi]
+                w.write_batches(_output_batches(imu, rows, tv[lo:hi], qv[lo:hi],
+                                                _block(res.variance, lo, hi),
+                                                _block(res.variance_known, lo, hi), frame))
     t_end = time.perf_counter()
 
     result = ReplayResult(
@@ -303,27 +322,36 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
 
 
 def _compare_with_truth(result: ReplayResult, truth, t_ns: np.ndarray, q: np.ndarray) -> None:
-    """Error figures against the truth slerped at every output stamp it covers (the truth
-    runs on its own clock: a tracker at 120 Hz beside a 200 Hz Imu shares no stamp)."""
+    """Error figures at every truth stamp inside the output's span: the truth runs on its
+    own clock (a tracker at 120 Hz beside a 200 Hz Imu shares no stamp), so the attitude is
+    slerped there between the two output samples around it (exact at a coinciding stamp;
+    none across a gap in the output, as truth_at_stamps decides). The dense series is the
+    one interpolated: slerping a 10 Hz truth across a coning motion would measure the
+    interpolation, not the estimate."""
+    est_t, est_q = _strictly_increasing(t_ns, q)  # the output may jump back in time
     ts, tq = truth.stamp_ns, truth.quaternion
     usable = np.isfinite(tq).all(axis=1) & (np.linalg.norm(tq, axis=1) > 1e-9)
-    order = np.argsort(ts[usable], kind="stable")
-    ts, tq = ts[usable][order], tq[usable][order]
-    first = np.r_[True, np.diff(ts) > 0] if ts.size else np.zeros(0, bool)
-    ts, tq = ts[first], tq[first]  # a repeated truth stamp: the first one recorded
-    if ts.size == 0:
+    ts, tq = _strictly_increasing(ts[usable], tq[usable])
+    if ts.size == 0 or est_t.size == 0:
         return
-    order = np.argsort(t_ns, kind="stable")  # the output may jump back in time
-    qt, covered = truth_at_stamps(ts, tq, t_ns[order])
+    qe, covered = truth_at_stamps(est_t, est_q, ts)
     if not covered.any():
         return
-    err = quat_angle_between(q[order[covered]], qt)
+    err = quat_angle_between(qe, tq[covered])
     result.truth_topic = truth.topic
     result.truth_matched = int(covered.sum())
     result.final_error_rad = float(err[-1])
     result.max_error_rad = float(err.max())
     result.rms_error_rad = float(np.sqrt(np.mean(err**2)))
-    result.error_t_ns, result.error_rad = t_ns[order[covered]], err
+    result.error_t_ns, result.error_rad = ts[covered], err
+
+
+def _strictly_increasing(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Samples sorted by stamp, the first recorded of a repeated stamp kept."""
+    order = np.argsort(t, kind="stable")
+    t, q = t[order], q[order]
+    first = np.r_[True, np.diff(t) > 0] if t.size else np.zeros(0, bool)
+    return t[first], q[first]
 
 
 def write_error_plot(result: ReplayResult, png, *, force: bool = True) -> None:
