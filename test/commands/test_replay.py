@@ -434,3 +434,38 @@ def test_replay_takes_messages_in_log_time_order_as_rosbag2_plays_them(tmp_path)
     assert a.skipped == b.skipped and a.attitude_messages == b.attitude_messages
     np.testing.assert_array_equal(a.t_ns, b.t_ns)
     np.testing.assert_array_equal(a.q, b.q)
+
+
+def test_output_is_written_in_bounded_blocks_and_equals_one_block(tmp_path, monkeypatch):
+    """The write side builds at most OUTPUT_BLOCK_MESSAGES messages per topic at a time
+    (its memory no longer grows with the recording); the file reads back the same, in
+    log-time order across both topics."""
+    from gyro_attitude.io import mcap_writer
+    from gyro_attitude.io.mcap_reader import McapStreamReader
+    from gyro_attitude.offline import replay as replay_module
+
+    t, w = _tumbling(5000, seed=9)
+    _record(tmp_path / "in.mcap", t, w, a=np.tile([0.0, 0.0, 9.8], (5000, 1)))
+    sizes = []
+    real = mcap_writer.Rosbag2McapWriter.write_batches
+
+    def spy(self, batches):
+        sizes.append([len(b) for b in batches])
+        return real(self, batches)
+
+    monkeypatch.setattr(mcap_writer.Rosbag2McapWriter, "write_batches", spy)
+    monkeypatch.setattr(replay_module, "OUTPUT_BLOCK_MESSAGES", 1 << 30)
+    replay_file(tmp_path / "in.mcap", tmp_path / "one.mcap", algorithm="rotvec_cubic")
+    assert sizes == [[5000, 5000]]
+    sizes.clear()
+    monkeypatch.setattr(replay_module, "OUTPUT_BLOCK_MESSAGES", 1024)
+    replay_file(tmp_path / "in.mcap", tmp_path / "blocks.mcap", algorithm="rotvec_cubic")
+    assert sizes == [[1024, 1024]] * 4 + [[904, 904]]
+
+    def messages(path):
+        return [(m.channel.topic, m.log_time, m.data) for m in
+                McapStreamReader(path).iter_messages()]
+
+    one, blocks = messages(tmp_path / "one.mcap"), messages(tmp_path / "blocks.mcap")
+    assert one == blocks and len(one) == 10_000
+    assert [m[1] for m in blocks] == sorted(m[1] for m in blocks)
