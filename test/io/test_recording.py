@@ -65,3 +65,21 @@ def test_simulate_onto_a_full_disk_names_the_file(small_disk, capsys):
     assert err.startswith(f"simulate: error: {out}: No space left on device (")
     assert "nothing written under that name" in err
     assert list(small_disk.iterdir()) == []
+
+
+def test_replay_onto_a_full_disk_names_the_file(small_disk, tmp_path, capsys):
+    from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
+
+    n = 20_000
+    src = tmp_path / "in.mcap"
+    with Rosbag2McapWriter(src) as wr:
+        wr.add_topic("imu/data_raw", "sensor_msgs/msg/Imu")
+        wr.write_imu_array("imu/data_raw", 10**9 + np.arange(n, dtype=np.int64) * 10**6,
+                           np.random.default_rng(2).normal(size=(n, 3)))
+    out = small_disk / "out.mcap"
+    assert cli_main(["replay", str(src), "--out", str(out), "--compression", "none",
+                     "--no-progress"]) == 1
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1, err
+    assert f"{out}: No space left on device (" in err and "nothing written" in err
+    assert list(small_disk.iterdir()) == []
