@@ -320,7 +320,8 @@ def _spin_until_done(node: GyroSimNode) -> None:
 
 def main(args=None) -> int:
     """Spin until the duration is over (exit 0), SIGINT/SIGTERM (exit 0), or exit 2 on an
-    invalid parameter."""
+    invalid parameter, 1 when the disk under ``record_path`` fills (the recording so far
+    kept, readable, under its name)."""
     return run_node(NODE_NAME, GyroSimNode, args, spin=_spin_until_done,
                     finish=GyroSimNode.close)
 

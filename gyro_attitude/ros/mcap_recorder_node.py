@@ -9,7 +9,9 @@ publisher is reliable, transient-local only if every publisher is.
 Output safety: an existing output is refused unless ``force`` is true; the recording is
 written under a temporary name beside the output (a hidden ``.<name>.*.partial`` folder,
 see :mod:`gyro_attitude.io.safe_output`) and renamed to the output once finished, so a
-failed or killed recording never replaces a file under the requested name.
+failed or killed recording never replaces a file under the requested name.  A full disk
+ends the recording: it is cut back to its last whole chunk, ended as a valid MCAP, moved
+to the output name, and one line says so (exit 1; :mod:`gyro_attitude.io.recording`).
 
 Crash safety: the open chunk is closed and the file flushed every ``flush_period_s``
 (default 0.5 s, at most 1 s), so ``kill -9`` loses at most that much and leaves a temporary
@@ -218,7 +220,8 @@ def _close_and_report(node: McapRecorderNode) -> None:
 
 def main(args=None) -> int:
     """Record until SIGINT/SIGTERM (the file is finished with its summary and renamed to the
-    output); exit 0, or 2 on an invalid parameter or an existing output without force."""
+    output); exit 0, 2 on an invalid parameter or an existing output without force, 1 when
+    the disk fills (the recording so far kept, readable, under the output name)."""
     return run_node(NODE_NAME, McapRecorderNode, args, finish=_close_and_report)
 
 
