@@ -1,0 +1,185 @@
+"""Independent tasks on a local process pool or a Dask cluster, with progress, retries and Ctrl-C.
+
+One engine for the Monte Carlo runs (:mod:`.montecarlo`) and the fleet replay (:mod:`.fleet`):
+:func:`run_tasks` calls a module-level function on each argument of a list, in worker processes,
+and hands every result to the caller's ``on_result(i, value)`` in the caller's process as it
+arrives (in completion order: the caller files it under ``i``).
+
+* ``workers == 1`` and no scheduler: the tasks run one after the other in this process (no
+  pool start-up, and exceptions and Ctrl-C arrive directly).
+* ``workers > 1``: :class:`concurrent.futures.ProcessPoolExecutor` with the ``forkserver``
+  start method (``spawn`` where there is none): a worker starts from a clean interpreter, not
+  from a copy of this process (its threads, its open files, the one-shot signal handler of the
+  command line).  Workers ignore SIGINT: a Ctrl-C on the terminal reaches the whole process
+  group, and only this process decides what happens.  A worker that dies (killed, out of
+  memory) breaks the pool: the tasks not yet finished are run again in a new pool, at most
+  :data:`POOL_RESTARTS` times.
+* ``scheduler``: a running ``dask.distributed`` scheduler at that address; Dask is imported only
+  then.  The scheduler itself re-runs the tasks of a lost worker (its ``allowed-failures``
+  setting, 3 by default); a task that killed too many workers is reported as failed.
+
+A task function should catch its own errors (a run that fails is a result); an exception that
+still escapes is given to ``on_error(i, message)`` and the other tasks go on.  On
+KeyboardInterrupt the tasks not finished are cancelled, the local workers terminated (Dask's
+cancelled), and the KeyboardInterrupt re-raised: what ``on_result`` received so far is what
+finished.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import signal
+import sys
+from collections.abc import Callable, Sequence
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+
+__all__ = ["POOL_RESTARTS", "CONNECT_TIMEOUT_S", "default_workers", "run_tasks",
+           "SchedulerUnreachable"]
+
+POOL_RESTARTS = 2
+#: Seconds to wait for a Dask scheduler before giving up (one line, exit 1).
+CONNECT_TIMEOUT_S = 10.0
+
+
+class SchedulerUnreachable(OSError):
+    """No Dask scheduler answered at the address within the timeout."""
+
+
+def default_workers() -> int:
+    """CPUs this process may run on (the affinity mask, which a container or taskset narrows;
+    ``os.cpu_count()`` counts the machine's)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _ignore_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _context():
+    methods = multiprocessing.get_all_start_methods()
+    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+
+
+def _describe(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {text[0] if text else ''}".rstrip(": ")
+
+
+def run_tasks(fn: Callable, args: Sequence, on_result: Callable[[int, object], None], *,
+              workers: int = 1, scheduler: str | None = None,
+              on_error: Callable[[int, str], None] | None = None,
+              progress: Callable[[int], None] | None = None,
+              connect_timeout_s: float = CONNECT_TIMEOUT_S) -> None:
+    """``on_result(i, fn(args[i]))`` for every task (see the module docstring).
+
+    ``progress(i)`` is called after each task's result or error.  Raises
+    :class:`SchedulerUnreachable` when the scheduler does not answer within
+    ``connect_timeout_s``, and KeyboardInterrupt after cleaning up.
+    """
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+
+    def done(i: int, value=None, error: str | None = None) -> None:
+        if error is None:
+            on_result(i, value)
+        elif on_error is not None:
+            on_error(i, error)
+        else:
+            raise RuntimeError(f"task {i}: {error}")
+        if progress is not None:
+            progress(i)
+
+    if scheduler is not None:
+        _run_dask(fn, args, done, scheduler, connect_timeout_s)
+    elif workers == 1 or len(args) <= 1:
+        for i, a in enumerate(args):
+            try:
+                value = fn(a)
+            except Exception as exc:  # a bug in one task must not lose the others
+                done(i, error=_describe(exc))
+            else:
+                done(i, value)
+    else:
+        _run_pool(fn, args, done, workers)
+
+
+def _run_pool(fn, args, done, workers: int) -> None:
+    pending = list(range(len(args)))
+    for attempt in range(POOL_RESTARTS + 1):
+        pool = ProcessPoolExecutor(max_workers=min(workers, len(pending)),
+                                   mp_context=_context(), initializer=_ignore_sigint)
+        futures = {}
+        try:
+            futures = {pool.submit(fn, args[i]): i for i in pending}
+            not_done = set(futures)
+            while not_done:
+                finished, not_done = wait(not_done, return_when=FIRST_COMPLETED)
+                for f in finished:
+                    i = futures[f]
+                    exc = f.exception()
+                    if isinstance(exc, BrokenProcessPool):
+                        continue  # a worker died: retried in the next pool
+                    pending.remove(i)
+                    if exc is not None:
+                        done(i, error=_describe(exc))
+                    else:
+                        done(i, f.result())
+        except BaseException:  # Ctrl-C, or on_result raised: stop the workers first
+            _terminate(pool)
+            raise
+        pool.shutdown(wait=True)
+        if not pending:
+            return
+        if attempt < POOL_RESTARTS:
+            print(f"warning: a worker process died; running its {len(pending)} unfinished "
+                  f"task(s) again in a new pool", file=sys.stderr)
+    for i in list(pending):
+        done(i, error=f"a worker process died while running it ({POOL_RESTARTS + 1} attempts)")
+
+
+def _terminate(pool: ProcessPoolExecutor) -> None:
+    """Stop the pool now: queued tasks cancelled, running workers terminated (Python 3.11
+    has no public call for the latter; ``_processes`` is the executor's own table)."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in processes:
+        if p.is_alive():
+            p.terminate()
+    for p in processes:
+        p.join(timeout=5)
+
+
+def _run_dask(fn, args, done, address: str, timeout_s: float) -> None:
+    # Dask only here: the local path does not pay its import (~1 s).
+    try:
+        from distributed import Client, as_completed
+    except ImportError as exc:  # pragma: no cover - pinned in requirements.txt
+        raise OSError(f"--scheduler needs dask.distributed: {exc}") from None
+    try:
+        client = Client(address, timeout=f"{timeout_s}s", set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise SchedulerUnreachable(
+            f"no Dask scheduler answered at {address!r} within {timeout_s:g} s "
+            f"({_describe(exc)})") from None
+    futures = []
+    try:
+        # pure=False: every task runs (two equal arguments are still two runs to count)
+        futures = client.map(fn, list(args), pure=False)
+        index = {f.key: i for i, f in enumerate(futures)}
+        for f in as_completed(futures):
+            i = index[f.key]
+            if f.status == "finished":
+                done(i, f.result())
+            else:
+                exc = f.exception()
+                done(i, error=_describe(exc) if exc is not None else f.status)
+    except KeyboardInterrupt:
+        client.cancel(futures)
+        raise
+    finally:
+        client.close(timeout=timeout_s)
