@@ -171,7 +171,7 @@ def _run_dask(fn, args, done, address: str, timeout_s: float) -> None:
         # pure=False: every task runs (two equal arguments are still two runs to count)
         futures = client.map(fn, list(args), pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
-        for f in as_completed(futures):
+        for f in as_completed(futures, loop=client.loop):
             i = index[f.key]
             if f.status == "finished":
                 done(i, f.result())
