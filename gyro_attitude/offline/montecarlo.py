@@ -270,9 +270,9 @@ def _errors(q_est: np.ndarray, q_true: np.ndarray):
     body = quat_as_rotvec(quat_multiply(quat_conjugate(q_true), q_est))
     delta = quat_multiply(q_est, quat_conjugate(q_true))
     nav = quat_as_rotvec(delta)
+    # the twist about the vertical: with w >= 0, atan2 is within ±π/2, the angle within ±π
     d = np.where(delta[:, 3:4] < 0, -delta, delta)
     heading = 2.0 * np.arctan2(d[:, 2], d[:, 3])
-    heading = np.where(heading > np.pi, heading - 2 * np.pi, heading)
     u_true = quat_rotate(quat_conjugate(q_true), _UP)
     u_est = quat_rotate(quat_conjugate(q_est), _UP)
     tilt = np.arctan2(np.linalg.norm(np.cross(u_true, u_est), axis=1),
