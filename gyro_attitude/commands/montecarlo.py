@@ -13,9 +13,15 @@ import json
 import math
 import sys
 
-from gyro_attitude.commands.replay import _finite, _gyro_bias, _one_line_error
+from gyro_attitude.commands.estimator_flags import (
+    add_estimator_flags,
+    config_from_args,
+    given_settings,
+)
+from gyro_attitude.commands.replay import _one_line_error
 from gyro_attitude.core.attitude import ALGORITHMS
-from gyro_attitude.core.attitude.stream import StreamConfig
+from gyro_attitude.core.attitude.modes import InitialAttitudeSource
+from gyro_attitude.core.attitude.settings import SETTINGS
 from gyro_attitude.io.safe_output import SafeOutput, check_output_path
 from gyro_attitude.io.scene_file import load_scene
 from gyro_attitude.offline import montecarlo as mc
@@ -39,8 +45,11 @@ def _int_from(lo: int, hi: int):
 
 
 def _positive(text: str) -> float:
-    value = _finite(text)
-    if not value > 0:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
     return value
 
@@ -72,24 +81,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "scaled by F (default: the scene's own)")
     parser.add_argument("--algorithm", default=None, choices=sorted(ALGORITHMS),
                         help="attitude update algorithm (default: replay's choice)")
-    # Estimator options, as replay's (until the settings table gives both one declaration).
-    parser.add_argument("--initial-attitude", choices=("truth", "level"), default="truth",
-                        help="truth (default): the truth at the first sample; level: roll and "
-                        "pitch from the accelerometer over the initial rest")
-    parser.add_argument("--initial-heading-deg", type=_finite, default=0.0,
-                        help="(level) heading, clockwise from north (default 0)")
-    parser.add_argument("--heading-source", choices=("parameter", "gyrocompass"),
-                        default="parameter", help="(level) heading from --initial-heading-deg "
-                        "or by gyrocompassing (needs a fixed --gyro-bias and --gyro-bias-sigma)")
-    parser.add_argument("--gyro-bias", type=_gyro_bias, default="auto", metavar="auto|none|X,Y,Z",
-                        help="auto (default): estimated at every rest; none; or a fixed bias "
-                        "in rad/s")
-    parser.add_argument("--gyro-bias-sigma", type=_finite, default=0.0,
-                        help="1-sigma of a fixed or unestimated gyro bias [rad/s]")
-    parser.add_argument("--gyro-bias-rw", type=_finite, default=0.0,
-                        help="gyro bias random walk the covariance assumes [rad/s/sqrt(s)]")
-    parser.add_argument("--aiding", choices=("none", "gravity"), default="none",
-                        help="gravity: tilt corrected toward the accelerometer's vertical")
+    # replay's estimator flags from the one settings table, but those the scene decides
+    # (frame, position, velocity); the initial attitude defaults to the truth
+    add_estimator_flags(parser, [s for s in SETTINGS if s.name not in mc.SCENE_SETTINGS])
     parser.add_argument("--grid-points", type=_int_from(2, 100_000), default=mc.GRID_POINTS,
                         help=f"times of the statistics (default {mc.GRID_POINTS})")
     parser.add_argument("--json", metavar="OUT", default=None,
@@ -101,16 +95,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def _estimator(args) -> mc.Estimator:
-    bias = args.gyro_bias
-    fixed = isinstance(bias, tuple)
-    config = StreamConfig(gyro_bias="parameter" if fixed else bias,
-                          gyro_bias_rad_s=bias if fixed else (0.0, 0.0, 0.0),
-                          gyro_bias_sigma_rad_s=float(args.gyro_bias_sigma),
-                          gyro_bias_rw=float(args.gyro_bias_rw),
-                          initial_heading_deg=float(args.initial_heading_deg),
-                          heading_source=args.heading_source, aiding=args.aiding)
-    return mc.Estimator(algorithm=args.algorithm, config=config,
-                        initial_attitude=args.initial_attitude)
+    overrides = {}
+    if "initial_attitude_source" not in given_settings(args):
+        overrides["initial_attitude_source"] = InitialAttitudeSource.TRUTH
+    return mc.Estimator(algorithm=args.algorithm, config=config_from_args(args, **overrides))
 
 
 def _setup(args) -> mc.MonteCarloSetup:

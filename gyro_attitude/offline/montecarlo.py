@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, DEFAULT_OFFLINE_ALGORITHM, NavFrame
+from gyro_attitude.core.attitude.modes import Frame, InitialAttitudeSource
 from gyro_attitude.core.attitude.stream import (
     AttitudeStream,
     PerSamplePathNeeded,
@@ -65,6 +66,7 @@ __all__ = [
     "MAX_RUNS",
     "MAX_SAMPLES_PER_RUN",
     "Estimator",
+    "SCENE_SETTINGS",
     "Grade",
     "MonteCarloSetup",
     "MonteCarloResult",
@@ -138,28 +140,33 @@ def grades_of(spec: SceneSpec, grades: Sequence[str], load: Callable[[str], Scen
     return tuple(out)
 
 
+def _mc_default_config() -> StreamConfig:
+    return StreamConfig(initial_attitude_source=InitialAttitudeSource.TRUTH)
+
+
+#: Settings a Monte Carlo run takes from its scene, not from the user: the frame (ENU when the
+#: scene's gyro sees the Earth's rotation) and where the carrier is and how fast it moves.
+SCENE_SETTINGS = ("frame", "latitude_rad", "longitude_rad", "height_m", "velocity_enu")
+
+
 @dataclass(frozen=True)
 class Estimator:
-    """How each run is estimated: ``algorithm`` (None: replay's default choice), the
-    attitude-stream ``config``, and the initial attitude, ``truth`` (the truth at the first
-    Imu stamp, as ``replay --initial-attitude truth``) or ``level`` (roll and pitch from the
-    accelerometer over the initial rest, heading from ``config``)."""
+    """How each run is estimated: ``algorithm`` (None: replay's default choice) and the
+    estimator settings ``config`` (default: the table's, with the initial attitude from the
+    truth at the first Imu stamp, as ``replay --initial-attitude truth``).  The settings of
+    :data:`SCENE_SETTINGS` are replaced by the scene's in every run."""
 
     algorithm: str | None = None
-    config: StreamConfig = field(default_factory=StreamConfig)
-    initial_attitude: str = "truth"
+    config: StreamConfig = field(default_factory=_mc_default_config)
 
     def __post_init__(self):
-        if self.initial_attitude not in ("truth", "level"):
-            raise ValueError(f"initial attitude must be 'truth' or 'level', got "
-                             f"{self.initial_attitude!r}")
         if not isinstance(self.config, StreamConfig):
             raise ValueError("config must be a StreamConfig")
 
     def describe(self) -> dict:
-        c = self.config
-        return {"algorithm": self.algorithm, "initial_attitude": self.initial_attitude,
-                "config": {f.name: getattr(c, f.name) for f in dataclasses.fields(c)}}
+        values = self.config.values()
+        return {"algorithm": self.algorithm,
+                "config": {k: v for k, v in values.items() if k not in SCENE_SETTINGS}}
 
 
 def _check_number(name: str, value, lo: float, hi: float, *, lo_open: bool = True) -> float:
@@ -227,34 +234,34 @@ def run_seeds(seed: int, runs: int) -> list[int]:
 
 
 # --------------------------------------------------------------------------- one run
-def _nav_frame(spec: SceneSpec, block) -> NavFrame | None:
-    """The local ENU frame replay would be given for this scene: None when the scene's gyro
-    sees no Earth rotation (then the nav frame is inertial and q_ib = q_nb)."""
+def _scene_frame(spec: SceneSpec, block, config: StreamConfig):
+    """``(config, nav)`` for this scene: the settings of :data:`SCENE_SETTINGS` from the scene,
+    and the local ENU frame replay would be given (latitude, height and velocity of the truth
+    along the path), or None when the scene's gyro sees no Earth rotation (then the nav frame
+    is inertial and q_ib = q_nb)."""
     ea = spec.earth
     moves = spec.motion.moves
     if not ea.rotation:
         if ea.transport_rate and moves:
             raise ValueError("a moving scene with transport rate but no Earth rotation has no "
                              "estimator frame (the ENU frame removes both)")
-        return None
+        return config.replace(frame=Frame.INERTIAL), None
+    config = config.replace(frame=Frame.ENU, latitude_rad=ea.latitude_rad,
+                            longitude_rad=ea.longitude_rad, height_m=ea.height_m,
+                            velocity_enu=(0.0, 0.0, 0.0))
     if not moves:
-        return NavFrame(latitude_rad=ea.latitude_rad, longitude_rad=ea.longitude_rad,
-                        height_m=ea.height_m)
+        return config, config.nav_frame()
     llh = block.position_llh
     velocity = block.velocity_enu if ea.transport_rate else np.zeros((len(block.t_ns), 3))
-    return NavFrame(latitude_rad=llh[:, 0], longitude_rad=llh[:, 1], height_m=llh[:, 2],
-                    velocity_enu=velocity)
+    return config, NavFrame(latitude_rad=llh[:, 0], longitude_rad=llh[:, 1],
+                            height_m=llh[:, 2], velocity_enu=velocity)
 
 
-def _estimate(t_ns, omega, accel, gyro_covariance, q0, nav, estimator: Estimator) \
-        -> StreamResult:
+def _estimate(t_ns, omega, accel, gyro_covariance, q0, nav, algorithm: str | None,
+              config: StreamConfig) -> StreamResult:
     """The one call into the estimator: what :func:`gyro_attitude.offline.replay.replay_file`
     runs on the same samples (offline default algorithm, the causal default when a
     sequential filter acts on the recording and no algorithm was named)."""
-    config = estimator.config
-    if estimator.initial_attitude == "level":
-        config = dataclasses.replace(config, initial_attitude="level")
-    algorithm = estimator.algorithm
     stream = AttitudeStream(algorithm or DEFAULT_OFFLINE_ALGORITHM, q0=q0, nav=nav, config=config)
     try:
         return stream.run(t_ns, omega, DEFAULT_FRAME_ID, gyro_covariance, accel)
@@ -298,14 +305,13 @@ def run_one(spec: SceneSpec, setup: MonteCarloSetup, index: int, seed: int, labe
     n = t_ns.shape[0]
     cov = np.broadcast_to(np.diag(np.asarray(gyro_var, np.float64)).reshape(9), (n, 9))
     est = setup.estimator
-    q0 = (0.0, 0.0, 0.0, 1.0)
-    first = 0
-    if est.initial_attitude == "truth":
-        q0, first, _ = initial_attitude_from_truth(t_ns, t_ns, block.truth_q_nb)
-    nav = _nav_frame(spec, block)
-    if first:  # (the simulator's truth covers every stamp: first is 0)
-        raise ValueError("the truth does not cover the first sample")
-    res = _estimate(t_ns, block.omega_ib_b, block.specific_force_b, cov, q0, nav, est)
+    config, nav = _scene_frame(spec, block, est.config)
+    q0 = config.initial_attitude
+    if config.initial_attitude_source is InitialAttitudeSource.TRUTH:
+        # the simulator's truth is at every stamp: integration starts at the first sample
+        q0, _, _ = initial_attitude_from_truth(t_ns, t_ns, block.truth_q_nb)
+    res = _estimate(t_ns, block.omega_ib_b, block.specific_force_b, cov, q0, nav,
+                    est.algorithm, config)
     t1 = time.perf_counter()
     if res.index.size == 0:
         reasons = ", ".join(f"{k} {r}" for r, k in res.counts.items() if k)

@@ -29,7 +29,8 @@ def _arw_scene(n: float = N_ARW) -> SceneSpec:
 
 def _setup(spec, runs, duration, rate=None, seed=7, bias="none", grades=()):
     return mc.MonteCarloSetup(mc.grades_of(spec, list(grades), load_scene), runs, duration,
-                              rate, seed, mc.Estimator(config=StreamConfig(gyro_bias=bias)),
+                              rate, seed, mc.Estimator(config=StreamConfig(
+                                  gyro_bias=bias, initial_attitude_source="truth")),
                               grid_points=20)
 
 
