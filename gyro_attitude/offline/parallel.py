@@ -27,7 +27,9 @@ finished.
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
+import multiprocessing.forkserver
 import os
 import signal
 import sys
@@ -63,6 +65,26 @@ def _ignore_sigint() -> None:
 def _context():
     methods = multiprocessing.get_all_start_methods()
     return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+
+
+#: Thread counts of the BLAS/OpenMP libraries numpy may load, read once at their import: one
+#: thread per worker process (the workers are the parallelism; BLAS threads spinning beside
+#: them on the same cores slowed a 2-worker set down instead of up).  A value the user set wins.
+_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+@contextlib.contextmanager
+def _single_threaded_children():
+    """The environment of the worker processes started inside (and of the forkserver, which
+    passes its own on to the workers it forks), without changing this process's for good."""
+    added = [k for k in _THREAD_VARIABLES if k not in os.environ]
+    for k in added:
+        os.environ[k] = "1"
+    try:
+        yield
+    finally:
+        for k in added:
+            os.environ.pop(k, None)
 
 
 def _describe(exc: BaseException) -> str:
@@ -111,11 +133,16 @@ def run_tasks(fn: Callable, args: Sequence, on_result: Callable[[int, object], N
 def _run_pool(fn, args, done, workers: int) -> None:
     pending = list(range(len(args)))
     for attempt in range(POOL_RESTARTS + 1):
-        pool = ProcessPoolExecutor(max_workers=min(workers, len(pending)),
-                                   mp_context=_context(), initializer=_ignore_sigint)
+        context = _context()
+        with _single_threaded_children():
+            if context.get_start_method() == "forkserver":
+                multiprocessing.forkserver.ensure_running()
+            pool = ProcessPoolExecutor(max_workers=min(workers, len(pending)),
+                                       mp_context=context, initializer=_ignore_sigint)
         futures = {}
         try:
-            futures = {pool.submit(fn, args[i]): i for i in pending}
+            with _single_threaded_children():  # the workers start at the first submits
+                futures = {pool.submit(fn, args[i]): i for i in pending}
             not_done = set(futures)
             while not_done:
                 finished, not_done = wait(not_done, return_when=FIRST_COMPLETED)

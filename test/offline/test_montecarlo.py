@@ -95,7 +95,7 @@ def _comparable(result):
     """Every per-run figure and grid series, without the wall times."""
     out = []
     for r in result.runs:
-        row = {k: v for k, v in r.items() if k not in ("wall_s", "_grid")}
+        row = {k: v for k, v in r.items() if k not in ("wall_s", "cpu_s", "_grid")}
         row["_grid"] = {k: np.asarray(v).tobytes() for k, v in r["_grid"].items()}
         out.append(row)
     return out
