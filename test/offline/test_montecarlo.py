@@ -185,3 +185,53 @@ def test_scaled_grade_scales_the_arw():
     # linear in the noise to first order (the composition of rotations adds ~|θ|² terms)
     np.testing.assert_allclose(b, 2 * a, atol=5 * np.abs(a).max() ** 2)
     np.testing.assert_allclose(b.std(axis=0) / a.std(axis=0), 2.0, rtol=0.01)
+
+
+def _correlated_angle_variance(sigma, tau, dt: float, m: int) -> np.ndarray:
+    """Variance of Σ_{k=1..m} x_k·dt for Gauss–Markov samples x of stationary σ and
+    correlation time τ (autocovariance σ²·φ^|j−k|, φ = e^(−dt/τ)), per axis."""
+    lag = np.arange(1, m)
+    phi = np.exp(-dt / np.asarray(tau, float))[..., None]
+    return np.asarray(sigma, float) ** 2 * dt * dt * (m + 2 * np.sum((m - lag) * phi ** lag,
+                                                                     axis=-1))
+
+
+@pytest.mark.parametrize("grade, calibrated", [("lab_bench", True), ("handheld_mems", True),
+                                               ("handheld_mems", False)])
+def test_nees_of_the_mems_grades_exceeds_its_bounds_by_the_closed_form(grade, calibrated):
+    """The lab_bench and handheld_mems gyros at rest: the NEES is far outside its χ² bounds,
+    and by exactly what the closed form says.  The simulator publishes the per-sample variance
+    of white noise plus bias instability (its stationary σ²) and the estimator integrates it
+    as white (variance growing as T); the bias instability is a slow Gauss–Markov process whose
+    integral grows as T², the rate random walk's as T³, and an unestimated fixed bias gives
+    (b·T)².  Expected NEES = Σ_axes E[e²] / reported variance."""
+    from gyro_attitude.core.scene import SceneSimulator
+    from gyro_attitude.core.sensor_errors import flicker_floor_components
+
+    runs, rate, duration = 400, 100.0, 2.0
+    base = _arw_scene()
+    grades = mc.grades_of(base, [grade], load_scene)
+    spec = grades[0].spec
+    p = spec.gyro_errors
+    bias = dict(gyro_bias="parameter", gyro_bias_rad_s=tuple(p.bias)) if calibrated else \
+        dict(gyro_bias="none")
+    setup = mc.MonteCarloSetup(grades, runs, duration, rate, 5, mc.Estimator(config=StreamConfig(
+        initial_attitude_source="truth", **bias)), grid_points=3)
+    st = mc.run_montecarlo(setup, workers=1).statistics()[0]
+    dt, m = 1.0 / rate, setup.samples - 1
+    t = m * dt
+    reported = SceneSimulator(spec, rate).imu_variances()[0] * dt * dt * m  # the white sum
+    actual = p.noise_density ** 2 * t + p.rate_random_walk ** 2 * t ** 3 / 3
+    actual = actual + _correlated_angle_variance(p.bias_instability_sigma,
+                                                 p.bias_instability_tau, dt, m)
+    for axis, b in enumerate(p.bias_instability_floor):
+        if b > 0:
+            sig, tau = flicker_floor_components(b)
+            actual[axis] += _correlated_angle_variance(sig, tau, dt, m).sum()
+    if not calibrated:
+        actual = actual + (p.bias * t) ** 2
+    expected = float(np.sum(actual / reported))
+    final = st["nees"]["final"]
+    assert not final["within"] and final["mean"] > final["upper"]
+    # 400 runs: the mean of a scaled χ²(3) has a relative standard error of 4 %
+    assert final["mean"] == pytest.approx(expected, rel=0.10), (final, expected)
