@@ -47,7 +47,7 @@ def stream_config(mode: str, heading_deg: float = 0.0) -> StreamConfig:
     """The StreamConfig of a benchmark mode (what node parameters / replay flags give)."""
     kw: dict = {"gyro_bias": "none"} if mode.startswith("none") else {}
     if "level" in mode:
-        kw |= {"initial_attitude": "level", "initial_heading_deg": heading_deg}
+        kw |= {"initial_attitude_source": "level", "initial_heading_deg": heading_deg}
     if "gravity" in mode:
         kw["aiding"] = "gravity"
     return StreamConfig(**kw)
@@ -155,7 +155,7 @@ def evaluate(name: str, directory=None, modes=MODES, peers=True,
         has[index[0]:] = True
         row(mode, q, seconds, valid=has[idx])
         rows[-1]["bias_note"] = stream.bias_report.note
-        rows[-1]["batch_path"] = stream.batch_path and mode != "none/push"
+        rows[-1]["batch_path"] = mode != "none/push" and stream.run_form()[0] == "arrays"
     if peers:
         t0 = time.perf_counter()
         q = integrate_batch(t, g, q0=tq[0], algorithm="exp_map")
