@@ -41,12 +41,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, DEFAULT_OFFLINE_ALGORITHM, NavFrame
-from gyro_attitude.core.attitude.modes import Frame, InitialAttitudeSource
+from gyro_attitude.core.attitude import validation as iv
+from gyro_attitude.core.attitude.modes import Aiding, Frame, GyroBiasMode, InitialAttitudeSource
 from gyro_attitude.core.attitude.stream import (
     AttitudeStream,
     PerSamplePathNeeded,
     StreamConfig,
     StreamResult,
+    nav_rows,
 )
 from gyro_attitude.core.attitude.truth import initial_attitude_from_truth
 from gyro_attitude.core.rotation import (
@@ -257,19 +259,31 @@ def _scene_frame(spec: SceneSpec, block, config: StreamConfig):
                             height_m=llh[:, 2], velocity_enu=velocity)
 
 
-def _estimate(t_ns, omega, accel, gyro_covariance, q0, nav, algorithm: str | None,
-              config: StreamConfig) -> StreamResult:
-    """The one call into the estimator: what :func:`gyro_attitude.offline.replay.replay_file`
-    runs on the same samples (offline default algorithm, the causal default when a
-    sequential filter acts on the recording and no algorithm was named)."""
+def _estimate(t_ns, omega, accel, gyro_covariance, truth_q, nav, algorithm: str | None,
+              config: StreamConfig) -> tuple[StreamResult, int]:
+    """The one call into the estimator, as :func:`gyro_attitude.offline.replay.replay_file`
+    makes it on the same samples: the truth start at the first sample the estimator accepts
+    (the samples before it left out), the offline default algorithm, or the causal default
+    when a sequential filter acts on the recording and no algorithm was named.  Returns the
+    result and the index of the first sample given to the estimator."""
+    first = 0
+    q0 = config.initial_attitude
+    if config.initial_attitude_source is InitialAttitudeSource.TRUTH:
+        usable = iv.usable_samples(t_ns, omega, config.max_rate_rad_s)
+        q0, first, _ = initial_attitude_from_truth(t_ns, t_ns, truth_q, usable=usable)
+    n = t_ns.shape[0]
+    if first:
+        nav = nav_rows(nav, np.arange(first, n), n)
+        t_ns, omega, gyro_covariance = t_ns[first:], omega[first:], gyro_covariance[first:]
+        accel = None if accel is None else accel[first:]
     stream = AttitudeStream(algorithm or DEFAULT_OFFLINE_ALGORITHM, q0=q0, nav=nav, config=config)
     try:
-        return stream.run(t_ns, omega, DEFAULT_FRAME_ID, gyro_covariance, accel)
+        return stream.run(t_ns, omega, DEFAULT_FRAME_ID, gyro_covariance, accel), first
     except PerSamplePathNeeded:
         if algorithm is not None:
             raise
         stream = AttitudeStream(DEFAULT_ALGORITHM, q0=q0, nav=nav, config=config)
-        return stream.run(t_ns, omega, DEFAULT_FRAME_ID, gyro_covariance, accel)
+        return stream.run(t_ns, omega, DEFAULT_FRAME_ID, gyro_covariance, accel), first
 
 
 def _errors(q_est: np.ndarray, q_true: np.ndarray):
@@ -297,11 +311,13 @@ def simulate_run(spec: SceneSpec, rate_hz: float, samples: int, seed: int):
 
 
 def _uses_accelerometer(config: StreamConfig) -> bool:
-    """Whether the estimator reads the accelerometer with these settings: only its sequential
-    filters do (rest detection, levelling, aiding); without them the batch path integrates the
-    gyro alone, and a run need not simulate the accelerometer (its errors draw from their own
-    random stream: the gyro's samples are the same either way)."""
-    return not AttitudeStream(config=config).batch_path
+    """Whether the estimator reads the accelerometer with these settings: its rest detector
+    (auto gyro bias), the levelling and the gravity aiding do; without them the gyro is
+    integrated alone, and a run need not simulate the accelerometer (its errors draw from
+    their own random stream: the gyro's samples are the same either way).  (The stages are the
+    estimator's: a ``StreamConfig`` property would be this rule's better home.)"""
+    return (config.gyro_bias is GyroBiasMode.AUTO or config.levelling
+            or config.aiding is not Aiding.NONE)
 
 
 def run_one(spec: SceneSpec, setup: MonteCarloSetup, index: int, seed: int, label: str) -> dict:
@@ -316,21 +332,18 @@ def run_one(spec: SceneSpec, setup: MonteCarloSetup, index: int, seed: int, labe
     n = t_ns.shape[0]
     cov = np.broadcast_to(np.diag(np.asarray(gyro_var, np.float64)).reshape(9), (n, 9))
     config, nav = _scene_frame(spec, block, est.config)
-    q0 = config.initial_attitude
-    if config.initial_attitude_source is InitialAttitudeSource.TRUTH:
-        # the simulator's truth is at every stamp: integration starts at the first sample
-        q0, _, _ = initial_attitude_from_truth(t_ns, t_ns, block.truth_q_nb)
-    res = _estimate(t_ns, block.omega_ib_b, block.specific_force_b, cov, q0, nav,
-                    est.algorithm, config)
+    res, first = _estimate(t_ns, block.omega_ib_b, block.specific_force_b, cov,
+                           block.truth_q_nb, nav, est.algorithm, config)
     m = res.index.size
     if m == 0:
         reasons = ", ".join(f"{k} {r}" for r, k in res.counts.items() if k)
         raise ValueError(f"no attitude: every sample skipped ({reasons})")
-    q_true = block.truth_q_nb[res.index]
+    sample = res.index + first  # sample indices of the attitudes
+    q_true = block.truth_q_nb[sample]
     # the body-frame error at every attitude (its RMS); the rest at the grid and the end only
     body_all = quat_as_rotvec(quat_multiply(quat_conjugate(q_true), res.q))
     grid = setup.grid_indices()
-    pos = np.searchsorted(res.index, grid, side="right") - 1
+    pos = np.searchsorted(sample, grid, side="right") - 1
     have = pos >= 0
     rows = np.append(np.where(have, pos, 0), m - 1)
     body, nav_err, heading, tilt = _errors(res.q[rows], q_true[rows])

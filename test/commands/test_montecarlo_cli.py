@@ -20,6 +20,19 @@ os.environ.setdefault("AMENT_PREFIX_PATH", sys.prefix)
 REPO = Path(__file__).resolve().parents[2]
 
 
+def _children(pid: int) -> list[int]:
+    """Process ids whose parent is ``pid`` (Linux /proc)."""
+    out = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            out.append(int(stat.parent.name))
+    return out
+
+
 def _lines(text: str) -> list[str]:
     return [ln for ln in text.splitlines() if ln.strip()]
 
@@ -143,7 +156,10 @@ def test_ctrl_c_exits_130_with_the_finished_runs_marked_partial(tmp_path):
         [sys.executable, "-m", "gyro_attitude.cli", "montecarlo", "lab_bench", "--runs", "400",
          "--duration", "20", "--rate", "100", "--gyro-bias", "none", "--workers", "2",
          "--json", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
-    time.sleep(4.0)
+    deadline = time.monotonic() + 60
+    while not _children(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)  # until the pool's processes exist: the runs have begun
+    time.sleep(2.0)
     if proc.poll() is not None:
         pytest.fail(f"montecarlo ended before the signal: {proc.communicate()}")
     proc.send_signal(signal.SIGINT)
