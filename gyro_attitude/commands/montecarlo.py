@@ -13,6 +13,7 @@ import json
 import math
 import sys
 
+from gyro_attitude.cli import EXIT_INTERRUPTED
 from gyro_attitude.commands.estimator_flags import (
     add_estimator_flags,
     config_from_args,
@@ -28,8 +29,6 @@ from gyro_attitude.offline import montecarlo as mc
 from gyro_attitude.offline.parallel import CONNECT_TIMEOUT_S, default_workers
 
 __all__ = ["configure", "run"]
-
-EXIT_INTERRUPTED = 130
 
 
 def _int_from(lo: int, hi: int):
