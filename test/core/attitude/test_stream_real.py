@@ -30,6 +30,10 @@ MODES = {
     "level": StreamConfig(initial_attitude_source="level", initial_heading_deg=30.0),
     "gravity": StreamConfig(aiding="gravity", gyro_noise_density=1e-4),
     "level_gravity": StreamConfig(initial_attitude_source="level", aiding="gravity"),
+    # the Earth rate taken out of the rest averages at the current attitude (frame enu)
+    "auto_enu": StreamConfig(frame="enu", latitude_rad=0.9, gyro_noise_density=1e-4),
+    "level_enu": StreamConfig(frame="enu", latitude_rad=0.9, initial_attitude_source="level",
+                              initial_heading_deg=30.0),
 }
 
 
@@ -81,7 +85,7 @@ def test_run_equals_push_in_every_mode(mode):
 
 
 def test_array_form_taken_for_every_mode_but_aiding():
-    for mode in ("parameter", "none_rw", "auto", "auto_noise", "level"):
+    for mode in ("parameter", "none_rw", "auto", "auto_noise", "level", "auto_enu", "level_enu"):
         assert AttitudeStream(config=MODES[mode]).run_form()[0] is RunForm.ARRAYS
     for mode in ("gravity", "level_gravity"):
         assert AttitudeStream(config=MODES[mode]).run_form()[0] is RunForm.PER_SAMPLE

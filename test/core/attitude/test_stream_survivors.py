@@ -350,7 +350,7 @@ def test_push_after_run_with_auto_bias_continues_as_push():
     for k in range(n1 + n2):
         _, q_ref = ref.push(int(t[k]), w[k], "imu")
     s = AttitudeStream("exp_map", config=cfg)
-    assert s.run_form(t[:n1], w[:n1])[0] is RunForm.ARRAYS
+    assert s.run_form()[0] is RunForm.ARRAYS
     s.run(t[:n1], w[:n1], "imu")
     for k in range(n1, n1 + n2):
         _, q = s.push(int(t[k]), w[k], "imu")
