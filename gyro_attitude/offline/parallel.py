@@ -187,6 +187,13 @@ def _run_dask(fn, args, done, address: str, timeout_s: float) -> None:
         from distributed import Client, as_completed
     except ImportError as exc:  # pragma: no cover - pinned in requirements.txt
         raise OSError(f"--scheduler needs dask.distributed: {exc}") from None
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    try:  # a malformed address fails inside Client() and again in its finalizer: check first
+        parse_host_port(parse_address(address)[1])
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"--scheduler {address!r} is not a scheduler address "
+                         f"(tcp://host:port): {exc}") from None
     try:
         client = Client(address, timeout=f"{timeout_s}s", set_as_default=False)
     except (OSError, TimeoutError, ValueError) as exc:

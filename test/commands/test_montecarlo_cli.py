@@ -129,6 +129,14 @@ def test_unreachable_scheduler_is_one_line_within_the_timeout(tmp_path, capsys):
     assert not (tmp_path / "o.json").exists()
 
 
+@pytest.mark.parametrize("address", ["foo", "", "tcp://127.0.0.1:notaport"])
+def test_malformed_scheduler_address_is_one_line(capsys, address):
+    assert cli_main(["montecarlo", "lab_bench", "--runs", "1", "--duration", "1",
+                     "--scheduler", address]) == 1
+    err = capsys.readouterr().err
+    assert len(_lines(err)) == 1 and "is not a scheduler address" in err, err
+
+
 def test_failing_run_17_is_reported_and_the_others_written(tmp_path, capsys, monkeypatch):
     real = mc.run_one
 
