@@ -67,6 +67,9 @@ def _measure(label: str, setup: mc.MonteCarloSetup, workers: int) -> dict:
     many = mc.run_montecarlo(setup, workers=workers)
     hours = setup.duration_s / 3600.0
     per_run_many = many.wall_s / setup.runs
+    failed = [r["error"] for r in one.runs + many.runs if "error" in r]
+    if failed:
+        raise RuntimeError(f"{len(failed)} run(s) failed, first: {failed[0]}")
     cpu = float(np.mean([r["cpu_s"] for r in many.runs]))
     return {
         "case": label, "runs": setup.runs, "duration_s": setup.duration_s, "rate_hz": 100.0,

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import time
 
@@ -80,8 +81,11 @@ def run_fleet(args, config) -> int:
         print(json.dumps([{"input": f.input, "output": f.output, "summary": f.summary,
                            "error": f.error} for f in files], indent=2))
     if interrupted:
-        print(f"interrupted: {len(ok)} of {len(files)} file(s) replayed and kept; the others "
-              "not written", file=sys.stderr)
+        # a worker may have renamed its output into place as the stop came, its summary lost
+        kept = [f for f in files if f.error is None and os.path.exists(f.output)]
+        print(f"interrupted: {len(kept)} of {len(files)} file(s) replayed and kept"
+              + (f" ({len(kept) - len(ok)} finished as the command stopped, no summary)"
+                 if len(kept) > len(ok) else "") + "; the others not written", file=sys.stderr)
         return 130
     msgs = sum(f.summary["messages"] for f in ok)
     total = (f"total: {len(ok)} of {len(files)} file(s) replayed, {msgs} Imu messages in "

@@ -11,7 +11,8 @@ arrives (in completion order: the caller files it under ``i``).
   start method (``spawn`` where there is none): a worker starts from a clean interpreter, not
   from a copy of this process (its threads, its open files, the one-shot signal handler of the
   command line).  Workers ignore SIGINT: a Ctrl-C on the terminal reaches the whole process
-  group, and only this process decides what happens.  A worker that dies (killed, out of
+  group, and only this process decides what happens; SIGTERM (how it stops them) ends a
+  worker's task with SystemExit, so the task's clean-up runs.  A worker that dies (killed, out of
   memory) breaks the pool: the tasks not yet finished are run again in a new pool, at most
   :data:`POOL_RESTARTS` times.
 * ``scheduler``: a running ``dask.distributed`` scheduler at that address; Dask is imported only
@@ -58,8 +59,29 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def _ignore_sigint() -> None:
+_stopping = False  # set in a worker by SIGTERM: it takes no further task
+
+
+def _stop_on_sigterm(_signum, _frame) -> None:
+    global _stopping
+    _stopping = True
+    raise SystemExit(128 + signal.SIGTERM)
+
+
+def _call(fn, arg):
+    """A task in a pool worker.  A worker whose task SIGTERM ended goes on to the next item
+    already queued to it (the executor catches the exception of a task): it ends instead."""
+    if _stopping:
+        os._exit(128 + signal.SIGTERM)
+    return fn(arg)
+
+
+def _worker_signals() -> None:
+    """A worker ignores Ctrl-C (the command decides) and ends its task on SIGTERM by an
+    exception, so that the task's clean-up runs (a half-written output is removed) before
+    the process ends."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _stop_on_sigterm)
 
 
 def _context():
@@ -138,11 +160,11 @@ def _run_pool(fn, args, done, workers: int) -> None:
             if context.get_start_method() == "forkserver":
                 multiprocessing.forkserver.ensure_running()
             pool = ProcessPoolExecutor(max_workers=min(workers, len(pending)),
-                                       mp_context=context, initializer=_ignore_sigint)
+                                       mp_context=context, initializer=_worker_signals)
         futures = {}
         try:
             with _single_threaded_children():  # the workers start at the first submits
-                futures = {pool.submit(fn, args[i]): i for i in pending}
+                futures = {pool.submit(_call, fn, args[i]): i for i in pending}
             not_done = set(futures)
             while not_done:
                 finished, not_done = wait(not_done, return_when=FIRST_COMPLETED)
@@ -179,6 +201,9 @@ def _terminate(pool: ProcessPoolExecutor) -> None:
             p.terminate()
     for p in processes:
         p.join(timeout=5)
+        if p.is_alive():  # its task did not end on SIGTERM within 5 s
+            p.kill()
+            p.join(timeout=5)
 
 
 def _run_dask(fn, args, done, address: str, timeout_s: float) -> None:
