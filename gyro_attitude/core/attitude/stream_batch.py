@@ -30,6 +30,7 @@ from gyro_attitude.core.attitude.alignment import level_quaternions
 from gyro_attitude.core.attitude.modes import GyroBiasMode
 from gyro_attitude.core.attitude.stream import (
     EXTRA_COUNTS,
+    GYRO_NOISE_UNKNOWN,
     INVALID_ACCEL,
     INVALID_COVARIANCE,
     RUNNING,
@@ -39,6 +40,7 @@ from gyro_attitude.core.attitude.stream import (
     gyro_variances_array,
     nav_rows,
     rows,
+    unknown_noise_note,
     usable_accel,
 )
 from gyro_attitude.core.rotation import quat_from_rotvec, quat_multiply
@@ -152,6 +154,8 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
         var_all, known_all, invalid_all = gyro_variances_array(cov)
         var_v, known_v = rows(var_all, valid), rows(known_all, valid)
         inv = rows(invalid_all, valid)
+        if v.no_estimate(rows(cov, valid)).any():
+            details.setdefault(GYRO_NOISE_UNKNOWN, unknown_noise_note(cfg))
         counts[INVALID_COVARIANCE] = int(np.count_nonzero(inv))
         if counts[INVALID_COVARIANCE]:
             k = int(valid[np.flatnonzero(inv)[0]])
