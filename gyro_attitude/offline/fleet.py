@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import glob
 import os
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -108,5 +109,16 @@ def replay_fleet(pairs, *, workers: int = 1, scheduler: str | None = None,
         run_tasks(_replay_task, tasks, on_result, workers=workers, scheduler=scheduler,
                   on_error=on_error, connect_timeout_s=connect_timeout_s)
     except KeyboardInterrupt:
+        _remove_partial_outputs([f for f in files if f.summary is None and f.error is None])
         return files, True
     return files, False
+
+
+def _remove_partial_outputs(unfinished: list[FleetFile]) -> None:
+    """The hidden temporary folders (``safe_output``) of outputs whose worker was stopped
+    before its own clean-up ran: the stop happens once every worker has ended, so what is
+    left under those names is this set's."""
+    for f in unfinished:
+        out = Path(f.output)
+        for tmp in out.parent.glob(f".{glob.escape(out.name)}.*.partial"):
+            shutil.rmtree(tmp, ignore_errors=True)

@@ -60,20 +60,28 @@ def default_workers() -> int:
 
 
 _stopping = False  # set in a worker by SIGTERM: it takes no further task
+_in_task = False  # a worker is running a task's code (SIGTERM then raises in it)
 
 
 def _stop_on_sigterm(_signum, _frame) -> None:
     global _stopping
     _stopping = True
+    if not _in_task:  # between tasks: nothing to clean up, and no exception to escape
+        os._exit(128 + signal.SIGTERM)
     raise SystemExit(128 + signal.SIGTERM)
 
 
 def _call(fn, arg):
     """A task in a pool worker.  A worker whose task SIGTERM ended goes on to the next item
     already queued to it (the executor catches the exception of a task): it ends instead."""
+    global _in_task
     if _stopping:
         os._exit(128 + signal.SIGTERM)
-    return fn(arg)
+    _in_task = True
+    try:
+        return fn(arg)
+    finally:
+        _in_task = False
 
 
 def _worker_signals() -> None:
@@ -200,8 +208,8 @@ def _terminate(pool: ProcessPoolExecutor) -> None:
         if p.is_alive():
             p.terminate()
     for p in processes:
-        p.join(timeout=5)
-        if p.is_alive():  # its task did not end on SIGTERM within 5 s
+        p.join(timeout=10)
+        if p.is_alive():  # its task did not end on SIGTERM within 10 s
             p.kill()
             p.join(timeout=5)
 

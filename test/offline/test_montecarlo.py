@@ -125,7 +125,7 @@ def test_same_runs_with_one_and_two_workers(two_grade_setup):
 def test_same_runs_on_a_dask_local_cluster(two_grade_setup):
     distributed = pytest.importorskip("distributed")
     one = mc.run_montecarlo(two_grade_setup, workers=1)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
                                   host="127.0.0.1", dashboard_address=None,
                                   protocol="tcp") as cluster:
         dask = mc.run_montecarlo(two_grade_setup, scheduler=cluster.scheduler_address)

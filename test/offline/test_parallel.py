@@ -54,9 +54,9 @@ def test_dask_reruns_the_task_of_a_lost_worker(tmp_path):
     distributed = pytest.importorskip("distributed")
     marker = str(tmp_path / "died")
     out = {}
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
                                   host="127.0.0.1", dashboard_address=None) as cluster:
         parallel.run_tasks(_square_or_die_once, [(x, marker) for x in range(6)],
                            out.__setitem__, scheduler=cluster.scheduler_address)
-    assert os.path.exists(marker)  # a worker did die (its nanny starts a new one)
+    assert os.path.exists(marker)  # the worker did die (its nanny starts a new one)
     assert out == {i: i * i for i in range(6)}
