@@ -240,11 +240,13 @@ def _run_dask(fn, args, done, address: str, timeout_s: float) -> None:
         index = {f.key: i for i, f in enumerate(futures)}
         for f in as_completed(futures, loop=client.loop):
             i = index[f.key]
-            if f.status == "finished":
-                done(i, f.result())
+            try:
+                # waits: a future whose worker was lost can be handed out before its rerun ends
+                value = f.result()
+            except Exception as exc:  # the task raised, or killed too many workers
+                done(i, error=_describe(exc))
             else:
-                exc = f.exception()
-                done(i, error=_describe(exc) if exc is not None else f.status)
+                done(i, value)
     except KeyboardInterrupt:
         client.cancel(futures)
         raise
