@@ -166,6 +166,9 @@ def _run_pool(fn, args, done, workers: int) -> None:
         context = _context()
         with _single_threaded_children():
             if context.get_start_method() == "forkserver":
+                # the server imports the task's module once and forks the workers from it:
+                # they start with numpy and the package loaded (one import, not one each)
+                context.set_forkserver_preload(["__main__", fn.__module__])
                 multiprocessing.forkserver.ensure_running()
             pool = ProcessPoolExecutor(max_workers=min(workers, len(pending)),
                                        mp_context=context, initializer=_worker_signals)
