@@ -31,6 +31,7 @@ SUITES: dict[str, str] = {
     "real": "gyro_attitude.benchmarks.real",
     "instruments": "gyro_attitude.benchmarks.instruments",
     "trajectory": "gyro_attitude.benchmarks.trajectory",
+    "montecarlo": "gyro_attitude.benchmarks.montecarlo",
 }
 
 
