@@ -194,6 +194,8 @@ class StreamConfig:
     aiding_accel_tol: float = 2.0
     aiding_rate_max: float = 1.0
     aiding_accel_lowpass_s: float = 1.0
+    # NEW (branch offline): the offline estimator's tilt from gravity (core/attitude/offline.py)
+    offline_tilt_tau_s: float = 3.0
 
     def __post_init__(self):
         self.check_config()  # raises ValueError naming the field
@@ -210,6 +212,7 @@ class StreamConfig:
         for name in ("accel_bias_sigma", "heading_error_limit_deg", "aiding_kp", "aiding_ki",
                      "aiding_accel_tol", "aiding_rate_max", "aiding_accel_lowpass_s"):
             _num(name, getattr(self, name), 0.0, 1e6)
+        _num("offline_tilt_tau_s", self.offline_tilt_tau_s, 1e-3, 1e4)
         b = self.gyro_bias_rad_s
         if isinstance(b, str) or not hasattr(b, "__len__") or len(b) != 3:
             raise ValueError(f"gyro_bias_rad_s must be 3 numbers (rad/s), got {b!r}")

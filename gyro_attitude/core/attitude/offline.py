@@ -1,0 +1,592 @@
+"""Offline attitude over a whole recording: rests, bias and gravity seen from both sides of every sample.
+
+:func:`estimate_offline` is the non-causal counterpart of :meth:`.stream.AttitudeStream.run`:
+same input, same sample verdicts (:func:`.validation.classify`: bad samples skipped and
+counted, no integration across a gap, a backward time jump resets to ``q0``), same
+:class:`.stream.StreamResult`; every attitude may use samples after it.  The chain, each step an
+array operation over chunks of ``chunk_samples`` accepted samples (no per-sample Python):
+
+1. **rests** over the whole recording (:func:`.rest.detect_rest`, window statistics by
+   cumulative sums, the thresholds of the causal path, per gap-free run with a usable
+   accelerometer); a sample is at rest when it is the oldest sample of a rest window (as the
+   causal consumers take it), a rest counts when it spans ``min_rest_s``;
+2. **gyro bias per rest** (``gyro_bias="auto"``): the rest mean with its standard error
+   ``√(σ²/n + K² T/3)`` (white noise, plus the bias random walk ``K`` over the rest's length
+   ``T``); between rests the bias is interpolated linearly in time (the smoother of a random-walk
+   bias between two point estimates), before the first and after the last rest it is held.  With
+   a latitude (``nav`` or ``latitude_rad``) and an accelerometer the vertical Earth rate
+   ``ω_ie sin L`` along the rest's measured up is taken out of the rest mean (the horizontal
+   component would need the heading; left in, it tilts -- and levelling and gravity aiding
+   correct tilt -- but does not turn the heading);
+3. **integration** of ``ω − b(t)`` with the chosen algorithm, the attitude **held at rests**
+   (zero-rate update);
+4. **tilt from gravity** (``aiding="gravity"``): the specific force rotated into the integration
+   frame, ``f_i = C(q) f_b``, points up plus the slowly drifting gyro error plus the carrier's
+   acceleration, whose mean over a few seconds is small.  It is low-passed zero-phase (a
+   first-order filter with time constant ``offline_tilt_tau_s`` run forward, then backward over
+   the forward output), each sample weighted 1 where ``| |f| − g | <= aiding_accel_tol`` (0
+   elsewhere) and ``offline_rest_weight`` at rests; the normalised result ``u`` gives the tilt
+   correction, the smallest rotation taking ``u`` to up, applied on the left (integration
+   frame) so that the heading is untouched.  With ``initial_attitude="level"`` (without aiding)
+   the same correction is taken at **every rest** from the rest's mean specific force and
+   interpolated in time between rests; the initial roll and pitch come from the first rest;
+5. **covariance** per output axis (:func:`_gyro_error_variance`): the gyro-only error is the
+   integral of the body-frame bias and noise errors rotated into the output frame,
+   ``δθ(t) = ∫ C_nb (δb(τ) + n) dτ`` over the motion (held at rests); with the interpolated bias
+   ``δb = (1 − w) δb_j + w δb_{j+1}`` this is ``Σ_j M_j(t) δb_j`` with ``M_j = ∫ C_nb φ_j dτ``
+   (``φ_j`` the interpolation weights), so ``var_k = Σ_j Σ_m SE_{j,m}² M_j[k,m]²`` plus the
+   angle random walk ``Σ C[k,m]² σ_m² dt²`` plus the random walk's bridge ``K²(s³/3 − s⁴/4T)``
+   (``s`` motion time since the rest, ``T`` to the next).  The heading (third) axis keeps it and
+   grows between rests; the tilt axes take the tilt-from-gravity variance where gravity is used:
+   ``(σ_ba/g)² + σ_f²/(g² n_eff)`` with ``n_eff = (Σw)²/Σw²`` of the smoother and ``σ_f²`` the
+   measured scatter of ``f_i`` about ``g u`` (accelerometer noise and the carrier's acceleration:
+   the residual that leaks into the mean), or the levelling variance at rests with the gyro-only
+   growth bridged between them.  The gyro noise ``σ_ω`` comes from the messages'
+   ``angular_velocity_covariance``, else ``gyro_noise_density``, else the scatter measured at the
+   rests.
+
+Time jumps split the recording into blocks that are estimated independently (the attitude
+resets to ``q0``); gaps are held across.  Memory: the output (index, q, variance, action) plus
+O(``chunk_samples``) working arrays; the forward low-pass keeps only its state at chunk
+boundaries and is recomputed chunk by chunk in the backward pass.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import lfilter, lfiltic
+
+from gyro_attitude.core.attitude import NavFrame, integrate_batch
+from gyro_attitude.core.attitude import validation as v
+from gyro_attitude.core.attitude.alignment import AlignmentResult, level_quaternion
+from gyro_attitude.core.attitude.gyro_bias import GyroBiasReport
+from gyro_attitude.core.attitude.registry import DEFAULT_ALGORITHM
+from gyro_attitude.core.attitude.rest import NOISE_FLOOR_RAD_S, STANDARD_GRAVITY, detect_rest
+from gyro_attitude.core.attitude.stream import (
+    INTEGRATOR_ERROR,
+    INVALID_ACCEL,
+    INVALID_COVARIANCE,
+    StreamConfig,
+    StreamResult,
+    _rows,
+    _unit_quat,
+    _usable_accel,
+    gyro_variances_array,
+)
+from gyro_attitude.core.earth import OMEGA_IE
+from gyro_attitude.core.rotation import quat_as_matrix, quat_from_rotvec, quat_multiply, quat_rotate
+
+__all__ = ["DEFAULT_CHUNK_SAMPLES", "OfflineRest", "estimate_offline"]
+
+#: Accepted samples per working chunk: ~100 MB of temporaries at most, whatever the length.
+DEFAULT_CHUNK_SAMPLES = 1 << 18
+
+
+@dataclass(frozen=True)
+class OfflineRest:
+    """One rest found over the recording: accepted rows ``[start, stop)``, its mid time on the
+    block's clock ``tau_s``, the bias estimate and its standard error (rad/s), mean specific
+    force (m/s², NaN without accelerometer) and the per-axis gyro scatter (rad/s)²."""
+
+    start: int
+    stop: int
+    tau_s: float
+    duration_s: float
+    bias: np.ndarray
+    standard_error: np.ndarray
+    accel_mean: np.ndarray
+    accel_var: np.ndarray
+    gyro_var: np.ndarray
+
+
+def _chunks(lo: int, hi: int, size: int):
+    for c0 in range(lo, hi, size):
+        yield c0, min(c0 + size, hi)
+
+
+def _mean_var(x: np.ndarray, lo: int, hi: int, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and variance (ddof 1) of rows ``x[lo:hi]``, summed chunk-wise about the first row."""
+    ref = x[lo].astype(np.float64)
+    s1 = np.zeros(3)
+    s2 = np.zeros(3)
+    for c0, c1 in _chunks(lo, hi, size):
+        d = x[c0:c1] - ref
+        s1 += d.sum(axis=0)
+        s2 += np.einsum("ij,ij->j", d, d)
+    n = hi - lo
+    mean = ref + s1 / n
+    var = np.maximum(s2 - s1 * s1 / n, 0.0) / max(n - 1, 1)
+    return mean, var
+
+
+def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, lo: int, hi: int,
+               params: dict, window_ns: int, size: int, out: np.ndarray) -> None:
+    """Mark in ``out`` the rows of ``[lo, hi)`` (one gap-free run) that are the oldest sample
+    of a rest window, in chunks that carry one window of history before them (the windows and
+    their 'full' test are those of a detector started at ``lo``)."""
+    for c0, c1 in _chunks(lo, hi, size):
+        p = lo if c0 == lo else max(lo, int(np.searchsorted(t[lo:c0], t[c0] - window_ns)) + lo - 1)
+        if c1 - p < 2:
+            continue
+        rw = detect_rest(t[p:c1], w[p:c1], None if a is None else a[p:c1], **params)
+        k = np.flatnonzero(rw.at_rest[c0 - p:]) + (c0 - p)
+        if c0 != lo:  # a chunk not starting the run: 'full' counts from the run's first sample
+            k = k[t[p + k] - t[lo] >= window_ns]
+        out[p + rw.oldest[k]] = True
+
+
+def _segments(mask: np.ndarray) -> list[tuple[int, int]]:
+    edges = np.diff(np.concatenate(([0], mask.view(np.int8), [0])))
+    return list(zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist(),
+                    strict=True))
+
+
+def _up_correction(u: np.ndarray) -> np.ndarray:
+    """Rotation vectors (M, 3) of the smallest rotations taking the unit-ish ``u`` to +z."""
+    # axis u × z = (u_y, −u_x, 0); angle atan2(|u × z|, u_z): exact for tiny and large tilts
+    h = np.hypot(u[:, 0], u[:, 1])
+    ang = np.arctan2(h, u[:, 2])
+    s = np.divide(ang, h, out=np.zeros_like(h), where=h > 0)
+    r = np.empty_like(u)
+    r[:, 0] = u[:, 1] * s
+    r[:, 1] = -u[:, 0] * s
+    r[:, 2] = 0.0
+    return r
+
+
+class _Block:
+    """Accepted rows ``[b0, b1)`` between time-jump resets, estimated on their own."""
+
+    def __init__(self, b0, b1, runs):
+        self.b0, self.b1, self.runs = b0, b1, runs
+
+
+def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = None,
+                     q0=(0.0, 0.0, 0.0, 1.0), nav: NavFrame | None = None, mag=None,
+                     frame_id: str | list[str] | None = "", angular_velocity_covariance=None,
+                     algorithm: str = DEFAULT_ALGORITHM,
+                     chunk_samples: int = DEFAULT_CHUNK_SAMPLES) -> StreamResult:
+    """Attitudes of a whole recording, non-causally (see the module docstring).
+
+    ``t_ns`` (N,) int stamps; ``omega`` (N, 3) rad/s; ``accel`` (N, 3) m/s² specific force or
+    None (gyro-only: no levelling, no aiding, rests from the gyro alone); ``config`` the stream
+    settings (bias mode, rest thresholds, ``initial_attitude``, ``aiding``, noise figures);
+    ``q0`` the initial attitude (``level``: its heading is ``initial_heading_deg``); ``nav`` a
+    constant :class:`NavFrame` for q_nb or None for q_ib; ``mag`` is accepted and not used yet;
+    ``angular_velocity_covariance`` (N, 9) or None.  Raises ValueError on malformed input and
+    when ``initial_attitude="level"`` finds no rest to level on.
+    """
+    cfg = config if config is not None else StreamConfig()
+    if not isinstance(cfg, StreamConfig):
+        raise ValueError(f"config must be a StreamConfig, got {type(cfg).__name__}")
+    if isinstance(chunk_samples, bool) or not isinstance(chunk_samples, int) or \
+            not 64 <= chunk_samples <= 1 << 26:
+        raise ValueError(f"chunk_samples must be an int in [64, 2**26], got {chunk_samples!r}")
+    if cfg.heading_source == "gyrocompass":
+        raise ValueError("the offline estimator does not gyrocompass (heading_source "
+                         "'gyrocompass'): use --estimator causal or give the heading")
+    if nav is not None and (not isinstance(nav, NavFrame) or nav.series_length() is not None):
+        raise ValueError("nav must be a constant NavFrame for the offline estimator")
+    q_init = _unit_quat(q0)
+    t = np.asarray(t_ns)
+    w = np.asarray(omega, dtype=np.float64)
+    cls = v.classify(t, w, frame_id, cfg.check_config())  # checks t and omega shapes
+    n = w.shape[0]
+    t = t.astype(np.int64, copy=False)
+    acc = None
+    if accel is not None:
+        acc = np.asarray(accel, dtype=np.float64)
+        if acc.shape != (n, 3):
+            raise ValueError(f"accel must have shape ({n}, 3), got {acc.shape}")
+    cov = None
+    if angular_velocity_covariance is not None:
+        cov = np.asarray(angular_velocity_covariance, dtype=np.float64)
+        if cov.shape != (n, 9):
+            raise ValueError(f"angular_velocity_covariance must have shape ({n}, 9), got "
+                             f"{cov.shape}")
+    codes = v.ACTION_CODES
+    act = cls.action
+    valid = np.flatnonzero(act != codes[v.REJECT])
+    counts = {**cls.counts, INVALID_COVARIANCE: 0, INVALID_ACCEL: 0, INTEGRATOR_ERROR: 0}
+    details = dict(cls.details)
+    m = valid.size
+    tv = _rows(t, valid)
+    wv = _rows(w, valid)
+    av = None if acc is None else _rows(acc, valid)
+    usable = None
+    if av is not None:
+        usable = _usable_accel(av)
+        counts[INVALID_ACCEL] = int(m - np.count_nonzero(usable))
+        if counts[INVALID_ACCEL]:
+            k = int(np.flatnonzero(~usable)[0])
+            details.setdefault(INVALID_ACCEL, f"linear_acceleration {av[k].tolist()} is not "
+                               "finite or absurd: not used for rests, levelling or aiding")
+        if not usable.any():
+            av = usable = None
+    sig2 = None  # per-row gyro variance (M, 3) from the messages, where known
+    if cov is not None:
+        var_all, known_all, invalid_all = gyro_variances_array(cov)
+        inv = _rows(invalid_all, valid)
+        counts[INVALID_COVARIANCE] = int(np.count_nonzero(inv))
+        if counts[INVALID_COVARIANCE]:
+            k = int(valid[np.flatnonzero(inv)[0]])
+            details.setdefault(INVALID_COVARIANCE, f"angular_velocity_covariance "
+                               f"{cov[k].tolist()} has a non-finite, negative or absurd "
+                               "diagonal: treated as unknown")
+        if _rows(known_all, valid).any():
+            sig2 = (_rows(var_all, valid), _rows(known_all, valid))
+    est = _Estimator(cfg, q_init, nav, algorithm, chunk_samples, tv, wv, av, usable, sig2,
+                     _rows(act, valid))
+    q_out, var_out, known_out = est.run()
+    notes = est.notes
+    if acc is None or av is None:
+        notes.insert(0, "no accelerometer: gyro-only offline estimation (rests from the gyro, "
+                     "no levelling, no gravity aiding)")
+        details.setdefault("gyro_only", notes[0])
+    return StreamResult(valid, q_out, var_out, known_out, act, counts, cls.time_jump_resets,
+                        details, est.bias_report(), est.alignment)
+
+
+class _Estimator:
+    """The passes of :func:`estimate_offline` over the accepted rows (visible state: the rests
+    found, the notes, the alignment)."""
+
+    def __init__(self, cfg, q_init, nav, algorithm, size, t, w, a, usable, sig2, act):
+        self.cfg, self.q_init, self.nav, self.algorithm, self.size = cfg, q_init, nav, algorithm, size
+        self.t, self.w, self.a, self.usable, self.sig2, self.act = t, w, a, usable, sig2, act
+        self.rests: list[OfflineRest] = []
+        self.notes: list[str] = []
+        self.alignment: AlignmentResult | None = None
+        lat = nav.latitude_rad if nav is not None else cfg.latitude_rad
+        self.latitude = None if lat is None else float(np.asarray(lat).reshape(-1)[0])
+        self.window_ns = int(round(cfg.rest_window_s * 1e9))
+
+    # ------------------------------------------------------------------ the chain
+    def run(self):
+        m = self.t.size
+        q_out = np.empty((m, 4))
+        var_out = np.zeros((m, 3))
+        codes = v.ACTION_CODES
+        resets = np.flatnonzero(self.act == codes[v.RESET_TIME_JUMP])
+        bounds = [0, *resets.tolist(), m]
+        starts = np.flatnonzero(self.act != codes[v.ACCEPT])  # START, gap restarts, resets
+        self._noise_known = bool(self.sig2 is not None or self.cfg.gyro_noise_density > 0)
+        for b0, b1 in zip(bounds[:-1], bounds[1:], strict=True):
+            if b1 <= b0:
+                continue
+            s = starts[(starts >= b0) & (starts < b1)].tolist()
+            runs = list(zip(s, [*s[1:], b1], strict=True))
+            self._block(b0, b1, runs, q_out, var_out)
+        known = self._var_known()
+        if not known:
+            var_out = None
+        return q_out, var_out, (None if var_out is None else np.ones(m, dtype=bool))
+
+    def _var_known(self) -> bool:
+        cfg = self.cfg
+        return bool(self._noise_known or cfg.gyro_bias_sigma_rad_s > 0
+                    or cfg.initial_attitude == "level" or any(
+                        r.gyro_var.any() for r in self.rests))
+
+    def _block(self, b0, b1, runs, q_out, var_out):
+        cfg = self.cfg
+        tau = self._clock(b0, b1, runs)
+        rest = np.zeros(b1 - b0, dtype=bool)
+        if cfg.gyro_bias == "auto" or cfg.initial_attitude == "level" or cfg.aiding == "gravity":
+            self._find_rests(b0, runs, rest)
+        rests = self._rest_stats(b0, b1, rest, tau)
+        self.rests += rests
+        q_start = self.q_init
+        tilt_var0 = None
+        if cfg.initial_attitude == "level":
+            with_f = [r for r in rests if np.isfinite(r.accel_mean).all()]
+            if not with_f:
+                raise ValueError(f"cannot align: no rest of at least {cfg.min_rest_s:g} s with a "
+                                 "usable accelerometer in the recording (initial_attitude "
+                                 "'level')")
+            r0 = with_f[0]
+            q_start, roll, pitch = level_quaternion(r0.accel_mean,
+                                                    math.radians(cfg.initial_heading_deg))
+            g = float(np.linalg.norm(r0.accel_mean))
+            sl = math.sqrt(cfg.accel_bias_sigma ** 2 + float(np.mean(r0.accel_var[:2]))
+                           / (r0.stop - r0.start)) / g
+            tilt_var0 = sl * sl
+            if self.alignment is None:
+                self.alignment = AlignmentResult(
+                    q_start, roll, pitch, math.radians(cfg.initial_heading_deg) % (2 * math.pi),
+                    "given", sl, math.nan, int(self.t[b0 + r0.start]),
+                    int(self.t[b0 + r0.stop - 1]), r0.stop - r0.start, r0.accel_mean,
+                    r0.bias)
+        zupt = cfg.gyro_bias == "auto"
+        self._integrate(b0, runs, rest if zupt else None, rests, tau, q_start, q_out)
+        tt0 = np.full(3, cfg.initial_variance)
+        if tilt_var0 is not None:
+            tt0[:2] = tilt_var0
+        self._covariance(b0, b1, rest if zupt else None, rests, tau, q_out, var_out, tt0)
+        if self.a is not None and cfg.aiding == "gravity":
+            self._tilt_from_gravity(b0, b1, rest, q_out, var_out)
+        elif self.a is not None and cfg.initial_attitude == "level":
+            self._level_at_rests(b0, b1, rests, tau, q_out, var_out)
+
+    def _clock(self, b0, b1, runs) -> np.ndarray:
+        """Seconds since the block's first row, gaps counted (the bias walks across them)."""
+        return (self.t[b0:b1] - self.t[b0]) * 1e-9
+
+    # ------------------------------------------------------------------ 1. rests
+    def _find_rests(self, b0, runs, rest):
+        params = {"gyro_std_min": NOISE_FLOOR_RAD_S, **self.cfg.rest_params()}
+        t, w, a, ok = self.t, self.w, self.a, self.usable
+        for r0, r1 in runs:
+            pieces = [(r0, r1)]
+            if ok is not None and not ok[r0:r1].all():
+                pieces = [(r0 + p, r0 + q) for p, q in _segments(ok[r0:r1])]
+            for p0, p1 in pieces:
+                if p1 - p0 < 2:
+                    continue
+                mark = np.zeros(p1 - p0, dtype=bool)
+                _rest_mask(t[p0:p1], w[p0:p1], None if a is None else a[p0:p1], 0, p1 - p0,
+                           params, self.window_ns, self.size, mark)
+                rest[p0 - b0:p1 - b0] |= mark
+
+    def _rest_stats(self, b0, b1, rest, tau) -> list[OfflineRest]:
+        cfg = self.cfg
+        min_ns = int(round(cfg.min_rest_s * 1e9))
+        out = []
+        k2 = cfg.gyro_bias_rw ** 2
+        for s0, s1 in _segments(rest):
+            if self.t[b0 + s1 - 1] - self.t[b0 + s0] < min_ns or s1 - s0 < 3:
+                rest[s0:s1] = False  # too short to count: not a rest for any step
+                continue
+            mean_w, var_w = _mean_var(self.w, b0 + s0, b0 + s1, self.size)
+            n = s1 - s0
+            dur = float(tau[s1 - 1] - tau[s0])
+            se = np.sqrt(var_w / n + k2 * dur / 3.0)
+            mean_f = var_f = np.full(3, np.nan)
+            if self.a is not None and self.usable[b0 + s0:b0 + s1].all():
+                mean_f, var_f = _mean_var(self.a, b0 + s0, b0 + s1, self.size)
+                if self.latitude is not None:
+                    # the vertical Earth rate along the measured up (module docstring, step 2)
+                    up = mean_f / np.linalg.norm(mean_f)
+                    mean_w = mean_w - OMEGA_IE * math.sin(self.latitude) * up
+            out.append(OfflineRest(s0, s1, float(0.5 * (tau[s0] + tau[s1 - 1])), dur, mean_w, se,
+                                   mean_f, var_f, var_w))
+        return out
+
+    # ------------------------------------------------------------------ 2.-3. bias, integration
+    def _bias_rows(self, rests, tau_rows) -> np.ndarray:
+        cfg = self.cfg
+        if cfg.gyro_bias == "parameter":
+            return np.broadcast_to(np.asarray(cfg.gyro_bias_rad_s, dtype=np.float64),
+                                   (tau_rows.size, 3))
+        if cfg.gyro_bias == "none" or not rests:
+            return np.zeros((tau_rows.size, 3))
+        xs = np.array([r.tau_s for r in rests])
+        b = np.array([r.bias for r in rests])
+        return np.column_stack([np.interp(tau_rows, xs, b[:, i]) for i in range(3)])
+
+    def _integrate(self, b0, runs, rest, rests, tau, q_start, q_out):
+        """``ω − b(t)`` integrated run by run (a gap holds the attitude), held at rests."""
+        q_prev = q_start
+        size = self.size
+        for r0, r1 in runs:
+            if self.act[r0] == v.ACTION_CODES[v.RESET_TIME_JUMP] or r0 == b0:
+                q_prev = q_start
+            pieces = [(r0, r1, False)]
+            if rest is not None and rest[r0 - b0:r1 - b0].any():
+                pieces = []
+                mr = rest[r0 - b0:r1 - b0]
+                edges = np.flatnonzero(np.diff(mr.view(np.int8))) + 1
+                cuts = [0, *edges.tolist(), r1 - r0]
+                pieces = [(r0 + c0, r0 + c1, bool(mr[c0])) for c0, c1 in
+                          zip(cuts[:-1], cuts[1:], strict=True)]
+            first = True
+            for p0, p1, at_rest in pieces:
+                if at_rest:
+                    q_out[p0:p1] = q_prev
+                    first = False
+                    continue
+                for c0, c1 in _chunks(p0, p1, size):
+                    lo = c0 if (first and c0 == r0) else c0 - 1  # the row before: its interval
+                    if lo == c0:
+                        q_out[c0] = q_prev
+                        if c1 - c0 == 1:
+                            continue
+                    wc = self.w[lo:c1] - self._bias_rows(rests, tau[lo - b0:c1 - b0])
+                    q = integrate_batch(self.t[lo:c1], wc, q0=q_out[lo] if lo < c0 else q_prev,
+                                        algorithm=self.algorithm, nav=self.nav)
+                    q_out[lo:c1] = q
+                    q_prev = q_out[c1 - 1]
+                first = False
+                q_prev = q_out[p1 - 1]
+            q_prev = q_out[r1 - 1]
+
+    # ------------------------------------------------------------------ 4. tilt
+    def _tilt_from_gravity(self, b0, b1, rest, q_out, var_out):
+        """Zero-phase weighted low-pass of ``f_i`` (module docstring, step 4): the forward pass
+        keeps its state at chunk starts only; the backward pass recomputes each chunk's forward
+        part (unless the block is one chunk) and applies the correction in place."""
+        cfg = self.cfg
+        t = self.t
+        dt = float(np.median(np.diff(t[b0:min(b1, b0 + 100_000)]))) * 1e-9 if b1 - b0 > 1 else 0.01
+        alpha = math.exp(-max(dt, 1e-9) / cfg.offline_tilt_tau_s)
+        bcoef, acoef = np.array([1.0 - alpha]), np.array([1.0, -alpha])
+
+        def columns(c0, c1):
+            x = np.empty((c1 - c0, 5))
+            wt = self.usable[c0:c1].astype(np.float64)
+            x[:, :3] = quat_rotate(q_out[c0:c1], self.a[c0:c1] * wt[:, None])
+            x[:, 3] = wt
+            x[:, 4] = wt * wt
+            return x
+
+        chunks = list(_chunks(b0, b1, self.size))
+        zf = np.zeros((1, 5))
+        states = []
+        fwd = None
+        for c0, c1 in chunks:  # forward
+            states.append(zf)
+            fwd, zf = lfilter(bcoef, acoef, columns(c0, c1), axis=0, zi=zf)
+        zb = np.zeros((1, 5))
+        g0 = STANDARD_GRAVITY
+        noise = [r.accel_var for r in self.rests if np.isfinite(r.accel_var).all()]
+        sf2 = float(np.mean(noise)) if noise else 0.0  # per-axis accelerometer noise at rest
+        floor = (cfg.accel_bias_sigma / g0) ** 2
+        for (c0, c1), zi in zip(reversed(chunks), reversed(states), strict=True):
+            if len(chunks) > 1:
+                fwd, _ = lfilter(bcoef, acoef, columns(c0, c1), axis=0, zi=zi)
+            sm, zb = lfilter(bcoef, acoef, fwd[::-1], axis=0, zi=zb)
+            sm = sm[::-1]
+            den = sm[:, 3]
+            okd = den > 1e-12
+            u = np.divide(sm[:, :3], den[:, None], out=np.zeros((c1 - c0, 3)), where=okd[:, None])
+            u[~okd] = (0.0, 0.0, 1.0)
+            q_out[c0:c1] = quat_multiply(quat_from_rotvec(_up_correction(u)), q_out[c0:c1])
+            # tilt variance: the accelerometer-bias floor plus its noise over the samples
+            # the smoother averages, n_eff = (Σw)²/Σw²
+            n_eff = np.divide(den * den, sm[:, 4], out=np.ones_like(den), where=sm[:, 4] > 0)
+            tilt = floor + sf2 / (g0 * g0) / np.maximum(n_eff, 1.0)
+            var_out[c0:c1, 0] = np.where(okd, tilt, var_out[c0:c1, 0])
+            var_out[c0:c1, 1] = np.where(okd, tilt, var_out[c0:c1, 1])
+        self.notes.append(f"tilt from gravity: zero-phase low-pass, τ = {cfg.offline_tilt_tau_s:g} "
+                          "s")
+
+    def _level_at_rests(self, b0, b1, rests, tau, q_out, var_out):
+        """Levelling at every rest, the correction interpolated in time between rests."""
+        with_f = [r for r in rests if np.isfinite(r.accel_mean).all()]
+        if not with_f:
+            return
+        xs = np.array([r.tau_s for r in with_f])
+        rv = _up_correction(np.array([quat_rotate(q_out[b0 + r.start], r.accel_mean)
+                                      for r in with_f]))
+        for c0, c1 in _chunks(b0, b1, self.size):
+            tr = tau[c0 - b0:c1 - b0]
+            r = np.column_stack([np.interp(tr, xs, rv[:, i]) for i in range(3)])
+            q_out[c0:c1] = quat_multiply(quat_from_rotvec(r), q_out[c0:c1])
+        self.notes.append(f"levelled at {len(with_f)} rest(s)")
+
+    # ------------------------------------------------------------------ 5. covariance
+    def _covariance(self, b0, b1, rest, rests, tau, q_out, var_out, tt0):
+        """Gyro-only error variance per output axis (module docstring, step 5)."""
+        cfg = self.cfg
+        size = self.size
+        auto = cfg.gyro_bias == "auto" and rests
+        if auto:
+            xs = [r.tau_s for r in rests]
+            se2 = [r.standard_error ** 2 for r in rests]
+        else:
+            xs = [0.0]
+            se2 = [np.full(3, cfg.gyro_bias_sigma_rad_s ** 2)]
+        # gyro noise per row: messages, else the density, else the scatter measured at rests
+        n2 = cfg.gyro_noise_density ** 2
+        measured = None
+        if self.rests or rests:
+            rr = [r for r in (rests or self.rests) if r.stop - r.start > 1]
+            if rr:
+                measured = np.average([r.gyro_var for r in rr], axis=0,
+                                      weights=[r.stop - r.start for r in rr])
+        k2 = cfg.gyro_bias_rw ** 2
+        x = np.asarray(xs)
+        nr = x.size
+        # interval s: before rest 0 (s = 0), between rests s-1 and s, after the last (s = nr);
+        # rest s-1's M grows with weight 1 − w there (m_fall), rest s's with w (m_rise)
+        done = np.zeros(3)  # variance from rests whose weights are complete
+        rw_done = 0.0
+        m_fall = np.zeros((3, 3))
+        m_rise = np.zeros((3, 3))
+        arw = np.zeros(3)
+        j = 0
+        for c0, c1 in _chunks(b0, b1, size):
+            tr = tau[c0 - b0:c1 - b0]
+            dt = np.zeros(c1 - c0)
+            dt[1:] = np.diff(self.t[c0:c1]) * 1e-9
+            if c0 > b0:
+                dt[0] = (self.t[c0] - self.t[c0 - 1]) * 1e-9
+            dt[self.act[c0:c1] != v.ACTION_CODES[v.ACCEPT]] = 0.0
+            if rest is not None:
+                dt[rest[c0 - b0:c1 - b0]] = 0.0  # held: no error grows
+            c = quat_as_matrix(q_out[c0:c1])  # C_nb (rows: output axes)
+            if self.sig2 is not None:
+                s2 = np.where(self.sig2[1][c0:c1, None], self.sig2[0][c0:c1], 0.0) * (
+                    dt * dt)[:, None]
+            elif n2 > 0:
+                s2 = (n2 * dt)[:, None] * np.ones(3)
+            elif measured is not None:
+                s2 = measured[None, :] * (dt * dt)[:, None]
+            else:
+                s2 = np.zeros((c1 - c0, 3))
+            out = tt0 + arw + np.cumsum(np.einsum("ikm,im->ik", c * c, s2), axis=0)
+            arw = out[-1] - tt0
+            seg = np.searchsorted(x, tr, side="right")  # interval per row (tau is monotonic)
+            edges = np.flatnonzero(np.diff(seg)) + 1
+            for lo, hi in zip([0, *edges.tolist()], [*edges.tolist(), c1 - c0], strict=True):
+                s = int(seg[lo])
+                while j < s:  # entering interval j + 1: rest j-1's weight is complete
+                    if j >= 1:
+                        done += np.einsum("km,m->k", m_fall ** 2, se2[j - 1])
+                        rw_done += k2 * (x[j] - x[j - 1]) ** 3 / 12.0
+                    m_fall, m_rise = m_rise, np.zeros((3, 3))
+                    j += 1
+                cd = c[lo:hi] * dt[lo:hi, None, None]
+                if 0 < s < nr:
+                    wgt = ((tr[lo:hi] - x[s - 1]) / (x[s] - x[s - 1]))[:, None, None]
+                    mf = m_fall + np.cumsum(cd * (1.0 - wgt), axis=0)
+                    mr = m_rise + np.cumsum(cd * wgt, axis=0)
+                    var_b = np.einsum("ikm,m->ik", mf ** 2, se2[s - 1]) + np.einsum(
+                        "ikm,m->ik", mr ** 2, se2[s])
+                    m_fall, m_rise = mf[-1], mr[-1]
+                    sm = tr[lo:hi] - x[s - 1]
+                    rw = k2 * (sm ** 3 / 3.0 - sm ** 4 / (4.0 * (x[s] - x[s - 1])))
+                elif s == 0:  # before the first rest: its estimate, held back to the start
+                    mr = m_rise + np.cumsum(cd, axis=0)
+                    var_b = np.einsum("ikm,m->ik", mr ** 2, se2[0])
+                    m_rise = mr[-1]
+                    rw = k2 * np.abs(x[0] - tr[lo:hi]) ** 3 / 3.0
+                else:  # after the last rest: its estimate held
+                    mf = m_fall + np.cumsum(cd, axis=0)
+                    var_b = np.einsum("ikm,m->ik", mf ** 2, se2[nr - 1])
+                    m_fall = mf[-1]
+                    rw = k2 * (tr[lo:hi] - x[nr - 1]) ** 3 / 3.0
+                out[lo:hi] += done + var_b + (rw_done + rw)[:, None]
+            var_out[c0:c1] = out
+
+    # ------------------------------------------------------------------ report
+    def bias_report(self) -> GyroBiasReport:
+        cfg = self.cfg
+        if cfg.gyro_bias == "parameter":
+            return GyroBiasReport("parameter", np.asarray(cfg.gyro_bias_rad_s, float), 0, 0,
+                                  np.full(3, np.nan), False, "fixed parameter")
+        if cfg.gyro_bias == "none" or not self.rests:
+            note = "no rest found: bias 0" if cfg.gyro_bias == "auto" else "not estimated"
+            return GyroBiasReport(cfg.gyro_bias, np.zeros(3), 0, 0, np.full(3, np.nan), False,
+                                  note)
+        n = np.array([r.stop - r.start for r in self.rests], dtype=np.float64)
+        b = np.average([r.bias for r in self.rests], axis=0, weights=n)
+        se = np.sqrt(np.average([r.standard_error ** 2 for r in self.rests], axis=0,
+                                weights=n * n) / len(self.rests))
+        earth = self.latitude is not None and self.a is not None
+        return GyroBiasReport("auto", b, len(self.rests), int(n.sum()), se, earth,
+                              f"offline: one estimate per rest ({len(self.rests)}), interpolated "
+                              "in time between rests; the value shown is their mean")
