@@ -57,26 +57,27 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import lfilter, lfiltic
+from scipy.signal import lfilter
 
 from gyro_attitude.core.attitude import NavFrame, integrate_batch
 from gyro_attitude.core.attitude import validation as v
 from gyro_attitude.core.attitude.alignment import AlignmentResult, level_quaternion
 from gyro_attitude.core.attitude.gyro_bias import GyroBiasReport
+from gyro_attitude.core.attitude.modes import Aiding, Frame, GyroBiasMode, HeadingSource
 from gyro_attitude.core.attitude.registry import DEFAULT_ALGORITHM
-from gyro_attitude.core.attitude.rest import NOISE_FLOOR_RAD_S, STANDARD_GRAVITY, detect_rest
+from gyro_attitude.core.attitude.rest import NOISE_FLOOR_RAD_S, detect_rest
+from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.core.attitude.stream import (
     INTEGRATOR_ERROR,
     INVALID_ACCEL,
     INVALID_COVARIANCE,
-    StreamConfig,
     StreamResult,
     _rows,
     _unit_quat,
     _usable_accel,
     gyro_variances_array,
 )
-from gyro_attitude.core.earth import OMEGA_IE
+from gyro_attitude.core.earth import OMEGA_IE, STANDARD_GRAVITY
 from gyro_attitude.core.rotation import quat_as_matrix, quat_from_rotvec, quat_multiply, quat_rotate
 
 __all__ = ["DEFAULT_CHUNK_SAMPLES", "OfflineRest", "estimate_offline"]
@@ -185,9 +186,11 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
     if isinstance(chunk_samples, bool) or not isinstance(chunk_samples, int) or \
             not 64 <= chunk_samples <= 1 << 26:
         raise ValueError(f"chunk_samples must be an int in [64, 2**26], got {chunk_samples!r}")
-    if cfg.heading_source == "gyrocompass":
+    if cfg.heading_source is HeadingSource.GYROCOMPASS:
         raise ValueError("the offline estimator does not gyrocompass (heading_source "
                          "'gyrocompass'): use --estimator causal or give the heading")
+    if nav is None and cfg.frame is Frame.ENU:
+        nav = cfg.nav_frame()
     if nav is not None and (not isinstance(nav, NavFrame) or nav.series_length() is not None):
         raise ValueError("nav must be a constant NavFrame for the offline estimator")
     q_init = _unit_quat(q0)
@@ -260,7 +263,8 @@ class _Estimator:
         self.rests: list[OfflineRest] = []
         self.notes: list[str] = []
         self.alignment: AlignmentResult | None = None
-        lat = nav.latitude_rad if nav is not None else cfg.latitude_rad
+        lat = nav.latitude_rad if nav is not None else (
+            cfg.latitude_rad if cfg.latitude_known else None)
         self.latitude = None if lat is None else float(np.asarray(lat).reshape(-1)[0])
         self.window_ns = int(round(cfg.rest_window_s * 1e9))
 
@@ -288,20 +292,20 @@ class _Estimator:
     def _var_known(self) -> bool:
         cfg = self.cfg
         return bool(self._noise_known or cfg.gyro_bias_sigma_rad_s > 0
-                    or cfg.initial_attitude == "level" or any(
+                    or cfg.levelling or any(
                         r.gyro_var.any() for r in self.rests))
 
     def _block(self, b0, b1, runs, q_out, var_out):
         cfg = self.cfg
         tau = self._clock(b0, b1, runs)
         rest = np.zeros(b1 - b0, dtype=bool)
-        if cfg.gyro_bias == "auto" or cfg.initial_attitude == "level" or cfg.aiding == "gravity":
+        if cfg.gyro_bias is GyroBiasMode.AUTO or cfg.levelling or cfg.aiding is Aiding.GRAVITY:
             self._find_rests(b0, runs, rest)
         rests = self._rest_stats(b0, b1, rest, tau)
         self.rests += rests
         q_start = self.q_init
         tilt_var0 = None
-        if cfg.initial_attitude == "level":
+        if cfg.levelling:
             with_f = [r for r in rests if np.isfinite(r.accel_mean).all()]
             if not with_f:
                 raise ValueError(f"cannot align: no rest of at least {cfg.min_rest_s:g} s with a "
@@ -320,15 +324,15 @@ class _Estimator:
                     "given", sl, math.nan, int(self.t[b0 + r0.start]),
                     int(self.t[b0 + r0.stop - 1]), r0.stop - r0.start, r0.accel_mean,
                     r0.bias)
-        zupt = cfg.gyro_bias == "auto"
+        zupt = cfg.gyro_bias is GyroBiasMode.AUTO
         self._integrate(b0, runs, rest if zupt else None, rests, tau, q_start, q_out)
-        tt0 = np.full(3, cfg.initial_variance)
+        tt0 = np.full(3, cfg.initial_attitude_variance)
         if tilt_var0 is not None:
             tt0[:2] = tilt_var0
         self._covariance(b0, b1, rest if zupt else None, rests, tau, q_out, var_out, tt0)
-        if self.a is not None and cfg.aiding == "gravity":
+        if self.a is not None and cfg.aiding is Aiding.GRAVITY:
             self._tilt_from_gravity(b0, b1, rest, q_out, var_out)
-        elif self.a is not None and cfg.initial_attitude == "level":
+        elif self.a is not None and cfg.levelling:
             self._level_at_rests(b0, b1, rests, tau, q_out, var_out)
 
     def _clock(self, b0, b1, runs) -> np.ndarray:
@@ -378,10 +382,10 @@ class _Estimator:
     # ------------------------------------------------------------------ 2.-3. bias, integration
     def _bias_rows(self, rests, tau_rows) -> np.ndarray:
         cfg = self.cfg
-        if cfg.gyro_bias == "parameter":
+        if cfg.gyro_bias is GyroBiasMode.PARAMETER:
             return np.broadcast_to(np.asarray(cfg.gyro_bias_rad_s, dtype=np.float64),
                                    (tau_rows.size, 3))
-        if cfg.gyro_bias == "none" or not rests:
+        if cfg.gyro_bias is GyroBiasMode.NONE or not rests:
             return np.zeros((tau_rows.size, 3))
         xs = np.array([r.tau_s for r in rests])
         b = np.array([r.bias for r in rests])
@@ -492,7 +496,7 @@ class _Estimator:
         """Gyro-only error variance per output axis (module docstring, step 5)."""
         cfg = self.cfg
         size = self.size
-        auto = cfg.gyro_bias == "auto" and rests
+        auto = cfg.gyro_bias is GyroBiasMode.AUTO and rests
         if auto:
             xs = [r.tau_s for r in rests]
             se2 = [r.standard_error ** 2 for r in rests]
@@ -575,12 +579,12 @@ class _Estimator:
     # ------------------------------------------------------------------ report
     def bias_report(self) -> GyroBiasReport:
         cfg = self.cfg
-        if cfg.gyro_bias == "parameter":
+        if cfg.gyro_bias is GyroBiasMode.PARAMETER:
             return GyroBiasReport("parameter", np.asarray(cfg.gyro_bias_rad_s, float), 0, 0,
                                   np.full(3, np.nan), False, "fixed parameter")
-        if cfg.gyro_bias == "none" or not self.rests:
-            note = "no rest found: bias 0" if cfg.gyro_bias == "auto" else "not estimated"
-            return GyroBiasReport(cfg.gyro_bias, np.zeros(3), 0, 0, np.full(3, np.nan), False,
+        if cfg.gyro_bias is GyroBiasMode.NONE or not self.rests:
+            note = "no rest found: bias 0" if cfg.gyro_bias is GyroBiasMode.AUTO else "not estimated"
+            return GyroBiasReport(cfg.gyro_bias.value, np.zeros(3), 0, 0, np.full(3, np.nan), False,
                                   note)
         n = np.array([r.stop - r.start for r in self.rests], dtype=np.float64)
         b = np.average([r.bias for r in self.rests], axis=0, weights=n)
