@@ -31,6 +31,7 @@ import time
 import numpy as np
 
 from gyro_attitude.core.attitude import NavFrame, integrate_batch
+from gyro_attitude.core.attitude.offline import estimate_offline
 from gyro_attitude.core.attitude.rest import detect_rest, rest_segments
 from gyro_attitude.core.attitude.stream import AttitudeStream, StreamConfig
 from gyro_attitude.core.attitude.truth import initial_attitude_from_truth
@@ -41,13 +42,16 @@ from gyro_attitude.io.imu_fast import read_imu_arrays, read_quaternion_stamped_a
 RECORDINGS = ("broad_05_slow_rotation_with_breaks", "broad_16_fast_translation")
 LATITUDE_RAD = np.radians(52.5)  # TU Berlin, where BROAD was recorded
 MODES = ("none", "none/push", "auto", "level", "gravity", "level+gravity")
+# the offline (whole-recording) estimator, core/attitude/offline.py, same settings as the
+# causal mode after the "+"
+OFFLINE_MODES = ("offline/auto", "offline/level", "offline/gravity", "offline/level+gravity")
 
 
 def stream_config(mode: str, heading_deg: float = 0.0) -> StreamConfig:
     """The StreamConfig of a benchmark mode (what node parameters / replay flags give)."""
     kw: dict = {"gyro_bias": "none"} if mode.startswith("none") else {}
     if "level" in mode:
-        kw |= {"initial_attitude": "level", "initial_heading_deg": heading_deg}
+        kw |= {"initial_attitude_source": "level", "initial_heading_deg": heading_deg}
     if "gravity" in mode:
         kw["aiding"] = "gravity"
     return StreamConfig(**kw)
@@ -84,6 +88,14 @@ def end_of_motion(t, g, a) -> int:
     return segs[-1][0]
 
 
+def _rows_at(res, first: int, n: int) -> np.ndarray:
+    """The per-axis variance of an estimate at every input sample (held before the first)."""
+    var = np.empty((n, 3))
+    var[:] = res.variance[0]
+    var[first + res.index] = res.variance
+    return var
+
+
 def tilt_error(q_est, q_true) -> np.ndarray:
     """Angle between the estimated and true up directions in the body (rad)."""
     u = quat_as_matrix(q_est)[..., 2, :]
@@ -102,7 +114,7 @@ def _yaw_align(q_est, q_true0):
 
 
 def evaluate(name: str, directory=None, modes=MODES, peers=True,
-             histories: dict | None = None) -> list[dict]:
+             histories: dict | None = None, offline_modes=OFFLINE_MODES) -> list[dict]:
     t, g, a, tt, tq = load(name, directory)
     q_first, first, _ = initial_attitude_from_truth(t, tt, tq)
     ke_imu = end_of_motion(t, g, a)
@@ -130,6 +142,7 @@ def evaluate(name: str, directory=None, modes=MODES, peers=True,
                      "end_tilt_deg": float(np.degrees(tilt[kt_end])),
                      "rms_tilt_deg": float(np.degrees(np.sqrt(np.mean(mt ** 2)))),
                      "ns_per_sample": seconds / t.size * 1e9,
+                     "samples_per_s": t.size / max(seconds, 1e-12),
                      "end_of_motion_s": float((tt[kt_end] - tt[0]) * 1e-9)})
 
     c0 = quat_as_matrix(q_first)
@@ -156,6 +169,39 @@ def evaluate(name: str, directory=None, modes=MODES, peers=True,
         row(mode, q, seconds, valid=has[idx])
         rows[-1]["bias_note"] = stream.bias_report.note
         rows[-1]["batch_path"] = stream.batch_path and mode != "none/push"
+    for mode in offline_modes:
+        t0 = time.perf_counter()
+        res = estimate_offline(t[first:], g[first:], a[first:], q0=q_first, nav=nav,
+                               frame_id="imu_link",
+                               config=stream_config(mode.split("/", 1)[1], heading))
+        seconds = time.perf_counter() - t0
+        q = np.empty((t.size, 4))
+        q[:] = res.q[0]
+        q[first + res.index] = res.q
+        has = np.zeros(t.size, bool)
+        has[first + res.index[0]:] = True
+        row(mode, q, seconds, valid=has[idx])
+        rows[-1]["bias_note"] = res.bias.note
+        # the error within 1σ / 3σ per axis (output frame) over the motion: how honest the
+        # covariance is on real data
+        if res.variance is not None:
+            from gyro_attitude.core.rotation import quat_as_rotvec, quat_conjugate
+            qe = q[idx][motion]
+            e = quat_as_rotvec(quat_multiply(tq[motion], quat_conjugate(qe)))
+            sd = np.sqrt(np.maximum(_rows_at(res, first, t.size)[idx][motion], 1e-300))
+            z = np.abs(e) / sd
+            axes = [0, 1] if "gravity" in mode or "level" in mode else [0, 1, 2]
+            rows[-1]["within_1sigma"] = float(np.mean(z[:, axes] <= 1.0))
+            rows[-1]["within_3sigma"] = float(np.mean(z[:, axes] <= 3.0))
+    # the rest-bias oracle: bias = the mean over the initial rest, gyro only, same frame
+    segs = rest_segments(detect_rest(t, g, a).covered)
+    s0, s1 = segs[0]
+    t0 = time.perf_counter()
+    q = integrate_batch(t[first:], g[first:] - g[s0:s1 + 1].mean(axis=0), q0=q_first, nav=nav)
+    qq = np.empty((t.size, 4))
+    qq[:first] = q[0]
+    qq[first:] = q
+    row("oracle/initial_rest_bias", qq, time.perf_counter() - t0)
     if peers:
         t0 = time.perf_counter()
         q = integrate_batch(t, g, q0=tq[0], algorithm="exp_map")
@@ -168,6 +214,15 @@ def evaluate(name: str, directory=None, modes=MODES, peers=True,
             qv = out["quat6D"]  # w, x, y, z; maps sensor to its earth frame
             row("peer/vqf_6d", np.column_stack([qv[:, 1:], qv[:, :1]]), time.perf_counter() - t0,
                 peer=True)
+        except ImportError:
+            pass
+        try:
+            from vqf import offlineVQF
+            t0 = time.perf_counter()
+            out = offlineVQF(np.ascontiguousarray(g), np.ascontiguousarray(a), None, dt)
+            qv = out["quat6D"]  # w, x, y, z
+            row("peer/offline_vqf_6d", np.column_stack([qv[:, 1:], qv[:, :1]]),
+                time.perf_counter() - t0, peer=True)
         except ImportError:
             pass
         try:
@@ -192,6 +247,34 @@ def evaluate(name: str, directory=None, modes=MODES, peers=True,
     return rows
 
 
+def _offline_ratios(rows: list[dict]) -> list[dict]:
+    """Per recording: offline RMS tilt over offlineVQF's, offline gyro-only end error against
+    the rest-bias oracle, offline speed over offlineVQF's (all from this run)."""
+    out = []
+    for name in dict.fromkeys(r["recording"] for r in rows if "recording" in r):
+        by = {r["mode"]: r for r in rows if r.get("recording") == name}
+        ovqf = by.get("peer/offline_vqf_6d")
+        gyro, oracle = by.get("offline/auto"), by.get("oracle/initial_rest_bias")
+        aided = by.get("offline/gravity")
+        if not (ovqf and gyro and oracle and aided):
+            continue
+        r = {"recording": name, "mode": "ratios",
+             "offline_gravity_rms_tilt_over_offline_vqf": aided["rms_tilt_deg"]
+             / ovqf["rms_tilt_deg"],
+             "offline_gyro_only_end_error_over_oracle": gyro["end_error_deg"]
+             / oracle["end_error_deg"],
+             "offline_gravity_speed_over_offline_vqf": aided["samples_per_s"]
+             / ovqf["samples_per_s"],
+             "offline_auto_speed_over_offline_vqf": gyro["samples_per_s"]
+             / ovqf["samples_per_s"]}
+        print(f"{name}: offline/gravity RMS tilt = {r[next(iter(list(r)[2:]))]:.2f}× offlineVQF; "
+              f"gyro-only end error = {r['offline_gyro_only_end_error_over_oracle']:.2f}× the "
+              f"rest-bias oracle; speed {r['offline_gravity_speed_over_offline_vqf']:.2f}× "
+              f"(gravity), {r['offline_auto_speed_over_offline_vqf']:.2f}× (auto) offlineVQF's")
+        out.append(r)
+    return out
+
+
 def run(quick: bool = False, out_dir=None) -> list[dict]:
     directory = real_dir()
     names = RECORDINGS[:1] if quick else RECORDINGS
@@ -202,10 +285,13 @@ def run(quick: bool = False, out_dir=None) -> list[dict]:
             print(f"real: {directory / name}.mcap missing, skipped")
             continue
         rows += evaluate(name, directory, histories=hist)
-    print(f"{'recording':36s} {'mode':20s} {'end°':>7s} {'rms°':>7s} {'tilt°':>7s} {'ns/sample':>10s}")
+    print(f"{'recording':36s} {'mode':24s} {'end°':>7s} {'rms°':>7s} {'tilt°':>7s} "
+          f"{'rms tilt°':>9s} {'samples/s':>10s}")
     for r in rows:
-        print(f"{r['recording']:36s} {r['mode']:20s} {r['end_error_deg']:7.2f} {r['rms_error_deg']:7.2f} "
-              f"{r['end_tilt_deg']:7.3f} {r['ns_per_sample']:10.0f}")
+        print(f"{r['recording']:36s} {r['mode']:24s} {r['end_error_deg']:7.2f} "
+              f"{r['rms_error_deg']:7.2f} {r['end_tilt_deg']:7.3f} {r['rms_tilt_deg']:9.3f} "
+              f"{r['samples_per_s']:10.3g}")
+    rows += _offline_ratios(rows)
     if out_dir is not None and hist:
         import matplotlib
         matplotlib.use("Agg")

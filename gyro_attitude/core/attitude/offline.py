@@ -78,12 +78,20 @@ from gyro_attitude.core.attitude.stream import (
     gyro_variances_array,
 )
 from gyro_attitude.core.earth import OMEGA_IE, STANDARD_GRAVITY
-from gyro_attitude.core.rotation import quat_as_matrix, quat_from_rotvec, quat_multiply, quat_rotate
+from gyro_attitude.core.rotation import (
+    quat_as_matrix,
+    quat_as_rotvec,
+    quat_from_rotvec,
+    quat_multiply,
+    quat_rotate,
+)
 
 __all__ = ["DEFAULT_CHUNK_SAMPLES", "OfflineRest", "estimate_offline"]
 
 #: Accepted samples per working chunk: ~100 MB of temporaries at most, whatever the length.
 DEFAULT_CHUNK_SAMPLES = 1 << 18
+# rows per step of the covariance propagation (interpolated in between: it is smooth)
+_COV_BLOCK = 16
 
 
 @dataclass(frozen=True)
@@ -146,16 +154,20 @@ def _segments(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 def _up_correction(u: np.ndarray) -> np.ndarray:
-    """Rotation vectors (M, 3) of the smallest rotations taking the unit-ish ``u`` to +z."""
-    # axis u × z = (u_y, −u_x, 0); angle atan2(|u × z|, u_z): exact for tiny and large tilts
-    h = np.hypot(u[:, 0], u[:, 1])
-    ang = np.arctan2(h, u[:, 2])
-    s = np.divide(ang, h, out=np.zeros_like(h), where=h > 0)
-    r = np.empty_like(u)
-    r[:, 0] = u[:, 1] * s
-    r[:, 1] = -u[:, 0] * s
-    r[:, 2] = 0.0
-    return r
+    """Quaternions (M, 4) of the smallest rotations taking the directions ``u`` (M, 3) to +z."""
+    # q = (u × z, |u| + u·z) normalised: the half-way quaternion, no trigonometry; exact for
+    # every u but straight down (|u| + u_z = 0 and u × z = 0: then any horizontal axis, x here)
+    q = np.empty((u.shape[0], 4))
+    q[:, 0] = u[:, 1]
+    q[:, 1] = -u[:, 0]
+    q[:, 2] = 0.0
+    q[:, 3] = np.sqrt(np.einsum("ij,ij->i", u, u)) + u[:, 2]
+    norm = np.sqrt(np.einsum("ij,ij->i", q, q))
+    down = norm <= 1e-300
+    q[down] = (1.0, 0.0, 0.0, 0.0)
+    norm[down] = 1.0
+    q /= norm[:, None]
+    return q
 
 
 class _Block:
@@ -467,7 +479,7 @@ class _Estimator:
             okd = den > 1e-12
             u = np.divide(sm[:, :3], den[:, None], out=np.zeros((c1 - c0, 3)), where=okd[:, None])
             u[~okd] = (0.0, 0.0, 1.0)
-            q_out[c0:c1] = quat_multiply(quat_from_rotvec(_up_correction(u)), q_out[c0:c1])
+            q_out[c0:c1] = quat_multiply(_up_correction(u), q_out[c0:c1])
             # tilt variance: the accelerometer-bias floor plus its noise over the samples
             # the smoother averages, n_eff = (Σw)²/Σw²
             n_eff = np.divide(den * den, sm[:, 4], out=np.ones_like(den), where=sm[:, 4] > 0)
@@ -483,8 +495,10 @@ class _Estimator:
         if not with_f:
             return
         xs = np.array([r.tau_s for r in with_f])
-        rv = _up_correction(np.array([quat_rotate(q_out[b0 + r.start], r.accel_mean)
-                                      for r in with_f]))
+        # the correction of each rest as a rotation vector, interpolated between rests
+        rv = quat_as_rotvec(_up_correction(np.array([quat_rotate(q_out[b0 + r.start],
+                                                                 r.accel_mean)
+                                                     for r in with_f])))
         for c0, c1 in _chunks(b0, b1, self.size):
             tr = tau[c0 - b0:c1 - b0]
             r = np.column_stack([np.interp(tr, xs, rv[:, i]) for i in range(3)])
@@ -522,16 +536,16 @@ class _Estimator:
         m_rise = np.zeros((3, 3))
         arw = np.zeros(3)
         j = 0
+        prev_end = tt0.copy()  # variance at the row before the chunk
         for c0, c1 in _chunks(b0, b1, size):
-            tr = tau[c0 - b0:c1 - b0]
-            dt = np.zeros(c1 - c0)
+            nrow = c1 - c0
+            dt = np.zeros(nrow)
             dt[1:] = np.diff(self.t[c0:c1]) * 1e-9
             if c0 > b0:
                 dt[0] = (self.t[c0] - self.t[c0 - 1]) * 1e-9
             dt[self.act[c0:c1] != v.ACTION_CODES[v.ACCEPT]] = 0.0
             if rest is not None:
                 dt[rest[c0 - b0:c1 - b0]] = 0.0  # held: no error grows
-            c = quat_as_matrix(q_out[c0:c1])  # C_nb (rows: output axes)
             if self.sig2 is not None:
                 s2 = np.where(self.sig2[1][c0:c1, None], self.sig2[0][c0:c1], 0.0) * (
                     dt * dt)[:, None]
@@ -540,12 +554,21 @@ class _Estimator:
             elif measured is not None:
                 s2 = measured[None, :] * (dt * dt)[:, None]
             else:
-                s2 = np.zeros((c1 - c0, 3))
-            out = tt0 + arw + np.cumsum(np.einsum("ikm,im->ik", c * c, s2), axis=0)
+                s2 = np.zeros((nrow, 3))
+            # The variance is smooth: it is propagated over blocks of _COV_BLOCK rows (C_nb and
+            # the interpolation weight taken at each block's middle row) and interpolated
+            # linearly to the rows in between.
+            nodes = np.arange(0, nrow, _COV_BLOCK)
+            mid = np.minimum(nodes + _COV_BLOCK // 2, nrow - 1)
+            dtb = np.add.reduceat(dt, nodes)
+            s2b = np.add.reduceat(s2, nodes, axis=0)
+            c = quat_as_matrix(q_out[c0 + mid])  # C_nb (rows: output axes)
+            tr = tau[c0 - b0 + mid]
+            out = tt0 + arw + np.cumsum(np.einsum("ikm,im->ik", c * c, s2b), axis=0)
             arw = out[-1] - tt0
-            seg = np.searchsorted(x, tr, side="right")  # interval per row (tau is monotonic)
+            seg = np.searchsorted(x, tr, side="right")  # interval per block (tau is monotonic)
             edges = np.flatnonzero(np.diff(seg)) + 1
-            for lo, hi in zip([0, *edges.tolist()], [*edges.tolist(), c1 - c0], strict=True):
+            for lo, hi in zip([0, *edges.tolist()], [*edges.tolist(), nodes.size], strict=True):
                 s = int(seg[lo])
                 while j < s:  # entering interval j + 1: rest j-1's weight is complete
                     if j >= 1:
@@ -553,7 +576,7 @@ class _Estimator:
                         rw_done += k2 * (x[j] - x[j - 1]) ** 3 / 12.0
                     m_fall, m_rise = m_rise, np.zeros((3, 3))
                     j += 1
-                cd = c[lo:hi] * dt[lo:hi, None, None]
+                cd = c[lo:hi] * dtb[lo:hi, None, None]
                 if 0 < s < nr:
                     wgt = ((tr[lo:hi] - x[s - 1]) / (x[s] - x[s - 1]))[:, None, None]
                     mf = m_fall + np.cumsum(cd * (1.0 - wgt), axis=0)
@@ -574,7 +597,14 @@ class _Estimator:
                     m_fall = mf[-1]
                     rw = k2 * (tr[lo:hi] - x[nr - 1]) ** 3 / 3.0
                 out[lo:hi] += done + var_b + (rw_done + rw)[:, None]
-            var_out[c0:c1] = out
+            # out[i] is the variance after block i (at its last row); rows in between linearly
+            last = np.minimum(nodes + _COV_BLOCK, nrow) - 1
+            xs_r = np.concatenate(([-1], last))
+            rows = np.arange(nrow)
+            for k in range(3):
+                var_out[c0:c1, k] = np.interp(rows, xs_r, np.concatenate(([prev_end[k]],
+                                                                           out[:, k])))
+            prev_end = out[-1].copy()
 
     # ------------------------------------------------------------------ report
     def bias_report(self) -> GyroBiasReport:
