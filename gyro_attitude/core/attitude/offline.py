@@ -134,17 +134,31 @@ def _mean_var(x: np.ndarray, lo: int, hi: int, size: int) -> tuple[np.ndarray, n
 def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, lo: int, hi: int,
                params: dict, window_ns: int, size: int, out: np.ndarray) -> None:
     """Mark in ``out`` the rows of ``[lo, hi)`` (one gap-free run) that are the oldest sample
-    of a rest window, in chunks that carry one window of history before them (the windows and
-    their 'full' test are those of a detector started at ``lo``)."""
-    for c0, c1 in _chunks(lo, hi, size):
-        p = lo if c0 == lo else max(lo, int(np.searchsorted(t[lo:c0], t[c0] - window_ns)) + lo - 1)
-        if c1 - p < 2:
-            continue
-        rw = detect_rest(t[p:c1], w[p:c1], None if a is None else a[p:c1], **params)
-        k = np.flatnonzero(rw.at_rest[c0 - p:]) + (c0 - p)
-        if c0 != lo:  # a chunk not starting the run: 'full' counts from the run's first sample
-            k = k[t[p + k] - t[lo] >= window_ns]
-        out[p + rw.oldest[k]] = True
+    of a rest window: the windows, and their 'full' test, of a detector started at ``lo``.
+
+    A window at rest has ``|mean ω| <= gyro_mean_max`` and spread ``<= gyro_std_max``, so the
+    mean of ``|ω|²`` over it is at most their squares' sum: windows above that (motion) are
+    skipped with one cumulative sum, and :func:`.rest.detect_rest` runs, in chunks carrying one
+    window of history, only over the stretches that may hold a rest."""
+    ww = np.einsum("ij,ij->i", w[lo:hi], w[lo:hi])
+    cs = np.concatenate(([0.0], np.cumsum(ww)))
+    k = np.arange(hi - lo)
+    oldest = np.searchsorted(t[lo:hi], t[lo:hi] - window_ns, side="left")
+    bound = (params["gyro_mean_max"] ** 2 + params["gyro_std_max"] ** 2) * (1 + 1e-9) + 1e-300
+    cand = (cs[k + 1] - cs[oldest]) <= bound * (k + 1 - oldest)
+    del ww, cs, k
+    for e0, e1 in _segments(cand):  # window ends that may be at rest
+        s0, s1 = lo + int(oldest[e0]), lo + e1
+        for c0, c1 in _chunks(s0, s1, size):
+            p = lo if c0 == lo else max(lo, int(np.searchsorted(t[lo:c0], t[c0] - window_ns))
+                                        + lo - 1)
+            if c1 - p < 2:
+                continue
+            rw = detect_rest(t[p:c1], w[p:c1], None if a is None else a[p:c1], **params)
+            kk = np.flatnonzero(rw.at_rest[c0 - p:]) + (c0 - p)
+            if p != lo:  # not starting the run: 'full' counts from the run's first sample
+                kk = kk[t[p + kk] - t[lo] >= window_ns]
+            out[p + rw.oldest[kk]] = True
 
 
 def _segments(mask: np.ndarray) -> list[tuple[int, int]]:
