@@ -274,9 +274,8 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
     if acc is None or av is None:
         notes.insert(0, "no accelerometer: gyro-only offline estimation (rests from the gyro, "
                      "no levelling, no gravity aiding)")
-        details.setdefault("gyro_only", notes[0])
     return StreamResult(valid, q_out, var_out, known_out, act, counts, cls.time_jump_resets,
-                        details, est.bias_report(), est.alignment)
+                        details, est.bias_report(), est.alignment, notes)
 
 
 class _Estimator:

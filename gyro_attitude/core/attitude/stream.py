@@ -176,6 +176,7 @@ class StreamResult:
     details: dict[str, str] = field(default_factory=dict)
     bias: GyroBiasReport | None = None
     alignment: AlignmentResult | None = None
+    notes: list[str] = field(default_factory=list)  # what the estimator did, in words
 
     @property
     def skipped(self) -> int:
