@@ -1,7 +1,7 @@
 """`gyro-attitude replay` on the BROAD recordings with the user's defaults (auto gyro bias) from the
 first truth attitude: the error stays within 1.2x the README's "bias = mean over the initial rest"
-figure (2.90°, 6.68°), the bias is reported, and an offline algorithm that cannot run the
-per-sample filter is refused in one line."""
+figure (2.90°, 6.68°) with either estimator, the bias is reported, and (causal) an offline
+algorithm that cannot run the per-sample filter is refused in one line."""
 
 import json
 import os
@@ -21,14 +21,17 @@ MEAN_OVER_INITIAL_REST_DEG = {"broad_05_slow_rotation_with_breaks": 2.90,
                               "broad_16_fast_translation": 6.68}
 
 
+@pytest.mark.parametrize("estimator", ["causal", "offline"])
 @pytest.mark.parametrize("name", real.RECORDINGS)
-def test_replay_defaults_remove_the_bias(name, tmp_path, capsys):
+def test_replay_defaults_remove_the_bias(name, estimator, tmp_path, capsys):
     rc = cli_main(["replay", str(DIR / f"{name}.mcap"), "--out", str(tmp_path / "o.mcap"),
                    "--initial-attitude", "truth", "--frame", "enu", "--latitude-deg", "52.5",
-                   "--json"])
+                   "--json", "--estimator", estimator])
     assert rc == 0
     out = json.loads(capsys.readouterr().out)
-    assert out["algorithm"] == "rotvec_cubic"  # the per-sample filter runs the causal default
+    assert out["estimator"] == estimator
+    # causal: the per-sample filter runs the causal default; offline: the offline default
+    assert out["algorithm"] == ("rotvec_cubic" if estimator == "causal" else "magnus6_quintic")
     assert out["gyro_bias"].startswith("gyro bias auto") and "Earth rate removed" in out["gyro_bias"]
     final_deg = out["final_error_rad"] * 180 / 3.141592653589793
     print(f"\n{name}: final error {final_deg:.2f}° (mean over the initial rest: "
@@ -39,10 +42,10 @@ def test_replay_defaults_remove_the_bias(name, tmp_path, capsys):
 def test_offline_algorithm_with_a_rest_is_refused_in_one_line(tmp_path, capsys):
     name = real.RECORDINGS[0]
     rc = cli_main(["replay", str(DIR / f"{name}.mcap"), "--out", str(tmp_path / "o.mcap"),
-                   "--algorithm", "magnus6_quintic"])
+                   "--algorithm", "magnus6_quintic", "--estimator", "causal"])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 1 and len(err) == 1 and "offline algorithm" in err[0]
     assert not (tmp_path / "o.mcap").exists()
     rc = cli_main(["replay", str(DIR / f"{name}.mcap"), "--out", str(tmp_path / "o.mcap"),
-                   "--algorithm", "magnus6_quintic", "--gyro-bias", "none"])
+                   "--algorithm", "magnus6_quintic", "--gyro-bias", "none", "--estimator", "causal"])
     assert rc == 0

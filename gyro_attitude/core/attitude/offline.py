@@ -9,7 +9,9 @@ array operation over chunks of ``chunk_samples`` accepted samples (no per-sample
 1. **rests** over the whole recording (:func:`.rest.detect_rest`, window statistics by
    cumulative sums, the thresholds of the causal path, per gap-free run with a usable
    accelerometer); a sample is at rest when it is the oldest sample of a rest window (as the
-   causal consumers take it), a rest counts when it spans ``min_rest_s``;
+   causal consumers take it: the gentle start of a motion is out) and the newest of one (the
+   tail of a motion is out too: a window starting there may pass the test, and holding the
+   attitude over it loses the last of the turn); a rest counts when it spans ``min_rest_s``;
 2. **gyro bias per rest** (``gyro_bias="auto"``): the rest mean with its standard error
    ``√(σ²/n + K² T/3)`` (white noise, plus the bias random walk ``K`` over the rest's length
    ``T``); between rests the bias is interpolated linearly in time (the smoother of a random-walk
@@ -81,6 +83,7 @@ from gyro_attitude.core.earth import OMEGA_IE, STANDARD_GRAVITY
 from gyro_attitude.core.rotation import (
     quat_as_matrix,
     quat_as_rotvec,
+    quat_conjugate,
     quat_from_rotvec,
     quat_multiply,
     quat_rotate,
@@ -90,6 +93,8 @@ __all__ = ["DEFAULT_CHUNK_SAMPLES", "OfflineRest", "estimate_offline"]
 
 #: Accepted samples per working chunk: ~100 MB of temporaries at most, whatever the length.
 DEFAULT_CHUNK_SAMPLES = 1 << 18
+# rows each integration chunk reaches into its neighbours (the widest stencil: magnus6, 6)
+_OVERLAP = 8
 # rows per step of the covariance propagation (interpolated in between: it is smooth)
 _COV_BLOCK = 16
 
@@ -147,6 +152,8 @@ def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, lo: int, hi: 
     bound = (params["gyro_mean_max"] ** 2 + params["gyro_std_max"] ** 2) * (1 + 1e-9) + 1e-300
     cand = (cs[k + 1] - cs[oldest]) <= bound * (k + 1 - oldest)
     del ww, cs, k
+    newest = np.zeros(hi - lo, dtype=bool)  # the window ending here is at rest
+    oldest_of = np.zeros(hi - lo, dtype=bool)  # oldest sample of a rest window
     for e0, e1 in _segments(cand):  # window ends that may be at rest
         s0, s1 = lo + int(oldest[e0]), lo + e1
         for c0, c1 in _chunks(s0, s1, size):
@@ -158,7 +165,11 @@ def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, lo: int, hi: 
             kk = np.flatnonzero(rw.at_rest[c0 - p:]) + (c0 - p)
             if p != lo:  # not starting the run: 'full' counts from the run's first sample
                 kk = kk[t[p + kk] - t[lo] >= window_ns]
-            out[p + rw.oldest[kk]] = True
+            newest[p + kk - lo] = True
+            oldest_of[p + rw.oldest[kk] - lo] = True
+    # at rest: followed by a full window of rest (the gentle start of a motion is out) and
+    # preceded by one (so is the tail of a motion, which a window starting there can pass)
+    out[lo:hi] |= newest & oldest_of
 
 
 def _segments(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -437,17 +448,31 @@ class _Estimator:
                     q_out[p0:p1] = q_prev
                     first = False
                     continue
+                anchor = None  # the attitude at the chunk's first row, from the chunk before
                 for c0, c1 in _chunks(p0, p1, size):
-                    lo = c0 if (first and c0 == r0) else c0 - 1  # the row before: its interval
-                    if lo == c0:
+                    start = first and c0 == r0  # the run's first row: nothing to integrate
+                    if c0 == p0:
+                        lo = c0 if start else c0 - 1  # the row before: its interval
+                    else:
+                        lo = max(p0 if first and p0 == r0 else p0 - 1, c0 - _OVERLAP)
+                    hi = min(p1, c1 + _OVERLAP)
+                    if start:
                         q_out[c0] = q_prev
-                        if c1 - c0 == 1:
+                        if hi - lo == 1:
                             continue
-                    wc = self.w[lo:c1] - self._bias_rows(rests, tau[lo - b0:c1 - b0])
-                    q = integrate_batch(self.t[lo:c1], wc, q0=q_out[lo] if lo < c0 else q_prev,
+                    wc = self.w[lo:hi] - self._bias_rows(rests, tau[lo - b0:hi - b0])
+                    q = integrate_batch(self.t[lo:hi], wc, q0=q_prev if start else q_out[lo],
                                         algorithm=self.algorithm, nav=self.nav)
-                    q_out[lo:c1] = q
-                    q_prev = q_out[c1 - 1]
+                    # Higher-order algorithms take each interval's increment from neighbouring
+                    # samples: the chunk runs _OVERLAP rows into its neighbours and, after the
+                    # first, is re-anchored at its first row (the attitude there came from the
+                    # chunk before, with both sides' samples), so chunks join as one run does.
+                    if anchor is not None:
+                        q = quat_multiply(quat_multiply(anchor, quat_conjugate(q[c0 - lo])), q)
+                    q_out[c0:c1] = q[c0 - lo:c1 - lo]
+                    if c0 == p0 and lo < c0:
+                        q_out[lo] = q[0]
+                    anchor = q[c1 - lo] if c1 < p1 else None
                 first = False
                 q_prev = q_out[p1 - 1]
             q_prev = q_out[r1 - 1]
@@ -466,7 +491,7 @@ class _Estimator:
         def columns(c0, c1):
             x = np.empty((c1 - c0, 5))
             wt = self.usable[c0:c1].astype(np.float64)
-            x[:, :3] = quat_rotate(q_out[c0:c1], self.a[c0:c1] * wt[:, None])
+            x[:, :3] = quat_rotate(q_out[c0:c1], np.where(wt[:, None] > 0, self.a[c0:c1], 0.0))
             x[:, 3] = wt
             x[:, 4] = wt * wt
             return x
@@ -522,7 +547,7 @@ class _Estimator:
     def _covariance(self, b0, b1, rest, rests, tau, q_out, var_out, tt0):
         """Gyro-only error variance per output axis (module docstring, step 5)."""
         cfg = self.cfg
-        size = self.size
+        size = max(_COV_BLOCK, self.size // _COV_BLOCK * _COV_BLOCK)  # blocks never straddle
         auto = cfg.gyro_bias is GyroBiasMode.AUTO and rests
         if auto:
             xs = [r.tau_s for r in rests]
@@ -636,4 +661,6 @@ class _Estimator:
         earth = self.latitude is not None and self.a is not None
         return GyroBiasReport("auto", b, len(self.rests), int(n.sum()), se, earth,
                               f"offline: one estimate per rest ({len(self.rests)}), interpolated "
-                              "in time between rests; the value shown is their mean")
+                              "in time between rests, the value shown is their mean; "
+                              + ("vertical Earth rate removed at each rest" if earth else
+                                 "Earth rate absorbed into the bias (latitude unknown)"))
