@@ -91,8 +91,10 @@ from gyro_attitude.core.rotation import (
 
 __all__ = ["DEFAULT_CHUNK_SAMPLES", "OfflineRest", "estimate_offline"]
 
-#: Accepted samples per working chunk: ~100 MB of temporaries at most, whatever the length.
-DEFAULT_CHUNK_SAMPLES = 1 << 18
+#: Accepted samples per working chunk: ~25 MB of temporaries at most, whatever the length.
+DEFAULT_CHUNK_SAMPLES = 1 << 16
+# the forward low-pass of a block up to this many samples is kept (40 MB), not recomputed
+_KEEP_FORWARD = 1 << 20
 # rows each integration chunk reaches into its neighbours (the widest stencil: magnus6, 6)
 _OVERLAP = 8
 # rows per step of the covariance propagation (interpolated in between: it is smooth)
@@ -480,8 +482,9 @@ class _Estimator:
     # ------------------------------------------------------------------ 4. tilt
     def _tilt_from_gravity(self, b0, b1, rest, q_out, var_out):
         """Zero-phase weighted low-pass of ``f_i`` (module docstring, step 4): the forward pass
-        keeps its state at chunk starts only; the backward pass recomputes each chunk's forward
-        part (unless the block is one chunk) and applies the correction in place."""
+        keeps its state at chunk starts (and its output while the block is short); the backward
+        pass recomputes each chunk's forward part where it was not kept and applies the
+        correction in place."""
         cfg = self.cfg
         t = self.t
         dt = float(np.median(np.diff(t[b0:min(b1, b0 + 100_000)]))) * 1e-9 if b1 - b0 > 1 else 0.01
@@ -497,19 +500,22 @@ class _Estimator:
             return x
 
         chunks = list(_chunks(b0, b1, self.size))
+        keep = b1 - b0 <= _KEEP_FORWARD
         zf = np.zeros((1, 5))
         states = []
-        fwd = None
+        kept = []
         for c0, c1 in chunks:  # forward
             states.append(zf)
             fwd, zf = lfilter(bcoef, acoef, columns(c0, c1), axis=0, zi=zf)
+            kept.append(fwd if keep else None)
         zb = np.zeros((1, 5))
         g0 = STANDARD_GRAVITY
         noise = [r.accel_var for r in self.rests if np.isfinite(r.accel_var).all()]
         sf2 = float(np.mean(noise)) if noise else 0.0  # per-axis accelerometer noise at rest
         floor = (cfg.accel_bias_sigma / g0) ** 2
-        for (c0, c1), zi in zip(reversed(chunks), reversed(states), strict=True):
-            if len(chunks) > 1:
+        for (c0, c1), zi, fwd in zip(reversed(chunks), reversed(states), reversed(kept),
+                                     strict=True):
+            if fwd is None:
                 fwd, _ = lfilter(bcoef, acoef, columns(c0, c1), axis=0, zi=zi)
             sm, zb = lfilter(bcoef, acoef, fwd[::-1], axis=0, zi=zb)
             sm = sm[::-1]

@@ -5,6 +5,7 @@ attitude is the exponential of the integrated rate)."""
 import numpy as np
 import pytest
 
+from gyro_attitude.core.attitude import offline
 from gyro_attitude.core.attitude import validation as v
 from gyro_attitude.core.attitude.offline import estimate_offline
 from gyro_attitude.core.attitude.settings import StreamConfig
@@ -161,11 +162,14 @@ def test_unusable_accelerometer_samples_are_counted_and_not_used():
     assert np.isfinite(res.q).all()
 
 
+@pytest.mark.parametrize("keep_forward", [True, False])
 @pytest.mark.parametrize("aiding", ["none", "gravity"])
-def test_chunked_passes_give_the_whole_recording_result(aiding):
+def test_chunked_passes_give_the_whole_recording_result(aiding, keep_forward, monkeypatch):
     t, w, a, q_true, var, k_end = rest_motion_rest(8)
     cfg = StreamConfig(aiding=aiding)
     whole = estimate_offline(t, w, a, q0=q_true[0], config=cfg)
+    if not keep_forward:  # long blocks: the forward low-pass is recomputed chunk by chunk
+        monkeypatch.setattr(offline, "_KEEP_FORWARD", 0)
     chunked = estimate_offline(t, w, a, q0=q_true[0], config=cfg, chunk_samples=257)
     np.testing.assert_array_equal(whole.index, chunked.index)
     assert np.max(np.abs(nav_error(whole.q, chunked.q))) < 1e-9
