@@ -168,7 +168,7 @@ def evaluate(name: str, directory=None, modes=MODES, peers=True,
         has[index[0]:] = True
         row(mode, q, seconds, valid=has[idx])
         rows[-1]["bias_note"] = stream.bias_report.note
-        rows[-1]["batch_path"] = stream.batch_path and mode != "none/push"
+        rows[-1]["batch_path"] = mode != "none/push" and stream.run_form()[0] == "arrays"
     for mode in offline_modes:
         t0 = time.perf_counter()
         res = estimate_offline(t[first:], g[first:], a[first:], q0=q_first, nav=nav,

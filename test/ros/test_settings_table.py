@@ -15,8 +15,8 @@ from gyro_attitude.core.attitude.modes import Aiding, GyroBiasMode
 from gyro_attitude.core.attitude.settings import (
     SETTINGS,
     Setting,
-    StreamConfig,
     SettingError,
+    StreamConfig,
     yaml_lines,
 )
 from gyro_attitude.io import settings_docs

@@ -192,6 +192,25 @@ class StaticAligner:
         self._last_acc = -1
         self.done = False
 
+    def break_window(self) -> None:
+        """The stream broke (gap, time jump, unusable accelerometer sample): the alignment needs
+        one unbroken rest, so an open rest is discarded and the window starts afresh (with the
+        samples waiting for it: their detector indices belong to the old window)."""
+        self.detector.reset()
+        self._pending.clear()
+        self._seg = None
+        self._last_acc = -1
+
+    @property
+    def rest_open(self) -> bool:
+        """A rest is being accumulated."""
+        return self._seg is not None
+
+    @property
+    def last_rest_ns(self) -> int | None:
+        """Time of the last sample accumulated into the open rest (None without one)."""
+        return None if self._seg is None else self._seg[1]
+
     def update(self, t_ns: int, gyro, accel) -> bool:
         """Consume one sample; True once the first qualifying rest has ended."""
         if self.done:
@@ -230,6 +249,45 @@ class StaticAligner:
             e = g[i] - s[6][i]
             s[7][i] = s[7][i] + e
             s[8][i] = s[8][i] + e * e
+
+    def run(self, t, g, a, breaks=None) -> tuple[int, int, AlignmentResult] | None:
+        """Array form of :meth:`update` over a recording (a fresh aligner; the windows broken
+        before every row where ``breaks`` (N,) is True, which discards an open rest as the
+        stream does): ``(done_row, first_row, result)`` — the row at which the first qualifying
+        rest ended, the row of its last rest sample (from which the attitude is integrated),
+        and the alignment — or None when no rest qualifies.  ``result`` raises as
+        :meth:`result` does (gyrocompass refused) through :func:`_result`."""
+        n = t.shape[0]
+        starts = [0] if breaks is None else [0, *np.flatnonzero(breaks[1:]) + 1]
+        for r0, r1 in zip(starts, [*starts[1:], n], strict=True):
+            if r1 - r0 < 2:
+                continue
+            tt, gg, aa = t[r0:r1], g[r0:r1], a[r0:r1]
+            r = detect_rest(tt, gg, aa, **self._opt.rest)
+            ev = np.flatnonzero(r.at_rest)
+            if ev.size == 0:
+                continue
+            ev = ev[np.concatenate([[True], r.oldest[ev][1:] > r.oldest[ev][:-1]])]
+            run_id = np.cumsum(np.diff(np.concatenate([[False], r.at_rest]).astype(np.int8)) == 1)
+            for kk in np.split(ev, np.flatnonzero(np.diff(run_id[ev])) + 1):
+                # the rest ends at the first window after its last at-rest window that is
+                # not at rest; a rest still open at a break is discarded
+                end = kk[-1] + 1
+                while end < r1 - r0 and r.at_rest[end]:
+                    end += 1
+                if end >= r1 - r0:
+                    break
+                j = r.oldest[kk]
+                if tt[j[-1]] - tt[j[0]] < self._opt.min_rest_ns:
+                    continue
+                df, dw = aa[j] - aa[j[0]], gg[j] - gg[j[0]]
+                sums = [np.cumsum(x, axis=0)[-1].tolist() for x in (df, df * df, dw, dw * dw)]
+                self.done = True
+                res = _result(self._opt, j.size, int(tt[j[0]]), int(tt[j[-1]]),
+                              aa[j[0]].tolist(), sums[0], sums[1], gg[j[0]].tolist(), sums[2],
+                              sums[3])
+                return r0 + int(end), r0 + int(j[-1]), res
+        return None
 
     def result(self) -> AlignmentResult:
         s = self._seg

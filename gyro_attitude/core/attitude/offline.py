@@ -74,10 +74,10 @@ from gyro_attitude.core.attitude.stream import (
     INVALID_ACCEL,
     INVALID_COVARIANCE,
     StreamResult,
-    _rows,
     _unit_quat,
-    _usable_accel,
     gyro_variances_array,
+    rows,
+    usable_accel,
 )
 from gyro_attitude.core.earth import OMEGA_IE, STANDARD_GRAVITY
 from gyro_attitude.core.rotation import (
@@ -255,12 +255,12 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
     counts = {**cls.counts, INVALID_COVARIANCE: 0, INVALID_ACCEL: 0, INTEGRATOR_ERROR: 0}
     details = dict(cls.details)
     m = valid.size
-    tv = _rows(t, valid)
-    wv = _rows(w, valid)
-    av = None if acc is None else _rows(acc, valid)
+    tv = rows(t, valid)
+    wv = rows(w, valid)
+    av = None if acc is None else rows(acc, valid)
     usable = None
     if av is not None:
-        usable = _usable_accel(av)
+        usable = usable_accel(av)
         counts[INVALID_ACCEL] = int(m - np.count_nonzero(usable))
         if counts[INVALID_ACCEL]:
             k = int(np.flatnonzero(~usable)[0])
@@ -271,24 +271,24 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
     sig2 = None  # per-row gyro variance (M, 3) from the messages, where known
     if cov is not None:
         var_all, known_all, invalid_all = gyro_variances_array(cov)
-        inv = _rows(invalid_all, valid)
+        inv = rows(invalid_all, valid)
         counts[INVALID_COVARIANCE] = int(np.count_nonzero(inv))
         if counts[INVALID_COVARIANCE]:
             k = int(valid[np.flatnonzero(inv)[0]])
             details.setdefault(INVALID_COVARIANCE, f"angular_velocity_covariance "
                                f"{cov[k].tolist()} has a non-finite, negative or absurd "
                                "diagonal: treated as unknown")
-        if _rows(known_all, valid).any():
-            sig2 = (_rows(var_all, valid), _rows(known_all, valid))
+        if rows(known_all, valid).any():
+            sig2 = (rows(var_all, valid), rows(known_all, valid))
     est = _Estimator(cfg, q_init, nav, algorithm, chunk_samples, tv, wv, av, usable, sig2,
-                     _rows(act, valid))
+                     rows(act, valid))
     q_out, var_out, known_out = est.run()
     notes = est.notes
     if acc is None or av is None:
         notes.insert(0, "no accelerometer: gyro-only offline estimation (rests from the gyro, "
                      "no levelling, no gravity aiding)")
     return StreamResult(valid, q_out, var_out, known_out, act, counts, cls.time_jump_resets,
-                        details, est.bias_report(), est.alignment, notes)
+                        details, est.bias_report(), est.alignment, notes=notes)
 
 
 class _Estimator:
@@ -644,9 +644,9 @@ class _Estimator:
             # out[i] is the variance after block i (at its last row); rows in between linearly
             last = np.minimum(nodes + _COV_BLOCK, nrow) - 1
             xs_r = np.concatenate(([-1], last))
-            rows = np.arange(nrow)
+            row_ix = np.arange(nrow)
             for k in range(3):
-                var_out[c0:c1, k] = np.interp(rows, xs_r, np.concatenate(([prev_end[k]],
+                var_out[c0:c1, k] = np.interp(row_ix, xs_r, np.concatenate(([prev_end[k]],
                                                                            out[:, k])))
             prev_end = out[-1].copy()
 

@@ -169,6 +169,11 @@ class RestDetector:
         self._window_ns = int(round(self.thresholds.window_s * 1e9))
         self.reset()
 
+    @property
+    def window_ns(self) -> int:
+        """The window length in ns."""
+        return self._window_ns
+
     def reset(self) -> None:
         """Forget all samples (after a gap or a restart the window fills again)."""
         self.samples = 0

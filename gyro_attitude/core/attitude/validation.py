@@ -156,6 +156,23 @@ class ImuStreamValidator:
         self.last_t_ns = None
         self.frame_id = None
 
+    def run(self, t_ns, omega, frame_id: str | list[str] | None = "") -> Classification:
+        """Array form of :meth:`check` over a whole recording (a fresh validator): the
+        verdicts of :func:`classify`, with this validator left as :meth:`check` would leave it
+        after the last sample (counts, time base, locked frame)."""
+        if self.last_t_ns is not None or self.accepted:
+            raise ValueError("run() needs a fresh validator (it classifies a whole recording)")
+        cls = classify(t_ns, omega, frame_id, self.config)
+        for r in REJECT_REASONS:
+            self.counts[r] = cls.counts[r]
+        self.accepted = cls.accepted
+        self.time_jump_resets = cls.time_jump_resets
+        valid = np.flatnonzero(cls.action != ACTION_CODES[REJECT])
+        if valid.size:
+            self.last_t_ns = int(np.asarray(t_ns)[valid[-1]])
+            self.frame_id = cls.frame_id
+        return cls
+
     def _reject(self, reason: str, detail: str) -> Verdict:
         self.counts[reason] += 1
         return Verdict(REJECT, reason, detail)
@@ -235,6 +252,19 @@ def _frame_codes(frame_id, n: int) -> tuple[np.ndarray | None, list[str]]:
     codes = np.fromiter((names.setdefault(str(f), len(names)) for f in frame_id),
                         dtype=np.int64, count=n)
     return codes, list(names)
+
+
+#: REP-145: element 0 of a covariance is −1 when the field carries no estimate.
+NO_ESTIMATE = -1.0
+
+
+def no_estimate(covariance):
+    """REP-145's "no estimate" rule, the one home of it: element 0 of a row-major covariance
+    (9,) — or of every row of (N, 9) — is −1.  A bool, or a bool array (N,)."""
+    c = np.asarray(covariance)
+    if c.ndim == 1:
+        return bool(c.size and c[0] == NO_ESTIMATE)
+    return c[..., 0] == NO_ESTIMATE
 
 
 def all_within(a: np.ndarray, limit: float) -> bool:

@@ -15,6 +15,7 @@ from gyro_attitude.core.attitude.stream import (
     INVALID_ACCEL,
     RUNNING,
     AttitudeStream,
+    RunForm,
     StreamConfig,
 )
 from gyro_attitude.core.attitude.truth import initial_attitude_from_truth, truth_at
@@ -79,11 +80,11 @@ def test_run_equals_push_in_every_mode(mode):
         assert res.alignment is not None and res.index[0] > 600  # no attitude while aligning
 
 
-def test_fast_path_taken_only_without_sequential_filters():
-    assert AttitudeStream(config=MODES["parameter"]).batch_path
-    assert AttitudeStream(config=MODES["none_rw"]).batch_path
-    for mode in ("auto", "level", "gravity"):
-        assert not AttitudeStream(config=MODES[mode]).batch_path
+def test_array_form_taken_for_every_mode_but_aiding():
+    for mode in ("parameter", "none_rw", "auto", "auto_noise", "level"):
+        assert AttitudeStream(config=MODES[mode]).run_form()[0] is RunForm.ARRAYS
+    for mode in ("gravity", "level_gravity"):
+        assert AttitudeStream(config=MODES[mode]).run_form()[0] is RunForm.PER_SAMPLE
 
 
 def test_auto_bias_removed_and_first_rest_applied_back():
