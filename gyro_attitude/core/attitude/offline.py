@@ -75,7 +75,8 @@ from gyro_attitude.core.attitude.stream import (
     INVALID_COVARIANCE,
     StreamResult,
     _unit_quat,
-    gyro_variances_array,
+    covariance_rows,
+    recording_arrays,
     rows,
     usable_accel,
 )
@@ -238,17 +239,7 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
     cls = v.classify(t, w, frame_id, cfg.check_config())  # checks t and omega shapes
     n = w.shape[0]
     t = t.astype(np.int64, copy=False)
-    acc = None
-    if accel is not None:
-        acc = np.asarray(accel, dtype=np.float64)
-        if acc.shape != (n, 3):
-            raise ValueError(f"accel must have shape ({n}, 3), got {acc.shape}")
-    cov = None
-    if angular_velocity_covariance is not None:
-        cov = np.asarray(angular_velocity_covariance, dtype=np.float64)
-        if cov.shape != (n, 9):
-            raise ValueError(f"angular_velocity_covariance must have shape ({n}, 9), got "
-                             f"{cov.shape}")
+    cov, acc = recording_arrays(n, angular_velocity_covariance, accel)
     codes = v.ACTION_CODES
     act = cls.action
     valid = np.flatnonzero(act != codes[v.REJECT])
@@ -270,16 +261,9 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
             av = usable = None
     sig2 = None  # per-row gyro variance (M, 3) from the messages, where known
     if cov is not None:
-        var_all, known_all, invalid_all = gyro_variances_array(cov)
-        inv = rows(invalid_all, valid)
-        counts[INVALID_COVARIANCE] = int(np.count_nonzero(inv))
-        if counts[INVALID_COVARIANCE]:
-            k = int(valid[np.flatnonzero(inv)[0]])
-            details.setdefault(INVALID_COVARIANCE, f"angular_velocity_covariance "
-                               f"{cov[k].tolist()} has a non-finite, negative or absurd "
-                               "diagonal: treated as unknown")
-        if rows(known_all, valid).any():
-            sig2 = (rows(var_all, valid), rows(known_all, valid))
+        var_v, known_v = covariance_rows(cov, valid, counts, details)
+        if known_v.any():
+            sig2 = (var_v, known_v)
     est = _Estimator(cfg, q_init, nav, algorithm, chunk_samples, tv, wv, av, usable, sig2,
                      rows(act, valid))
     q_out, var_out, known_out = est.run()

@@ -28,12 +28,11 @@ from gyro_attitude.core.attitude.modes import GyroBiasMode
 from gyro_attitude.core.attitude.stream import (
     EXTRA_COUNTS,
     INVALID_ACCEL,
-    INVALID_COVARIANCE,
     RUNNING,
     RunForm,
     StreamResult,
     cannot_align,
-    gyro_variances_array,
+    covariance_rows,
     nav_rows,
     rows,
     usable_accel,
@@ -168,15 +167,7 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
     # 5. covariance over the integrated rows
     var_v = known_v = None
     if cov is not None:
-        var_all, known_all, invalid_all = gyro_variances_array(cov)
-        var_v, known_v = rows(var_all, valid), rows(known_all, valid)
-        inv = rows(invalid_all, valid)
-        counts[INVALID_COVARIANCE] = int(np.count_nonzero(inv))
-        if counts[INVALID_COVARIANCE]:
-            k = int(valid[np.flatnonzero(inv)[0]])
-            details.setdefault(INVALID_COVARIANCE, f"angular_velocity_covariance "
-                               f"{cov[k].tolist()} has a non-finite, negative or absurd "
-                               "diagonal: treated as unknown")
+        var_v, known_v = covariance_rows(cov, valid, counts, details)
     variance = variance_known = None
     known_any = known_v is not None and bool(known_v[out_from:].any())
     if known_any or st.variance_known:
