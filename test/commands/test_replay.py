@@ -391,7 +391,7 @@ def test_replay_estimator_causal_is_the_attitude_stream_and_offline_is_the_defau
     _record(tmp_path / "in.mcap", t, w, a)
     causal = replay_file(tmp_path / "in.mcap", tmp_path / "c.mcap", estimator="causal")
     cfg = StreamConfig()
-    expected = AttitudeStream("rotvec_cubic", config=cfg).run(t, w, "imu_link", None, a)
+    expected = AttitudeStream(causal.algorithm, config=cfg).run(t, w, "imu_link", None, a)
     assert causal.estimator == "causal"
     np.testing.assert_allclose(causal.q, expected.q, rtol=0, atol=1e-12)
     offline = replay_file(tmp_path / "in.mcap", tmp_path / "o.mcap")
@@ -418,3 +418,24 @@ def test_replay_without_accelerometer_is_gyro_only_offline_and_says_so(tmp_path,
                   "--estimator", "kalman"])
     err = capsys.readouterr().err.strip().splitlines()
     assert exc.value.code == 2 and len(err) == 1 and "--estimator" in err[0]
+
+
+@pytest.mark.parametrize("bad_start", ["zero_stamp", "nan_rates"])
+def test_truth_start_is_taken_at_the_first_accepted_sample(tmp_path, bad_start):
+    # A constant spin about z with the exact truth at every stamp.  The first samples are
+    # rejected — a stream starting at stamp 0 (as the scenes did), or 50 NaN rates: the
+    # attitude must start from the truth at the first ACCEPTED sample, so rotvec_cubic (exact
+    # for constant spin) stays on the truth.  Started from the truth at the rejected sample it
+    # would be off by rate × the skipped time (4.5e-3 rad, 0.23 rad).
+    n, rate = 2001, 0.9
+    t0 = 0 if bad_start == "zero_stamp" else 10**9
+    t = t0 + np.arange(n, dtype=np.int64) * 5_000_000
+    w = np.tile([0.0, 0.0, rate], (n, 1))
+    if bad_start == "nan_rates":
+        w[:50] = np.nan
+    truth = Rotation.from_rotvec(np.outer((t - t0) * 1e-9 * rate, [0, 0, 1])).as_quat()
+    _record(tmp_path / "in.mcap", t, w, truth=truth)
+    s = replay_file(tmp_path / "in.mcap", tmp_path / "out.mcap", algorithm="rotvec_cubic",
+                    initial_attitude="truth")
+    assert s.skipped_before_truth == (1 if bad_start == "zero_stamp" else 50)
+    assert s.max_error_rad < 1e-9

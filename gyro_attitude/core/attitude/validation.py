@@ -131,6 +131,28 @@ def value_problem(omega, max_rate_rad_s: float) -> tuple[str, str] | None:
     return None
 
 
+def sample_problem(t_ns, omega, max_rate_rad_s: float) -> tuple[str, str] | None:
+    """(reason, detail) when a sample is unusable on its own (its values, a stamp that is not
+    positive), else None: the checks that need no earlier sample."""
+    problem = value_problem(omega, max_rate_rad_s)
+    if problem is not None:
+        return problem
+    if isinstance(t_ns, bool) or not isinstance(t_ns, int | np.integer):
+        raise ValueError(f"t_ns must be an integer number of nanoseconds, got {t_ns!r}")
+    if t_ns <= 0:
+        return ZERO_STAMP, f"stamp {int(t_ns)} ns is not positive (0: unset)"
+    return None
+
+
+def usable_samples(t_ns: np.ndarray, omega: np.ndarray, max_rate_rad_s: float) -> np.ndarray:
+    """Array form of :func:`sample_problem` is None: (N,) bool."""
+    if all_within(omega, max_rate_rad_s):
+        return np.asarray(t_ns) > 0
+    with np.errstate(invalid="ignore"):
+        ok = (np.abs(omega) <= max_rate_rad_s).all(axis=1)  # NaN fails the comparison
+    return ok & (np.asarray(t_ns) > 0)
+
+
 class ImuStreamValidator:
     """Classify each Imu sample of a stream; count rejections by reason.
 
@@ -182,14 +204,10 @@ class ImuStreamValidator:
 
         t_ns: header stamp in ns; omega: angular rate (3,) [rad/s]; frame_id: header.frame_id.
         """
-        problem = value_problem(omega, self.config.max_rate_rad_s)
+        problem = sample_problem(t_ns, omega, self.config.max_rate_rad_s)
         if problem is not None:
             return self._reject(*problem)
-        if isinstance(t_ns, bool) or not isinstance(t_ns, int | np.integer):
-            raise ValueError(f"t_ns must be an integer number of nanoseconds, got {t_ns!r}")
         t_ns = int(t_ns)
-        if t_ns <= 0:
-            return self._reject(ZERO_STAMP, f"stamp {t_ns} ns is not positive (0: unset)")
         if self.frame_id is not None and frame_id != self.frame_id:
             return self._reject(
                 FRAME_CHANGED, f"frame_id {frame_id!r} differs from {self.frame_id!r}"
