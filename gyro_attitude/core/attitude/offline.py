@@ -148,13 +148,17 @@ def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, lo: int, hi: 
     mean of ``|ω|²`` over it is at most their squares' sum: windows above that (motion) are
     skipped with one cumulative sum, and :func:`.rest.detect_rest` runs, in chunks carrying one
     window of history, only over the stretches that may hold a rest."""
-    ww = np.einsum("ij,ij->i", w[lo:hi], w[lo:hi])
-    cs = np.concatenate(([0.0], np.cumsum(ww)))
-    k = np.arange(hi - lo)
     oldest = np.searchsorted(t[lo:hi], t[lo:hi] - window_ns, side="left")
-    bound = (params["gyro_mean_max"] ** 2 + params["gyro_std_max"] ** 2) * (1 + 1e-9) + 1e-300
-    cand = (cs[k + 1] - cs[oldest]) <= bound * (k + 1 - oldest)
-    del ww, cs, k
+    if "gyro_mean_max" in params and "gyro_std_max" in params:
+        ww = np.einsum("ij,ij->i", w[lo:hi], w[lo:hi])
+        cs = np.concatenate(([0.0], np.cumsum(ww)))
+        k = np.arange(hi - lo)
+        bound = (params["gyro_mean_max"] ** 2 + params["gyro_std_max"] ** 2) * (1 + 1e-9) \
+            + 1e-300
+        cand = (cs[k + 1] - cs[oldest]) <= bound * (k + 1 - oldest)
+        del ww, cs, k
+    else:  # a rest test without these two bounds: every window is a candidate
+        cand = np.ones(hi - lo, dtype=bool)
     newest = np.zeros(hi - lo, dtype=bool)  # the window ending here is at rest
     oldest_of = np.zeros(hi - lo, dtype=bool)  # oldest sample of a rest window
     for e0, e1 in _segments(cand):  # window ends that may be at rest
@@ -329,10 +333,18 @@ class _Estimator:
         tilt_var0 = None
         if cfg.levelling:
             with_f = [r for r in rests if np.isfinite(r.accel_mean).all()]
-            if not with_f:
+            if not with_f and self.alignment is not None:
+                # a block after a time jump without a rest of its own: the attitude resets
+                # to the alignment of the recording's start
+                with_f = None
+            elif not with_f:
                 raise ValueError(f"cannot align: no rest of at least {cfg.min_rest_s:g} s with a "
                                  "usable accelerometer in the recording (initial_attitude "
                                  "'level')")
+        if cfg.levelling and with_f is None:
+            q_start = self.alignment.q_nb
+            tilt_var0 = self.alignment.level_error_expected ** 2
+        elif cfg.levelling:
             r0 = with_f[0]
             q_start, roll, pitch = level_quaternion(r0.accel_mean,
                                                     math.radians(cfg.initial_heading_deg))

@@ -220,3 +220,36 @@ def test_bad_arguments_are_refused_in_words():
         estimate_offline(t, w, a, q0=(0, 0, 0, 0))
     empty = estimate_offline(t[:0], w[:0], a[:0])
     assert empty.q.shape == (0, 4)
+
+
+def test_hostile_samples_never_give_a_non_finite_or_non_unit_attitude():
+    rng = np.random.default_rng(5)
+    for trial in range(12):
+        t, w, a, q_true, var, k_end = rest_motion_rest(trial % 3)
+        t, w, a = t.copy(), w.copy(), a.copy()
+        for _ in range(int(rng.integers(1, 30))):
+            k = int(rng.integers(0, t.size))
+            kind = int(rng.integers(0, 8))
+            if kind == 0:
+                w[k] = np.nan
+            elif kind == 1:
+                w[k] = (1e300, 0, 0)
+            elif kind == 2:
+                a[k] = np.inf
+            elif kind == 3:
+                t[k] = t[max(k - 1, 0)]
+            elif kind == 4:
+                t[k:] -= int(rng.integers(1, 5)) * 10**9  # backward jump
+            elif kind == 5:
+                t[k:] += int(rng.integers(1, 5)) * 10**8  # gap
+            elif kind == 6:
+                t[k] = 0
+            else:
+                w[k] = (9999.0, -9999.0, 9999.0)
+        for cfg in (StreamConfig(), StreamConfig(aiding="gravity")):
+            r = estimate_offline(t, w, a, config=cfg, chunk_samples=int(rng.integers(64, 3000)))
+            assert np.isfinite(r.q).all(), trial
+            np.testing.assert_allclose(np.linalg.norm(r.q, axis=1), 1.0, atol=1e-12)
+            assert r.variance is None or np.isfinite(r.variance).all(), trial
+            assert r.index.size + sum(r.counts[k] for k in v.REJECT_REASONS if k != v.GAP) \
+                == t.size
