@@ -20,6 +20,16 @@ sequential path against the batch one, same numbers).  Peers in the same run on 
 naive exponential map without bias, ``vqf`` (VQF 6D, no magnetometer) and ``imufusion``
 (Madgwick's Fusion AHRS, 6D); their heading is not observable, so their full-attitude error is
 taken after aligning the heading at the start and their tilt error is the fair comparison.
+
+Offline rows (``offline/<mode>``): the whole-recording estimator
+(:func:`~gyro_attitude.core.attitude.offline.estimate_offline`, what ``replay`` runs by
+default) with the settings of ``<mode>``; ``oracle/initial_rest_bias`` integrates the gyro with
+the bias = its mean over the initial rest (the reference of the gyro-only target);
+``peer/offline_vqf_6d`` is offlineVQF (forward-backward VQF) in the same run.  The fast rows
+are timed as the best of :data:`REPEATS` runs.  ``ratios`` rows: offline RMS tilt over
+offlineVQF's, gyro-only end error over the oracle's, speed over offlineVQF's.  Then the same
+comparison on simulated ``handheld_mems`` recordings (:func:`simulated`) and ``replay``'s own
+speed inside the command and for the whole process (:func:`replay_speed`).
 """
 
 from __future__ import annotations

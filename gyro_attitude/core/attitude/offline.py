@@ -82,6 +82,7 @@ from gyro_attitude.core.attitude.stream import (
 )
 from gyro_attitude.core.earth import OMEGA_IE, STANDARD_GRAVITY
 from gyro_attitude.core.rotation import (
+    _qmul,
     quat_as_matrix,
     quat_as_rotvec,
     quat_conjugate,
@@ -286,6 +287,7 @@ class _Estimator:
     def __init__(self, cfg, q_init, nav, algorithm, size, t, w, a, usable, sig2, act):
         self.cfg, self.q_init, self.nav, self.algorithm, self.size = cfg, q_init, nav, algorithm, size
         self.t, self.w, self.a, self.usable, self.sig2, self.act = t, w, a, usable, sig2, act
+        self.all_usable = usable is not None and bool(usable.all())
         self.rests: list[OfflineRest] = []
         self.notes: list[str] = []
         self.alignment: AlignmentResult | None = None
@@ -490,7 +492,9 @@ class _Estimator:
         def columns(c0, c1):
             x = np.empty((c1 - c0, 5))
             wt = self.usable[c0:c1].astype(np.float64)
-            x[:, :3] = quat_rotate(q_out[c0:c1], np.where(wt[:, None] > 0, self.a[c0:c1], 0.0))
+            f_b = self.a[c0:c1] if self.all_usable else np.where(wt[:, None] > 0,
+                                                                 self.a[c0:c1], 0.0)
+            x[:, :3] = quat_rotate(q_out[c0:c1], f_b)
             x[:, 3] = wt
             x[:, 4] = wt * wt
             return x
@@ -519,7 +523,7 @@ class _Estimator:
             okd = den > 1e-12
             u = np.divide(sm[:, :3], den[:, None], out=np.zeros((c1 - c0, 3)), where=okd[:, None])
             u[~okd] = (0.0, 0.0, 1.0)
-            q_out[c0:c1] = quat_multiply(_up_correction(u), q_out[c0:c1])
+            q_out[c0:c1] = _qmul(_up_correction(u), q_out[c0:c1])  # both unit: no checks
             # tilt variance: the accelerometer-bias floor plus its noise over the samples
             # the smoother averages, n_eff = (Σw)²/Σw²
             n_eff = np.divide(den * den, sm[:, 4], out=np.ones_like(den), where=sm[:, 4] > 0)
