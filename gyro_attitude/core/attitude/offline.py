@@ -56,7 +56,7 @@ boundaries and is recomputed chunk by chunk in the backward pass.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.signal import lfilter
@@ -413,6 +413,22 @@ class _Estimator:
                     mean_w = mean_w - OMEGA_IE * math.sin(self.latitude) * up
             out.append(OfflineRest(s0, s1, float(0.5 * (tau[s0] + tau[s1 - 1])), dur, mean_w, se,
                                    mean_f, var_f, var_w))
+        # The rests' means differ by more than their white-noise errors when the bias wanders
+        # (MEMS: temperature, flicker): the random walk K that explains the differences of
+        # neighbouring rests, E[Δb²] = SE_j² + SE_{j+1}² + K² Δt, when it exceeds the stated one.
+        if len(out) >= 2 and cfg.gyro_bias is GyroBiasMode.AUTO:
+            d = [((r1.bias - r0.bias) ** 2 - r0.standard_error ** 2 - r1.standard_error ** 2)
+                 / max(r1.tau_s - r0.tau_s, 1e-9) for r0, r1 in zip(out[:-1], out[1:],
+                                                                    strict=True)]
+            k2_seen = float(max(np.mean(d), 0.0))
+            if k2_seen > k2:
+                k2 = k2_seen
+                self.notes.append(f"bias random walk {math.sqrt(k2):.2g} rad/s/√s from the "
+                                  f"differences between the {len(out)} rests")
+                out = [replace(r, standard_error=np.sqrt(r.gyro_var / (r.stop - r.start)
+                                                         + k2 * r.duration_s / 3.0))
+                       for r in out]
+        self.k2 = max(k2, getattr(self, "k2", 0.0))
         return out
 
     # ------------------------------------------------------------------ 2.-3. bias, integration
@@ -569,13 +585,24 @@ class _Estimator:
             if rr:
                 measured = np.average([r.gyro_var for r in rr], axis=0,
                                       weights=[r.stop - r.start for r in rr])
-        k2 = cfg.gyro_bias_rw ** 2
+        k2 = getattr(self, "k2", cfg.gyro_bias_rw ** 2)
+        sf2 = cfg.gyro_scale_factor_sigma ** 2
+        m_sf = np.zeros((3, 3))  # ∫ C_nb diag(ω) dτ: the scale-factor error's lever (never reset)
         x = np.asarray(xs)
         nr = x.size
         # interval s: before rest 0 (s = 0), between rests s-1 and s, after the last (s = nr);
         # rest s-1's M grows with weight 1 − w there (m_fall), rest s's with w (m_rise)
         done = np.zeros(3)  # variance from rests whose weights are complete
         rw_done = 0.0
+        # the bias random walk acts on the attitude only while it is integrated (not while it
+        # is held at rests): its terms run on the motion clock, and each interval's length is
+        # the time between the rests' middles less their halves
+        if auto:
+            dur = np.array([r.duration_s for r in rests])
+            t_motion = np.maximum(np.diff(x) - 0.5 * (dur[:-1] + dur[1:]), 1e-9) if x.size > 1 \
+                else np.zeros(0)
+        mclock = 0.0  # motion time so far
+        m_node = 0.0  # motion time at the start of the current interval
         m_fall = np.zeros((3, 3))
         m_rise = np.zeros((3, 3))
         arw = np.zeros(3)
@@ -610,6 +637,13 @@ class _Estimator:
             tr = tau[c0 - b0 + mid]
             out = tt0 + arw + np.cumsum(np.einsum("ikm,im->ik", c * c, s2b), axis=0)
             arw = out[-1] - tt0
+            if sf2 > 0:  # scale-factor error: δθ = ∫ C_nb diag(δs) ω dτ, the same δs throughout
+                turn = np.add.reduceat(self.w[c0:c1] * dt[:, None], nodes, axis=0)
+                msf = m_sf + np.cumsum(c * turn[:, None, :], axis=0)
+                out += sf2 * np.einsum("ikm,ikm->ik", msf, msf)
+                m_sf = msf[-1]
+            mc = mclock + np.cumsum(dtb)  # motion clock after each block
+            mclock = float(mc[-1])
             seg = np.searchsorted(x, tr, side="right")  # interval per block (tau is monotonic)
             edges = np.flatnonzero(np.diff(seg)) + 1
             for lo, hi in zip([0, *edges.tolist()], [*edges.tolist(), nodes.size], strict=True):
@@ -617,9 +651,10 @@ class _Estimator:
                 while j < s:  # entering interval j + 1: rest j-1's weight is complete
                     if j >= 1:
                         done += np.einsum("km,m->k", m_fall ** 2, se2[j - 1])
-                        rw_done += k2 * (x[j] - x[j - 1]) ** 3 / 12.0
+                        rw_done += k2 * t_motion[j - 1] ** 3 / 12.0
                     m_fall, m_rise = m_rise, np.zeros((3, 3))
                     j += 1
+                    m_node = float(mc[lo] - dtb[lo])
                 cd = c[lo:hi] * dtb[lo:hi, None, None]
                 if 0 < s < nr:
                     wgt = ((tr[lo:hi] - x[s - 1]) / (x[s] - x[s - 1]))[:, None, None]
@@ -628,8 +663,9 @@ class _Estimator:
                     var_b = np.einsum("ikm,m->ik", mf ** 2, se2[s - 1]) + np.einsum(
                         "ikm,m->ik", mr ** 2, se2[s])
                     m_fall, m_rise = mf[-1], mr[-1]
-                    sm = tr[lo:hi] - x[s - 1]
-                    rw = k2 * (sm ** 3 / 3.0 - sm ** 4 / (4.0 * (x[s] - x[s - 1])))
+                    sm = mc[lo:hi] - m_node
+                    big_t = max(float(t_motion[s - 1]), float(sm[-1]))
+                    rw = k2 * (sm ** 3 / 3.0 - sm ** 4 / (4.0 * big_t))
                 elif s == 0:  # before the first rest: its estimate, held back to the start
                     mr = m_rise + np.cumsum(cd, axis=0)
                     var_b = np.einsum("ikm,m->ik", mr ** 2, se2[0])
@@ -639,7 +675,7 @@ class _Estimator:
                     mf = m_fall + np.cumsum(cd, axis=0)
                     var_b = np.einsum("ikm,m->ik", mf ** 2, se2[nr - 1])
                     m_fall = mf[-1]
-                    rw = k2 * (tr[lo:hi] - x[nr - 1]) ** 3 / 3.0
+                    rw = k2 * (mc[lo:hi] - m_node) ** 3 / 3.0
                 out[lo:hi] += done + var_b + (rw_done + rw)[:, None]
             # out[i] is the variance after block i (at its last row); rows in between linearly
             last = np.minimum(nodes + _COV_BLOCK, nrow) - 1

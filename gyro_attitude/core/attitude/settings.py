@@ -182,6 +182,9 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("gyro_noise_density", 0.0, "gyro noise density for the covariance when the input's "
             "angular_velocity_covariance is unknown (0 = none)", "rad/s/sqrt(Hz)", 0.0, 1.0,
             group="gyro bias"),
+    Setting("gyro_scale_factor_sigma", 0.005, "offline estimator: 1-sigma relative gyro "
+            "scale-factor and misalignment error in the covariance (consumer MEMS 0.3-1 %)", "",
+            0.0, 0.5, group="gyro bias"),
     # -- rests
     Setting("min_rest_s", 1.0, "shortest rest used for the bias and the alignment", "s", 0.01,
             3600.0, group="rest"),
