@@ -601,6 +601,7 @@ class _Estimator:
             dur = np.array([r.duration_s for r in rests])
             t_motion = np.maximum(np.diff(x) - 0.5 * (dur[:-1] + dur[1:]), 1e-9) if x.size > 1 \
                 else np.zeros(0)
+        rw_last = 0.0  # the walk's term at the last block of the current interval
         mclock = 0.0  # motion time so far
         m_node = 0.0  # motion time at the start of the current interval
         m_fall = np.zeros((3, 3))
@@ -649,9 +650,10 @@ class _Estimator:
             for lo, hi in zip([0, *edges.tolist()], [*edges.tolist(), nodes.size], strict=True):
                 s = int(seg[lo])
                 while j < s:  # entering interval j + 1: rest j-1's weight is complete
+                    rw_done += rw_last  # the walk's share of the interval left is frozen in
+                    rw_last = 0.0
                     if j >= 1:
                         done += np.einsum("km,m->k", m_fall ** 2, se2[j - 1])
-                        rw_done += k2 * t_motion[j - 1] ** 3 / 12.0
                     m_fall, m_rise = m_rise, np.zeros((3, 3))
                     j += 1
                     m_node = float(mc[lo] - dtb[lo])
@@ -670,13 +672,18 @@ class _Estimator:
                     mr = m_rise + np.cumsum(cd, axis=0)
                     var_b = np.einsum("ikm,m->ik", mr ** 2, se2[0])
                     m_rise = mr[-1]
-                    rw = k2 * np.abs(x[0] - tr[lo:hi]) ** 3 / 3.0
+                    # the first rest's bias applied back to the start: at motion time u of
+                    # the x0 before that rest, Var ∫_0^u (W(τ) − W(x0)) dτ = K² (x0 u² − 2u³/3)
+                    x0m = max(x[0] - 0.5 * rests[0].duration_s, 0.0) if auto else 0.0
+                    um = np.minimum(mc[lo:hi], x0m)
+                    rw = k2 * (x0m * um ** 2 - 2.0 * um ** 3 / 3.0)
                 else:  # after the last rest: its estimate held
                     mf = m_fall + np.cumsum(cd, axis=0)
                     var_b = np.einsum("ikm,m->ik", mf ** 2, se2[nr - 1])
                     m_fall = mf[-1]
                     rw = k2 * (mc[lo:hi] - m_node) ** 3 / 3.0
                 out[lo:hi] += done + var_b + (rw_done + rw)[:, None]
+                rw_last = float(rw[-1])
             # out[i] is the variance after block i (at its last row); rows in between linearly
             last = np.minimum(nodes + _COV_BLOCK, nrow) - 1
             xs_r = np.concatenate(([-1], last))
