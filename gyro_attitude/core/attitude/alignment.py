@@ -84,6 +84,28 @@ def level_quaternion(f_b, heading: float) -> tuple[np.ndarray, float, float]:
     return quat_from_matrix(rz @ _c_lb(roll, pitch)), roll, pitch
 
 
+def level_quaternions(f_b: np.ndarray, heading: float) -> tuple[np.ndarray, np.ndarray]:
+    """Array form of :func:`level_quaternion` for (N, 3) specific forces: ``(q_nb (N, 4),
+    usable (N,))`` (rows that are no gravity measurement get the identity, not usable)."""
+    f = np.asarray(f_b, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        usable = np.isfinite(f).all(axis=1) & (np.linalg.norm(f, axis=1) >= 1.0)
+    fx, fy, fz = (np.where(usable, f[:, i], (0.0, 0.0, 1.0)[i]) for i in range(3))
+    roll = np.arctan2(fy, fz)
+    pitch = np.arctan2(-fx, np.hypot(fy, fz))
+    psi = math.pi / 2 - heading
+    cz, sz = math.cos(psi), math.sin(psi)
+    cr, sr, cp, sp = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch)
+    # Rz(ψ) Ry(θ) Rx(φ), written out
+    c = np.empty((f.shape[0], 3, 3))
+    c[:, 0, 0], c[:, 0, 1], c[:, 0, 2] = cz * cp, cz * sp * sr - sz * cr, cz * sp * cr + sz * sr
+    c[:, 1, 0], c[:, 1, 1], c[:, 1, 2] = sz * cp, sz * sp * sr + cz * cr, sz * sp * cr - cz * sr
+    c[:, 2, 0], c[:, 2, 1], c[:, 2, 2] = -sp, cp * sr, cp * cr
+    q = quat_from_matrix(c)
+    q[~usable] = (0.0, 0.0, 0.0, 1.0)
+    return q, usable
+
+
 def gyrocompass_heading(w_b, roll: float, pitch: float) -> float:
     """Heading (clockwise from north) from the bias-free mean rate at rest: in the levelled frame
     the horizontal Earth rate is ``ω_ie cos L · [sin ψ, cos ψ]``, so ``ψ = atan2(ω_x, ω_y)``."""

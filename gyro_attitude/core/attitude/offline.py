@@ -145,8 +145,9 @@ def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, lo: int, hi: 
     """Mark in ``out`` the rows of ``[lo, hi)`` (one gap-free run) that are the oldest sample
     of a rest window: the windows, and their 'full' test, of a detector started at ``lo``.
 
-    A window at rest has ``|mean ω| <= gyro_mean_max`` and spread ``<= gyro_std_max``, so the
-    mean of ``|ω|²`` over it is at most their squares' sum: windows above that (motion) are
+    A window at rest has ``|mean ω_i| <= gyro_mean_max`` on every axis and spread
+    ``<= gyro_std_max``, so the mean of ``|ω|²`` over it is at most ``3 gyro_mean_max² +
+    gyro_std_max²``: windows above that (motion) are
     skipped with one cumulative sum, and :func:`.rest.detect_rest` runs, in chunks carrying one
     window of history, only over the stretches that may hold a rest."""
     oldest = np.searchsorted(t[lo:hi], t[lo:hi] - window_ns, side="left")
@@ -154,8 +155,9 @@ def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, lo: int, hi: 
         ww = np.einsum("ij,ij->i", w[lo:hi], w[lo:hi])
         cs = np.concatenate(([0.0], np.cumsum(ww)))
         k = np.arange(hi - lo)
-        bound = (params["gyro_mean_max"] ** 2 + params["gyro_std_max"] ** 2) * (1 + 1e-9) \
-            + 1e-300
+        # the mean bound holds on every axis (rest.py): |mean|² <= 3 gyro_mean_max²
+        bound = (3.0 * params["gyro_mean_max"] ** 2 + params["gyro_std_max"] ** 2) \
+            * (1 + 1e-9) + 1e-300
         cand = (cs[k + 1] - cs[oldest]) <= bound * (k + 1 - oldest)
         del ww, cs, k
     else:  # a rest test without these two bounds: every window is a candidate

@@ -73,7 +73,6 @@ from gyro_attitude.core.attitude.modes import (
     Phase,
     SettingError,
 )
-from gyro_attitude.core.attitude.rest import NOISE_FLOOR_RAD_S, detect_rest
 from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.core.earth import STANDARD_GRAVITY
 from gyro_attitude.core.rotation import quat_from_rotvec, quat_multiply, quat_normalize
@@ -221,56 +220,15 @@ class RunForm(StrEnum):
     PER_SAMPLE = "per-sample"
 
 
-def run_form(config: StreamConfig, latitude_known: bool, t_ns=None, omega=None,
-             accel=None) -> tuple[RunForm, str]:
-    """The one decision of the form :meth:`AttitudeStream.run` takes, and why.
-
-    Per sample where a stage feeds back through the attitude, sample by sample: gravity aiding
-    (its correction depends on the attitude it corrects), and an ``auto`` bias whose rest
-    average has the Earth rate taken out at the current attitude — unless the data hold no
-    rest (``t_ns``, ``omega``, ``accel`` given: the batch rest detector finds none, so the bias
-    never changes).  Arrays otherwise.
-    """
+def run_form(config: StreamConfig) -> tuple[RunForm, str]:
+    """The one decision of the form :meth:`AttitudeStream.run` takes, and why: per sample
+    where a stage feeds back through the attitude sample by sample (gravity aiding: its
+    correction depends on the attitude it corrects), arrays otherwise.  (The Earth rate taken
+    out of the rest averages at the current attitude couples the bias to the attitude too,
+    but only through the slow Earth rate: the array form iterates it to the fixed point.)"""
     if config.aiding is not Aiding.NONE:
         return RunForm.PER_SAMPLE, "aiding is a feedback loop through the attitude"
-    if config.gyro_bias is GyroBiasMode.AUTO and latitude_known:
-        if t_ns is not None and not _may_find_rest(config, t_ns, omega, accel):
-            return RunForm.ARRAYS, "no rest in the data: the bias never changes"
-        return RunForm.PER_SAMPLE, ("the Earth rate is taken out of the bias at the current "
-                                    "attitude")
     return RunForm.ARRAYS, "every stage has an array form for these settings"
-
-
-def _may_find_rest(cfg: StreamConfig, t_ns, omega, accel) -> bool:
-    """Whether the ``auto`` bias estimator could find a rest in these samples (the batch rest
-    detector over each run of accepted samples; the streaming one breaks its windows at gaps,
-    jumps and unusable accelerometer samples, so it finds none where this finds none)."""
-    t = np.asarray(t_ns).astype(np.int64, copy=False)
-    w = np.asarray(omega, dtype=np.float64)
-    act = v.classify(t, w, "", cfg.check_config()).action
-    codes = v.ACTION_CODES
-    valid = np.flatnonzero(act != codes[v.REJECT])
-    if valid.size == 0:
-        return False
-    a = None if accel is None else np.asarray(accel, dtype=np.float64)
-    if a is not None and not usable_accel(rows(a, valid)).all():
-        return True  # unusable accelerometer samples: let the per-sample form count them
-    # A window at rest has |mean| <= a and spread <= s, so the mean of |ω|² over it is at most
-    # a² + s²: when every sample's |ω|² exceeds that, no window can be at rest (a cheap, exact
-    # pre-check that spares the windowed statistics on moving recordings).
-    wv = rows(w, valid)
-    if np.einsum("ij,ij->i", wv, wv).min() > (cfg.rest_gyro_mean_max ** 2
-                                              + cfg.rest_gyro_std_max ** 2):
-        return False
-    bounds = np.append(np.flatnonzero(act[valid] != codes[v.ACCEPT]), valid.size)
-    params = {"gyro_std_min": NOISE_FLOOR_RAD_S, **cfg.rest_params()}
-    for p0, p1 in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
-        seg = valid[p0:p1]
-        if seg.size >= 2 and detect_rest(rows(t, seg), rows(w, seg),
-                                         None if a is None else rows(a, seg),
-                                         **params).at_rest.any():
-            return True
-    return False
 
 
 class AttitudeStream:
@@ -386,9 +344,9 @@ class AttitudeStream:
     def bias_report(self) -> GyroBiasReport:
         return self.bias_estimator.report()
 
-    def run_form(self, t_ns=None, omega=None, accel=None) -> tuple[RunForm, str]:
-        """The form :meth:`run` takes on these samples, and why (:func:`run_form`)."""
-        return run_form(self.config, self.latitude_rad is not None, t_ns, omega, accel)
+    def run_form(self) -> tuple[RunForm, str]:
+        """The form :meth:`run` takes, and why (:func:`run_form`)."""
+        return run_form(self.config)
 
     # ------------------------------------------------------------------ settings
     def set_config(self, config: StreamConfig) -> None:
@@ -678,7 +636,7 @@ class AttitudeStream:
                 w.shape != (t.shape[0], 3):
             raise ValueError(f"t_ns must be a 1-D integer array of nanoseconds and omega must "
                              f"have shape (N, 3); got {t.dtype} {t.shape} and shape {w.shape}")
-        form, why = self.run_form(t, w, acc)
+        form, why = self.run_form()
         if form is RunForm.ARRAYS:
             result = run_arrays(self, t.astype(np.int64, copy=False), w, frame_id, cov, acc)
             if result is not None:
