@@ -284,3 +284,49 @@ def test_a_slow_steady_turn_is_never_a_rest_and_leaves_the_bias_alone(rate):
     np.testing.assert_allclose(res.bias.bias, bias, atol=2e-4)
     turned = 2 * np.arctan2(np.linalg.norm(res.q[-1, :3]), res.q[-1, 3])
     assert abs(turned - rate * 20.0) < 0.01  # the whole turn is integrated, none held
+
+
+def test_gyro_only_variance_after_one_rest_is_the_closed_form():
+    # one rest, then 20 s of shaking without turning (the accelerometer rules out a rest):
+    # body and output axes coincide, so per axis var(t) = SE² t² + σ² dt t with SE² = σ²/n
+    rng = np.random.default_rng(3)
+    n = int(28 * RATE_HZ)
+    dt = 1.0 / RATE_HZ
+    t = (10**9 + np.arange(n) * 5_000_000).astype(np.int64)
+    sigma = 2e-3
+    w = np.array([0.002, -0.001, 0.003]) + rng.normal(scale=sigma, size=(n, 3))
+    a = np.array([0.0, 0.0, G]) + rng.normal(scale=0.02, size=(n, 3))
+    a[int(8 * RATE_HZ):] += rng.normal(scale=1.0, size=(n - int(8 * RATE_HZ), 3))
+    cov = np.broadcast_to(np.diag([sigma ** 2] * 3).reshape(9), (n, 9))
+    cfg = StreamConfig(gyro_scale_factor_sigma=0.0)
+    res = estimate_offline(t, w, a, config=cfg, angular_velocity_covariance=cov)
+    assert res.bias.rests_used == 1
+    se2 = sigma ** 2 / res.bias.rest_samples
+    # integrated everywhere but at the rest's samples (its first and last window are not known
+    # to be at rest from both sides: integrated too, with the same bias)
+    t_motion = (n - res.bias.rest_samples) * dt
+    expected = se2 * t_motion ** 2 + sigma ** 2 * dt * t_motion
+    np.testing.assert_allclose(res.variance[-1], expected, rtol=0.03)
+
+
+def test_the_tail_of_a_turn_is_integrated_not_held():
+    # a turn that ends in 0.4 s at 0.008 rad/s (below every rest bound) before the rest: the
+    # window starting in that tail passes the rest test; holding the attitude over it would
+    # lose 3.2e-3 rad of the turn
+    n = int(26 * RATE_HZ)
+    dt = 1.0 / RATE_HZ
+    t = (10**9 + np.arange(n) * 5_000_000).astype(np.int64)
+    s = np.arange(n) * dt
+    rate = np.where((s >= 8) & (s < 15), 0.5, 0.0) + np.where((s >= 15) & (s < 15.4), 0.008, 0.0)
+    rng = np.random.default_rng(4)
+    w = np.zeros((n, 3))
+    w[:, 2] = rate
+    w += rng.normal(scale=1e-4, size=(n, 3))
+    a = np.array([0.0, 0.0, G]) + rng.normal(scale=0.01, size=(n, 3))
+    a[(s >= 8) & (s < 15)] += rng.normal(scale=1.0, size=(int(7 * RATE_HZ), 3))
+    res = estimate_offline(t, w, a, config=StreamConfig(gyro_bias="none"))
+    res_auto = estimate_offline(t, w, a)
+    turn = 0.5 * 7.0 + 0.008 * 0.4
+    for r in (res, res_auto):
+        yaw = 2 * np.arctan2(r.q[-1, 2], r.q[-1, 3])
+        assert abs(yaw - turn) < 5e-4, (yaw, turn)
