@@ -98,6 +98,8 @@ _EVENT_WORDS = {
     "time_jump": "backward time jump(s): attitude reset",
     "invalid_covariance": "invalid angular_velocity_covariance(s) treated as unknown",
     "integrator_error": "non-finite update(s): last good attitude restored",
+    iv.MISSING_SAMPLES: "sample(s) missing inside accepted intervals (integrated across; "
+                        "longer holes are gaps: --max-missing-samples)",
 }
 
 
@@ -147,12 +149,15 @@ def run(args) -> int:
     # once per reason: how many, and the first case in words
     events = {**out["skipped"], iv.GAP: out["gaps"], "time_jump": out["time_jump_resets"],
               "invalid_covariance": out["invalid_covariances"],
-              "integrator_error": out["integrator_errors"]}
+              "integrator_error": out["integrator_errors"],
+              iv.MISSING_SAMPLES: out["missing_samples"]}
     for reason, n in events.items():
         if n:
             what = _EVENT_WORDS.get(reason, f"sample(s) skipped ({reason})")
             print(f"warning: {n} {what}; first: {out['details'].get(reason, '')}",
                   file=sys.stderr)
+    if "gyro_noise_unknown" in out["details"]:
+        print(f"note: {out['details']['gyro_noise_unknown']}", file=sys.stderr)
     if len(out["frame_ids"]) > 1:
         print(f"warning: frame_id changes inside {out['imu_topic']} ({out['frame_ids']}): "
               "integrated as one frame", file=sys.stderr)

@@ -15,6 +15,7 @@ from gyro_attitude.core.allan import (
     model_variance,
     relative_error,
 )
+from gyro_attitude.core.attitude.validation import no_estimate
 from gyro_attitude.core.sensor_errors import FLICKER_FLOOR_FACTOR
 from gyro_attitude.core.units import format_si
 from gyro_attitude.io.imu_fast import read_imu_arrays
@@ -170,7 +171,7 @@ def analyse_mcap(path, topic: str = "imu/data_raw") -> AllanResult:
                          f"evenly spaced samples")
     if spread > 0.01:
         notes.append(f"stamp jitter up to {spread:.1%} of the step (treated as even)")
-    has_accel = bool(imu.linear_acceleration_covariance[0, 0] != -1.0)
+    has_accel = not no_estimate(imu.linear_acceleration_covariance).any()
     result = analyse_rates(imu.angular_velocity, dt_ns / 1e9,
                            imu.linear_acceleration if has_accel else None, topic)
     result.notes += notes

@@ -83,6 +83,7 @@ class ReplayResult:
     time_jump_resets: int
     invalid_covariances: int
     integrator_errors: int
+    missing_samples: int
     details: dict[str, str]
     skipped_before_truth: int
     gyro_bias: str
@@ -232,7 +233,9 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     cov = imu.angular_velocity_covariance[first:]
     # the accelerometer feeds rest detection, levelling and aiding, when the Imu has one
     # (element 0 of its covariance is -1 when it has none, REP-145)
-    has_accel = bool(len(imu) and imu.linear_acceleration_covariance[0, 0] != -1.0)
+    # (every message must carry one: one that says it has none makes the accelerometer
+    # unknown for the recording)
+    has_accel = bool(len(imu)) and not iv.no_estimate(imu.linear_acceleration_covariance).any()
     accel = imu.linear_acceleration[first:] if has_accel else None
     # One frame per decoded message is not kept by the array reader: the first frame stands
     # for all (the node would also reject samples whose frame_id changes: see frame_ids).
@@ -307,7 +310,8 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         skipped={r: n for r, n in res.counts.items() if r in iv.REJECT_REASONS and r != iv.GAP},
         gaps=res.counts[iv.GAP], time_jump_resets=res.time_jump_resets,
         invalid_covariances=res.counts["invalid_covariance"],
-        integrator_errors=res.counts["integrator_error"], details=res.details,
+        integrator_errors=res.counts["integrator_error"],
+        missing_samples=res.counts[iv.MISSING_SAMPLES], details=res.details,
         skipped_before_truth=first, gyro_bias=bias_summary(res.bias),
         gyro_bias_rad_s=np.asarray(res.bias.bias, float).tolist(),
         alignment=None if res.alignment is None else _alignment_summary(res.alignment),

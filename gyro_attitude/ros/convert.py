@@ -21,6 +21,7 @@ from geometry_msgs.msg import Quaternion, QuaternionStamped, Vector3
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, JointState
 
+from gyro_attitude.core.attitude.validation import NO_ESTIMATE, no_estimate
 from gyro_attitude.core.rotation import as_quat_array, as_vector_array, quat_rotate
 
 __all__ = [
@@ -46,7 +47,7 @@ _NS = 1_000_000_000
 _INT32_MAX = 2**31 - 1
 
 # Element 0 = -1: "this field has no estimate" (REP-145 / sensor_msgs/Imu comments).
-NO_ESTIMATE_COVARIANCE: tuple[float, ...] = (-1.0,) + (0.0,) * 8
+NO_ESTIMATE_COVARIANCE: tuple[float, ...] = (NO_ESTIMATE,) + (0.0,) * 8
 # All zeros: "covariance unknown".
 UNKNOWN_COVARIANCE: tuple[float, ...] = (0.0,) * 9
 
@@ -111,7 +112,7 @@ def variances_from_covariance(cov) -> np.ndarray | None:
     """Diagonal of a 9-element covariance; ``None`` when element 0 is −1 (no estimate)
     or the matrix is all zeros (unknown)."""
     c = np.asarray(cov, dtype=np.float64).reshape(9)
-    if c[0] == -1.0 or not np.any(c):
+    if no_estimate(c) or not np.any(c):
         return None
     return c[[0, 4, 8]].copy()
 

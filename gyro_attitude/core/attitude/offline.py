@@ -250,7 +250,8 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
     codes = v.ACTION_CODES
     act = cls.action
     valid = np.flatnonzero(act != codes[v.REJECT])
-    counts = {**cls.counts, INVALID_COVARIANCE: 0, INVALID_ACCEL: 0, INTEGRATOR_ERROR: 0}
+    counts = {**cls.counts, v.MISSING_SAMPLES: cls.missing_samples, INVALID_COVARIANCE: 0,
+              INVALID_ACCEL: 0, INTEGRATOR_ERROR: 0}
     details = dict(cls.details)
     m = valid.size
     tv = rows(t, valid)

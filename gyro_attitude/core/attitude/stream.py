@@ -95,6 +95,16 @@ INVALID_ACCEL = "invalid_accel"
 # m/s²: a specific force beyond this (1e5 g) is no accelerometer reading
 ACCEL_ABSURD = 1e6
 EXTRA_COUNTS = (INVALID_COVARIANCE, INVALID_ACCEL, INTEGRATOR_ERROR)
+GYRO_NOISE_UNKNOWN = "gyro_noise_unknown"  # a detail (said once), not a count
+
+
+def unknown_noise_note(cfg: StreamConfig) -> str:
+    """What the covariance assumes for samples whose gyro covariance says "no estimate"."""
+    n = cfg.gyro_noise_density
+    return ("angular_velocity_covariance says no estimate (REP-145: element 0 is -1): the "
+            + (f"orientation variance grows with gyro_noise_density = {n:g} rad/s/sqrt(Hz)"
+               if n > 0 else "gyro noise is taken as unknown and adds nothing to the orientation "
+               "variance (set gyro_noise_density)"))
 
 ALIGNING, RUNNING, FAILED = Phase.ALIGNING, Phase.RUNNING, Phase.FAILED
 
@@ -313,7 +323,8 @@ class AttitudeStream:
 
     @property
     def counts(self) -> dict[str, int]:
-        return {**self.validator.counts, **self.state.counts}
+        return {**self.validator.counts, **self.state.counts,
+                v.MISSING_SAMPLES: self.validator.missing_samples}
 
     @property
     def rejected_total(self) -> int:
@@ -354,7 +365,8 @@ class AttitudeStream:
         and aiding settings stay those of construction)."""
         self.config = replace(self.config, max_gap_s=config.max_gap_s,
                               time_jump_threshold_s=config.time_jump_threshold_s,
-                              max_rate_rad_s=config.max_rate_rad_s)
+                              max_rate_rad_s=config.max_rate_rad_s,
+                              max_missing_samples=config.max_missing_samples)
         self.validator.config = self.config.check_config()
 
     def set_algorithm(self, algorithm: str) -> None:
@@ -397,13 +409,17 @@ class AttitudeStream:
             return verdict, None
         t_ns = int(t_ns)
         var, invalid = gyro_variances(angular_velocity_covariance)
+        if var is None and not invalid and GYRO_NOISE_UNKNOWN not in st.details and \
+                angular_velocity_covariance is not None and \
+                v.no_estimate(np.asarray(angular_velocity_covariance).reshape(-1)):
+            st.details[GYRO_NOISE_UNKNOWN] = unknown_noise_note(self.config)
         if invalid:
             st.count(INVALID_COVARIANCE, "angular_velocity_covariance with a non-finite or "
                                          "negative diagonal: treated as unknown")
         if var is not None:
             st.variance_known = True
-        if verdict.action == v.RESET_TIME_JUMP:
-            st.details.setdefault("time_jump", verdict.detail)
+        if verdict.reason is not None:  # a time jump, a gap, missing samples
+            st.details.setdefault(verdict.reason, verdict.detail)
         a = self._accel(accel)
         if st.start_t_ns is None:
             st.start_t_ns = t_ns

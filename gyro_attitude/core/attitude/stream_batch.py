@@ -30,6 +30,7 @@ from gyro_attitude.core.attitude.alignment import level_quaternions
 from gyro_attitude.core.attitude.modes import GyroBiasMode
 from gyro_attitude.core.attitude.stream import (
     EXTRA_COUNTS,
+    GYRO_NOISE_UNKNOWN,
     INVALID_ACCEL,
     RUNNING,
     RunForm,
@@ -38,6 +39,7 @@ from gyro_attitude.core.attitude.stream import (
     covariance_rows,
     nav_rows,
     rows,
+    unknown_noise_note,
     usable_accel,
 )
 from gyro_attitude.core.rotation import quat_from_rotvec, quat_multiply
@@ -149,6 +151,8 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
     var_v = known_v = None
     if cov is not None:
         var_v, known_v = covariance_rows(cov, valid, counts, details)
+        if v.no_estimate(rows(cov, valid)).any():
+            details.setdefault(GYRO_NOISE_UNKNOWN, unknown_noise_note(cfg))
     variance = variance_known = None
     known_any = known_v is not None and bool(known_v[out_from:].any())
     if known_any or st.variance_known:
