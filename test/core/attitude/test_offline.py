@@ -94,7 +94,7 @@ def test_verdicts_are_those_of_the_causal_path_and_bad_samples_are_counted():
     res = estimate_offline(t, w, a, q0=q_true[0], config=cfg)
     causal = AttitudeStream(config=cfg, q0=q_true[0]).run(t, w, "", None, a)
     np.testing.assert_array_equal(res.action, causal.action)
-    for key in v.REJECT_REASONS:
+    for key in (*v.REJECT_REASONS, v.MISSING_SAMPLES):
         assert res.counts[key] == causal.counts[key], key
     assert res.counts[v.NON_FINITE] == 2 and res.counts[v.IMPLAUSIBLE_RATE] == 1
     assert res.counts[v.DUPLICATE_STAMP] == 1 and res.counts[v.GAP] == 1
