@@ -31,6 +31,7 @@ SUITES: dict[str, str] = {
     "real": "gyro_attitude.benchmarks.real",
     "offline-memory": "gyro_attitude.benchmarks.offline_memory",
     "instruments": "gyro_attitude.benchmarks.instruments",
+    "trajectory": "gyro_attitude.benchmarks.trajectory",
 }
 
 

@@ -66,6 +66,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "from gravity zero-phase); causal: the live node's attitudes, sample "
                         "for sample")
     add_estimator_flags(parser)  # the attitude_integrator node's settings, same names
+    parser.add_argument("--odometry-topic", default=None, metavar="TOPIC",
+                        help="nav_msgs/Odometry topic of the recording whose velocity sets the "
+                        "transport rate (--frame enu), time-aligned to the Imu stamps as the "
+                        "node's odometry_topic")
     parser.add_argument("--truth-topic", default=TRUTH_TOPIC,
                         help=f"QuaternionStamped truth to compare with (default {TRUTH_TOPIC})")
     parser.add_argument("--compression", choices=COMPRESSIONS, default=DEFAULT_COMPRESSION,
@@ -98,6 +102,7 @@ _EVENT_WORDS = {
     "time_jump": "backward time jump(s): attitude reset",
     "invalid_covariance": "invalid angular_velocity_covariance(s) treated as unknown",
     "integrator_error": "non-finite update(s): last good attitude restored",
+    "saturated": "gyro sample(s) pinned at a repeated extreme (saturated: attitude unreliable)",
     iv.MISSING_SAMPLES: "sample(s) missing inside accepted intervals (integrated across; "
                         "longer holes are gaps: --max-missing-samples)",
 }
@@ -126,7 +131,8 @@ def run(args) -> int:
         bar, update = _progress_bar(args)
         result = replay_file(
             args.input, args.out, imu_topic=args.imu_topic, algorithm=args.algorithm,
-            truth_topic=args.truth_topic, compression=args.compression, force=args.force,
+            truth_topic=args.truth_topic, odometry_topic=args.odometry_topic,
+            compression=args.compression, force=args.force,
             progress=update, config=config, estimator=args.estimator)
         if bar is not None:
             bar.close()
@@ -150,7 +156,7 @@ def run(args) -> int:
     events = {**out["skipped"], iv.GAP: out["gaps"], "time_jump": out["time_jump_resets"],
               "invalid_covariance": out["invalid_covariances"],
               "integrator_error": out["integrator_errors"],
-              iv.MISSING_SAMPLES: out["missing_samples"]}
+              iv.MISSING_SAMPLES: out["missing_samples"], "saturated": out["saturated"]}
     for reason, n in events.items():
         if n:
             what = _EVENT_WORDS.get(reason, f"sample(s) skipped ({reason})")

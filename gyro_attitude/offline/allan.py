@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -20,7 +21,16 @@ from gyro_attitude.core.sensor_errors import FLICKER_FLOOR_FACTOR
 from gyro_attitude.core.units import format_si
 from gyro_attitude.io.imu_fast import read_imu_arrays
 
-__all__ = ["AxisAllan", "AllanResult", "allan_deviation", "analyse_rates", "analyse_mcap"]
+__all__ = ["AxisAllan", "AllanResult", "allan_deviation", "analyse_rates", "analyse_mcap",
+           "KALIBR_KEYS"]
+
+#: Kalibr / VIO IMU noise-model keys: (sensor, term) -> key.
+KALIBR_KEYS = {
+    ("gyro", "random_walk"): "gyroscope_noise_density",
+    ("gyro", "rate_random_walk"): "gyroscope_random_walk",
+    ("accelerometer", "random_walk"): "accelerometer_noise_density",
+    ("accelerometer", "rate_random_walk"): "accelerometer_random_walk",
+}
 
 AXES = ("x", "y", "z")
 # Unit kinds of each term, per sensor (gyro_attitude.core.units) and the scene keys they
@@ -81,6 +91,35 @@ class AllanResult:
                                  for a in AXES}
         out["notes"] = list(self.notes)
         return out
+
+    def kalibr(self) -> tuple[dict, list[str]]:
+        """The Kalibr IMU noise model (``imu.yaml``) and what was bounded, not fitted.
+
+        Kalibr takes one value per sensor: the largest of the three axes (the conservative
+        choice). Noise density = the fitted ARW / VRW N (continuous time, rad/s/√Hz or
+        m/s²/√Hz); random walk = the fitted RRW / AccRW K (rad/s²/√Hz, m/s³/√Hz). A term
+        the record does not show is written as the upper bound the deviation allows (white
+        noise: σ(τ_min)·√τ_min; random walk: σ(τ_max)·√(3/τ_max)) and listed in the notes.
+        """
+        out: dict = {}
+        notes: list[str] = []
+        for sensor, axes in (("accelerometer", self.accel), ("gyro", self.gyro)):
+            if axes is None:
+                continue
+            for term, bound in (("random_walk", lambda ax: ax.adev[0] * math.sqrt(
+                    self.tau_s[0])), ("rate_random_walk", lambda ax: ax.adev[-1] * math.sqrt(
+                        3.0 / self.tau_s[-1]))):
+                key = KALIBR_KEYS[(sensor, term)]
+                fitted = [getattr(axes[a].terms, term) for a in AXES]
+                if all(v is not None for v in fitted):
+                    out[key] = float(max(fitted))
+                else:
+                    out[key] = float(max(bound(axes[a]) for a in AXES))
+                    notes.append(f"{key}: not visible in this record; written as the upper "
+                                 "bound its Allan deviation allows")
+        out["rostopic"] = "/" + self.topic.lstrip("/")
+        out["update_rate"] = round(1.0 / self.dt_s, 6)
+        return out, notes
 
     def scene_errors(self) -> dict:
         """``{"gyro": {...}, "accelerometer": {...}}`` error blocks (datasheet keys, values

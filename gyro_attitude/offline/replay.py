@@ -13,6 +13,7 @@ truth at coinciding stamps.  Samples are never re-sorted.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import time
@@ -25,6 +26,7 @@ import numpy as np
 from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, DEFAULT_OFFLINE_ALGORITHM, NavFrame
 from gyro_attitude.core.attitude import validation as iv
 from gyro_attitude.core.attitude.modes import Estimator, InitialAttitudeSource, parse_mode
+from gyro_attitude.core.attitude.nav_frame import velocity_series
 from gyro_attitude.core.attitude.offline import estimate_offline
 from gyro_attitude.core.attitude.stream import (
     AttitudeStream,
@@ -42,6 +44,7 @@ from gyro_attitude.io.cdr_arrays import (
 )
 from gyro_attitude.io.imu_fast import read_topic_arrays
 from gyro_attitude.io.mcap_writer import DEFAULT_COMPRESSION, Rosbag2McapWriter
+from gyro_attitude.io.odometry_file import read_odometry_velocities
 from gyro_attitude.io.safe_output import SafeOutput, check_output_path
 
 __all__ = [
@@ -84,6 +87,7 @@ class ReplayResult:
     invalid_covariances: int
     integrator_errors: int
     missing_samples: int
+    saturated: int
     details: dict[str, str]
     skipped_before_truth: int
     gyro_bias: str
@@ -159,6 +163,7 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                 chunk_size: int = OUTPUT_CHUNK_SIZE, force: bool = False,
                 progress: Callable[[int, int], None] | None = None,
                 on_damage: str = "warn", config: StreamConfig | None = None,
+                odometry_topic: str | None = None,
                 estimator: Estimator | str = Estimator.OFFLINE) -> ReplayResult:
     """Integrate every Imu message of ``input_path`` and write ``output_path``.
 
@@ -175,7 +180,9 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     rest, heading from ``config``.  ``algorithm``
     None: the offline default, or the node's causal default when a sequential filter of
     ``config`` acts on the recording (levelling, aiding, auto bias with a rest).  ``config``
-    The output must not be the
+    ``odometry_topic``: a ``nav_msgs/Odometry`` topic of the recording whose velocity sets the
+    transport rate (frame enu), time-aligned to the Imu stamps as the node applies it (each
+    sample takes the newest message stamped at or before it).  The output must not be the
     input and must not exist unless ``force``; it appears only complete.
     ``progress(bytes_done, bytes_total)`` is called while reading.  Raises ValueError (bad
     arguments, unusable input, nothing to write) and OSError.
@@ -217,6 +224,11 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
 
     truth = arrays.get(truth_topic)
     t_all = imu.stamp_ns
+    if odometry_topic:
+        if nav is None:
+            raise ValueError("--odometry-topic needs --frame enu (the transport rate of the "
+                             "nav frame)")
+        odo = read_odometry_velocities(input_path, odometry_topic)
     # 'truth': the truth interpolated at the first Imu stamp it covers; integration starts
     # there (the samples before it are counted as skipped_before_truth)
     first = 0
@@ -230,6 +242,9 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         q0, first, _ = initial_attitude_from_truth(t_all, truth.stamp_ns, truth.quaternion,
                                                    usable=usable)
     t, omega = t_all[first:], imu.angular_velocity[first:]
+    if odometry_topic:
+        nav = dataclasses.replace(nav, velocity_enu=velocity_series(
+            t, odo.stamp_ns, odo.velocity, np.broadcast_to(nav.velocity_enu, (3,))))
     cov = imu.angular_velocity_covariance[first:]
     # the accelerometer feeds rest detection, levelling and aiding, when the Imu has one
     # (element 0 of its covariance is -1 when it has none, REP-145)
@@ -311,7 +326,8 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         gaps=res.counts[iv.GAP], time_jump_resets=res.time_jump_resets,
         invalid_covariances=res.counts["invalid_covariance"],
         integrator_errors=res.counts["integrator_error"],
-        missing_samples=res.counts[iv.MISSING_SAMPLES], details=res.details,
+        missing_samples=res.counts[iv.MISSING_SAMPLES], saturated=res.counts["saturated"],
+        details=res.details,
         skipped_before_truth=first, gyro_bias=bias_summary(res.bias),
         gyro_bias_rad_s=np.asarray(res.bias.bias, float).tolist(),
         alignment=None if res.alignment is None else _alignment_summary(res.alignment),

@@ -89,6 +89,7 @@ from gyro_attitude.core.attitude.stream import (
     INVALID_ACCEL,
     INVALID_COVARIANCE,
     RUNNING,
+    SATURATED,
     AttitudeStream,
 )
 from gyro_attitude.core.attitude.truth import TruthStart
@@ -401,6 +402,7 @@ class AttitudeIntegratorNode(Node):
                                                    else self.skipped_before_init),
             "integrator_errors": str(counts[INTEGRATOR_ERROR]),
             "missing_samples": str(counts[iv.MISSING_SAMPLES]),
+            "saturated": str(counts[SATURATED]),
             "invalid_covariances": str(counts[INVALID_COVARIANCE]),
             "odometry_updates": str(self.odometry_updates),
             "invalid_accels": str(counts[INVALID_ACCEL]),

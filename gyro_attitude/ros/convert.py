@@ -21,8 +21,9 @@ from geometry_msgs.msg import Quaternion, QuaternionStamped, Vector3
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, JointState
 
+from gyro_attitude.core.attitude.nav_frame import odometry_velocity
 from gyro_attitude.core.attitude.validation import NO_ESTIMATE, no_estimate
-from gyro_attitude.core.rotation import as_quat_array, as_vector_array, quat_rotate
+from gyro_attitude.core.rotation import as_quat_array, as_vector_array
 
 __all__ = [
     "NO_ESTIMATE_COVARIANCE",
@@ -224,15 +225,9 @@ def odometry_velocity_parent(msg: Odometry) -> np.ndarray:
     velocity). An empty or equal ``child_frame_id`` means the twist is already in the
     parent frame. Raises ``ValueError`` on a non-finite velocity or a zero/non-finite
     orientation that would be needed."""
-    v = vector3_from_msg(msg.twist.twist.linear)
-    if not np.all(np.isfinite(v)):
-        raise ValueError(f"odometry twist.linear is not finite: {v.tolist()}")
-    if msg.child_frame_id and msg.child_frame_id != msg.header.frame_id:
-        q = quat_from_msg(msg.pose.pose.orientation)
-        if not np.all(np.isfinite(q)) or float(np.dot(q, q)) < 1e-18:
-            raise ValueError(f"odometry pose orientation is zero or not finite: {q.tolist()}")
-        v = quat_rotate(q, v)
-    return v
+    return odometry_velocity(vector3_from_msg(msg.twist.twist.linear),
+                             quat_from_msg(msg.pose.pose.orientation), msg.child_frame_id,
+                             msg.header.frame_id)
 
 
 def joint_state_msg(t_ns: int, names, positions, velocities) -> JointState:

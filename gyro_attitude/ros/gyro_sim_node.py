@@ -27,6 +27,7 @@ in-process to a rosbag2-compatible MCAP file.
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 
@@ -51,6 +52,7 @@ from gyro_attitude.core.sim_topics import (
     SimTopics,
     local_enu_position,  # noqa: F401  (re-exported: its home moved to core.sim_topics)
 )
+from gyro_attitude.core.trajectory import LiveTrajectory
 from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
 from gyro_attitude.io.safe_output import SafeOutput, check_output_path
 from gyro_attitude.io.scene_file import load_scene
@@ -93,6 +95,17 @@ def parameter_specs() -> list[ParamSpec]:
         ParamSpec("qos_reliability", "best_effort", "imu/data_raw publisher reliability",
                   choices=("best_effort", "reliable")),
         ParamSpec("qos_depth", 1000, "imu/data_raw publisher queue depth", low=1, high=100000),
+        ParamSpec("motion_topic", "",
+                  "nav_msgs/Odometry ground truth to move the sensors along ('' = the scene's "
+                  "motion): the Imu follows it, stamped in its time base"),
+        ParamSpec("motion_delay_s", 0.05,
+                  "motion_topic: publish a sample once the odometry is this far past it [s]",
+                  low=0.0, high=10.0),
+        ParamSpec("motion_timeout_s", 1.0,
+                  "motion_topic: no odometry for this long (wall clock) is reported; a gap "
+                  "this long in its stamps restarts the Imu [s]", low=0.01, high=3600.0),
+        ParamSpec("motion_window_s", 2.0, "motion_topic: poses kept for the spline fit [s]",
+                  low=0.1, high=600.0),
     ]
 
 
@@ -116,10 +129,15 @@ class GyroSimNode(Node):
         elif p["rate_hz"] < 1.0:
             raise ParameterError(f"parameter 'rate_hz' must be 0 (scene rate) or >= 1 Hz, "
                                  f"got {p['rate_hz']}")
+        self._spec, self._seed = spec, seed
         try:
+            # with motion_topic this one only gives the covariances; the live simulator is
+            # made when the first odometry arrives (its stamp is the start)
             self._sim = SceneSimulator(spec, p["rate_hz"], seed=seed)
         except ValueError as exc:
             raise ParameterError(f"parameter 'scene'/'rate_hz': {exc}") from exc
+        self._live: LiveTrajectory | None = None
+        self._live_mode = bool(p["motion_topic"])
         gyro_var, accel_var = self._sim.imu_variances()
         self._gyro_var = None if gyro_var is None else np.asarray(gyro_var, float)
         self._accel_var = None if accel_var is None else np.asarray(accel_var, float)
@@ -138,6 +156,17 @@ class GyroSimNode(Node):
         self._pub_truth = self.create_publisher(QuaternionStamped, "truth/attitude", 1000)
         self._pub_odom = self.create_publisher(Odometry, "truth/odom", 100)
         self._pub_clock = self.create_publisher(Clock, "/clock", 10) if self._fast else None
+        self._odom_wall: float | None = None  # monotonic time of the last odometry
+        self._created_at = time.monotonic()
+        self._odom_intervals: list[int] = []
+        self._warned: set[str] = set()
+        self.rejected_odometry = 0
+        if self._live_mode:
+            if spec.free_gyro_params is not None or spec.instrument is not None:
+                raise ParameterError("parameter 'motion_topic': not with a scene's free gyro or "
+                                     "instrument (their solvers need the motion ahead)")
+            self.create_subscription(Odometry, p["motion_topic"], self._on_odometry,
+                                     imu_qos("best_effort", 1000))
 
         self._writer = None
         self._record_output: SafeOutput | None = None
@@ -159,8 +188,10 @@ class GyroSimNode(Node):
         self._timer = self.create_timer(period, self._tick)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.get_logger().info(
-            f"scene '{p['scene']}' at {p['rate_hz']:g} Hz, {p['time_mode']} time, "
-            f"duration {p['duration_s']:g} s"
+            f"scene '{p['scene']}' at {p['rate_hz']:g} Hz, "
+            + (f"motion from {p['motion_topic']} (delay {p['motion_delay_s']:g} s)"
+               if self._live_mode else f"{p['time_mode']} time")
+            + f", duration {p['duration_s']:g} s"
             + (f", recording to {p['record_path']}" if p["record_path"] else "")
         )
 
@@ -206,8 +237,13 @@ class GyroSimNode(Node):
         n = self._block_n
         if self._n_total:
             n = min(n, self._n_total - self._generated)
+        before = sum(self._sim.saturated.values())
         f = self._topics.fields(self._sim.next_block(n))
         self._generated += n
+        if before == 0 and sum(self._sim.saturated.values()) > 0:
+            self.get_logger().warning(
+                "output range reached: samples clipped at full scale "
+                f"({', '.join(f'{k} {v}' for k, v in self._sim.saturated.items())} so far)")
         # plain Python lists: building messages from numpy scalars is several times slower
         cols = [f.t_rel_ns.tolist(), f.angular_velocity.tolist(),
                 None if f.specific_force is None else f.specific_force.tolist(),
@@ -264,8 +300,99 @@ class GyroSimNode(Node):
             return True
         return False
 
+    # ------------------------------------------------------------------ motion_topic
+    def _warn_once(self, key: str, text: str) -> None:
+        if key not in self._warned:
+            self._warned.add(key)
+            self.get_logger().warning(text)
+
+    def _start_live(self, t_ns: int) -> None:
+        """A new live trajectory and simulator starting at the odometry stamp ``t_ns``."""
+        p, ea = self._p, self._spec.earth
+        self._live = LiveTrajectory((ea.latitude_rad, ea.longitude_rad, ea.height_m), t_ns,
+                                    p["motion_window_s"])
+        spec = dataclasses.replace(self._spec, motion=self._live, motion_type="trajectory",
+                                   start_time_ns=t_ns)
+        self._sim = SceneSimulator(spec, p["rate_hz"], seed=self._seed)
+        self._topics = SimTopics()
+        self._start_ns = t_ns
+        self._generated = 0
+        self._block, self._block_pos = [], 0
+        self._resolve_cache = {t: self._resolve(t) for t in TOPICS}
+
+    def _on_odometry(self, msg: Odometry) -> None:
+        t_ns = convert.stamp_to_ns(msg.header.stamp)
+        pose = msg.pose.pose
+        pos = (pose.position.x, pose.position.y, pose.position.z)
+        q = (pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w)
+        now = time.monotonic()
+        if self._odom_wall is not None and now - self._odom_wall > self._p["motion_timeout_s"]:
+            self.get_logger().info(f"odometry on {self._p['motion_topic']} resumed")
+            self._warned.discard("stopped")
+        self._odom_wall = now
+        if self._live is not None and self._live.last_stamp_ns is not None:
+            gap = t_ns - self._live.last_stamp_ns
+            if gap > self._p["motion_timeout_s"] * 1e9:
+                self.get_logger().warning(
+                    f"odometry gap of {gap / 1e9:.3g} s in its stamps: the Imu restarts at "
+                    f"{t_ns / 1e9:.9f} s (nothing is published across the gap)")
+                self._live = None
+            elif gap > 0:
+                self._odom_intervals.append(gap)
+        if self._live is None:
+            if t_ns <= 0:
+                self.rejected_odometry += 1
+                self._warn_once("stamp0", "odometry with a zero stamp ignored")
+                return
+            self._start_live(t_ns)
+        reason = self._live.add(t_ns, pos, q)
+        if reason is not None:
+            self.rejected_odometry += 1
+            self._warn_once(f"bad:{reason.split(' ')[0]}", f"odometry rejected: {reason} "
+                            f"(stamp {t_ns}; counted, later ones not logged)")
+            return
+        if len(self._odom_intervals) == 20:
+            rate = 1e9 / float(np.median(self._odom_intervals))
+            if rate < self._p["rate_hz"]:
+                self._warn_once("slow", f"odometry at {rate:.4g} Hz is slower than the Imu "
+                                f"rate {self._p['rate_hz']:g} Hz: the samples between poses "
+                                "come from the spline fit (its bandwidth is the odometry's)")
+
+    def _live_tick(self) -> None:
+        last = self._odom_wall if self._odom_wall is not None else self._created_at
+        waited = time.monotonic() - last
+        if waited > self._p["motion_timeout_s"]:
+            self._warn_once("stopped", f"no odometry on {self._p['motion_topic']} for "
+                            f"{waited:.3g} s: the Imu waits for it")
+        if self._live is None or self._live.pose_count < 4:
+            return
+        ready_s = self._live.covers()[1] - self._p["motion_delay_s"]
+        rate = self._p["rate_hz"]
+        n_ready = int(np.floor(ready_s * rate + 1e-9)) + 1 - self._generated
+        if self._n_total:
+            n_ready = min(n_ready, self._n_total - self._generated)
+        if n_ready <= 0:
+            if self._n_total and self._generated >= self._n_total:
+                self._finish()
+            return
+        first = self._live.covers()[0]
+        if self._generated / rate < first:  # the window moved past the next sample
+            self.get_logger().error("motion_window_s is too short for the delay; raise it")
+            self._finish()
+            return
+        while n_ready > 0:
+            n = min(n_ready, BLOCK_SAMPLES)
+            self._block_n = n
+            self._next_block()
+            for row in self._block:
+                self._publish_row(row)
+            n_ready -= n
+
     def _tick(self) -> None:
         if self.finished:
+            return
+        if self._live_mode:
+            self._live_tick()
             return
         if self._start_ns is None:
             if not self._ready():
@@ -306,7 +433,8 @@ class GyroSimNode(Node):
         self._timer.cancel()
         self.done.set_result(self.published)
         self.close()
-        self.get_logger().info(f"published {self.published} samples; done")
+        sat = "".join(f"; {k} saturated in {v} samples" for k, v in self._sim.saturated.items())
+        self.get_logger().info(f"published {self.published} samples{sat}; done")
 
 
 def _spin_until_done(node: GyroSimNode) -> None:

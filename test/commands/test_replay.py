@@ -439,3 +439,37 @@ def test_truth_start_is_taken_at_the_first_accepted_sample(tmp_path, bad_start):
                     initial_attitude="truth")
     assert s.skipped_before_truth == (1 if bad_start == "zero_stamp" else 50)
     assert s.max_error_rad < 1e-9
+
+
+def test_odometry_topic_sets_the_transport_rate_as_the_node_does(tmp_path, capsys):
+    # aircraft_turn (120 m/s, 3 °/s coordinated turn at 50°N) with an ideal gyro, simulated
+    # offline with truth/odom.  Integrated in ENU from the truth, the velocity of truth/odom
+    # makes the transport rate follow the turn: the attitude stays on the truth; the scene's
+    # initial velocity held constant leaves the transport-rate error of the velocity change.
+    import yaml
+
+    from gyro_attitude.io.scene_file import find_scene_file, load_scene
+
+    scene = yaml.safe_load(find_scene_file("aircraft_turn").read_text())
+    scene["gyro"].pop("errors", None)
+    path = tmp_path / "turn.yaml"
+    path.write_text(yaml.safe_dump(scene))
+    spec = load_scene(str(path))
+    assert cli_main(["simulate", str(path), "--duration", "20", "--out",
+                     str(tmp_path / "turn.mcap"), "--quiet"]) == 0
+    v0 = np.asarray(spec.motion.velocity(np.zeros(1)))[0]
+    common = ["replay", str(tmp_path / "turn.mcap"), "--frame", "enu",
+              "--latitude-rad", repr(float(spec.earth.latitude_rad)),
+              "--height-m", repr(float(spec.earth.height_m)),
+              "--velocity-enu", ",".join(repr(float(x)) for x in v0),
+              "--initial-attitude", "truth", "--algorithm", "rotvec_cubic", "--json"]
+    final = {}
+    for name, extra in (("odom", ["--odometry-topic", "truth/odom"]), ("plain", [])):
+        capsys.readouterr()
+        assert cli_main([*common, "--out", str(tmp_path / f"{name}.mcap"), *extra]) == 0
+        final[name] = json.loads(capsys.readouterr().out)["final_error_rad"]
+    assert final["odom"] < 1e-6 and final["plain"] > 100 * final["odom"], final
+    # the topic must be an Odometry one, and enu is needed
+    rc = cli_main([*common, "--out", str(tmp_path / "x.mcap"), "--odometry-topic",
+                   "truth/attitude"])
+    assert rc == 1 and "not nav_msgs/msg/Odometry" in _one_line(capsys.readouterr().err)

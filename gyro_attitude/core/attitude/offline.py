@@ -73,13 +73,17 @@ from gyro_attitude.core.attitude.stream import (
     INTEGRATOR_ERROR,
     INVALID_ACCEL,
     INVALID_COVARIANCE,
+    SATURATED,
     StreamResult,
+    StreamState,
     _unit_quat,
     covariance_rows,
+    nav_rows,
     recording_arrays,
     rows,
     usable_accel,
 )
+from gyro_attitude.core.attitude.stream_batch import count_saturated
 from gyro_attitude.core.earth import OMEGA_IE, STANDARD_GRAVITY
 from gyro_attitude.core.rotation import (
     _qmul,
@@ -238,8 +242,8 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
                          "'gyrocompass'): use --estimator causal or give the heading")
     if nav is None and cfg.frame is Frame.ENU:
         nav = cfg.nav_frame()
-    if nav is not None and (not isinstance(nav, NavFrame) or nav.series_length() is not None):
-        raise ValueError("nav must be a constant NavFrame for the offline estimator")
+    if nav is not None and not isinstance(nav, NavFrame):
+        raise ValueError(f"nav must be a NavFrame or None, got {type(nav).__name__}")
     q_init = _unit_quat(q0)
     t = np.asarray(t_ns)
     w = np.asarray(omega, dtype=np.float64)
@@ -251,7 +255,7 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
     act = cls.action
     valid = np.flatnonzero(act != codes[v.REJECT])
     counts = {**cls.counts, v.MISSING_SAMPLES: cls.missing_samples, INVALID_COVARIANCE: 0,
-              INVALID_ACCEL: 0, INTEGRATOR_ERROR: 0}
+              INVALID_ACCEL: 0, INTEGRATOR_ERROR: 0, SATURATED: 0}
     details = dict(cls.details)
     m = valid.size
     tv = rows(t, valid)
@@ -272,6 +276,13 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
         var_v, known_v = covariance_rows(cov, valid, counts, details)
         if known_v.any():
             sig2 = (var_v, known_v)
+    if nav is not None and nav.series_length() is not None:
+        if nav.series_length() != n:
+            raise ValueError(f"nav time series must have one row per sample ({n}), got "
+                             f"{nav.series_length()}")
+        nav = nav_rows(nav, valid, n)  # (a velocity schedule: one row per accepted sample)
+    # saturated samples: counted as the causal path counts them (its array form, fresh state)
+    count_saturated(wv, StreamState(q_init, q_init), counts, details)
     est = _Estimator(cfg, q_init, nav, algorithm, chunk_samples, tv, wv, av, usable, sig2,
                      rows(act, valid))
     q_out, var_out, known_out = est.run()
@@ -291,6 +302,7 @@ class _Estimator:
         self.cfg, self.q_init, self.nav, self.algorithm, self.size = cfg, q_init, nav, algorithm, size
         self.t, self.w, self.a, self.usable, self.sig2, self.act = t, w, a, usable, sig2, act
         self.all_usable = usable is not None and bool(usable.all())
+        self.nav_series = None if nav is None else nav.series_length()
         self.rests: list[OfflineRest] = []
         self.notes: list[str] = []
         self.alignment: AlignmentResult | None = None
@@ -480,8 +492,10 @@ class _Estimator:
                         if hi - lo == 1:
                             continue
                     wc = self.w[lo:hi] - self._bias_rows(rests, tau[lo - b0:hi - b0])
+                    nav = self.nav if self.nav_series is None else nav_rows(
+                        self.nav, np.arange(lo, hi), self.nav_series)
                     q = integrate_batch(self.t[lo:hi], wc, q0=q_prev if start else q_out[lo],
-                                        algorithm=self.algorithm, nav=self.nav)
+                                        algorithm=self.algorithm, nav=nav)
                     # Higher-order algorithms take each interval's increment from neighbouring
                     # samples: the chunk runs _OVERLAP rows into its neighbours and, after the
                     # first, is re-anchored at its first row (the attitude there came from the

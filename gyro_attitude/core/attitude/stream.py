@@ -94,7 +94,12 @@ INTEGRATOR_ERROR = "integrator_error"
 INVALID_ACCEL = "invalid_accel"
 # m/s²: a specific force beyond this (1e5 g) is no accelerometer reading
 ACCEL_ABSURD = 1e6
-EXTRA_COUNTS = (INVALID_COVARIANCE, INVALID_ACCEL, INTEGRATOR_ERROR)
+# accepted samples pinned at a repeated extreme: a clipped (saturated) gyro
+SATURATED = "saturated"
+# rad/s: a value repeated at the largest magnitude seen is a clip only this high (every gyro's
+# range is above 2 rad/s; a quantized gyro at rest repeats its small values)
+SATURATION_MIN_RAD_S = 1.0
+EXTRA_COUNTS = (INVALID_COVARIANCE, INVALID_ACCEL, INTEGRATOR_ERROR, SATURATED)
 GYRO_NOISE_UNKNOWN = "gyro_noise_unknown"  # a detail (said once), not a count
 
 
@@ -217,6 +222,9 @@ class StreamState:
     counts: dict[str, int] = field(default_factory=lambda: dict.fromkeys(EXTRA_COUNTS, 0))
     details: dict[str, str] = field(default_factory=dict)
     aided_seen: int = 0
+    # per axis: the largest |ω| accepted so far and the last accepted ω (saturation check)
+    rate_max: list = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    rate_last: list = field(default_factory=lambda: [math.nan, math.nan, math.nan])
 
     def count(self, key: str, detail: str) -> None:
         self.counts[key] += 1
@@ -426,6 +434,7 @@ class AttitudeStream:
         if verdict.action != v.ACCEPT:
             self._break_windows()  # a rest never spans a gap, a jump or a restart
         w = np.asarray(omega, dtype=np.float64)
+        self._saturation_step(w)
         # 2. rest -> gyro bias
         bias = self._bias_step(t_ns, w, a)
         # 3. alignment
@@ -433,6 +442,23 @@ class AttitudeStream:
             return verdict, self._align_step(t_ns, w, a, var, bias)
         # 4.-6. aiding, integration, covariance
         return self._integrate(verdict, t_ns, w - bias, a, var)
+
+    def _saturation_step(self, w: np.ndarray) -> None:
+        """Count an accepted sample pinned at a repeated extreme: on some axis its value repeats
+        the previous one at the largest magnitude seen (≥ SATURATION_MIN_RAD_S): a clip."""
+        st = self.state
+        mx, last = st.rate_max, st.rate_last
+        pinned = None
+        for i in range(3):
+            x = float(w[i])
+            a = abs(x)
+            if a > mx[i]:
+                mx[i] = a
+            if a == mx[i] and x == last[i] and a >= SATURATION_MIN_RAD_S:
+                pinned = (i, x)
+            last[i] = x
+        if pinned is not None:
+            st.count(SATURATED, saturation_note(*pinned))
 
     def _accel(self, accel):
         """The sample's specific force as 3 floats, or None (absent or unusable, counted)."""
@@ -706,6 +732,11 @@ def alignment_variance(res: AlignmentResult, given_heading_variance: float) -> l
     # vertical component −sin θ·δφ turns the heading too when the body is pitched.
     s_p = math.sin(res.pitch)
     return [lv, lv, heading_var + s_p * s_p * lv]
+
+
+def saturation_note(axis: int, value: float) -> str:
+    return (f"gyro pinned at {value:g} rad/s on axis {'xyz'[axis]} (a repeated extreme: the "
+            "gyro saturated; the attitude is unreliable there)")
 
 
 def cannot_align(cfg: StreamConfig) -> str:

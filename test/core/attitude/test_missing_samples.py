@@ -77,3 +77,23 @@ def test_rejected_samples_make_holes_but_are_not_counted_missing():
     assert cls.missing_samples == val.missing_samples == 0
     assert cls.counts[iv.NON_FINITE] == 11 and cls.counts[iv.GAP] == 1
     assert cls.action[210] == iv.ACTION_CODES[iv.RESTART_AFTER_GAP]
+
+
+def test_a_gyro_pinned_at_its_range_is_counted_as_saturated():
+    # ±2000 °/s (34.9 rad/s) clipped for 0.5 s at 200 Hz: the samples repeat the extreme
+    rng = np.random.default_rng(5)
+    n = 400
+    t = (1 + np.arange(n, dtype=np.int64)) * PERIOD
+    w = 0.01 * rng.standard_normal((n, 3))
+    clip = np.radians(2000.0)
+    w[100:200, 2] = clip  # 100 samples pinned: the first reaches the extreme, 99 repeat it
+    w[300:310, 0] = -clip
+    # a quantized gyro at rest repeats small values: no saturation
+    w[200:300] = np.round(w[200:300] / 0.001) * 0.001
+    res = AttitudeStream("rotvec_cubic", config=StreamConfig(gyro_bias="none")).run(t, w, "imu")
+    assert res.counts["saturated"] == 99 + 9
+    assert "pinned at 34.9066 rad/s on axis z" in res.details["saturated"]
+    s = AttitudeStream("rotvec_cubic", config=StreamConfig(gyro_bias="none"))
+    for k in range(n):
+        s.push(int(t[k]), w[k], "imu")
+    assert s.counts["saturated"] == 108

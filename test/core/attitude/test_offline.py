@@ -88,16 +88,18 @@ def test_verdicts_are_those_of_the_causal_path_and_bad_samples_are_counted():
     w[500] = np.nan
     w[900] = (np.inf, 0, 0)
     w[1200] = (1e300, 0, 0)
+    w[2500:2504, 0] = 4.3  # a clipped gyro: pinned at its largest value (motion phase)
     t[1500] = t[1499]  # duplicate stamp
     t[3000:] += 300_000_000  # a 0.3 s gap
     cfg = StreamConfig()
     res = estimate_offline(t, w, a, q0=q_true[0], config=cfg)
     causal = AttitudeStream(config=cfg, q0=q_true[0]).run(t, w, "", None, a)
     np.testing.assert_array_equal(res.action, causal.action)
-    for key in (*v.REJECT_REASONS, v.MISSING_SAMPLES):
+    for key in (*v.REJECT_REASONS, v.MISSING_SAMPLES, "saturated"):
         assert res.counts[key] == causal.counts[key], key
     assert res.counts[v.NON_FINITE] == 2 and res.counts[v.IMPLAUSIBLE_RATE] == 1
     assert res.counts[v.DUPLICATE_STAMP] == 1 and res.counts[v.GAP] == 1
+    assert res.counts["saturated"] == causal.counts["saturated"] >= 3
     assert np.isfinite(res.q).all() and np.isfinite(res.variance).all()
     # across the gap the attitude is held: the restart row starts where the row before ended
     k = int(np.flatnonzero(res.action == v.ACTION_CODES[v.RESTART_AFTER_GAP])[0])
