@@ -9,6 +9,7 @@ from pathlib import Path
 
 from gyro_attitude.core.units import format_si
 from gyro_attitude.io.safe_output import SafeOutput, check_output_path
+from gyro_attitude.io.strict_yaml import dump_yaml
 from gyro_attitude.offline.allan import AXES, analyse_mcap, plot
 
 _GYRO_UNITS = (("random_walk", "N (ARW)", "angle random walk"),
@@ -34,8 +35,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def _scene_yaml(result, source: str) -> str:
-    import yaml
-
     errors = result.scene_errors()
     scene = {
         "description": f"IMU at rest with the noise fitted by gyro-attitude allan from {source}",
@@ -52,7 +51,7 @@ def _scene_yaml(result, source: str) -> str:
     head = ("# Written by gyro-attitude allan: noise terms per axis (x, y, z) fitted to the\n"
             "# recording's Allan deviation. Bias, scale factor and misalignment are not\n"
             "# observable from it; add them if known. Set earth.latitude_deg to your site.\n")
-    return head + yaml.safe_dump(scene, sort_keys=False, allow_unicode=True)
+    return head + dump_yaml(scene, allow_unicode=True)
 
 
 _KALIBR_COMMENTS = {

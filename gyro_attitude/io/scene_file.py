@@ -17,9 +17,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import yaml
-
 from gyro_attitude.core.scene import SceneSpec
+from gyro_attitude.io.strict_yaml import load_yaml
 
 __all__ = [
     "scene_directories",
@@ -105,29 +104,28 @@ def read_scene_dict(path: Path) -> dict:
 
 
 def _parse_scene_text(text: str, path: Path) -> dict:
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ValueError(f"{path}: not valid YAML: {' '.join(str(exc).split())}") from None
-    except RecursionError:
-        raise ValueError(f"{path}: not a scene file: YAML nested too deeply") from None
+    # aliases and duplicate keys are refused while parsing, before any value is looked at
+    data = load_yaml(text, str(path))
     if not isinstance(data, dict):
         raise ValueError(f"{path}: a scene must be a YAML mapping, got {type(data).__name__}")
     return data
 
 
-def load_scene(name_or_path: str, trajectory=None, **trajectory_options) -> SceneSpec:
+def load_scene(name_or_path: str, trajectory=None, *, seed: int | None = None,
+               **trajectory_options) -> SceneSpec:
     """Load and validate a scene by shipped name (``"ship"``) or by file path.
 
     A ``motion: {type: trajectory}`` has its pose file read (relative to the scene file) and
     fitted; ``trajectory`` (a path) puts that pose file under any scene instead, with
     ``trajectory_options`` (:func:`~gyro_attitude.io.trajectory_file.resolve_trajectory`).
-    Raises ``ValueError`` naming the bad key (``earth.latitude_deg: ...``) prefixed by the file.
+    ``seed`` (given on a command line) replaces the file's ``seed:``, which may then be left
+    out. Raises ``ValueError`` naming the bad key (``earth.latitude_deg: ...``) prefixed by
+    the file.
     """
     from gyro_attitude.io.trajectory_file import resolve_trajectory
 
     path = find_scene_file(str(name_or_path))
-    spec = validate_scene_text(read_scene_text(path), path)
+    spec = validate_scene_text(read_scene_text(path), path, seed=seed)
     return resolve_trajectory(spec, path.parent, trajectory, **trajectory_options)
 
 
@@ -179,10 +177,13 @@ def merge_kalibr_imu(data: dict, path: Path) -> dict:
     return out
 
 
-def validate_scene_text(text: str, path: Path) -> SceneSpec:
-    """The validated scene of a file's ``text``; errors are prefixed by the file's name."""
+def validate_scene_text(text: str, path: Path, seed: int | None = None) -> SceneSpec:
+    """The validated scene of a file's ``text`` (``seed``: see :func:`load_scene`); errors
+    are prefixed by the file's name."""
     path = Path(path)
     data = _parse_scene_text(text, path)
+    if seed is not None:
+        data = {**data, "seed": seed}
     try:
         return SceneSpec.from_dict(merge_kalibr_imu(data, path), name=path.stem)
     except ValueError as exc:

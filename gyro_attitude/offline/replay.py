@@ -2,13 +2,14 @@
 ``attitude`` and ``imu/data`` to a new MCAP file (no ROS graph).
 
 Pipeline (:func:`replay_file`): read the Imu (and truth) topic array-wide
-(:mod:`gyro_attitude.io.imu_fast`), run the samples in file order -- the order a live node
-receives them -- through the attitude-stream policy the ``attitude_integrator`` node applies
+(:mod:`gyro_attitude.io.imu_fast`), run the samples in log-time order -- the order a live
+node receives them from ``ros2 bag play`` or ``mcap_player`` -- through the attitude-stream
+policy the ``attitude_integrator`` node applies
 (:class:`gyro_attitude.core.attitude.stream.AttitudeStream`: bad samples skipped and counted by
 reason, no integration across gaps, reset on backward time jumps, orientation variance), write
 the samples that got an attitude through a temporary file renamed into place
 (:mod:`gyro_attitude.io.safe_output`) with both topics merged by log time, and compare with the
-truth at coinciding stamps.  Samples are never re-sorted.
+truth at its own stamps (the attitude slerped there).  Samples are never re-sorted by stamp.
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ from gyro_attitude.core.attitude.stream import (
     StreamConfig,
     bias_summary,
 )
-from gyro_attitude.core.attitude.truth import initial_attitude_from_truth
+from gyro_attitude.core.attitude.truth import initial_attitude_from_truth, truth_at_stamps
 from gyro_attitude.core.rotation import quat_angle_between
 from gyro_attitude.io.cdr_arrays import (
     IMU_TYPE,
@@ -58,13 +59,15 @@ __all__ = [
 DEFAULT_IMU_TOPIC = "imu/data_raw"
 TRUTH_TOPIC = "truth/attitude"
 OUTPUT_CHUNK_SIZE = 4 * 1024 * 1024
+# Output messages built and written per write_batches call (bounds the write side's memory).
+OUTPUT_BLOCK_MESSAGES = 1 << 17
 
 
 @dataclass
 class ReplayResult:
     """What a replay did.  :meth:`summary` gives the scalar fields (the ``--json`` output);
-    the arrays are ``index`` (positions in the input of the samples that got an attitude),
-    their stamps ``t_ns`` and attitudes ``q`` (file order), and the error series
+    the arrays are ``index`` (positions, in log-time order, of the samples that got an attitude),
+    their stamps ``t_ns`` and attitudes ``q`` (log-time order), and the error series
     ``error_t_ns``/``error_rad`` (empty without truth).  ``skipped`` counts skipped samples by
     reason; ``gaps`` and ``time_jump_resets`` count the policy's other events; ``details``
     holds the first log line per reason."""
@@ -148,6 +151,35 @@ def _alignment_summary(a) -> dict:
             "rest_s": (a.rest_end_ns - a.rest_start_ns) * 1e-9}
 
 
+def _block(a: np.ndarray | None, lo: int, hi: int) -> np.ndarray | None:
+    return None if a is None else a[lo:hi]
+
+
+def _output_batches(imu, rows, t_ns: np.ndarray, q: np.ndarray, variance, variance_known,
+                    frame: str) -> list:
+    """``attitude`` and ``imu/data`` for the input messages ``rows`` (a slice or indices)
+    that got the attitudes ``q`` at ``t_ns``."""
+    log, pub = imu.log_time_ns[rows], imu.publish_time_ns[rows]
+    orientation_cov = np.zeros(9)
+    if variance is not None:
+        # the diagonal of the published 3x3 orientation covariance; zeros (unknown) on rows
+        # before the first input with a gyro covariance, as the node publishes them
+        orientation_cov = np.zeros((t_ns.size, 9))
+        orientation_cov[:, [0, 4, 8]] = np.where(variance_known[:, None], variance, 0.0)
+        orientation_cov = _constant_rows(orientation_cov)
+    return [
+        quaternion_stamped_batch("attitude", t_ns, q, frame_id=frame, log_time_ns=log,
+                                 publish_time_ns=pub),
+        imu_batch("imu/data", t_ns, imu.angular_velocity[rows], imu.linear_acceleration[rows],
+                  q, frame_id=imu.frame_id, orientation_covariance=orientation_cov,
+                  angular_velocity_covariance=_constant_rows(
+                      imu.angular_velocity_covariance[rows]),
+                  linear_acceleration_covariance=_constant_rows(
+                      imu.linear_acceleration_covariance[rows]),
+                  log_time_ns=log, publish_time_ns=pub),
+    ]
+
+
 def _constant_rows(a: np.ndarray) -> np.ndarray:
     """``a`` (N, w), or its first row when every row equals it (covariances usually are
     constant: the writer then sets them once per buffer instead of per message)."""
@@ -216,7 +248,9 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     if imu_topic not in arrays:
         raise ValueError(f"{input_path}: no Imu topic {imu_topic!r} (use --imu-topic)"
                          + (f"; {damage}" if damage else ""))
-    imu = arrays[imu_topic]
+    # in log-time order, as ros2 bag play and mcap_player deliver them to the node (a file
+    # written with receive jitter is not stored in that order)
+    imu = arrays[imu_topic].in_log_time_order()
     if len(imu) == 0:
         raise ValueError(f"{input_path}: topic {imu.topic} has no messages"
                          + (f"; {damage}" if damage else ""))
@@ -283,37 +317,25 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     keep = res.index + first
     every = keep.size == len(imu)
     t = t_all
-    omega = imu.angular_velocity
 
     def kept(a):
         """Only the samples that got an attitude (no copy when all did)."""
         return a if every else a[keep]
 
-    log, pub = kept(imu.log_time_ns), kept(imu.publish_time_ns)
     tv, qv = kept(t), res.q
-    orientation_cov = np.zeros(9)
-    if res.variance is not None:
-        # the diagonal of the published 3x3 orientation covariance; zeros (unknown) on rows
-        # before the first input with a gyro covariance, as the node publishes them
-        orientation_cov = np.zeros((keep.size, 9))
-        orientation_cov[:, [0, 4, 8]] = np.where(res.variance_known[:, None], res.variance, 0.0)
-    batches = [
-        quaternion_stamped_batch("attitude", tv, qv, frame_id=frame, log_time_ns=log,
-                                 publish_time_ns=pub),
-        imu_batch("imu/data", tv, kept(omega), kept(imu.linear_acceleration), qv,
-                  frame_id=imu.frame_id, orientation_covariance=_constant_rows(orientation_cov)
-                  if orientation_cov.ndim == 2 else orientation_cov,
-                  angular_velocity_covariance=_constant_rows(kept(
-                      imu.angular_velocity_covariance)),
-                  linear_acceleration_covariance=_constant_rows(kept(
-                      imu.linear_acceleration_covariance)),
-                  log_time_ns=log, publish_time_ns=pub),
-    ]
     with SafeOutput(output_path, force=force) as tmp:
         with Rosbag2McapWriter(tmp, compression=compression, chunk_size=chunk_size) as w:
             w.add_topic("attitude", QUATERNION_STAMPED_TYPE)
             w.add_topic("imu/data", IMU_TYPE)
-            w.write_batches(batches)
+            # Block by block: what the write side builds (columns, covariance rows, the
+            # chunk plan) is bounded by a block, not by the recording. The input is in
+            # log-time order, so consecutive blocks keep the file in log-time order.
+            for lo in range(0, keep.size, OUTPUT_BLOCK_MESSAGES):
+                hi = min(lo + OUTPUT_BLOCK_MESSAGES, keep.size)
+                rows = slice(keep[lo], keep[hi - 1] + 1) if every else keep[lo:hi]
+                w.write_batches(_output_batches(imu, rows, tv[lo:hi], qv[lo:hi],
+                                                _block(res.variance, lo, hi),
+                                                _block(res.variance_known, lo, hi), frame))
     t_end = time.perf_counter()
 
     result = ReplayResult(
@@ -338,23 +360,41 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         estimator_notes=notes,
         index=keep, t_ns=tv, q=qv, error_t_ns=np.zeros(0, np.int64), error_rad=np.zeros(0))
     if truth is not None and len(truth):
-        # match in stamp order (the output is in file order and may jump back in time)
-        order = np.argsort(tv, kind="stable")
-        ts = tv[order]
-        idx = np.minimum(np.searchsorted(ts, truth.stamp_ns), ts.size - 1)
-        hit = ts[idx] == truth.stamp_ns
-        if hit.any():
-            err = quat_angle_between(qv[order[idx[hit]]], truth.quaternion[hit])
-            tt = truth.stamp_ns[hit]
-            k = np.argsort(tt, kind="stable")
-            err, tt = err[k], tt[k]
-            result.truth_topic = truth.topic
-            result.truth_matched = int(hit.sum())
-            result.final_error_rad = float(err[-1])
-            result.max_error_rad = float(err.max())
-            result.rms_error_rad = float(np.sqrt(np.mean(err**2)))
-            result.error_t_ns, result.error_rad = tt, err
+        _compare_with_truth(result, truth, tv, qv)
     return result
+
+
+def _compare_with_truth(result: ReplayResult, truth, t_ns: np.ndarray, q: np.ndarray) -> None:
+    """Error figures at every truth stamp inside the output's span: the truth runs on its
+    own clock (a tracker at 120 Hz beside a 200 Hz Imu shares no stamp), so the attitude is
+    slerped there between the two output samples around it (exact at a coinciding stamp;
+    none across a gap in the output, as truth_at_stamps decides). The dense series is the
+    one interpolated: slerping a 10 Hz truth across a coning motion would measure the
+    interpolation, not the estimate."""
+    est_t, est_q = _strictly_increasing(t_ns, q)  # the output may jump back in time
+    ts, tq = truth.stamp_ns, truth.quaternion
+    usable = np.isfinite(tq).all(axis=1) & (np.linalg.norm(tq, axis=1) > 1e-9)
+    ts, tq = _strictly_increasing(ts[usable], tq[usable])
+    if ts.size == 0 or est_t.size == 0:
+        return
+    qe, covered = truth_at_stamps(est_t, est_q, ts)
+    if not covered.any():
+        return
+    err = quat_angle_between(qe, tq[covered])
+    result.truth_topic = truth.topic
+    result.truth_matched = int(covered.sum())
+    result.final_error_rad = float(err[-1])
+    result.max_error_rad = float(err.max())
+    result.rms_error_rad = float(np.sqrt(np.mean(err**2)))
+    result.error_t_ns, result.error_rad = ts[covered], err
+
+
+def _strictly_increasing(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Samples sorted by stamp, the first recorded of a repeated stamp kept."""
+    order = np.argsort(t, kind="stable")
+    t, q = t[order], q[order]
+    first = np.r_[True, np.diff(t) > 0] if t.size else np.zeros(0, bool)
+    return t[first], q[first]
 
 
 def write_error_plot(result: ReplayResult, png, *, force: bool = True) -> None:

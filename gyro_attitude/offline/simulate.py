@@ -84,9 +84,13 @@ def simulate(scene: str | SceneSpec, duration_s: float | None, out, *,
     (:func:`~gyro_attitude.io.scene_file.load_scene`); a trajectory is stamped in its own
     time base, and ``duration_s=None`` covers the whole span of its poses.
     """
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)
+                             or seed < 0):
+        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
     opts = trajectory_options or {}
     if isinstance(scene, str):
-        spec = load_scene(scene, trajectory, **opts)
+        # a seed given here stands in for the file's (which may then be left out)
+        spec = load_scene(scene, trajectory, seed=seed, **opts)
     else:
         from gyro_attitude.io.trajectory_file import resolve_trajectory
 
@@ -122,9 +126,6 @@ def simulate(scene: str | SceneSpec, duration_s: float | None, out, *,
     if n_total > MAX_SAMPLES:
         raise ValueError(f"duration {duration_s} s at {rate:g} Hz is {n_total} samples; "
                          f"the limit is {MAX_SAMPLES}")
-    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)
-                             or seed < 0):
-        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
     inputs = _scene_inputs(scene) + ([trajectory] if trajectory is not None else [])
     out = check_output_path(out, inputs=inputs, force=force)
 

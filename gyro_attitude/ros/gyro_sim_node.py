@@ -53,8 +53,8 @@ from gyro_attitude.core.sim_topics import (
     local_enu_position,  # noqa: F401  (re-exported: its home moved to core.sim_topics)
 )
 from gyro_attitude.core.trajectory import LiveTrajectory
-from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
-from gyro_attitude.io.safe_output import SafeOutput, check_output_path
+from gyro_attitude.io.recording import SafeRecording
+from gyro_attitude.io.safe_output import check_output_path
 from gyro_attitude.io.scene_file import load_scene
 from gyro_attitude.ros import convert
 from gyro_attitude.ros.node_main import run_node
@@ -119,11 +119,11 @@ class GyroSimNode(Node):
         p = declare_all(self, specs)
         self._p = p
 
+        seed = None if p["seed"] < 0 else p["seed"]
         try:
-            spec = load_scene(p["scene"])
+            spec = load_scene(p["scene"], seed=seed)  # the parameter stands in for seed:
         except Exception as exc:  # unknown name, unreadable file, YAML syntax, bad key
             raise ParameterError(f"parameter 'scene' = {p['scene']!r}: {exc}") from exc
-        seed = None if p["seed"] < 0 else p["seed"]
         if p["rate_hz"] == 0.0:
             p["rate_hz"] = float(spec.rate_hz)
         elif p["rate_hz"] < 1.0:
@@ -168,8 +168,7 @@ class GyroSimNode(Node):
             self.create_subscription(Odometry, p["motion_topic"], self._on_odometry,
                                      imu_qos("best_effort", 1000))
 
-        self._writer = None
-        self._record_output: SafeOutput | None = None
+        self._recording: SafeRecording | None = None
         self._serialize = None
         if p["record_path"]:
             self._open_recorder(p["record_path"])
@@ -201,13 +200,13 @@ class GyroSimNode(Node):
         # when finished (a killed simulator leaves it in a hidden .NAME.*.partial folder)
         try:
             check_output_path(path, what="record_path")
-            self._record_output = SafeOutput(path)
-            self._writer = Rosbag2McapWriter(self._record_output.open())
+            self._recording = SafeRecording(path)
             for topic, type_name in TOPICS.items():
-                self._writer.add_topic(self._resolve(topic), type_name)
+                self._recording.add_topic(self._resolve(topic), type_name)
         except (OSError, ValueError) as exc:
-            if self._record_output is not None:
-                self._record_output.discard()
+            if self._recording is not None:
+                self._recording.discard()
+                self._recording = None
             raise ParameterError(f"parameter 'record_path': {exc}") from exc
         self._serialize = serialize_message
 
@@ -216,14 +215,13 @@ class GyroSimNode(Node):
 
     def _record(self, topic: str, msg, t_ns: int) -> None:
         # log_time = when the sample is published (receive time of an in-process recorder)
-        self._writer.write(self._resolve_cache[topic], self._serialize(msg), t_ns, t_ns)
+        self._recording.write(self._resolve_cache[topic], self._serialize(msg), t_ns, t_ns)
 
     def close(self) -> None:
-        """Finish the recording (idempotent)."""
-        if self._writer is not None:
-            self._writer.finish()
-            self._writer = None
-            self._record_output.commit()
+        """Finish the recording (idempotent); a full disk raises OutputWriteError (one line,
+        the recording so far kept readable under its name)."""
+        if self._recording is not None:
+            self._recording.close()
 
     # ------------------------------------------------------------------ parameters
     def _on_set_parameters(self, params) -> SetParametersResult:
@@ -277,7 +275,7 @@ class GyroSimNode(Node):
             msgs += [("truth/attitude", att), ("truth/odom", odom)]
         if self._pub_clock is not None:
             self._pub_clock.publish(Clock(clock=imu.header.stamp))
-        if self._writer is not None:
+        if self._recording is not None and not self._recording.closed:
             for topic, m in msgs:
                 self._record(topic, m, t_ns)
         self.published += 1
@@ -450,7 +448,8 @@ def _spin_until_done(node: GyroSimNode) -> None:
 
 def main(args=None) -> int:
     """Spin until the duration is over (exit 0), SIGINT/SIGTERM (exit 0), or exit 2 on an
-    invalid parameter."""
+    invalid parameter, 1 when the disk under ``record_path`` fills (the recording so far
+    kept, readable, under its name)."""
     return run_node(NODE_NAME, GyroSimNode, args, spin=_spin_until_done,
                     finish=GyroSimNode.close)
 
