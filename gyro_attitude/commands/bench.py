@@ -29,6 +29,7 @@ SUITES: dict[str, str] = {
     "nodes": "gyro_attitude.benchmarks.nodes",
     "scenes": "gyro_attitude.benchmarks.scenes",
     "real": "gyro_attitude.benchmarks.real",
+    "offline-memory": "gyro_attitude.benchmarks.offline_memory",
     "instruments": "gyro_attitude.benchmarks.instruments",
     "trajectory": "gyro_attitude.benchmarks.trajectory",
     "montecarlo": "gyro_attitude.benchmarks.montecarlo",

@@ -22,7 +22,7 @@ from gyro_attitude.commands.estimator_flags import (
 from gyro_attitude.commands.replay_fleet import add_fleet_flags, run_fleet
 from gyro_attitude.core.attitude import ALGORITHMS, DEFAULT_OFFLINE_ALGORITHM
 from gyro_attitude.core.attitude import validation as iv
-from gyro_attitude.core.attitude.modes import Frame
+from gyro_attitude.core.attitude.modes import Estimator, Frame
 from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.io.mcap_writer import COMPRESSIONS, DEFAULT_COMPRESSION
 from gyro_attitude.io.safe_output import check_output_path
@@ -60,9 +60,15 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--algorithm", default=None,
                         choices=sorted(ALGORITHMS),
                         help=f"attitude update algorithm (default {DEFAULT_OFFLINE_ALGORITHM}, "
-                        "which uses samples after each interval; the node's causal default "
-                        "rotvec_cubic when a per-sample filter acts on the recording: "
-                        "levelling, aiding, or auto gyro bias with a rest)")
+                        "which uses samples after each interval; with --estimator causal the "
+                        "node's causal default rotvec_cubic when a per-sample filter acts on "
+                        "the recording: levelling, aiding, or auto gyro bias with a rest)")
+    parser.add_argument("--estimator", default=Estimator.OFFLINE.value,
+                        choices=[m.value for m in Estimator],
+                        help="offline (default): the whole recording at once, every attitude "
+                        "using the samples before and after it (rests, bias per rest, tilt "
+                        "from gravity zero-phase); causal: the live node's attitudes, sample "
+                        "for sample")
     add_estimator_flags(parser)  # the attitude_integrator node's settings, same names
     parser.add_argument("--odometry-topic", default=None, metavar="TOPIC",
                         help="nav_msgs/Odometry topic of the recording whose velocity sets the "
@@ -138,7 +144,7 @@ def run(args) -> int:
             args.input, args.out, imu_topic=args.imu_topic, algorithm=args.algorithm,
             truth_topic=args.truth_topic, odometry_topic=args.odometry_topic,
             compression=args.compression, force=args.force,
-            progress=update, config=config)
+            progress=update, config=config, estimator=args.estimator)
         if bar is not None:
             bar.close()
             bar = None
@@ -172,12 +178,17 @@ def run(args) -> int:
     if len(out["frame_ids"]) > 1:
         print(f"warning: frame_id changes inside {out['imu_topic']} ({out['frame_ids']}): "
               "integrated as one frame", file=sys.stderr)
+    for note in out["estimator_notes"]:
+        if note.startswith("no accelerometer"):
+            print(f"note: {note}", file=sys.stderr)
     if args.json:
         print(json.dumps(out, indent=2))
         return 0
     print(f"replayed {out['messages']} Imu messages from {out['imu_topic']} "
-          f"({out['duration_s']:.3f} s of data) with {out['algorithm']} in the "
-          f"{out['frame']} frame")
+          f"({out['duration_s']:.3f} s of data), {out['estimator']} estimator, "
+          f"{out['algorithm']}, {out['frame']} frame")
+    if out["estimator_notes"]:
+        print(f"  {'; '.join(out['estimator_notes'])}")
     skipped = sum(out["skipped"].values())
     print(f"  {out['attitude_messages']} attitudes; skipped {skipped}"
           + (f" ({', '.join(f'{n} {r}' for r, n in out['skipped'].items() if n)})"

@@ -26,8 +26,9 @@ import numpy as np
 
 from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, DEFAULT_OFFLINE_ALGORITHM, NavFrame
 from gyro_attitude.core.attitude import validation as iv
-from gyro_attitude.core.attitude.modes import InitialAttitudeSource
+from gyro_attitude.core.attitude.modes import Estimator, InitialAttitudeSource, parse_mode
 from gyro_attitude.core.attitude.nav_frame import velocity_series
+from gyro_attitude.core.attitude.offline import estimate_offline
 from gyro_attitude.core.attitude.stream import (
     AttitudeStream,
     PerSamplePathNeeded,
@@ -74,6 +75,7 @@ class ReplayResult:
     input: str
     output: str
     imu_topic: str
+    estimator: str
     algorithm: str
     frame: str
     compression: str
@@ -101,6 +103,7 @@ class ReplayResult:
     write_seconds: float
     messages_per_second: float
     input_damage: str | None
+    estimator_notes: list[str] = field(default_factory=list)
     truth_topic: str | None = None
     truth_matched: int = 0
     final_error_rad: float | None = None
@@ -192,9 +195,14 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                 chunk_size: int = OUTPUT_CHUNK_SIZE, force: bool = False,
                 progress: Callable[[int, int], None] | None = None,
                 on_damage: str = "warn", config: StreamConfig | None = None,
-                odometry_topic: str | None = None) -> ReplayResult:
+                odometry_topic: str | None = None,
+                estimator: Estimator | str = Estimator.OFFLINE) -> ReplayResult:
     """Integrate every Imu message of ``input_path`` and write ``output_path``.
 
+    ``estimator`` ``offline``: the whole-recording estimator
+    (:func:`gyro_attitude.core.attitude.offline.estimate_offline`: every attitude may use the
+    samples after it); ``causal``: :class:`AttitudeStream`, the live node's attitudes sample
+    for sample.
     ``config`` the estimator settings (:class:`StreamConfig`: frame, initial attitude, bias,
     aiding, ...; default: the node's defaults).  ``frame``, ``initial_attitude`` (4 numbers,
     ``"truth"`` or ``"level"``) and ``nav`` (a :class:`NavFrame`, e.g. a time series; default
@@ -219,6 +227,7 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
             raise ValueError(f"{name} must be a topic name, got {value!r}")
     if config is not None and not isinstance(config, StreamConfig):
         raise ValueError(f"config must be a StreamConfig, got {type(config).__name__}")
+    estimator = parse_mode(Estimator, estimator, "estimator")
     config = _with_overrides(config or StreamConfig(), frame, initial_attitude)
     frame = config.frame.value
     if nav is None:
@@ -279,18 +288,26 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     accel = imu.linear_acceleration[first:] if has_accel else None
     # One frame per decoded message is not kept by the array reader: the first frame stands
     # for all (the node would also reject samples whose frame_id changes: see frame_ids).
-    stream = AttitudeStream(algorithm or DEFAULT_OFFLINE_ALGORITHM, q0=q0, nav=nav,
-                            config=config)
-    try:
-        res = stream.run(t, omega, imu.frame_id, cov, accel)
-    except PerSamplePathNeeded:
-        if algorithm is not None:
-            raise
-        # a sequential filter acts on this recording (levelling, aiding, auto bias with a
-        # rest): the offline algorithm cannot run sample by sample, the node's default can
-        stream = AttitudeStream(DEFAULT_ALGORITHM, q0=q0, nav=nav, config=config)
-        res = stream.run(t, omega, imu.frame_id, cov, accel)
-    algorithm = stream.algorithm
+    notes: list[str] = []
+    if estimator is Estimator.OFFLINE:
+        algorithm = algorithm or DEFAULT_OFFLINE_ALGORITHM
+        res = estimate_offline(t, omega, accel, config=config, q0=q0, nav=nav,
+                               frame_id=imu.frame_id, angular_velocity_covariance=cov,
+                               algorithm=algorithm)
+        notes = list(res.notes)
+    else:
+        stream = AttitudeStream(algorithm or DEFAULT_OFFLINE_ALGORITHM, q0=q0, nav=nav,
+                                config=config)
+        try:
+            res = stream.run(t, omega, imu.frame_id, cov, accel)
+        except PerSamplePathNeeded:
+            if algorithm is not None:
+                raise
+            # a sequential filter acts on this recording (levelling, aiding, auto bias with a
+            # rest): the offline algorithm cannot run sample by sample, the node's default can
+            stream = AttitudeStream(DEFAULT_ALGORITHM, q0=q0, nav=nav, config=config)
+            res = stream.run(t, omega, imu.frame_id, cov, accel)
+        algorithm = stream.algorithm
     if res.index.size == 0:
         reasons = ", ".join(f"{n} {r}" for r, n in res.counts.items() if n and r != iv.GAP)
         raise ValueError(f"{input_path}: no usable sample on {imu.topic}: all {len(t)} "
@@ -323,7 +340,8 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
 
     result = ReplayResult(
         input=str(input_path), output=str(output_path), imu_topic=imu.topic,
-        algorithm=algorithm, frame=frame, compression=compression, messages=len(imu),
+        estimator=estimator.value, algorithm=algorithm, frame=frame, compression=compression,
+        messages=len(imu),
         attitude_messages=int(keep.size), fast_path_messages=int(imu.fast_messages),
         fallback_messages=int(imu.fallback_messages), frame_ids=sorted(imu.frame_ids),
         skipped={r: n for r, n in res.counts.items() if r in iv.REJECT_REASONS and r != iv.GAP},
@@ -339,6 +357,7 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         wall_seconds=t_end - t_start, read_seconds=t_read - t_start,
         integrate_seconds=t_int - t_read, write_seconds=t_end - t_int,
         messages_per_second=len(imu) / max(t_end - t_start, 1e-12), input_damage=damage,
+        estimator_notes=notes,
         index=keep, t_ns=tv, q=qv, error_t_ns=np.zeros(0, np.int64), error_rad=np.zeros(0))
     if truth is not None and len(truth):
         _compare_with_truth(result, truth, tv, qv)
@@ -401,7 +420,8 @@ def write_error_plot(result: ReplayResult, png, *, force: bool = True) -> None:
         ax.plot(t, np.degrees(quat_angle_between(q, q[0])), lw=1)
         ax.set_ylabel("rotation from the initial attitude [deg] (no truth in file)")
     ax.set_xlabel("time since first Imu stamp [s]")
-    ax.set_title(f"replay {Path(result.input).name}: {result.algorithm}, {result.frame}, "
+    ax.set_title(f"replay {Path(result.input).name}: {result.estimator} {result.algorithm}, "
+                 f"{result.frame}, "
                  f"{result.messages} msgs")
     ax.grid(True, which="both", alpha=0.3)
     try:

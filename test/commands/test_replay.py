@@ -371,6 +371,56 @@ def test_policy_flags_out_of_range_are_one_line_exit_2(tmp_path, capsys, flag, v
     assert not (tmp_path / "o.mcap").exists()
 
 
+def _rest_turn_rest(seed=0, rate_hz=200.0):
+    """Still, a turn about z at 0.8 rad/s, still again: MEMS-like noise and bias, gravity on z."""
+    rng = np.random.default_rng(seed)
+    n = int(25 * rate_hz)
+    t = 2 * 10**9 + (np.arange(n, dtype=np.int64) * 10**9) // int(rate_hz)
+    s = (t - t[0]) * 1e-9
+    w = np.zeros((n, 3))
+    w[(s > 8) & (s < 16), 2] = 0.8
+    w += (0.003, -0.002, 0.004) + 2e-3 * rng.normal(size=w.shape)
+    a = np.array([0.0, 0.0, 9.81]) + 0.02 * rng.normal(size=(n, 3))
+    return t, w, a
+
+
+def test_replay_estimator_causal_is_the_attitude_stream_and_offline_is_the_default(tmp_path):
+    from gyro_attitude.core.attitude.settings import StreamConfig
+    from gyro_attitude.core.attitude.stream import AttitudeStream
+
+    t, w, a = _rest_turn_rest()
+    _record(tmp_path / "in.mcap", t, w, a)
+    causal = replay_file(tmp_path / "in.mcap", tmp_path / "c.mcap", estimator="causal")
+    cfg = StreamConfig()
+    expected = AttitudeStream(causal.algorithm, config=cfg).run(t, w, "imu_link", None, a)
+    assert causal.estimator == "causal"
+    np.testing.assert_allclose(causal.q, expected.q, rtol=0, atol=1e-12)
+    offline = replay_file(tmp_path / "in.mcap", tmp_path / "o.mcap")
+    assert offline.estimator == "offline" and offline.summary()["estimator"] == "offline"
+    # the offline estimate takes the bias from both rests and holds the attitude at them: the
+    # turn is 6.4 rad about z; its end differs from the truth by noise only
+    end = np.degrees(np.abs(2 * np.arctan2(offline.q[-1, 2], offline.q[-1, 3]) - 6.4 % (2 * np.pi)))
+    assert min(end, 360 - end) < 0.5
+
+
+def test_replay_without_accelerometer_is_gyro_only_offline_and_says_so(tmp_path, capsys):
+    t, w, _ = _rest_turn_rest(seed=1)
+    _record(tmp_path / "in.mcap", t, w)  # no accelerometer: its covariance element 0 is -1
+    rc = cli_main(["replay", str(tmp_path / "in.mcap"), "--out", str(tmp_path / "o.mcap"),
+                   "--aiding", "gravity", "--json"])
+    cap = capsys.readouterr()
+    assert rc == 0
+    assert "no accelerometer: gyro-only offline estimation" in cap.err
+    out = json.loads(cap.out)
+    assert out["estimator"] == "offline"
+    assert any("no accelerometer" in n for n in out["estimator_notes"])
+    with pytest.raises(SystemExit) as exc:
+        cli_main(["replay", str(tmp_path / "in.mcap"), "--out", str(tmp_path / "o2.mcap"),
+                  "--estimator", "kalman"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert exc.value.code == 2 and len(err) == 1 and "--estimator" in err[0]
+
+
 def test_truth_on_its_own_clock_is_compared_at_its_stamps(tmp_path, capsys):
     """Truth at 120 Hz, offset 1.3 ms from a 200 Hz Imu: no stamp coincides. The error is
     taken at every truth stamp inside the Imu span, against the attitude slerped there.

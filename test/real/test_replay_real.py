@@ -1,7 +1,7 @@
 """`gyro-attitude replay` on the BROAD recordings with the user's defaults (auto gyro bias) from the
 first truth attitude: the error stays within 1.2x the README's "bias = mean over the initial rest"
-figure (2.90°, 6.68°), the bias is reported, and an offline algorithm that cannot run the
-per-sample filter is refused in one line."""
+figure (2.90°, 6.68°) with either estimator, the bias is reported, and (causal) an offline
+algorithm that cannot run the per-sample filter is refused in one line."""
 
 import json
 import os
@@ -21,13 +21,15 @@ MEAN_OVER_INITIAL_REST_DEG = {"broad_05_slow_rotation_with_breaks": 2.90,
                               "broad_16_fast_translation": 6.68}
 
 
+@pytest.mark.parametrize("estimator", ["causal", "offline"])
 @pytest.mark.parametrize("name", real.RECORDINGS)
-def test_replay_defaults_remove_the_bias(name, tmp_path, capsys):
+def test_replay_defaults_remove_the_bias(name, estimator, tmp_path, capsys):
     rc = cli_main(["replay", str(DIR / f"{name}.mcap"), "--out", str(tmp_path / "o.mcap"),
                    "--initial-attitude", "truth", "--frame", "enu", "--latitude-deg", "52.5",
-                   "--json"])
+                   "--json", "--estimator", estimator])
     assert rc == 0
     out = json.loads(capsys.readouterr().out)
+    assert out["estimator"] == estimator
     assert out["algorithm"] == "magnus6_quintic"  # replay's offline default (array form)
     assert out["gyro_bias"].startswith("gyro bias auto") and "Earth rate removed" in out["gyro_bias"]
     final_deg = out["final_error_rad"] * 180 / 3.141592653589793
@@ -41,10 +43,11 @@ def test_offline_algorithm_with_aiding_is_refused_in_one_line(tmp_path, capsys):
     # have an array form, so magnus6_quintic takes them
     name = real.RECORDINGS[0]
     rc = cli_main(["replay", str(DIR / f"{name}.mcap"), "--out", str(tmp_path / "o.mcap"),
-                   "--algorithm", "magnus6_quintic", "--aiding", "gravity"])
+                   "--algorithm", "magnus6_quintic", "--aiding", "gravity", "--estimator",
+                   "causal"])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 1 and len(err) == 1 and "offline algorithm" in err[0]
     assert not (tmp_path / "o.mcap").exists()
     rc = cli_main(["replay", str(DIR / f"{name}.mcap"), "--out", str(tmp_path / "o.mcap"),
-                   "--algorithm", "magnus6_quintic"])
+                   "--algorithm", "magnus6_quintic", "--estimator", "causal"])
     assert rc == 0

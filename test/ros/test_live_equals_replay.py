@@ -44,7 +44,8 @@ def test_player_and_integrator_equal_replay(launch, ros_node, tmp_path):
 
     rec = tmp_path / "hostile.mcap"
     hostile_recording(rec)
-    offline = replay_file(rec, tmp_path / "replayed.mcap", algorithm=ALGORITHM)
+    offline = replay_file(rec, tmp_path / "replayed.mcap", algorithm=ALGORITHM,
+                          estimator="causal")
     q_off = offline.q
     assert len(q_off) == N - 4  # 2 non-finite, 1 implausible rate, 1 duplicate stamp skipped
     got: list[tuple[int, tuple[float, float, float, float]]] = []

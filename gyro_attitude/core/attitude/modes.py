@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from enum import Enum, StrEnum
 
-__all__ = ["Aiding", "Frame", "GyroBiasMode", "HeadingSource", "InitialAttitudeSource", "Phase",
+__all__ = ["Aiding", "Estimator", "Frame", "GyroBiasMode", "HeadingSource", "InitialAttitudeSource", "Phase",
            "SettingError", "parse_mode"]
 
 
@@ -59,6 +59,14 @@ class Aiding(StrEnum):
 
     NONE = "none"
     GRAVITY = "gravity"
+
+
+class Estimator(StrEnum):
+    """How replay estimates: ``offline`` over the whole recording (core/attitude/offline.py,
+    non-causal), or ``causal`` sample by sample as the live node does (AttitudeStream)."""
+
+    OFFLINE = "offline"
+    CAUSAL = "causal"
 
 
 class Phase(StrEnum):

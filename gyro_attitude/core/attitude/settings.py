@@ -183,6 +183,9 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("gyro_noise_density", 0.0, "gyro noise density for the covariance when the input's "
             "angular_velocity_covariance is unknown (0 = none)", "rad/s/sqrt(Hz)", 0.0, 1.0,
             group="gyro bias"),
+    Setting("gyro_scale_factor_sigma", 0.005, "offline estimator: 1-sigma relative gyro "
+            "scale-factor and misalignment error in the covariance (consumer MEMS 0.3-1 %)", "",
+            0.0, 0.5, group="gyro bias"),
     # -- rests
     Setting("min_rest_s", 1.0, "shortest rest used for the bias and the alignment", "s", 0.01,
             3600.0, group="rest"),
@@ -212,6 +215,9 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("aiding_accel_lowpass_s", 1.0, "gravity aiding: time constant of the nav-frame "
             "low-pass of the specific force (averages out hand and vehicle accelerations; 0 = "
             "off)", "s", 0.0, 100.0, group="aiding"),
+    Setting("offline_tilt_tau_s", 3.0, "offline estimator (replay --estimator offline) with "
+            "gravity aiding: time constant of the zero-phase low-pass of the specific force in the "
+            "integration frame", "s", 0.01, 1000.0, group="aiding"),
     # -- validation of the input stream
     Setting("max_gap_s", 0.1, "a forward stamp step longer than this is a gap: not integrated "
             "across, attitude held", "s", 1e-6, 1e6, runtime=True, group="input"),

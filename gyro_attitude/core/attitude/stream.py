@@ -190,6 +190,7 @@ class StreamResult:
     bias: GyroBiasReport | None = None
     alignment: AlignmentResult | None = None
     form: RunForm | None = None
+    notes: list[str] = field(default_factory=list)  # what the estimator did, in words
 
     @property
     def skipped(self) -> int:
@@ -672,17 +673,7 @@ class AttitudeStream:
         t = np.asarray(t_ns)
         w = np.asarray(omega, dtype=np.float64)
         n = w.shape[0]
-        cov = None
-        if angular_velocity_covariance is not None:
-            cov = np.asarray(angular_velocity_covariance, dtype=np.float64)
-            if cov.shape != (n, 9):
-                raise ValueError(f"angular_velocity_covariance must have shape ({n}, 9), got "
-                                 f"{cov.shape}")
-        acc = None
-        if accel is not None:
-            acc = np.asarray(accel, dtype=np.float64)
-            if acc.shape != (n, 3):
-                raise ValueError(f"accel must have shape ({n}, 3), got {acc.shape}")
+        cov, acc = recording_arrays(n, angular_velocity_covariance, accel)
         if t.ndim != 1 or not (np.issubdtype(t.dtype, np.integer) or t.size == 0) or \
                 w.shape != (t.shape[0], 3):
             raise ValueError(f"t_ns must be a 1-D integer array of nanoseconds and omega must "
@@ -754,6 +745,37 @@ def cannot_align(cfg: StreamConfig) -> str:
 
 
 _ONES = np.ones(3)
+
+
+def recording_arrays(n: int, angular_velocity_covariance, accel):
+    """``(covariance (n, 9) or None, accel (n, 3) or None)`` as float arrays of a whole
+    recording of n samples, or ValueError naming the wrong shape."""
+    cov = acc = None
+    if angular_velocity_covariance is not None:
+        cov = np.asarray(angular_velocity_covariance, dtype=np.float64)
+        if cov.shape != (n, 9):
+            raise ValueError(f"angular_velocity_covariance must have shape ({n}, 9), got "
+                             f"{cov.shape}")
+    if accel is not None:
+        acc = np.asarray(accel, dtype=np.float64)
+        if acc.shape != (n, 3):
+            raise ValueError(f"accel must have shape ({n}, 3), got {acc.shape}")
+    return cov, acc
+
+
+def covariance_rows(cov: np.ndarray, valid: np.ndarray, counts: dict, details: dict):
+    """Per-axis gyro variances (M, 3) and whether each is known (M,) for the accepted rows
+    ``valid`` of ``cov`` (N, 9); the invalid ones are counted in ``counts`` and the first is
+    described in ``details`` (treated as unknown)."""
+    var_all, known_all, invalid_all = gyro_variances_array(cov)
+    inv = rows(invalid_all, valid)
+    counts[INVALID_COVARIANCE] = int(np.count_nonzero(inv))
+    if counts[INVALID_COVARIANCE]:
+        k = int(valid[np.flatnonzero(inv)[0]])
+        details.setdefault(INVALID_COVARIANCE, f"angular_velocity_covariance "
+                           f"{cov[k].tolist()} has a non-finite, negative or absurd "
+                           "diagonal: treated as unknown")
+    return rows(var_all, valid), rows(known_all, valid)
 
 
 def rows(a: np.ndarray, index: np.ndarray) -> np.ndarray:

@@ -32,14 +32,13 @@ from gyro_attitude.core.attitude.stream import (
     EXTRA_COUNTS,
     GYRO_NOISE_UNKNOWN,
     INVALID_ACCEL,
-    INVALID_COVARIANCE,
     RUNNING,
     SATURATED,
     SATURATION_MIN_RAD_S,
     RunForm,
     StreamResult,
     cannot_align,
-    gyro_variances_array,
+    covariance_rows,
     nav_rows,
     rows,
     saturation_note,
@@ -48,7 +47,7 @@ from gyro_attitude.core.attitude.stream import (
 )
 from gyro_attitude.core.rotation import quat_from_rotvec, quat_multiply
 
-__all__ = ["run_arrays"]
+__all__ = ["count_saturated", "run_arrays"]
 
 _EARTH_PASSES = 8  # fixed-point passes allowed for the Earth rate at the current attitude
 
@@ -79,7 +78,7 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
             details.setdefault(INVALID_ACCEL, f"accelerometer sample {av[bad[0]].tolist()!r} is "
                                               "not 3 finite numbers: not used for rests or aiding")
     breaks = actv != _ACCEPT  # a rest never spans a gap, a jump or a restart
-    _count_saturated(wv, st, counts, details)
+    count_saturated(wv, st, counts, details)
 
     # 3. alignment (it reads the raw rates and the accelerometer only)
     start = 0  # first row integrated
@@ -155,17 +154,9 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
     # 5. covariance over the integrated rows
     var_v = known_v = None
     if cov is not None:
-        var_all, known_all, invalid_all = gyro_variances_array(cov)
-        var_v, known_v = rows(var_all, valid), rows(known_all, valid)
-        inv = rows(invalid_all, valid)
+        var_v, known_v = covariance_rows(cov, valid, counts, details)
         if v.no_estimate(rows(cov, valid)).any():
             details.setdefault(GYRO_NOISE_UNKNOWN, unknown_noise_note(cfg))
-        counts[INVALID_COVARIANCE] = int(np.count_nonzero(inv))
-        if counts[INVALID_COVARIANCE]:
-            k = int(valid[np.flatnonzero(inv)[0]])
-            details.setdefault(INVALID_COVARIANCE, f"angular_velocity_covariance "
-                               f"{cov[k].tolist()} has a non-finite, negative or absurd "
-                               "diagonal: treated as unknown")
     variance = variance_known = None
     known_any = known_v is not None and bool(known_v[out_from:].any())
     if known_any or st.variance_known:
@@ -220,7 +211,7 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
                         s.alignment, RunForm.ARRAYS)
 
 
-def _count_saturated(wv, st, counts, details) -> None:
+def count_saturated(wv, st, counts, details) -> None:
     """Array form of ``AttitudeStream._saturation_step`` over the accepted rows (the same
     running maximum and repeats, exactly), leaving the state as it would."""
     if wv.shape[0] == 0:

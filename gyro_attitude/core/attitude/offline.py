@@ -1,0 +1,732 @@
+"""Offline attitude over a whole recording: rests, bias and gravity seen from both sides of every sample.
+
+:func:`estimate_offline` is the non-causal counterpart of :meth:`.stream.AttitudeStream.run`:
+same input, same sample verdicts (:func:`.validation.classify`: bad samples skipped and
+counted, no integration across a gap, a backward time jump resets to ``q0``), same
+:class:`.stream.StreamResult`; every attitude may use samples after it.  The chain, each step an
+array operation over chunks of ``chunk_samples`` accepted samples (no per-sample Python):
+
+1. **rests** over the whole recording (:func:`.rest.detect_rest`, window statistics by
+   cumulative sums, the thresholds of the causal path, per gap-free run with a usable
+   accelerometer); a sample is at rest when it is the oldest sample of a rest window (as the
+   causal consumers take it: the gentle start of a motion is out) and the newest of one (the
+   tail of a motion is out too: a window starting there may pass the test, and holding the
+   attitude over it loses the last of the turn); a rest counts when it spans ``min_rest_s``;
+2. **gyro bias per rest** (``gyro_bias="auto"``): the rest mean with its standard error
+   ``√(σ²/n + K² T/3)`` (white noise, plus the bias random walk ``K`` over the rest's length
+   ``T``); between rests the bias is interpolated linearly in time (the smoother of a random-walk
+   bias between two point estimates), before the first and after the last rest it is held.  With
+   a latitude (``nav`` or ``latitude_rad``) and an accelerometer the vertical Earth rate
+   ``ω_ie sin L`` along the rest's measured up is taken out of the rest mean (the horizontal
+   component would need the heading; left in, it tilts -- and levelling and gravity aiding
+   correct tilt -- but does not turn the heading);
+3. **integration** of ``ω − b(t)`` with the chosen algorithm, the attitude **held at rests**
+   (zero-rate update);
+4. **tilt from gravity** (``aiding="gravity"``): the specific force rotated into the integration
+   frame, ``f_i = C(q) f_b``, points up plus the slowly drifting gyro error plus the carrier's
+   acceleration, whose mean over a few seconds is small.  It is low-passed zero-phase (a
+   first-order filter with time constant ``offline_tilt_tau_s`` run forward, then backward over
+   the forward output), each sample weighted 1 where ``| |f| − g | <= aiding_accel_tol`` (0
+   elsewhere) and ``offline_rest_weight`` at rests; the normalised result ``u`` gives the tilt
+   correction, the smallest rotation taking ``u`` to up, applied on the left (integration
+   frame) so that the heading is untouched.  With ``initial_attitude="level"`` (without aiding)
+   the same correction is taken at **every rest** from the rest's mean specific force and
+   interpolated in time between rests; the initial roll and pitch come from the first rest;
+5. **covariance** per output axis (:func:`_gyro_error_variance`): the gyro-only error is the
+   integral of the body-frame bias and noise errors rotated into the output frame,
+   ``δθ(t) = ∫ C_nb (δb(τ) + n) dτ`` over the motion (held at rests); with the interpolated bias
+   ``δb = (1 − w) δb_j + w δb_{j+1}`` this is ``Σ_j M_j(t) δb_j`` with ``M_j = ∫ C_nb φ_j dτ``
+   (``φ_j`` the interpolation weights), so ``var_k = Σ_j Σ_m SE_{j,m}² M_j[k,m]²`` plus the
+   angle random walk ``Σ C[k,m]² σ_m² dt²`` plus the random walk's bridge ``K²(s³/3 − s⁴/4T)``
+   (``s`` motion time since the rest, ``T`` to the next).  The heading (third) axis keeps it and
+   grows between rests; the tilt axes take the tilt-from-gravity variance where gravity is used:
+   ``(σ_ba/g)² + σ_f²/(g² n_eff)`` with ``n_eff = (Σw)²/Σw²`` of the smoother and ``σ_f²`` the
+   measured scatter of ``f_i`` about ``g u`` (accelerometer noise and the carrier's acceleration:
+   the residual that leaks into the mean), or the levelling variance at rests with the gyro-only
+   growth bridged between them.  The gyro noise ``σ_ω`` comes from the messages'
+   ``angular_velocity_covariance``, else ``gyro_noise_density``, else the scatter measured at the
+   rests.
+
+Time jumps split the recording into blocks that are estimated independently (the attitude
+resets to ``q0``); gaps are held across.  Memory: the output (index, q, variance, action) plus
+O(``chunk_samples``) working arrays; the forward low-pass keeps only its state at chunk
+boundaries and is recomputed chunk by chunk in the backward pass.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.signal import lfilter
+
+from gyro_attitude.core.attitude import NavFrame, integrate_batch
+from gyro_attitude.core.attitude import validation as v
+from gyro_attitude.core.attitude.alignment import AlignmentResult, level_quaternion
+from gyro_attitude.core.attitude.gyro_bias import GyroBiasReport
+from gyro_attitude.core.attitude.modes import Aiding, Frame, GyroBiasMode, HeadingSource
+from gyro_attitude.core.attitude.registry import DEFAULT_ALGORITHM
+from gyro_attitude.core.attitude.rest import NOISE_FLOOR_RAD_S, detect_rest
+from gyro_attitude.core.attitude.settings import StreamConfig
+from gyro_attitude.core.attitude.stream import (
+    INTEGRATOR_ERROR,
+    INVALID_ACCEL,
+    INVALID_COVARIANCE,
+    SATURATED,
+    StreamResult,
+    StreamState,
+    _unit_quat,
+    covariance_rows,
+    nav_rows,
+    recording_arrays,
+    rows,
+    usable_accel,
+)
+from gyro_attitude.core.attitude.stream_batch import count_saturated
+from gyro_attitude.core.earth import OMEGA_IE, STANDARD_GRAVITY
+from gyro_attitude.core.rotation import (
+    _qmul,
+    quat_as_matrix,
+    quat_as_rotvec,
+    quat_conjugate,
+    quat_from_rotvec,
+    quat_multiply,
+    quat_rotate,
+)
+
+__all__ = ["DEFAULT_CHUNK_SAMPLES", "OfflineRest", "estimate_offline"]
+
+#: Accepted samples per working chunk: ~25 MB of temporaries at most, whatever the length.
+DEFAULT_CHUNK_SAMPLES = 1 << 16
+# the forward low-pass of a block up to this many samples is kept (40 MB), not recomputed
+_KEEP_FORWARD = 1 << 20
+# rows each integration chunk reaches into its neighbours (the widest stencil: magnus6, 6)
+_OVERLAP = 8
+# rows per step of the covariance propagation (interpolated in between: it is smooth)
+_COV_BLOCK = 16
+
+
+@dataclass(frozen=True)
+class OfflineRest:
+    """One rest found over the recording: accepted rows ``[start, stop)``, its mid time on the
+    block's clock ``tau_s``, the bias estimate and its standard error (rad/s), mean specific
+    force (m/s², NaN without accelerometer) and the per-axis gyro scatter (rad/s)²."""
+
+    start: int
+    stop: int
+    tau_s: float
+    duration_s: float
+    bias: np.ndarray
+    standard_error: np.ndarray
+    accel_mean: np.ndarray
+    accel_var: np.ndarray
+    gyro_var: np.ndarray
+
+
+def _chunks(lo: int, hi: int, size: int):
+    for c0 in range(lo, hi, size):
+        yield c0, min(c0 + size, hi)
+
+
+def _mean_var(x: np.ndarray, lo: int, hi: int, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and variance (ddof 1) of rows ``x[lo:hi]``, summed chunk-wise about the first row."""
+    ref = x[lo].astype(np.float64)
+    s1 = np.zeros(3)
+    s2 = np.zeros(3)
+    for c0, c1 in _chunks(lo, hi, size):
+        d = x[c0:c1] - ref
+        s1 += d.sum(axis=0)
+        s2 += np.einsum("ij,ij->j", d, d)
+    n = hi - lo
+    mean = ref + s1 / n
+    var = np.maximum(s2 - s1 * s1 / n, 0.0) / max(n - 1, 1)
+    return mean, var
+
+
+def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, lo: int, hi: int,
+               params: dict, window_ns: int, size: int, out: np.ndarray) -> None:
+    """Mark in ``out`` the rows of ``[lo, hi)`` (one gap-free run) that are the oldest sample
+    of a rest window: the windows, and their 'full' test, of a detector started at ``lo``.
+
+    A window at rest has ``|mean ω_i| <= gyro_mean_max`` on every axis and spread
+    ``<= gyro_std_max``, so the mean of ``|ω|²`` over it is at most ``3 gyro_mean_max² +
+    gyro_std_max²``: windows above that (motion) are
+    skipped with one cumulative sum, and :func:`.rest.detect_rest` runs, in chunks carrying one
+    window of history, only over the stretches that may hold a rest."""
+    oldest = np.searchsorted(t[lo:hi], t[lo:hi] - window_ns, side="left")
+    if "gyro_mean_max" in params and "gyro_std_max" in params:
+        ww = np.einsum("ij,ij->i", w[lo:hi], w[lo:hi])
+        cs = np.concatenate(([0.0], np.cumsum(ww)))
+        k = np.arange(hi - lo)
+        # the mean bound holds on every axis (rest.py): |mean|² <= 3 gyro_mean_max²
+        bound = (3.0 * params["gyro_mean_max"] ** 2 + params["gyro_std_max"] ** 2) \
+            * (1 + 1e-9) + 1e-300
+        cand = (cs[k + 1] - cs[oldest]) <= bound * (k + 1 - oldest)
+        del ww, cs, k
+    else:  # a rest test without these two bounds: every window is a candidate
+        cand = np.ones(hi - lo, dtype=bool)
+    newest = np.zeros(hi - lo, dtype=bool)  # the window ending here is at rest
+    oldest_of = np.zeros(hi - lo, dtype=bool)  # oldest sample of a rest window
+    for e0, e1 in _segments(cand):  # window ends that may be at rest
+        s0, s1 = lo + int(oldest[e0]), lo + e1
+        for c0, c1 in _chunks(s0, s1, size):
+            p = lo if c0 == lo else max(lo, int(np.searchsorted(t[lo:c0], t[c0] - window_ns))
+                                        + lo - 1)
+            if c1 - p < 2:
+                continue
+            rw = detect_rest(t[p:c1], w[p:c1], None if a is None else a[p:c1], **params)
+            kk = np.flatnonzero(rw.at_rest[c0 - p:]) + (c0 - p)
+            if p != lo:  # not starting the run: 'full' counts from the run's first sample
+                kk = kk[t[p + kk] - t[lo] >= window_ns]
+            newest[p + kk - lo] = True
+            oldest_of[p + rw.oldest[kk] - lo] = True
+    # at rest: followed by a full window of rest (the gentle start of a motion is out) and
+    # preceded by one (so is the tail of a motion, which a window starting there can pass)
+    out[lo:hi] |= newest & oldest_of
+
+
+def _segments(mask: np.ndarray) -> list[tuple[int, int]]:
+    edges = np.diff(np.concatenate(([0], mask.view(np.int8), [0])))
+    return list(zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist(),
+                    strict=True))
+
+
+def _up_correction(u: np.ndarray) -> np.ndarray:
+    """Quaternions (M, 4) of the smallest rotations taking the directions ``u`` (M, 3) to +z."""
+    # q = (u × z, |u| + u·z) normalised: the half-way quaternion, no trigonometry; exact for
+    # every u but straight down (|u| + u_z = 0 and u × z = 0: then any horizontal axis, x here)
+    q = np.empty((u.shape[0], 4))
+    q[:, 0] = u[:, 1]
+    q[:, 1] = -u[:, 0]
+    q[:, 2] = 0.0
+    q[:, 3] = np.sqrt(np.einsum("ij,ij->i", u, u)) + u[:, 2]
+    norm = np.sqrt(np.einsum("ij,ij->i", q, q))
+    down = norm <= 1e-300
+    q[down] = (1.0, 0.0, 0.0, 0.0)
+    norm[down] = 1.0
+    q /= norm[:, None]
+    return q
+
+
+class _Block:
+    """Accepted rows ``[b0, b1)`` between time-jump resets, estimated on their own."""
+
+    def __init__(self, b0, b1, runs):
+        self.b0, self.b1, self.runs = b0, b1, runs
+
+
+def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = None,
+                     q0=(0.0, 0.0, 0.0, 1.0), nav: NavFrame | None = None, mag=None,
+                     frame_id: str | list[str] | None = "", angular_velocity_covariance=None,
+                     algorithm: str = DEFAULT_ALGORITHM,
+                     chunk_samples: int = DEFAULT_CHUNK_SAMPLES) -> StreamResult:
+    """Attitudes of a whole recording, non-causally (see the module docstring).
+
+    ``t_ns`` (N,) int stamps; ``omega`` (N, 3) rad/s; ``accel`` (N, 3) m/s² specific force or
+    None (gyro-only: no levelling, no aiding, rests from the gyro alone); ``config`` the stream
+    settings (bias mode, rest thresholds, ``initial_attitude``, ``aiding``, noise figures);
+    ``q0`` the initial attitude (``level``: its heading is ``initial_heading_deg``); ``nav`` a
+    constant :class:`NavFrame` for q_nb or None for q_ib; ``mag`` is accepted and not used yet;
+    ``angular_velocity_covariance`` (N, 9) or None.  Raises ValueError on malformed input and
+    when ``initial_attitude="level"`` finds no rest to level on.
+    """
+    cfg = config if config is not None else StreamConfig()
+    if not isinstance(cfg, StreamConfig):
+        raise ValueError(f"config must be a StreamConfig, got {type(cfg).__name__}")
+    if isinstance(chunk_samples, bool) or not isinstance(chunk_samples, int) or \
+            not 64 <= chunk_samples <= 1 << 26:
+        raise ValueError(f"chunk_samples must be an int in [64, 2**26], got {chunk_samples!r}")
+    if cfg.heading_source is HeadingSource.GYROCOMPASS:
+        raise ValueError("the offline estimator does not gyrocompass (heading_source "
+                         "'gyrocompass'): use --estimator causal or give the heading")
+    if nav is None and cfg.frame is Frame.ENU:
+        nav = cfg.nav_frame()
+    if nav is not None and not isinstance(nav, NavFrame):
+        raise ValueError(f"nav must be a NavFrame or None, got {type(nav).__name__}")
+    q_init = _unit_quat(q0)
+    t = np.asarray(t_ns)
+    w = np.asarray(omega, dtype=np.float64)
+    cls = v.classify(t, w, frame_id, cfg.check_config())  # checks t and omega shapes
+    n = w.shape[0]
+    t = t.astype(np.int64, copy=False)
+    cov, acc = recording_arrays(n, angular_velocity_covariance, accel)
+    codes = v.ACTION_CODES
+    act = cls.action
+    valid = np.flatnonzero(act != codes[v.REJECT])
+    counts = {**cls.counts, v.MISSING_SAMPLES: cls.missing_samples, INVALID_COVARIANCE: 0,
+              INVALID_ACCEL: 0, INTEGRATOR_ERROR: 0, SATURATED: 0}
+    details = dict(cls.details)
+    m = valid.size
+    tv = rows(t, valid)
+    wv = rows(w, valid)
+    av = None if acc is None else rows(acc, valid)
+    usable = None
+    if av is not None:
+        usable = usable_accel(av)
+        counts[INVALID_ACCEL] = int(m - np.count_nonzero(usable))
+        if counts[INVALID_ACCEL]:
+            k = int(np.flatnonzero(~usable)[0])
+            details.setdefault(INVALID_ACCEL, f"linear_acceleration {av[k].tolist()} is not "
+                               "finite or absurd: not used for rests, levelling or aiding")
+        if not usable.any():
+            av = usable = None
+    sig2 = None  # per-row gyro variance (M, 3) from the messages, where known
+    if cov is not None:
+        var_v, known_v = covariance_rows(cov, valid, counts, details)
+        if known_v.any():
+            sig2 = (var_v, known_v)
+    if nav is not None and nav.series_length() is not None:
+        if nav.series_length() != n:
+            raise ValueError(f"nav time series must have one row per sample ({n}), got "
+                             f"{nav.series_length()}")
+        nav = nav_rows(nav, valid, n)  # (a velocity schedule: one row per accepted sample)
+    # saturated samples: counted as the causal path counts them (its array form, fresh state)
+    count_saturated(wv, StreamState(q_init, q_init), counts, details)
+    est = _Estimator(cfg, q_init, nav, algorithm, chunk_samples, tv, wv, av, usable, sig2,
+                     rows(act, valid))
+    q_out, var_out, known_out = est.run()
+    notes = est.notes
+    if acc is None or av is None:
+        notes.insert(0, "no accelerometer: gyro-only offline estimation (rests from the gyro, "
+                     "no levelling, no gravity aiding)")
+    return StreamResult(valid, q_out, var_out, known_out, act, counts, cls.time_jump_resets,
+                        details, est.bias_report(), est.alignment, notes=notes)
+
+
+class _Estimator:
+    """The passes of :func:`estimate_offline` over the accepted rows (visible state: the rests
+    found, the notes, the alignment)."""
+
+    def __init__(self, cfg, q_init, nav, algorithm, size, t, w, a, usable, sig2, act):
+        self.cfg, self.q_init, self.nav, self.algorithm, self.size = cfg, q_init, nav, algorithm, size
+        self.t, self.w, self.a, self.usable, self.sig2, self.act = t, w, a, usable, sig2, act
+        self.all_usable = usable is not None and bool(usable.all())
+        self.nav_series = None if nav is None else nav.series_length()
+        self.rests: list[OfflineRest] = []
+        self.notes: list[str] = []
+        self.alignment: AlignmentResult | None = None
+        lat = nav.latitude_rad if nav is not None else (
+            cfg.latitude_rad if cfg.latitude_known else None)
+        self.latitude = None if lat is None else float(np.asarray(lat).reshape(-1)[0])
+        self.window_ns = int(round(cfg.rest_window_s * 1e9))
+
+    # ------------------------------------------------------------------ the chain
+    def run(self):
+        m = self.t.size
+        q_out = np.empty((m, 4))
+        var_out = np.zeros((m, 3))
+        codes = v.ACTION_CODES
+        resets = np.flatnonzero(self.act == codes[v.RESET_TIME_JUMP])
+        bounds = [0, *resets.tolist(), m]
+        starts = np.flatnonzero(self.act != codes[v.ACCEPT])  # START, gap restarts, resets
+        self._noise_known = bool(self.sig2 is not None or self.cfg.gyro_noise_density > 0)
+        for b0, b1 in zip(bounds[:-1], bounds[1:], strict=True):
+            if b1 <= b0:
+                continue
+            s = starts[(starts >= b0) & (starts < b1)].tolist()
+            runs = list(zip(s, [*s[1:], b1], strict=True))
+            self._block(b0, b1, runs, q_out, var_out)
+        known = self._var_known()
+        if not known:
+            var_out = None
+        return q_out, var_out, (None if var_out is None else np.ones(m, dtype=bool))
+
+    def _var_known(self) -> bool:
+        cfg = self.cfg
+        return bool(self._noise_known or cfg.gyro_bias_sigma_rad_s > 0
+                    or cfg.levelling or any(
+                        r.gyro_var.any() for r in self.rests))
+
+    def _block(self, b0, b1, runs, q_out, var_out):
+        cfg = self.cfg
+        tau = self._clock(b0, b1, runs)
+        rest = np.zeros(b1 - b0, dtype=bool)
+        if cfg.gyro_bias is GyroBiasMode.AUTO or cfg.levelling or cfg.aiding is Aiding.GRAVITY:
+            self._find_rests(b0, runs, rest)
+        rests = self._rest_stats(b0, b1, rest, tau)
+        self.rests += rests
+        q_start = self.q_init
+        tilt_var0 = None
+        if cfg.levelling:
+            with_f = [r for r in rests if np.isfinite(r.accel_mean).all()]
+            if not with_f and self.alignment is not None:
+                # a block after a time jump without a rest of its own: the attitude resets
+                # to the alignment of the recording's start
+                with_f = None
+            elif not with_f:
+                raise ValueError(f"cannot align: no rest of at least {cfg.min_rest_s:g} s with a "
+                                 "usable accelerometer in the recording (initial_attitude "
+                                 "'level')")
+        if cfg.levelling and with_f is None:
+            q_start = self.alignment.q_nb
+            tilt_var0 = self.alignment.level_error_expected ** 2
+        elif cfg.levelling:
+            r0 = with_f[0]
+            q_start, roll, pitch = level_quaternion(r0.accel_mean,
+                                                    math.radians(cfg.initial_heading_deg))
+            g = float(np.linalg.norm(r0.accel_mean))
+            sl = math.sqrt(cfg.accel_bias_sigma ** 2 + float(np.mean(r0.accel_var[:2]))
+                           / (r0.stop - r0.start)) / g
+            tilt_var0 = sl * sl
+            if self.alignment is None:
+                self.alignment = AlignmentResult(
+                    q_start, roll, pitch, math.radians(cfg.initial_heading_deg) % (2 * math.pi),
+                    "given", sl, math.nan, int(self.t[b0 + r0.start]),
+                    int(self.t[b0 + r0.stop - 1]), r0.stop - r0.start, r0.accel_mean,
+                    r0.bias)
+        zupt = cfg.gyro_bias is GyroBiasMode.AUTO
+        self._integrate(b0, runs, rest if zupt else None, rests, tau, q_start, q_out)
+        tt0 = np.full(3, cfg.initial_attitude_variance)
+        if tilt_var0 is not None:
+            tt0[:2] = tilt_var0
+        self._covariance(b0, b1, rest if zupt else None, rests, tau, q_out, var_out, tt0)
+        if self.a is not None and cfg.aiding is Aiding.GRAVITY:
+            self._tilt_from_gravity(b0, b1, rest, q_out, var_out)
+        elif self.a is not None and cfg.levelling:
+            self._level_at_rests(b0, b1, rests, tau, q_out, var_out)
+
+    def _clock(self, b0, b1, runs) -> np.ndarray:
+        """Seconds since the block's first row, gaps counted (the bias walks across them)."""
+        return (self.t[b0:b1] - self.t[b0]) * 1e-9
+
+    # ------------------------------------------------------------------ 1. rests
+    def _find_rests(self, b0, runs, rest):
+        params = {"gyro_std_min": NOISE_FLOOR_RAD_S, **self.cfg.rest_params()}
+        t, w, a, ok = self.t, self.w, self.a, self.usable
+        for r0, r1 in runs:
+            pieces = [(r0, r1)]
+            if ok is not None and not ok[r0:r1].all():
+                pieces = [(r0 + p, r0 + q) for p, q in _segments(ok[r0:r1])]
+            for p0, p1 in pieces:
+                if p1 - p0 < 2:
+                    continue
+                mark = np.zeros(p1 - p0, dtype=bool)
+                _rest_mask(t[p0:p1], w[p0:p1], None if a is None else a[p0:p1], 0, p1 - p0,
+                           params, self.window_ns, self.size, mark)
+                rest[p0 - b0:p1 - b0] |= mark
+
+    def _rest_stats(self, b0, b1, rest, tau) -> list[OfflineRest]:
+        cfg = self.cfg
+        min_ns = int(round(cfg.min_rest_s * 1e9))
+        out = []
+        k2 = cfg.gyro_bias_rw ** 2
+        for s0, s1 in _segments(rest):
+            if self.t[b0 + s1 - 1] - self.t[b0 + s0] < min_ns or s1 - s0 < 3:
+                rest[s0:s1] = False  # too short to count: not a rest for any step
+                continue
+            mean_w, var_w = _mean_var(self.w, b0 + s0, b0 + s1, self.size)
+            n = s1 - s0
+            dur = float(tau[s1 - 1] - tau[s0])
+            se = np.sqrt(var_w / n + k2 * dur / 3.0)
+            mean_f = var_f = np.full(3, np.nan)
+            if self.a is not None and self.usable[b0 + s0:b0 + s1].all():
+                mean_f, var_f = _mean_var(self.a, b0 + s0, b0 + s1, self.size)
+                if self.latitude is not None:
+                    # the vertical Earth rate along the measured up (module docstring, step 2)
+                    up = mean_f / np.linalg.norm(mean_f)
+                    mean_w = mean_w - OMEGA_IE * math.sin(self.latitude) * up
+            out.append(OfflineRest(s0, s1, float(0.5 * (tau[s0] + tau[s1 - 1])), dur, mean_w, se,
+                                   mean_f, var_f, var_w))
+        # The rests' means differ by more than their white-noise errors when the bias wanders
+        # (MEMS: temperature, flicker): the random walk K that explains the differences of
+        # neighbouring rests, E[Δb²] = SE_j² + SE_{j+1}² + K² Δt, when it exceeds the stated one.
+        if len(out) >= 2 and cfg.gyro_bias is GyroBiasMode.AUTO:
+            d = [((r1.bias - r0.bias) ** 2 - r0.standard_error ** 2 - r1.standard_error ** 2)
+                 / max(r1.tau_s - r0.tau_s, 1e-9) for r0, r1 in zip(out[:-1], out[1:],
+                                                                    strict=True)]
+            k2_seen = float(max(np.mean(d), 0.0))
+            if k2_seen > k2:
+                k2 = k2_seen
+                self.notes.append(f"bias random walk {math.sqrt(k2):.2g} rad/s/√s from the "
+                                  f"differences between the {len(out)} rests")
+                out = [replace(r, standard_error=np.sqrt(r.gyro_var / (r.stop - r.start)
+                                                         + k2 * r.duration_s / 3.0))
+                       for r in out]
+        self.k2 = max(k2, getattr(self, "k2", 0.0))
+        return out
+
+    # ------------------------------------------------------------------ 2.-3. bias, integration
+    def _bias_rows(self, rests, tau_rows) -> np.ndarray:
+        cfg = self.cfg
+        if cfg.gyro_bias is GyroBiasMode.PARAMETER:
+            return np.broadcast_to(np.asarray(cfg.gyro_bias_rad_s, dtype=np.float64),
+                                   (tau_rows.size, 3))
+        if cfg.gyro_bias is GyroBiasMode.NONE or not rests:
+            return np.zeros((tau_rows.size, 3))
+        xs = np.array([r.tau_s for r in rests])
+        b = np.array([r.bias for r in rests])
+        return np.column_stack([np.interp(tau_rows, xs, b[:, i]) for i in range(3)])
+
+    def _integrate(self, b0, runs, rest, rests, tau, q_start, q_out):
+        """``ω − b(t)`` integrated run by run (a gap holds the attitude), held at rests."""
+        q_prev = q_start
+        size = self.size
+        for r0, r1 in runs:
+            if self.act[r0] == v.ACTION_CODES[v.RESET_TIME_JUMP] or r0 == b0:
+                q_prev = q_start
+            pieces = [(r0, r1, False)]
+            if rest is not None and rest[r0 - b0:r1 - b0].any():
+                pieces = []
+                mr = rest[r0 - b0:r1 - b0]
+                edges = np.flatnonzero(np.diff(mr.view(np.int8))) + 1
+                cuts = [0, *edges.tolist(), r1 - r0]
+                pieces = [(r0 + c0, r0 + c1, bool(mr[c0])) for c0, c1 in
+                          zip(cuts[:-1], cuts[1:], strict=True)]
+            first = True
+            for p0, p1, at_rest in pieces:
+                if at_rest:
+                    q_out[p0:p1] = q_prev
+                    first = False
+                    continue
+                anchor = None  # the attitude at the chunk's first row, from the chunk before
+                for c0, c1 in _chunks(p0, p1, size):
+                    start = first and c0 == r0  # the run's first row: nothing to integrate
+                    if c0 == p0:
+                        lo = c0 if start else c0 - 1  # the row before: its interval
+                    else:
+                        lo = max(p0 if first and p0 == r0 else p0 - 1, c0 - _OVERLAP)
+                    hi = min(p1, c1 + _OVERLAP)
+                    if start:
+                        q_out[c0] = q_prev
+                        if hi - lo == 1:
+                            continue
+                    wc = self.w[lo:hi] - self._bias_rows(rests, tau[lo - b0:hi - b0])
+                    nav = self.nav if self.nav_series is None else nav_rows(
+                        self.nav, np.arange(lo, hi), self.nav_series)
+                    q = integrate_batch(self.t[lo:hi], wc, q0=q_prev if start else q_out[lo],
+                                        algorithm=self.algorithm, nav=nav)
+                    # Higher-order algorithms take each interval's increment from neighbouring
+                    # samples: the chunk runs _OVERLAP rows into its neighbours and, after the
+                    # first, is re-anchored at its first row (the attitude there came from the
+                    # chunk before, with both sides' samples), so chunks join as one run does.
+                    if anchor is not None:
+                        q = quat_multiply(quat_multiply(anchor, quat_conjugate(q[c0 - lo])), q)
+                    q_out[c0:c1] = q[c0 - lo:c1 - lo]
+                    if c0 == p0 and lo < c0:
+                        q_out[lo] = q[0]
+                    anchor = q[c1 - lo] if c1 < p1 else None
+                first = False
+                q_prev = q_out[p1 - 1]
+            q_prev = q_out[r1 - 1]
+
+    # ------------------------------------------------------------------ 4. tilt
+    def _tilt_from_gravity(self, b0, b1, rest, q_out, var_out):
+        """Zero-phase weighted low-pass of ``f_i`` (module docstring, step 4): the forward pass
+        keeps its state at chunk starts (and its output while the block is short); the backward
+        pass recomputes each chunk's forward part where it was not kept and applies the
+        correction in place."""
+        cfg = self.cfg
+        t = self.t
+        dt = float(np.median(np.diff(t[b0:min(b1, b0 + 100_000)]))) * 1e-9 if b1 - b0 > 1 else 0.01
+        alpha = math.exp(-max(dt, 1e-9) / cfg.offline_tilt_tau_s)
+        bcoef, acoef = np.array([1.0 - alpha]), np.array([1.0, -alpha])
+
+        def columns(c0, c1):
+            x = np.empty((c1 - c0, 5))
+            wt = self.usable[c0:c1].astype(np.float64)
+            f_b = self.a[c0:c1] if self.all_usable else np.where(wt[:, None] > 0,
+                                                                 self.a[c0:c1], 0.0)
+            x[:, :3] = quat_rotate(q_out[c0:c1], f_b)
+            x[:, 3] = wt
+            x[:, 4] = wt * wt
+            return x
+
+        chunks = list(_chunks(b0, b1, self.size))
+        keep = b1 - b0 <= _KEEP_FORWARD
+        zf = np.zeros((1, 5))
+        states = []
+        kept = []
+        for c0, c1 in chunks:  # forward
+            states.append(zf)
+            fwd, zf = lfilter(bcoef, acoef, columns(c0, c1), axis=0, zi=zf)
+            kept.append(fwd if keep else None)
+        zb = np.zeros((1, 5))
+        g0 = STANDARD_GRAVITY
+        noise = [r.accel_var for r in self.rests if np.isfinite(r.accel_var).all()]
+        sf2 = float(np.mean(noise)) if noise else 0.0  # per-axis accelerometer noise at rest
+        floor = (cfg.accel_bias_sigma / g0) ** 2
+        for (c0, c1), zi, fwd in zip(reversed(chunks), reversed(states), reversed(kept),
+                                     strict=True):
+            if fwd is None:
+                fwd, _ = lfilter(bcoef, acoef, columns(c0, c1), axis=0, zi=zi)
+            sm, zb = lfilter(bcoef, acoef, fwd[::-1], axis=0, zi=zb)
+            sm = sm[::-1]
+            den = sm[:, 3]
+            okd = den > 1e-12
+            u = np.divide(sm[:, :3], den[:, None], out=np.zeros((c1 - c0, 3)), where=okd[:, None])
+            u[~okd] = (0.0, 0.0, 1.0)
+            q_out[c0:c1] = _qmul(_up_correction(u), q_out[c0:c1])  # both unit: no checks
+            # tilt variance: the accelerometer-bias floor plus its noise over the samples
+            # the smoother averages, n_eff = (Σw)²/Σw²
+            n_eff = np.divide(den * den, sm[:, 4], out=np.ones_like(den), where=sm[:, 4] > 0)
+            tilt = floor + sf2 / (g0 * g0) / np.maximum(n_eff, 1.0)
+            var_out[c0:c1, 0] = np.where(okd, tilt, var_out[c0:c1, 0])
+            var_out[c0:c1, 1] = np.where(okd, tilt, var_out[c0:c1, 1])
+        self.notes.append(f"tilt from gravity: zero-phase low-pass, τ = {cfg.offline_tilt_tau_s:g} "
+                          "s")
+
+    def _level_at_rests(self, b0, b1, rests, tau, q_out, var_out):
+        """Levelling at every rest, the correction interpolated in time between rests."""
+        with_f = [r for r in rests if np.isfinite(r.accel_mean).all()]
+        if not with_f:
+            return
+        xs = np.array([r.tau_s for r in with_f])
+        # the correction of each rest as a rotation vector, interpolated between rests
+        rv = quat_as_rotvec(_up_correction(np.array([quat_rotate(q_out[b0 + r.start],
+                                                                 r.accel_mean)
+                                                     for r in with_f])))
+        for c0, c1 in _chunks(b0, b1, self.size):
+            tr = tau[c0 - b0:c1 - b0]
+            r = np.column_stack([np.interp(tr, xs, rv[:, i]) for i in range(3)])
+            q_out[c0:c1] = quat_multiply(quat_from_rotvec(r), q_out[c0:c1])
+        self.notes.append(f"levelled at {len(with_f)} rest(s)")
+
+    # ------------------------------------------------------------------ 5. covariance
+    def _covariance(self, b0, b1, rest, rests, tau, q_out, var_out, tt0):
+        """Gyro-only error variance per output axis (module docstring, step 5)."""
+        cfg = self.cfg
+        size = max(_COV_BLOCK, self.size // _COV_BLOCK * _COV_BLOCK)  # blocks never straddle
+        auto = cfg.gyro_bias is GyroBiasMode.AUTO and rests
+        if auto:
+            xs = [r.tau_s for r in rests]
+            se2 = [r.standard_error ** 2 for r in rests]
+        else:
+            xs = [0.0]
+            se2 = [np.full(3, cfg.gyro_bias_sigma_rad_s ** 2)]
+        # gyro noise per row: messages, else the density, else the scatter measured at rests
+        n2 = cfg.gyro_noise_density ** 2
+        measured = None
+        if self.rests or rests:
+            rr = [r for r in (rests or self.rests) if r.stop - r.start > 1]
+            if rr:
+                measured = np.average([r.gyro_var for r in rr], axis=0,
+                                      weights=[r.stop - r.start for r in rr])
+        k2 = getattr(self, "k2", cfg.gyro_bias_rw ** 2)
+        sf2 = cfg.gyro_scale_factor_sigma ** 2
+        m_sf = np.zeros((3, 3))  # ∫ C_nb diag(ω) dτ: the scale-factor error's lever (never reset)
+        x = np.asarray(xs)
+        nr = x.size
+        # interval s: before rest 0 (s = 0), between rests s-1 and s, after the last (s = nr);
+        # rest s-1's M grows with weight 1 − w there (m_fall), rest s's with w (m_rise)
+        done = np.zeros(3)  # variance from rests whose weights are complete
+        rw_done = 0.0
+        # the bias random walk acts on the attitude only while it is integrated (not while it
+        # is held at rests): its terms run on the motion clock, and each interval's length is
+        # the time between the rests' middles less their halves
+        if auto:
+            dur = np.array([r.duration_s for r in rests])
+            t_motion = np.maximum(np.diff(x) - 0.5 * (dur[:-1] + dur[1:]), 1e-9) if x.size > 1 \
+                else np.zeros(0)
+        rw_last = 0.0  # the walk's term at the last block of the current interval
+        mclock = 0.0  # motion time so far
+        m_node = 0.0  # motion time at the start of the current interval
+        m_fall = np.zeros((3, 3))
+        m_rise = np.zeros((3, 3))
+        arw = np.zeros(3)
+        j = 0
+        prev_end = tt0.copy()  # variance at the row before the chunk
+        for c0, c1 in _chunks(b0, b1, size):
+            nrow = c1 - c0
+            dt = np.zeros(nrow)
+            dt[1:] = np.diff(self.t[c0:c1]) * 1e-9
+            if c0 > b0:
+                dt[0] = (self.t[c0] - self.t[c0 - 1]) * 1e-9
+            dt[self.act[c0:c1] != v.ACTION_CODES[v.ACCEPT]] = 0.0
+            if rest is not None:
+                dt[rest[c0 - b0:c1 - b0]] = 0.0  # held: no error grows
+            if self.sig2 is not None:
+                s2 = np.where(self.sig2[1][c0:c1, None], self.sig2[0][c0:c1], 0.0) * (
+                    dt * dt)[:, None]
+            elif n2 > 0:
+                s2 = (n2 * dt)[:, None] * np.ones(3)
+            elif measured is not None:
+                s2 = measured[None, :] * (dt * dt)[:, None]
+            else:
+                s2 = np.zeros((nrow, 3))
+            # The variance is smooth: it is propagated over blocks of _COV_BLOCK rows (C_nb and
+            # the interpolation weight taken at each block's middle row) and interpolated
+            # linearly to the rows in between.
+            nodes = np.arange(0, nrow, _COV_BLOCK)
+            mid = np.minimum(nodes + _COV_BLOCK // 2, nrow - 1)
+            dtb = np.add.reduceat(dt, nodes)
+            s2b = np.add.reduceat(s2, nodes, axis=0)
+            c = quat_as_matrix(q_out[c0 + mid])  # C_nb (rows: output axes)
+            tr = tau[c0 - b0 + mid]
+            out = tt0 + arw + np.cumsum(np.einsum("ikm,im->ik", c * c, s2b), axis=0)
+            arw = out[-1] - tt0
+            if sf2 > 0:  # scale-factor error: δθ = ∫ C_nb diag(δs) ω dτ, the same δs throughout
+                turn = np.add.reduceat(self.w[c0:c1] * dt[:, None], nodes, axis=0)
+                msf = m_sf + np.cumsum(c * turn[:, None, :], axis=0)
+                out += sf2 * np.einsum("ikm,ikm->ik", msf, msf)
+                m_sf = msf[-1]
+            mc = mclock + np.cumsum(dtb)  # motion clock after each block
+            mclock = float(mc[-1])
+            seg = np.searchsorted(x, tr, side="right")  # interval per block (tau is monotonic)
+            edges = np.flatnonzero(np.diff(seg)) + 1
+            for lo, hi in zip([0, *edges.tolist()], [*edges.tolist(), nodes.size], strict=True):
+                s = int(seg[lo])
+                while j < s:  # entering interval j + 1: rest j-1's weight is complete
+                    rw_done += rw_last  # the walk's share of the interval left is frozen in
+                    rw_last = 0.0
+                    if j >= 1:
+                        done += np.einsum("km,m->k", m_fall ** 2, se2[j - 1])
+                    m_fall, m_rise = m_rise, np.zeros((3, 3))
+                    j += 1
+                    m_node = float(mc[lo] - dtb[lo])
+                cd = c[lo:hi] * dtb[lo:hi, None, None]
+                if 0 < s < nr:
+                    wgt = ((tr[lo:hi] - x[s - 1]) / (x[s] - x[s - 1]))[:, None, None]
+                    mf = m_fall + np.cumsum(cd * (1.0 - wgt), axis=0)
+                    mr = m_rise + np.cumsum(cd * wgt, axis=0)
+                    var_b = np.einsum("ikm,m->ik", mf ** 2, se2[s - 1]) + np.einsum(
+                        "ikm,m->ik", mr ** 2, se2[s])
+                    m_fall, m_rise = mf[-1], mr[-1]
+                    sm = mc[lo:hi] - m_node
+                    big_t = max(float(t_motion[s - 1]), float(sm[-1]))
+                    rw = k2 * (sm ** 3 / 3.0 - sm ** 4 / (4.0 * big_t))
+                elif s == 0:  # before the first rest: its estimate, held back to the start
+                    mr = m_rise + np.cumsum(cd, axis=0)
+                    var_b = np.einsum("ikm,m->ik", mr ** 2, se2[0])
+                    m_rise = mr[-1]
+                    # the first rest's bias applied back to the start: at motion time u of
+                    # the x0 before that rest, Var ∫_0^u (W(τ) − W(x0)) dτ = K² (x0 u² − 2u³/3)
+                    x0m = max(x[0] - 0.5 * rests[0].duration_s, 0.0) if auto else 0.0
+                    um = np.minimum(mc[lo:hi], x0m)
+                    rw = k2 * (x0m * um ** 2 - 2.0 * um ** 3 / 3.0)
+                else:  # after the last rest: its estimate held
+                    mf = m_fall + np.cumsum(cd, axis=0)
+                    var_b = np.einsum("ikm,m->ik", mf ** 2, se2[nr - 1])
+                    m_fall = mf[-1]
+                    rw = k2 * (mc[lo:hi] - m_node) ** 3 / 3.0
+                out[lo:hi] += done + var_b + (rw_done + rw)[:, None]
+                rw_last = float(rw[-1])
+            # out[i] is the variance after block i (at its last row); rows in between linearly
+            last = np.minimum(nodes + _COV_BLOCK, nrow) - 1
+            xs_r = np.concatenate(([-1], last))
+            row_ix = np.arange(nrow)
+            for k in range(3):
+                var_out[c0:c1, k] = np.interp(row_ix, xs_r, np.concatenate(([prev_end[k]],
+                                                                           out[:, k])))
+            prev_end = out[-1].copy()
+
+    # ------------------------------------------------------------------ report
+    def bias_report(self) -> GyroBiasReport:
+        cfg = self.cfg
+        if cfg.gyro_bias is GyroBiasMode.PARAMETER:
+            return GyroBiasReport("parameter", np.asarray(cfg.gyro_bias_rad_s, float), 0, 0,
+                                  np.full(3, np.nan), False, "fixed parameter")
+        if cfg.gyro_bias is GyroBiasMode.NONE or not self.rests:
+            note = "no rest found: bias 0" if cfg.gyro_bias is GyroBiasMode.AUTO else "not estimated"
+            return GyroBiasReport(cfg.gyro_bias.value, np.zeros(3), 0, 0, np.full(3, np.nan), False,
+                                  note)
+        n = np.array([r.stop - r.start for r in self.rests], dtype=np.float64)
+        b = np.average([r.bias for r in self.rests], axis=0, weights=n)
+        se = np.sqrt(np.average([r.standard_error ** 2 for r in self.rests], axis=0,
+                                weights=n * n) / len(self.rests))
+        earth = self.latitude is not None and self.a is not None
+        return GyroBiasReport("auto", b, len(self.rests), int(n.sum()), se, earth,
+                              f"offline: one estimate per rest ({len(self.rests)}), interpolated "
+                              "in time between rests, the value shown is their mean; "
+                              + ("vertical Earth rate removed at each rest" if earth else
+                                 "Earth rate absorbed into the bias (latitude unknown)"))
