@@ -80,6 +80,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "scaled by F (default: the scene's own)")
     parser.add_argument("--algorithm", default=None, choices=sorted(ALGORITHMS),
                         help="attitude update algorithm (default: replay's choice)")
+    parser.add_argument("--estimator", default="causal", choices=("causal", "offline"),
+                        help="causal (default): as the live node estimates; offline: as replay "
+                        "does by default, over the whole recording")
     # replay's estimator flags from the one settings table, but those the scene decides
     # (frame, position, velocity); the initial attitude defaults to the truth
     add_estimator_flags(parser, [s for s in SETTINGS if s.name not in mc.SCENE_SETTINGS])
@@ -97,7 +100,8 @@ def _estimator(args) -> mc.Estimator:
     overrides = {}
     if "initial_attitude_source" not in given_settings(args):
         overrides["initial_attitude_source"] = InitialAttitudeSource.TRUTH
-    return mc.Estimator(algorithm=args.algorithm, config=config_from_args(args, **overrides))
+    return mc.Estimator(algorithm=args.algorithm, config=config_from_args(args, **overrides),
+                        kind=args.estimator)
 
 
 def _setup(args) -> mc.MonteCarloSetup:

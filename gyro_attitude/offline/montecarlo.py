@@ -6,7 +6,8 @@ memory, no MCAP) with its own seed: the integer drawn from child ``i`` of
 ``numpy.random.SeedSequence(seed).spawn(runs)``, so run ``i`` is the same whatever the number of
 workers, their order or the machine they run on, and ``gyro-attitude simulate SCENE --seed
 <that seed>`` writes the very measurements it used.  Every grade uses the same seeds (common
-random numbers: grades are compared on the same draws).  The samples go through :func:`_estimate`,
+random numbers: grades are compared on the same draws).  The samples go through
+:func:`gyro_attitude.offline.replay.estimate_recording`,
 the one call into the estimator, with what a replay of that recording reads: the Imu stamps,
 rates, the accelerometer when the scene has one, the per-sample gyro covariance the simulator
 publishes, the initial attitude from the truth (or levelled), and the local ENU frame (latitude,
@@ -40,17 +41,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, DEFAULT_OFFLINE_ALGORITHM, NavFrame
-from gyro_attitude.core.attitude import validation as iv
-from gyro_attitude.core.attitude.modes import Aiding, Frame, GyroBiasMode, InitialAttitudeSource
+from gyro_attitude.core.attitude import NavFrame
+from gyro_attitude.core.attitude.modes import Aiding, Frame, GyroBiasMode, InitialAttitudeSource, parse_mode
+from gyro_attitude.core.attitude.modes import Estimator as EstimatorKind
 from gyro_attitude.core.attitude.stream import (
-    AttitudeStream,
-    PerSamplePathNeeded,
     StreamConfig,
-    StreamResult,
-    nav_rows,
 )
-from gyro_attitude.core.attitude.truth import initial_attitude_from_truth
 from gyro_attitude.core.rotation import (
     quat_as_rotvec,
     quat_conjugate,
@@ -61,6 +57,7 @@ from gyro_attitude.core.scene import MAX_RATE_HZ, SceneSimulator, SceneSpec
 from gyro_attitude.core.sensor_errors import SensorErrorParams
 from gyro_attitude.core.sim_topics import DEFAULT_FRAME_ID
 from gyro_attitude.offline.parallel import CONNECT_TIMEOUT_S, run_tasks
+from gyro_attitude.offline.replay import estimate_recording
 
 __all__ = [
     "PERCENTILES",
@@ -161,10 +158,13 @@ class Estimator:
 
     algorithm: str | None = None
     config: StreamConfig = field(default_factory=_mc_default_config)
+    # replay's --estimator; causal by default: a budget is about what the live node delivers
+    kind: EstimatorKind = EstimatorKind.CAUSAL
 
     def __post_init__(self):
         if not isinstance(self.config, StreamConfig):
             raise ValueError("config must be a StreamConfig")
+        object.__setattr__(self, "kind", parse_mode(EstimatorKind, self.kind, "estimator"))
 
     def describe(self) -> dict:
         values = self.config.values()
@@ -260,33 +260,6 @@ def _scene_frame(spec: SceneSpec, block, config: StreamConfig):
                             height_m=llh[:, 2], velocity_enu=velocity)
 
 
-def _estimate(t_ns, omega, accel, gyro_covariance, truth_q, nav, algorithm: str | None,
-              config: StreamConfig) -> tuple[StreamResult, int]:
-    """The one call into the estimator, as :func:`gyro_attitude.offline.replay.replay_file`
-    makes it on the same samples: the truth start at the first sample the estimator accepts
-    (the samples before it left out), the offline default algorithm, or the causal default
-    when a sequential filter acts on the recording and no algorithm was named.  Returns the
-    result and the index of the first sample given to the estimator."""
-    first = 0
-    q0 = config.initial_attitude
-    if config.initial_attitude_source is InitialAttitudeSource.TRUTH:
-        usable = iv.usable_samples(t_ns, omega, config.max_rate_rad_s)
-        q0, first, _ = initial_attitude_from_truth(t_ns, t_ns, truth_q, usable=usable)
-    n = t_ns.shape[0]
-    if first:
-        nav = nav_rows(nav, np.arange(first, n), n)
-        t_ns, omega, gyro_covariance = t_ns[first:], omega[first:], gyro_covariance[first:]
-        accel = None if accel is None else accel[first:]
-    stream = AttitudeStream(algorithm or DEFAULT_OFFLINE_ALGORITHM, q0=q0, nav=nav, config=config)
-    try:
-        return stream.run(t_ns, omega, DEFAULT_FRAME_ID, gyro_covariance, accel), first
-    except PerSamplePathNeeded:
-        if algorithm is not None:
-            raise
-        stream = AttitudeStream(DEFAULT_ALGORITHM, q0=q0, nav=nav, config=config)
-        return stream.run(t_ns, omega, DEFAULT_FRAME_ID, gyro_covariance, accel), first
-
-
 def _errors(q_est: np.ndarray, q_true: np.ndarray):
     """(body error rotvec (M,3), nav error rotvec (M,3), heading (M,), tilt (M,)) [rad]."""
     body = quat_as_rotvec(quat_multiply(quat_conjugate(q_true), q_est))
@@ -333,8 +306,10 @@ def run_one(spec: SceneSpec, setup: MonteCarloSetup, index: int, seed: int, labe
     n = t_ns.shape[0]
     cov = np.broadcast_to(np.diag(np.asarray(gyro_var, np.float64)).reshape(9), (n, 9))
     config, nav = _scene_frame(spec, block, est.config)
-    res, first = _estimate(t_ns, block.omega_ib_b, block.specific_force_b, cov,
-                           block.truth_q_nb, nav, est.algorithm, config)
+    got = estimate_recording(t_ns, block.omega_ib_b, block.specific_force_b, cov,
+                             DEFAULT_FRAME_ID, config=config, nav=nav, algorithm=est.algorithm,
+                             estimator=est.kind, truth=(t_ns, block.truth_q_nb))
+    res, first = got.result, got.first
     m = res.index.size
     if m == 0:
         reasons = ", ".join(f"{k} {r}" for r, k in res.counts.items() if k)

@@ -34,6 +34,7 @@ from gyro_attitude.core.attitude.stream import (
     PerSamplePathNeeded,
     StreamConfig,
     bias_summary,
+    nav_rows,
 )
 from gyro_attitude.core.attitude.truth import initial_attitude_from_truth, truth_at_stamps
 from gyro_attitude.core.rotation import quat_angle_between
@@ -188,6 +189,62 @@ def _constant_rows(a: np.ndarray) -> np.ndarray:
     return a
 
 
+@dataclass
+class Estimate:
+    """What :func:`estimate_recording` gives: the estimator's result over the samples from
+    ``first`` on, the algorithm that ran, and the estimator's notes."""
+
+    result: object
+    first: int
+    algorithm: str
+    notes: list[str]
+
+
+def estimate_recording(t_ns, omega, accel, gyro_covariance, frame_id, *, config: StreamConfig,
+                       nav: NavFrame | None, algorithm: str | None,
+                       estimator: Estimator | str = Estimator.OFFLINE,
+                       truth: tuple[np.ndarray, np.ndarray] | None = None) -> Estimate:
+    """The one way a recording is estimated (replay, montecarlo, fleet replay): the truth
+    start at the first sample the estimator accepts (``initial_attitude_source`` truth: the
+    samples before it are left out), then the whole-recording estimator (``offline``) or the
+    node's chain (``causal``: the offline default algorithm where its array form runs, the
+    node's causal default where the chain runs per sample and no algorithm was named).
+    ``nav`` may hold time series over all N samples; ``truth`` is (stamps, quaternions)."""
+    estimator = parse_mode(Estimator, estimator, "estimator")
+    n = t_ns.shape[0]
+    first = 0
+    q0 = config.initial_attitude
+    if config.initial_attitude_source is InitialAttitudeSource.TRUTH:
+        if truth is None:
+            raise ValueError("initial attitude 'truth' needs the truth")
+        # at the first sample the estimator accepts (a zero stamp or a NaN rate before it is
+        # skipped, and the truth at its stamp would be the wrong start)
+        usable = iv.usable_samples(t_ns, omega, config.max_rate_rad_s)
+        q0, first, _ = initial_attitude_from_truth(t_ns, truth[0], truth[1], usable=usable)
+    if first:
+        nav = nav_rows(nav, np.arange(first, n), n)
+        t_ns, omega, gyro_covariance = t_ns[first:], omega[first:], gyro_covariance[first:]
+        accel = None if accel is None else accel[first:]
+    if estimator is Estimator.OFFLINE:
+        algorithm = algorithm or DEFAULT_OFFLINE_ALGORITHM
+        res = estimate_offline(t_ns, omega, accel, config=config, q0=q0, nav=nav,
+                               frame_id=frame_id, angular_velocity_covariance=gyro_covariance,
+                               algorithm=algorithm)
+        return Estimate(res, first, algorithm, list(res.notes))
+    stream = AttitudeStream(algorithm or DEFAULT_OFFLINE_ALGORITHM, q0=q0, nav=nav,
+                            config=config)
+    try:
+        res = stream.run(t_ns, omega, frame_id, gyro_covariance, accel)
+    except PerSamplePathNeeded:
+        if algorithm is not None:
+            raise
+        # the chain runs per sample on this recording (aiding): the offline algorithm cannot,
+        # the node's default can
+        stream = AttitudeStream(DEFAULT_ALGORITHM, q0=q0, nav=nav, config=config)
+        res = stream.run(t_ns, omega, frame_id, gyro_covariance, accel)
+    return Estimate(res, first, stream.algorithm, [])
+
+
 def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                 algorithm: str | None = None, frame: str | None = None,
                 nav: NavFrame | None = None, initial_attitude=None,
@@ -263,51 +320,25 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
             raise ValueError("--odometry-topic needs --frame enu (the transport rate of the "
                              "nav frame)")
         odo = read_odometry_velocities(input_path, odometry_topic)
-    # 'truth': the truth interpolated at the first Imu stamp it covers; integration starts
-    # there (the samples before it are counted as skipped_before_truth)
-    first = 0
-    q0 = config.initial_attitude
-    if config.initial_attitude_source is InitialAttitudeSource.TRUTH:
-        if truth is None or len(truth) == 0:
-            raise ValueError(f"initial attitude 'truth': no {truth_topic} messages in the input")
-        # at the first sample the estimator accepts (a zero stamp or a NaN rate before it is
-        # skipped, and the truth at its stamp would be the wrong start)
-        usable = iv.usable_samples(t_all, imu.angular_velocity, config.max_rate_rad_s)
-        q0, first, _ = initial_attitude_from_truth(t_all, truth.stamp_ns, truth.quaternion,
-                                                   usable=usable)
-    t, omega = t_all[first:], imu.angular_velocity[first:]
     if odometry_topic:
         nav = dataclasses.replace(nav, velocity_enu=velocity_series(
-            t, odo.stamp_ns, odo.velocity, np.broadcast_to(nav.velocity_enu, (3,))))
-    cov = imu.angular_velocity_covariance[first:]
+            t_all, odo.stamp_ns, odo.velocity, np.broadcast_to(nav.velocity_enu, (3,))))
+    if config.initial_attitude_source is InitialAttitudeSource.TRUTH and (
+            truth is None or len(truth) == 0):
+        raise ValueError(f"initial attitude 'truth': no {truth_topic} messages in the input")
     # the accelerometer feeds rest detection, levelling and aiding, when the Imu has one
-    # (element 0 of its covariance is -1 when it has none, REP-145)
-    # (every message must carry one: one that says it has none makes the accelerometer
-    # unknown for the recording)
+    # (every message must carry one, REP-145: one that says it has none makes the
+    # accelerometer unknown for the recording)
     has_accel = bool(len(imu)) and not iv.no_estimate(imu.linear_acceleration_covariance).any()
-    accel = imu.linear_acceleration[first:] if has_accel else None
     # One frame per decoded message is not kept by the array reader: the first frame stands
     # for all (the node would also reject samples whose frame_id changes: see frame_ids).
-    notes: list[str] = []
-    if estimator is Estimator.OFFLINE:
-        algorithm = algorithm or DEFAULT_OFFLINE_ALGORITHM
-        res = estimate_offline(t, omega, accel, config=config, q0=q0, nav=nav,
-                               frame_id=imu.frame_id, angular_velocity_covariance=cov,
-                               algorithm=algorithm)
-        notes = list(res.notes)
-    else:
-        stream = AttitudeStream(algorithm or DEFAULT_OFFLINE_ALGORITHM, q0=q0, nav=nav,
-                                config=config)
-        try:
-            res = stream.run(t, omega, imu.frame_id, cov, accel)
-        except PerSamplePathNeeded:
-            if algorithm is not None:
-                raise
-            # a sequential filter acts on this recording (levelling, aiding, auto bias with a
-            # rest): the offline algorithm cannot run sample by sample, the node's default can
-            stream = AttitudeStream(DEFAULT_ALGORITHM, q0=q0, nav=nav, config=config)
-            res = stream.run(t, omega, imu.frame_id, cov, accel)
-        algorithm = stream.algorithm
+    est = estimate_recording(
+        t_all, imu.angular_velocity, imu.linear_acceleration if has_accel else None,
+        imu.angular_velocity_covariance, imu.frame_id, config=config, nav=nav,
+        algorithm=algorithm, estimator=estimator,
+        truth=None if truth is None else (truth.stamp_ns, truth.quaternion))
+    res, first, algorithm, notes = est.result, est.first, est.algorithm, est.notes
+    t = t_all[first:]
     if res.index.size == 0:
         reasons = ", ".join(f"{n} {r}" for r, n in res.counts.items() if n and r != iv.GAP)
         raise ValueError(f"{input_path}: no usable sample on {imu.topic}: all {len(t)} "

@@ -65,12 +65,15 @@ def test_table_json_and_plot(tmp_path, capsys):
     assert png.stat().st_size > 10_000
 
 
-def test_a_run_is_what_simulate_then_replay_give(tmp_path, capsys):
+@pytest.mark.parametrize("estimator", ["causal", "offline"])
+def test_a_run_is_what_simulate_then_replay_give(tmp_path, capsys, estimator):
     """Run 0 through the command equals ``simulate --seed <its seed>`` then ``replay`` of
-    that recording in the ENU frame of the scene (same library code, MCAP on the way)."""
+    that recording in the ENU frame of the scene (same library code, MCAP on the way), with
+    the same estimator (montecarlo's default, replay's ``--estimator causal``)."""
     out = tmp_path / "mc.json"
     assert cli_main(["montecarlo", "lab_bench", "--runs", "1", "--duration", "3",
-                     "--rate", "100", "--workers", "1", "--json", str(out)]) == 0
+                     "--rate", "100", "--workers", "1", "--estimator", estimator,
+                     "--json", str(out)]) == 0
     run = json.loads(out.read_text())["runs"][0]
     bag, rep = tmp_path / "r.mcap", tmp_path / "rep.mcap"
     assert cli_main(["simulate", "lab_bench", "--duration", "3", "--rate", "100", "--seed",
@@ -78,7 +81,7 @@ def test_a_run_is_what_simulate_then_replay_give(tmp_path, capsys):
     capsys.readouterr()
     assert cli_main(["replay", str(bag), "--out", str(rep), "--initial-attitude", "truth",
                      "--frame", "enu", "--latitude-deg", "45", "--longitude-deg", "7",
-                     "--height-m", "250", "--json"]) == 0
+                     "--height-m", "250", "--estimator", estimator, "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["attitude_messages"] == run["attitudes"]
     assert math.isclose(summary["final_error_rad"], run["final_error_angle_rad"], rel_tol=1e-9)
