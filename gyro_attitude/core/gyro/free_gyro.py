@@ -113,6 +113,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from enum import StrEnum
 
 import numpy as np
 
@@ -126,6 +127,33 @@ __all__ = [
     "free_gyro_angles_from_spin_axis",
     "spin_axis_from_free_gyro_angles",
 ]
+
+
+class FreeGyroModel(StrEnum):
+    """Equations of the free gyro (module docstring): ``precession`` (state α, β; the
+    rates solve the algebraic precession equations) or ``full`` (state α, β, α̇, β̇;
+    Newton-Euler with gimbal inertia and nutation)."""
+
+    PRECESSION = "precession"
+    FULL = "full"
+
+
+class FreeGyroIntegrator(StrEnum):
+    """Stepper of the full model: ``midpoint`` (implicit, one stage at the step's middle)
+    or ``rk4`` (explicit, stages at start, middle and end). The precession model always
+    steps RK4."""
+
+    MIDPOINT = "midpoint"
+    RK4 = "rk4"
+
+
+def _parse_enum(cls, value, name):
+    try:
+        return cls(value)
+    except ValueError:
+        allowed = " or ".join(repr(m.value) for m in cls)
+        raise ValueError(f"{name} must be {allowed}, got {value!r}") from None
+
 
 
 @dataclass(frozen=True)
@@ -196,10 +224,10 @@ class FreeGyroParams:
         s = check_finite(self.spin_rate, "spin_rate")
         if s == 0.0:
             raise ValueError("spin_rate must be non-zero (a free gyro needs angular momentum)")
-        if self.model not in ("precession", "full"):
-            raise ValueError(f"model must be 'precession' or 'full', got {self.model!r}")
-        if self.integrator not in ("midpoint", "rk4"):
-            raise ValueError(f"integrator must be 'midpoint' or 'rk4', got {self.integrator!r}")
+        # parsed once here: the simulator chooses its equations and stepper from the enums
+        object.__setattr__(self, "model", _parse_enum(FreeGyroModel, self.model, "model"))
+        object.__setattr__(self, "integrator",
+                           _parse_enum(FreeGyroIntegrator, self.integrator, "integrator"))
         object.__setattr__(self, "inner_gimbal_inertia",
                            triple(self.inner_gimbal_inertia, "inner_gimbal_inertia"))
         object.__setattr__(self, "outer_gimbal_inertia",
@@ -228,7 +256,7 @@ class FreeGyroParams:
             lo, hi = pair(stops, name)
             if not lo < hi:
                 raise ValueError(f"{name} must be (low, high) with low < high, got {stops!r}")
-            if self.model != "full":
+            if self.model is not FreeGyroModel.FULL:
                 raise ValueError(f"{name} need model='full' (an impact needs gimbal inertia)")
             if not lo < self.initial_angles[axis] < hi:
                 raise ValueError(f"{name}: the initial angle {self.initial_angles[axis]!r} must "
@@ -243,7 +271,7 @@ class FreeGyroParams:
             raise ValueError("impacts must be ImpactTorque instances")
         object.__setattr__(self, "impacts", imp)
         if (abs(math.cos(self.initial_angles[1])) < 1e-6
-                and (self.model == "precession" or self.initial_rates is None)):
+                and (self.model is FreeGyroModel.PRECESSION or self.initial_rates is None)):
             raise ValueError("initial inner gimbal angle is at ±90° (gimbal lock): the "
                              "precession rates divide by cos β; start the full model there "
                              "with initial_rates")
@@ -337,9 +365,18 @@ class FreeGyroSimulator:
         self._pulse_clock: float | None = None
         self.steps = 0  # sub-steps taken so far (cost figure for benchmarks)
         self.rhs_evaluations = 0
+        # Model and stepper chosen once: the state carries the gimbal rates only in the
+        # full model (which alone needs the base angular acceleration); the implicit
+        # midpoint takes its base inputs at the step's middle, RK4 at start, middle, end.
+        self._full = p.model is FreeGyroModel.FULL
+        self._rhs = self._full_rhs if self._full else self._prec_rhs
+        midpoint = self._full and p.integrator is FreeGyroIntegrator.MIDPOINT
+        self._raw_step = self._step_midpoint if midpoint else self._step_rk4
+        self._stages = 1 if midpoint else 3
+        self._resolve_nutation = self._full and p.integrator is FreeGyroIntegrator.RK4
         al, be = p.initial_angles
         w0 = self._base_rates(np.array([self.t]))[0]
-        if p.model == "precession":
+        if not self._full:
             self._y = np.array([al, be])
         else:
             if p.initial_rates is None:
@@ -609,7 +646,7 @@ class FreeGyroSimulator:
     def _step_rk4(self, t, hstep, y0, w3, wd3):
         """Classical RK4; w3/wd3 hold base rates/accelerations at t, t+h/2, t+h
         (wd3 entries are None for the precession model, which does not use them)."""
-        f = self._full_rhs if self.params.model == "full" else self._prec_rhs
+        f = self._rhs
         self._pulse_clock = t + 0.5 * hstep
         k1 = np.array(f(t, y0, w3[0], wd3[0]))
         k2 = np.array(f(t + 0.5 * hstep, y0 + 0.5 * hstep * k1, w3[1], wd3[1]))
@@ -629,7 +666,7 @@ class FreeGyroSimulator:
         hmax = p.max_step
         for hm in p.harmonic_torques:
             hmax = min(hmax, 1.0 / (16.0 * hm.frequency_hz))
-        if p.model == "full" and p.integrator == "rk4":
+        if self._resolve_nutation:
             beta = float(self._y[1])
             hmax = min(hmax, 2 * math.pi / (p.nutation_frequency_rad_s(beta) * p.steps_per_nutation))
         return hmax
@@ -654,7 +691,6 @@ class FreeGyroSimulator:
         ends = np.cumsum(n)  # grid index (1-based step count) at which each edge is reached
         total = int(ends[-1])
         mark_step = ends[np.searchsorted(b, t_marks)] - 1  # step after which each mark is hit
-        model, integ = self.params.model, self.params.integrator
         y = self._y
         # chunk the grid so memory stays bounded on long runs
         for c0 in range(0, total, 20000):
@@ -670,28 +706,14 @@ class FreeGyroSimulator:
             for i, s in enumerate(mark_step):
                 if c0 <= s < c1:
                     rec_all.setdefault(int(s) - c0, []).append(i)
-            if model == "full" and integ == "midpoint":
-                wc = self._base_rates(tm).tolist()
-                wcd = self._base_accel(tm).tolist()
-                f = self._forces(tm)
-                for i in range(hs.shape[0]):
-                    self._force_step = f[i]
-                    y = self._step(float(left[i]), float(hs[i]), y, wc[i], wcd[i])
-                    self._check_lock(y, right[i])
-                    for m_i in rec_all.get(i, ()):
-                        out[m_i] = y
-            else:
-                tt = np.stack((left, tm, right), axis=1).reshape(-1)
-                w = self._base_rates(tt).reshape(-1, 3, 3).tolist()
-                wd = (self._base_accel(tt).reshape(-1, 3, 3).tolist() if model == "full"
-                      else [[None, None, None]] * hs.shape[0])
-                f = self._forces(tm)
-                for i in range(hs.shape[0]):
-                    self._force_step = f[i]
-                    y = self._step(float(left[i]), float(hs[i]), y, w[i], wd[i])
-                    self._check_lock(y, right[i])
-                    for m_i in rec_all.get(i, ()):
-                        out[m_i] = y
+            w, wd = self._inputs(left, tm, right)
+            f = self._forces(tm)
+            for i in range(hs.shape[0]):
+                self._force_step = f[i]
+                y = self._step(float(left[i]), float(hs[i]), y, w[i], wd[i])
+                self._check_lock(y, right[i])
+                for m_i in rec_all.get(i, ()):
+                    out[m_i] = y
             self._force_step = None
             self._y = y
             self.steps += hs.shape[0]
@@ -707,19 +729,24 @@ class FreeGyroSimulator:
             raise ValueError(f"specific_force_fn must return finite ({tm.shape[0]}, 3) values")
         return [tuple(r) for r in f.tolist()]
 
-    def _raw_step(self, t, h, y, w, wd):
-        if self.params.model == "full" and self.params.integrator == "midpoint":
-            return self._step_midpoint(t, h, y, w, wd)
-        return self._step_rk4(t, h, y, w, wd)
+    def _inputs(self, left: np.ndarray, tm: np.ndarray, right: np.ndarray):
+        """Base rates and accelerations of the stepper's stages for steps [left, right]:
+        per step a 3-list (midpoint: at tm) or three of them (RK4: left, tm, right);
+        accelerations are None where the model does not use them (precession)."""
+        m = tm.shape[0]
+        if self._stages == 1:
+            w = self._base_rates(tm).tolist()
+            return w, (self._base_accel(tm).tolist() if self._full else [None] * m)
+        tt = np.stack((left, tm, right), axis=1).reshape(-1)
+        w = self._base_rates(tt).reshape(-1, 3, 3).tolist()
+        wd = (self._base_accel(tt).reshape(-1, 3, 3).tolist() if self._full
+              else [[None, None, None]] * m)
+        return w, wd
 
     def _stage_inputs(self, t: float, h: float):
         """Base rates/accelerations of a step of length h from t (for a re-taken sub-step)."""
-        if self.params.model == "full" and self.params.integrator == "midpoint":
-            tm = np.array([t + 0.5 * h])
-            return self._base_rates(tm)[0].tolist(), self._base_accel(tm)[0].tolist()
-        tt = np.array([t, t + 0.5 * h, t + h])
-        wd = (self._base_accel(tt).tolist() if self.params.model == "full" else [None] * 3)
-        return self._base_rates(tt).tolist(), wd
+        w, wd = self._inputs(np.array([t]), np.array([t + 0.5 * h]), np.array([t + h]))
+        return w[0], wd[0]
 
     def _step(self, t, h, y, w, wd):
         """One step from t to t + h, with impacts on the gimbal stops located inside it."""
@@ -786,9 +813,9 @@ class FreeGyroSimulator:
 
     def _update_held(self, t, y, w, wd) -> None:
         """Rest a joint on its stop (zero rate, pushed into it) or lift it off, at step start."""
-        if self.params.model != "full":
+        if not self._full:
             return
-        wc, wcd = (w, wd) if self.params.integrator == "midpoint" else (w[0], wd[0])
+        wc, wcd = (w, wd) if self._stages == 1 else (w[0], wd[0])
         for axis, stops in enumerate(self._stops):
             if stops is None:
                 continue
@@ -811,7 +838,7 @@ class FreeGyroSimulator:
         # precession model's β lives in (−90°, 90°); without I_oz and I_gx neither can the
         # full model's, M_11 → 0 there).
         if abs(y[1]) > 0.5 * math.pi - 1e-6:
-            if self.params.model == "precession":
+            if not self._full:
                 raise ValueError(
                     f"inner gimbal reached ±90° at t = {float(t):.6g} s (gimbal lock): the "
                     "precession model divides by cos β and has no solution there; use model "
@@ -824,7 +851,7 @@ class FreeGyroSimulator:
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         """Current (angles (2,), relative gimbal rates (2,))."""
-        if self.params.model == "full":
+        if self._full:
             return self._y[:2].copy(), self._y[2:].copy()
         w = self._base_rates(np.array([self.t]))[0]
         return self._y.copy(), np.array(self._precession_rates(self.t, *self._y, *w))
@@ -852,7 +879,7 @@ class FreeGyroSimulator:
             uniq, inverse = np.unique(later, return_inverse=True)
             states[~now] = self._advance(uniq)[inverse]
         angles = states[:, :2].copy()
-        if self.params.model == "full":
+        if self._full:
             rates = states[:, 2:].copy()
         else:
             w = self._base_rates(t_out).tolist()
@@ -875,7 +902,7 @@ class FreeGyroSimulator:
         The case holds the outer axis (its bearings take torques about x_c and y_c), so on a
         base at rest with no outer-axis torque the z component (about the outer axis) is the
         conserved one, and it changes by the outer-axis torque's impulse otherwise."""
-        if self.params.model != "full":
+        if not self._full:
             raise ValueError("angular_momentum needs model='full'")
         wo, wg, (ca, sa, cb, sb) = self._body_rates()
         ig = self._ig
@@ -886,7 +913,7 @@ class FreeGyroSimulator:
 
     def kinetic_energy(self) -> float:
         """Kinetic energy of rotor + gimbals (full model) at the current state, in J."""
-        if self.params.model != "full":
+        if not self._full:
             raise ValueError("kinetic_energy needs model='full'")
         al, be, ad, bd = self._y
         wc = self._base_rates(np.array([self.t]))[0]
