@@ -34,6 +34,7 @@ from gyro_attitude.core.attitude import NavFrame, integrate_batch
 from gyro_attitude.core.attitude.rest import detect_rest, rest_segments
 from gyro_attitude.core.attitude.stream import AttitudeStream, StreamConfig
 from gyro_attitude.core.attitude.truth import initial_attitude_from_truth
+from gyro_attitude.core.earth import STANDARD_GRAVITY
 from gyro_attitude.core.rotation import quat_angle_between, quat_as_matrix, quat_multiply
 from gyro_attitude.io.imu_fast import read_imu_arrays, read_quaternion_stamped_arrays
 
@@ -180,7 +181,7 @@ def evaluate(name: str, directory=None, modes=MODES, peers=True,
             ahrs.set_sample_period(dt)
             qf = np.empty((t.size, 4))
             gd = np.degrees(g)
-            ag = a / 9.81
+            ag = a / STANDARD_GRAVITY
             for k in range(t.size):
                 ahrs.update_no_magnetometer(gd[k], ag[k])
                 w, x, y, z = ahrs.get_quaternion()  # scalar first

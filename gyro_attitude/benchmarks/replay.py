@@ -42,6 +42,7 @@ import numpy as np
 from mcap.reader import NonSeekingReader
 
 import gyro_attitude
+from gyro_attitude.core.earth import STANDARD_GRAVITY
 from gyro_attitude.io.cdr_arrays import imu_batch, quaternion_stamped_batch
 from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
 from gyro_attitude.offline.replay import replay_file
@@ -79,7 +80,7 @@ def write_input(path: pathlib.Path, seconds: int) -> dict:
             hi = min(n, lo + block)
             ts = (t_ns[lo:hi] - t_ns[0]) * 1e-9
             omega, q = coning_closed_form(ts)
-            accel = np.broadcast_to([0.0, 0.0, 9.80665], (hi - lo, 3))
+            accel = np.broadcast_to([0.0, 0.0, STANDARD_GRAVITY], (hi - lo, 3))
             k = np.arange(lo, hi)
             sel = k % TRUTH_EVERY == 0
             w.write_batches([

@@ -14,9 +14,15 @@ from pathlib import Path
 
 import numpy as np
 
-from gyro_attitude.core.attitude import ALGORITHMS, DEFAULT_OFFLINE_ALGORITHM, NavFrame
+from gyro_attitude.commands.estimator_flags import (
+    add_estimator_flags,
+    config_from_args,
+    given_settings,
+)
+from gyro_attitude.core.attitude import ALGORITHMS, DEFAULT_OFFLINE_ALGORITHM
 from gyro_attitude.core.attitude import validation as iv
-from gyro_attitude.core.attitude.stream import StreamConfig
+from gyro_attitude.core.attitude.modes import Frame
+from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.io.mcap_writer import COMPRESSIONS, DEFAULT_COMPRESSION
 from gyro_attitude.io.safe_output import check_output_path
 from gyro_attitude.offline.replay import (
@@ -29,34 +35,6 @@ from gyro_attitude.offline.replay import (
 __all__ = ["configure", "run", "replay_file"]
 
 _PROGRESS_MIN_BYTES = 50 * 1024 * 1024  # show a progress bar from this file size on
-
-
-def _floats(text: str, n: int, what: str) -> tuple[float, ...]:
-    try:
-        vals = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{what} must be {n} comma-separated numbers, "
-                                         f"got {text!r}") from None
-    if len(vals) != n or not all(np.isfinite(vals)):
-        raise argparse.ArgumentTypeError(f"{what} must be {n} finite comma-separated numbers, "
-                                         f"got {text!r}")
-    return vals
-
-
-def _finite(text: str) -> float:
-    return _floats(text, 1, "value")[0]
-
-
-def _initial_attitude(text: str):
-    if text.strip().lower() in ("truth", "level"):
-        return text.strip().lower()
-    return _floats(text, 4, "--initial-attitude")
-
-
-def _gyro_bias(text: str):
-    if text.strip().lower() in ("auto", "none"):
-        return text.strip().lower()
-    return _floats(text, 3, "--gyro-bias")
 
 
 def _one_line_error(parser: argparse.ArgumentParser):
@@ -81,47 +59,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "which uses samples after each interval; the node's causal default "
                         "rotvec_cubic when a per-sample filter acts on the recording: "
                         "levelling, aiding, or auto gyro bias with a rest)")
-    # The attitude-stream policy of the attitude_integrator node, same names and defaults.
-    parser.add_argument("--max-gap-s", type=_positive_up_to(1e6), default=0.1,
-                        help="a forward stamp step longer than this is a gap: not integrated "
-                        "across, attitude held (default 0.1)")
-    parser.add_argument("--time-jump-threshold-s", type=_positive_up_to(1e6), default=1.0,
-                        help="a backward stamp jump longer than this resets the attitude "
-                        "(default 1.0); shorter backward steps are skipped as out of order")
-    parser.add_argument("--max-rate-rad-s", type=_positive_up_to(iv.MAX_RATE_LIMIT_RAD_S),
-                        default=iv.DEFAULT_MAX_RATE_RAD_S,
-                        help="a sample with a larger rate on any axis is skipped as implausible "
-                        f"(default {iv.DEFAULT_MAX_RATE_RAD_S:g})")
-    parser.add_argument("--frame", choices=("inertial", "enu"), default="inertial",
-                        help="inertial: q_ib; enu: q_nb with Earth and transport rate removed")
-    parser.add_argument("--latitude-deg", type=_finite, default=None, help="(enu) latitude")
-    parser.add_argument("--longitude-deg", type=_finite, default=0.0, help="(enu) longitude")
-    parser.add_argument("--height-m", type=_finite, default=0.0, help="(enu) height, WGS-84")
-    parser.add_argument("--velocity-enu", type=lambda s: _floats(s, 3, "--velocity-enu"),
-                        default=(0.0, 0.0, 0.0), metavar="E,N,U", help="(enu) velocity m/s")
-    parser.add_argument("--initial-attitude", type=_initial_attitude,
-                        default=(0.0, 0.0, 0.0, 1.0), metavar="X,Y,Z,W|truth|level",
-                        help="attitude at the first Imu stamp (default identity); 'truth': the "
-                        "truth topic interpolated at the first Imu stamp it covers; 'level': "
-                        "roll and pitch from the accelerometer over the initial rest, heading "
-                        "from --initial-heading-deg or --heading-source gyrocompass")
-    parser.add_argument("--initial-heading-deg", type=_finite, default=0.0,
-                        help="(level) heading, clockwise from north (default 0)")
-    parser.add_argument("--heading-source", choices=("parameter", "gyrocompass"),
-                        default="parameter",
-                        help="(level) heading from --initial-heading-deg, or found by "
-                        "gyrocompassing (needs --frame enu or --latitude-deg, a fixed "
-                        "--gyro-bias and --gyro-bias-sigma; refused when the gyro cannot find "
-                        "north)")
-    parser.add_argument("--gyro-bias", type=_gyro_bias, default="auto", metavar="auto|none|X,Y,Z",
-                        help="auto (default): estimated at every rest and subtracted; none; or "
-                        "a fixed bias in rad/s")
-    parser.add_argument("--gyro-bias-sigma", type=_finite, default=0.0,
-                        help="1-sigma of a fixed or unestimated gyro bias [rad/s] (covariance, "
-                        "gyrocompassing)")
-    parser.add_argument("--aiding", choices=("none", "gravity"), default="none",
-                        help="gravity: tilt corrected toward the accelerometer's vertical (heading "
-                        "stays gyro-only and drifts without a magnetometer)")
+    add_estimator_flags(parser)  # the attitude_integrator node's settings, same names
     parser.add_argument("--truth-topic", default=TRUTH_TOPIC,
                         help=f"QuaternionStamped truth to compare with (default {TRUTH_TOPIC})")
     parser.add_argument("--compression", choices=COMPRESSIONS, default=DEFAULT_COMPRESSION,
@@ -130,16 +68,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
     parser.add_argument("--plot", metavar="PNG", default=None, help="write an error plot")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-
-
-def _nav(args) -> NavFrame | None:
-    if args.frame != "enu":
-        return None
-    if args.latitude_deg is None:
-        raise ValueError("--frame enu needs --latitude-deg")
-    return NavFrame(latitude_rad=np.radians(args.latitude_deg),
-                    longitude_rad=np.radians(args.longitude_deg), height_m=args.height_m,
-                    velocity_enu=np.asarray(args.velocity_enu))
 
 
 def _progress_bar(args):
@@ -167,34 +95,15 @@ _EVENT_WORDS = {
 }
 
 
-def _positive_up_to(limit: float):
-    def parse(text: str) -> float:
-        value = _finite(text)
-        if not 0 < value <= limit:
-            raise argparse.ArgumentTypeError(f"must be > 0 and <= {limit:g}, got {text!r}")
-        return value
-    return parse
-
-
 def _stream_config(args) -> StreamConfig:
-    bias = args.gyro_bias
-    fixed = isinstance(bias, tuple)
-    return StreamConfig(max_gap_ns=int(round(args.max_gap_s * 1e9)),
-                        time_jump_ns=int(round(args.time_jump_threshold_s * 1e9)),
-                        max_rate_rad_s=float(args.max_rate_rad_s),
-                        gyro_bias="parameter" if fixed else bias,
-                        gyro_bias_rad_s=bias if fixed else (0.0, 0.0, 0.0),
-                        gyro_bias_sigma_rad_s=float(args.gyro_bias_sigma),
-                        initial_heading_deg=float(args.initial_heading_deg),
-                        heading_source=args.heading_source,
-                        latitude_rad=(None if args.latitude_deg is None
-                                      else float(np.radians(args.latitude_deg))),
-                        aiding=args.aiding)
+    given = given_settings(args)
+    if given.get("frame") is Frame.ENU and "latitude_rad" not in given:
+        raise ValueError("--frame enu needs --latitude-deg (or --latitude-rad)")
+    return config_from_args(args)
 
 
 def run(args) -> int:
     try:
-        nav = _nav(args)
         config = _stream_config(args)
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
@@ -209,7 +118,6 @@ def run(args) -> int:
         bar, update = _progress_bar(args)
         result = replay_file(
             args.input, args.out, imu_topic=args.imu_topic, algorithm=args.algorithm,
-            frame=args.frame, nav=nav, initial_attitude=args.initial_attitude,
             truth_topic=args.truth_topic, compression=args.compression, force=args.force,
             progress=update, config=config)
         if bar is not None:

@@ -10,6 +10,7 @@ import numpy as np
 
 __all__ = [
     "OMEGA_IE",
+    "STANDARD_GRAVITY",
     "WGS84_A",
     "WGS84_F",
     "WGS84_E2",
@@ -23,6 +24,8 @@ __all__ = [
 ]
 
 OMEGA_IE = 7.292115e-5  # Earth rotation rate, rad/s (WGS-84)
+#: Standard gravity g0 (CGPM 1901), m/s²: the unit "g" and the default |f| of an IMU at rest.
+STANDARD_GRAVITY = 9.80665
 WGS84_A = 6378137.0  # semi-major axis, m
 WGS84_F = 1.0 / 298.257223563  # flattening
 WGS84_E2 = WGS84_F * (2.0 - WGS84_F)  # first eccentricity squared

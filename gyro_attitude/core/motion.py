@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gyro_attitude.core.earth import STANDARD_GRAVITY
 from gyro_attitude.core.rotation import _exp_rotvec, _qmul, quat_rotate
 
 __all__ = [
@@ -41,7 +42,6 @@ __all__ = [
     "body_rate_from_ypr_rates",
 ]
 
-STANDARD_GRAVITY = 9.80665  # m/s², used only to choose the bank of a coordinated turn
 
 
 @dataclass(frozen=True)

@@ -21,6 +21,8 @@ import math
 import re
 from fractions import Fraction
 
+from gyro_attitude.core.earth import STANDARD_GRAVITY
+
 __all__ = ["DIMENSIONS", "to_si", "format_si"]
 
 # Dimension = (angle, length, time) exponents.
@@ -32,7 +34,7 @@ def _unit(names, factor, angle=0, length=0, time=0):
         _UNITS[n] = (factor, (Fraction(angle), Fraction(length), Fraction(time)))
 
 
-_G0 = 9.80665
+_G0 = STANDARD_GRAVITY
 _unit(("rad",), 1.0, angle=1)
 _unit(("mrad",), 1e-3, angle=1)
 _unit(("urad", "µrad"), 1e-6, angle=1)

@@ -13,7 +13,6 @@ truth at coinciding stamps.  Samples are never re-sorted.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 import time
@@ -25,6 +24,7 @@ import numpy as np
 
 from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, DEFAULT_OFFLINE_ALGORITHM, NavFrame
 from gyro_attitude.core.attitude import validation as iv
+from gyro_attitude.core.attitude.modes import InitialAttitudeSource
 from gyro_attitude.core.attitude.stream import (
     AttitudeStream,
     PerSamplePathNeeded,
@@ -110,16 +110,25 @@ class ReplayResult:
         return {k: v for k, v in asdict(self).items() if k not in self._ARRAYS}
 
 
-def _check_inputs(frame: str, nav, algorithm: str, initial_attitude) -> None:
+def _with_overrides(config: StreamConfig, frame, initial_attitude) -> StreamConfig:
+    """``config`` with the keyword arguments ``frame`` / ``initial_attitude`` of
+    :func:`replay_file` applied (each a setting of the table; None: as in ``config``)."""
+    changes = {}
+    if frame is not None:
+        changes["frame"] = frame
+    if isinstance(initial_attitude, str):
+        changes["initial_attitude_source"] = initial_attitude
+    elif initial_attitude is not None:
+        changes.update(initial_attitude=initial_attitude,
+                       initial_attitude_source=InitialAttitudeSource.PARAMETER)
+    return config.replace(**changes) if changes else config
+
+
+def _check_inputs(frame: str, nav) -> None:
     if nav is not None and not isinstance(nav, NavFrame):
         raise ValueError(f"nav must be a NavFrame or None, got {type(nav).__name__}")
-    if frame not in ("inertial", "enu"):
-        raise ValueError(f"frame must be 'inertial' or 'enu', got {frame!r}")
     if (frame == "enu") != (nav is not None):
         raise ValueError("frame 'enu' needs a NavFrame (latitude); 'inertial' takes none")
-    if isinstance(initial_attitude, str) and initial_attitude not in ("truth", "level"):
-        raise ValueError(f"initial_attitude must be 4 numbers, 'truth' or 'level', got "
-                         f"{initial_attitude!r}")
 
 
 def _alignment_summary(a) -> dict:
@@ -140,21 +149,24 @@ def _constant_rows(a: np.ndarray) -> np.ndarray:
 
 
 def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
-                algorithm: str | None = None, frame: str = "inertial",
-                nav: NavFrame | None = None, initial_attitude=(0.0, 0.0, 0.0, 1.0),
+                algorithm: str | None = None, frame: str | None = None,
+                nav: NavFrame | None = None, initial_attitude=None,
                 truth_topic: str = TRUTH_TOPIC, compression: str = DEFAULT_COMPRESSION,
                 chunk_size: int = OUTPUT_CHUNK_SIZE, force: bool = False,
                 progress: Callable[[int, int], None] | None = None,
                 on_damage: str = "warn", config: StreamConfig | None = None) -> ReplayResult:
     """Integrate every Imu message of ``input_path`` and write ``output_path``.
 
-    ``nav`` is a :class:`gyro_attitude.core.attitude.NavFrame` when ``frame == "enu"``;
-    ``initial_attitude`` 4 numbers (x, y, z, w), ``"truth"`` (the truth interpolated at the
-    first Imu stamp it covers; earlier samples are skipped and counted) or ``"level"`` (roll and
-    pitch from the specific force over the initial rest, heading from ``config``).  ``algorithm``
+    ``config`` the estimator settings (:class:`StreamConfig`: frame, initial attitude, bias,
+    aiding, ...; default: the node's defaults).  ``frame``, ``initial_attitude`` (4 numbers,
+    ``"truth"`` or ``"level"``) and ``nav`` (a :class:`NavFrame`, e.g. a time series; default
+    the one of ``config``) override those settings when given.  ``initial_attitude_source``
+    ``truth``: the truth interpolated at the first Imu stamp it covers (earlier samples are
+    skipped and counted); ``level``: roll and pitch from the specific force over the initial
+    rest, heading from ``config``.  ``algorithm``
     None: the offline default, or the node's causal default when a sequential filter of
     ``config`` acts on the recording (levelling, aiding, auto bias with a rest).  ``config``
-    the attitude-stream settings (default: the node's defaults).  The output must not be the
+    The output must not be the
     input and must not exist unless ``force``; it appears only complete.
     ``progress(bytes_done, bytes_total)`` is called while reading.  Raises ValueError (bad
     arguments, unusable input, nothing to write) and OSError.
@@ -167,10 +179,14 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
             raise ValueError(f"{name} must be a topic name, got {value!r}")
     if config is not None and not isinstance(config, StreamConfig):
         raise ValueError(f"config must be a StreamConfig, got {type(config).__name__}")
+    config = _with_overrides(config or StreamConfig(), frame, initial_attitude)
+    frame = config.frame.value
+    if nav is None:
+        nav = config.nav_frame()
     if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or \
             not 1024 <= chunk_size <= 1 << 30:
         raise ValueError(f"chunk_size must be an int from 1 KiB to 1 GiB, got {chunk_size!r}")
-    _check_inputs(frame, nav, algorithm or DEFAULT_OFFLINE_ALGORITHM, initial_attitude)
+    _check_inputs(frame, nav)
     check_output_path(output_path, inputs=[input_path], force=force)
     t_start = time.perf_counter()
     arrays = read_topic_arrays(input_path, {imu_topic: IMU_TYPE,
@@ -194,15 +210,11 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     # 'truth': the truth interpolated at the first Imu stamp it covers; integration starts
     # there (the samples before it are counted as skipped_before_truth)
     first = 0
-    q0 = (0.0, 0.0, 0.0, 1.0)
-    if isinstance(initial_attitude, str) and initial_attitude == "level":
-        config = dataclasses.replace(config or StreamConfig(), initial_attitude="level")
-    if isinstance(initial_attitude, str) and initial_attitude == "truth":
+    q0 = config.initial_attitude
+    if config.initial_attitude_source is InitialAttitudeSource.TRUTH:
         if truth is None or len(truth) == 0:
             raise ValueError(f"initial attitude 'truth': no {truth_topic} messages in the input")
         q0, first, _ = initial_attitude_from_truth(t_all, truth.stamp_ns, truth.quaternion)
-    elif not isinstance(initial_attitude, str):
-        q0 = initial_attitude
     t, omega = t_all[first:], imu.angular_velocity[first:]
     cov = imu.angular_velocity_covariance[first:]
     # the accelerometer feeds rest detection, levelling and aiding, when the Imu has one

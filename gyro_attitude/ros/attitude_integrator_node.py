@@ -80,6 +80,8 @@ from std_msgs.msg import Header
 
 from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, NavFrame, causal_algorithms
 from gyro_attitude.core.attitude import validation as iv
+from gyro_attitude.core.attitude.modes import InitialAttitudeSource, SettingError
+from gyro_attitude.core.attitude.settings import SETTINGS, StreamConfig
 from gyro_attitude.core.attitude.stream import (
     ALIGNING,
     FAILED,
@@ -88,113 +90,40 @@ from gyro_attitude.core.attitude.stream import (
     INVALID_COVARIANCE,
     RUNNING,
     AttitudeStream,
-    StreamConfig,
 )
 from gyro_attitude.core.attitude.truth import truth_at
-from gyro_attitude.core.rotation import quat_normalize
 from gyro_attitude.ros import convert
 from gyro_attitude.ros.node_main import run_node
-from gyro_attitude.ros.params import ParameterError, ParamSpec, check_update, declare_all
+from gyro_attitude.ros.params import (
+    ParameterError,
+    ParamSpec,
+    check_update,
+    declare_all,
+    spec_from_setting,
+)
 from gyro_attitude.ros.qos import imu_qos
 
 NODE_NAME = "attitude_integrator"
 
 
-def parameter_specs() -> list[ParamSpec]:
+def parameter_specs(settings=SETTINGS) -> list[ParamSpec]:
+    """The node's parameters: the estimator settings (one table, core/attitude/settings.py)
+    and the node's own wiring (algorithm, topics, QoS, diagnostics)."""
     return [
         ParamSpec("algorithm", DEFAULT_ALGORITHM,
                   "attitude update algorithm (gyro-attitude bench lists them)",
                   choices=tuple(causal_algorithms()), runtime=True),
-        ParamSpec("frame", "inertial",
-                  "'inertial': integrate q_ib; 'enu': q_nb with Earth and transport rate removed",
-                  choices=("inertial", "enu")),
-        ParamSpec("latitude_rad", 0.0, "geodetic latitude for frame=enu and for gyrocompassing "
-                  "[rad] (with frame=enu the Earth rate is taken out of the gyro bias)",
-                  low=-1.5707963267948966, high=1.5707963267948966),
-        ParamSpec("longitude_rad", 0.0, "longitude for frame=enu [rad]",
-                  low=-3.141592653589793, high=3.141592653589793),
-        ParamSpec("height_m", 0.0, "height above the WGS-84 ellipsoid for frame=enu [m]",
-                  low=-1.0e4, high=1.0e6),
-        ParamSpec("velocity_enu", (0.0, 0.0, 0.0),
-                  "carrier velocity (east, north, up) for frame=enu [m/s]", length=3),
+        *(spec_from_setting(s) for s in settings),
         ParamSpec("odometry_topic", "",
                   "nav_msgs/Odometry topic giving the carrier velocity for the transport "
                   "rate (frame=enu; twist in child_frame_id, rotated to ENU with the pose "
                   "orientation); '' = off, velocity_enu is used"),
-        ParamSpec("initial_attitude_source", "parameter",
-                  "'parameter': initial_attitude; 'truth': truth/attitude interpolated (slerp) "
-                  "at the first Imu stamp it covers; 'level': roll and pitch from the specific "
-                  "force over the first rest, heading per heading_source (no attitude is "
-                  "published while aligning)", choices=("parameter", "truth", "level")),
-        ParamSpec("initial_attitude", (0.0, 0.0, 0.0, 1.0),
-                  "initial attitude quaternion (x, y, z, w), normalized on use", length=4),
-        ParamSpec("initial_attitude_variance", 0.0,
-                  "initial per-axis attitude variance [rad^2] (level: of the given heading)",
-                  low=0.0, high=10.0),
-        ParamSpec("initial_heading_deg", 0.0,
-                  "level: heading of the body x axis, clockwise from north [deg]",
-                  low=-360.0, high=360.0),
-        ParamSpec("heading_source", "parameter",
-                  "level: 'parameter' (initial_heading_deg) or 'gyrocompass' (needs "
-                  "gyro_bias=parameter with gyro_bias_sigma_rad_s and latitude_rad; refused "
-                  "when the expected heading error exceeds heading_error_limit_deg)",
-                  choices=("parameter", "gyrocompass")),
-        ParamSpec("heading_error_limit_deg", 5.0, "largest expected gyrocompass error [deg]",
-                  low=0.0, high=180.0),
-        ParamSpec("accel_bias_sigma", 0.05,
-                  "1-sigma accelerometer bias [m/s^2]: levelling error = this / g", low=0.0,
-                  high=10.0),
-        ParamSpec("gyro_bias", "auto",
-                  "'auto': estimated at every rest (zero-rate update) and held in motion; "
-                  "'none'; 'parameter': gyro_bias_rad_s", choices=("auto", "none", "parameter")),
-        ParamSpec("gyro_bias_rad_s", (0.0, 0.0, 0.0),
-                  "fixed gyro bias (x, y, z) subtracted with gyro_bias=parameter [rad/s]",
-                  length=3),
-        ParamSpec("gyro_bias_sigma_rad_s", 0.0,
-                  "1-sigma of the bias subtracted when not estimated (none: sensor spread; "
-                  "parameter: calibration; auto: before the first rest) [rad/s]",
-                  low=0.0, high=10.0),
-        ParamSpec("gyro_bias_rw", 0.0, "gyro bias random walk [rad/s/sqrt(s)] for the "
-                  "covariance", low=0.0, high=1.0),
-        ParamSpec("gyro_noise_density", 0.0,
-                  "gyro noise density [rad/s/sqrt(Hz)] for the covariance when the input's "
-                  "angular_velocity_covariance is unknown (0 = none)", low=0.0, high=1.0),
-        ParamSpec("min_rest_s", 1.0, "shortest rest used for bias and alignment [s]",
-                  low=0.01, high=3600.0),
-        ParamSpec("rest_window_s", 0.5, "rest detector window [s]", low=0.01, high=60.0),
-        ParamSpec("rest_gyro_std_max", 0.01,
-                  "rest: largest gyro deviation from the window mean, over 3 axes [rad/s]",
-                  low=1e-6, high=10.0),
-        ParamSpec("rest_gyro_mean_max", 0.1,
-                  "rest: largest window-mean rate, the largest plausible bias [rad/s]",
-                  low=1e-6, high=10.0),
-        ParamSpec("rest_accel_std_max", 0.25,
-                  "rest: largest specific-force deviation, over 3 axes [m/s^2]",
-                  low=1e-4, high=100.0),
-        ParamSpec("rest_accel_norm_tol", 0.5, "rest: largest | |f| - g | [m/s^2]",
-                  low=1e-4, high=100.0),
-        ParamSpec("aiding", "none",
-                  "'gravity': tilt pulled toward the accelerometer's vertical with gyro-bias "
-                  "feedback, gated in fast motion; heading stays gyro-only and drifts without "
-                  "a magnetometer", choices=("none", "gravity")),
-        ParamSpec("aiding_accel_lowpass_s", 1.0,
-                  "gravity aiding: time constant of the nav-frame low-pass of the specific "
-                  "force (averages out hand and vehicle accelerations; 0 = off) [s]",
-                  low=0.0, high=100.0),
         ParamSpec("world_frame_id", "",
                   "header.frame_id of the attitude output ('' = 'enu' or 'inertial' per frame)"),
         ParamSpec("qos_reliability", "best_effort",
                   "imu/data_raw subscription reliability", choices=("best_effort", "reliable")),
         ParamSpec("qos_depth", 1000, "imu/data_raw subscription queue depth", low=1,
                   high=100000),
-        ParamSpec("time_jump_threshold_s", 1.0,
-                  "a backward stamp jump longer than this resets the attitude [s]",
-                  low=1e-6, high=1e6, runtime=True),
-        ParamSpec("max_gap_s", 0.1, "a forward stamp step longer than this is a gap [s]",
-                  low=1e-6, high=1e6, runtime=True),
-        ParamSpec("max_rate_rad_s", iv.DEFAULT_MAX_RATE_RAD_S,
-                  "a sample with a larger rate on any axis is implausible and rejected [rad/s]",
-                  low=1e-3, high=iv.MAX_RATE_LIMIT_RAD_S, runtime=True),
         ParamSpec("drain_queue", True,
                   "take all queued Imu messages per executor wakeup (less overhead at high "
                   "rates); false: one message per wakeup (plain rclpy)"),
@@ -212,34 +141,22 @@ class AttitudeIntegratorNode(Node):
         self._specs = {s.name: s for s in specs}
         p = declare_all(self, specs)  # raises ParameterError naming a bad parameter
         self._p = p
-        q0 = np.asarray(p["initial_attitude"], dtype=float)
-        if not np.linalg.norm(q0) > 1e-9:
-            raise ParameterError("parameter 'initial_attitude' must be a nonzero quaternion")
-        q_init = quat_normalize(q0)
-        self._nav = None
-        if p["frame"] == "enu":
-            self._nav = NavFrame(
-                latitude_rad=p["latitude_rad"],
-                longitude_rad=p["longitude_rad"],
-                height_m=p["height_m"],
-                velocity_enu=np.asarray(p["velocity_enu"], dtype=float),
-            )
-            try:
-                self._nav.rate_enu()  # height and velocity within what a carrier can have
-            except ValueError as exc:
-                raise ParameterError(f"parameters 'height_m'/'velocity_enu': {exc}") from exc
-        self._world_frame = p["world_frame_id"] or p["frame"]
         try:
             config = self._stream_config(p)
-        except ValueError as exc:  # the message names the setting
-            raise ParameterError(f"invalid parameters: {exc}") from exc
-        try:
-            self._stream = AttitudeStream(p["algorithm"], q0=q_init, nav=self._nav, config=config)
+            self._nav = config.nav_frame()
+            if self._nav is not None:
+                try:
+                    self._nav.rate_enu()  # height and velocity within what a carrier can have
+                except ValueError as exc:
+                    raise SettingError("velocity_enu", f"height_m/velocity_enu: {exc}") from None
+            self._stream = AttitudeStream(p["algorithm"], q0=config.initial_attitude,
+                                          nav=self._nav, config=config)
+        except SettingError as exc:  # the message names the setting
+            raise ParameterError(f"parameter '{exc.setting}': {exc}") from exc
         except ValueError as exc:  # e.g. an Euler-angle algorithm with frame=enu
-            if "gyrocompass" in str(exc):
-                raise ParameterError(f"parameter 'heading_source': {exc}") from exc
             raise ParameterError(f"parameter 'algorithm' = {p['algorithm']!r}: {exc}") from exc
-        self._awaiting_truth = p["initial_attitude_source"] == "truth"
+        self._world_frame = p["world_frame_id"] or config.frame.value
+        self._awaiting_truth = config.initial_attitude_source is InitialAttitudeSource.TRUTH
         self._truth: deque[tuple[int, np.ndarray]] = deque(maxlen=self._TRUTH_KEPT)
         self._pending: deque[Imu] = deque(maxlen=self._TRUTH_KEPT)
         self._phase_seen = self._stream.phase
@@ -273,41 +190,15 @@ class AttitudeIntegratorNode(Node):
         self.create_timer(p["diagnostics_period_s"], self._publish_diagnostics)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.get_logger().info(
-            f"integrating imu/data_raw with '{p['algorithm']}' in frame '{p['frame']}' "
-            f"(initial attitude from {p['initial_attitude_source']}, "
+            f"integrating imu/data_raw with '{p['algorithm']}' in frame '{config.frame}' "
+            f"(initial attitude from {config.initial_attitude_source}, "
             f"QoS {p['qos_reliability']}/{p['qos_depth']})"
         )
 
     # ------------------------------------------------------------------ set-up helpers
     @staticmethod
     def _stream_config(p) -> StreamConfig:
-        gyrocompass = p["heading_source"] == "gyrocompass"
-        return StreamConfig(
-            max_gap_ns=int(round(p["max_gap_s"] * 1e9)),
-            time_jump_ns=int(round(p["time_jump_threshold_s"] * 1e9)),
-            max_rate_rad_s=float(p["max_rate_rad_s"]),
-            initial_variance=float(p["initial_attitude_variance"]),
-            gyro_noise_density=float(p["gyro_noise_density"]),
-            gyro_bias=p["gyro_bias"],
-            gyro_bias_rad_s=tuple(float(c) for c in p["gyro_bias_rad_s"]),
-            gyro_bias_sigma_rad_s=float(p["gyro_bias_sigma_rad_s"]),
-            gyro_bias_rw=float(p["gyro_bias_rw"]),
-            min_rest_s=float(p["min_rest_s"]),
-            rest_window_s=float(p["rest_window_s"]),
-            rest_gyro_std_max=float(p["rest_gyro_std_max"]),
-            rest_gyro_mean_max=float(p["rest_gyro_mean_max"]),
-            rest_accel_std_max=float(p["rest_accel_std_max"]),
-            rest_accel_norm_tol=float(p["rest_accel_norm_tol"]),
-            initial_attitude="level" if p["initial_attitude_source"] == "level" else "given",
-            initial_heading_deg=float(p["initial_heading_deg"]),
-            heading_source=p["heading_source"],
-            # frame=enu passes the latitude with the nav frame; inertial: for gyrocompass only
-            latitude_rad=float(p["latitude_rad"]) if gyrocompass else None,
-            accel_bias_sigma=float(p["accel_bias_sigma"]),
-            heading_error_limit_deg=float(p["heading_error_limit_deg"]),
-            aiding=p["aiding"],
-            aiding_accel_lowpass_s=float(p["aiding_accel_lowpass_s"]),
-        )
+        return StreamConfig(**{s.name: p[s.name] for s in SETTINGS})
 
     def _on_set_parameters(self, params) -> SetParametersResult:
         reason = check_update(self._specs, params)
@@ -324,7 +215,10 @@ class AttitudeIntegratorNode(Node):
                     successful=False, reason=f"parameter 'algorithm' = {new['algorithm']!r}: {exc}"
                 )
             self.get_logger().info(f"algorithm switched to '{new['algorithm']}'")
-        self._stream.set_config(self._stream_config(new))
+        try:
+            self._stream.set_config(self._stream_config(new))
+        except ValueError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
         self._p = new
         return SetParametersResult(successful=True)
 

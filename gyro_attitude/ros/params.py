@@ -17,7 +17,8 @@ from dataclasses import dataclass, field
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.exceptions import InvalidParameterValueException, ParameterException
 
-__all__ = ["ParamSpec", "ParameterError", "declare_all", "check_value", "check_update"]
+__all__ = ["ParamSpec", "ParameterError", "declare_all", "check_value", "check_update",
+           "spec_from_setting"]
 
 
 class ParameterError(ValueError):
@@ -47,6 +48,20 @@ class ParamSpec:
     def is_string_array(self) -> bool:
         return isinstance(self.default, list | tuple) and bool(self.default) and all(
             isinstance(v, str) for v in self.default)
+
+
+def spec_from_setting(setting) -> ParamSpec:
+    """The :class:`ParamSpec` of an estimator setting (``core/attitude/settings.Setting``):
+    same name, default (an enum as its word), description with unit and range."""
+    default = setting.default
+    choices: tuple[str, ...] = ()
+    if setting.choices is not None:
+        choices = tuple(m.value for m in setting.choices)
+        default = default.value
+    vector = setting.kind == "vector"
+    return ParamSpec(setting.name, default, setting.describe(),
+                     low=None if vector else setting.low, high=None if vector else setting.high,
+                     choices=choices, length=setting.length, runtime=setting.runtime)
 
 
 def _descriptor(spec: ParamSpec) -> ParameterDescriptor:

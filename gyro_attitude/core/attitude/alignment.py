@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gyro_attitude.core.attitude.modes import SettingError
 from gyro_attitude.core.attitude.rest import RestDetector, check_sample, check_samples, detect_rest
 from gyro_attitude.core.earth import OMEGA_IE, check_latitude
 from gyro_attitude.core.rotation import quat_from_matrix
@@ -89,6 +90,25 @@ def gyrocompass_heading(w_b, roll: float, pitch: float) -> float:
     w_l = _c_lb(roll, pitch) @ np.asarray(w_b, dtype=np.float64)
     psi = math.atan2(float(w_l[0]), float(w_l[1]))
     return (math.pi / 2 - psi) % (2 * math.pi)
+
+
+def check_gyrocompass_feasible(gyro_bias_sigma_rad_s: float, latitude_rad: float | None,
+                               heading_error_limit_deg: float) -> None:
+    """Refuse gyrocompassing whose heading error from the bias uncertainty alone,
+    ``σ_b / (ω_ie cos L)``, already exceeds the limit (:class:`StaticAligner` checks the full
+    figure with the measured noise at the end of the rest)."""
+    if latitude_rad is None:
+        raise SettingError("heading_source", "gyrocompass needs the latitude (frame enu or "
+                           "latitude_rad)")
+    horizontal = OMEGA_IE * math.cos(latitude_rad)
+    sigma = gyro_bias_sigma_rad_s / max(horizontal, 1e-300)
+    if not math.degrees(sigma) <= heading_error_limit_deg:
+        raise SettingError(
+            "heading_source", "gyrocompass refused: gyro bias uncertainty "
+            f"{math.degrees(gyro_bias_sigma_rad_s) * 3600:.3g}"
+            f" °/h against a horizontal Earth rate of {math.degrees(horizontal) * 3600:.3g} °/h "
+            f"gives a heading error of {min(math.degrees(sigma), 1e9):.3g}° > the limit "
+            f"{heading_error_limit_deg:g}°; give initial_heading_deg instead")
 
 
 def _check_nonneg(name, v) -> float:

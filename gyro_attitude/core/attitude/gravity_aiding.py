@@ -41,6 +41,7 @@ import numpy as np
 
 from gyro_attitude.core.attitude.rest import check_sample, check_samples
 from gyro_attitude.core.attitude.streaming import StreamingIntegrator
+from gyro_attitude.core.earth import STANDARD_GRAVITY
 from gyro_attitude.core.rotation import as_quat_array
 
 __all__ = ["GravityAiding", "gravity_aided_attitude"]
@@ -60,7 +61,7 @@ class GravityAiding:
     """Streaming tilt aiding (see the module docstring)."""
 
     def __init__(self, kp: float = 1.0, ki: float = 0.002, accel_tol: float = 2.0,
-                 rate_max: float = 1.0, gravity: float = 9.81, accel_lowpass_s: float = 0.0):
+                 rate_max: float = 1.0, gravity: float = STANDARD_GRAVITY, accel_lowpass_s: float = 0.0):
         self.accel_lowpass_s = _param("accel_lowpass_s", accel_lowpass_s)
         self.kp = _param("kp", kp)
         self.ki = _param("ki", ki)
@@ -128,7 +129,7 @@ class GravityAiding:
 
 def gravity_aided_attitude(t_ns, gyro, accel, q0, *, kp: float = 1.0, ki: float = 0.002,
                            accel_tol: float = 2.0, rate_max: float = 1.0,
-                           gravity: float = 9.81) -> tuple[np.ndarray, np.ndarray]:
+                           gravity: float = STANDARD_GRAVITY) -> tuple[np.ndarray, np.ndarray]:
     """Batch: attitudes (N, 4) and the tilt-axis bias estimate (N, 3) from bias-free ``gyro``.
 
     Integrates with the exponential map of the trapezoid increment (``exp_map``); the aiding

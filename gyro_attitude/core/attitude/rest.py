@@ -48,10 +48,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gyro_attitude.core.earth import STANDARD_GRAVITY
+
 __all__ = ["NOISE_FLOOR_RAD_S", "RestDetector", "RestWindows", "detect_rest", "rest_segments",
            "check_samples"]
 
-STANDARD_GRAVITY = 9.80665  # m/s², the default magnitude for the |‖f‖ − g| test
 # Every real gyro shows noise at rest (a navigation-grade one still ~1e-6 rad/s per sample at
 # 100 Hz), so a window whose output is constant to rounding is a noise-free simulation or a stuck
 # sensor, not evidence of rest.

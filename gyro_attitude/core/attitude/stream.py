@@ -62,12 +62,26 @@ from gyro_attitude.core.attitude import (
     integrate_batch,
 )
 from gyro_attitude.core.attitude import validation as v
-from gyro_attitude.core.attitude.alignment import AlignmentResult, StaticAligner, level_quaternion
+from gyro_attitude.core.attitude.alignment import (
+    AlignmentResult,
+    StaticAligner,
+    check_gyrocompass_feasible,
+    level_quaternion,
+)
 from gyro_attitude.core.attitude.covariance import AttitudeCovariance, propagate_batch
 from gyro_attitude.core.attitude.gravity_aiding import GravityAiding
-from gyro_attitude.core.attitude.gyro_bias import BIAS_MODES, GyroBiasEstimator, GyroBiasReport
+from gyro_attitude.core.attitude.gyro_bias import GyroBiasEstimator, GyroBiasReport
+from gyro_attitude.core.attitude.modes import (
+    Aiding,
+    Frame,
+    GyroBiasMode,
+    HeadingSource,
+    Phase,
+    SettingError,
+)
 from gyro_attitude.core.attitude.rest import NOISE_FLOOR_RAD_S, detect_rest
-from gyro_attitude.core.earth import OMEGA_IE
+from gyro_attitude.core.attitude.settings import StreamConfig
+from gyro_attitude.core.earth import STANDARD_GRAVITY
 from gyro_attitude.core.rotation import quat_from_rotvec, quat_multiply, quat_normalize
 
 
@@ -85,10 +99,7 @@ INVALID_ACCEL = "invalid_accel"
 # m/s²: a specific force beyond this (1e5 g) is no accelerometer reading
 ACCEL_ABSURD = 1e6
 
-INITIAL_ATTITUDE_MODES = ("given", "level")
-HEADING_SOURCES = ("parameter", "gyrocompass")
-AIDING_MODES = ("none", "gravity")
-ALIGNING, RUNNING, FAILED = "aligning", "running", "failed"  # values of AttitudeStream.phase
+ALIGNING, RUNNING, FAILED = Phase.ALIGNING, Phase.RUNNING, Phase.FAILED
 
 
 def gyro_variances(covariance) -> tuple[np.ndarray | None, bool]:
@@ -132,128 +143,9 @@ def gyro_variances_array(covariance: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return np.where(known[:, None], d, 0.0), known, invalid
 
 
-def _num(name: str, value, lo: float = 0.0, hi: float = 1e12, allow_none: bool = False):
-    if value is None and allow_none:
-        return None
-    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating) \
-            or not (math.isfinite(value) and lo <= value <= hi):
-        raise ValueError(f"{name} must be a finite number in [{lo:g}, {hi:g}], got {value!r}")
-    return float(value)
-
-
-def _choice(name: str, value, choices) -> str:
-    if value not in choices:
-        raise ValueError(f"{name} must be one of {choices}, got {value!r}")
-    return value
-
-
-@dataclass(frozen=True)
-class StreamConfig:
-    """Settings of the policy (see the module docstring); times in ns, SI units.
-
-    Validation: ``max_gap_ns``, ``time_jump_ns``, ``max_rate_rad_s``.  Covariance:
-    ``initial_variance`` per-axis variance [rad²] of a given initial attitude (with ``level``:
-    of the given heading); ``gyro_noise_density`` N [rad/s/√Hz] used when a sample carries no
-    gyro covariance; ``gyro_bias_sigma_rad_s`` 1σ of the bias subtracted when it is not
-    estimated (``none``: the sensor's bias spread; ``parameter``: the calibration's uncertainty;
-    ``auto``: before the first rest); ``gyro_bias_rw`` bias random walk [rad/s/√s].
-    Bias: ``gyro_bias`` ``auto`` | ``none`` | ``parameter`` (+ ``gyro_bias_rad_s``); rests:
-    ``min_rest_s`` and the ``rest_*`` thresholds of :class:`.rest.RestDetector`.  Initial
-    attitude: ``initial_attitude`` ``given`` | ``level``; ``initial_heading_deg`` (clockwise
-    from north) or ``heading_source="gyrocompass"`` (needs ``gyro_bias="parameter"`` and
-    ``gyro_bias_sigma_rad_s``: a bias estimated at rest has absorbed the Earth rate);
-    ``latitude_rad`` (when no nav frame gives it) for gyrocompassing and for taking the Earth
-    rate out of the bias; ``accel_bias_sigma`` [m/s²] for the levelling error;
-    ``heading_error_limit_deg``.  Aiding: ``aiding`` ``none`` | ``gravity`` and its gains.
-    """
-
-    max_gap_ns: int = 100_000_000
-    time_jump_ns: int = 1_000_000_000
-    max_rate_rad_s: float = v.DEFAULT_MAX_RATE_RAD_S
-    initial_variance: float = 0.0
-    gyro_noise_density: float = 0.0
-    gyro_bias: str = "auto"
-    gyro_bias_rad_s: tuple = (0.0, 0.0, 0.0)
-    gyro_bias_sigma_rad_s: float = 0.0
-    gyro_bias_rw: float = 0.0
-    min_rest_s: float = 1.0
-    rest_window_s: float = 0.5
-    rest_gyro_std_max: float = 0.01
-    rest_gyro_mean_max: float = 0.1
-    rest_accel_std_max: float = 0.25
-    rest_accel_norm_tol: float = 0.5
-    initial_attitude: str = "given"
-    initial_heading_deg: float = 0.0
-    heading_source: str = "parameter"
-    latitude_rad: float | None = None
-    accel_bias_sigma: float = 0.05
-    heading_error_limit_deg: float = 5.0
-    aiding: str = "none"
-    aiding_kp: float = 1.0
-    aiding_ki: float = 0.002
-    aiding_accel_tol: float = 2.0
-    aiding_rate_max: float = 1.0
-    aiding_accel_lowpass_s: float = 1.0
-
-    def __post_init__(self):
-        self.check_config()  # raises ValueError naming the field
-        _num("initial_variance", self.initial_variance, 0.0, 1e6)
-        _num("gyro_noise_density", self.gyro_noise_density, 0.0, 1e3)
-        _num("gyro_bias_sigma_rad_s", self.gyro_bias_sigma_rad_s, 0.0, 1e3)
-        _num("gyro_bias_rw", self.gyro_bias_rw, 0.0, 1e3)
-        _choice("gyro_bias", self.gyro_bias, BIAS_MODES)
-        _choice("initial_attitude", self.initial_attitude, INITIAL_ATTITUDE_MODES)
-        _choice("heading_source", self.heading_source, HEADING_SOURCES)
-        _choice("aiding", self.aiding, AIDING_MODES)
-        _num("initial_heading_deg", self.initial_heading_deg, -1e6, 1e6)
-        _num("latitude_rad", self.latitude_rad, -math.pi / 2, math.pi / 2, allow_none=True)
-        for name in ("accel_bias_sigma", "heading_error_limit_deg", "aiding_kp", "aiding_ki",
-                     "aiding_accel_tol", "aiding_rate_max", "aiding_accel_lowpass_s"):
-            _num(name, getattr(self, name), 0.0, 1e6)
-        b = self.gyro_bias_rad_s
-        if isinstance(b, str) or not hasattr(b, "__len__") or len(b) != 3:
-            raise ValueError(f"gyro_bias_rad_s must be 3 numbers (rad/s), got {b!r}")
-        for c in b:
-            _num("gyro_bias_rad_s", c, -1e3, 1e3)
-        self.rest_params()  # thresholds checked by the detector
-        GyroBiasEstimator("auto", min_rest_s=self.min_rest_s, rest=self.rest_params())
-        if self.heading_source == "gyrocompass":
-            if self.initial_attitude != "level":
-                raise ValueError("heading_source 'gyrocompass' needs initial_attitude 'level'")
-            if self.gyro_bias != "parameter" or not self.gyro_bias_sigma_rad_s > 0:
-                raise ValueError("gyrocompass needs gyro_bias 'parameter' with its 1σ "
-                                 "gyro_bias_sigma_rad_s > 0 (a bias estimated at rest has "
-                                 "absorbed the Earth rate and cannot find north)")
-            if self.latitude_rad is not None:
-                check_gyrocompass(self, self.latitude_rad)
-
-    def check_config(self) -> v.ImuCheckConfig:
-        return v.ImuCheckConfig(self.max_gap_ns, self.time_jump_ns, self.max_rate_rad_s)
-
-    def rest_params(self) -> dict:
-        return {"window_s": self.rest_window_s, "gyro_std_max": self.rest_gyro_std_max,
-                "gyro_mean_max": self.rest_gyro_mean_max,
-                "accel_std_max": self.rest_accel_std_max,
-                "accel_norm_tol": self.rest_accel_norm_tol}
-
-
-def check_gyrocompass(cfg: StreamConfig, latitude_rad: float) -> None:
-    """Refuse gyrocompassing whose heading error from the bias uncertainty alone,
-    ``σ_b / (ω_ie cos L)``, already exceeds ``heading_error_limit_deg`` (alignment.py checks
-    the full figure with the measured noise at the end of the rest)."""
-    horizontal = OMEGA_IE * math.cos(latitude_rad)
-    sigma = cfg.gyro_bias_sigma_rad_s / max(horizontal, 1e-300)
-    if not math.degrees(sigma) <= cfg.heading_error_limit_deg:
-        raise ValueError(
-            f"gyrocompass refused: gyro bias uncertainty {math.degrees(cfg.gyro_bias_sigma_rad_s) * 3600:.3g}"
-            f" °/h against a horizontal Earth rate of {math.degrees(horizontal) * 3600:.3g} °/h "
-            f"gives a heading error of {min(math.degrees(sigma), 1e9):.3g}° > the limit "
-            f"{cfg.heading_error_limit_deg:g}°; give initial_heading_deg instead")
-
-
 def bias_summary(report: GyroBiasReport) -> str:
     """One line on the gyro bias for a summary or a log (rad/s and °/s)."""
-    if report.mode != "auto" or report.rests_used == 0:
+    if report.mode != GyroBiasMode.AUTO or report.rests_used == 0:
         return f"gyro bias {report.mode}: {np.round(report.bias, 6).tolist()} rad/s ({report.note})"
     return (f"gyro bias auto: {np.round(report.bias, 6).tolist()} rad/s "
             f"(± {np.round(report.standard_error, 7).tolist()}, {report.rests_used} rest(s), "
@@ -308,6 +200,8 @@ class AttitudeStream:
         self.config = cfg = config if config is not None else StreamConfig()
         self.q_initial = _unit_quat(q0)
         self.nav = nav
+        if nav is None and cfg.frame is Frame.ENU:
+            nav = self.nav = cfg.nav_frame()
         self.algorithm = algorithm
         self.integrator = (StreamingIntegrator(algorithm=algorithm, q0=self.q_initial, nav=nav)
                            if get_algorithm(algorithm).causal else None)
@@ -317,43 +211,44 @@ class AttitudeStream:
         self.details: dict[str, str] = {}
         self._resume_q: np.ndarray | None = None
         self._last_q: np.ndarray = self.q_initial
-        lat = nav.latitude_rad if nav is not None else cfg.latitude_rad
+        lat = nav.latitude_rad if nav is not None else (
+            cfg.latitude_rad if cfg.latitude_known else None)
         self.latitude_rad = None if lat is None else float(np.asarray(lat).reshape(-1)[0])
-        if cfg.heading_source == "gyrocompass":
-            if self.latitude_rad is None:
-                raise ValueError("gyrocompass needs the latitude (frame enu or latitude_rad)")
-            check_gyrocompass(cfg, self.latitude_rad)
-        fixed = cfg.gyro_bias_rad_s if cfg.gyro_bias == "parameter" else None
+        if cfg.heading_source is HeadingSource.GYROCOMPASS:
+            check_gyrocompass_feasible(cfg.gyro_bias_sigma_rad_s, self.latitude_rad,
+                                       cfg.heading_error_limit_deg)
+        fixed = cfg.gyro_bias_rad_s if cfg.gyro_bias is GyroBiasMode.PARAMETER else None
         self.bias_estimator = GyroBiasEstimator(
             cfg.gyro_bias, fixed, min_rest_s=cfg.min_rest_s, latitude_rad=self.latitude_rad,
             rest=cfg.rest_params())
         self._fixed_bias = self.bias_estimator.bias
         self.aiding = None
-        if cfg.aiding == "gravity":
+        if cfg.aiding is Aiding.GRAVITY:
             self.aiding = GravityAiding(cfg.aiding_kp, cfg.aiding_ki, cfg.aiding_accel_tol,
                                         cfg.aiding_rate_max,
                                         accel_lowpass_s=cfg.aiding_accel_lowpass_s)
-        self.covariance = AttitudeCovariance(cfg.initial_variance, cfg.gyro_bias_sigma_rad_s,
+        self.covariance = AttitudeCovariance(cfg.initial_attitude_variance, cfg.gyro_bias_sigma_rad_s,
                                              cfg.gyro_bias_rw)
         self._n2 = cfg.gyro_noise_density * cfg.gyro_noise_density
         self._var_known = bool(cfg.gyro_noise_density > 0 or cfg.gyro_bias_sigma_rad_s > 0
-                               or cfg.initial_attitude == "level")
+                               or cfg.levelling)
         self._accel_present: bool | None = None
         self._start_t: int | None = None
-        self._first_rest_pending = cfg.gyro_bias == "auto" and cfg.initial_attitude == "given"
+        self._first_rest_pending = cfg.gyro_bias is GyroBiasMode.AUTO and not cfg.levelling
         self.alignment: AlignmentResult | None = None
         self.alignment_error: str | None = None
         self.phase = RUNNING
-        if cfg.initial_attitude == "level":
+        if cfg.levelling:
             self.phase = ALIGNING
             self._new_aligner()
 
     def _new_aligner(self) -> None:
         cfg = self.config
-        gc = cfg.heading_source == "gyrocompass"
+        gc = cfg.heading_source is HeadingSource.GYROCOMPASS
         self._aligner = StaticAligner(
             cfg.initial_heading_deg, gyrocompass=gc, latitude_rad=self.latitude_rad if gc else None,
-            gyro_bias=cfg.gyro_bias_rad_s if cfg.gyro_bias == "parameter" else (0.0, 0.0, 0.0),
+            gyro_bias=(cfg.gyro_bias_rad_s if cfg.gyro_bias is GyroBiasMode.PARAMETER
+                       else (0.0, 0.0, 0.0)),
             gyro_bias_sigma=cfg.gyro_bias_sigma_rad_s if gc else None,
             accel_bias_sigma=cfg.accel_bias_sigma,
             heading_error_limit_deg=cfg.heading_error_limit_deg, min_rest_s=cfg.min_rest_s,
@@ -397,8 +292,8 @@ class AttitudeStream:
     def set_config(self, config: StreamConfig) -> None:
         """New validation thresholds from the next sample on (state kept; the bias, alignment
         and aiding settings stay those of construction)."""
-        self.config = replace(self.config, max_gap_ns=config.max_gap_ns,
-                              time_jump_ns=config.time_jump_ns,
+        self.config = replace(self.config, max_gap_s=config.max_gap_s,
+                              time_jump_threshold_s=config.time_jump_threshold_s,
                               max_rate_rad_s=config.max_rate_rad_s)
         self.validator.config = config.check_config()
 
@@ -494,7 +389,7 @@ class AttitudeStream:
 
     def _bias_update(self, t_ns: int, w: np.ndarray, a) -> np.ndarray:
         est = self.bias_estimator
-        if est.mode != "auto":
+        if est.mode is not GyroBiasMode.AUTO:
             return self._fixed_bias
         q_nb = None
         if self.latitude_rad is not None:
@@ -567,7 +462,7 @@ class AttitudeStream:
         self.alignment = res
         self.alignment_error = None
         self.phase = RUNNING
-        heading_var = (self.config.initial_variance if res.heading_source == "given"
+        heading_var = (self.config.initial_attitude_variance if res.heading_source == "given"
                        else res.heading_error_expected ** 2)
         lv = res.level_error_expected ** 2
         # q_nb = Rz(ψ) Ry(θ) Rx(φ): a roll error δφ is a rotation about Rz Ry(θ) e_x, whose
@@ -636,7 +531,7 @@ class AttitudeStream:
             if aid is not None and aid.aided_samples != self._aided_seen:
                 cov.aid_tilt(aid.kp * dt_s, (self.alignment.level_error_expected
                                              if self.alignment is not None
-                                             else self.config.accel_bias_sigma / 9.81) ** 2)
+                                             else self.config.accel_bias_sigma / STANDARD_GRAVITY) ** 2)
         if aid is not None:
             self._aided_seen = aid.aided_samples
         self._last_q = q
@@ -663,15 +558,16 @@ class AttitudeStream:
         """Whether :meth:`run` integrates in batch whatever the data (no sequential filter
         configured; with ``gyro_bias="auto"`` it also does on a recording with no rest)."""
         cfg = self.config
-        return cfg.gyro_bias != "auto" and cfg.initial_attitude == "given" and cfg.aiding == "none"
+        return (cfg.gyro_bias is not GyroBiasMode.AUTO and not cfg.levelling
+                and cfg.aiding is Aiding.NONE)
 
     def needs_per_sample_path(self, t_ns, omega, accel=None) -> bool:
         """Whether :meth:`run` on this recording has to run the per-sample path (a sequential
         filter that acts on it: levelling, aiding, or ``auto`` bias on data with a rest)."""
         cfg = self.config
-        if cfg.initial_attitude != "given" or cfg.aiding != "none":
+        if cfg.levelling or cfg.aiding is not Aiding.NONE:
             return True
-        if cfg.gyro_bias != "auto":
+        if cfg.gyro_bias is not GyroBiasMode.AUTO:
             return False
         t = np.asarray(t_ns)
         w = np.asarray(omega, dtype=np.float64)
@@ -740,8 +636,8 @@ class AttitudeStream:
         cls = v.classify(t, w, frame_id, self.config.check_config())  # checks the input too
         t = t.astype(np.int64, copy=False)
         cfg = self.config
-        if (cfg.initial_attitude != "given" or cfg.aiding != "none"
-                or (cfg.gyro_bias == "auto" and self._auto_bias_may_act(t, w, acc, cls.action))):
+        if (cfg.levelling or cfg.aiding is not Aiding.NONE
+                or (cfg.gyro_bias is GyroBiasMode.AUTO and self._auto_bias_may_act(t, w, acc, cls.action))):
             if self.integrator is None:
                 raise PerSamplePathNeeded(
                     f"{self.algorithm} is an offline algorithm and runs in batch only, but this "
@@ -909,7 +805,8 @@ def _unit_quat(q) -> np.ndarray:
     except (TypeError, ValueError):
         a = np.full(1, np.nan)
     if a.shape != (4,) or not np.all(np.isfinite(a)) or not np.any(a != 0):
-        raise ValueError(f"initial attitude must be 4 finite numbers, not all zero; got {q!r}")
+        raise SettingError("initial_attitude", "initial_attitude must be 4 finite numbers, not "
+                           f"all zero; got {q!r}")
     # scaled first: the norm of (1e300, 0, 0, 1) would overflow
     return quat_normalize(a / np.max(np.abs(a)))
 

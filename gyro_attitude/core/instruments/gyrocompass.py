@@ -43,6 +43,7 @@ import numpy as np
 
 from gyro_attitude.core.earth import (
     OMEGA_IE,
+    STANDARD_GRAVITY,
     check_latitude,
     gravity_enu,
     radii_of_curvature,
@@ -76,7 +77,7 @@ __all__ = [
 ]
 
 SCHULER_RADIUS = 6.371e6  # m, mean Earth radius of the Schuler period in docs/equations.md
-SCHULER_GRAVITY = 9.80665  # m/s²
+SCHULER_GRAVITY = STANDARD_GRAVITY  # m/s²
 
 
 def _g(lat: float, h: float = 0.0) -> float:

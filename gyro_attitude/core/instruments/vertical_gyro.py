@@ -47,7 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gyro_attitude.core.earth import OMEGA_IE, check_latitude
+from gyro_attitude.core.earth import OMEGA_IE, STANDARD_GRAVITY, check_latitude
 from gyro_attitude.core.instruments.common import (
     ChunkedOutput,
     carrier_point,
@@ -227,7 +227,8 @@ def vertical_gyro_turn_indication(turn_rate: float, bank: float,
     return float(roll), float(pitch)
 
 
-def vertical_gyro_acceleration_error(accel: float, erection_gain: float, t, gravity: float = 9.80665):
+def vertical_gyro_acceleration_error(accel: float, erection_gain: float, t,
+                                     gravity: float = STANDARD_GRAVITY):
     """Indicated pitch (rad, REP-103: negative = nose up) after ``t`` s of a constant along-track
     ``accel`` (m/s²) from a vertical start, proportional erection:
     ``θ = θ_a − 2 atan(tan(θ_a/2) e^{−kt})``, ``θ_a = atan(a/g)``, pitch_indicated = −θ."""

@@ -60,7 +60,7 @@ def hostile_stream(n=400, seed=0):
 @pytest.mark.parametrize("algorithm", CAUSAL)
 def test_run_equals_push_sample_for_sample(algorithm):
     t, w, frames, cov = hostile_stream()
-    cfg = StreamConfig(initial_variance=1e-4)
+    cfg = StreamConfig(initial_attitude_variance=1e-4)
     pushed = push_all(AttitudeStream(algorithm, config=cfg), t, w, frames, cov)
     res = AttitudeStream(algorithm, config=cfg).run(t, w, frames, cov)
     assert res.index.tolist() == [k for k, _, _ in pushed]
@@ -117,7 +117,7 @@ def test_variance_growth_written_out():
     cov = np.tile(np.diag([sigma2, 2 * sigma2, 3 * sigma2]).reshape(9), (n, 1))
     init = 1e-5
     for path in ("push", "run"):
-        s = AttitudeStream("exp_map", config=StreamConfig(initial_variance=init))
+        s = AttitudeStream("exp_map", config=StreamConfig(initial_attitude_variance=init))
         if path == "push":
             var = np.array([v for _, _, v in push_all(s, t, w, "imu", cov)])
         else:
@@ -256,8 +256,8 @@ def test_settings_and_inputs_beyond_any_gyro_are_refused_or_unknown():
     for bad in (1e300, 2e6):
         with pytest.raises(ValueError, match="max_rate_rad_s"):
             StreamConfig(max_rate_rad_s=bad)
-    with pytest.raises(ValueError, match="max_gap_ns"):
-        StreamConfig(max_gap_ns=10**16)
+    with pytest.raises(ValueError, match="max_gap_s"):
+        StreamConfig(max_gap_s=1e7)
     for kw, match in (({"velocity_enu": (1e300, 0.0, 0.0)}, "velocity_enu"),
                       ({"height_m": -7e6}, "height_m")):
         with pytest.raises(ValueError, match=match):
@@ -266,7 +266,7 @@ def test_settings_and_inputs_beyond_any_gyro_are_refused_or_unknown():
     t = np.arange(1, n + 1, dtype=np.int64) * 90 * MS
     cov = np.tile(np.diag([1e308, 1e308, 1e308]).reshape(9), (n, 1))
     cov[:10] = np.diag([1e-6, 1e-6, 1e-6]).reshape(9)
-    res = AttitudeStream("exp_map", config=StreamConfig(max_gap_ns=10**9)).run(
+    res = AttitudeStream("exp_map", config=StreamConfig(max_gap_s=1.0)).run(
         t, np.zeros((n, 3)), "imu", cov)
     assert res.counts[INVALID_COVARIANCE] == n - 10
     assert np.isfinite(res.variance).all()

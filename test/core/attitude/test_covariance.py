@@ -54,7 +54,7 @@ def nav_errors(mode: str, seeds: int):
         else:
             yaw = q0.as_euler("ZYX", degrees=True)[0]
             cfg = StreamConfig(gyro_noise_density=N_GYRO, gyro_bias_sigma_rad_s=SIGMA_B,
-                               initial_attitude="level", initial_heading_deg=90.0 - yaw,
+                               initial_attitude_source="level", initial_heading_deg=90.0 - yaw,
                                accel_bias_sigma=SIGMA_BA)
             s = AttitudeStream("exp_map", config=cfg)
         res = s.run(t, g, "imu", None, a)

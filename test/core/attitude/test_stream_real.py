@@ -26,9 +26,9 @@ MODES = {
                               gyro_bias_sigma_rad_s=1e-3, gyro_bias_rw=1e-4,
                               gyro_noise_density=1e-4),
     "none_rw": StreamConfig(gyro_bias="none", gyro_bias_sigma_rad_s=0.05, gyro_bias_rw=1e-3),
-    "level": StreamConfig(initial_attitude="level", initial_heading_deg=30.0),
+    "level": StreamConfig(initial_attitude_source="level", initial_heading_deg=30.0),
     "gravity": StreamConfig(aiding="gravity", gyro_noise_density=1e-4),
-    "level_gravity": StreamConfig(initial_attitude="level", aiding="gravity"),
+    "level_gravity": StreamConfig(initial_attitude_source="level", aiding="gravity"),
 }
 
 
@@ -75,7 +75,7 @@ def test_run_equals_push_in_every_mode(mode):
                                atol=0)
     assert np.all(np.isfinite(res.q)) and np.all(np.isfinite(res.variance))
     assert res.counts[INVALID_ACCEL] == 3  # counted on both paths, as push() counts them
-    if cfg.initial_attitude == "level":
+    if cfg.levelling:
         assert res.alignment is not None and res.index[0] > 600  # no attitude while aligning
 
 
@@ -140,7 +140,7 @@ def test_level_alignment_from_specific_force_and_given_heading():
     t2 = t[-1] + np.arange(1, 101) * 10_000_000
     g2 = np.tile([0.0, 0.0, 0.5], (100, 1)) + 1e-3 * np.random.default_rng(5).normal(size=(100, 3))
     a2 = np.tile(a[-1], (100, 1))
-    cfg = StreamConfig(initial_attitude="level", initial_heading_deg=30.0)  # 90° − 60°
+    cfg = StreamConfig(initial_attitude_source="level", initial_heading_deg=30.0)  # 90° − 60°
     s = AttitudeStream(config=cfg)
     phases = []
     for k in range(500):
@@ -161,15 +161,15 @@ def test_level_on_a_recording_that_never_rests_is_a_clear_error():
     g = np.cumsum(rng.normal(scale=0.05, size=(2000, 3)), axis=0)
     a = np.tile([0.0, 0.0, G], (2000, 1)) + rng.normal(scale=1.0, size=(2000, 3))
     with pytest.raises(ValueError, match="cannot align"):
-        AttitudeStream(config=StreamConfig(initial_attitude="level")).run(t, g, "imu", None, a)
+        AttitudeStream(config=StreamConfig(initial_attitude_source="level")).run(t, g, "imu", None, a)
     with pytest.raises(ValueError, match="accelerometer"):
-        AttitudeStream(config=StreamConfig(initial_attitude="level")).run(t, g, "imu")
+        AttitudeStream(config=StreamConfig(initial_attitude_source="level")).run(t, g, "imu")
 
 
 def test_gyrocompass_refused_for_a_mems_bias_and_needs_a_stated_bias():
     with pytest.raises(ValueError, match="gyrocompass needs gyro_bias 'parameter'"):
-        StreamConfig(initial_attitude="level", heading_source="gyrocompass", latitude_rad=0.8)
-    mems = dict(initial_attitude="level", heading_source="gyrocompass", gyro_bias="parameter",
+        StreamConfig(initial_attitude_source="level", heading_source="gyrocompass", latitude_rad=0.8)
+    mems = dict(initial_attitude_source="level", heading_source="gyrocompass", gyro_bias="parameter",
                 gyro_bias_sigma_rad_s=math.radians(0.01))  # 36 °/h
     with pytest.raises(ValueError, match="gyrocompass refused"):
         StreamConfig(latitude_rad=0.8, **mems)

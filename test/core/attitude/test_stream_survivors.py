@@ -61,7 +61,7 @@ def still_body(n, shaken=0, seed=11):
 def first_rest_config():
     # auto bias (the default), given attitude; variances chosen so that the bias-estimate term
     # (elapsed² · SE², SE ≈ 1e-7 rad/s) is as large as the others and rtol 1e-9 sees it
-    return StreamConfig(initial_variance=V0, gyro_noise_density=N_DENS,
+    return StreamConfig(initial_attitude_variance=V0, gyro_noise_density=N_DENS,
                         gyro_bias_sigma_rad_s=SIGMA_B0)
 
 
@@ -195,7 +195,7 @@ def test_stream_takes_the_earth_rate_out_at_the_current_attitude(where):
         (n, 3))
     g[1:n_turn + 1, 2] += r
     if where == "config":
-        s = AttitudeStream("exp_map", q0=Q0, config=StreamConfig(latitude_rad=LAT))
+        s = AttitudeStream("exp_map", q0=Q0, config=StreamConfig(frame="enu", latitude_rad=LAT))
     else:
         s = AttitudeStream("exp_map", q0=Q0, nav=NavFrame(latitude_rad=LAT))
     for k in range(n):
@@ -218,8 +218,9 @@ def test_bias_estimated_while_levelling_has_no_earth_rate():
     g = earth_rate_body(Q_TRUE.as_quat(), LAT) + B_SMALL + SIGMA_W * rng.standard_normal((n, 3))
     g[m:, 2] += 0.5
     f = Q_TRUE.inv().apply([0.0, 0.0, G]) + 1e-3 * rng.standard_normal((n, 3))
-    s = AttitudeStream("exp_map", config=StreamConfig(initial_attitude="level",
-                                                      initial_heading_deg=30.0, latitude_rad=LAT))
+    s = AttitudeStream("exp_map", config=StreamConfig(initial_attitude_source="level",
+                                                      initial_heading_deg=30.0, frame="enu",
+                                                      latitude_rad=LAT))
     for k in range(n):
         s.push(int(t[k]), g[k], "imu", None, f[k])
     assert s.phase == RUNNING
@@ -253,10 +254,10 @@ def test_heading_variance_after_levelling_from_the_documented_expressions(source
     f = q_true.inv().apply([0.0, 0.0, G]) + np.array([2e-3, 4e-3, 6e-3]) * rng.standard_normal(
         (n, 3))
     sigma_b, sigma_ba, v_given = 2e-7, 0.05, 1e-2
-    cfg = StreamConfig(initial_attitude="level", heading_source=source, gyro_bias="parameter",
+    cfg = StreamConfig(initial_attitude_source="level", heading_source=source, gyro_bias="parameter",
                        gyro_bias_rad_s=tuple(b), gyro_bias_sigma_rad_s=sigma_b,
                        accel_bias_sigma=sigma_ba, latitude_rad=lat, initial_heading_deg=30.0,
-                       initial_variance=v_given)
+                       initial_attitude_variance=v_given)
     s = AttitudeStream("exp_map", config=cfg)
     first = None
     for k in range(n):
@@ -299,9 +300,9 @@ def moving_recording(n, seed):
 RUN_PUSH_CONFIGS = {
     "parameter": StreamConfig(gyro_bias="parameter", gyro_bias_rad_s=(0.01, -0.02, 0.005),
                               gyro_bias_sigma_rad_s=1e-3, gyro_bias_rw=1e-3,
-                              gyro_noise_density=1e-4, initial_variance=1e-6),
+                              gyro_noise_density=1e-4, initial_attitude_variance=1e-6),
     "none": StreamConfig(gyro_bias="none", gyro_bias_sigma_rad_s=2e-3, gyro_bias_rw=5e-4,
-                         initial_variance=3e-6),
+                         initial_attitude_variance=3e-6),
 }
 
 

@@ -1,0 +1,84 @@
+"""The estimator's modes as enums, parsed once at the boundary (parameter, flag, YAML).
+
+Each mode is a :class:`enum.StrEnum`: its values are the words users write (``gyro_bias: auto``),
+and :func:`parse_mode` turns a word into the member or raises a ``ValueError`` that names the
+setting and the allowed values.  Inside the package modes are compared as members
+(``cfg.gyro_bias is GyroBiasMode.AUTO``), never as strings.
+"""
+
+from __future__ import annotations
+
+from enum import Enum, StrEnum
+
+__all__ = ["Aiding", "Frame", "GyroBiasMode", "HeadingSource", "InitialAttitudeSource", "Phase",
+           "SettingError", "parse_mode"]
+
+
+class SettingError(ValueError):
+    """A setting's value (or a combination) is refused; ``setting`` names the one to change."""
+
+    def __init__(self, setting: str, message: str):
+        super().__init__(message)
+        self.setting = setting
+
+
+class Frame(StrEnum):
+    """What the estimator integrates: ``q_ib`` (inertial) or ``q_nb`` (ENU nav frame, Earth and
+    transport rate removed)."""
+
+    INERTIAL = "inertial"
+    ENU = "enu"
+
+
+class InitialAttitudeSource(StrEnum):
+    """Where the initial attitude comes from: the ``initial_attitude`` setting, the truth topic
+    at the first accepted sample, or levelling from the specific force over the first rest."""
+
+    PARAMETER = "parameter"
+    TRUTH = "truth"
+    LEVEL = "level"
+
+
+class HeadingSource(StrEnum):
+    """Heading of a levelled start: ``initial_heading_deg`` or gyrocompassing."""
+
+    PARAMETER = "parameter"
+    GYROCOMPASS = "gyrocompass"
+
+
+class GyroBiasMode(StrEnum):
+    """Gyro bias: estimated at rests (``auto``), none, or the fixed ``gyro_bias_rad_s``."""
+
+    AUTO = "auto"
+    NONE = "none"
+    PARAMETER = "parameter"
+
+
+class Aiding(StrEnum):
+    """Aiding of the integrated attitude: none, or tilt from gravity."""
+
+    NONE = "none"
+    GRAVITY = "gravity"
+
+
+class Phase(StrEnum):
+    """Phase of an attitude stream: no attitude while ``aligning``; ``failed`` when the alignment
+    was refused."""
+
+    ALIGNING = "aligning"
+    RUNNING = "running"
+    FAILED = "failed"
+
+
+def parse_mode(enum: type[Enum], value, setting: str):
+    """``value`` (a member, or its word) as a member of ``enum``; ``ValueError`` naming
+    ``setting`` and the allowed words otherwise."""
+    if isinstance(value, enum):
+        return value
+    if isinstance(value, str):
+        try:
+            return enum(value.strip().lower())
+        except ValueError:
+            pass
+    allowed = ", ".join(m.value for m in enum)
+    raise SettingError(setting, f"{setting} must be one of {allowed}; got {value!r}")

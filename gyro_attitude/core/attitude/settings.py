@@ -1,0 +1,360 @@
+"""Every setting of the attitude estimator, declared once.
+
+One :class:`Setting` row per setting: name (also the ROS parameter name, the YAML key and the
+replay flag ``--name-with-dashes``), default, one-line help, unit, range, allowed words (an enum
+from :mod:`.modes`), array length, and whether the node may change it at runtime.  From this
+table come
+
+* :class:`StreamConfig`, the frozen settings object of the core (its fields are the rows);
+* the node's declared parameters with descriptors (``ros/attitude_integrator_node.py``);
+* replay's flags (``commands/estimator_flags.py``);
+* the commented ``config/attitude_integrator.yaml`` and the README's parameter table
+  (:func:`yaml_lines`, :func:`markdown_table`; a test fails when the files drift).
+
+Adding a setting is one row here (and the code that uses it).  Values are checked against the
+row once, when a :class:`StreamConfig` is made (``ValueError`` naming the setting); the
+cross-setting rules (gyrocompass needs a stated bias, ...) live in :meth:`StreamConfig.check`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, make_dataclass, replace
+from enum import Enum
+
+from gyro_attitude.core.attitude import validation as v
+from gyro_attitude.core.attitude.modes import (
+    Aiding,
+    Frame,
+    GyroBiasMode,
+    HeadingSource,
+    InitialAttitudeSource,
+    SettingError,
+    parse_mode,
+)
+
+__all__ = ["SETTINGS", "Setting", "SettingError", "StreamConfig", "markdown_table", "setting",
+           "yaml_lines"]
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One estimator setting (see the module docstring).
+
+    ``default`` a float, int, bool, str, enum member, or a tuple of floats (``length`` long);
+    ``low``/``high`` inclusive bounds of a number or of every element of a tuple; ``choices``
+    the enum whose words are allowed; ``optional``: ``None`` is allowed and means "not given"
+    (the node declares ``ros_default`` instead and treats it as given only where the setting's
+    help says so); ``runtime``: the node accepts a change while running (validation thresholds).
+    """
+
+    name: str
+    default: object
+    help: str
+    unit: str = ""
+    low: float | None = None
+    high: float | None = None
+    choices: type[Enum] | None = None
+    length: int | None = None
+    runtime: bool = False
+    group: str = ""
+
+    @property
+    def flag(self) -> str:
+        return "--" + self.name.replace("_", "-")
+
+    @property
+    def kind(self) -> str:
+        """'enum', 'bool', 'int', 'float' or 'vector'."""
+        if self.choices is not None:
+            return "enum"
+        if isinstance(self.default, bool):
+            return "bool"
+        if isinstance(self.default, int):
+            return "int"
+        if isinstance(self.default, float):
+            return "float"
+        return "vector"
+
+    def describe(self) -> str:
+        """The help with unit, range and allowed words: one line for a descriptor or a flag."""
+        text = self.help
+        if self.unit:
+            text += f" [{self.unit}]"
+        if self.choices is not None:
+            text += " (" + " | ".join(m.value for m in self.choices) + ")"
+        elif self.low is not None and self.high is not None:
+            text += f" (range {self.low:g} .. {self.high:g})"
+        return text
+
+    def check(self, value):
+        """``value`` checked against this row and normalized (enum member, float, tuple of
+        floats); ``ValueError`` naming the setting otherwise."""
+        try:
+            return self._check(value)
+        except SettingError:
+            raise
+        except ValueError as exc:
+            raise SettingError(self.name, str(exc)) from None
+
+    def _check(self, value):
+        kind = self.kind
+        if kind == "enum":
+            return parse_mode(self.choices, value, self.name)
+        if kind == "bool":
+            if not isinstance(value, bool):
+                raise ValueError(f"{self.name} must be true or false, got {value!r}")
+            return value
+        if kind == "vector":
+            if isinstance(value, str) or not hasattr(value, "__len__"):
+                raise ValueError(f"{self.name} must be {self.length} numbers"
+                                 f"{' (' + self.unit + ')' if self.unit else ''}, got {value!r}")
+            vals = tuple(self._number(c) for c in value)
+            if self.length is not None and len(vals) != self.length:
+                raise ValueError(f"{self.name} must be {self.length} numbers, got {len(vals)}")
+            return vals
+        x = self._number(value)
+        if kind == "int":
+            if not float(x).is_integer():
+                raise ValueError(f"{self.name} must be a whole number, got {value!r}")
+            return int(x)
+        return x
+
+    def _number(self, value) -> float:
+        if isinstance(value, bool) or not isinstance(value, int | float) and not hasattr(
+                value, "__float__") or isinstance(value, str):
+            raise ValueError(f"{self.name} must be a number, got {value!r}")
+        x = float(value)
+        lo = -math.inf if self.low is None else self.low
+        hi = math.inf if self.high is None else self.high
+        if not (math.isfinite(x) and lo <= x <= hi):
+            raise ValueError(f"{self.name} must be a finite number in [{lo:g}, {hi:g}], "
+                             f"got {value!r}")
+        return x
+
+
+_HALF_PI = math.pi / 2
+
+#: The table (order = the order of the YAML file and the README table).
+SETTINGS: tuple[Setting, ...] = (
+    # -- frame and position
+    Setting("frame", Frame.INERTIAL, "inertial: integrate q_ib; enu: q_nb with Earth and "
+            "transport rate removed", choices=Frame, group="frame"),
+    Setting("latitude_rad", 0.0, "geodetic latitude (frame enu; gyrocompassing; with frame enu "
+            "the Earth rate is taken out of the gyro bias)", "rad", -_HALF_PI, _HALF_PI,
+            group="frame"),
+    Setting("longitude_rad", 0.0, "longitude (frame enu)", "rad", -math.pi, math.pi,
+            group="frame"),
+    Setting("height_m", 0.0, "height above the WGS-84 ellipsoid (frame enu)", "m", -1.0e4, 1.0e6,
+            group="frame"),
+    Setting("velocity_enu", (0.0, 0.0, 0.0), "carrier velocity east, north, up (frame enu; an "
+            "odometry topic replaces it)", "m/s", -1.0e4, 1.0e4, length=3, group="frame"),
+    # -- initial attitude
+    Setting("initial_attitude_source", InitialAttitudeSource.PARAMETER,
+            "parameter: initial_attitude; truth: the truth topic slerped to the first accepted "
+            "Imu stamp; level: roll and pitch from the specific force over the first rest, "
+            "heading per heading_source (no attitude while aligning)",
+            choices=InitialAttitudeSource, group="initial attitude"),
+    Setting("initial_attitude", (0.0, 0.0, 0.0, 1.0), "initial attitude quaternion x, y, z, w "
+            "(normalized on use; not all zero)", length=4, group="initial attitude"),
+    Setting("initial_attitude_variance", 0.0, "per-axis variance of the initial attitude "
+            "(level: of the given heading)", "rad^2", 0.0, 10.0, group="initial attitude"),
+    Setting("initial_heading_deg", 0.0, "level: heading of the body x axis, clockwise from north",
+            "deg", -360.0, 360.0, group="initial attitude"),
+    Setting("heading_source", HeadingSource.PARAMETER, "level: initial_heading_deg, or "
+            "gyrocompassing (needs gyro_bias parameter with gyro_bias_sigma_rad_s; refused above "
+            "heading_error_limit_deg)", choices=HeadingSource, group="initial attitude"),
+    Setting("heading_error_limit_deg", 5.0, "largest expected gyrocompass heading error", "deg",
+            0.0, 180.0, group="initial attitude"),
+    Setting("accel_bias_sigma", 0.05, "1-sigma accelerometer bias: levelling error = this / g",
+            "m/s^2", 0.0, 10.0, group="initial attitude"),
+    # -- gyro bias
+    Setting("gyro_bias", GyroBiasMode.AUTO, "auto: estimated at every rest (zero-rate update) and "
+            "held in motion; none; parameter: gyro_bias_rad_s", choices=GyroBiasMode,
+            group="gyro bias"),
+    Setting("gyro_bias_rad_s", (0.0, 0.0, 0.0), "fixed gyro bias x, y, z (gyro_bias parameter)",
+            "rad/s", -1.0e3, 1.0e3, length=3, group="gyro bias"),
+    Setting("gyro_bias_sigma_rad_s", 0.0, "1-sigma of the bias subtracted when not estimated "
+            "(none: sensor spread; parameter: calibration; auto: before the first rest)", "rad/s",
+            0.0, 10.0, group="gyro bias"),
+    Setting("gyro_bias_rw", 0.0, "gyro bias random walk (covariance)", "rad/s/sqrt(s)", 0.0, 1.0,
+            group="gyro bias"),
+    Setting("gyro_noise_density", 0.0, "gyro noise density for the covariance when the input's "
+            "angular_velocity_covariance is unknown (0 = none)", "rad/s/sqrt(Hz)", 0.0, 1.0,
+            group="gyro bias"),
+    # -- rests
+    Setting("min_rest_s", 1.0, "shortest rest used for the bias and the alignment", "s", 0.01,
+            3600.0, group="rest"),
+    Setting("rest_window_s", 0.5, "rest detector window", "s", 0.01, 60.0, group="rest"),
+    Setting("rest_gyro_std_max", 0.01, "rest: largest gyro deviation from the window mean, over "
+            "3 axes", "rad/s", 1e-6, 10.0, group="rest"),
+    Setting("rest_gyro_mean_max", 0.1, "rest: largest window-mean rate, the largest plausible "
+            "bias", "rad/s", 1e-6, 10.0, group="rest"),
+    Setting("rest_accel_std_max", 0.25, "rest: largest specific-force deviation, over 3 axes",
+            "m/s^2", 1e-4, 100.0, group="rest"),
+    Setting("rest_accel_norm_tol", 0.5, "rest: largest | |f| - g |", "m/s^2", 1e-4, 100.0,
+            group="rest"),
+    # -- aiding
+    Setting("aiding", Aiding.NONE, "gravity: tilt pulled toward the accelerometer's vertical with "
+            "gyro-bias feedback, gated in fast motion (heading stays gyro-only)", choices=Aiding,
+            group="aiding"),
+    Setting("aiding_kp", 1.0, "gravity aiding: proportional gain of the tilt correction", "1/s",
+            0.0, 1.0e3, group="aiding"),
+    Setting("aiding_ki", 0.002, "gravity aiding: integral gain (tilt-axis bias feedback)",
+            "1/s^2", 0.0, 1.0e3, group="aiding"),
+    Setting("aiding_accel_tol", 2.0, "gravity aiding: used only while | |f| - g | is below this",
+            "m/s^2", 0.0, 1.0e3, group="aiding"),
+    Setting("aiding_rate_max", 1.0, "gravity aiding: used only while |omega| is below this",
+            "rad/s", 0.0, 1.0e3, group="aiding"),
+    Setting("aiding_accel_lowpass_s", 1.0, "gravity aiding: time constant of the nav-frame "
+            "low-pass of the specific force (averages out hand and vehicle accelerations; 0 = "
+            "off)", "s", 0.0, 100.0, group="aiding"),
+    # -- validation of the input stream
+    Setting("max_gap_s", 0.1, "a forward stamp step longer than this is a gap: not integrated "
+            "across, attitude held", "s", 1e-6, 1e6, runtime=True, group="input"),
+    Setting("time_jump_threshold_s", 1.0, "a backward stamp jump longer than this resets the "
+            "attitude (shorter backward steps are skipped as out of order)", "s", 1e-6, 1e6,
+            runtime=True, group="input"),
+    Setting("max_rate_rad_s", v.DEFAULT_MAX_RATE_RAD_S, "a sample with a larger rate on any axis "
+            "is implausible and skipped", "rad/s", 1e-3, v.MAX_RATE_LIMIT_RAD_S, runtime=True,
+            group="input"),
+)
+
+_BY_NAME = {s.name: s for s in SETTINGS}
+
+
+def setting(name: str) -> Setting:
+    """The row called ``name``."""
+    return _BY_NAME[name]
+
+
+class _StreamConfigMethods:
+    """Methods of :class:`StreamConfig` (its fields come from :data:`SETTINGS`)."""
+
+    def __post_init__(self):
+        for s in SETTINGS:
+            object.__setattr__(self, s.name, s.check(getattr(self, s.name)))
+        self.check()
+
+    # -- cross-setting rules
+    def check(self) -> None:
+        """Rules that involve several settings (``ValueError`` naming them)."""
+        from gyro_attitude.core.attitude.gyro_bias import GyroBiasEstimator
+
+        try:
+            GyroBiasEstimator("auto", min_rest_s=self.min_rest_s, rest=self.rest_params())
+        except ValueError as exc:  # e.g. rest_gyro_std_max below the noise floor
+            raise SettingError("rest_gyro_std_max", f"rest settings: {exc}") from None
+        if self.heading_source is HeadingSource.GYROCOMPASS:
+            if self.initial_attitude_source is not InitialAttitudeSource.LEVEL:
+                raise SettingError("heading_source", "heading_source 'gyrocompass' needs "
+                                   "initial_attitude_source 'level'")
+            if self.gyro_bias is not GyroBiasMode.PARAMETER or not self.gyro_bias_sigma_rad_s > 0:
+                raise SettingError("heading_source", "gyrocompass needs gyro_bias 'parameter' with its 1σ "
+                                 "gyro_bias_sigma_rad_s > 0 (a bias estimated at rest has "
+                                 "absorbed the Earth rate and cannot find north)")
+            from gyro_attitude.core.attitude.alignment import check_gyrocompass_feasible
+
+            check_gyrocompass_feasible(self.gyro_bias_sigma_rad_s, self.latitude_rad,
+                                       self.heading_error_limit_deg)
+
+    # -- derived views
+    @property
+    def max_gap_ns(self) -> int:
+        return int(round(self.max_gap_s * 1e9))
+
+    @property
+    def time_jump_ns(self) -> int:
+        return int(round(self.time_jump_threshold_s * 1e9))
+
+    @property
+    def levelling(self) -> bool:
+        return self.initial_attitude_source is InitialAttitudeSource.LEVEL
+
+    @property
+    def latitude_known(self) -> bool:
+        """The latitude describes where the IMU is: with frame enu, or for gyrocompassing
+        (frame inertial otherwise leaves the Earth rate in the bias: see gyro_bias.py)."""
+        return self.frame is Frame.ENU or self.heading_source is HeadingSource.GYROCOMPASS
+
+    def check_config(self) -> v.ImuCheckConfig:
+        return v.ImuCheckConfig(self.max_gap_ns, self.time_jump_ns, self.max_rate_rad_s)
+
+    def rest_params(self) -> dict:
+        return {"window_s": self.rest_window_s, "gyro_std_max": self.rest_gyro_std_max,
+                "gyro_mean_max": self.rest_gyro_mean_max,
+                "accel_std_max": self.rest_accel_std_max,
+                "accel_norm_tol": self.rest_accel_norm_tol}
+
+    def nav_frame(self):
+        """The constant :class:`NavFrame` of these settings (frame enu), else None."""
+        if self.frame is not Frame.ENU:
+            return None
+        import numpy as np
+
+        from gyro_attitude.core.attitude.nav_frame import NavFrame
+
+        return NavFrame(latitude_rad=self.latitude_rad, longitude_rad=self.longitude_rad,
+                        height_m=self.height_m, velocity_enu=np.asarray(self.velocity_enu))
+
+    def replace(self, **changes):
+        """A copy with ``changes`` (checked like the constructor)."""
+        return replace(self, **changes)
+
+    def values(self) -> dict:
+        """``{name: value}`` with enum members as their words (for JSON and YAML)."""
+        out = {}
+        for s in SETTINGS:
+            x = getattr(self, s.name)
+            out[s.name] = x.value if isinstance(x, Enum) else (list(x) if isinstance(x, tuple)
+                                                               else x)
+        return out
+
+
+StreamConfig = make_dataclass(
+    "StreamConfig", [(s.name, object, field(default=s.default)) for s in SETTINGS],
+    bases=(_StreamConfigMethods,), frozen=True)
+StreamConfig.__module__ = __name__
+StreamConfig.__doc__ = ("Settings of the attitude estimator: one field per row of "
+                        ":data:`SETTINGS` (see there for names, units and ranges).")
+
+
+def _yaml_value(x) -> str:
+    if isinstance(x, Enum):
+        return x.value
+    if isinstance(x, bool):
+        return "true" if x else "false"
+    if isinstance(x, str):
+        return f'"{x}"'
+    if isinstance(x, tuple):
+        return "[" + ", ".join(repr(float(c)) for c in x) + "]"
+    return repr(x)
+
+
+def yaml_lines(indent: str = "    ", settings=SETTINGS) -> list[str]:
+    """The estimator settings as commented YAML lines (``name: default  # help``)."""
+    out = []
+    group = None
+    for s in settings:
+        if s.group != group:
+            group = s.group
+            out.append(f"{indent}# -- {group}")
+        out.append(f"{indent}{s.name}: {_yaml_value(s.default)}  # {s.describe()}")
+    return out
+
+
+def markdown_table(settings=SETTINGS) -> list[str]:
+    """The estimator settings as a Markdown table (README)."""
+    out = ["| setting (parameter, `replay` flag) | default | unit | meaning |",
+           "|---|---|---|---|"]
+    for s in settings:
+        default = _yaml_value(s.default).strip('"')
+        allowed = ""
+        if s.choices is not None:
+            allowed = " (" + " \\| ".join(f"`{m.value}`" for m in s.choices) + ")"
+        elif s.low is not None and s.high is not None and s.kind != "vector":
+            allowed = f" ({s.low:g} .. {s.high:g})"
+        runtime = "; may change at runtime" if s.runtime else ""
+        out.append(f"| `{s.name}` `{s.flag}` | `{default}` | {s.unit} | {s.help}{allowed}"
+                   f"{runtime} |")
+    return out
