@@ -60,55 +60,85 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gyro_attitude.core.attitude.modes import SettingError
+from gyro_attitude.core.attitude.settings import setting
+from gyro_attitude.core.earth import STANDARD_GRAVITY
+
 __all__ = ["AhrsFilter", "AhrsParams", "ahrs_attitude", "MAG_ABSURD_T", "MAG_ZERO_T"]
 
 MAG_ABSURD_T = 1e-2  # tesla: 10 mT, beyond any magnetometer's range (Earth's field ~25-65 µT)
 MAG_ZERO_T = 1e-7  # tesla: 0.1 µT, no magnetometer in a geomagnetic field reads this little
 HARD_IRON_SOLVE_S = 1.0
+HEADING_INIT_TAU_S = 0.3
+HEADING_INIT_S = 2.0
 _SQRT2 = math.sqrt(2.0)
+
+
+# AhrsParams field -> the estimator setting (core/attitude/settings.py) that is its one home:
+# default, range and help come from there.
+SETTING_OF = {
+    "accel_tau_s": "ahrs_accel_tau_s",
+    "accel_reject_deg": "ahrs_accel_reject_deg",
+    "accel_norm_tol": "ahrs_accel_norm_tol",
+    "accel_recovery_s": "ahrs_accel_recovery_s",
+    "accel_recovery_rate_deg_s": "ahrs_recovery_rate_deg_s",
+    "tilt_rate_max_deg_s": "ahrs_tilt_rate_max_deg_s",
+    "bias_gain": "ahrs_bias_gain",
+    "mag_tau_s": "ahrs_mag_tau_s",
+    "declination_deg": "magnetic_declination_deg",
+    "mag_norm_tol": "mag_norm_tol",
+    "mag_dip_tol_deg": "mag_dip_tol_deg",
+    "mag_recovery_s": "mag_recovery_s",
+    "hard_iron_t": "mag_hard_iron_t",
+    "estimate_hard_iron": "mag_hard_iron_estimate",
+}
+
+
+def _default(name: str):
+    return setting(SETTING_OF[name]).default
 
 
 @dataclass(frozen=True)
 class AhrsParams:
-    """Settings of :class:`AhrsFilter` (module docstring); SI units, angles in degrees."""
+    """Settings of :class:`AhrsFilter` (module docstring); SI units, angles in degrees.  The
+    user-facing ones are rows of the estimator's settings table (:data:`SETTING_OF`); the rest
+    are the filter's internals: ``tilt_tau_s`` (0: the full correction every sample, as VQF),
+    the filter's own rest test (``rest_*``), ``initial_heading_from_mag`` (the first usable
+    field sets the heading at once), the field reference (``mag_ref_norm_t``,
+    ``mag_ref_dip_deg``; None: learned over ``mag_ref_s``) and the hard-iron fit's memory."""
 
-    accel_tau_s: float = 3.0
+    accel_tau_s: float = _default("accel_tau_s")
+    accel_reject_deg: float = _default("accel_reject_deg")
+    accel_norm_tol: float = _default("accel_norm_tol")
+    accel_recovery_s: float = _default("accel_recovery_s")
+    accel_recovery_rate_deg_s: float = _default("accel_recovery_rate_deg_s")
+    tilt_rate_max_deg_s: float = _default("tilt_rate_max_deg_s")
+    bias_gain: float = _default("bias_gain")
+    mag_tau_s: float = _default("mag_tau_s")
+    declination_deg: float = _default("declination_deg")
+    mag_norm_tol: float = _default("mag_norm_tol")
+    mag_dip_tol_deg: float = _default("mag_dip_tol_deg")
+    mag_recovery_s: float = _default("mag_recovery_s")
+    hard_iron_t: tuple = _default("hard_iron_t")
+    estimate_hard_iron: bool = _default("estimate_hard_iron")
     tilt_tau_s: float = 0.0
-    accel_reject_deg: float = 3.0
-    accel_norm_tol: float = 3.0
-    accel_recovery_s: float = 10.0
-    accel_recovery_rate_deg_s: float = 0.2
-    tilt_rate_max_deg_s: float = 1.0
     rest_accel_tau_s: float = 0.5
     rest_rate_max: float = 0.05
     rest_accel_tol: float = 0.3
     rest_min_s: float = 1.0
-    bias_gain: float = 0.02
-    gravity: float = 9.81
-    mag_tau_s: float = 30.0
-    declination_deg: float = 0.0
+    gravity: float = STANDARD_GRAVITY
     initial_heading_from_mag: bool = True
-    mag_norm_tol: float = 0.1
-    mag_dip_tol_deg: float = 10.0
     mag_ref_norm_t: float | None = None
     mag_ref_dip_deg: float | None = None
     mag_ref_s: float = 1.0
-    mag_recovery_s: float = 20.0
-    hard_iron_t: tuple = (0.0, 0.0, 0.0)
-    estimate_hard_iron: bool = False
     hard_iron_window_s: float = 60.0
 
     def __post_init__(self):
-        limits = {"accel_tau_s": (1e-3, 1e3), "tilt_tau_s": (0.0, 1e3),
-                  "accel_reject_deg": (0.1, 180.0), "accel_norm_tol": (0.0, 1e3),
-                  "accel_recovery_s": (0.0, 1e6),
-                  "accel_recovery_rate_deg_s": (0.0, 1e3), "tilt_rate_max_deg_s": (0.0, 1e4),
-                  "rest_accel_tau_s": (1e-3, 1e3),
+        for name, row in SETTING_OF.items():
+            object.__setattr__(self, name, setting(row).check(getattr(self, name)))
+        limits = {"tilt_tau_s": (0.0, 1e3), "rest_accel_tau_s": (1e-3, 1e3),
                   "rest_rate_max": (0.0, 10.0), "rest_accel_tol": (0.0, 100.0),
-                  "rest_min_s": (0.0, 1e3), "bias_gain": (0.0, 10.0), "gravity": (1.0, 100.0),
-                  "mag_tau_s": (1e-3, 1e4), "declination_deg": (-180.0, 180.0),
-                  "mag_norm_tol": (1e-3, 10.0), "mag_dip_tol_deg": (0.1, 180.0),
-                  "mag_ref_s": (0.0, 1e3), "mag_recovery_s": (0.0, 1e6),
+                  "rest_min_s": (0.0, 1e3), "gravity": (1.0, 100.0), "mag_ref_s": (0.0, 1e3),
                   "hard_iron_window_s": (1.0, 1e6)}
         for name, (lo, hi) in limits.items():
             _check_num(name, getattr(self, name), lo, hi)
@@ -116,14 +146,26 @@ class AhrsParams:
             _check_num("mag_ref_norm_t", self.mag_ref_norm_t, MAG_ZERO_T, MAG_ABSURD_T)
         if self.mag_ref_dip_deg is not None:
             _check_num("mag_ref_dip_deg", self.mag_ref_dip_deg, -90.0, 90.0)
-        b = self.hard_iron_t
-        if isinstance(b, str) or not hasattr(b, "__len__") or len(b) != 3:
-            raise ValueError(f"hard_iron_t must be 3 numbers (tesla), got {b!r}")
-        for c in b:
-            _check_num("hard_iron_t", c, -MAG_ABSURD_T, MAG_ABSURD_T)
-        for name in ("initial_heading_from_mag", "estimate_hard_iron"):
-            if not isinstance(getattr(self, name), bool):
-                raise ValueError(f"{name} must be true or false, got {getattr(self, name)!r}")
+        if not isinstance(self.initial_heading_from_mag, bool):
+            raise ValueError("initial_heading_from_mag must be true or false, got "
+                             f"{self.initial_heading_from_mag!r}")
+
+    @classmethod
+    def from_config(cls, cfg) -> AhrsParams:
+        """The filter's parameters of a :class:`~.settings.StreamConfig`: the table's rows, the
+        field reference from ``mag_reference_enu_t`` (zeros: learned), and the heading set from
+        the field when the stream levels (a given initial attitude keeps its heading and the
+        field pulls it slowly)."""
+        kw = {name: getattr(cfg, row) for name, row in SETTING_OF.items()}
+        e, n, u = cfg.mag_reference_enu_t
+        norm = math.sqrt(e * e + n * n + u * u)
+        if norm > 0.0:
+            if norm < MAG_ZERO_T:
+                raise SettingError("mag_reference_enu_t", "mag_reference_enu_t must be zeros "
+                                   f"(learn it) or a field of at least {MAG_ZERO_T:g} T")
+            kw["mag_ref_norm_t"] = norm
+            kw["mag_ref_dip_deg"] = math.degrees(math.atan2(-u, math.hypot(e, n)))
+        return cls(initial_heading_from_mag=cfg.levelling, **kw)
 
 
 def _check_num(name, v, lo, hi) -> float:
@@ -173,7 +215,8 @@ class AhrsFilter:
         self.params = p = params if params is not None else AhrsParams(**kw)
         if params is not None and kw:
             raise ValueError("give AhrsParams or keyword settings, not both")
-        self.kp = 1.0 / p.tilt_tau_s if p.tilt_tau_s > 0 else 1.0  # for the covariance stage
+        # the tilt's effective gain for the covariance stage: the low-pass sets the time constant
+        self.kp = 1.0 / max(p.accel_tau_s, p.tilt_tau_s)
         self._decl = math.radians(p.declination_deg)
         self._reject_cos = math.cos(math.radians(p.accel_reject_deg))
         self._tilt_rate = math.radians(p.tilt_rate_max_deg_s)
@@ -254,6 +297,8 @@ class AhrsFilter:
                           fz + hdt * (ox * fy - oy * fx))
             dx, dy, learn_tilt = self._tilt(dt, ox, oy, oz, fx, fy, fz, c00, c01, c02, c10, c11,
                                             c12, c20, c21, c22)
+        if dt == 0.0:
+            return ox, oy, oz  # a new time base: no interval to correct over
         if mag is not None:
             dz, learn_heading = self._heading(dt, mag, ox * hdt, oy * hdt, oz * hdt, c00, c01,
                                               c02, c10, c11, c12, c20, c21, c22)
@@ -300,11 +345,14 @@ class AhrsFilter:
             self._rest_s = 0.0
         rest = self.at_rest = self._rest_s >= p.rest_min_s
         lp = self._lp
-        if lp is None:  # steady state at this sample
+        if lp is None:
+            # steady state at the estimate's vertical, not at this one sample: the low-pass then
+            # moves from what the attitude says to what the accelerometer says over accel_tau_s
+            # (one noisy or moving sample would otherwise set the tilt)
             c = self._coefficients(p.accel_tau_s, 0.0035)
-            r1 = c[1] - c[3] + c[2] - c[4]
-            r2 = c[2] - c[4]
-            self._lp = [r1 * nx, r1 * ny, r1 * nz, r2 * nx, r2 * ny, r2 * nz]
+            r1 = (c[1] - c[3] + c[2] - c[4]) * fn
+            r2 = (c[2] - c[4]) * fn
+            self._lp = [0.0, 0.0, r1, 0.0, 0.0, r2]
             self._run_s = 0.0
             return 0.0, 0.0, False
         self._run_s += dt
@@ -379,7 +427,10 @@ class AhrsFilter:
         ez = c20 * mx + c21 * my + c22 * mz
         horiz = math.sqrt(ex * ex + ey * ey)
         dip = math.atan2(-ez, horiz)
-        if not self._reference_ok(dt, norm, dip):
+        learned = self.mag_ref_norm is not None and self.mag_ref_dip is not None
+        if not self._reference_ok(dt, norm, dip) and (learned or self.heading_initialized):
+            # disturbed, or the reference not learned yet once the heading is set (the first
+            # field sets the heading at once: waiting for the reference would set it in motion)
             return 0.0, False
         if horiz < 1e-3 * norm:
             return 0.0, False  # at a magnetic pole the horizontal field gives no heading
@@ -388,11 +439,15 @@ class AhrsFilter:
         if not self.heading_initialized:
             self.heading_initialized = True
             self._since_heading_s = 0.0
-            return err, False
         self._since_heading_s += dt
-        # faster at first (the time since the heading was set, at least 1 s), then mag_tau_s
-        tau = min(p.mag_tau_s, max(1.0, self._since_heading_s))
-        return err * min(1.0, dt / tau), tau >= p.mag_tau_s
+        # The heading is set from the field by a fast first phase (time constant
+        # HEADING_INIT_TAU_S for HEADING_INIT_S: any initial error falls by e^-6.7), then the
+        # time constant grows with the time since (a running average) up to mag_tau_s.  Not
+        # one jump: a correction is a body rate, and a 90° spike in one interval is not
+        # integrated faithfully by the higher-order integrators.
+        since = self._since_heading_s - HEADING_INIT_S
+        tau = min(p.mag_tau_s, max(HEADING_INIT_TAU_S, since))
+        return err * min(1.0, dt / tau), since >= p.mag_tau_s
 
     def _reference_ok(self, dt, norm, dip) -> bool:
         """Whether the field agrees with the reference (learning or replacing it as needed)."""

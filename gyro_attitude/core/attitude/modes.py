@@ -55,10 +55,15 @@ class GyroBiasMode(StrEnum):
 
 
 class Aiding(StrEnum):
-    """Aiding of the integrated attitude: none, or tilt from gravity."""
+    """Aiding of the integrated attitude: none; tilt from gravity (``gravity``: the Mahony-style
+    complementary filter of gravity_aiding.py); ``tilt``: the AHRS filter of ahrs.py on the
+    accelerometer alone (heading gyro-only); ``magnetometer``: the AHRS filter with the
+    magnetometer for heading."""
 
     NONE = "none"
     GRAVITY = "gravity"
+    TILT = "tilt"
+    MAGNETOMETER = "magnetometer"
 
 
 class Phase(StrEnum):

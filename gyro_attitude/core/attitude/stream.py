@@ -62,6 +62,7 @@ from gyro_attitude.core.attitude import (
     integrate_batch,
 )
 from gyro_attitude.core.attitude import validation as v
+from gyro_attitude.core.attitude.ahrs import AhrsFilter, AhrsParams
 from gyro_attitude.core.attitude.alignment import (
     AlignmentResult,
     StaticAligner,
@@ -96,6 +97,11 @@ INVALID_COVARIANCE = "invalid_covariance"
 MAX_GYRO_VARIANCE = 1.0e6
 INTEGRATOR_ERROR = "integrator_error"
 INVALID_ACCEL = "invalid_accel"
+# aiding magnetometer: Imu samples with no field within mag_max_age_s, fields that are not a
+# reading (non-finite, absurd, zero), fields that disagree with the reference (disturbances)
+MAG_MISSING = "mag_missing"
+INVALID_MAG = "invalid_mag"
+MAG_DISTURBED = "mag_disturbed"
 # m/s²: a specific force beyond this (1e5 g) is no accelerometer reading
 ACCEL_ABSURD = 1e6
 
@@ -223,10 +229,13 @@ class AttitudeStream:
             rest=cfg.rest_params())
         self._fixed_bias = self.bias_estimator.bias
         self.aiding = None
+        self._mag = None  # the current sample's magnetic field (aiding magnetometer)
         if cfg.aiding is Aiding.GRAVITY:
             self.aiding = GravityAiding(cfg.aiding_kp, cfg.aiding_ki, cfg.aiding_accel_tol,
                                         cfg.aiding_rate_max,
                                         accel_lowpass_s=cfg.aiding_accel_lowpass_s)
+        elif cfg.aiding in (Aiding.TILT, Aiding.MAGNETOMETER):
+            self.aiding = AhrsFilter(AhrsParams.from_config(cfg))
         self.covariance = AttitudeCovariance(cfg.initial_attitude_variance, cfg.gyro_bias_sigma_rad_s,
                                              cfg.gyro_bias_rw)
         self._n2 = cfg.gyro_noise_density * cfg.gyro_noise_density
@@ -258,7 +267,12 @@ class AttitudeStream:
     # ------------------------------------------------------------------ state and settings
     @property
     def counts(self) -> dict[str, int]:
-        return {**self.validator.counts, **self.counts_extra}
+        out = {**self.validator.counts, **self.counts_extra}
+        if self.config.aiding is Aiding.MAGNETOMETER:
+            out[MAG_MISSING] = self._mag_missing
+            out[INVALID_MAG] = self.aiding.mag_invalid
+            out[MAG_DISTURBED] = self.aiding.mag_disturbed
+        return out
 
     @property
     def rejected_total(self) -> int:
@@ -323,9 +337,12 @@ class AttitudeStream:
 
     # ------------------------------------------------------------------ one sample
     def push(self, t_ns: int, omega, frame_id: str = "", angular_velocity_covariance=None,
-             accel=None) -> tuple[v.Verdict, np.ndarray | None]:
+             accel=None, mag=None) -> tuple[v.Verdict, np.ndarray | None]:
         """One sample: its verdict and the attitude at ``t_ns`` (None when it was skipped or
-        while aligning).  ``accel`` the specific force (3,) m/s² or None."""
+        while aligning).  ``accel`` the specific force (3,) m/s² or None; ``mag`` the magnetic
+        field (3,) tesla time-aligned to ``t_ns`` or None (aiding magnetometer: counted
+        ``mag_missing``, heading gyro-only; a field that is not finite, absurd or zero is
+        counted ``invalid_mag``, one that disagrees with the reference ``mag_disturbed``)."""
         if self.integrator is None:
             raise ValueError(f"{self.algorithm} is an offline algorithm: it cannot stream "
                              "(use run() over the whole recording, or a causal algorithm)")
@@ -344,6 +361,7 @@ class AttitudeStream:
         if action == v.RESET_TIME_JUMP:
             self.details.setdefault("time_jump", verdict.detail)
         a = self._accel(accel)
+        self._mag = self._mag_sample(mag)
         if self._start_t is None:
             self._start_t = t_ns
         if action != v.ACCEPT:
@@ -353,6 +371,19 @@ class AttitudeStream:
         if self.phase != RUNNING:
             return verdict, self._align_step(t_ns, w, a, var, action, bias)
         return self._integrate(verdict, t_ns, w - bias, a, var)
+
+    _mag_missing = 0
+
+    def _mag_sample(self, mag):
+        """The sample's field for the aiding (magnetometer mode), counting absent ones; the
+        filter checks and counts the values."""
+        if self.config.aiding is not Aiding.MAGNETOMETER:
+            return None
+        if mag is None or (isinstance(mag, np.ndarray) and mag.shape == (3,)
+                           and np.isnan(mag).all()):
+            self._mag_missing += 1
+            return None
+        return mag
 
     def _accel(self, accel):
         """The sample's specific force as 3 floats, or None (absent or unusable, counted)."""
@@ -443,7 +474,7 @@ class AttitudeStream:
             self._new_aligner()
             return None
         buf = self._align_buffer
-        buf.append((t_ns, w, a, var))
+        buf.append((t_ns, w, a, var, self._mag))
         seg = al._seg
         if seg is None:
             while len(buf) > 1:
@@ -478,10 +509,10 @@ class AttitudeStream:
         integ.reset(res.q_nb, None)
         if self.aiding is not None:
             self.aiding.last_t_ns = None
-        t0, w0, a0, var0 = entries[0]
+        t0, w0, a0, var0, self._mag = entries[0]
         verdict0 = v.Verdict(v.START, "", "")
         _, q = self._integrate(verdict0, t0, w0 - bias, a0, var0, fresh=True)
-        for tk, wk, ak, vk in entries[1:]:
+        for tk, wk, ak, vk, self._mag in entries[1:]:
             _, q = self._integrate(v.Verdict(v.ACCEPT, "", ""), tk, wk - bias, ak, vk)
         return q
 
@@ -494,7 +525,7 @@ class AttitudeStream:
         try:
             if action == v.ACCEPT:
                 if aid is not None:
-                    rate = aid.update(t_ns, rate, a, self._last_q)
+                    rate = aid.update(t_ns, rate, a, self._last_q, self._mag)
                 q = integ.update(t_ns, rate)
             else:
                 if action == v.RESET_TIME_JUMP:
@@ -512,7 +543,7 @@ class AttitudeStream:
                 integ.reset(q0, None)
                 if aid is not None:
                     aid.last_t_ns = None
-                    rate = aid.update(t_ns, rate, a, q0)
+                    rate = aid.update(t_ns, rate, a, q0, self._mag)
                 q = integ.update(t_ns, rate)
         except ValueError as exc:  # defensive: the validator should have caught it
             return self._integrator_error(verdict, f"integrator refused a sample: {exc}")
@@ -607,14 +638,16 @@ class AttitudeStream:
         return False
 
     def run(self, t_ns, omega, frame_id: str | list[str] | None = "",
-            angular_velocity_covariance=None, accel=None) -> StreamResult:
+            angular_velocity_covariance=None, accel=None, mag=None) -> StreamResult:
         """All samples of a recording, in file order, on a fresh stream: what :meth:`push`
         would give sample by sample (the stream is left in the state after the last one;
         the integrator holds the last sample only, so the rate fit of a later push() rebuilds
         from two samples on, as after a restart).
 
         ``t_ns`` (N,) int stamps; ``omega`` (N, 3) rad/s; ``frame_id`` one for all or one per
-        sample; ``angular_velocity_covariance`` (N, 9) or None; ``accel`` (N, 3) m/s² or None.
+        sample; ``angular_velocity_covariance`` (N, 9) or None; ``accel`` (N, 3) m/s² or None;
+        ``mag`` (N, 3) tesla time-aligned to the stamps (rows of NaN: no field there; see
+        :func:`.sample_alignment.latest_at`) or None.
         Raises ValueError when ``initial_attitude="level"`` cannot align on the recording.
         """
         if self.validator.last_t_ns is not None or self.validator.accepted:
@@ -633,6 +666,11 @@ class AttitudeStream:
             acc = np.asarray(accel, dtype=np.float64)
             if acc.shape != (n, 3):
                 raise ValueError(f"accel must have shape ({n}, 3), got {acc.shape}")
+        mg = None
+        if mag is not None:
+            mg = np.asarray(mag, dtype=np.float64)
+            if mg.shape != (n, 3):
+                raise ValueError(f"mag must have shape ({n}, 3), got {mg.shape}")
         cls = v.classify(t, w, frame_id, self.config.check_config())  # checks the input too
         t = t.astype(np.int64, copy=False)
         cfg = self.config
@@ -644,7 +682,7 @@ class AttitudeStream:
                     "recording needs the per-sample path (levelling, aiding, or auto gyro bias "
                     "with a rest in the data): use a causal algorithm, or gyro bias none or a "
                     "fixed value")
-            return self._run_pushing(t, w, frame_id, cov, acc)
+            return self._run_pushing(t, w, frame_id, cov, acc, mg)
         codes = v.ACTION_CODES
         act = cls.action
         valid = np.flatnonzero(act != codes[v.REJECT])
@@ -669,7 +707,7 @@ class AttitudeStream:
                     raise ValueError(f"{self.algorithm} produced a non-finite attitude and, an "
                                      "offline algorithm, cannot take the per-sample path that "
                                      "restores the last good one: use a causal algorithm")
-                return self._run_pushing(t, w, frame_id, cov, acc)
+                return self._run_pushing(t, w, frame_id, cov, acc, mg)
             if p0 == 0 and p1 == valid.size:
                 q_out = q_seg  # one run: no copy
                 continue
@@ -745,7 +783,7 @@ class AttitudeStream:
                 self.integrator.reset(self._last_q, None)
                 self.integrator.update(int(t[valid[-1]]), w[valid[-1]] - self._fixed_bias)
 
-    def _run_pushing(self, t, w, frame_id, covariance, accel) -> StreamResult:
+    def _run_pushing(self, t, w, frame_id, covariance, accel, mag=None) -> StreamResult:
         """Per-sample path over the whole recording (sequential filters, or the batch met a
         non-finite attitude)."""
         n = w.shape[0]
@@ -757,7 +795,8 @@ class AttitudeStream:
         for k in range(n):
             cov_k = None if covariance is None else covariance[k]
             acc_k = None if accel is None else accel[k]
-            verdict, q = push(int(t[k]), w[k], frames[k] or "", cov_k, acc_k)
+            verdict, q = push(int(t[k]), w[k], frames[k] or "", cov_k, acc_k,
+                              None if mag is None else mag[k])
             action[k] = codes[verdict.action]
             if q is None:
                 continue

@@ -199,12 +199,14 @@ def test_hard_iron_fit_refuses_a_field_seen_from_one_direction_only():
     assert aid.hard_iron_fits == 0 and aid.hard_iron == [0.0, 0.0, 0.0]
 
 
-@pytest.mark.parametrize("name,value", [("accel_tau_s", 0.0), ("mag_tau_s", math.nan),
-                                        ("declination_deg", 400.0), ("hard_iron_t", (1, 2)),
-                                        ("mag_ref_norm_t", 1.0), ("estimate_hard_iron", "yes"),
-                                        ("accel_reject_deg", True)])
-def test_bad_settings_are_refused_naming_the_setting(name, value):
-    with pytest.raises(ValueError, match=name):
+@pytest.mark.parametrize("name,value,named", [
+    ("accel_tau_s", 0.0, "ahrs_accel_tau_s"), ("mag_tau_s", math.nan, "ahrs_mag_tau_s"),
+    ("declination_deg", 400.0, "magnetic_declination_deg"),
+    ("hard_iron_t", (1, 2), "mag_hard_iron_t"), ("mag_ref_norm_t", 1.0, "mag_ref_norm_t"),
+    ("estimate_hard_iron", "yes", "mag_hard_iron_estimate"),
+    ("accel_reject_deg", True, "ahrs_accel_reject_deg"), ("rest_min_s", -1.0, "rest_min_s")])
+def test_bad_settings_are_refused_naming_the_setting(name, value, named):
+    with pytest.raises(ValueError, match=named):
         AhrsParams(**{name: value})
 
 
@@ -213,3 +215,25 @@ def test_time_must_increase():
     aid.update(10, (0, 0, 0), (0, 0, G), (0, 0, 0, 1.0))
     with pytest.raises(ValueError, match="increase"):
         aid.update(10, (0, 0, 0), (0, 0, G), (0, 0, 0, 1.0))
+
+
+def test_latest_sample_rule_is_the_same_for_arrays_and_the_live_buffer():
+    from gyro_attitude.core.attitude.sample_alignment import LatestSamples, latest_at
+
+    t = np.array([10, 20, 30, 40, 50, 200], dtype=np.int64)
+    src = np.array([5, 20, 21, 35, 35], dtype=np.int64)  # equal stamps: the later one wins
+    vals = np.arange(15, dtype=float).reshape(5, 3)
+    rows = latest_at(t, src, vals, max_age_ns=15)
+    expect = [vals[0], vals[1], vals[2], vals[4], vals[4], None]
+    live = LatestSamples(15)
+    for k, tk in enumerate(t):
+        for j in np.flatnonzero(src <= tk):
+            if all(j_ != j for j_ in getattr(live, "_seen", [])):
+                live.add(int(src[j]), vals[j])
+                live._seen = [*getattr(live, "_seen", []), j]
+        got = live.at(int(tk))
+        if expect[k] is None:
+            assert np.isnan(rows[k]).all() and got is None
+        else:
+            np.testing.assert_array_equal(rows[k], expect[k])
+            np.testing.assert_array_equal(got, expect[k])
