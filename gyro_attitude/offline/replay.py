@@ -24,8 +24,12 @@ import numpy as np
 
 from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, DEFAULT_OFFLINE_ALGORITHM, NavFrame
 from gyro_attitude.core.attitude import validation as iv
-from gyro_attitude.core.attitude.modes import InitialAttitudeSource
+from gyro_attitude.core.attitude.modes import Aiding, InitialAttitudeSource
+from gyro_attitude.core.attitude.sample_alignment import latest_at
 from gyro_attitude.core.attitude.stream import (
+    INVALID_MAG,
+    MAG_DISTURBED,
+    MAG_MISSING,
     AttitudeStream,
     PerSamplePathNeeded,
     StreamConfig,
@@ -35,6 +39,7 @@ from gyro_attitude.core.attitude.truth import initial_attitude_from_truth
 from gyro_attitude.core.rotation import quat_angle_between
 from gyro_attitude.io.cdr_arrays import (
     IMU_TYPE,
+    MAGNETIC_FIELD_TYPE,
     QUATERNION_STAMPED_TYPE,
     imu_batch,
     quaternion_stamped_batch,
@@ -52,6 +57,7 @@ __all__ = [
 ]
 
 DEFAULT_IMU_TOPIC = "imu/data_raw"
+DEFAULT_MAG_TOPIC = "imu/mag"
 TRUTH_TOPIC = "truth/attitude"
 OUTPUT_CHUNK_SIZE = 4 * 1024 * 1024
 
@@ -93,6 +99,7 @@ class ReplayResult:
     write_seconds: float
     messages_per_second: float
     input_damage: str | None
+    magnetometer: dict | None = None
     truth_topic: str | None = None
     truth_matched: int = 0
     final_error_rad: float | None = None
@@ -154,7 +161,8 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                 truth_topic: str = TRUTH_TOPIC, compression: str = DEFAULT_COMPRESSION,
                 chunk_size: int = OUTPUT_CHUNK_SIZE, force: bool = False,
                 progress: Callable[[int, int], None] | None = None,
-                on_damage: str = "warn", config: StreamConfig | None = None) -> ReplayResult:
+                on_damage: str = "warn", config: StreamConfig | None = None,
+                mag_topic: str = DEFAULT_MAG_TOPIC) -> ReplayResult:
     """Integrate every Imu message of ``input_path`` and write ``output_path``.
 
     ``config`` the estimator settings (:class:`StreamConfig`: frame, initial attitude, bias,
@@ -168,13 +176,17 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     ``config`` acts on the recording (levelling, aiding, auto bias with a rest).  ``config``
     The output must not be the
     input and must not exist unless ``force``; it appears only complete.
+    With ``aiding`` magnetometer the ``sensor_msgs/MagneticField`` topic ``mag_topic`` is read
+    and matched to the Imu stamps as the node matches it (the latest field sample at or before
+    each stamp, at most ``mag_max_age_s`` old: :mod:`.sample_alignment`).
     ``progress(bytes_done, bytes_total)`` is called while reading.  Raises ValueError (bad
     arguments, unusable input, nothing to write) and OSError.
     """
     for name, value in (("input_path", input_path), ("output_path", output_path)):
         if not isinstance(value, str | os.PathLike):
             raise ValueError(f"{name} must be a path, got {type(value).__name__}")
-    for name, value in (("imu_topic", imu_topic), ("truth_topic", truth_topic)):
+    for name, value in (("imu_topic", imu_topic), ("truth_topic", truth_topic),
+                        ("mag_topic", mag_topic)):
         if not isinstance(value, str) or not value:
             raise ValueError(f"{name} must be a topic name, got {value!r}")
     if config is not None and not isinstance(config, StreamConfig):
@@ -189,8 +201,11 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     _check_inputs(frame, nav)
     check_output_path(output_path, inputs=[input_path], force=force)
     t_start = time.perf_counter()
-    arrays = read_topic_arrays(input_path, {imu_topic: IMU_TYPE,
-                                            truth_topic: QUATERNION_STAMPED_TYPE},
+    use_mag = config.aiding is Aiding.MAGNETOMETER
+    topics = {imu_topic: IMU_TYPE, truth_topic: QUATERNION_STAMPED_TYPE}
+    if use_mag:
+        topics[mag_topic] = MAGNETIC_FIELD_TYPE
+    arrays = read_topic_arrays(input_path, topics,
                                on_damage=on_damage, progress=progress, required=False,
                                fields={imu_topic: ("angular_velocity", "linear_acceleration",
                                                    "angular_velocity_covariance",
@@ -203,6 +218,15 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     if len(imu) == 0:
         raise ValueError(f"{input_path}: topic {imu.topic} has no messages"
                          + (f"; {damage}" if damage else ""))
+    mag_rows = None
+    if use_mag:
+        mag = arrays.get(mag_topic)
+        if mag is None or len(mag) == 0:
+            raise ValueError(f"{input_path}: aiding magnetometer needs the "
+                             f"sensor_msgs/MagneticField topic {mag_topic!r} (use --mag-topic)"
+                             + ("" if mag is None else ": it has no messages"))
+        mag_rows = latest_at(imu.stamp_ns, mag.stamp_ns, mag.magnetic_field,
+                             int(round(config.mag_max_age_s * 1e9)))
     t_read = time.perf_counter()
 
     truth = arrays.get(truth_topic)
@@ -221,19 +245,20 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     # (element 0 of its covariance is -1 when it has none, REP-145)
     has_accel = bool(len(imu) and imu.linear_acceleration_covariance[0, 0] != -1.0)
     accel = imu.linear_acceleration[first:] if has_accel else None
+    mag_in = None if mag_rows is None else mag_rows[first:]
     # One frame per decoded message is not kept by the array reader: the first frame stands
     # for all (the node would also reject samples whose frame_id changes: see frame_ids).
     stream = AttitudeStream(algorithm or DEFAULT_OFFLINE_ALGORITHM, q0=q0, nav=nav,
                             config=config)
     try:
-        res = stream.run(t, omega, imu.frame_id, cov, accel)
+        res = stream.run(t, omega, imu.frame_id, cov, accel, mag_in)
     except PerSamplePathNeeded:
         if algorithm is not None:
             raise
         # a sequential filter acts on this recording (levelling, aiding, auto bias with a
         # rest): the offline algorithm cannot run sample by sample, the node's default can
         stream = AttitudeStream(DEFAULT_ALGORITHM, q0=q0, nav=nav, config=config)
-        res = stream.run(t, omega, imu.frame_id, cov, accel)
+        res = stream.run(t, omega, imu.frame_id, cov, accel, mag_in)
     algorithm = stream.algorithm
     if res.index.size == 0:
         reasons = ", ".join(f"{n} {r}" for r, n in res.counts.items() if n and r != iv.GAP)
@@ -294,6 +319,16 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         integrate_seconds=t_int - t_read, write_seconds=t_end - t_int,
         messages_per_second=len(imu) / max(t_end - t_start, 1e-12), input_damage=damage,
         index=keep, t_ns=tv, q=qv, error_t_ns=np.zeros(0, np.int64), error_rad=np.zeros(0))
+    if use_mag:
+        aid = stream.aiding
+        result.magnetometer = {
+            "topic": arrays[mag_topic].topic, "messages": len(arrays[mag_topic]),
+            **{k: res.counts[k] for k in (MAG_MISSING, INVALID_MAG, MAG_DISTURBED)},
+            "reference_changes": aid.mag_reference_changes,
+            "reference_norm_t": aid.mag_ref_norm,
+            "reference_dip_deg": None if aid.mag_ref_dip is None else math.degrees(
+                aid.mag_ref_dip),
+            "hard_iron_t": list(aid.hard_iron), "accel_rejected": aid.accel_rejected}
     if truth is not None and len(truth):
         # match in stamp order (the output is in file order and may jump back in time)
         order = np.argsort(tv, kind="stable")

@@ -416,7 +416,8 @@ class AhrsFilter:
         hi = self.hard_iron
         mx, my, mz = m[0] - hi[0], m[1] - hi[1], m[2] - hi[2]
         norm = math.sqrt(mx * mx + my * my + mz * mz)
-        if norm < MAG_ZERO_T:
+        if norm < MAG_ZERO_T or m[0] * m[0] + m[1] * m[1] + m[2] * m[2] < MAG_ZERO_T * MAG_ZERO_T:
+            # a reading of (almost) zero is no reading, whatever the hard iron
             self.mag_invalid += 1
             return 0.0, False
         if self._hi_sums is not None:

@@ -272,6 +272,11 @@ class AttitudeStream:
             out[MAG_MISSING] = self._mag_missing
             out[INVALID_MAG] = self.aiding.mag_invalid
             out[MAG_DISTURBED] = self.aiding.mag_disturbed
+            for key, text in ((INVALID_MAG, "a magnetic field sample not finite, beyond 10 mT "
+                                            "or below 0.1 µT"),
+                              (MAG_DISTURBED, "a field whose norm or dip is off the reference")):
+                if out[key]:
+                    self.details.setdefault(key, text)
         return out
 
     @property
@@ -382,6 +387,8 @@ class AttitudeStream:
         if mag is None or (isinstance(mag, np.ndarray) and mag.shape == (3,)
                            and np.isnan(mag).all()):
             self._mag_missing += 1
+            self.details.setdefault(MAG_MISSING, f"no field sample at stamp {self.last_t_ns} "
+                                                 "(none within mag_max_age_s)")
             return None
         return mag
 
