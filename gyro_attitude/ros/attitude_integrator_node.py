@@ -75,12 +75,13 @@ from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, MagneticField
 from std_msgs.msg import Header
 
 from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, NavFrame, causal_algorithms
 from gyro_attitude.core.attitude import validation as iv
-from gyro_attitude.core.attitude.modes import InitialAttitudeSource, SettingError
+from gyro_attitude.core.attitude.modes import Aiding, InitialAttitudeSource, SettingError
+from gyro_attitude.core.attitude.sample_alignment import LatestSamples
 from gyro_attitude.core.attitude.settings import SETTINGS, StreamConfig
 from gyro_attitude.core.attitude.stream import (
     ALIGNING,
@@ -88,6 +89,9 @@ from gyro_attitude.core.attitude.stream import (
     INTEGRATOR_ERROR,
     INVALID_ACCEL,
     INVALID_COVARIANCE,
+    INVALID_MAG,
+    MAG_DISTURBED,
+    MAG_MISSING,
     RUNNING,
     AttitudeStream,
 )
@@ -118,6 +122,10 @@ def parameter_specs(settings=SETTINGS) -> list[ParamSpec]:
                   "nav_msgs/Odometry topic giving the carrier velocity for the transport "
                   "rate (frame=enu; twist in child_frame_id, rotated to ENU with the pose "
                   "orientation); '' = off, velocity_enu is used"),
+        ParamSpec("mag_topic", "imu/mag",
+                  "sensor_msgs/MagneticField topic (tesla) for aiding magnetometer, matched to "
+                  "the Imu stamps (the latest sample at or before each, at most mag_max_age_s "
+                  "old)"),
         ParamSpec("world_frame_id", "",
                   "header.frame_id of the attitude output ('' = 'enu' or 'inertial' per frame)"),
         ParamSpec("qos_reliability", "best_effort",
@@ -187,6 +195,12 @@ class AttitudeIntegratorNode(Node):
                 self._sub_odom = self.create_subscription(
                     Odometry, p["odometry_topic"], self._on_odometry,
                     QoSProfile(depth=self._ODOM_QUEUE, reliability=ReliabilityPolicy.RELIABLE))
+        self._mag = None
+        if config.aiding is Aiding.MAGNETOMETER:
+            self._mag = LatestSamples(int(round(config.mag_max_age_s * 1e9)))
+            self._sub_mag = self.create_subscription(
+                MagneticField, p["mag_topic"], self._on_mag,
+                imu_qos(p["qos_reliability"], p["qos_depth"]))
         self.create_timer(p["diagnostics_period_s"], self._publish_diagnostics)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.get_logger().info(
@@ -330,6 +344,10 @@ class AttitudeIntegratorNode(Node):
     # at most this many extra messages per wakeup, so timers (diagnostics) still run
     _DRAIN_MAX = 200
 
+    def _on_mag(self, msg: MagneticField) -> None:
+        f = msg.magnetic_field
+        self._mag.add(convert.stamp_to_ns(msg.header.stamp), (f.x, f.y, f.z))
+
     def _on_imu_wakeup(self, msg: Imu) -> None:
         self._on_imu(msg)
         if not self._p["drain_queue"]:
@@ -361,7 +379,8 @@ class AttitudeIntegratorNode(Node):
         if self._sub_odom is not None:
             self._apply_odometry(t_ns)
         st = self._stream
-        verdict, q = st.push(t_ns, omega, frame_id, msg.angular_velocity_covariance, accel)
+        mag = None if self._mag is None else self._mag.at(t_ns)
+        verdict, q = st.push(t_ns, omega, frame_id, msg.angular_velocity_covariance, accel, mag)
         if st.phase != self._phase_seen:
             self._phase_seen = st.phase
             self._log_phase()
@@ -423,6 +442,15 @@ class AttitudeIntegratorNode(Node):
             "invalid_accels": str(counts[INVALID_ACCEL]),
             "phase": st.phase,
         }
+        if self._mag is not None:
+            aid = st.aiding
+            values["mag_missing"] = str(counts[MAG_MISSING])
+            values["invalid_mags"] = str(counts[INVALID_MAG])
+            values["mag_disturbed"] = str(counts[MAG_DISTURBED])
+            values["mag_reference"] = ("learning" if aid.mag_ref_norm is None else
+                                       f"|B| {aid.mag_ref_norm * 1e6:.2f} uT, dip "
+                                       f"{math.degrees(aid.mag_ref_dip or 0.0):.2f} deg")
+            values["mag_hard_iron_t"] = _vec(aid.hard_iron)
         rep = st.bias_report
         values["gyro_bias_mode"] = rep.mode
         values["gyro_bias_rad_s"] = _vec(rep.bias)
