@@ -36,6 +36,7 @@ from gyro_attitude.core.attitude.stream import (
     bias_summary,
 )
 from gyro_attitude.core.attitude.truth import initial_attitude_from_truth
+from gyro_attitude.core.attitude.world_frame import frame_id_of, from_enu
 from gyro_attitude.core.rotation import quat_angle_between
 from gyro_attitude.io.cdr_arrays import (
     IMU_TYPE,
@@ -277,6 +278,8 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
 
     log, pub = kept(imu.log_time_ns), kept(imu.publish_time_ns)
     tv, qv = kept(t), res.q
+    q_out = from_enu(qv, config.world_frame)  # the published frame (errors: in ENU, as truth)
+    out_frame = frame_id_of(config.frame, config.world_frame)
     orientation_cov = np.zeros(9)
     if res.variance is not None:
         # the diagonal of the published 3x3 orientation covariance; zeros (unknown) on rows
@@ -284,9 +287,9 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         orientation_cov = np.zeros((keep.size, 9))
         orientation_cov[:, [0, 4, 8]] = np.where(res.variance_known[:, None], res.variance, 0.0)
     batches = [
-        quaternion_stamped_batch("attitude", tv, qv, frame_id=frame, log_time_ns=log,
+        quaternion_stamped_batch("attitude", tv, q_out, frame_id=out_frame, log_time_ns=log,
                                  publish_time_ns=pub),
-        imu_batch("imu/data", tv, kept(omega), kept(imu.linear_acceleration), qv,
+        imu_batch("imu/data", tv, kept(omega), kept(imu.linear_acceleration), q_out,
                   frame_id=imu.frame_id, orientation_covariance=_constant_rows(orientation_cov)
                   if orientation_cov.ndim == 2 else orientation_cov,
                   angular_velocity_covariance=_constant_rows(kept(
@@ -318,7 +321,7 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         wall_seconds=t_end - t_start, read_seconds=t_read - t_start,
         integrate_seconds=t_int - t_read, write_seconds=t_end - t_int,
         messages_per_second=len(imu) / max(t_end - t_start, 1e-12), input_damage=damage,
-        index=keep, t_ns=tv, q=qv, error_t_ns=np.zeros(0, np.int64), error_rad=np.zeros(0))
+        index=keep, t_ns=tv, q=q_out, error_t_ns=np.zeros(0, np.int64), error_rad=np.zeros(0))
     if use_mag:
         aid = stream.aiding
         result.magnetometer = {

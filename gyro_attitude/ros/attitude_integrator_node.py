@@ -96,6 +96,7 @@ from gyro_attitude.core.attitude.stream import (
     AttitudeStream,
 )
 from gyro_attitude.core.attitude.truth import truth_at
+from gyro_attitude.core.attitude.world_frame import frame_id_of, from_enu_one
 from gyro_attitude.ros import convert
 from gyro_attitude.ros.node_main import run_node
 from gyro_attitude.ros.params import (
@@ -127,7 +128,8 @@ def parameter_specs(settings=SETTINGS) -> list[ParamSpec]:
                   "the Imu stamps (the latest sample at or before each, at most mag_max_age_s "
                   "old)"),
         ParamSpec("world_frame_id", "",
-                  "header.frame_id of the attitude output ('' = 'enu' or 'inertial' per frame)"),
+                  "header.frame_id of the attitude output ('' = the world_frame's name, or "
+                  "'inertial' with frame inertial)"),
         ParamSpec("qos_reliability", "best_effort",
                   "imu/data_raw subscription reliability", choices=("best_effort", "reliable")),
         ParamSpec("qos_depth", 1000, "imu/data_raw subscription queue depth", low=1,
@@ -163,7 +165,8 @@ class AttitudeIntegratorNode(Node):
             raise ParameterError(f"parameter '{exc.setting}': {exc}") from exc
         except ValueError as exc:  # e.g. an Euler-angle algorithm with frame=enu
             raise ParameterError(f"parameter 'algorithm' = {p['algorithm']!r}: {exc}") from exc
-        self._world_frame = p["world_frame_id"] or config.frame.value
+        self._world = config.world_frame
+        self._world_frame = p["world_frame_id"] or frame_id_of(config.frame, config.world_frame)
         self._awaiting_truth = config.initial_attitude_source is InitialAttitudeSource.TRUTH
         self._truth: deque[tuple[int, np.ndarray]] = deque(maxlen=self._TRUTH_KEPT)
         self._pending: deque[Imu] = deque(maxlen=self._TRUTH_KEPT)
@@ -404,7 +407,7 @@ class AttitudeIntegratorNode(Node):
             self.get_logger().error(f"alignment failed: {st.alignment_error}")
 
     def _publish(self, msg: Imu, q: np.ndarray) -> None:
-        x, y, z, w = q.tolist()
+        x, y, z, w = from_enu_one(q.tolist(), self._world)
         o = msg.orientation
         o.x, o.y, o.z, o.w = x, y, z, w
         variance = self._stream.variance

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from enum import Enum, StrEnum
 
-__all__ = ["Aiding", "Frame", "GyroBiasMode", "HeadingSource", "InitialAttitudeSource", "Phase",
+__all__ = ["Aiding", "Frame", "WorldFrame", "GyroBiasMode", "HeadingSource", "InitialAttitudeSource", "Phase",
            "SettingError", "parse_mode"]
 
 
@@ -28,6 +28,16 @@ class Frame(StrEnum):
 
     INERTIAL = "inertial"
     ENU = "enu"
+
+
+class WorldFrame(StrEnum):
+    """The frame the published orientation is expressed in (core/attitude/world_frame.py):
+    ``enu`` (REP-103: x east, y north, z up), ``ned`` (x north, y east, z down), ``nwu``
+    (x north, y west, z up).  The body is the IMU's frame (header.frame_id) in every case."""
+
+    ENU = "enu"
+    NED = "ned"
+    NWU = "nwu"
 
 
 class InitialAttitudeSource(StrEnum):

@@ -30,6 +30,7 @@ from gyro_attitude.core.attitude.modes import (
     HeadingSource,
     InitialAttitudeSource,
     SettingError,
+    WorldFrame,
     parse_mode,
 )
 
@@ -140,6 +141,10 @@ SETTINGS: tuple[Setting, ...] = (
     # -- frame and position
     Setting("frame", Frame.INERTIAL, "inertial: integrate q_ib; enu: q_nb with Earth and "
             "transport rate removed", choices=Frame, group="frame"),
+    Setting("world_frame", WorldFrame.ENU, "frame of the published orientation: enu (REP-103), "
+            "ned (x north, y east, z down) or nwu (x north, y west, z up); the body is the IMU "
+            "frame in each (for an FRD body with ned, turn by 180 deg about x)",
+            choices=WorldFrame, group="frame"),
     Setting("latitude_rad", 0.0, "geodetic latitude (frame enu; gyrocompassing; with frame enu "
             "the Earth rate is taken out of the gyro bias)", "rad", -_HALF_PI, _HALF_PI,
             group="frame"),

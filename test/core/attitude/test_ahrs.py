@@ -237,3 +237,29 @@ def test_latest_sample_rule_is_the_same_for_arrays_and_the_live_buffer():
         else:
             np.testing.assert_array_equal(rows[k], expect[k])
             np.testing.assert_array_equal(got, expect[k])
+
+
+@pytest.mark.parametrize("world,axes", [
+    ("enu", np.eye(3)),
+    ("ned", np.array([[0, 1, 0], [1, 0, 0], [0, 0, -1.0]])),  # rows: ENU axes in NED
+    ("nwu", np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1.0]])),
+])
+def test_world_frame_expresses_the_same_body_axes_in_the_chosen_world(world, axes):
+    from gyro_attitude.core.attitude.modes import WorldFrame
+    from gyro_attitude.core.attitude.world_frame import from_enu, from_enu_one
+
+    rng = np.random.default_rng(7)
+    q = Rotation.random(20, random_state=rng).as_quat()
+    r_enu = Rotation.from_quat(q).as_matrix()  # body -> ENU
+    # world coordinates of a vector = (ENU -> world) of its ENU coordinates
+    enu_to_world = axes.T
+    expect = enu_to_world @ r_enu
+    got = Rotation.from_quat(from_enu(q, WorldFrame(world))).as_matrix()
+    np.testing.assert_allclose(got, expect, atol=1e-12)
+    one = np.array([from_enu_one(tuple(qk), WorldFrame(world)) for qk in q])
+    np.testing.assert_allclose(one, from_enu(q, WorldFrame(world)), atol=1e-15)
+    # a level body facing north has zero yaw in NED and NWU (x north)
+    if world != "enu":
+        north = Rotation.from_euler("z", 90, degrees=True).as_quat()
+        yaw = Rotation.from_quat(from_enu(north, WorldFrame(world))).as_euler("zyx")[0]
+        assert abs(yaw) < 1e-12
