@@ -98,7 +98,7 @@ from gyro_attitude.core.attitude.stream import (
 from gyro_attitude.core.attitude.truth import truth_at
 from gyro_attitude.core.attitude.world_frame import frame_id_of, from_enu_one
 from gyro_attitude.ros import convert
-from gyro_attitude.ros.node_main import run_node
+from gyro_attitude.ros.node_main import EXECUTORS, run_node
 from gyro_attitude.ros.params import (
     ParameterError,
     ParamSpec,
@@ -134,9 +134,15 @@ def parameter_specs(settings=SETTINGS) -> list[ParamSpec]:
                   "imu/data_raw subscription reliability", choices=("best_effort", "reliable")),
         ParamSpec("qos_depth", 1000, "imu/data_raw subscription queue depth", low=1,
                   high=100000),
+        ParamSpec("executor", "events",
+                  "rclpy executor: events (rclpy.experimental.EventsExecutor, one callback per "
+                  "message without a wait-set rebuild; falls back to single_threaded where "
+                  "unavailable) | single_threaded (rclpy's default; drain_queue applies)",
+                  choices=EXECUTORS),
         ParamSpec("drain_queue", True,
-                  "take all queued Imu messages per executor wakeup (less overhead at high "
-                  "rates); false: one message per wakeup (plain rclpy)"),
+                  "single_threaded executor: take all queued Imu messages per wakeup (less "
+                  "overhead at high rates); false: one message per wakeup (plain rclpy). The "
+                  "events executor delivers every message itself and never drains"),
         ParamSpec("diagnostics_period_s", 1.0, "period of /diagnostics [s]", low=0.01,
                   high=3600.0),
     ]
@@ -151,6 +157,10 @@ class AttitudeIntegratorNode(Node):
         self._specs = {s.name: s for s in specs}
         p = declare_all(self, specs)  # raises ParameterError naming a bad parameter
         self._p = p
+        self.executor_kind = p["executor"]  # read by node_main.spin_with_executor
+        # taking messages from the subscription's handle behind the events executor's back
+        # would leave its per-message events without a message: drain only without it
+        self._drain = p["drain_queue"] and p["executor"] != "events"
         try:
             config = self._stream_config(p)
             self._nav = config.nav_frame()
@@ -353,7 +363,7 @@ class AttitudeIntegratorNode(Node):
 
     def _on_imu_wakeup(self, msg: Imu) -> None:
         self._on_imu(msg)
-        if not self._p["drain_queue"]:
+        if not self._drain:
             return
         # rclpy's executor rebuilds its wait set for every callback, which costs more than
         # integrating one sample; taking the messages already queued here (as the executor
