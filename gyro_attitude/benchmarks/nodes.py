@@ -14,10 +14,8 @@ run as separate processes on loopback, as deployed (best-effort sensor-data QoS 
   (``raw=True``) and reads the stamp from the CDR bytes, so it stays light next to the
   nodes it measures.
 
-Peers in the same run: the integrator on rclpy's default single-threaded executor
-(``executor:=single_threaded``, with its queue draining) at 4 and 8 kHz against the default
-events executor, and ``drain_queue:=false`` on the single-threaded executor at 2 kHz.
-``GYRO_ATTITUDE_NODES_DURATION_S`` shortens (or lengthens) the time per rate.
+Peer in the same run: ``drain_queue:=false`` (plain rclpy, one message per executor wakeup)
+at 2 kHz.  ``GYRO_ATTITUDE_NODES_DURATION_S`` shortens (or lengthens) the time per rate.
 
 The highest rate with zero loss is the sustained rate. Everything shares the machine's
 cores (sim, integrator, probe, and whatever else runs): quote figures with the conditions.
@@ -197,10 +195,7 @@ def run(quick: bool, out_dir: Path) -> list[dict]:
     # rclpy, one message per executor iteration), at the rate where the difference shows
     peer_rate = PEER_RATE_HZ
     main_rows = list(rows)
-    peers = [(peer_rate, ("executor:=single_threaded", "drain_queue:=false"),
-              "executor events (default)")]
-    peers += [(r, ("executor:=single_threaded",), "executor events (default)")
-              for r in (4000.0, 8000.0) if r in rates]
+    peers = [(peer_rate, ("drain_queue:=false",), "drain_queue:=true (default)")]
     for rate, params, of in peers:
         peer = measure_rate(rate, duration, env, integrator_params=params)
         peer["peer_of"] = of

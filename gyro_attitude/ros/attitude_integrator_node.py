@@ -134,10 +134,11 @@ def parameter_specs(settings=SETTINGS) -> list[ParamSpec]:
                   "imu/data_raw subscription reliability", choices=("best_effort", "reliable")),
         ParamSpec("qos_depth", 1000, "imu/data_raw subscription queue depth", low=1,
                   high=100000),
-        ParamSpec("executor", "events",
-                  "rclpy executor: events (rclpy.experimental.EventsExecutor, one callback per "
-                  "message without a wait-set rebuild; falls back to single_threaded where "
-                  "unavailable) | single_threaded (rclpy's default; drain_queue applies)",
+        ParamSpec("executor", "single_threaded",
+                  "rclpy executor: single_threaded (rclpy's default; drain_queue applies) | "
+                  "events (rclpy.experimental.EventsExecutor: EXPERIMENTAL, with the pinned "
+                  "Jazzy rclpy its spin() holds the GIL while waiting, so timers and other "
+                  "threads starve; falls back to single_threaded where it is missing)",
                   choices=EXECUTORS),
         ParamSpec("drain_queue", True,
                   "single_threaded executor: take all queued Imu messages per wakeup (less "

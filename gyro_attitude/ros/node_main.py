@@ -119,10 +119,13 @@ def _params_file_problem(args: list[str] | None) -> str | None:
     return None
 
 
-#: ``executor`` parameter values: ``events`` is rclpy.experimental.EventsExecutor (Jazzy): it
-#: waits on the middleware's per-entity events instead of rebuilding a wait set for every
-#: callback, which is what costs tens of µs per message in the default executor;
-#: ``single_threaded`` is rclpy's default SingleThreadedExecutor.
+#: ``executor`` parameter values: ``single_threaded`` is rclpy's default SingleThreadedExecutor;
+#: ``events`` is rclpy.experimental.EventsExecutor (Jazzy), which waits on the middleware's
+#: per-entity events instead of rebuilding a wait set for every callback (the tens of µs per
+#: message of the default executor).  Not the default: with the pinned Jazzy wheels
+#: (ros-jazzy-rclpy 7.1.6) its ``spin()`` holds the GIL while it waits: a 10 Hz timer did not
+#: fire once in 2 s, a publishing thread never ran, and ``spin_once`` hung on a queue of
+#: 20 000 messages (checked by hand, 2026-12-01).
 EXECUTORS = ("events", "single_threaded")
 
 
@@ -136,7 +139,11 @@ def make_executor(kind: str, say: Callable[[str], None] | None = None):
         try:
             from rclpy.experimental import EventsExecutor
 
-            return EventsExecutor()
+            executor = EventsExecutor()
+            if say is not None:
+                say("executor 'events' is experimental in Jazzy (its spin holds the GIL: "
+                    "timers and threads may starve)")
+            return executor
         except Exception as exc:  # ImportError on an older rclpy, or a failed construction
             if say is not None:
                 say(f"events executor unavailable ({type(exc).__name__}: {exc}); "
