@@ -190,7 +190,7 @@ def evaluate(name: str, directory=None, modes=MODES, peers=True,
         has[index[0]:] = True
         row(mode, q, seconds, valid=has[idx])
         rows[-1]["bias_note"] = stream.bias_report.note
-        rows[-1]["batch_path"] = stream.batch_path and mode != "none/push"
+        rows[-1]["batch_path"] = mode != "none/push" and stream.run_form()[0] == "arrays"
     if peers:
         t0 = time.perf_counter()
         q = integrate_batch(t, g, q0=tq[0], algorithm="exp_map")

@@ -239,7 +239,11 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     if config.initial_attitude_source is InitialAttitudeSource.TRUTH:
         if truth is None or len(truth) == 0:
             raise ValueError(f"initial attitude 'truth': no {truth_topic} messages in the input")
-        q0, first, _ = initial_attitude_from_truth(t_all, truth.stamp_ns, truth.quaternion)
+        # at the first sample the estimator accepts (a zero stamp or a NaN rate before it is
+        # skipped, and the truth at its stamp would be the wrong start)
+        usable = iv.usable_samples(t_all, imu.angular_velocity, config.max_rate_rad_s)
+        q0, first, _ = initial_attitude_from_truth(t_all, truth.stamp_ns, truth.quaternion,
+                                                   usable=usable)
     t, omega = t_all[first:], imu.angular_velocity[first:]
     cov = imu.angular_velocity_covariance[first:]
     # the accelerometer feeds rest detection, levelling and aiding, when the Imu has one

@@ -66,7 +66,7 @@ from __future__ import annotations
 import math
 import sys
 import time
-from collections import deque
+from dataclasses import replace
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -74,13 +74,13 @@ from geometry_msgs.msg import QuaternionStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, MagneticField
 from std_msgs.msg import Header
 
-from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, NavFrame, causal_algorithms
+from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, causal_algorithms
 from gyro_attitude.core.attitude import validation as iv
 from gyro_attitude.core.attitude.modes import Aiding, InitialAttitudeSource, SettingError
+from gyro_attitude.core.attitude.nav_frame import VelocitySchedule
 from gyro_attitude.core.attitude.sample_alignment import LatestSamples
 from gyro_attitude.core.attitude.settings import SETTINGS, StreamConfig
 from gyro_attitude.core.attitude.stream import (
@@ -95,7 +95,7 @@ from gyro_attitude.core.attitude.stream import (
     RUNNING,
     AttitudeStream,
 )
-from gyro_attitude.core.attitude.truth import truth_at
+from gyro_attitude.core.attitude.truth import TruthStart
 from gyro_attitude.core.attitude.world_frame import frame_id_of, from_enu_one
 from gyro_attitude.ros import convert
 from gyro_attitude.ros.node_main import EXECUTORS, run_node
@@ -178,29 +178,30 @@ class AttitudeIntegratorNode(Node):
             raise ParameterError(f"parameter 'algorithm' = {p['algorithm']!r}: {exc}") from exc
         self._world = config.world_frame
         self._world_frame = p["world_frame_id"] or frame_id_of(config.frame, config.world_frame)
-        self._awaiting_truth = config.initial_attitude_source is InitialAttitudeSource.TRUTH
-        self._truth: deque[tuple[int, np.ndarray]] = deque(maxlen=self._TRUTH_KEPT)
-        self._pending: deque[Imu] = deque(maxlen=self._TRUTH_KEPT)
+        self._truth_start = None
+        if config.initial_attitude_source is InitialAttitudeSource.TRUTH:
+            max_rate = config.max_rate_rad_s
+            self._truth_start = TruthStart(
+                lambda t, w: iv.sample_problem(t, w, max_rate) is None, kept=self._TRUTH_KEPT)
         self._phase_seen = self._stream.phase
-        self.skipped_before_init = 0
+        self._skipped_before_truth = 0
         self._last_warn: dict[str, float] = {}
         self._last_period_rejected = 0
         self._last_period_accepted = 0
         self._published = 0
         self.odometry_updates = 0
         self._sub_odom = None
-        # (stamp ns, NavFrame) of received Odometry not yet applied, in stamp order
-        self._odom_queue: deque = deque(maxlen=self._ODOM_QUEUE)
+        self._velocities = VelocitySchedule(kept=self._ODOM_QUEUE)
 
         self._pub_imu = self.create_publisher(Imu, "imu/data", 100)
         self._pub_att = self.create_publisher(QuaternionStamped, "attitude", 100)
         self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        self._sub_imu = self.create_subscription(
-            Imu, "imu/data_raw", self._on_imu_wakeup,
-            imu_qos(p["qos_reliability"], p["qos_depth"]),
-        )
-        if self._awaiting_truth:
-            self.create_subscription(QuaternionStamped, "truth/attitude", self._on_truth, 1000)
+        # every input takes the one QoS rule: best effort (the default) matches any publisher,
+        # reliable ones and the best-effort republishing of a bag without offered profiles
+        qos = imu_qos(p["qos_reliability"], p["qos_depth"])
+        self._sub_imu = self.create_subscription(Imu, "imu/data_raw", self._on_imu_wakeup, qos)
+        if self._truth_start is not None:
+            self.create_subscription(QuaternionStamped, "truth/attitude", self._on_truth, qos)
         if p["odometry_topic"]:
             if self._nav is None:
                 self.get_logger().warning(
@@ -208,13 +209,12 @@ class AttitudeIntegratorNode(Node):
             else:
                 self._sub_odom = self.create_subscription(
                     Odometry, p["odometry_topic"], self._on_odometry,
-                    QoSProfile(depth=self._ODOM_QUEUE, reliability=ReliabilityPolicy.RELIABLE))
+                    imu_qos(p["qos_reliability"], self._ODOM_QUEUE))
         self._mag = None
         if config.aiding is Aiding.MAGNETOMETER:
             self._mag = LatestSamples(int(round(config.mag_max_age_s * 1e9)))
-            self._sub_mag = self.create_subscription(
-                MagneticField, p["mag_topic"], self._on_mag,
-                imu_qos(p["qos_reliability"], p["qos_depth"]))
+            self._sub_mag = self.create_subscription(MagneticField, p["mag_topic"], self._on_mag,
+                                                     qos)
         self.create_timer(p["diagnostics_period_s"], self._publish_diagnostics)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.get_logger().info(
@@ -261,67 +261,46 @@ class AttitudeIntegratorNode(Node):
     _TRUTH_KEPT = 5000  # truth samples and Imu messages kept while waiting for the truth
 
     def _on_truth(self, msg: QuaternionStamped) -> None:
-        if not self._awaiting_truth:
+        if self._truth_start is None:
             return
-        t_ns = convert.stamp_to_ns(msg.header.stamp)
-        q = convert.quat_from_msg(msg.quaternion)
-        if not np.all(np.isfinite(q)) or np.linalg.norm(q) < 1e-9:
-            self._warn("truth", "ignoring a non-finite or zero truth/attitude quaternion")
+        refused = self._truth_start.add_truth(convert.stamp_to_ns(msg.header.stamp),
+                                              convert.quat_from_msg(msg.quaternion))
+        if refused is not None:
+            self._warn("truth", f"ignoring {refused} on truth/attitude")
             return
-        if self._truth and t_ns <= self._truth[-1][0]:
-            self._warn("truth", "ignoring a truth/attitude message not after the previous one")
-            return
-        self._truth.append((t_ns, q / np.linalg.norm(q)))
         self._start_from_truth()
 
+    @property
+    def skipped_before_init(self) -> int:
+        """Imu samples skipped while waiting for the truth (core.attitude.truth.TruthStart)."""
+        return 0 if self._truth_start is None else self._truth_start.skipped
+
     def _start_from_truth(self) -> None:
-        """Start at the first waiting Imu sample the truth covers, with the truth slerped to
-        its stamp (core.attitude.truth); Imu samples before the first truth are skipped."""
-        truth, pending = self._truth, self._pending
-        while pending and truth:
-            t_ns = convert.stamp_to_ns(pending[0].header.stamp)
-            if t_ns > truth[-1][0]:
-                return  # the truth around it has not arrived yet
-            if t_ns >= truth[0][0]:
-                try:
-                    q0 = truth_at(np.array([x[0] for x in truth]),
-                                  np.array([x[1] for x in truth]), t_ns)
-                except ValueError as exc:  # inside a truth gap: try the next sample
-                    self._warn("truth", f"no truth at an Imu stamp: {exc}")
-                else:
-                    self._awaiting_truth = False
-                    truth.clear()
-                    self._stream.restart(q0)
-                    self.get_logger().info(
-                        "initial attitude from truth/attitude interpolated at the Imu stamp "
-                        f"{t_ns} ns ({self.skipped_before_init} Imu sample(s) skipped before it)")
-                    waiting = list(pending)
-                    pending.clear()
-                    for m in waiting:
-                        self._on_imu(m)
-                    return
-            pending.popleft()  # before the first truth sample (or in a gap): skipped
-            self.skipped_before_init += 1
+        """Start at the first waiting Imu sample the estimator accepts and the truth covers,
+        with the truth slerped to its stamp (core.attitude.truth.TruthStart)."""
+        got = self._truth_start.start()
+        if got is None:
+            return
+        q0, waiting = got
+        skipped = self._truth_start.skipped
+        self._truth_start = None
+        self._skipped_before_truth = skipped
+        self._stream.restart(q0)
+        self.get_logger().info(
+            "initial attitude from truth/attitude interpolated at the Imu stamp "
+            f"{convert.stamp_to_ns(waiting[0].header.stamp)} ns ({skipped} Imu sample(s) "
+            "skipped before it)")
+        for m in waiting:
+            self._on_imu(m)
 
     _ODOM_QUEUE = 1000  # Odometry messages waiting for the Imu time line
 
     def _on_odometry(self, msg: Odometry) -> None:
         try:
             v_enu = convert.odometry_velocity_parent(msg)
+            self._velocities.add(convert.stamp_to_ns(msg.header.stamp), v_enu)
         except ValueError as exc:
             self._warn("odometry", f"ignoring an Odometry message: {exc}")
-            return
-        nav = NavFrame(latitude_rad=self._nav.latitude_rad,
-                       longitude_rad=self._nav.longitude_rad,
-                       height_m=self._nav.height_m, velocity_enu=v_enu)
-        t_ns = convert.stamp_to_ns(msg.header.stamp)
-        q = self._odom_queue
-        if q and t_ns < q[-1][0]:  # out of order: keep the queue sorted by stamp
-            items = sorted([*q, (t_ns, nav)], key=lambda item: item[0])
-            q.clear()
-            q.extend(items)
-        else:
-            q.append((t_ns, nav))
 
     def _take_odometry(self) -> None:
         # The executor hands over one Odometry per wakeup while the Imu drain takes many:
@@ -338,15 +317,15 @@ class AttitudeIntegratorNode(Node):
             self._on_odometry(taken[0])
 
     def _apply_odometry(self, t_ns: int) -> None:
-        """Make the newest queued Odometry stamped at or before ``t_ns`` the nav frame."""
-        q = self._odom_queue
-        if not q or q[-1][0] < t_ns:
-            self._take_odometry()  # a newer message may be waiting
-        nav = None
-        while q and q[0][0] <= t_ns:
-            nav = q.popleft()[1]
-        if nav is None:
+        """Make the newest Odometry stamped at or before ``t_ns`` the nav frame
+        (core.attitude.nav_frame.VelocitySchedule)."""
+        sched = self._velocities
+        if not len(sched) or sched.last_t_ns < t_ns:
+            self._take_odometry()  # a newer message may be waiting in the subscription
+        v_enu = sched.newest_due(t_ns)
+        if v_enu is None:
             return
+        nav = replace(self._nav, velocity_enu=v_enu)
         try:
             self._stream.update_nav(nav)  # ω_in^n evaluated here, once per message
         except ValueError as exc:
@@ -381,14 +360,12 @@ class AttitudeIntegratorNode(Node):
             self._on_imu(taken[0])
 
     def _on_imu(self, msg: Imu) -> None:
-        if self._awaiting_truth:
-            if len(self._pending) == self._pending.maxlen:
-                self.skipped_before_init += 1  # the oldest waiting sample is dropped
-            self._pending.append(msg)
+        t_ns, frame_id, omega, accel = convert.imu_arrays(msg)
+        if self._truth_start is not None:
+            self._truth_start.add_sample(t_ns, omega, msg)
             self._start_from_truth()
             return
-        t_ns, frame_id, omega, accel = convert.imu_arrays(msg)
-        if msg.linear_acceleration_covariance[0] == -1.0:  # REP-145: no accelerometer
+        if iv.no_estimate(msg.linear_acceleration_covariance):  # REP-145: no accelerometer
             accel = None
         if self._sub_odom is not None:
             self._apply_odometry(t_ns)
@@ -405,7 +382,7 @@ class AttitudeIntegratorNode(Node):
             return
         if verdict.action == iv.RESET_TIME_JUMP:
             self._warn("time_jump", f"{verdict.detail}: attitude reset")
-            self._odom_queue.clear()  # stamps of the old time line
+            self._velocities.clear()  # stamps of the old time line
         elif verdict.action == iv.RESTART_AFTER_GAP:
             self._warn("gap", f"{verdict.detail}: not integrated across, attitude held")
         self._publish(msg, q)
@@ -449,7 +426,9 @@ class AttitudeIntegratorNode(Node):
             "published": str(self._published),
             "rejected_total": str(st.rejected_total),
             "time_jump_resets": str(st.time_jump_resets),
-            "skipped_before_initial_attitude": str(self.skipped_before_init),
+            "skipped_before_initial_attitude": str(self._skipped_before_truth
+                                                   if self._truth_start is None
+                                                   else self.skipped_before_init),
             "integrator_errors": str(counts[INTEGRATOR_ERROR]),
             "invalid_covariances": str(counts[INVALID_COVARIANCE]),
             "odometry_updates": str(self.odometry_updates),

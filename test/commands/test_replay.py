@@ -368,3 +368,24 @@ def test_policy_flags_out_of_range_are_one_line_exit_2(tmp_path, capsys, flag, v
     err = capsys.readouterr().err
     assert flag in err and "Traceback" not in err
     assert not (tmp_path / "o.mcap").exists()
+
+
+@pytest.mark.parametrize("bad_start", ["zero_stamp", "nan_rates"])
+def test_truth_start_is_taken_at_the_first_accepted_sample(tmp_path, bad_start):
+    # A constant spin about z with the exact truth at every stamp.  The first samples are
+    # rejected — a stream starting at stamp 0 (as the scenes did), or 50 NaN rates: the
+    # attitude must start from the truth at the first ACCEPTED sample, so rotvec_cubic (exact
+    # for constant spin) stays on the truth.  Started from the truth at the rejected sample it
+    # would be off by rate × the skipped time (4.5e-3 rad, 0.23 rad).
+    n, rate = 2001, 0.9
+    t0 = 0 if bad_start == "zero_stamp" else 10**9
+    t = t0 + np.arange(n, dtype=np.int64) * 5_000_000
+    w = np.tile([0.0, 0.0, rate], (n, 1))
+    if bad_start == "nan_rates":
+        w[:50] = np.nan
+    truth = Rotation.from_rotvec(np.outer((t - t0) * 1e-9 * rate, [0, 0, 1])).as_quat()
+    _record(tmp_path / "in.mcap", t, w, truth=truth)
+    s = replay_file(tmp_path / "in.mcap", tmp_path / "out.mcap", algorithm="rotvec_cubic",
+                    initial_attitude="truth")
+    assert s.skipped_before_truth == (1 if bad_start == "zero_stamp" else 50)
+    assert s.max_error_rad < 1e-9

@@ -47,7 +47,7 @@ def test_pipeline_on_handheld_scene_within_3_sigma(scene, mode):
                    height_m=spec.earth.height_m)
     kw = {"gyro_bias_sigma_rad_s": 0.01}
     if mode != "auto":
-        kw |= {"initial_attitude": "level", "initial_heading_deg": 70.0}  # yaw 20° from east
+        kw |= {"initial_attitude_source": "level", "initial_heading_deg": 70.0}  # yaw 20° from east
     if mode == "level_gravity":
         kw["aiding"] = "gravity"
     res = AttitudeStream("rotvec_cubic", q0=q_true[0], nav=nav, config=StreamConfig(**kw)).run(

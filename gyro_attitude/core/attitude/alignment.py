@@ -84,6 +84,28 @@ def level_quaternion(f_b, heading: float) -> tuple[np.ndarray, float, float]:
     return quat_from_matrix(rz @ _c_lb(roll, pitch)), roll, pitch
 
 
+def level_quaternions(f_b: np.ndarray, heading: float) -> tuple[np.ndarray, np.ndarray]:
+    """Array form of :func:`level_quaternion` for (N, 3) specific forces: ``(q_nb (N, 4),
+    usable (N,))`` (rows that are no gravity measurement get the identity, not usable)."""
+    f = np.asarray(f_b, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        usable = np.isfinite(f).all(axis=1) & (np.linalg.norm(f, axis=1) >= 1.0)
+    fx, fy, fz = (np.where(usable, f[:, i], (0.0, 0.0, 1.0)[i]) for i in range(3))
+    roll = np.arctan2(fy, fz)
+    pitch = np.arctan2(-fx, np.hypot(fy, fz))
+    psi = math.pi / 2 - heading
+    cz, sz = math.cos(psi), math.sin(psi)
+    cr, sr, cp, sp = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch)
+    # Rz(ψ) Ry(θ) Rx(φ), written out
+    c = np.empty((f.shape[0], 3, 3))
+    c[:, 0, 0], c[:, 0, 1], c[:, 0, 2] = cz * cp, cz * sp * sr - sz * cr, cz * sp * cr + sz * sr
+    c[:, 1, 0], c[:, 1, 1], c[:, 1, 2] = sz * cp, sz * sp * sr + cz * cr, sz * sp * cr - cz * sr
+    c[:, 2, 0], c[:, 2, 1], c[:, 2, 2] = -sp, cp * sr, cp * cr
+    q = quat_from_matrix(c)
+    q[~usable] = (0.0, 0.0, 0.0, 1.0)
+    return q, usable
+
+
 def gyrocompass_heading(w_b, roll: float, pitch: float) -> float:
     """Heading (clockwise from north) from the bias-free mean rate at rest: in the levelled frame
     the horizontal Earth rate is ``ω_ie cos L · [sin ψ, cos ψ]``, so ``ψ = atan2(ω_x, ω_y)``."""
@@ -192,6 +214,25 @@ class StaticAligner:
         self._last_acc = -1
         self.done = False
 
+    def break_window(self) -> None:
+        """The stream broke (gap, time jump, unusable accelerometer sample): the alignment needs
+        one unbroken rest, so an open rest is discarded and the window starts afresh (with the
+        samples waiting for it: their detector indices belong to the old window)."""
+        self.detector.reset()
+        self._pending.clear()
+        self._seg = None
+        self._last_acc = -1
+
+    @property
+    def rest_open(self) -> bool:
+        """A rest is being accumulated."""
+        return self._seg is not None
+
+    @property
+    def last_rest_ns(self) -> int | None:
+        """Time of the last sample accumulated into the open rest (None without one)."""
+        return None if self._seg is None else self._seg[1]
+
     def update(self, t_ns: int, gyro, accel) -> bool:
         """Consume one sample; True once the first qualifying rest has ended."""
         if self.done:
@@ -230,6 +271,45 @@ class StaticAligner:
             e = g[i] - s[6][i]
             s[7][i] = s[7][i] + e
             s[8][i] = s[8][i] + e * e
+
+    def run(self, t, g, a, breaks=None) -> tuple[int, int, AlignmentResult] | None:
+        """Array form of :meth:`update` over a recording (a fresh aligner; the windows broken
+        before every row where ``breaks`` (N,) is True, which discards an open rest as the
+        stream does): ``(done_row, first_row, result)`` — the row at which the first qualifying
+        rest ended, the row of its last rest sample (from which the attitude is integrated),
+        and the alignment — or None when no rest qualifies.  ``result`` raises as
+        :meth:`result` does (gyrocompass refused) through :func:`_result`."""
+        n = t.shape[0]
+        starts = [0] if breaks is None else [0, *np.flatnonzero(breaks[1:]) + 1]
+        for r0, r1 in zip(starts, [*starts[1:], n], strict=True):
+            if r1 - r0 < 2:
+                continue
+            tt, gg, aa = t[r0:r1], g[r0:r1], a[r0:r1]
+            r = detect_rest(tt, gg, aa, **self._opt.rest)
+            ev = np.flatnonzero(r.at_rest)
+            if ev.size == 0:
+                continue
+            ev = ev[np.concatenate([[True], r.oldest[ev][1:] > r.oldest[ev][:-1]])]
+            run_id = np.cumsum(np.diff(np.concatenate([[False], r.at_rest]).astype(np.int8)) == 1)
+            for kk in np.split(ev, np.flatnonzero(np.diff(run_id[ev])) + 1):
+                # the rest ends at the first window after its last at-rest window that is
+                # not at rest; a rest still open at a break is discarded
+                end = kk[-1] + 1
+                while end < r1 - r0 and r.at_rest[end]:
+                    end += 1
+                if end >= r1 - r0:
+                    break
+                j = r.oldest[kk]
+                if tt[j[-1]] - tt[j[0]] < self._opt.min_rest_ns:
+                    continue
+                df, dw = aa[j] - aa[j[0]], gg[j] - gg[j[0]]
+                sums = [np.cumsum(x, axis=0)[-1].tolist() for x in (df, df * df, dw, dw * dw)]
+                self.done = True
+                res = _result(self._opt, j.size, int(tt[j[0]]), int(tt[j[-1]]),
+                              aa[j[0]].tolist(), sums[0], sums[1], gg[j[0]].tolist(), sums[2],
+                              sums[3])
+                return r0 + int(end), r0 + int(j[-1]), res
+        return None
 
     def result(self) -> AlignmentResult:
         s = self._seg

@@ -81,12 +81,107 @@ class AttitudeCovariance:
         self.tb = np.zeros(3)
         self.noise = np.zeros(3)
 
+    def run(self, dt_s: np.ndarray, q: np.ndarray, reset: np.ndarray | None = None,
+            zero_rate: np.ndarray | None = None, standard_error: np.ndarray | None = None,
+            first_rest: tuple[int, np.ndarray, float] | None = None) -> np.ndarray:
+        """Array form of the per-row updates over R rows: before row r's :meth:`propagate`
+        (``dt_s[r]``, ``q[r]``; 0 where nothing is integrated) comes :meth:`reset_attitude`
+        where ``reset[r]``, :meth:`zero_rate_update` with ``standard_error[r]`` where
+        ``zero_rate[r]``, and :meth:`first_rest_update` at ``first_rest = (row, standard
+        error, elapsed_s)``.  Returns ``tt`` (R, 3) after each row and leaves the state after
+        the last.  Each quantity is a sum restarted where an update sets it (segmented
+        cumulative sums), so the loop runs over nothing: the numbers agree with the per-row
+        updates to rounding (~1e-16 relative).
+        """
+        dt = np.asarray(dt_s, dtype=np.float64)
+        m = dt.shape[0]
+        if m == 0:
+            return np.zeros((0, 3))
+        none = np.zeros(m, dtype=bool)
+        reset = none if reset is None else reset
+        zero_rate = none if zero_rate is None else zero_rate
+        se2 = np.zeros((m, 3)) if standard_error is None else np.asarray(standard_error) ** 2
+        first = np.zeros(m, dtype=bool)
+        if first_rest is not None:
+            first[first_rest[0]] = True
+        d = dt[:, None]
+        # bias variance: set to se² on every zero-rate (and the first-rest) row
+        bb_start = zero_rate | first
+        bb_base = np.where(bb_start[:, None], se2, 0.0)
+        tb_start = zero_rate | reset | first
+        tb_base = np.zeros((m, 3))
+        tt_start = reset | first
+        tt_base = np.zeros((m, 3))
+        tt_base[reset] = self.initial_tt
+        k2dt = self.k2 * d * np.ones((1, 3))
+        if first_rest is not None:
+            row, se_first, elapsed = first_rest
+            b2 = np.asarray(se_first, dtype=np.float64) ** 2
+            bb_base[row] = b2
+            tb_base[row] = -elapsed * b2
+        bb_after = _restarted_sums(k2dt, bb_start, bb_base, self.bb)
+        bb_before = _before(bb_after, bb_start, bb_base, self.bb)
+        # attitude noise Σq since the attitude was last set (a reset)
+        noise_after = _restarted_sums(q, reset, np.zeros((m, 3)), self.noise)
+        if first_rest is not None:
+            noise_before = _before(noise_after, reset, np.zeros((m, 3)), self.noise)
+            tt_base[row] = self.initial_tt + noise_before[row] + (elapsed * elapsed) * b2
+        tb_after = _restarted_sums(-(d * bb_before), tb_start, tb_base, self.tb)
+        tb_before = _before(tb_after, tb_start, tb_base, self.tb)
+        incr = (q - (2.0 * d) * tb_before) + (d * d) * bb_before
+        tt_after = _restarted_sums(incr, tt_start, tt_base, self.tt)
+        self.tt, self.tb, self.bb = tt_after[-1].copy(), tb_after[-1].copy(), bb_after[-1].copy()
+        self.noise = noise_after[-1].copy()
+        return tt_after
+
     def aid_tilt(self, kp_dt: float, floor_var: float) -> None:
         """Gravity aiding over one interval (loop gain × dt): tilt axes 0 and 1 relax to the floor."""
         a = 1.0 - min(kp_dt, 1.0)
         for i in (0, 1):
             self.tt[i] = a * a * self.tt[i] + (1.0 - a * a) * floor_var
             self.tb[i] = a * self.tb[i]
+
+
+_SHORT = 16  # segments up to this long are summed position by position, longer ones by cumsum
+
+
+def _restarted_sums(x: np.ndarray, start: np.ndarray, base: np.ndarray, initial) -> np.ndarray:
+    """``out[r] = (((b + x[s]) + x[s+1]) + ...) + x[r]`` with ``s`` the last row ≤ r where
+    ``start`` is True and ``b = base[s]`` (before the first such row: ``initial`` from row 0).
+
+    The additions run in the per-row order, so the sums equal the per-row updates' bit for bit.
+    Segments are many and short at rests (every row a zero-rate update) and few and long in
+    motion: the short ones are advanced one position at a time over all of them at once, the
+    long ones by a cumulative sum each.
+    """
+    m = x.shape[0]
+    xs = x.copy()
+    first = np.flatnonzero(start)
+    xs[first] = base[first] + x[first]
+    if m and not start[0]:
+        xs[0] = np.asarray(initial, dtype=np.float64) + x[0]
+    seg = first if first.size and first[0] == 0 else np.concatenate(([0], first))
+    length = np.diff(np.append(seg, m))
+    out = np.empty_like(xs)
+    for a, n in zip(seg[length > _SHORT].tolist(), length[length > _SHORT].tolist(),
+                    strict=True):
+        out[a:a + n] = np.cumsum(xs[a:a + n], axis=0)
+    short, n_short = seg[length <= _SHORT], length[length <= _SHORT]
+    out[short] = xs[short]
+    for p in range(1, int(n_short.max(initial=1))):
+        r = short[n_short > p] + p
+        out[r] = out[r - 1] + xs[r]
+    return out
+
+
+def _before(after: np.ndarray, start: np.ndarray, base: np.ndarray, initial) -> np.ndarray:
+    """The value entering each row: the previous row's ``after``, or ``base`` where a row
+    starts anew (``initial`` at row 0 otherwise)."""
+    out = np.empty_like(after)
+    out[0] = initial
+    out[1:] = after[:-1]
+    out[start] = base[start]
+    return out
 
 
 def propagate_batch(dt_s: np.ndarray, q: np.ndarray, reset: np.ndarray, tt0: np.ndarray,

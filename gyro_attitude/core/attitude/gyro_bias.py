@@ -100,6 +100,22 @@ class _Pool:
             self.sum_nm2[i] = self.sum_nm2[i] + n * mean[i] * mean[i]
             self.ssd[i] = self.ssd[i] + ssd[i]
 
+    def estimate_many(self, nc: np.ndarray, mean: np.ndarray, ssd_c: np.ndarray):
+        """:meth:`estimate` for many states of one open rest at once: ``nc`` (M, 1) its sample
+        counts, ``mean`` and ``ssd_c`` (M, 3); returns (bias, standard error) (M, 3) each.
+        The same operations in the same order as :meth:`estimate`: identical numbers."""
+        k = self.k + 1
+        n = self.n + nc
+        snm = np.asarray(self.sum_nm) + nc * mean
+        snm2 = np.asarray(self.sum_nm2) + nc * mean * mean
+        ssd = np.asarray(self.ssd) + ssd_c
+        bias = snm / n
+        white = np.sqrt(ssd / np.maximum(n - k, 1) / n)
+        if k >= 2:
+            between = np.sqrt(np.maximum(snm2 - n * bias * bias, 0.0) / n / (k - 1))
+            return bias, np.maximum(white, between)
+        return bias, white
+
     def estimate(self, open_seg=None):
         """(bias, standard error, rests, samples) including an open qualifying rest."""
         k, n = self.k, self.n
@@ -261,6 +277,122 @@ class GyroBiasEstimator:
         self.updated = True
         self._earth_now = self._earth_all and earth_open
 
+    @property
+    def rests_completed(self) -> int:
+        """Qualifying rests closed and pooled so far (the open one not counted)."""
+        return self._pool.k
+
+    @property
+    def open_rest_start_ns(self) -> int | None:
+        """Time of the first sample of the rest being accumulated, or None."""
+        return None if self._seg is None else self._seg[0]
+
+    @property
+    def window_ns(self) -> int:
+        return self.detector.window_ns
+
+    def values_without_earth(self, g: np.ndarray, q_nb: np.ndarray, known: np.ndarray):
+        """``g − C_bn ω_ie^n`` per row (N, 3) where ``known`` (N,) says the row's attitude
+        ``q_nb`` (N, 4) is known (the array form of what :meth:`update` averages), ``g``
+        elsewhere; ``g`` unchanged without a latitude."""
+        if self._earth_n is None:
+            return g
+        x, y, z, w = (q_nb[:, i] for i in range(4))
+        e = _c_bn_times(x, y, z, w, 2.0 / (x * x + y * y + z * z + w * w), self._earth_n)
+        return np.where(known[:, None], g - np.column_stack(e), g)
+
+    def rests(self, t, g, a=None, breaks=None) -> list[tuple[np.ndarray, np.ndarray]]:
+        """The rests the detector finds in a run of samples (``t`` (N,) int64 increasing, ``g``
+        (N, 3) the rates, ``a`` (N, 3) or None), from a fresh window, the windows broken again
+        before every row where ``breaks`` (N,) is True: per rest in order, ``(rows, oldest)``
+        — the rows whose window is at rest with a new oldest sample, and those oldest samples
+        (what :meth:`update` accumulates there)."""
+        n = t.shape[0]
+        starts = [0] if breaks is None else [0, *np.flatnonzero(breaks[1:]) + 1]
+        plan = []
+        for r0, r1 in zip(starts, [*starts[1:], n], strict=True):
+            if r1 - r0 < 2:
+                continue
+            r = detect_rest(t[r0:r1], g[r0:r1], None if a is None else a[r0:r1],
+                            **self._rest_params)
+            # accumulation events: a window at rest whose oldest sample is new
+            ev = np.flatnonzero(r.at_rest)
+            if ev.size == 0:
+                continue
+            ev = ev[np.concatenate([[True], r.oldest[ev][1:] > r.oldest[ev][:-1]])]
+            # a rest is a run of consecutive at-rest windows
+            run_id = np.cumsum(np.diff(np.concatenate([[False], r.at_rest]).astype(np.int8))
+                               == 1)
+            for kk in np.split(ev, np.flatnonzero(np.diff(run_id[ev])) + 1):
+                plan.append((kk + r0, r.oldest[kk] + r0))
+        return plan
+
+    def run(self, t, g, a=None, breaks=None, earth_removed=False, values=None,
+            plan=None) -> BiasTrack:
+        """Array form of :meth:`update` over a run of samples (arguments of :meth:`rests`, or
+        its ``plan``), from a broken window on (as after :meth:`break_window`): rests found on
+        the rates ``g``, averages of ``values`` (default ``g``; the rates less the Earth rate
+        on the rows where ``earth_removed``: a bool, or (N,) bools).  Same decisions and the
+        same sums as the per-sample form, vectorized per rest (the loop runs over rests, not
+        samples).  Leaves the estimator as after :meth:`break_window` (the last rest pooled).
+        """
+        n = t.shape[0]
+        bias = np.empty((n, 3))
+        bias[:] = self._bias
+        if self.mode != "auto" or n == 0:
+            return BiasTrack(bias, np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)),
+                             np.zeros(0, np.int64))
+        self.break_window()
+        if plan is None:
+            plan = self.rests(t, g, a, breaks)
+        values = g if values is None else values
+        earth_rows = np.broadcast_to(np.asarray(earth_removed, dtype=bool), (n,))
+        out: dict[str, list] = {"rows": [], "se": [], "prev": [], "t0": [], "bias": []}
+        for kk, j in plan:
+            self._accumulate_rest(t, values, kk, j, out, bool(earth_rows[j].all()))
+        if out["rows"]:
+            upd, se, prev, est, t0 = (np.concatenate(out[k]) for k in
+                                      ("rows", "se", "prev", "bias", "t0"))
+            # each estimate holds from its row until the next one
+            pos = np.searchsorted(upd, np.arange(n), side="right") - 1
+            bias[pos >= 0] = est[pos[pos >= 0]]
+        else:
+            upd, se, prev, t0 = (np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)),
+                                 np.zeros(0, np.int64))
+        return BiasTrack(bias, upd, se, prev, t0)
+
+    def _accumulate_rest(self, t, values, kk, j, out: dict, earth: bool) -> None:
+        """One rest of :meth:`run`: its estimates (appended to ``out``), then pooled."""
+        v = values[j]
+        ref = v[0]
+        d = v - ref
+        # sequential running sums (np.cumsum), as update() adds them: identical numbers
+        s1 = np.cumsum(d, axis=0)
+        s2 = np.cumsum(d * d, axis=0)
+        qual = np.flatnonzero(t[j] - t[j[0]] >= self.min_rest_ns)
+        if not qual.size:
+            return
+        nc = (qual + 1).astype(np.float64)[:, None]
+        mean = ref + s1[qual] / nc
+        ssd = np.maximum(s2[qual] - s1[qual] * s1[qual] / nc, 0.0)
+        est, se = self._pool.estimate_many(nc, mean, ssd)
+        prev = np.empty_like(est)
+        prev[0] = self._bias
+        prev[1:] = est[:-1]
+        out["rows"].append(kk[qual])
+        out["se"].append(se)
+        out["prev"].append(prev)
+        out["t0"].append(np.full(qual.size, int(t[j[0]]), np.int64))
+        out["bias"].append(est)
+        self._bias, self._se = tuple(est[-1].tolist()), tuple(se[-1].tolist())
+        self._k, self._n = self._pool.k + 1, self._pool.n + int(qual[-1]) + 1
+        self._earth_now = self._earth_all and earth
+        n_all = j.size
+        mean_all = (ref + s1[-1] / n_all).tolist()
+        ssd_all = np.maximum(s2[-1] - s1[-1] * s1[-1] / n_all, 0.0).tolist()
+        self._pool.add(n_all, mean_all, ssd_all)
+        self._earth_all = self._earth_all and earth
+
     def report(self) -> GyroBiasReport:
         if self.mode == "none":
             return GyroBiasReport("none", np.zeros(3), 0, 0, np.full(3, np.nan), False,
@@ -277,6 +409,23 @@ class GyroBiasEstimator:
                 "Earth rate absorbed into the bias (latitude or attitude unknown)")
         return GyroBiasReport("auto", np.array(self._bias), self._k, self._n, np.array(self._se),
                               earth, note)
+
+
+@dataclass
+class BiasTrack:
+    """What the ``auto`` estimator did over a run of samples (:meth:`GyroBiasEstimator.run`).
+
+    ``bias`` (N, 3) the bias subtracted from each sample; ``updates`` (U,) the rows where a new
+    estimate was published (a zero-rate update: every sample of a qualifying rest),
+    ``standard_error`` (U, 3) its standard error, ``previous`` (U, 3) the bias before it, and
+    ``rest_start_ns`` (U,) the first sample time of the rest it came from.
+    """
+
+    bias: np.ndarray
+    updates: np.ndarray
+    standard_error: np.ndarray
+    previous: np.ndarray
+    rest_start_ns: np.ndarray
 
 
 def estimate_gyro_bias(t_ns, gyro, accel=None, q_nb=None, *, mode: str = "auto", bias=None,

@@ -91,3 +91,73 @@ def nav_zeta_scalar(rates, h):
     ``0.5·(r + r)·h`` is ``r·h`` to the last bit, as in the batch."""
     r0, r1 = rates
     return (0.5 * (r0[0] + r1[0]) * h, 0.5 * (r0[1] + r1[1]) * h, 0.5 * (r0[2] + r1[2]) * h)
+
+
+class VelocitySchedule:
+    """Carrier velocities (an odometry topic) applied on the Imu time line, in stamp order.
+
+    Before integrating an Imu sample at ``t``, the newest queued velocity stamped at or before
+    ``t`` becomes the nav frame's velocity and holds from that sample on, until a newer one; a
+    velocity that arrives after its Imu sample takes effect at the next one.  So the transport
+    rate is time-aligned however the two topics interleave, and :func:`velocity_series` gives
+    the same velocities for a whole recording.  At most ``kept`` velocities wait (the oldest go
+    first); a backward time jump drops them (:meth:`clear`).
+    """
+
+    def __init__(self, kept: int = 1000):
+        self.kept = int(kept)
+        self._queue: list[tuple[int, np.ndarray]] = []
+
+    def __len__(self) -> int:
+        return len(self._queue)
+
+    @property
+    def last_t_ns(self) -> int | None:
+        """Stamp of the newest queued velocity (None when none waits)."""
+        return self._queue[-1][0] if self._queue else None
+
+    def add(self, t_ns: int, velocity_enu) -> None:
+        v = np.asarray(velocity_enu, dtype=np.float64)
+        if v.shape != (3,) or not np.all(np.isfinite(v)):
+            raise ValueError(f"velocity must be 3 finite numbers (m/s), got {velocity_enu!r}")
+        q = self._queue
+        item = (int(t_ns), v)
+        if q and item[0] < q[-1][0]:  # out of order: keep the queue sorted by stamp
+            k = next(i for i, x in enumerate(q) if x[0] > item[0])
+            q.insert(k, item)
+        else:
+            q.append(item)
+        if len(q) > self.kept:
+            del q[0]
+
+    def newest_due(self, t_ns: int) -> np.ndarray | None:
+        """The newest velocity stamped at or before ``t_ns`` (and drop it and older ones), or
+        None when none is due."""
+        q = self._queue
+        k = 0
+        while k < len(q) and q[k][0] <= t_ns:
+            k += 1
+        if k == 0:
+            return None
+        v = q[k - 1][1]
+        del q[:k]
+        return v
+
+    def clear(self) -> None:
+        self._queue.clear()
+
+
+def velocity_series(imu_t_ns, odom_t_ns, odom_v, initial=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """(N, 3) velocity in force at each Imu stamp: that of the newest odometry stamped at or
+    before it (``initial`` before the first), as :class:`VelocitySchedule` applies them.
+    ``odom_t_ns`` is sorted here (stable: of equal stamps the later message wins)."""
+    t = np.asarray(imu_t_ns, dtype=np.int64)
+    ot = np.asarray(odom_t_ns, dtype=np.int64)
+    ov = np.asarray(odom_v, dtype=np.float64).reshape(-1, 3)
+    order = np.argsort(ot, kind="stable")
+    ot, ov = ot[order], ov[order]
+    k = np.searchsorted(ot, t, side="right") - 1
+    out = np.empty((t.size, 3))
+    out[:] = np.asarray(initial, dtype=np.float64)
+    out[k >= 0] = ov[k[k >= 0]]
+    return out

@@ -33,6 +33,7 @@ from gyro_attitude.core.attitude.modes import (
     WorldFrame,
     parse_mode,
 )
+from gyro_attitude.core.attitude.rest import RestThresholds
 
 __all__ = ["SETTINGS", "Setting", "SettingError", "StreamConfig", "markdown_table", "setting",
            "yaml_lines"]
@@ -190,15 +191,17 @@ SETTINGS: tuple[Setting, ...] = (
     # -- rests
     Setting("min_rest_s", 1.0, "shortest rest used for the bias and the alignment", "s", 0.01,
             3600.0, group="rest"),
-    Setting("rest_window_s", 0.5, "rest detector window", "s", 0.01, 60.0, group="rest"),
-    Setting("rest_gyro_std_max", 0.01, "rest: largest gyro deviation from the window mean, over "
-            "3 axes", "rad/s", 1e-6, 10.0, group="rest"),
-    Setting("rest_gyro_mean_max", 0.1, "rest: largest window-mean rate, the largest plausible "
-            "bias", "rad/s", 1e-6, 10.0, group="rest"),
-    Setting("rest_accel_std_max", 0.25, "rest: largest specific-force deviation, over 3 axes",
-            "m/s^2", 1e-4, 100.0, group="rest"),
-    Setting("rest_accel_norm_tol", 0.5, "rest: largest | |f| - g |", "m/s^2", 1e-4, 100.0,
+    Setting("rest_window_s", RestThresholds.window_s, "rest detector window", "s", 0.01, 60.0,
             group="rest"),
+    Setting("rest_gyro_std_max", RestThresholds.gyro_std_max, "rest: largest gyro deviation "
+            "from the window mean, over 3 axes", "rad/s", 1e-6, 10.0, group="rest"),
+    Setting("rest_gyro_mean_max", RestThresholds.gyro_mean_max, "rest: largest window-mean "
+            "rate on any axis, the largest plausible bias (a steady turn faster than sqrt(3) "
+            "times this is never a rest)", "rad/s", 1e-6, 10.0, group="rest"),
+    Setting("rest_accel_std_max", RestThresholds.accel_std_max, "rest: largest specific-force "
+            "deviation, over 3 axes", "m/s^2", 1e-4, 100.0, group="rest"),
+    Setting("rest_accel_norm_tol", RestThresholds.accel_norm_tol, "rest: largest | |f| - g |",
+            "m/s^2", 1e-4, 100.0, group="rest"),
     # -- aiding
     Setting("aiding", Aiding.NONE, "gravity: tilt pulled toward the accelerometer's vertical with "
             "gyro-bias feedback, gated in fast motion (heading stays gyro-only); tilt: the AHRS "

@@ -15,7 +15,7 @@ import numpy as np
 
 from gyro_attitude.core.rotation import _exp_rotvec, _log_quat, _qmul, quat_conjugate
 
-__all__ = ["truth_at", "initial_attitude_from_truth", "default_max_interval_ns"]
+__all__ = ["TruthStart", "default_max_interval_ns", "initial_attitude_from_truth", "truth_at"]
 
 
 def _check(truth_t, truth_q) -> tuple[np.ndarray, np.ndarray]:
@@ -68,13 +68,15 @@ def truth_at(truth_t, truth_q, t_ns: int, max_interval_ns: int | None = None) ->
     return out / np.sqrt(np.dot(out, out))
 
 
-def initial_attitude_from_truth(imu_t, truth_t, truth_q,
-                                max_interval_ns: int | None = None) -> tuple[np.ndarray, int, int]:
-    """``(q0, first_index, skipped)``: the truth at the first Imu stamp it covers.
+def initial_attitude_from_truth(imu_t, truth_t, truth_q, max_interval_ns: int | None = None,
+                                usable=None) -> tuple[np.ndarray, int, int]:
+    """``(q0, first_index, skipped)``: the truth at the first usable Imu stamp it covers.
 
-    ``first_index`` the Imu sample where integration starts (its stamp is the first one at or
-    after the first truth stamp that the truth covers); ``skipped`` how many Imu samples come
-    before it (0 when the truth starts with the Imu).  ValueError when no Imu stamp is covered.
+    ``usable`` (N,) bool: the samples the estimator would accept as a start
+    (:func:`.validation.usable_samples`; default all) — the truth is taken at the sample where
+    the attitude starts, never at one the estimator then rejects.  ``first_index`` that sample;
+    ``skipped`` how many Imu samples come before it (0 when the truth starts with the Imu).
+    ValueError when no usable Imu stamp is covered.
     """
     t, q = _check(truth_t, truth_q)
     imu = np.asarray(imu_t)
@@ -82,13 +84,79 @@ def initial_attitude_from_truth(imu_t, truth_t, truth_q,
         raise ValueError(f"Imu stamps must be a non-empty 1-D array of int ns, got shape "
                          f"{imu.shape} dtype {imu.dtype}")
     imu = imu.astype(np.int64)
-    start = int(np.argmax(imu >= t[0])) if np.any(imu >= t[0]) else imu.size
-    for k in range(start, imu.size):
-        if imu[k] > t[-1]:
-            break
+    ok = np.ones(imu.size, dtype=bool) if usable is None else np.asarray(usable, dtype=bool)
+    inside = ok & (imu >= t[0]) & (imu <= t[-1])
+    for k in np.flatnonzero(inside).tolist():
         try:
             return truth_at(t, q, int(imu[k]), max_interval_ns), k, k
         except ValueError:
             continue  # inside a truth gap: try the next Imu sample
     raise ValueError(f"no Imu stamp lies within the truth's span [{t[0]}, {t[-1]}] ns: "
                      "cannot take the initial attitude from the truth")
+
+
+class TruthStart:
+    """The truth start of a live stream: Imu samples wait (at most ``kept``) until the truth
+    covers the first one the estimator can start from; that one gets the truth slerped to its
+    stamp.  Truth samples must come in stamp order (others are refused with a reason).
+
+    ``usable(t_ns, omega) -> bool`` says whether the estimator would accept a sample as a start
+    (the sample-local checks of :func:`.validation.sample_problem`); unusable samples and
+    usable ones the truth does not cover are skipped (``skipped`` counts both).
+    """
+
+    def __init__(self, usable, kept: int = 5000):
+        self._usable = usable
+        self.kept = int(kept)
+        self._t: list[int] = []
+        self._q: list[np.ndarray] = []
+        self._pending: list[tuple[int, object]] = []
+        self.skipped = 0
+
+    def add_truth(self, t_ns: int, q) -> str | None:
+        """Keep a truth sample; the reason when it is refused (not finite, zero, not after
+        the previous one)."""
+        q = np.asarray(q, dtype=np.float64)
+        norm = float(np.sqrt(np.dot(q, q))) if q.shape == (4,) else 0.0
+        if not np.all(np.isfinite(q)) or not norm >= 1e-9:
+            return "a non-finite or zero truth quaternion"
+        if self._t and t_ns <= self._t[-1]:
+            return "a truth message not after the previous one"
+        self._t.append(int(t_ns))
+        self._q.append(q / norm)
+        if len(self._t) > self.kept:
+            del self._t[0], self._q[0]
+        return None
+
+    def add_sample(self, t_ns: int, omega, payload) -> None:
+        """Keep an Imu sample (``payload`` is handed back by :meth:`start`)."""
+        if not self._usable(t_ns, omega):
+            self.skipped += 1
+            return
+        self._pending.append((int(t_ns), payload))
+        if len(self._pending) > self.kept:
+            del self._pending[0]
+            self.skipped += 1
+
+    def start(self) -> tuple[np.ndarray, list] | None:
+        """``(q0, payloads)`` once the truth covers a waiting sample: its attitude and the
+        payloads from that sample on (to be pushed in order); None while waiting."""
+        pending = self._pending
+        while pending and self._t:
+            t_ns = pending[0][0]
+            if t_ns > self._t[-1]:
+                return None  # the truth around it has not arrived yet
+            if t_ns >= self._t[0]:
+                try:
+                    q0 = truth_at(np.array(self._t), np.array(self._q), t_ns)
+                except ValueError:  # inside a truth gap: try the next sample
+                    pass
+                else:
+                    payloads = [p for _, p in pending]
+                    pending.clear()
+                    self._t.clear()
+                    self._q.clear()
+                    return q0, payloads
+            pending.pop(0)  # before the first truth sample (or in a gap): skipped
+            self.skipped += 1
+        return None

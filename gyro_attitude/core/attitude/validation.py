@@ -131,6 +131,28 @@ def value_problem(omega, max_rate_rad_s: float) -> tuple[str, str] | None:
     return None
 
 
+def sample_problem(t_ns, omega, max_rate_rad_s: float) -> tuple[str, str] | None:
+    """(reason, detail) when a sample is unusable on its own (its values, a stamp that is not
+    positive), else None: the checks that need no earlier sample."""
+    problem = value_problem(omega, max_rate_rad_s)
+    if problem is not None:
+        return problem
+    if isinstance(t_ns, bool) or not isinstance(t_ns, int | np.integer):
+        raise ValueError(f"t_ns must be an integer number of nanoseconds, got {t_ns!r}")
+    if t_ns <= 0:
+        return ZERO_STAMP, f"stamp {int(t_ns)} ns is not positive (0: unset)"
+    return None
+
+
+def usable_samples(t_ns: np.ndarray, omega: np.ndarray, max_rate_rad_s: float) -> np.ndarray:
+    """Array form of :func:`sample_problem` is None: (N,) bool."""
+    if all_within(omega, max_rate_rad_s):
+        return np.asarray(t_ns) > 0
+    with np.errstate(invalid="ignore"):
+        ok = (np.abs(omega) <= max_rate_rad_s).all(axis=1)  # NaN fails the comparison
+    return ok & (np.asarray(t_ns) > 0)
+
+
 class ImuStreamValidator:
     """Classify each Imu sample of a stream; count rejections by reason.
 
@@ -156,6 +178,23 @@ class ImuStreamValidator:
         self.last_t_ns = None
         self.frame_id = None
 
+    def run(self, t_ns, omega, frame_id: str | list[str] | None = "") -> Classification:
+        """Array form of :meth:`check` over a whole recording (a fresh validator): the
+        verdicts of :func:`classify`, with this validator left as :meth:`check` would leave it
+        after the last sample (counts, time base, locked frame)."""
+        if self.last_t_ns is not None or self.accepted:
+            raise ValueError("run() needs a fresh validator (it classifies a whole recording)")
+        cls = classify(t_ns, omega, frame_id, self.config)
+        for r in REJECT_REASONS:
+            self.counts[r] = cls.counts[r]
+        self.accepted = cls.accepted
+        self.time_jump_resets = cls.time_jump_resets
+        valid = np.flatnonzero(cls.action != ACTION_CODES[REJECT])
+        if valid.size:
+            self.last_t_ns = int(np.asarray(t_ns)[valid[-1]])
+            self.frame_id = cls.frame_id
+        return cls
+
     def _reject(self, reason: str, detail: str) -> Verdict:
         self.counts[reason] += 1
         return Verdict(REJECT, reason, detail)
@@ -165,14 +204,10 @@ class ImuStreamValidator:
 
         t_ns: header stamp in ns; omega: angular rate (3,) [rad/s]; frame_id: header.frame_id.
         """
-        problem = value_problem(omega, self.config.max_rate_rad_s)
+        problem = sample_problem(t_ns, omega, self.config.max_rate_rad_s)
         if problem is not None:
             return self._reject(*problem)
-        if isinstance(t_ns, bool) or not isinstance(t_ns, int | np.integer):
-            raise ValueError(f"t_ns must be an integer number of nanoseconds, got {t_ns!r}")
         t_ns = int(t_ns)
-        if t_ns <= 0:
-            return self._reject(ZERO_STAMP, f"stamp {t_ns} ns is not positive (0: unset)")
         if self.frame_id is not None and frame_id != self.frame_id:
             return self._reject(
                 FRAME_CHANGED, f"frame_id {frame_id!r} differs from {self.frame_id!r}"
@@ -235,6 +270,19 @@ def _frame_codes(frame_id, n: int) -> tuple[np.ndarray | None, list[str]]:
     codes = np.fromiter((names.setdefault(str(f), len(names)) for f in frame_id),
                         dtype=np.int64, count=n)
     return codes, list(names)
+
+
+#: REP-145: element 0 of a covariance is −1 when the field carries no estimate.
+NO_ESTIMATE = -1.0
+
+
+def no_estimate(covariance):
+    """REP-145's "no estimate" rule, the one home of it: element 0 of a row-major covariance
+    (9,) — or of every row of (N, 9) — is −1.  A bool, or a bool array (N,)."""
+    c = np.asarray(covariance)
+    if c.ndim == 1:
+        return bool(c.size and c[0] == NO_ESTIMATE)
+    return c[..., 0] == NO_ESTIMATE
 
 
 def all_within(a: np.ndarray, limit: float) -> bool:

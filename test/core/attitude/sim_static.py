@@ -26,7 +26,7 @@ def static_imu(n, rate_hz, q_nb, lat_rad, gyro_bias=(0, 0, 0), gyro_noise=0.0, a
     return t, np.broadcast_to(gyro, (n, 3)).copy(), np.broadcast_to(accel, (n, 3)).copy()
 
 
-def rest_motion_rest(rate_hz=200.0, rests=(3.0, 2.0, 3.0), motions=(2.0, 1.5), bias=(0.02, -0.01, 0.05),
+def rest_motion_rest(rate_hz=200.0, rests=(3.0, 2.0, 3.0), motions=(2.0, 1.5), bias=(0.008, -0.004, 0.01),
                      gyro_noise=0.002, accel_noise=0.03, seed=1):
     """Alternating rest/motion gyro+accel with the true motion mask (rest = True).
 

@@ -9,7 +9,7 @@ from gyro_attitude.core.attitude.gyro_bias import GyroBiasEstimator, estimate_gy
 
 
 def test_auto_bias_matches_truth_within_its_standard_error():
-    bias = np.array([0.02, -0.01, 0.05])
+    bias = np.array([0.008, -0.004, 0.01])
     sigma = 0.002
     t, g, a, truth = rest_motion_rest(bias=bias, gyro_noise=sigma, seed=5)
     b, rep = estimate_gyro_bias(t, g, a)

@@ -2,8 +2,10 @@
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 from sim_static import rest_motion_rest
 
+from gyro_attitude.core.attitude.gyro_bias import estimate_gyro_bias
 from gyro_attitude.core.attitude.rest import RestDetector, detect_rest, rest_segments
 
 
@@ -23,8 +25,9 @@ def test_stream_equals_batch_bitwise():
 
 @pytest.mark.parametrize("use_accel", [True, False])
 def test_finds_the_true_rests_despite_a_large_bias(use_accel):
-    # 0.05 rad/s (2.9 °/s) bias on z: the deviation test must not mind it.
-    t, g, a, truth = rest_motion_rest(bias=(0.02, -0.01, 0.05), seed=4)
+    # 0.01 rad/s (0.57 °/s, near the largest consumer MEMS bias) on z, inside the mean-rate
+    # bound: the deviation test must not mind it.
+    t, g, a, truth = rest_motion_rest(bias=(0.006, -0.004, 0.01), seed=4)
     r = detect_rest(t, g, a if use_accel else None)
     segs = rest_segments(r.covered)
     true_segs = rest_segments(truth)
@@ -67,3 +70,31 @@ def test_bad_input_is_refused():
         detect_rest([0, 1], np.zeros((3, 3)))
     with pytest.raises(ValueError, match="non-empty"):
         detect_rest([], np.zeros((0, 3)))
+
+
+@pytest.mark.parametrize("rate", [0.02, 0.05])
+@pytest.mark.parametrize("axis", [(0, 0, 1), (1, 0, 0), (1, 1, 1), (0.3, -0.8, 1.0)])
+def test_a_slow_steady_turn_is_never_a_rest_and_leaves_the_bias(rate, axis):
+    # A turntable at a constant 0.02 or 0.05 rad/s (1.1, 2.9 °/s) with consumer MEMS noise
+    # (1e-4 rad/s/√Hz gyro, 0.02 m/s² accelerometer) and a 0.3 °/s bias: about the vertical the
+    # specific force does not change, so only the mean-rate bound can refuse it — per axis, a
+    # turn of rate |ω| has a component ≥ |ω|/√3 ≥ 0.0115 rad/s > 0.011 whatever its axis.
+    rng = np.random.default_rng(7)
+    n, hz = 4000, 200.0
+    t = (1 + np.arange(n, dtype=np.int64)) * int(1e9 / hz)
+    u = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    bias = np.array([0.004, -0.003, 0.005])
+    g = rate * u + bias + 1e-4 * np.sqrt(hz) * rng.standard_normal((n, 3))
+    # the specific force in the body turns with the body (exactly, as the body turns about u)
+    angle = rate * (t - t[0]) * 1e-9
+    f = Rotation.from_rotvec(np.outer(angle, u)).inv().apply([0.0, 0.0, 9.80665])
+    a = f + 0.02 * rng.standard_normal((n, 3))
+    assert not detect_rest(t, g, a).at_rest.any()
+    assert not detect_rest(t, g).at_rest.any()  # gyro only
+    b, rep = estimate_gyro_bias(t, g, a)
+    assert rep.rests_used == 0 and np.all(b == 0.0)
+    # the same sensor still: a rest, and the bias it estimates
+    still = bias + 1e-4 * np.sqrt(hz) * rng.standard_normal((n, 3))
+    a_still = np.array([0.0, 0.0, 9.80665]) + 0.02 * rng.standard_normal((n, 3))
+    b, rep = estimate_gyro_bias(t, still, a_still)
+    assert rep.rests_used == 1 and np.allclose(rep.bias, bias, atol=1e-4)

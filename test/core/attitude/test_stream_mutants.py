@@ -20,6 +20,7 @@ from gyro_attitude.core.attitude.stream import (
     INTEGRATOR_ERROR,
     RUNNING,
     AttitudeStream,
+    RunForm,
     StreamConfig,
     bias_summary,
     gyro_variances,
@@ -248,7 +249,7 @@ def test_constant_velocity_of_three_samples_is_not_a_series():
 
 
 def test_per_sample_run_result_fields():
-    # auto bias on a recording that rests: run() takes the per-sample path
+    # auto bias on a recording that rests, hostile samples inside: run() on arrays
     t, w, frames = hostile()
     # at rest (with the noise every real gyro shows): the auto bias has rests to act on
     w[:] = 1e-6 * np.random.default_rng(1).normal(size=w.shape)
@@ -256,7 +257,7 @@ def test_per_sample_run_result_fields():
     cov = np.tile(np.diag([1e-6, 1e-6, 1e-6]).reshape(9), (t.size, 1))
     cov[:5] = 0.0  # no estimate on the first rows
     s = AttitudeStream("exp_map", config=StreamConfig(min_rest_s=0.05, rest_window_s=0.02))
-    assert s.needs_per_sample_path(t, w)
+    assert s.run_form()[0] is RunForm.ARRAYS
     res = s.run(t, w, frames, cov)
     assert res.index.dtype == np.int64 and res.q.shape == (res.index.size, 4)
     assert {k: res.counts[k] for k in HOSTILE_COUNTS} == HOSTILE_COUNTS
@@ -322,7 +323,7 @@ def test_level_without_accelerometer_says_so_and_failure_is_kept():
     # a usable sample clears the message
     s.push(2 * MS, [0.0, 0.0, 0.0], "imu", None, [0.0, 0.0, G])
     assert s.alignment_error is None
-    s.phase = FAILED  # as after a refused alignment: nothing more is attempted
+    s.state.phase = FAILED  # as after a refused alignment: nothing more is attempted
     assert s.push(3 * MS, [0.0, 0.0, 0.0], "imu", None, [0.0, 0.0, G])[1] is None
 
 
@@ -392,16 +393,14 @@ def test_update_nav_takes_the_new_nav_rate():
     assert final[False] > 3e-6
 
 
-def test_needs_per_sample_path_by_setting_and_data():
-    t = np.arange(1, 401, dtype=np.int64) * 10 * MS
-    still = 1e-6 * np.random.default_rng(2).normal(size=(400, 3))  # gyro noise at rest
-    moving = np.column_stack([np.sin(np.arange(400) * 0.1), np.ones(400), np.zeros(400)])
-    assert AttitudeStream().needs_per_sample_path(t, still)  # auto, a rest in the data
-    assert not AttitudeStream().needs_per_sample_path(t, moving)  # auto, no rest
-    for cfg in (StreamConfig(initial_attitude_source="level"), StreamConfig(aiding="gravity")):
-        assert AttitudeStream(config=cfg).needs_per_sample_path(t, moving)
-    assert not AttitudeStream(config=StreamConfig(gyro_bias="none")).needs_per_sample_path(
-        t, still)
+def test_run_form_is_arrays_for_every_setting_but_aiding():
+    for cfg in (StreamConfig(), StreamConfig(initial_attitude_source="level"),
+                StreamConfig(gyro_bias="none"), StreamConfig(frame="enu", latitude_rad=0.8),
+                StreamConfig(frame="enu", latitude_rad=0.8, initial_attitude_source="level")):
+        assert AttitudeStream(config=cfg).run_form()[0] is RunForm.ARRAYS
+    # aiding feeds back through the attitude, sample by sample
+    form, why = AttitudeStream(config=StreamConfig(aiding="gravity")).run_form()
+    assert form is RunForm.PER_SAMPLE and "aiding" in why
 
 
 def test_bias_summary_line():
@@ -410,7 +409,7 @@ def test_bias_summary_line():
     line = bias_summary(s.bias_report)
     assert line.startswith("gyro bias parameter: [0.012346, 0.0, -0.5] rad/s (")
     t = np.arange(1, 401, dtype=np.int64) * 10 * MS
-    w = np.tile([0.01, -0.02, 0.03], (400, 1)) + 1e-4 * np.random.default_rng(0).normal(
+    w = np.tile([0.005, -0.002, 0.003], (400, 1)) + 1e-4 * np.random.default_rng(0).normal(
         size=(400, 3))
     s = AttitudeStream(config=StreamConfig(min_rest_s=1.0))
     s.run(t, w, "imu")
@@ -476,29 +475,6 @@ def test_integrator_error_verdict(monkeypatch):
     assert verdict.detail == "non-finite attitude: last good one restored"
     assert s.details[INTEGRATOR_ERROR] == verdict.detail
     assert s.validator.last_t_ns is None  # the next sample starts a fresh time base
-
-
-# ------------------------------------------------------------------------- auto bias decision
-def test_per_sample_path_decision_uses_accelerometer_and_every_segment():
-    rng = np.random.default_rng(3)
-    n = 300
-    t = np.arange(1, n + 1, dtype=np.int64) * 10 * MS
-    still = 1e-4 * rng.normal(size=(n, 3))
-    level = np.tile([0.0, 0.0, G], (n, 1))
-    shaken = level + np.column_stack([3.0 * np.sin(np.arange(n) * 0.7), np.zeros(n),
-                                      np.zeros(n)])
-    s = AttitudeStream()
-    assert s.needs_per_sample_path(t, still, level)
-    # the gyro is still but the accelerometer shakes: the streaming detector finds no rest
-    assert not s.needs_per_sample_path(t, still, shaken)
-    # an unusable accelerometer sample: the per-sample path counts it
-    bad = shaken.copy()
-    bad[7] = [1e300, 0.0, 0.0]
-    assert s.needs_per_sample_path(t, still, bad)
-    # a lone first sample before a gap is a segment of its own: the rest after it still counts
-    t_gap = t.copy()
-    t_gap[1:] += 1_000 * MS
-    assert s.needs_per_sample_path(t_gap, still)
 
 
 # ------------------------------------------------------------------------- aligner settings

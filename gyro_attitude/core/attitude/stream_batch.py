@@ -1,0 +1,295 @@
+"""The array form of the attitude stream's chain over a whole recording (:meth:`AttitudeStream.run`).
+
+Each stage runs its own array form and leaves its own state as its per-sample step would:
+
+1. validate: :meth:`.validation.ImuStreamValidator.run` (the verdicts of ``classify``); unusable
+   accelerometer rows counted;
+2. rest → gyro bias: :meth:`.gyro_bias.GyroBiasEstimator.run` over the accepted rows, windows
+   broken where the per-sample step breaks them — before every gap, jump, restart and unusable
+   accelerometer row (the usable row right after an unusable one is not fed: the streaming
+   detector refuses it, an accelerometer appearing mid-window);
+3. alignment: :meth:`.alignment.StaticAligner.run` (levelling): the first rest that ends;
+4. integrate: one batch call per run of accepted rows between two events (a restart, a gap, a
+   jump, the alignment, the first bias estimate applied back to the start), with each row's
+   ``ω − bias``;
+5. covariance: :meth:`.covariance.AttitudeCovariance.run` (restarted cumulative sums).
+
+:func:`run_arrays` returns None when an integration produced a non-finite attitude; the caller
+then runs the per-sample form, which restores the last good attitude and counts it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from gyro_attitude.core.attitude import integrate_batch
+from gyro_attitude.core.attitude import validation as v
+from gyro_attitude.core.attitude.alignment import level_quaternions
+from gyro_attitude.core.attitude.modes import GyroBiasMode
+from gyro_attitude.core.attitude.stream import (
+    EXTRA_COUNTS,
+    INVALID_ACCEL,
+    INVALID_COVARIANCE,
+    RUNNING,
+    RunForm,
+    StreamResult,
+    cannot_align,
+    gyro_variances_array,
+    nav_rows,
+    rows,
+    usable_accel,
+)
+from gyro_attitude.core.rotation import quat_from_rotvec, quat_multiply
+
+__all__ = ["run_arrays"]
+
+_EARTH_PASSES = 8  # fixed-point passes allowed for the Earth rate at the current attitude
+
+_ACCEPT = v.ACTION_CODES[v.ACCEPT]
+_REJECT = v.ACTION_CODES[v.REJECT]
+_RESTART = v.ACTION_CODES[v.RESTART_AFTER_GAP]
+_RESET = v.ACTION_CODES[v.RESET_TIME_JUMP]
+
+
+def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
+    """The chain's array form over a recording on the fresh stream ``s`` (see the module
+    docstring); None when an integration met a non-finite attitude."""
+    cfg, st = s.config, s.state
+    cls = s.validator.run(t, w, frame_id)  # 1. validate
+    act = cls.action
+    valid = np.flatnonzero(act != _REJECT)
+    m = valid.size
+    details = dict(cls.details)
+    counts = dict.fromkeys(EXTRA_COUNTS, 0)
+    tv, wv, actv = rows(t, valid), rows(w, valid), act[valid]
+    av = a_ok = None
+    if acc is not None and m:
+        av = rows(acc, valid)
+        a_ok = usable_accel(av)
+        bad = np.flatnonzero(~a_ok)
+        if bad.size:
+            counts[INVALID_ACCEL] = int(bad.size)
+            details.setdefault(INVALID_ACCEL, f"accelerometer sample {av[bad[0]].tolist()!r} is "
+                                              "not 3 finite numbers: not used for rests or aiding")
+    breaks = actv != _ACCEPT  # a rest never spans a gap, a jump or a restart
+
+    # 3. alignment (it reads the raw rates and the accelerometer only)
+    start = 0  # first row integrated
+    out_from = 0  # first row with an attitude
+    q_start = st.q_initial
+    align = None
+    if cfg.levelling:
+        if av is None:
+            raise ValueError("alignment needs the accelerometer: no usable linear_acceleration")
+        idx = np.flatnonzero(a_ok)
+        cut = breaks.copy()
+        cut[1:] |= ~a_ok[:-1]
+        got = s.aligner.run(tv[idx], wv[idx], av[idx], cut[idx])
+        if got is None:
+            raise ValueError(cannot_align(cfg))
+        align = (int(idx[got[0]]), int(idx[got[1]]), got[2])
+        start, out_from = align[1], align[0]
+        q_start = align[2].q_nb
+
+    # 2. and 4.: rest -> gyro bias, then integration.  With the Earth rate taken out of the
+    # rest averages at the current attitude, the bias depends on the attitude it corrects:
+    # iterated to the fixed point (each pass changes the attitude by ~ω_ie·T times the last
+    # change: a few passes reach rounding), or the per-sample form when it does not settle.
+    est = s.bias_estimator
+    earth = est.mode is GyroBiasMode.AUTO and s.latitude_rad is not None
+    q_nb = np.tile(st.q_initial, (m, 1))
+    known = np.ones(m, dtype=bool)
+    if earth and align is not None:  # while aligning: levelled from each sample's force
+        q_lv, ok = level_quaternions(np.where(a_ok[:, None], av, 0.0)[:align[0] + 1],
+                                     math.radians(cfg.initial_heading_deg))
+        q_nb[:align[0] + 1] = q_lv
+        known[:align[0] + 1] = ok & a_ok[:align[0] + 1]
+    fed = _bias_inputs(est, tv, av, a_ok, breaks)
+    plan = None
+    if est.mode is GyroBiasMode.AUTO and m:  # the rests: found once, on the rates
+        idx, cut = fed
+        a_fed = None if av is None else np.where(a_ok[idx, None], av[idx], 0.0)
+        plan = est.rests(tv[idx], wv[idx], a_fed, cut)
+    q_prev = None
+    for _ in range(_EARTH_PASSES if earth else 1):
+        values = est.values_without_earth(wv, q_nb, known) if earth else wv
+        bias, track, updates = _bias_track(est, tv, wv, values, fed, known if earth else False,
+                                           plan)
+        if align is not None:
+            bias[align[1]:align[0]] = bias[align[0]]  # buffered samples: the bias at the end
+        got = _integrate(s, t.shape[0], valid, tv, bias, wv - bias, actv, track, updates,
+                         start, q_start)
+        if got is None:
+            return None
+        q, first_rest = got
+        if not earth or (q_prev is not None and np.max(np.abs(q - q_prev)) <= 1e-15):
+            break
+        q_prev = q
+        # the attitude each row's bias step sees: the one handed out at the row before
+        q_nb[out_from + 1:] = q[out_from - start:-1]
+    else:
+        return None
+    if updates.size:
+        st.first_rest_pending = False
+    if align is not None:
+        done = align[0]
+        if updates.size and updates[0] <= done:
+            # the zero-rate updates while aligning set the bias variance the attitude starts
+            # with (the last one counts: each sets it anew)
+            k = int(np.searchsorted(updates, done, side="right")) - 1
+            s.covariance.zero_rate_update(track.standard_error[k])
+        s._start_aligned(align[2])
+        updates_after = updates[updates > done]
+    else:
+        updates_after = updates
+    rate = wv - bias
+
+    # 5. covariance over the integrated rows
+    var_v = known_v = None
+    if cov is not None:
+        var_all, known_all, invalid_all = gyro_variances_array(cov)
+        var_v, known_v = rows(var_all, valid), rows(known_all, valid)
+        inv = rows(invalid_all, valid)
+        counts[INVALID_COVARIANCE] = int(np.count_nonzero(inv))
+        if counts[INVALID_COVARIANCE]:
+            k = int(valid[np.flatnonzero(inv)[0]])
+            details.setdefault(INVALID_COVARIANCE, f"angular_velocity_covariance "
+                               f"{cov[k].tolist()} has a non-finite, negative or absurd "
+                               "diagonal: treated as unknown")
+    variance = variance_known = None
+    known_any = known_v is not None and bool(known_v[out_from:].any())
+    if known_any or st.variance_known:
+        sl = slice(start, m)
+        dt = np.zeros(m - start)
+        dt[1:] = (tv[start + 1:] - tv[start:-1]) * 1e-9
+        dt[actv[sl] != _ACCEPT] = 0.0
+        dt[0] = 0.0
+        qv = s._n2 * dt[:, None] * np.ones(3)
+        if var_v is not None:
+            qv = np.where(known_v[sl, None], var_v[sl] * (dt * dt)[:, None], qv)
+        zero_rate = np.zeros(m - start, dtype=bool)
+        se = np.zeros((m - start, 3))
+        if track is not None and updates_after.size:
+            k = np.searchsorted(updates, updates_after)
+            zero_rate[updates_after - start] = True
+            se[updates_after - start] = track.standard_error[k]
+        fr = None
+        if first_rest is not None:
+            zero_rate[first_rest[0]] = False
+            fr = (first_rest[0], first_rest[1], first_rest[2])
+        tt = s.covariance.run(dt, qv, actv[sl] == _RESET, zero_rate, se, fr)
+        variance = tt[out_from - start:]
+        kv = np.zeros(m - out_from, dtype=bool) if known_v is None else known_v[out_from:]
+        variance_known = np.maximum.accumulate(kv) | st.variance_known
+        variance[~variance_known] = 0.0
+        if known_any:
+            st.variance_known = True
+
+    # the chain's state after the last row, as push() would leave it
+    q_out = q[out_from - start:]
+    if m:
+        st.start_t_ns = int(tv[0])
+        st.accel_present = None if a_ok is None else (bool(a_ok[-1]) or None)
+        if acc is None:
+            st.accel_present = False
+        if q_out.shape[0]:
+            st.q = q_out[-1].copy()
+            if s.integrator is not None:
+                # the last sample is the integrator's history: the next push() integrates from
+                # it (as after a restart: the fit rebuilds from two samples on)
+                s.integrator.reset(st.q, None)
+                s.integrator.update(int(tv[-1]), rate[-1])
+    for key in EXTRA_COUNTS:
+        st.counts[key] = counts[key]
+    for key, text in details.items():
+        st.details.setdefault(key, text)
+    if st.phase is not RUNNING:  # no sample at all while levelling
+        raise ValueError(s.alignment_error or cannot_align(cfg))
+    return StreamResult(valid[out_from:], q_out, variance, variance_known, act,
+                        s.counts, cls.time_jump_resets, dict(st.details), s.bias_report,
+                        s.alignment, RunForm.ARRAYS)
+
+
+def _bias_inputs(est, tv, av, a_ok, breaks):
+    """Which accepted rows the bias stage's detector takes and where its windows break:
+    (fed rows (F,), breaks (F,)) — every gap, jump, restart and unusable accelerometer row
+    breaks them, and the usable row after an unusable one is refused (the accelerometer
+    reappearing mid-window)."""
+    m = tv.shape[0]
+    fed = np.ones(m, dtype=bool)
+    cut = breaks.copy()
+    if a_ok is not None and not a_ok.all():
+        cut |= ~a_ok
+        after = np.zeros(m, dtype=bool)
+        after[1:] = ~a_ok[:-1] & a_ok[1:]
+        fed &= ~after
+        nxt = np.flatnonzero(after) + 1
+        cut[nxt[nxt < m]] = True
+    idx = np.flatnonzero(fed)
+    return idx, cut[idx]
+
+
+def _bias_track(est, tv, wv, values, fed, earth, plan):
+    """Step 2 on the accepted rows: (bias (M, 3), the BiasTrack or None, update rows (U,))."""
+    m = tv.shape[0]
+    bias = np.empty((m, 3))
+    bias[:] = est.bias
+    if est.mode is not GyroBiasMode.AUTO or m == 0:
+        return bias, None, np.zeros(0, np.int64)
+    est.reset()
+    idx, _ = fed
+    earth_fed = earth[idx] if isinstance(earth, np.ndarray) else earth
+    track = est.run(tv[idx], wv[idx], earth_removed=earth_fed, values=values[idx], plan=plan)
+    pos = np.searchsorted(idx, np.arange(m), side="right") - 1
+    bias[pos >= 0] = track.bias[pos[pos >= 0]]
+    return bias, track, idx[track.updates]
+
+
+def _integrate(s, n, valid, tv, bias, rate, actv, track, updates, start, q_start):
+    """Step 4: (attitudes of the rows from ``start`` on, the first-rest correction or None),
+    or None on a non-finite attitude."""
+    st = s.state
+    m = tv.shape[0]
+    first_rest = None
+    if st.first_rest_pending and track is not None and track.updates.size:
+        u0 = int(updates[0])
+        if int(track.rest_start_ns[0]) - int(tv[0]) <= s.bias_estimator.window_ns and u0 > 0:
+            first_rest = (u0, track.standard_error[0],
+                          (int(tv[u0 - 1]) - int(tv[0])) * 1e-9, track.previous[0])
+    ev = np.flatnonzero(actv[start:] != _ACCEPT) + start
+    bounds = sorted({start, *ev.tolist(), *([first_rest[0]] if first_rest else []), m})
+    q = np.empty((m - start, 4))
+    nav_all = nav_rows(s.nav, valid, n)
+    for r0, r1 in zip(bounds[:-1], bounds[1:], strict=True):
+        a0 = actv[r0]
+        if r0 == start:
+            q0 = q_start
+        elif first_rest is not None and r0 == first_rest[0]:
+            _, _, elapsed, previous = first_rest
+            q0 = quat_multiply(q[r0 - 1 - start],
+                               quat_from_rotvec(-(bias[r0] - previous) * elapsed))
+        elif a0 == _RESTART:
+            q0 = q[r0 - 1 - start]
+        else:  # a time-jump reset: back to the initial (or levelled) attitude
+            q0 = q_start
+        if first_rest is not None and r0 == first_rest[0]:
+            # the integrator restarted at the previous sample, its rate held back to it
+            sel = np.arange(r0 - 1, r1)
+            tt = tv[sel]
+            rr = rate[sel].copy()
+            rr[0] = rate[r0]
+            q_run = integrate_batch(tt, rr, q0=q0, algorithm=s.algorithm,
+                                    nav=None if nav_all is None else nav_rows(
+                                        nav_all, sel, m))[1:]
+        else:
+            sel = slice(r0, r1)
+            q_run = integrate_batch(tv[sel], rate[sel], q0=q0, algorithm=s.algorithm,
+                                    nav=None if nav_all is None else nav_rows(
+                                        nav_all, np.arange(r0, r1), m))
+        if not np.isfinite(q_run).all():
+            return None
+        q[r0 - start:r1 - start] = q_run
+    return q, first_rest
+
