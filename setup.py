@@ -54,6 +54,8 @@ setup(
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/config", glob("config/*.yaml")),
         ("share/" + package_name + "/config/scenes", glob("config/scenes/*.yaml")),
+        # pose files the shipped trajectory scenes name (relative to the scene directory)
+        ("share/" + package_name + "/config/trajectories", glob("config/trajectories/*.tum")),
         # `ros2 launch gyro_attitude demo.launch.py` finds launch files here
         ("share/" + package_name + "/launch", glob("launch/*.launch.py")),
         # The shipped sample only: demo and recorder output (bags/demo_*, bags/recording_*)

@@ -25,6 +25,7 @@ from gyro_attitude.core.sim_topics import (
     TOPICS,
     TRUTH_TOPIC,
 )
+from gyro_attitude.core.trajectory import TrajectoryMotion
 from gyro_attitude.io.cdr_arrays import (
     imu_batch,
     joint_state_batch,
@@ -111,6 +112,8 @@ def run(quick: bool, out_dir: pathlib.Path) -> list[dict]:
               400_000 if quick else 2_000_000)]
     for name, _ in list_scenes():
         spec = load_scene(name)
+        if isinstance(spec.motion, TrajectoryMotion):
+            continue  # a pose file of fixed span: measured by suite "trajectory"
         heavy = spec.free_gyro_params is not None or spec.instrument is not None
         n = (2_000 if heavy else 40_000) if quick else (10_000 if heavy else 200_000)
         cases.append((name, spec, spec.rate_hz, n))

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from gyro_attitude.core.units import format_si
 from gyro_attitude.io.safe_output import SafeOutput, check_output_path
+from gyro_attitude.io.strict_yaml import dump_yaml
 from gyro_attitude.offline.allan import AXES, analyse_mcap, plot
 
 _GYRO_UNITS = (("random_walk", "N (ARW)", "angle random walk"),
@@ -26,12 +27,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plot", metavar="PNG", help="log-log plot with the fitted terms")
     parser.add_argument("--scene-out", metavar="YAML",
                         help="write a scene whose errors are the fitted terms")
+    parser.add_argument("--kalibr-out", metavar="YAML",
+                        help="write the fitted terms as a Kalibr / VIO imu.yaml (continuous-"
+                             "time noise densities and random walks; a scene takes the same "
+                             "file with kalibr_imu:)")
     parser.add_argument("--force", action="store_true", help="overwrite existing outputs")
 
 
 def _scene_yaml(result, source: str) -> str:
-    import yaml
-
     errors = result.scene_errors()
     scene = {
         "description": f"IMU at rest with the noise fitted by gyro-attitude allan from {source}",
@@ -48,7 +51,37 @@ def _scene_yaml(result, source: str) -> str:
     head = ("# Written by gyro-attitude allan: noise terms per axis (x, y, z) fitted to the\n"
             "# recording's Allan deviation. Bias, scale factor and misalignment are not\n"
             "# observable from it; add them if known. Set earth.latitude_deg to your site.\n")
-    return head + yaml.safe_dump(scene, sort_keys=False, allow_unicode=True)
+    return head + dump_yaml(scene, allow_unicode=True)
+
+
+_KALIBR_COMMENTS = {
+    "accelerometer_noise_density": "white noise, continuous time [m/s^2/sqrt(Hz)]",
+    "accelerometer_random_walk": "bias random walk, continuous time [m/s^3/sqrt(Hz)]",
+    "gyroscope_noise_density": "white noise, continuous time [rad/s/sqrt(Hz)]",
+    "gyroscope_random_walk": "bias random walk, continuous time [rad/s^2/sqrt(Hz)]",
+    "rostopic": "the Imu topic analysed",
+    "update_rate": "Hz: the rate these densities are discretized at",
+}
+
+
+def _kalibr_yaml(result, source: str) -> str:
+    """Kalibr's imu.yaml with the units and the sampling-rate convention stated."""
+    values, notes = result.kalibr()
+    lines = [
+        f"# Kalibr / VIO IMU noise model, fitted by gyro-attitude allan from {source}",
+        "# (IEEE 952 Allan terms; the largest of the x, y, z axes; no inflation applied).",
+        "# Continuous-time values: per sample at update_rate f, the white noise has",
+        "#   sigma_d = noise_density * sqrt(f)   and the bias steps by",
+        "#   sigma_bd = random_walk / sqrt(f)    (Kalibr's discretization).",
+        "# noise_density is the Allan N (ARW / VRW: rad/sqrt(s) = rad/s/sqrt(Hz));",
+        "# random_walk is the Allan K (RRW / AccRW), read on the +1/2 slope at tau = 3 s.",
+    ]
+    lines += [f"# note: {n}" for n in notes]
+    for key, value in values.items():
+        text = f"{value:.6e}" if isinstance(value, float) and key != "update_rate" else (
+            f"{value}" if key != "rostopic" else f"'{value}'")
+        lines.append(f"{key + ':':<30}{text:<16}# {_KALIBR_COMMENTS[key]}")
+    return "\n".join(lines) + "\n"
 
 
 def _write_text(path: str, text: str, force: bool) -> None:
@@ -60,7 +93,8 @@ def _write_text(path: str, text: str, force: bool) -> None:
 def run(args: argparse.Namespace) -> int:
 
     outs = [(p, what) for p, what in ((args.json, "JSON"), (args.plot, "plot"),
-                                      (args.scene_out, "scene")) if p]
+                                      (args.scene_out, "scene"),
+                                      (args.kalibr_out, "Kalibr")) if p]
     try:
         # Before any work: never the input (also through a symlink), never an existing
         # file without --force, never one output twice.
@@ -93,6 +127,10 @@ def run(args: argparse.Namespace) -> int:
         if args.scene_out:
             _write_text(args.scene_out, _scene_yaml(result, Path(args.input).name), args.force)
             print(f"[allan] scene -> {args.scene_out}")
+        if args.kalibr_out:
+            _write_text(args.kalibr_out, _kalibr_yaml(result, Path(args.input).name),
+                        args.force)
+            print(f"[allan] Kalibr imu.yaml -> {args.kalibr_out}")
         if args.plot:
             with SafeOutput(args.plot, force=args.force) as tmp:
                 # matplotlib picks the format from the name: keep the requested suffix

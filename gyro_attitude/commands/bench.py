@@ -30,6 +30,7 @@ SUITES: dict[str, str] = {
     "scenes": "gyro_attitude.benchmarks.scenes",
     "real": "gyro_attitude.benchmarks.real",
     "instruments": "gyro_attitude.benchmarks.instruments",
+    "trajectory": "gyro_attitude.benchmarks.trajectory",
 }
 
 

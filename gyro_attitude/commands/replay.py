@@ -65,6 +65,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="sensor_msgs/MagneticField topic for --aiding magnetometer "
                         f"(default {DEFAULT_MAG_TOPIC}; matched to the Imu stamps as the node "
                         "does)")
+    parser.add_argument("--odometry-topic", default=None, metavar="TOPIC",
+                        help="nav_msgs/Odometry topic of the recording whose velocity sets the "
+                        "transport rate (--frame enu), time-aligned to the Imu stamps as the "
+                        "node's odometry_topic")
     parser.add_argument("--truth-topic", default=TRUTH_TOPIC,
                         help=f"QuaternionStamped truth to compare with (default {TRUTH_TOPIC})")
     parser.add_argument("--compression", choices=COMPRESSIONS, default=DEFAULT_COMPRESSION,
@@ -101,6 +105,9 @@ _EVENT_WORDS = {
     "invalid_mag": "magnetic field sample(s) not finite, absurd or zero: not used",
     "mag_disturbed": "magnetic field sample(s) disturbed (norm or dip off the reference): "
                      "heading gyro-only",
+    "saturated": "gyro sample(s) pinned at a repeated extreme (saturated: attitude unreliable)",
+    iv.MISSING_SAMPLES: "sample(s) missing inside accepted intervals (integrated across; "
+                        "longer holes are gaps: --max-missing-samples)",
 }
 
 
@@ -127,7 +134,8 @@ def run(args) -> int:
         bar, update = _progress_bar(args)
         result = replay_file(
             args.input, args.out, imu_topic=args.imu_topic, algorithm=args.algorithm,
-            truth_topic=args.truth_topic, compression=args.compression, force=args.force,
+            truth_topic=args.truth_topic, odometry_topic=args.odometry_topic,
+            compression=args.compression, force=args.force,
             progress=update, config=config, mag_topic=args.mag_topic)
         if bar is not None:
             bar.close()
@@ -151,6 +159,7 @@ def run(args) -> int:
     events = {**out["skipped"], iv.GAP: out["gaps"], "time_jump": out["time_jump_resets"],
               "invalid_covariance": out["invalid_covariances"],
               "integrator_error": out["integrator_errors"],
+              iv.MISSING_SAMPLES: out["missing_samples"], "saturated": out["saturated"],
               **{k: v for k, v in (out["magnetometer"] or {}).items()
                  if k in ("mag_missing", "invalid_mag", "mag_disturbed")}}
     for reason, n in events.items():
@@ -158,6 +167,8 @@ def run(args) -> int:
             what = _EVENT_WORDS.get(reason, f"sample(s) skipped ({reason})")
             print(f"warning: {n} {what}; first: {out['details'].get(reason, '')}",
                   file=sys.stderr)
+    if "gyro_noise_unknown" in out["details"]:
+        print(f"note: {out['details']['gyro_noise_unknown']}", file=sys.stderr)
     if len(out["frame_ids"]) > 1:
         print(f"warning: frame_id changes inside {out['imu_topic']} ({out['frame_ids']}): "
               "integrated as one frame", file=sys.stderr)

@@ -21,6 +21,9 @@ __all__ = [
     "nav_rate_enu",
     "position_rate",
     "gravity_enu",
+    "enu_to_ecef_matrix",
+    "ecef_from_llh",
+    "llh_from_ecef",
 ]
 
 OMEGA_IE = 7.292115e-5  # Earth rotation rate, rad/s (WGS-84)
@@ -111,3 +114,51 @@ def gravity_enu(lat, h=0.0) -> np.ndarray:
     g = g0 - (_FREE_AIR_1 - _FREE_AIR_LAT * s2) * h + _FREE_AIR_2 * h * h
     z = np.zeros_like(g)
     return np.stack((z, z, -g), axis=-1)
+
+
+def enu_to_ecef_matrix(lat, lon) -> np.ndarray:
+    """``C_en`` (..., 3, 3): columns East, North, Up of the ENU frame at (lat, lon) in ECEF."""
+    lat = check_latitude(lat)
+    lon = np.asarray(lon, dtype=np.float64)
+    sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
+    z = np.zeros_like(sl * so)
+    east = np.stack((-so + z, co + z, z), axis=-1)
+    north = np.stack((-sl * co, -sl * so, cl + z), axis=-1)
+    up = np.stack((cl * co, cl * so, sl + z), axis=-1)
+    return np.stack((east, north, up), axis=-1)
+
+
+def ecef_from_llh(llh) -> np.ndarray:
+    """Earth-centred Earth-fixed position (m), shape ``(..., 3)``, of geodetic ``(lat, lon, h)``."""
+    llh = np.asarray(llh, dtype=np.float64)
+    lat = check_latitude(llh[..., 0])
+    lon, h = llh[..., 1], llh[..., 2]
+    _, r_n = radii_of_curvature(lat)
+    cl = np.cos(lat)
+    return np.stack(((r_n + h) * cl * np.cos(lon), (r_n + h) * cl * np.sin(lon),
+                     (r_n * (1.0 - WGS84_E2) + h) * np.sin(lat)), axis=-1)
+
+
+def llh_from_ecef(xyz) -> np.ndarray:
+    """Geodetic ``(lat, lon, h)`` (rad, rad, m) of ECEF positions ``(..., 3)``.
+
+    Bowring's parametric-latitude start, then Newton-like fixed-point steps on
+    ``tan L = (z + e² R_N sin L) / p``; three steps reach float precision for any height
+    from the Earth's centre region outward (each step multiplies the error by ~e² h/R).
+    Written by hand: numpy/scipy have no geodetic conversion.
+    """
+    xyz = np.asarray(xyz, dtype=np.float64)
+    x, y, z = xyz[..., 0], xyz[..., 1], xyz[..., 2]
+    p = np.hypot(x, y)
+    b = WGS84_A * np.sqrt(1.0 - WGS84_E2)
+    ep2 = WGS84_E2 / (1.0 - WGS84_E2)
+    u = np.arctan2(z * WGS84_A, p * b)
+    lat = np.arctan2(z + ep2 * b * np.sin(u) ** 3, p - WGS84_E2 * WGS84_A * np.cos(u) ** 3)
+    for _ in range(3):
+        r_n = WGS84_A / np.sqrt(1.0 - WGS84_E2 * np.sin(lat) ** 2)
+        lat = np.arctan2(z + WGS84_E2 * r_n * np.sin(lat), p)
+    sl, cl = np.sin(lat), np.cos(lat)
+    r_n = WGS84_A / np.sqrt(1.0 - WGS84_E2 * sl * sl)
+    # height along the normal, stable at every latitude
+    h = p * cl + z * sl - WGS84_A * WGS84_A / r_n
+    return np.stack((lat, np.arctan2(y, x), h), axis=-1)

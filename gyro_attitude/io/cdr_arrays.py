@@ -37,6 +37,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gyro_attitude.core.attitude.validation import NO_ESTIMATE
+
 __all__ = [
     "IMU_TYPE",
     "QUATERNION_STAMPED_TYPE",
@@ -339,7 +341,7 @@ def imu_batch(topic: str, stamp_ns, angular_velocity, linear_acceleration=None,
     """
     n = np.shape(stamp_ns)[0] if np.ndim(stamp_ns) == 1 else -1
     no_estimate = np.zeros(9)
-    no_estimate[0] = -1.0
+    no_estimate[0] = NO_ESTIMATE  # REP-145
     columns = {
         "orientation": _rows(orientation, n, 4, "orientation", [0.0, 0.0, 0.0, 1.0]),
         "orientation_covariance": _rows(orientation_covariance, n, 9, "orientation_covariance",

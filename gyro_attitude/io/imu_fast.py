@@ -14,6 +14,7 @@ the same way.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -23,6 +24,7 @@ from gyro_attitude.io import cdr_arrays
 from gyro_attitude.io.cdr_arrays import IMU_TYPE, MAGNETIC_FIELD_TYPE, QUATERNION_STAMPED_TYPE
 from gyro_attitude.io.mcap_reader import (
     McapStreamReader,
+    bag_files,
     iter_chunk_records,
     match_topic,
 )
@@ -36,6 +38,7 @@ __all__ = [
     "read_magnetic_field_arrays",
     "read_quaternion_stamped_arrays",
     "read_topic_arrays",
+    "deserialized",
 ]
 
 _FIELDS = {type_name: dict(fields) for type_name, fields in cdr_arrays.BODY_FIELDS.items()}
@@ -56,10 +59,27 @@ class _TopicArrays:
     def __len__(self) -> int:
         return int(self.stamp_ns.shape[0])
 
+    def in_log_time_order(self):
+        """These messages in log-time order, file order among equal log times: the order
+        ``ros2 bag play`` and ``mcap_player`` deliver them (the one order rule of replay and
+        player). ``self`` when already in that order (no copy)."""
+        log = self.log_time_ns
+        if log.size < 2 or not (log[1:] < log[:-1]).any():
+            return self
+        order = np.argsort(log, kind="stable")
+        changes = {}
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == log.size \
+                    and v.strides[0] != 0:  # a broadcast constant row stays as it is
+                changes[f.name] = v[order]
+        return dataclasses.replace(self, **changes)
+
 
 @dataclass
 class ImuArrays(_TopicArrays):
-    """All messages of one ``sensor_msgs/msg/Imu`` topic as arrays, in file order.
+    """All messages of one ``sensor_msgs/msg/Imu`` topic as arrays, in file order
+    (:meth:`in_log_time_order` gives them as a player delivers them).
 
     ``stamp_ns`` header stamps, ``log_time_ns``/``publish_time_ns`` MCAP times (int64 ns);
     ``orientation`` (N, 4) x, y, z, w; ``angular_velocity`` (N, 3) rad/s;
@@ -101,7 +121,6 @@ _ARRAY_CLASSES = {IMU_TYPE: ImuArrays, QUATERNION_STAMPED_TYPE: QuaternionArrays
 class _Collector:
     def __init__(self, topic: str, type_name: str, fields=None):
         self.topic = topic
-        self.matched: str | None = None  # the recorded topic read into this collector
         self.type_name = type_name
         all_fields = _FIELDS[type_name]
         if fields is None:
@@ -217,8 +236,6 @@ class _Collector:
     def add_messages(self, msgs: list[tuple[int, int, bytes]]) -> list[str]:
         """Per-message fallback: rclpy deserialization of (log_time, publish_time, data).
         Messages that do not deserialize are left out; returns what was wrong with them."""
-        from rclpy.serialization import deserialize_message  # lazy: no rclpy at io top
-
         if self.type_name == IMU_TYPE:
             from sensor_msgs.msg import Imu as msg_type
         elif self.type_name == MAGNETIC_FIELD_TYPE:
@@ -229,11 +246,9 @@ class _Collector:
                                                  *_FIELDS[self.type_name])}
         bad: list[str] = []
         for log, pub, data in msgs:
-            try:
-                m = deserialize_message(data, msg_type)
-            except Exception as exc:  # rclpy raises plain exceptions on bad CDR
-                bad.append(f"{self.topic}: message at log time {log} does not deserialize "
-                           f"as {self.type_name} ({str(exc).splitlines()[0][:80]})")
+            m, problem = deserialized(data, msg_type, self.topic, self.type_name, log)
+            if problem is not None:
+                bad.append(problem)
                 continue
             cols["stamp_ns"].append(m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec)
             cols["log_time_ns"].append(log)
@@ -270,6 +285,19 @@ class _Collector:
         return cls(topic=self.topic, frame_id=self.frame_ids[0] if self.frame_ids else "",
                    frame_ids=set(self.frame_ids), fast_messages=self.fast,
                    fallback_messages=self.fallback, damage=damage, **out)
+
+
+def deserialized(data, msg_type, topic: str, type_name: str, log_time: int):
+    """``(message, None)``, or ``(None, why)`` when ``data`` does not deserialize as
+    ``msg_type`` (a truncated or foreign CDR payload): the one rule of replay and player,
+    which skip such a message and name it."""
+    from rclpy.serialization import deserialize_message  # lazy: no rclpy at io top
+
+    try:
+        return deserialize_message(data, msg_type), None
+    except Exception as exc:  # rclpy raises plain exceptions on bad CDR
+        return None, (f"{topic}: message at log time {log_time} does not deserialize as "
+                      f"{type_name} ({str(exc).splitlines()[0][:80]})")
 
 
 def _message_field(msg, name: str) -> tuple:
@@ -375,6 +403,8 @@ def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
                       required: bool = True, fields: dict | None = None) -> dict:
     """Read several fixed-layout topics in one pass: ``{topic: type_name}`` -> arrays.
 
+    ``path`` an MCAP file or a rosbag2 bag directory (a split bag's files are read in the
+    order its ``metadata.yaml`` lists them, as rosbag2 does, and joined).
     ``type_name`` is ``sensor_msgs/msg/Imu`` or ``geometry_msgs/msg/QuaternionStamped``.
     A relative topic name also matches the one recorded topic ending in ``/<name>`` (any
     namespace).  A topic recorded with another type raises ValueError naming both types;
@@ -386,6 +416,55 @@ def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
     for t, ty in topics.items():
         if ty not in _FIELDS:
             raise ValueError(f"no array reader for {ty!r} (topic {t}); have {sorted(_FIELDS)}")
+    if isinstance(path, bytes | bytearray | memoryview):
+        return _read_file_arrays(path, topics, on_damage, validate_crc, progress, required,
+                                 fields)
+    files = bag_files(path)
+    if len(files) == 1:
+        return _read_file_arrays(files[0], topics, on_damage, validate_crc, progress,
+                                 required, fields)
+    sizes = [f.stat().st_size for f in files]
+    parts: dict[str, list] = {}
+    for k, f in enumerate(files):
+        done = sum(sizes[:k])
+
+        def part_progress(n, _total, done=done):
+            progress(done + n, sum(sizes))
+
+        got = _read_file_arrays(f, topics, on_damage, validate_crc,
+                                None if progress is None else part_progress, False, fields)
+        for t, a in got.items():
+            parts.setdefault(t, []).append(a)
+    missing = [t for t in topics if t not in parts]
+    if required and missing:
+        raise ValueError(f"{path}: no topic {missing[0]!r} in any of its {len(files)} files")
+    return {t: _joined(p) for t, p in parts.items()}
+
+
+def _joined(parts: list):
+    """One topic's arrays of several files, in file order."""
+    if len(parts) == 1:
+        return parts[0]
+    first = parts[0]
+    changes = {}
+    for f in dataclasses.fields(first):
+        vals = [getattr(p, f.name) for p in parts]
+        if not isinstance(vals[0], np.ndarray):
+            continue
+        if all(v.ndim == 2 and v.strides[0] == 0 and len(v) for v in vals) and \
+                all(np.array_equal(v[0], vals[0][0]) for v in vals):
+            n = sum(len(v) for v in vals)  # one constant row in every file: keep it so
+            changes[f.name] = np.broadcast_to(vals[0][0], (n, vals[0].shape[1]))
+        else:
+            changes[f.name] = np.concatenate(vals)
+    return dataclasses.replace(
+        first, frame_ids=set().union(*(p.frame_ids for p in parts)),
+        fast_messages=sum(p.fast_messages for p in parts),
+        fallback_messages=sum(p.fallback_messages for p in parts),
+        damage=next((p.damage for p in parts if p.damage), None), **changes)
+
+
+def _read_file_arrays(path, topics, on_damage, validate_crc, progress, required, fields):
     reader = McapStreamReader(path, validate_crc=validate_crc, on_damage=on_damage,
                               reuse_buffers=True)
     total = reader.size
@@ -407,13 +486,7 @@ def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
                         if ch.message_encoding != "cdr":
                             raise ValueError(f"topic {ch.topic} has message encoding "
                                              f"{ch.message_encoding!r}, expected 'cdr'")
-                        if c.matched is not None and c.matched != ch.topic:
-                            # a relative name matched a namespaced topic until the exact
-                            # one was defined later in the file: never mix the two series
-                            raise ValueError(f"topic {t!r} named {c.matched} until "
-                                             f"{ch.topic} appeared later in the file; "
-                                             "give the full topic name")
-                        c.topic = c.matched = ch.topic
+                        c.topic = ch.topic
                         col = c
             by_channel[cid] = col
         return by_channel[cid]

@@ -72,6 +72,7 @@ from gyro_attitude.io.mcap_records import (
     crc32,
     parse_record,
 )
+from gyro_attitude.io.strict_yaml import load_yaml
 
 __all__ = [
     "McapDamagedError",
@@ -82,6 +83,7 @@ __all__ = [
     "SummaryInfo",
     "McapStreamReader",
     "resolve_mcap_path",
+    "bag_files",
     "topic_matches",
     "match_topic",
     "iter_chunk_records",
@@ -182,33 +184,75 @@ def topic_matches(topic: str, wanted: str) -> bool:
 
 
 def match_topic(recorded: list[str], wanted: str) -> str | None:
-    """The recorded topic ``wanted`` names: equal up to a leading ``/``, or, for a relative
-    name, the one recorded topic ending in ``/<wanted>`` (any namespace).  None if none;
-    ValueError when a relative name fits several namespaces."""
-    exact = [t for t in recorded if topic_matches(t, wanted)]
-    if exact:
-        return exact[0]
+    """The recorded topic ``wanted`` names: for a full name (``/imu``) the topic equal to it;
+    for a relative name (``imu``) the one recorded topic equal to it up to the leading ``/``
+    or ending in ``/<wanted>`` (any namespace).  None if none; ValueError when a relative
+    name fits several topics (``/imu`` and ``/robot/imu`` alike: which one was meant
+    cannot depend on which channel a file happens to define first)."""
     if wanted.startswith("/"):
-        return None
-    ends = sorted({t for t in recorded if t.endswith("/" + wanted)})
-    if len(ends) > 1:
-        raise ValueError(f"topic {wanted!r} is ambiguous: {ends}; give the full name")
-    return ends[0] if ends else None
+        return next((t for t in recorded if topic_matches(t, wanted)), None)
+    fits = sorted({t for t in recorded if topic_matches(t, wanted)
+                   or t.endswith("/" + wanted)})
+    if len(fits) > 1:
+        raise ValueError(f"topic {wanted!r} is ambiguous: {fits}; give the full name")
+    return fits[0] if fits else None
+
+
+#: Largest bag ``metadata.yaml`` read (bytes): rosbag2's are a few kB.
+MAX_BAG_METADATA_BYTES = 1 << 20
+
+
+def bag_files(path) -> list[Path]:
+    """The MCAP files of a recording, in the order rosbag2 reads them: a ``.mcap`` file
+    itself; for a bag directory the ``relative_file_paths`` of its ``metadata.yaml`` (a
+    split bag: ``<name>_0.mcap``, ``<name>_1.mcap``, ...), or without metadata its one
+    ``.mcap`` file. ``ValueError`` in one line naming what is missing or wrong."""
+    p = Path(path)
+    if not p.is_dir():
+        if not p.exists():
+            raise ValueError(f"no such file: {p}")
+        if not p.is_file():
+            raise ValueError(f"not a regular file: {p}")
+        return [p]
+    meta = p / "metadata.yaml"
+    if not meta.is_file():
+        files = sorted(p.glob("*.mcap"))
+        if len(files) != 1:
+            raise ValueError(f"bag directory {p} holds {len(files)} .mcap files and no "
+                             "metadata.yaml saying their order")
+        return files
+    try:
+        with open(meta, "rb") as f:
+            raw = f.read(MAX_BAG_METADATA_BYTES + 1)
+        if len(raw) > MAX_BAG_METADATA_BYTES:
+            raise ValueError(f"{meta}: larger than {MAX_BAG_METADATA_BYTES} bytes")
+        data = load_yaml(raw.decode("utf-8"), str(meta))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{meta}: cannot read: {exc}") from None
+    info = data.get("rosbag2_bagfile_information") if isinstance(data, dict) else None
+    names = info.get("relative_file_paths") if isinstance(info, dict) else None
+    if not isinstance(names, list) or not names or \
+            not all(isinstance(n, str) and n for n in names):
+        raise ValueError(f"{meta}: no rosbag2_bagfile_information.relative_file_paths list")
+    files = []
+    for name in names:
+        f = p / name
+        if Path(name).is_absolute() or ".." in Path(name).parts or f.suffix != ".mcap":
+            raise ValueError(f"{meta}: {name!r} is not an .mcap file inside the bag directory")
+        if not f.is_file():
+            raise ValueError(f"{meta} lists {name}, which is not in {p}")
+        files.append(f)
+    return files
 
 
 def resolve_mcap_path(path) -> Path:
-    """A ``.mcap`` file, or a rosbag2 bag directory holding exactly one ``.mcap`` file."""
-    p = Path(path)
-    if p.is_dir():
-        files = sorted(p.glob("*.mcap"))
-        if len(files) != 1:
-            raise ValueError(f"bag directory {p} holds {len(files)} .mcap files, expected 1")
-        return files[0]
-    if not p.exists():
-        raise ValueError(f"no such file: {p}")
-    if not p.is_file():
-        raise ValueError(f"not a regular file: {p}")
-    return p
+    """A ``.mcap`` file, or a rosbag2 bag directory of one ``.mcap`` file (a split bag is
+    read file by file: see :func:`bag_files`)."""
+    files = bag_files(path)
+    if len(files) != 1:
+        raise ValueError(f"{path} is a split bag of {len(files)} files: read them with "
+                         "bag_files()")
+    return files[0]
 
 
 def decompress_bounded(compression: str, data, size: int) -> bytes:

@@ -20,6 +20,7 @@ per-message Python call caps throughput near 10^5 messages per second.
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -314,8 +315,13 @@ class Rosbag2McapWriter:
             self._compressor = _zstd_compress
         elif compression == "lz4":
             self._compressor = lz4.frame.compress
-        self._file = open(path, "wb")  # closed in finish()
+        # Unbuffered: every byte written has left the process when _emit returns, so after
+        # a write error (a full disk) the file holds exactly what _pos says, and the last
+        # whole record can be found without guessing what a buffer still held.
+        self._file = open(path, "wb", buffering=0)  # closed in finish()
         self._pos = 0
+        self._whole_pos = 0  # end of the last whole record on disk (see salvage)
+        self._whole_counts: dict[int, int] = {}  # channel id -> messages in whole chunks
         self._data_crc = 0
         self._crc_data = bool(data_section_crc)
         self._schemas: dict[str, tuple[int, bytes]] = {}  # type -> (id, record)
@@ -330,10 +336,13 @@ class Rosbag2McapWriter:
         self._finished = False
         self._emit(MAGIC)
         self._emit(header_record(PROFILE, f"gyro_attitude {__version__}"))
+        self._whole_pos = self._pos
 
     # ----------------------------------------------------------------- plumbing
     def _emit(self, data) -> None:
-        self._file.write(data)
+        view = memoryview(data).cast("B")
+        while view:  # a raw write may write less than asked (a disk filling up)
+            view = view[self._file.write(view):]
         if self._crc_data:
             self._data_crc = crc32(data, self._data_crc)
         self._pos += len(data)
@@ -380,6 +389,7 @@ class Rosbag2McapWriter:
         self._channels[topic] = ch
         self._channel_records.append(rec)
         self._emit(rec)
+        self._whole_pos = self._pos
         return ch.id
 
     def _channel(self, topic: str) -> Rosbag2Topic:
@@ -455,10 +465,15 @@ class Rosbag2McapWriter:
         self._emit(data)
         chunk_length = self._pos - chunk_start
         offsets = {}
+        counts = {}
         for cid in sorted(index):
             entries = np.ascontiguousarray(index[cid], dtype="<u8").reshape(-1, 2)
             offsets[cid] = self._pos
+            counts[cid] = entries.shape[0]
             self._emit(message_index_record(cid, entries.tobytes()))
+        self._whole_pos = self._pos
+        for cid, n in counts.items():
+            self._whole_counts[cid] = self._whole_counts.get(cid, 0) + n
         self._chunk_indexes.append(chunk_index_record(
             start, end, chunk_start, chunk_length, offsets,
             self._pos - chunk_start - chunk_length, self.compression, len(data),
@@ -621,6 +636,51 @@ class Rosbag2McapWriter:
         self._finished = True
         if self.bag_directory is not None:
             write_bag_metadata_yaml(self.bag_directory, meta)
+
+    @property
+    def whole_message_count(self) -> int:
+        """Messages in the chunks wholly written so far (what :meth:`salvage` keeps)."""
+        return sum(self._whole_counts.values())
+
+    def salvage(self) -> int:
+        """After a write error (a full disk): end the file after its last whole record and
+        close it; returns the messages kept.
+
+        The file is cut back to the end of the last chunk written whole (with its message
+        indexes), then ended by Data End and a Footer saying "no summary" (50 bytes; the cut
+        freed at least the failed chunk's bytes): a valid MCAP that every reader reads from
+        the start. If even that cannot be written, the file stays cut there, which the
+        package's reader recovers as an unfinished recording. A bag directory also gets its
+        ``metadata.yaml`` when there is room for it.
+        """
+        self.abandon()
+        tail = data_end_record(0) + footer_head(0, 0) + bytes(4) + MAGIC  # CRC 0: none
+        try:
+            fd = os.open(self.path, os.O_WRONLY)
+        except OSError:
+            return self.whole_message_count
+        try:
+            os.ftruncate(fd, self._whole_pos)
+            try:
+                view = memoryview(tail)
+                while view:
+                    view = view[os.pwrite(fd, view, self._whole_pos + len(tail) - len(view)):]
+                os.fsync(fd)
+            except OSError:
+                os.ftruncate(fd, self._whole_pos)
+        except OSError:
+            pass  # cannot even cut it: the reader recovers the whole chunks at its start
+        finally:
+            os.close(fd)
+        if self.bag_directory is not None:
+            for ch in self._channels.values():
+                ch.count = self._whole_counts.get(ch.id, 0)
+            self._message_count = self.whole_message_count
+            try:
+                write_bag_metadata_yaml(self.bag_directory, self._rosbag2_metadata())
+            except OSError:
+                pass  # no room: the .mcap alone is a readable bag directory
+        return self.whole_message_count
 
     def abandon(self) -> None:
         """Close the file without summary (what a crash leaves); for tests and error paths."""

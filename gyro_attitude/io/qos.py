@@ -9,7 +9,7 @@ Python values only: the ROS layer converts rclpy QoS objects (see
 
 from __future__ import annotations
 
-import yaml
+from gyro_attitude.io.strict_yaml import load_yaml
 
 __all__ = [
     "INFINITE_DURATION",
@@ -112,14 +112,18 @@ def parse_qos_profiles(text: str) -> list[dict]:
     """Parse an ``offered_qos_profiles`` string (version 9 names or older integers)."""
     if not text or not text.strip():
         return []
-    data = yaml.safe_load(text)
+    data = load_yaml(text, "offered_qos_profiles")
     if not isinstance(data, list):
         raise ValueError(f"offered_qos_profiles is not a YAML list: {text[:80]!r}")
     out = []
     for item in data:
         if not isinstance(item, dict):
             raise ValueError(f"offered_qos_profiles entry is not a mapping: {item!r}")
-        out.append(qos_profile(**item))
+        try:
+            out.append(qos_profile(**item))
+        except TypeError:  # a key qos_profile has no argument for
+            raise ValueError(f"offered_qos_profiles entry has unknown keys: "
+                             f"{sorted(map(str, item))}") from None
     return out
 
 

@@ -12,11 +12,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-import yaml
-
 from gyro_attitude.io.mcap_records import channel_record, metadata_record, schema_record
 from gyro_attitude.io.qos import DEFAULT_QOS_YAML, parse_qos_profiles
 from gyro_attitude.io.ros2_schema import full_msg_definition, normalize_type_name, type_hash
+from gyro_attitude.io.strict_yaml import dump_yaml
 
 __all__ = [
     "PROFILE",
@@ -117,7 +116,7 @@ def rosbag2_metadata(topics: list[Rosbag2Topic], file_name: str, message_count: 
 
 
 def rosbag2_metadata_record(meta: dict) -> bytes:
-    text = yaml.safe_dump(meta, sort_keys=False, default_flow_style=False).strip()
+    text = dump_yaml(meta, default_flow_style=False).strip()
     return metadata_record("rosbag2", {"serialized_metadata": text})
 
 
@@ -132,5 +131,4 @@ def bag_directory_file(directory: Path) -> Path:
 
 def write_bag_metadata_yaml(directory: Path, meta: dict) -> None:
     with open(Path(directory) / "metadata.yaml", "w", encoding="utf-8") as f:
-        yaml.safe_dump({"rosbag2_bagfile_information": meta}, f, sort_keys=False,
-                       default_flow_style=False)
+        f.write(dump_yaml({"rosbag2_bagfile_information": meta}, default_flow_style=False))

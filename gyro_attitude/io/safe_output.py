@@ -10,19 +10,55 @@ output names it through a symlink, a relative path or the bag directory).
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
+import secrets
 import shutil
 import signal
-import tempfile
 import threading
 from collections.abc import Iterable
 from pathlib import Path
 
-__all__ = ["OutputPathError", "check_output_path", "SafeOutput"]
+__all__ = ["OutputPathError", "OutputWriteError", "write_error", "is_write_error",
+           "check_output_path", "SafeOutput"]
+
+# What writing (not reading) an output fails with: no space, no quota, a file too large.
+_WRITE_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 
 class OutputPathError(ValueError):
     """The requested output path cannot be used (names an input, exists, unwritable)."""
+
+
+class OutputWriteError(OSError):
+    """Writing an output failed (a full disk): the message is one line naming the file, the
+    free space left and what became of the data (see :func:`write_error`)."""
+
+
+def is_write_error(exc: BaseException) -> bool:
+    """True for an OSError that says the output could not be written (full disk, quota)."""
+    return isinstance(exc, OSError) and not isinstance(exc, OutputWriteError) \
+        and exc.errno in _WRITE_ERRNOS
+
+
+def _free_space(path: Path) -> str:
+    try:
+        free = shutil.disk_usage(Path(os.path.abspath(path)).parent).free
+    except OSError:
+        return "free space unknown"
+    for unit in ("B", "kB", "MB", "GB"):
+        if free < 1000 or unit == "GB":
+            return f"{free:.0f} {unit} free" if unit == "B" else f"{free:.1f} {unit} free"
+        free /= 1000
+    return ""  # not reached
+
+
+def write_error(path, exc: OSError, outcome: str) -> OutputWriteError:
+    """One line for a failed write of ``path``: ``"<path>: No space left on device (0 B free
+    in <dir>); <outcome>"``."""
+    directory = Path(os.path.abspath(path)).parent
+    return OutputWriteError(f"{path}: {exc.strerror or exc} ({_free_space(path)} in "
+                            f"{directory}); {outcome}")
 
 
 def _identity(path: Path) -> set:
@@ -106,8 +142,19 @@ class SafeOutput:
             # one file system and replaces the name itself
             directory = Path(os.path.abspath(self.path)).parent
             with _signals_held():
-                self._temp_dir = Path(tempfile.mkdtemp(
-                    prefix=f".{self.path.name}.", suffix=".partial", dir=directory))
+                # The name is recorded before the folder exists: a Ctrl-C that arrived just
+                # before the signals were held still raises here (Python runs its handler
+                # at the next bytecode), and discard() must then know what to remove.
+                # (tempfile.mkdtemp would create the folder before returning its name.)
+                for _ in range(100):
+                    self._temp_dir = directory / f".{self.path.name}.{secrets.token_hex(4)}.partial"
+                    try:
+                        os.mkdir(self._temp_dir, 0o700)
+                        break
+                    except FileExistsError:
+                        self._temp_dir = None
+                else:
+                    raise FileExistsError(f"no free temporary name beside {self.path}")
                 self.temp_path = self._temp_dir / self.path.name
         return self.temp_path
 
@@ -138,11 +185,19 @@ class SafeOutput:
             self.temp_path = self._temp_dir = None
 
     def __enter__(self) -> Path:
-        return self.open()
+        try:
+            return self.open()
+        except BaseException:
+            # a Ctrl-C held during mkdtemp arrives as soon as signals are unblocked, still
+            # inside open(): __exit__ is not called for an __enter__ that raised
+            self.discard()
+            raise
 
     def __exit__(self, exc_type, exc, tb) -> bool:
         if exc_type is None:
             self.commit()
-        else:
-            self.discard()
+            return False
+        self.discard()
+        if is_write_error(exc):  # a full disk: say which file, and the free space
+            raise write_error(self.path, exc, "nothing written under that name") from exc
         return False

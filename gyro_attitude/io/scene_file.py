@@ -17,9 +17,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import yaml
-
 from gyro_attitude.core.scene import SceneSpec
+from gyro_attitude.io.strict_yaml import load_yaml
 
 __all__ = [
     "scene_directories",
@@ -105,32 +104,88 @@ def read_scene_dict(path: Path) -> dict:
 
 
 def _parse_scene_text(text: str, path: Path) -> dict:
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ValueError(f"{path}: not valid YAML: {' '.join(str(exc).split())}") from None
-    except RecursionError:
-        raise ValueError(f"{path}: not a scene file: YAML nested too deeply") from None
+    # aliases and duplicate keys are refused while parsing, before any value is looked at
+    data = load_yaml(text, str(path))
     if not isinstance(data, dict):
         raise ValueError(f"{path}: a scene must be a YAML mapping, got {type(data).__name__}")
     return data
 
 
-def load_scene(name_or_path: str) -> SceneSpec:
+def load_scene(name_or_path: str, trajectory=None, *, seed: int | None = None,
+               **trajectory_options) -> SceneSpec:
     """Load and validate a scene by shipped name (``"ship"``) or by file path.
 
-    Raises ``ValueError`` naming the bad key (``earth.latitude_deg: ...``) prefixed by the file.
+    A ``motion: {type: trajectory}`` has its pose file read (relative to the scene file) and
+    fitted; ``trajectory`` (a path) puts that pose file under any scene instead, with
+    ``trajectory_options`` (:func:`~gyro_attitude.io.trajectory_file.resolve_trajectory`).
+    ``seed`` (given on a command line) replaces the file's ``seed:``, which may then be left
+    out. Raises ``ValueError`` naming the bad key (``earth.latitude_deg: ...``) prefixed by
+    the file.
     """
+    from gyro_attitude.io.trajectory_file import resolve_trajectory
+
     path = find_scene_file(str(name_or_path))
-    return validate_scene_text(read_scene_text(path), path)
+    spec = validate_scene_text(read_scene_text(path), path, seed=seed)
+    return resolve_trajectory(spec, path.parent, trajectory, **trajectory_options)
 
 
-def validate_scene_text(text: str, path: Path) -> SceneSpec:
-    """The validated scene of a file's ``text``; errors are prefixed by the file's name."""
+#: Kalibr imu.yaml keys -> (scene section, error key); the values are SI numbers.
+KALIBR_TO_SCENE = {
+    "gyroscope_noise_density": ("gyro", "arw"),
+    "gyroscope_random_walk": ("gyro", "rate_random_walk"),
+    "accelerometer_noise_density": ("accelerometer", "vrw"),
+    "accelerometer_random_walk": ("accelerometer", "acceleration_random_walk"),
+}
+# scene error keys that set the same term as a Kalibr key (they must not both be given)
+_SAME_TERM = {"arw": ("arw", "arw_rad_sqrt_s"), "vrw": ("vrw", "vrw_m_s_sqrt_s"),
+              "rate_random_walk": ("rate_random_walk",),
+              "acceleration_random_walk": ("acceleration_random_walk",)}
+
+
+def merge_kalibr_imu(data: dict, path: Path) -> dict:
+    """``data`` with its ``kalibr_imu: FILE`` (relative to the scene file) read into the
+    gyro's (and, when the scene has one, the accelerometer's) error terms: white noise
+    densities as ``arw`` / ``vrw``, bias random walks as ``rate_random_walk`` /
+    ``acceleration_random_walk`` (continuous time, SI: the same convention as Kalibr)."""
+    if "kalibr_imu" not in data:
+        return data
+    ref = data["kalibr_imu"]
+    if not isinstance(ref, str) or not ref.strip():
+        raise ValueError(f"kalibr_imu: must be the path of a Kalibr imu.yaml, got {ref!r:.80}")
+    file = Path(ref) if Path(ref).is_absolute() else Path(path).parent / ref
+    if not file.is_file():
+        raise ValueError(f"kalibr_imu: {file}: no such file")
+    kalibr = _parse_scene_text(read_scene_text(file), file)
+    out = {k: v for k, v in data.items() if k != "kalibr_imu"}
+    for key, (section, term) in KALIBR_TO_SCENE.items():
+        if section == "accelerometer" and "accelerometer" not in data:
+            continue
+        if key not in kalibr:
+            raise ValueError(f"kalibr_imu: {file.name}: {key} is missing")
+        v = kalibr[key]
+        if isinstance(v, bool) or not isinstance(v, int | float) or not (v >= 0 and v < 1e3):
+            raise ValueError(f"kalibr_imu: {file.name}: {key} must be a number >= 0, got {v!r:.40}")
+        block = dict(out.get(section) or {})
+        errors = dict(block.get("errors") or {})
+        clash = [k for k in _SAME_TERM[term] if k in errors]
+        if clash:
+            raise ValueError(f"{section}.errors.{clash[0]}: given by the scene and by "
+                             f"kalibr_imu ({key}); keep one")
+        errors[term] = float(v)
+        block["errors"] = errors
+        out[section] = block
+    return out
+
+
+def validate_scene_text(text: str, path: Path, seed: int | None = None) -> SceneSpec:
+    """The validated scene of a file's ``text`` (``seed``: see :func:`load_scene`); errors
+    are prefixed by the file's name."""
     path = Path(path)
     data = _parse_scene_text(text, path)
+    if seed is not None:
+        data = {**data, "seed": seed}
     try:
-        return SceneSpec.from_dict(data, name=path.stem)
+        return SceneSpec.from_dict(merge_kalibr_imu(data, path), name=path.stem)
     except ValueError as exc:
         raise ValueError(f"{path.name}: {exc}") from exc
 

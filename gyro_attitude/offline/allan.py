@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -15,11 +16,21 @@ from gyro_attitude.core.allan import (
     model_variance,
     relative_error,
 )
+from gyro_attitude.core.attitude.validation import no_estimate
 from gyro_attitude.core.sensor_errors import FLICKER_FLOOR_FACTOR
 from gyro_attitude.core.units import format_si
 from gyro_attitude.io.imu_fast import read_imu_arrays
 
-__all__ = ["AxisAllan", "AllanResult", "allan_deviation", "analyse_rates", "analyse_mcap"]
+__all__ = ["AxisAllan", "AllanResult", "allan_deviation", "analyse_rates", "analyse_mcap",
+           "KALIBR_KEYS"]
+
+#: Kalibr / VIO IMU noise-model keys: (sensor, term) -> key.
+KALIBR_KEYS = {
+    ("gyro", "random_walk"): "gyroscope_noise_density",
+    ("gyro", "rate_random_walk"): "gyroscope_random_walk",
+    ("accelerometer", "random_walk"): "accelerometer_noise_density",
+    ("accelerometer", "rate_random_walk"): "accelerometer_random_walk",
+}
 
 AXES = ("x", "y", "z")
 # Unit kinds of each term, per sensor (gyro_attitude.core.units) and the scene keys they
@@ -81,6 +92,35 @@ class AllanResult:
         out["notes"] = list(self.notes)
         return out
 
+    def kalibr(self) -> tuple[dict, list[str]]:
+        """The Kalibr IMU noise model (``imu.yaml``) and what was bounded, not fitted.
+
+        Kalibr takes one value per sensor: the largest of the three axes (the conservative
+        choice). Noise density = the fitted ARW / VRW N (continuous time, rad/s/√Hz or
+        m/s²/√Hz); random walk = the fitted RRW / AccRW K (rad/s²/√Hz, m/s³/√Hz). A term
+        the record does not show is written as the upper bound the deviation allows (white
+        noise: σ(τ_min)·√τ_min; random walk: σ(τ_max)·√(3/τ_max)) and listed in the notes.
+        """
+        out: dict = {}
+        notes: list[str] = []
+        for sensor, axes in (("accelerometer", self.accel), ("gyro", self.gyro)):
+            if axes is None:
+                continue
+            for term, bound in (("random_walk", lambda ax: ax.adev[0] * math.sqrt(
+                    self.tau_s[0])), ("rate_random_walk", lambda ax: ax.adev[-1] * math.sqrt(
+                        3.0 / self.tau_s[-1]))):
+                key = KALIBR_KEYS[(sensor, term)]
+                fitted = [getattr(axes[a].terms, term) for a in AXES]
+                if all(v is not None for v in fitted):
+                    out[key] = float(max(fitted))
+                else:
+                    out[key] = float(max(bound(axes[a]) for a in AXES))
+                    notes.append(f"{key}: not visible in this record; written as the upper "
+                                 "bound its Allan deviation allows")
+        out["rostopic"] = "/" + self.topic.lstrip("/")
+        out["update_rate"] = round(1.0 / self.dt_s, 6)
+        return out, notes
+
     def scene_errors(self) -> dict:
         """``{"gyro": {...}, "accelerometer": {...}}`` error blocks (datasheet keys, values
         with units) that the scene loader reads; terms not visible are left out."""
@@ -99,6 +139,11 @@ class AllanResult:
         return blocks
 
 
+#: Missing samples accepted in a record, as a fraction of its samples: a few dropped
+#: messages are left out of the cluster averages; more than this is not a static record.
+MAX_MISSING_FRACTION = 1e-3
+
+
 def allan_deviation(samples: np.ndarray, dt: float, m: np.ndarray) -> np.ndarray:
     """Overlapping Allan deviation (allantools.oadev) of rate samples ``(n,)`` at τ = m·dt."""
     taus, adev, _, _ = allantools.oadev(np.asarray(samples, dtype=np.float64), rate=1.0 / dt,
@@ -108,20 +153,54 @@ def allan_deviation(samples: np.ndarray, dt: float, m: np.ndarray) -> np.ndarray
     return adev
 
 
-def _analyse(data: np.ndarray, dt: float, m: np.ndarray, n: int) -> dict[str, AxisAllan]:
+def _stretch_deviation(samples: np.ndarray, starts: np.ndarray, dt: float,
+                       m: np.ndarray) -> np.ndarray:
+    """Overlapping Allan deviation of a record with holes: every cluster pair that spans no
+    hole, i.e. allantools' deviation of each gap-free stretch (``starts``: where stretches
+    begin) weighted by its number of terms (n_s − 2m + 1). allantools has no notion of a
+    hole in rate data (its phase, the running sum, would carry the hole onward)."""
+    if starts.size == 1:
+        return allan_deviation(samples, dt, m)
+    num = np.zeros(m.size)
+    den = np.zeros(m.size)
+    for s in np.split(samples, starts[1:]):
+        terms = s.size - 2 * m + 1
+        ok = terms > 0
+        if ok.any():
+            num[ok] += allan_deviation(s, dt, m[ok]) ** 2 * terms[ok]
+            den[ok] += terms[ok]
+    if not (den > 0).all():
+        raise ValueError("the gap-free stretches are too short for the longest averaging times")
+    return np.sqrt(num / den)
+
+
+def _constant_axes(data: np.ndarray) -> list[str]:
+    return [a for a, i in zip(AXES, range(3), strict=True) if np.ptp(data[:, i]) == 0.0]
+
+
+def _analyse(data: np.ndarray, dt: float, m: np.ndarray, n: int, sensor: str,
+             starts: np.ndarray) -> dict[str, AxisAllan]:
+    constant = _constant_axes(data)
+    if constant:
+        raise ValueError(f"{sensor} {', '.join(constant)}: every one of the {n} samples is "
+                         "the same: no noise to fit")
     rel = relative_error(n, m)
     tau = m * dt
     out = {}
     for i, axis in enumerate(AXES):
-        adev = allan_deviation(data[:, i], dt, m)
+        adev = _stretch_deviation(data[:, i], starts, dt, m)
         out[axis] = AxisAllan(adev, adev * (1.0 - rel), adev * (1.0 + rel),
                               fit_terms(tau, adev, rel))
     return out
 
 
 def analyse_rates(gyro: np.ndarray, dt: float, accel: np.ndarray | None = None,
-                  topic: str = "") -> AllanResult:
-    """Allan analysis of evenly spaced samples ``(n, 3)`` (rad/s; accel m/s²) every ``dt`` s."""
+                  topic: str = "", stretch_starts=None) -> AllanResult:
+    """Allan analysis of evenly spaced samples ``(n, 3)`` (rad/s; accel m/s²) every ``dt`` s.
+
+    ``stretch_starts``: indices where a gap-free stretch begins after a hole (missing
+    samples), ``[0]`` or None for a record without holes; cluster pairs spanning a hole
+    are left out."""
     gyro = np.asarray(gyro, dtype=np.float64)
     if gyro.ndim != 2 or gyro.shape[1] != 3:
         raise ValueError(f"gyro samples must have shape (n, 3), got {gyro.shape}")
@@ -129,14 +208,16 @@ def analyse_rates(gyro: np.ndarray, dt: float, accel: np.ndarray | None = None,
         raise ValueError(f"sample interval must be finite and > 0, got {dt}")
     if not np.all(np.isfinite(gyro)):
         raise ValueError("gyro samples contain NaN or inf")
+    starts = np.zeros(1, np.int64) if stretch_starts is None else \
+        np.asarray(stretch_starts, np.int64)
     n = gyro.shape[0]
     m = log_spaced_cluster_sizes(n)
-    result = AllanResult(topic, n, float(dt), m * dt, _analyse(gyro, dt, m, n))
+    result = AllanResult(topic, n, float(dt), m * dt, _analyse(gyro, dt, m, n, "gyro", starts))
     if accel is not None:
         accel = np.asarray(accel, dtype=np.float64)
         if accel.shape != gyro.shape or not np.all(np.isfinite(accel)):
             raise ValueError("accelerometer samples must be finite and shaped like the gyro's")
-        result.accel = _analyse(accel, dt, m, n)
+        result.accel = _analyse(accel, dt, m, n, "accelerometer", starts)
     return result
 
 
@@ -147,10 +228,8 @@ def analyse_mcap(path, topic: str = "imu/data_raw") -> AllanResult:
     covariance element 0 is not −1). ``ValueError`` with one line on a bad file, no Imu,
     uneven stamps or too few samples."""
     path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"{path}: no such file")
     try:
-        imu = read_imu_arrays(path, topic)
+        imu = read_imu_arrays(path, topic)  # a file, a bag directory or a split bag
     except ValueError:
         raise
     except Exception as exc:  # the reader's own errors for damaged files
@@ -163,16 +242,36 @@ def analyse_mcap(path, topic: str = "imu/data_raw") -> AllanResult:
         raise ValueError(f"{path}: Imu stamps on {topic!r} are not strictly increasing")
     dt_ns = float(np.median(steps))
     notes = []
-    spread = float(np.max(np.abs(steps - dt_ns))) / dt_ns
-    if spread > 0.5:
-        raise ValueError(f"{path}: Imu stamps on {topic!r} have gaps or jitter up to "
+    # A step of about k steps (k >= 2, i.e. >= 1.5 steps) is a hole of k - 1 missing
+    # samples; what is left (jitter) must stay under half a step, as before.
+    holes = steps >= 1.5 * dt_ns
+    k = np.rint(steps / dt_ns)
+    spread = float(np.max(np.abs(steps - np.maximum(k, 1) * dt_ns))) / dt_ns
+    if spread > 0.5 or (steps < 0.5 * dt_ns).any():
+        spread = max(spread, float(np.max(np.abs(steps[~holes] - dt_ns))) / dt_ns)
+        raise ValueError(f"{path}: Imu stamps on {topic!r} have jitter up to "
                          f"{spread:.0%} of the {dt_ns / 1e6:g} ms step; Allan analysis needs "
                          f"evenly spaced samples")
+    starts = np.r_[0, np.flatnonzero(holes) + 1]
+    if holes.any():
+        missing = int((k[holes] - 1).sum())
+        where = (t[int(np.flatnonzero(holes)[0])] + dt_ns - t[0]) * 1e-9  # first one missing
+        what = (f"{missing} samples missing in {int(holes.sum())} holes (first {where:g} s "
+                f"after the start)")
+        limit = int(MAX_MISSING_FRACTION * (t.size + missing))
+        if missing > limit:
+            raise ValueError(f"{path}: {what} on {topic!r}: at most {limit} "
+                             f"({MAX_MISSING_FRACTION:.1%} of the record) are accepted; "
+                             "Allan analysis needs an unbroken static record")
+        notes.append(f"{what}: cluster pairs spanning a hole are left out")
     if spread > 0.01:
         notes.append(f"stamp jitter up to {spread:.1%} of the step (treated as even)")
-    has_accel = bool(imu.linear_acceleration_covariance[0, 0] != -1.0)
-    result = analyse_rates(imu.angular_velocity, dt_ns / 1e9,
-                           imu.linear_acceleration if has_accel else None, topic)
+    has_accel = not no_estimate(imu.linear_acceleration_covariance).any()
+    try:
+        result = analyse_rates(imu.angular_velocity, dt_ns / 1e9,
+                               imu.linear_acceleration if has_accel else None, topic, starts)
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
     result.notes += notes
     return result
 

@@ -2,17 +2,19 @@
 ``attitude`` and ``imu/data`` to a new MCAP file (no ROS graph).
 
 Pipeline (:func:`replay_file`): read the Imu (and truth) topic array-wide
-(:mod:`gyro_attitude.io.imu_fast`), run the samples in file order -- the order a live node
-receives them -- through the attitude-stream policy the ``attitude_integrator`` node applies
+(:mod:`gyro_attitude.io.imu_fast`), run the samples in log-time order -- the order a live
+node receives them from ``ros2 bag play`` or ``mcap_player`` -- through the attitude-stream
+policy the ``attitude_integrator`` node applies
 (:class:`gyro_attitude.core.attitude.stream.AttitudeStream`: bad samples skipped and counted by
 reason, no integration across gaps, reset on backward time jumps, orientation variance), write
 the samples that got an attitude through a temporary file renamed into place
 (:mod:`gyro_attitude.io.safe_output`) with both topics merged by log time, and compare with the
-truth at coinciding stamps.  Samples are never re-sorted.
+truth at its own stamps (the attitude slerped there).  Samples are never re-sorted by stamp.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import time
@@ -25,6 +27,7 @@ import numpy as np
 from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, DEFAULT_OFFLINE_ALGORITHM, NavFrame
 from gyro_attitude.core.attitude import validation as iv
 from gyro_attitude.core.attitude.modes import Aiding, InitialAttitudeSource
+from gyro_attitude.core.attitude.nav_frame import velocity_series
 from gyro_attitude.core.attitude.sample_alignment import latest_at
 from gyro_attitude.core.attitude.stream import (
     INVALID_MAG,
@@ -35,7 +38,7 @@ from gyro_attitude.core.attitude.stream import (
     StreamConfig,
     bias_summary,
 )
-from gyro_attitude.core.attitude.truth import initial_attitude_from_truth
+from gyro_attitude.core.attitude.truth import initial_attitude_from_truth, truth_at_stamps
 from gyro_attitude.core.attitude.world_frame import frame_id_of, from_enu
 from gyro_attitude.core.rotation import quat_angle_between
 from gyro_attitude.io.cdr_arrays import (
@@ -47,6 +50,7 @@ from gyro_attitude.io.cdr_arrays import (
 )
 from gyro_attitude.io.imu_fast import read_topic_arrays
 from gyro_attitude.io.mcap_writer import DEFAULT_COMPRESSION, Rosbag2McapWriter
+from gyro_attitude.io.odometry_file import read_odometry_velocities
 from gyro_attitude.io.safe_output import SafeOutput, check_output_path
 
 __all__ = [
@@ -61,13 +65,15 @@ DEFAULT_IMU_TOPIC = "imu/data_raw"
 DEFAULT_MAG_TOPIC = "imu/mag"
 TRUTH_TOPIC = "truth/attitude"
 OUTPUT_CHUNK_SIZE = 4 * 1024 * 1024
+# Output messages built and written per write_batches call (bounds the write side's memory).
+OUTPUT_BLOCK_MESSAGES = 1 << 17
 
 
 @dataclass
 class ReplayResult:
     """What a replay did.  :meth:`summary` gives the scalar fields (the ``--json`` output);
-    the arrays are ``index`` (positions in the input of the samples that got an attitude),
-    their stamps ``t_ns`` and attitudes ``q`` (file order), and the error series
+    the arrays are ``index`` (positions, in log-time order, of the samples that got an attitude),
+    their stamps ``t_ns`` and attitudes ``q`` (log-time order), and the error series
     ``error_t_ns``/``error_rad`` (empty without truth).  ``skipped`` counts skipped samples by
     reason; ``gaps`` and ``time_jump_resets`` count the policy's other events; ``details``
     holds the first log line per reason."""
@@ -88,6 +94,8 @@ class ReplayResult:
     time_jump_resets: int
     invalid_covariances: int
     integrator_errors: int
+    missing_samples: int
+    saturated: int
     details: dict[str, str]
     skipped_before_truth: int
     gyro_bias: str
@@ -148,6 +156,35 @@ def _alignment_summary(a) -> dict:
             "rest_s": (a.rest_end_ns - a.rest_start_ns) * 1e-9}
 
 
+def _block(a: np.ndarray | None, lo: int, hi: int) -> np.ndarray | None:
+    return None if a is None else a[lo:hi]
+
+
+def _output_batches(imu, rows, t_ns: np.ndarray, q: np.ndarray, variance, variance_known,
+                    frame: str) -> list:
+    """``attitude`` and ``imu/data`` for the input messages ``rows`` (a slice or indices)
+    that got the attitudes ``q`` at ``t_ns``."""
+    log, pub = imu.log_time_ns[rows], imu.publish_time_ns[rows]
+    orientation_cov = np.zeros(9)
+    if variance is not None:
+        # the diagonal of the published 3x3 orientation covariance; zeros (unknown) on rows
+        # before the first input with a gyro covariance, as the node publishes them
+        orientation_cov = np.zeros((t_ns.size, 9))
+        orientation_cov[:, [0, 4, 8]] = np.where(variance_known[:, None], variance, 0.0)
+        orientation_cov = _constant_rows(orientation_cov)
+    return [
+        quaternion_stamped_batch("attitude", t_ns, q, frame_id=frame, log_time_ns=log,
+                                 publish_time_ns=pub),
+        imu_batch("imu/data", t_ns, imu.angular_velocity[rows], imu.linear_acceleration[rows],
+                  q, frame_id=imu.frame_id, orientation_covariance=orientation_cov,
+                  angular_velocity_covariance=_constant_rows(
+                      imu.angular_velocity_covariance[rows]),
+                  linear_acceleration_covariance=_constant_rows(
+                      imu.linear_acceleration_covariance[rows]),
+                  log_time_ns=log, publish_time_ns=pub),
+    ]
+
+
 def _constant_rows(a: np.ndarray) -> np.ndarray:
     """``a`` (N, w), or its first row when every row equals it (covariances usually are
     constant: the writer then sets them once per buffer instead of per message)."""
@@ -163,6 +200,7 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                 chunk_size: int = OUTPUT_CHUNK_SIZE, force: bool = False,
                 progress: Callable[[int, int], None] | None = None,
                 on_damage: str = "warn", config: StreamConfig | None = None,
+                odometry_topic: str | None = None,
                 mag_topic: str = DEFAULT_MAG_TOPIC) -> ReplayResult:
     """Integrate every Imu message of ``input_path`` and write ``output_path``.
 
@@ -175,7 +213,9 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     rest, heading from ``config``.  ``algorithm``
     None: the offline default, or the node's causal default when a sequential filter of
     ``config`` acts on the recording (levelling, aiding, auto bias with a rest).  ``config``
-    The output must not be the
+    ``odometry_topic``: a ``nav_msgs/Odometry`` topic of the recording whose velocity sets the
+    transport rate (frame enu), time-aligned to the Imu stamps as the node applies it (each
+    sample takes the newest message stamped at or before it).  The output must not be the
     input and must not exist unless ``force``; it appears only complete.
     With ``aiding`` magnetometer the ``sensor_msgs/MagneticField`` topic ``mag_topic`` is read
     and matched to the Imu stamps as the node matches it (the latest field sample at or before
@@ -215,7 +255,9 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     if imu_topic not in arrays:
         raise ValueError(f"{input_path}: no Imu topic {imu_topic!r} (use --imu-topic)"
                          + (f"; {damage}" if damage else ""))
-    imu = arrays[imu_topic]
+    # in log-time order, as ros2 bag play and mcap_player deliver them to the node (a file
+    # written with receive jitter is not stored in that order)
+    imu = arrays[imu_topic].in_log_time_order()
     if len(imu) == 0:
         raise ValueError(f"{input_path}: topic {imu.topic} has no messages"
                          + (f"; {damage}" if damage else ""))
@@ -232,6 +274,11 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
 
     truth = arrays.get(truth_topic)
     t_all = imu.stamp_ns
+    if odometry_topic:
+        if nav is None:
+            raise ValueError("--odometry-topic needs --frame enu (the transport rate of the "
+                             "nav frame)")
+        odo = read_odometry_velocities(input_path, odometry_topic)
     # 'truth': the truth interpolated at the first Imu stamp it covers; integration starts
     # there (the samples before it are counted as skipped_before_truth)
     first = 0
@@ -245,10 +292,15 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         q0, first, _ = initial_attitude_from_truth(t_all, truth.stamp_ns, truth.quaternion,
                                                    usable=usable)
     t, omega = t_all[first:], imu.angular_velocity[first:]
+    if odometry_topic:
+        nav = dataclasses.replace(nav, velocity_enu=velocity_series(
+            t, odo.stamp_ns, odo.velocity, np.broadcast_to(nav.velocity_enu, (3,))))
     cov = imu.angular_velocity_covariance[first:]
     # the accelerometer feeds rest detection, levelling and aiding, when the Imu has one
     # (element 0 of its covariance is -1 when it has none, REP-145)
-    has_accel = bool(len(imu) and imu.linear_acceleration_covariance[0, 0] != -1.0)
+    # (every message must carry one: one that says it has none makes the accelerometer
+    # unknown for the recording)
+    has_accel = bool(len(imu)) and not iv.no_estimate(imu.linear_acceleration_covariance).any()
     accel = imu.linear_acceleration[first:] if has_accel else None
     mag_in = None if mag_rows is None else mag_rows[first:]
     # One frame per decoded message is not kept by the array reader: the first frame stands
@@ -274,39 +326,27 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     keep = res.index + first
     every = keep.size == len(imu)
     t = t_all
-    omega = imu.angular_velocity
 
     def kept(a):
         """Only the samples that got an attitude (no copy when all did)."""
         return a if every else a[keep]
 
-    log, pub = kept(imu.log_time_ns), kept(imu.publish_time_ns)
     tv, qv = kept(t), res.q
     q_out = from_enu(qv, config.world_frame)  # the published frame (errors: in ENU, as truth)
     out_frame = frame_id_of(config.frame, config.world_frame)
-    orientation_cov = np.zeros(9)
-    if res.variance is not None:
-        # the diagonal of the published 3x3 orientation covariance; zeros (unknown) on rows
-        # before the first input with a gyro covariance, as the node publishes them
-        orientation_cov = np.zeros((keep.size, 9))
-        orientation_cov[:, [0, 4, 8]] = np.where(res.variance_known[:, None], res.variance, 0.0)
-    batches = [
-        quaternion_stamped_batch("attitude", tv, q_out, frame_id=out_frame, log_time_ns=log,
-                                 publish_time_ns=pub),
-        imu_batch("imu/data", tv, kept(omega), kept(imu.linear_acceleration), q_out,
-                  frame_id=imu.frame_id, orientation_covariance=_constant_rows(orientation_cov)
-                  if orientation_cov.ndim == 2 else orientation_cov,
-                  angular_velocity_covariance=_constant_rows(kept(
-                      imu.angular_velocity_covariance)),
-                  linear_acceleration_covariance=_constant_rows(kept(
-                      imu.linear_acceleration_covariance)),
-                  log_time_ns=log, publish_time_ns=pub),
-    ]
     with SafeOutput(output_path, force=force) as tmp:
         with Rosbag2McapWriter(tmp, compression=compression, chunk_size=chunk_size) as w:
             w.add_topic("attitude", QUATERNION_STAMPED_TYPE)
             w.add_topic("imu/data", IMU_TYPE)
-            w.write_batches(batches)
+            # Block by block: what the write side builds (columns, covariance rows, the
+            # chunk plan) is bounded by a block, not by the recording. The input is in
+            # log-time order, so consecutive blocks keep the file in log-time order.
+            for lo in range(0, keep.size, OUTPUT_BLOCK_MESSAGES):
+                hi = min(lo + OUTPUT_BLOCK_MESSAGES, keep.size)
+                rows = slice(keep[lo], keep[hi - 1] + 1) if every else keep[lo:hi]
+                w.write_batches(_output_batches(imu, rows, tv[lo:hi], q_out[lo:hi],
+                                                _block(res.variance, lo, hi),
+                                                _block(res.variance_known, lo, hi), out_frame))
     t_end = time.perf_counter()
 
     result = ReplayResult(
@@ -317,7 +357,9 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         skipped={r: n for r, n in res.counts.items() if r in iv.REJECT_REASONS and r != iv.GAP},
         gaps=res.counts[iv.GAP], time_jump_resets=res.time_jump_resets,
         invalid_covariances=res.counts["invalid_covariance"],
-        integrator_errors=res.counts["integrator_error"], details=res.details,
+        integrator_errors=res.counts["integrator_error"],
+        missing_samples=res.counts[iv.MISSING_SAMPLES], saturated=res.counts["saturated"],
+        details=res.details,
         skipped_before_truth=first, gyro_bias=bias_summary(res.bias),
         gyro_bias_rad_s=np.asarray(res.bias.bias, float).tolist(),
         alignment=None if res.alignment is None else _alignment_summary(res.alignment),
@@ -337,23 +379,41 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                 aid.mag_ref_dip),
             "hard_iron_t": list(aid.hard_iron), "accel_rejected": aid.accel_rejected}
     if truth is not None and len(truth):
-        # match in stamp order (the output is in file order and may jump back in time)
-        order = np.argsort(tv, kind="stable")
-        ts = tv[order]
-        idx = np.minimum(np.searchsorted(ts, truth.stamp_ns), ts.size - 1)
-        hit = ts[idx] == truth.stamp_ns
-        if hit.any():
-            err = quat_angle_between(qv[order[idx[hit]]], truth.quaternion[hit])
-            tt = truth.stamp_ns[hit]
-            k = np.argsort(tt, kind="stable")
-            err, tt = err[k], tt[k]
-            result.truth_topic = truth.topic
-            result.truth_matched = int(hit.sum())
-            result.final_error_rad = float(err[-1])
-            result.max_error_rad = float(err.max())
-            result.rms_error_rad = float(np.sqrt(np.mean(err**2)))
-            result.error_t_ns, result.error_rad = tt, err
+        _compare_with_truth(result, truth, tv, qv)
     return result
+
+
+def _compare_with_truth(result: ReplayResult, truth, t_ns: np.ndarray, q: np.ndarray) -> None:
+    """Error figures at every truth stamp inside the output's span: the truth runs on its
+    own clock (a tracker at 120 Hz beside a 200 Hz Imu shares no stamp), so the attitude is
+    slerped there between the two output samples around it (exact at a coinciding stamp;
+    none across a gap in the output, as truth_at_stamps decides). The dense series is the
+    one interpolated: slerping a 10 Hz truth across a coning motion would measure the
+    interpolation, not the estimate."""
+    est_t, est_q = _strictly_increasing(t_ns, q)  # the output may jump back in time
+    ts, tq = truth.stamp_ns, truth.quaternion
+    usable = np.isfinite(tq).all(axis=1) & (np.linalg.norm(tq, axis=1) > 1e-9)
+    ts, tq = _strictly_increasing(ts[usable], tq[usable])
+    if ts.size == 0 or est_t.size == 0:
+        return
+    qe, covered = truth_at_stamps(est_t, est_q, ts)
+    if not covered.any():
+        return
+    err = quat_angle_between(qe, tq[covered])
+    result.truth_topic = truth.topic
+    result.truth_matched = int(covered.sum())
+    result.final_error_rad = float(err[-1])
+    result.max_error_rad = float(err.max())
+    result.rms_error_rad = float(np.sqrt(np.mean(err**2)))
+    result.error_t_ns, result.error_rad = ts[covered], err
+
+
+def _strictly_increasing(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Samples sorted by stamp, the first recorded of a repeated stamp kept."""
+    order = np.argsort(t, kind="stable")
+    t, q = t[order], q[order]
+    first = np.r_[True, np.diff(t) > 0] if t.size else np.zeros(0, bool)
+    return t[first], q[first]
 
 
 def write_error_plot(result: ReplayResult, png, *, force: bool = True) -> None:

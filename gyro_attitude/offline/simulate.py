@@ -22,6 +22,7 @@ from gyro_attitude.core.sim_topics import (
     TRUTH_TOPIC,
     SimTopics,
 )
+from gyro_attitude.core.trajectory import TrajectoryMotion
 from gyro_attitude.io.cdr_arrays import (
     MessageBatch,
     imu_batch,
@@ -53,6 +54,7 @@ class SimulateResult:
     samples: int
     messages: dict[str, int] = field(default_factory=dict)
     wall_s: float = 0.0
+    saturated: dict[str, int] = field(default_factory=dict)
 
     @property
     def samples_per_s(self) -> float:
@@ -64,10 +66,11 @@ def _diag9(var) -> np.ndarray:
     return np.diag(np.asarray(var, dtype=np.float64)).reshape(9)
 
 
-def simulate(scene: str | SceneSpec, duration_s: float, out, *, rate_hz: float | None = None,
-             seed: int | None = None, force: bool = False, publish_truth: bool = True,
-             frame_id: str = DEFAULT_FRAME_ID, world_frame_id: str = DEFAULT_WORLD_FRAME_ID,
-             progress: bool = False) -> SimulateResult:
+def simulate(scene: str | SceneSpec, duration_s: float | None, out, *,
+             rate_hz: float | None = None, seed: int | None = None, force: bool = False,
+             publish_truth: bool = True, frame_id: str = DEFAULT_FRAME_ID,
+             world_frame_id: str = DEFAULT_WORLD_FRAME_ID, progress: bool = False,
+             trajectory=None, trajectory_options: dict | None = None) -> SimulateResult:
     """Simulate ``scene`` (name, path or :class:`SceneSpec`) for ``duration_s`` and write the
     topics gyro_sim publishes to ``out`` (rosbag2 MCAP, zstd chunks), stamped with the
     scene's own sample times (``start_time_ns`` + k/rate), log time = stamp.
@@ -79,8 +82,23 @@ def simulate(scene: str | SceneSpec, duration_s: float, out, *, rate_hz: float |
     never an existing file without ``force``) and written through :class:`~.SafeOutput`
     (temporary name, renamed when complete), so ``out`` is never half-written.
     ``ValueError`` (one line) on a bad scene, duration, rate, seed or output.
+
+    ``trajectory`` (a pose file) puts it under the scene's sensors and instruments
+    (:func:`~gyro_attitude.io.scene_file.load_scene`); a trajectory is stamped in its own
+    time base, and ``duration_s=None`` covers the whole span of its poses.
     """
-    spec = load_scene(scene) if isinstance(scene, str) else scene
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)
+                             or seed < 0):
+        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+    opts = trajectory_options or {}
+    if isinstance(scene, str):
+        # a seed given here stands in for the file's (which may then be left out)
+        spec = load_scene(scene, trajectory, seed=seed, **opts)
+    else:
+        from gyro_attitude.io.trajectory_file import resolve_trajectory
+
+        spec = resolve_trajectory(scene, None, trajectory, **opts) if isinstance(
+            scene, SceneSpec) else scene
     if not isinstance(spec, SceneSpec):
         raise ValueError(f"scene must be a name, a path or a SceneSpec, got {type(scene).__name__}")
     if rate_hz is not None and (isinstance(rate_hz, bool)
@@ -90,19 +108,29 @@ def simulate(scene: str | SceneSpec, duration_s: float, out, *, rate_hz: float |
     if not (math.isfinite(rate) and 0 < rate <= MAX_RATE_HZ):
         raise ValueError(f"rate must be a finite number of Hz in (0, {MAX_RATE_HZ:g}], "
                          f"got {rate_hz!r}")
-    if isinstance(duration_s, bool) or not isinstance(duration_s, int | float | np.number) \
-            or not (math.isfinite(duration_s) and duration_s > 0):
+    span = spec.motion.span_s if isinstance(spec.motion, TrajectoryMotion) else None
+    if duration_s is None and span is None:
+        raise ValueError("--duration is required (the scene's motion is not a trajectory)")
+    if duration_s is not None and (
+            isinstance(duration_s, bool) or not isinstance(duration_s, int | float | np.number)
+            or not (math.isfinite(duration_s) and duration_s > 0)):
         raise ValueError(f"duration must be a finite number of seconds > 0, got {duration_s!r}")
-    n_total = int(round(duration_s * rate))
+    if span is not None:
+        # stamps k/rate from the first pose, up to the last one
+        covered = int(math.floor(span * rate * (1 + 1e-12))) + 1
+        if duration_s is not None and duration_s * rate > covered + 1e-9:
+            raise ValueError(f"duration {duration_s:g} s is longer than the {span:.6g} s the "
+                             f"trajectory covers ({spec.motion.source})")
+        n_total = covered if duration_s is None else int(round(duration_s * rate))
+    else:
+        n_total = int(round(duration_s * rate))
     if n_total < 1:
         raise ValueError(f"duration {duration_s} s at {rate:g} Hz gives no sample")
     if n_total > MAX_SAMPLES:
         raise ValueError(f"duration {duration_s} s at {rate:g} Hz is {n_total} samples; "
                          f"the limit is {MAX_SAMPLES}")
-    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)
-                             or seed < 0):
-        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
-    out = check_output_path(out, inputs=_scene_inputs(scene), force=force)
+    inputs = _scene_inputs(scene) + ([trajectory] if trajectory is not None else [])
+    out = check_output_path(out, inputs=inputs, force=force)
 
     sim = SceneSimulator(spec, rate, seed=seed)
     gyro_var, accel_var = sim.imu_variances()
@@ -149,7 +177,7 @@ def simulate(scene: str | SceneSpec, duration_s: float, out, *, rate_hz: float |
             bar.close()
     return SimulateResult(out, spec.name, rate, sim.seed, n_total,
                           {k: v for k, v in counts.items() if v},
-                          time.perf_counter() - t0)
+                          time.perf_counter() - t0, dict(sim.saturated))
 
 
 def _scene_inputs(scene) -> list:

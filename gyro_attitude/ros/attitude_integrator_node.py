@@ -93,6 +93,7 @@ from gyro_attitude.core.attitude.stream import (
     MAG_DISTURBED,
     MAG_MISSING,
     RUNNING,
+    SATURATED,
     AttitudeStream,
 )
 from gyro_attitude.core.attitude.truth import TruthStart
@@ -385,6 +386,8 @@ class AttitudeIntegratorNode(Node):
             self._velocities.clear()  # stamps of the old time line
         elif verdict.action == iv.RESTART_AFTER_GAP:
             self._warn("gap", f"{verdict.detail}: not integrated across, attitude held")
+        elif verdict.reason == iv.MISSING_SAMPLES:
+            self._warn(iv.MISSING_SAMPLES, f"{verdict.detail}: integrated across")
         self._publish(msg, q)
 
     def _log_phase(self) -> None:
@@ -430,6 +433,8 @@ class AttitudeIntegratorNode(Node):
                                                    if self._truth_start is None
                                                    else self.skipped_before_init),
             "integrator_errors": str(counts[INTEGRATOR_ERROR]),
+            "missing_samples": str(counts[iv.MISSING_SAMPLES]),
+            "saturated": str(counts[SATURATED]),
             "invalid_covariances": str(counts[INVALID_COVARIANCE]),
             "odometry_updates": str(self.odometry_updates),
             "invalid_accels": str(counts[INVALID_ACCEL]),

@@ -21,7 +21,9 @@ from geometry_msgs.msg import Quaternion, QuaternionStamped, Vector3
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, JointState, MagneticField
 
-from gyro_attitude.core.rotation import as_quat_array, as_vector_array, quat_rotate
+from gyro_attitude.core.attitude.nav_frame import odometry_velocity
+from gyro_attitude.core.attitude.validation import NO_ESTIMATE, no_estimate
+from gyro_attitude.core.rotation import as_quat_array, as_vector_array
 
 __all__ = [
     "NO_ESTIMATE_COVARIANCE",
@@ -46,7 +48,7 @@ _NS = 1_000_000_000
 _INT32_MAX = 2**31 - 1
 
 # Element 0 = -1: "this field has no estimate" (REP-145 / sensor_msgs/Imu comments).
-NO_ESTIMATE_COVARIANCE: tuple[float, ...] = (-1.0,) + (0.0,) * 8
+NO_ESTIMATE_COVARIANCE: tuple[float, ...] = (NO_ESTIMATE,) + (0.0,) * 8
 # All zeros: "covariance unknown".
 UNKNOWN_COVARIANCE: tuple[float, ...] = (0.0,) * 9
 
@@ -111,7 +113,7 @@ def variances_from_covariance(cov) -> np.ndarray | None:
     """Diagonal of a 9-element covariance; ``None`` when element 0 is −1 (no estimate)
     or the matrix is all zeros (unknown)."""
     c = np.asarray(cov, dtype=np.float64).reshape(9)
-    if c[0] == -1.0 or not np.any(c):
+    if no_estimate(c) or not np.any(c):
         return None
     return c[[0, 4, 8]].copy()
 
@@ -240,15 +242,9 @@ def odometry_velocity_parent(msg: Odometry) -> np.ndarray:
     velocity). An empty or equal ``child_frame_id`` means the twist is already in the
     parent frame. Raises ``ValueError`` on a non-finite velocity or a zero/non-finite
     orientation that would be needed."""
-    v = vector3_from_msg(msg.twist.twist.linear)
-    if not np.all(np.isfinite(v)):
-        raise ValueError(f"odometry twist.linear is not finite: {v.tolist()}")
-    if msg.child_frame_id and msg.child_frame_id != msg.header.frame_id:
-        q = quat_from_msg(msg.pose.pose.orientation)
-        if not np.all(np.isfinite(q)) or float(np.dot(q, q)) < 1e-18:
-            raise ValueError(f"odometry pose orientation is zero or not finite: {q.tolist()}")
-        v = quat_rotate(q, v)
-    return v
+    return odometry_velocity(vector3_from_msg(msg.twist.twist.linear),
+                             quat_from_msg(msg.pose.pose.orientation), msg.child_frame_id,
+                             msg.header.frame_id)
 
 
 def joint_state_msg(t_ns: int, names, positions, velocities) -> JointState:

@@ -30,6 +30,7 @@ in-process to a rosbag2-compatible MCAP file.
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 
@@ -56,8 +57,9 @@ from gyro_attitude.core.sim_topics import (
     SimTopics,
     local_enu_position,  # noqa: F401  (re-exported: its home moved to core.sim_topics)
 )
-from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
-from gyro_attitude.io.safe_output import SafeOutput, check_output_path
+from gyro_attitude.core.trajectory import LiveTrajectory
+from gyro_attitude.io.recording import SafeRecording
+from gyro_attitude.io.safe_output import check_output_path
 from gyro_attitude.io.scene_file import load_scene
 from gyro_attitude.ros import convert
 from gyro_attitude.ros.node_main import run_node
@@ -98,6 +100,17 @@ def parameter_specs() -> list[ParamSpec]:
         ParamSpec("qos_reliability", "best_effort", "imu/data_raw publisher reliability",
                   choices=("best_effort", "reliable")),
         ParamSpec("qos_depth", 1000, "imu/data_raw publisher queue depth", low=1, high=100000),
+        ParamSpec("motion_topic", "",
+                  "nav_msgs/Odometry ground truth to move the sensors along ('' = the scene's "
+                  "motion): the Imu follows it, stamped in its time base"),
+        ParamSpec("motion_delay_s", 0.05,
+                  "motion_topic: publish a sample once the odometry is this far past it [s]",
+                  low=0.0, high=10.0),
+        ParamSpec("motion_timeout_s", 1.0,
+                  "motion_topic: no odometry for this long (wall clock) is reported; a gap "
+                  "this long in its stamps restarts the Imu [s]", low=0.01, high=3600.0),
+        ParamSpec("motion_window_s", 2.0, "motion_topic: poses kept for the spline fit [s]",
+                  low=0.1, high=600.0),
     ]
 
 
@@ -111,20 +124,25 @@ class GyroSimNode(Node):
         p = declare_all(self, specs)
         self._p = p
 
+        seed = None if p["seed"] < 0 else p["seed"]
         try:
-            spec = load_scene(p["scene"])
+            spec = load_scene(p["scene"], seed=seed)  # the parameter stands in for seed:
         except Exception as exc:  # unknown name, unreadable file, YAML syntax, bad key
             raise ParameterError(f"parameter 'scene' = {p['scene']!r}: {exc}") from exc
-        seed = None if p["seed"] < 0 else p["seed"]
         if p["rate_hz"] == 0.0:
             p["rate_hz"] = float(spec.rate_hz)
         elif p["rate_hz"] < 1.0:
             raise ParameterError(f"parameter 'rate_hz' must be 0 (scene rate) or >= 1 Hz, "
                                  f"got {p['rate_hz']}")
+        self._spec, self._seed = spec, seed
         try:
+            # with motion_topic this one only gives the covariances; the live simulator is
+            # made when the first odometry arrives (its stamp is the start)
             self._sim = SceneSimulator(spec, p["rate_hz"], seed=seed)
         except ValueError as exc:
             raise ParameterError(f"parameter 'scene'/'rate_hz': {exc}") from exc
+        self._live: LiveTrajectory | None = None
+        self._live_mode = bool(p["motion_topic"])
         gyro_var, accel_var = self._sim.imu_variances()
         self._gyro_var = None if gyro_var is None else np.asarray(gyro_var, float)
         self._accel_var = None if accel_var is None else np.asarray(accel_var, float)
@@ -150,9 +168,19 @@ class GyroSimNode(Node):
                 MagneticField, MAG_TOPIC, imu_qos(p["qos_reliability"], p["qos_depth"]))
         self._topics_published = {t: ty for t, ty in TOPICS.items()
                                   if t != MAG_TOPIC or self._pub_mag is not None}
+        self._odom_wall: float | None = None  # monotonic time of the last odometry
+        self._created_at = time.monotonic()
+        self._odom_intervals: list[int] = []
+        self._warned: set[str] = set()
+        self.rejected_odometry = 0
+        if self._live_mode:
+            if spec.free_gyro_params is not None or spec.instrument is not None:
+                raise ParameterError("parameter 'motion_topic': not with a scene's free gyro or "
+                                     "instrument (their solvers need the motion ahead)")
+            self.create_subscription(Odometry, p["motion_topic"], self._on_odometry,
+                                     imu_qos("best_effort", 1000))
 
-        self._writer = None
-        self._record_output: SafeOutput | None = None
+        self._recording: SafeRecording | None = None
         self._serialize = None
         if p["record_path"]:
             self._open_recorder(p["record_path"])
@@ -171,8 +199,10 @@ class GyroSimNode(Node):
         self._timer = self.create_timer(period, self._tick)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.get_logger().info(
-            f"scene '{p['scene']}' at {p['rate_hz']:g} Hz, {p['time_mode']} time, "
-            f"duration {p['duration_s']:g} s"
+            f"scene '{p['scene']}' at {p['rate_hz']:g} Hz, "
+            + (f"motion from {p['motion_topic']} (delay {p['motion_delay_s']:g} s)"
+               if self._live_mode else f"{p['time_mode']} time")
+            + f", duration {p['duration_s']:g} s"
             + (f", recording to {p['record_path']}" if p["record_path"] else "")
         )
 
@@ -182,13 +212,13 @@ class GyroSimNode(Node):
         # when finished (a killed simulator leaves it in a hidden .NAME.*.partial folder)
         try:
             check_output_path(path, what="record_path")
-            self._record_output = SafeOutput(path)
-            self._writer = Rosbag2McapWriter(self._record_output.open())
+            self._recording = SafeRecording(path)
             for topic, type_name in self._topics_published.items():
-                self._writer.add_topic(self._resolve(topic), type_name)
+                self._recording.add_topic(self._resolve(topic), type_name)
         except (OSError, ValueError) as exc:
-            if self._record_output is not None:
-                self._record_output.discard()
+            if self._recording is not None:
+                self._recording.discard()
+                self._recording = None
             raise ParameterError(f"parameter 'record_path': {exc}") from exc
         self._serialize = serialize_message
 
@@ -197,14 +227,13 @@ class GyroSimNode(Node):
 
     def _record(self, topic: str, msg, t_ns: int) -> None:
         # log_time = when the sample is published (receive time of an in-process recorder)
-        self._writer.write(self._resolve_cache[topic], self._serialize(msg), t_ns, t_ns)
+        self._recording.write(self._resolve_cache[topic], self._serialize(msg), t_ns, t_ns)
 
     def close(self) -> None:
-        """Finish the recording (idempotent)."""
-        if self._writer is not None:
-            self._writer.finish()
-            self._writer = None
-            self._record_output.commit()
+        """Finish the recording (idempotent); a full disk raises OutputWriteError (one line,
+        the recording so far kept readable under its name)."""
+        if self._recording is not None:
+            self._recording.close()
 
     # ------------------------------------------------------------------ parameters
     def _on_set_parameters(self, params) -> SetParametersResult:
@@ -218,8 +247,13 @@ class GyroSimNode(Node):
         n = self._block_n
         if self._n_total:
             n = min(n, self._n_total - self._generated)
+        before = sum(self._sim.saturated.values())
         f = self._topics.fields(self._sim.next_block(n))
         self._generated += n
+        if before == 0 and sum(self._sim.saturated.values()) > 0:
+            self.get_logger().warning(
+                "output range reached: samples clipped at full scale "
+                f"({', '.join(f'{k} {v}' for k, v in self._sim.saturated.items())} so far)")
         # plain Python lists: building messages from numpy scalars is several times slower
         cols = [f.t_rel_ns.tolist(), f.angular_velocity.tolist(),
                 None if f.specific_force is None else f.specific_force.tolist(),
@@ -258,7 +292,7 @@ class GyroSimNode(Node):
             msgs += [("truth/attitude", att), ("truth/odom", odom)]
         if self._pub_clock is not None:
             self._pub_clock.publish(Clock(clock=imu.header.stamp))
-        if self._writer is not None:
+        if self._recording is not None and not self._recording.closed:
             for topic, m in msgs:
                 self._record(topic, m, t_ns)
         self.published += 1
@@ -281,8 +315,99 @@ class GyroSimNode(Node):
             return True
         return False
 
+    # ------------------------------------------------------------------ motion_topic
+    def _warn_once(self, key: str, text: str) -> None:
+        if key not in self._warned:
+            self._warned.add(key)
+            self.get_logger().warning(text)
+
+    def _start_live(self, t_ns: int) -> None:
+        """A new live trajectory and simulator starting at the odometry stamp ``t_ns``."""
+        p, ea = self._p, self._spec.earth
+        self._live = LiveTrajectory((ea.latitude_rad, ea.longitude_rad, ea.height_m), t_ns,
+                                    p["motion_window_s"])
+        spec = dataclasses.replace(self._spec, motion=self._live, motion_type="trajectory",
+                                   start_time_ns=t_ns)
+        self._sim = SceneSimulator(spec, p["rate_hz"], seed=self._seed)
+        self._topics = SimTopics()
+        self._start_ns = t_ns
+        self._generated = 0
+        self._block, self._block_pos = [], 0
+        self._resolve_cache = {t: self._resolve(t) for t in TOPICS}
+
+    def _on_odometry(self, msg: Odometry) -> None:
+        t_ns = convert.stamp_to_ns(msg.header.stamp)
+        pose = msg.pose.pose
+        pos = (pose.position.x, pose.position.y, pose.position.z)
+        q = (pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w)
+        now = time.monotonic()
+        if self._odom_wall is not None and now - self._odom_wall > self._p["motion_timeout_s"]:
+            self.get_logger().info(f"odometry on {self._p['motion_topic']} resumed")
+            self._warned.discard("stopped")
+        self._odom_wall = now
+        if self._live is not None and self._live.last_stamp_ns is not None:
+            gap = t_ns - self._live.last_stamp_ns
+            if gap > self._p["motion_timeout_s"] * 1e9:
+                self.get_logger().warning(
+                    f"odometry gap of {gap / 1e9:.3g} s in its stamps: the Imu restarts at "
+                    f"{t_ns / 1e9:.9f} s (nothing is published across the gap)")
+                self._live = None
+            elif gap > 0:
+                self._odom_intervals.append(gap)
+        if self._live is None:
+            if t_ns <= 0:
+                self.rejected_odometry += 1
+                self._warn_once("stamp0", "odometry with a zero stamp ignored")
+                return
+            self._start_live(t_ns)
+        reason = self._live.add(t_ns, pos, q)
+        if reason is not None:
+            self.rejected_odometry += 1
+            self._warn_once(f"bad:{reason.split(' ')[0]}", f"odometry rejected: {reason} "
+                            f"(stamp {t_ns}; counted, later ones not logged)")
+            return
+        if len(self._odom_intervals) == 20:
+            rate = 1e9 / float(np.median(self._odom_intervals))
+            if rate < self._p["rate_hz"]:
+                self._warn_once("slow", f"odometry at {rate:.4g} Hz is slower than the Imu "
+                                f"rate {self._p['rate_hz']:g} Hz: the samples between poses "
+                                "come from the spline fit (its bandwidth is the odometry's)")
+
+    def _live_tick(self) -> None:
+        last = self._odom_wall if self._odom_wall is not None else self._created_at
+        waited = time.monotonic() - last
+        if waited > self._p["motion_timeout_s"]:
+            self._warn_once("stopped", f"no odometry on {self._p['motion_topic']} for "
+                            f"{waited:.3g} s: the Imu waits for it")
+        if self._live is None or self._live.pose_count < 4:
+            return
+        ready_s = self._live.covers()[1] - self._p["motion_delay_s"]
+        rate = self._p["rate_hz"]
+        n_ready = int(np.floor(ready_s * rate + 1e-9)) + 1 - self._generated
+        if self._n_total:
+            n_ready = min(n_ready, self._n_total - self._generated)
+        if n_ready <= 0:
+            if self._n_total and self._generated >= self._n_total:
+                self._finish()
+            return
+        first = self._live.covers()[0]
+        if self._generated / rate < first:  # the window moved past the next sample
+            self.get_logger().error("motion_window_s is too short for the delay; raise it")
+            self._finish()
+            return
+        while n_ready > 0:
+            n = min(n_ready, BLOCK_SAMPLES)
+            self._block_n = n
+            self._next_block()
+            for row in self._block:
+                self._publish_row(row)
+            n_ready -= n
+
     def _tick(self) -> None:
         if self.finished:
+            return
+        if self._live_mode:
+            self._live_tick()
             return
         if self._start_ns is None:
             if not self._ready():
@@ -323,7 +448,8 @@ class GyroSimNode(Node):
         self._timer.cancel()
         self.done.set_result(self.published)
         self.close()
-        self.get_logger().info(f"published {self.published} samples; done")
+        sat = "".join(f"; {k} saturated in {v} samples" for k, v in self._sim.saturated.items())
+        self.get_logger().info(f"published {self.published} samples{sat}; done")
 
 
 def _spin_until_done(node: GyroSimNode) -> None:
@@ -339,7 +465,8 @@ def _spin_until_done(node: GyroSimNode) -> None:
 
 def main(args=None) -> int:
     """Spin until the duration is over (exit 0), SIGINT/SIGTERM (exit 0), or exit 2 on an
-    invalid parameter."""
+    invalid parameter, 1 when the disk under ``record_path`` fills (the recording so far
+    kept, readable, under its name)."""
     return run_node(NODE_NAME, GyroSimNode, args, spin=_spin_until_done,
                     finish=GyroSimNode.close)
 

@@ -1,7 +1,9 @@
 """``mcap_player``: republish a recording with its original timing, a rate factor,
 looping and ``/clock``.
 
-Messages are published serialized (no decode) in log-time order, read by the package's one
+Messages are published serialized in log-time order (each one is checked to deserialize
+as its type: one that does not, e.g. truncated, is skipped and named, as replay skips
+it), read by the package's one
 MCAP reader (:class:`gyro_attitude.io.mcap_reader.McapStreamReader`): streamed chunk by chunk
 when the summary says where chunks start, else (a recorder killed with ``kill -9``) every
 readable message sorted in memory.  Publishers get the
@@ -16,18 +18,22 @@ from __future__ import annotations
 
 import struct
 import sys
+import threading
 import time
+from pathlib import Path
 
 import rclpy
 from mcap.exceptions import McapError
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
+from gyro_attitude.io.imu_fast import deserialized
 from gyro_attitude.io.mcap_reader import (
     UNFINISHED,
     McapStreamReader,
+    bag_files,
     match_topic,
-    resolve_mcap_path,
 )
 from gyro_attitude.io.mcap_records import MAGIC
 from gyro_attitude.io.qos import parse_qos_profiles
@@ -75,25 +81,26 @@ def check_recording_start(path) -> None:
         raise InputError(f"{path}: not an MCAP file (no MCAP magic at the start)")
 
 
-def iter_log_time_order(path, topics: list[str] | None, damages: list[str] | None = None):
-    """(topic, type_name, offered_qos_yaml, log_time, data) in log-time order; damage met
+def iter_log_time_order(paths, topics: list[str] | None, damages: list[str] | None = None):
+    """(topic, type_name, offered_qos_yaml, log_time, data) in log-time order within each of
+    ``paths`` (a split bag's files, one after the other, as rosbag2 plays them); damage met
     on the way (skipped by the reader) is appended to ``damages`` when given."""
-    reader = McapStreamReader(path, on_damage="warn")
-    wanted = None
-    if topics is not None:
-        summary = reader.summary()
-        recorded = [c.topic for c in (summary.channels if summary else reader.channels).values()]
-        wanted = [match_topic(recorded, t) or t for t in topics]
-    for m in reader.iter_messages(wanted, log_time_order=True):
-        yield (m.channel.topic, m.channel.type_name,
-               m.channel.metadata.get("offered_qos_profiles", ""), m.log_time, m.data)
-    if damages is not None:
-        damages.extend(d for d in reader.damages if d not in damages)
+    for path in paths:
+        reader = McapStreamReader(path, on_damage="warn")
+        wanted = None
+        if topics is not None:
+            summary = reader.summary()
+            recorded = [c.topic for c in (summary.channels if summary else reader.channels)
+                        .values()]
+            wanted = [match_topic(recorded, t) or t for t in topics]
+        for m in reader.iter_messages(wanted, log_time_order=True):
+            yield (m.channel.topic, m.channel.type_name,
+                   m.channel.metadata.get("offered_qos_profiles", ""), m.log_time, m.data)
+        if damages is not None:
+            damages.extend(d for d in reader.damages if d not in damages)
 
 
-def recorded_channels(path, topics: list[str] | None) -> list[tuple[str, str, str]]:
-    """(topic, type_name, offered_qos_yaml) of the recorded channels (optionally a subset);
-    InputError naming the recorded topics when a requested topic is not among them."""
+def _file_channels(path) -> list[tuple[str, str, str]]:
     reader = McapStreamReader(path, on_damage="warn")
     summary = reader.summary()
     if summary is not None and summary.channels:
@@ -102,8 +109,18 @@ def recorded_channels(path, topics: list[str] | None) -> list[tuple[str, str, st
         for _ in reader.iter_chunks():
             pass
         channels = reader.channels
-    chans = [(c.topic, c.type_name, c.metadata.get("offered_qos_profiles", ""))
-             for c in channels.values()]
+    return [(c.topic, c.type_name, c.metadata.get("offered_qos_profiles", ""))
+            for c in channels.values()]
+
+
+def recorded_channels(paths, topics: list[str] | None) -> list[tuple[str, str, str]]:
+    """(topic, type_name, offered_qos_yaml) of the channels recorded in ``paths``
+    (optionally a subset; the first file that records a topic gives its type and QoS);
+    InputError naming the recorded topics when a requested topic is not among them."""
+    chans = []
+    for path in paths:
+        known = {c[0] for c in chans}
+        chans += [c for c in _file_channels(path) if c[0] not in known]
     recorded = [c[0] for c in chans]
     if topics is None:
         return chans
@@ -127,10 +144,12 @@ class McapPlayerNode(Node):
         if not p["input"]:
             raise ParameterError("parameter 'input': the recording to play is required")
         try:
-            self.path = resolve_mcap_path(p["input"])
+            self.paths = bag_files(p["input"])  # a split bag: its files in rosbag2's order
         except ValueError as exc:
             raise ParameterError(f"parameter 'input': {exc}") from exc
-        check_recording_start(self.path)
+        self.path = self.paths[0] if len(self.paths) == 1 else Path(p["input"])
+        for path in self.paths:
+            check_recording_start(path)
         self.rate = p["rate"]
         self.loop = p["loop"]
         self.clock_period = 1.0 / p["clock_rate_hz"]
@@ -139,6 +158,7 @@ class McapPlayerNode(Node):
         self.wait_for_subscribers = p["wait_for_subscribers"]
         self.wait_timeout_s = p["wait_timeout_s"]
         self._pubs: dict[str, object] = {}
+        self._classes: dict[str, type] = {}  # message class per played topic
         self._clock_pub = None
         if p["publish_clock"]:
             from rosgraph_msgs.msg import Clock
@@ -147,6 +167,7 @@ class McapPlayerNode(Node):
             self._clock_pub = self.create_publisher(Clock, "/clock", 10)
         self.published = 0
         self.damages: list[str] = []  # damage the reader met and skipped, in file order
+        self.undecodable: dict[str, int] = {}  # topic -> messages skipped as undecodable
         self.damage_reported = False
 
     def _on_set_parameters(self, params) -> SetParametersResult:
@@ -162,6 +183,7 @@ class McapPlayerNode(Node):
                 self.get_logger().warning(f"not playing {topic}: {exc}")
                 self._pubs[topic] = None
                 return None
+            self._classes[topic] = cls
             try:
                 profiles = parse_qos_profiles(qos_yaml)
             except ValueError:
@@ -169,6 +191,19 @@ class McapPlayerNode(Node):
             self._pubs[topic] = self.create_publisher(
                 cls, name, adapted_qos(profiles, PLAYBACK_QUEUE_DEPTH))
         return self._pubs[topic]
+
+    def _decodes(self, topic: str, type_name: str, log_time: int, data) -> bool:
+        """Whether ``data`` deserializes as its type: a message that does not (truncated)
+        is skipped and named, as replay skips it, instead of reaching subscribers that
+        cannot read it."""
+        _, problem = deserialized(data, self._classes[topic], topic, type_name, log_time)
+        if problem is None:
+            return True
+        n = self.undecodable[topic] = self.undecodable.get(topic, 0) + 1
+        if n == 1:  # the first per topic is named; the count is in the final report
+            self.get_logger().warning(f"{problem}: skipped")
+            self.damages.append(problem)
+        return False
 
     def _publish_clock(self, bag_ns: int) -> None:
         msg = self._clock_cls()
@@ -193,10 +228,10 @@ class McapPlayerNode(Node):
     def play_once(self) -> int:
         """Publish the whole recording once with its timing; returns messages published."""
         # Publishers for every channel before the clock starts (discovery takes time).
-        for topic, type_name, qos_yaml in recorded_channels(self.path, self.topics):
+        for topic, type_name, qos_yaml in recorded_channels(self.paths, self.topics):
             self._publisher(topic, type_name, qos_yaml)
         self._wait_for_subscribers(list(self._pubs))
-        msgs = iter_log_time_order(self.path, self.topics, self.damages)
+        msgs = iter_log_time_order(self.paths, self.topics, self.damages)
         first = next(msgs, None)
         if first is None:
             return 0
@@ -223,16 +258,41 @@ class McapPlayerNode(Node):
                 wake = target if self._clock_pub is None else min(target, next_clock)
                 time.sleep(max(0.0, min(wake - now, 0.05)))
             pub = self._publisher(topic, type_name, qos_yaml)
-            if pub is not None:
+            if pub is not None and self._decodes(topic, type_name, log_time, data):
                 pub.publish(data)
                 count += 1
                 self.published += 1  # counted at once: an interrupted pass reports it too
         return count
 
 
+def _serve(executor) -> None:
+    """Spin ``executor`` until it is shut down (the player's services while it plays)."""
+    try:
+        executor.spin()
+    except Exception:  # a signal shut the context down under it: the play loop ends too
+        if rclpy.ok():
+            raise
+
+
 def _play(node: McapPlayerNode) -> None:
     node.get_logger().info(f"playing {node.path} at rate {node.rate:g}"
                            + (" (loop)" if node.loop else ""))
+    # The play loop keeps this thread (it sleeps to the next message's time); parameter
+    # services (set/get/describe/list) are answered meanwhile by an executor on its own
+    # thread. Publishing from one thread while another spins is safe in rclpy.
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    services = threading.Thread(target=_serve, args=(executor,), name="mcap_player_services",
+                                daemon=True)
+    services.start()
+    try:
+        _play_passes(node)
+    finally:
+        executor.shutdown(timeout_sec=1.0)
+        services.join(timeout=2.0)
+
+
+def _play_passes(node: McapPlayerNode) -> None:
     try:
         while rclpy.ok():
             n = node.play_once()
@@ -259,7 +319,9 @@ def _play(node: McapPlayerNode) -> None:
 
 
 def _report(node: McapPlayerNode) -> None:
-    print(f"mcap_player: published {node.published} messages", flush=True)
+    skipped = "".join(f"; skipped {n} on {t} that did not deserialize"
+                      for t, n in node.undecodable.items())
+    print(f"mcap_player: published {node.published} messages{skipped}", flush=True)
 
 
 def main(args=None) -> int:

@@ -9,7 +9,9 @@ publisher is reliable, transient-local only if every publisher is.
 Output safety: an existing output is refused unless ``force`` is true; the recording is
 written under a temporary name beside the output (a hidden ``.<name>.*.partial`` folder,
 see :mod:`gyro_attitude.io.safe_output`) and renamed to the output once finished, so a
-failed or killed recording never replaces a file under the requested name.
+failed or killed recording never replaces a file under the requested name.  A full disk
+ends the recording: it is cut back to its last whole chunk, ended as a valid MCAP, moved
+to the output name, and one line says so (exit 1; :mod:`gyro_attitude.io.recording`).
 
 Crash safety: the open chunk is closed and the file flushed every ``flush_period_s``
 (default 0.5 s, at most 1 s), so ``kill -9`` loses at most that much and leaves a temporary
@@ -32,9 +34,10 @@ from rclpy.node import Node
 from rclpy.validate_full_topic_name import validate_full_topic_name
 from rclpy.validate_topic_name import validate_topic_name
 
-from gyro_attitude.io.mcap_writer import COMPRESSIONS, DEFAULT_COMPRESSION, Rosbag2McapWriter
+from gyro_attitude.io.mcap_writer import COMPRESSIONS, DEFAULT_COMPRESSION
 from gyro_attitude.io.qos import qos_profile, qos_profiles_yaml
-from gyro_attitude.io.safe_output import SafeOutput, check_output_path
+from gyro_attitude.io.recording import SafeRecording
+from gyro_attitude.io.safe_output import check_output_path
 from gyro_attitude.ros.node_main import run_node
 from gyro_attitude.ros.params import ParameterError, ParamSpec, check_update, declare_all
 from gyro_attitude.ros.qos import adapted_qos, offered_profiles
@@ -120,21 +123,18 @@ class McapRecorderNode(Node):
         out = p["output"] or str(Path("bags") / time.strftime(
             "recording_%Y%m%d_%H%M%S.mcap", time.gmtime()))
         self._depth = int(p["queue_depth"])
-        self._writer = None
-        self._atomic = None
+        self._recording: SafeRecording | None = None
         try:
             self.output = _checked_output(out, force=bool(p["force"]))
             # Written under a temporary name beside the output and renamed by close(): a
-            # failed or killed recording never replaces what the output name holds.
-            self._atomic = SafeOutput(self.output, force=p["force"])
-            self._writer = Rosbag2McapWriter(
-                self._atomic.open(), bag_directory=bool(p["bag_directory"]),
+            # failed or killed recording never replaces what the output name holds; a full
+            # disk ends it readable under its name (OutputWriteError: one line, exit 1).
+            self._recording = SafeRecording(
+                self.output, force=p["force"], bag_directory=bool(p["bag_directory"]),
                 compression=p["compression"], max_chunk_interval_s=float(p["flush_period_s"]))
         except (OSError, ValueError) as exc:
-            if self._atomic is not None:
-                self._atomic.discard()
             raise ParameterError(f"parameter 'output': {exc}") from exc
-        self.partial_path = self._writer.path  # the file being written until close()
+        self.partial_path = self._recording.partial_path  # the file being written until close()
         self._subs: dict[str, object] = {}
         self._discover()
         self.create_timer(float(p["discovery_period_s"]), self._discover)
@@ -161,7 +161,7 @@ class McapRecorderNode(Node):
         return SetParametersResult(successful=reason is None, reason=reason or "")
 
     def _discover(self) -> None:
-        if self._writer is None:
+        if self._recording.closed:
             return
         for name, types in self.get_topic_names_and_types():
             if name in self._subs or not types:
@@ -174,7 +174,7 @@ class McapRecorderNode(Node):
             type_name = types[0]
             try:
                 cls = message_class(type_name)
-                self._writer.add_topic(name, type_name, offered_qos_yaml(infos))
+                self._recording.add_topic(name, type_name, offered_qos_yaml(infos))
             except ValueError as exc:
                 self.get_logger().warning(f"not recording {name}: {exc}")
                 self._subs[name] = None
@@ -189,30 +189,27 @@ class McapRecorderNode(Node):
             self.get_logger().info(f"subscribed to {name} [{type_name}]")
 
     def _on_message(self, topic: str, raw: bytes, info) -> None:
-        if self._writer is None:
+        if self._recording.closed:
             return
         recv = time.time_ns()
         pub = None
         if isinstance(info, dict):
             pub = info.get("source_timestamp") or None
             recv = info.get("received_timestamp") or recv
-        self._writer.write(topic, raw, recv, pub)
+        self._recording.write(topic, raw, recv, pub)
 
     def _flush(self) -> None:
-        if self._writer is not None:
-            self._writer.flush()
+        self._recording.flush()
 
     @property
     def message_count(self) -> int:
-        return 0 if self._writer is None else self._writer.message_count
+        return self._recording.message_count
 
     def close(self) -> None:
         """Finish the file (last chunk, metadata, summary, footer) and move it to the output
         name (idempotent)."""
-        if self._writer is not None:
-            self._writer.finish()
-            self._writer = None
-            self._atomic.commit()
+        if self._recording is not None:
+            self._recording.close()
 
 
 def _close_and_report(node: McapRecorderNode) -> None:
@@ -223,7 +220,8 @@ def _close_and_report(node: McapRecorderNode) -> None:
 
 def main(args=None) -> int:
     """Record until SIGINT/SIGTERM (the file is finished with its summary and renamed to the
-    output); exit 0, or 2 on an invalid parameter or an existing output without force."""
+    output); exit 0, 2 on an invalid parameter or an existing output without force, 1 when
+    the disk fills (the recording so far kept, readable, under the output name)."""
     return run_node(NODE_NAME, McapRecorderNode, args, finish=_close_and_report)
 
 

@@ -6,7 +6,8 @@ terminal is an orderly shutdown too; also when the signal is repeated during shu
 ``ros2 launch`` forwards the terminal's Ctrl-C, so every node gets it twice); 2 with one
 line on an invalid parameter (:class:`~gyro_attitude.ros.params.ParameterError`, also a
 missing or unreadable ``--params-file``); 1 with one line when the node's input is unusable
-(:class:`InputError`). Never a traceback for any of these.
+(:class:`InputError`) or its output cannot be written (a full disk:
+:class:`~gyro_attitude.io.safe_output.OutputWriteError`). Never a traceback for any of these.
 """
 
 from __future__ import annotations
@@ -24,15 +25,18 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 
 from gyro_attitude.io.ament_prefix import ensure_ament_prefix_path
+from gyro_attitude.io.safe_output import OutputWriteError
 from gyro_attitude.ros.params import ParameterError
 
 RCLError = _rclpy.RCLError
 
 __all__ = ["run_node", "InputError", "ShutdownSignals", "EXIT_OK", "EXIT_INPUT",
-           "EXIT_PARAMETER", "EXECUTORS", "make_executor", "spin_with_executor"]
+           "EXIT_OUTPUT", "EXIT_PARAMETER", "EXECUTORS", "make_executor",
+           "spin_with_executor"]
 
 EXIT_OK = 0
 EXIT_INPUT = 1  # the input (a recording) cannot be used
+EXIT_OUTPUT = 1  # the output (a recording) cannot be written
 EXIT_PARAMETER = 2  # a parameter (or the parameter file) is invalid
 
 
@@ -216,6 +220,9 @@ def run_node(name: str, make_node: Callable[[], Node], args=None, *,
     except InputError as exc:
         say(f"unusable input: {exc}")
         status = EXIT_INPUT
+    except OutputWriteError as exc:
+        say(f"cannot write output: {exc}")
+        status = EXIT_OUTPUT
     except Exception:
         # Publishing, waiting or creating entities on a context that a signal has just shut
         # down raises (e.g. RCLError "publisher's context is invalid"): that is the shutdown
@@ -231,6 +238,9 @@ def run_node(name: str, make_node: Callable[[], Node], args=None, *,
                 try:
                     if finish is not None:
                         finish(node)
+                except OutputWriteError as exc:  # the disk filled while finishing the file
+                    say(f"cannot write output: {exc}")
+                    status = EXIT_OUTPUT
                 finally:
                     _destroy(node)
         finally:

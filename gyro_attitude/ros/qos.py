@@ -57,9 +57,12 @@ def adapted_qos(profiles: list[dict], depth: int) -> QoSProfile:
     (player): reliable only if every profile is reliable, transient-local only if every one
     is; otherwise best effort / volatile, which any publisher or subscriber accepts.
     ``profiles`` are dicts with policy names (:func:`offered_profiles`,
-    :func:`gyro_attitude.io.qos.parse_qos_profiles`); none known gives best effort, volatile.
+    :func:`gyro_attitude.io.qos.parse_qos_profiles`). None known (a bag written by mcap_ros2
+    or Foxglove tools has no ``offered_qos_profiles``) gives rosbag2's default profile,
+    reliable and volatile: a reliable publisher matches best-effort and reliable
+    subscribers alike.
     """
-    reliable = bool(profiles) and all(p["reliability"] == "reliable" for p in profiles)
+    reliable = not profiles or all(p["reliability"] == "reliable" for p in profiles)
     transient = bool(profiles) and all(p["durability"] == "transient_local" for p in profiles)
     return QoSProfile(
         history=HistoryPolicy.KEEP_LAST, depth=int(depth),

@@ -15,6 +15,7 @@ from scipy.spatial.transform import Rotation
 
 from gyro_attitude.cli import main as cli_main
 from gyro_attitude.core.attitude import NavFrame, integrate_batch
+from gyro_attitude.io.cdr_arrays import imu_batch, quaternion_stamped_batch
 from gyro_attitude.io.imu_fast import read_imu_arrays, read_quaternion_stamped_arrays
 from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
 from gyro_attitude.offline.replay import replay_file
@@ -370,6 +371,106 @@ def test_policy_flags_out_of_range_are_one_line_exit_2(tmp_path, capsys, flag, v
     assert not (tmp_path / "o.mcap").exists()
 
 
+def test_truth_on_its_own_clock_is_compared_at_its_stamps(tmp_path, capsys):
+    """Truth at 120 Hz, offset 1.3 ms from a 200 Hz Imu: no stamp coincides. The error is
+    taken at every truth stamp inside the Imu span, against the attitude slerped there.
+    Constant rate about z, so the slerp of the exact attitude is exact: a truth tilted by
+    0.1 rad gives 0.1 at all of them."""
+    n, omega = 2001, 0.7
+    t = 10**9 + np.arange(n, dtype=np.int64) * 5_000_000
+    w = np.tile([0.0, 0.0, omega], (n, 1))
+    tt = 10**9 + 1_300_000 + (np.arange(1300, dtype=np.int64) * 10**9) // 120
+    s_rel = (tt - t[0]) * 1e-9
+    exact = np.stack([0 * s_rel, 0 * s_rel, np.sin(omega * s_rel / 2),
+                      np.cos(omega * s_rel / 2)], 1)
+    tilted = (Rotation.from_rotvec([0.1, 0.0, 0.0]) * Rotation.from_quat(exact)).as_quat()
+    path = tmp_path / "in.mcap"
+    with Rosbag2McapWriter(path, chunk_size=50_000) as wr:
+        wr.add_topic("imu/data_raw", IMU)
+        wr.add_topic("truth/attitude", QS)
+        wr.write_batches([imu_batch("imu/data_raw", t, w),
+                          quaternion_stamped_batch("truth/attitude", tt, tilted)])
+    s = replay_file(path, tmp_path / "o.mcap", algorithm="rotvec_cubic")
+    inside = tt[(tt >= t[0]) & (tt <= t[-1])]
+    assert s.truth_matched == inside.size and inside.size > 1150
+    np.testing.assert_array_equal(s.error_t_ns, inside)
+    assert abs(s.final_error_rad - 0.1) < 1e-9 and abs(s.max_error_rad - 0.1) < 1e-9
+    assert abs(s.rms_error_rad - 0.1) < 1e-9 and abs(s.error_rad.min() - 0.1) < 1e-9
+    # and the CLI prints the figures instead of "no truth topic"
+    assert cli_main(["replay", str(path), "--out", str(tmp_path / "o2.mcap")]) == 0
+    out = capsys.readouterr().out
+    assert "no truth topic" not in out and f"({inside.size} stamps)" in out
+
+
+def test_replay_takes_messages_in_log_time_order_as_rosbag2_plays_them(tmp_path):
+    """Receive jitter: messages stored in stamp order, log times (receive times) jittered so
+    that log-time order differs. The player (and ros2 bag play) deliver in log-time order,
+    so the node sees those stamps out of order; replay must see the same sequence: the file
+    stored in log-time order gives the identical result."""
+    n = 4000
+    t, w = _tumbling(n, rate_hz=200.0, seed=5)
+    rng = np.random.default_rng(6)
+    log = t + rng.integers(0, 12_000_000, n)  # up to 12 ms late: 2.4 samples at 200 Hz
+    order = np.argsort(log, kind="stable")
+    assert (order != np.arange(n)).sum() > 100
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import Imu
+
+    def data(k):
+        m = Imu()
+        m.header.stamp.sec, m.header.stamp.nanosec = divmod(int(t[k]), 10**9)
+        m.header.frame_id = "imu_link"
+        m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z = map(float, w[k])
+        return serialize_message(m)
+
+    for name, idx in (("file_order.mcap", np.arange(n)), ("log_order.mcap", order)):
+        with Rosbag2McapWriter(tmp_path / name, chunk_size=50_000) as wr:
+            wr.add_topic("imu/data_raw", IMU)
+            for k in idx:  # one message at a time: the writer keeps the order given
+                wr.write("imu/data_raw", data(k), int(log[k]))
+    a = replay_file(tmp_path / "file_order.mcap", tmp_path / "a.mcap")
+    b = replay_file(tmp_path / "log_order.mcap", tmp_path / "b.mcap")
+    assert b.skipped.get("out_of_order", 0) > 50  # what the node rejects, live
+    assert a.skipped == b.skipped and a.attitude_messages == b.attitude_messages
+    np.testing.assert_array_equal(a.t_ns, b.t_ns)
+    np.testing.assert_array_equal(a.q, b.q)
+
+
+def test_output_is_written_in_bounded_blocks_and_equals_one_block(tmp_path, monkeypatch):
+    """The write side builds at most OUTPUT_BLOCK_MESSAGES messages per topic at a time
+    (its memory no longer grows with the recording); the file reads back the same, in
+    log-time order across both topics."""
+    from gyro_attitude.io import mcap_writer
+    from gyro_attitude.io.mcap_reader import McapStreamReader
+    from gyro_attitude.offline import replay as replay_module
+
+    t, w = _tumbling(5000, seed=9)
+    _record(tmp_path / "in.mcap", t, w, a=np.tile([0.0, 0.0, 9.8], (5000, 1)))
+    sizes = []
+    real = mcap_writer.Rosbag2McapWriter.write_batches
+
+    def spy(self, batches):
+        sizes.append([len(b) for b in batches])
+        return real(self, batches)
+
+    monkeypatch.setattr(mcap_writer.Rosbag2McapWriter, "write_batches", spy)
+    monkeypatch.setattr(replay_module, "OUTPUT_BLOCK_MESSAGES", 1 << 30)
+    replay_file(tmp_path / "in.mcap", tmp_path / "one.mcap", algorithm="rotvec_cubic")
+    assert sizes == [[5000, 5000]]
+    sizes.clear()
+    monkeypatch.setattr(replay_module, "OUTPUT_BLOCK_MESSAGES", 1024)
+    replay_file(tmp_path / "in.mcap", tmp_path / "blocks.mcap", algorithm="rotvec_cubic")
+    assert sizes == [[1024, 1024]] * 4 + [[904, 904]]
+
+    def messages(path):
+        return [(m.channel.topic, m.log_time, m.data) for m in
+                McapStreamReader(path).iter_messages()]
+
+    one, blocks = messages(tmp_path / "one.mcap"), messages(tmp_path / "blocks.mcap")
+    assert one == blocks and len(one) == 10_000
+    assert [m[1] for m in blocks] == sorted(m[1] for m in blocks)
+
+
 @pytest.mark.parametrize("bad_start", ["zero_stamp", "nan_rates"])
 def test_truth_start_is_taken_at_the_first_accepted_sample(tmp_path, bad_start):
     # A constant spin about z with the exact truth at every stamp.  The first samples are
@@ -389,3 +490,37 @@ def test_truth_start_is_taken_at_the_first_accepted_sample(tmp_path, bad_start):
                     initial_attitude="truth")
     assert s.skipped_before_truth == (1 if bad_start == "zero_stamp" else 50)
     assert s.max_error_rad < 1e-9
+
+
+def test_odometry_topic_sets_the_transport_rate_as_the_node_does(tmp_path, capsys):
+    # aircraft_turn (120 m/s, 3 °/s coordinated turn at 50°N) with an ideal gyro, simulated
+    # offline with truth/odom.  Integrated in ENU from the truth, the velocity of truth/odom
+    # makes the transport rate follow the turn: the attitude stays on the truth; the scene's
+    # initial velocity held constant leaves the transport-rate error of the velocity change.
+    import yaml
+
+    from gyro_attitude.io.scene_file import find_scene_file, load_scene
+
+    scene = yaml.safe_load(find_scene_file("aircraft_turn").read_text())
+    scene["gyro"].pop("errors", None)
+    path = tmp_path / "turn.yaml"
+    path.write_text(yaml.safe_dump(scene))
+    spec = load_scene(str(path))
+    assert cli_main(["simulate", str(path), "--duration", "20", "--out",
+                     str(tmp_path / "turn.mcap"), "--quiet"]) == 0
+    v0 = np.asarray(spec.motion.velocity(np.zeros(1)))[0]
+    common = ["replay", str(tmp_path / "turn.mcap"), "--frame", "enu",
+              "--latitude-rad", repr(float(spec.earth.latitude_rad)),
+              "--height-m", repr(float(spec.earth.height_m)),
+              "--velocity-enu", ",".join(repr(float(x)) for x in v0),
+              "--initial-attitude", "truth", "--algorithm", "rotvec_cubic", "--json"]
+    final = {}
+    for name, extra in (("odom", ["--odometry-topic", "truth/odom"]), ("plain", [])):
+        capsys.readouterr()
+        assert cli_main([*common, "--out", str(tmp_path / f"{name}.mcap"), *extra]) == 0
+        final[name] = json.loads(capsys.readouterr().out)["final_error_rad"]
+    assert final["odom"] < 1e-6 and final["plain"] > 100 * final["odom"], final
+    # the topic must be an Odometry one, and enu is needed
+    rc = cli_main([*common, "--out", str(tmp_path / "x.mcap"), "--odometry-topic",
+                   "truth/attitude"])
+    assert rc == 1 and "not nav_msgs/msg/Odometry" in _one_line(capsys.readouterr().err)

@@ -438,9 +438,41 @@ def test_topic_matched_by_its_namespace_until_the_exact_one_appears_is_refused(t
     """``imu/data_raw`` names ``/robot/imu/data_raw`` until ``/imu/data_raw`` is defined later
     in the file: the reader must not interleave the two recordings into one series."""
     path = _late_channel_file(tmp_path)
-    with pytest.raises(ValueError, match="/robot/imu/data_raw.*/imu/data_raw.*full"):
+    with pytest.raises(ValueError, match=r"ambiguous: \['/imu/data_raw', '/robot/imu/data_raw'\]"
+                                         r"; give the full name"):
         read_imu_arrays(path)
     own = read_imu_arrays(path, "/imu/data_raw")  # the full names still read
     robot = read_imu_arrays(path, "/robot/imu/data_raw")
     assert (len(own), len(robot)) == (12, 7 + 11)  # odd k of 7..29 are own
     assert (own.angular_velocity[:, 0] == 2.0).all() and (robot.angular_velocity[:, 0] == 1.0).all()
+
+
+@pytest.mark.parametrize("layout", ["late_channel", "both_upfront", "no_summary"])
+def test_ambiguous_relative_topic_is_refused_whatever_the_chunk_layout(tmp_path, layout):
+    """``imu/data_raw`` fits ``/imu/data_raw`` and ``/robot/imu/data_raw``: refused naming
+    both, whether the second channel is defined two chunks later, before any message, or in
+    a file without summary; the full names read (replay, player and allan share the rule)."""
+    from gyro_attitude.io.mcap_reader import match_topic
+
+    if layout == "late_channel":
+        path = _late_channel_file(tmp_path)
+    else:
+        path = tmp_path / f"{layout}.mcap"
+        w = Rosbag2McapWriter(path, chunk_size=2000)
+        w.add_topic("/robot/imu/data_raw", IMU)
+        w.add_topic("/imu/data_raw", IMU)
+        for topic in ("/robot/imu/data_raw", "/imu/data_raw"):
+            w.write_imu_array(topic, 10**9 + np.arange(20), np.zeros((20, 3)))
+        if layout == "no_summary":
+            w.flush()
+            w.abandon()
+        else:
+            w.finish()
+    with pytest.raises(ValueError, match=r"'imu/data_raw' is ambiguous: \['/imu/data_raw', "
+                                         r"'/robot/imu/data_raw'\]; give the full name"):
+        read_imu_arrays(path, on_damage="warn")
+    with pytest.raises(ValueError, match="ambiguous"):
+        match_topic(["/imu/data_raw", "/robot/imu/data_raw"], "imu/data_raw")
+    assert match_topic(["/imu/data_raw", "/robot/imu/data_raw"], "/imu/data_raw") == \
+        "/imu/data_raw"
+    assert len(read_imu_arrays(path, "/imu/data_raw", on_damage="warn")) > 0

@@ -46,10 +46,14 @@ def _imu(n: int, topic: str = "imu") -> cdr_arrays.MessageBatch:
     return imu_batch(topic, t, np.zeros((n, 3)), publish_time_ns=np.arange(n))
 
 
-def test_disk_full_is_raised_in_the_caller():
-    wr = Rosbag2McapWriter("/dev/full", chunk_size=20_000, compression="")
+def test_disk_full_is_raised_in_the_caller(tmp_path):
+    with pytest.raises(OSError, match="No space left"):  # unbuffered: seen at the first byte
+        Rosbag2McapWriter("/dev/full")
+    wr = Rosbag2McapWriter(tmp_path / "f.mcap", chunk_size=20_000, compression="")
     wr.add_topic("imu", "sensor_msgs/msg/Imu")
-    wr.add_topic("imu2", "sensor_msgs/msg/Imu")  # (fits the file object's buffer)
+    wr.add_topic("imu2", "sensor_msgs/msg/Imu")
+    wr._file.close()
+    wr._file = open("/dev/full", "wb", buffering=0)  # the disk is full from here on
     exc = _call_with_timeout(lambda: wr.write_batches([_imu(5000), _imu(3000, "imu2")]))
     assert isinstance(exc, OSError) and exc.errno == 28  # ENOSPC
     assert _pipeline_threads() == []

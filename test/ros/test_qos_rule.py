@@ -12,7 +12,7 @@ TL, V = "transient_local", "volatile"
 
 
 @pytest.mark.parametrize("offered, reliability, durability", [
-    ([], ReliabilityPolicy.BEST_EFFORT, DurabilityPolicy.VOLATILE),
+    ([], ReliabilityPolicy.RELIABLE, DurabilityPolicy.VOLATILE),  # rosbag2's default
     ([(R, TL)], ReliabilityPolicy.RELIABLE, DurabilityPolicy.TRANSIENT_LOCAL),
     ([(R, V), (R, V)], ReliabilityPolicy.RELIABLE, DurabilityPolicy.VOLATILE),
     ([(R, TL), (BE, TL)], ReliabilityPolicy.BEST_EFFORT, DurabilityPolicy.TRANSIENT_LOCAL),

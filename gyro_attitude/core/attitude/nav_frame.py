@@ -161,3 +161,23 @@ def velocity_series(imu_t_ns, odom_t_ns, odom_v, initial=(0.0, 0.0, 0.0)) -> np.
     out[:] = np.asarray(initial, dtype=np.float64)
     out[k >= 0] = ov[k[k >= 0]]
     return out
+
+
+def odometry_velocity(v_child, q_parent_child, child_frame_id: str, frame_id: str) -> np.ndarray:
+    """The linear velocity (3,) of a ``nav_msgs/Odometry`` in its ``header.frame_id``: REP-105
+    gives ``twist`` in ``child_frame_id``; when that is set and differs from ``frame_id`` it is
+    rotated into the parent frame with the pose orientation (which maps child vectors into the
+    parent, ``v_parent = C(q) v_child``, as gyro_sim's ``truth/odom`` fills it with q_nb and
+    the body velocity); an empty or equal ``child_frame_id``: already in the parent frame.
+    ``ValueError`` on a non-finite velocity or a zero or non-finite orientation it needs."""
+    from gyro_attitude.core.rotation import quat_rotate
+
+    v = np.asarray(v_child, dtype=np.float64).reshape(3)
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"odometry twist.linear is not finite: {v.tolist()}")
+    if child_frame_id and child_frame_id != frame_id:
+        q = np.asarray(q_parent_child, dtype=np.float64).reshape(4)
+        if not np.all(np.isfinite(q)) or float(np.dot(q, q)) < 1e-18:
+            raise ValueError(f"odometry pose orientation is zero or not finite: {q.tolist()}")
+        v = quat_rotate(q / np.sqrt(np.dot(q, q)), v)
+    return v

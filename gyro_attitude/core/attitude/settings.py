@@ -267,6 +267,10 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("time_jump_threshold_s", 1.0, "a backward stamp jump longer than this resets the "
             "attitude (shorter backward steps are skipped as out of order)", "s", 1e-6, 1e6,
             runtime=True, group="input"),
+    Setting("max_missing_samples", 4, "an interval spanning missing samples (a hole of more "
+            "than 1.5 nominal periods, the median of a time base's first 16) is counted; one "
+            "missing more than this many is a gap", "samples", 0, 1e6, runtime=True,
+            group="input"),
     Setting("max_rate_rad_s", v.DEFAULT_MAX_RATE_RAD_S, "a sample with a larger rate on any axis "
             "is implausible and skipped", "rad/s", 1e-3, v.MAX_RATE_LIMIT_RAD_S, runtime=True,
             group="input"),
@@ -330,7 +334,8 @@ class _StreamConfigMethods:
         return self.frame is Frame.ENU or self.heading_source is HeadingSource.GYROCOMPASS
 
     def check_config(self) -> v.ImuCheckConfig:
-        return v.ImuCheckConfig(self.max_gap_ns, self.time_jump_ns, self.max_rate_rad_s)
+        return v.ImuCheckConfig(self.max_gap_ns, self.time_jump_ns, self.max_rate_rad_s,
+                                self.max_missing_samples)
 
     def rest_params(self) -> dict:
         return {"window_s": self.rest_window_s, "gyro_std_max": self.rest_gyro_std_max,

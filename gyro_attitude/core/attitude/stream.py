@@ -100,7 +100,22 @@ INVALID_MAG = "invalid_mag"
 MAG_DISTURBED = "mag_disturbed"
 # m/s²: a specific force beyond this (1e5 g) is no accelerometer reading
 ACCEL_ABSURD = 1e6
-EXTRA_COUNTS = (INVALID_COVARIANCE, INVALID_ACCEL, INTEGRATOR_ERROR)
+# accepted samples pinned at a repeated extreme: a clipped (saturated) gyro
+SATURATED = "saturated"
+# rad/s: a value repeated at the largest magnitude seen is a clip only this high (every gyro's
+# range is above 2 rad/s; a quantized gyro at rest repeats its small values)
+SATURATION_MIN_RAD_S = 1.0
+EXTRA_COUNTS = (INVALID_COVARIANCE, INVALID_ACCEL, INTEGRATOR_ERROR, SATURATED)
+GYRO_NOISE_UNKNOWN = "gyro_noise_unknown"  # a detail (said once), not a count
+
+
+def unknown_noise_note(cfg: StreamConfig) -> str:
+    """What the covariance assumes for samples whose gyro covariance says "no estimate"."""
+    n = cfg.gyro_noise_density
+    return ("angular_velocity_covariance says no estimate (REP-145: element 0 is -1): the "
+            + (f"orientation variance grows with gyro_noise_density = {n:g} rad/s/sqrt(Hz)"
+               if n > 0 else "gyro noise is taken as unknown and adds nothing to the orientation "
+               "variance (set gyro_noise_density)"))
 
 ALIGNING, RUNNING, FAILED = Phase.ALIGNING, Phase.RUNNING, Phase.FAILED
 
@@ -212,6 +227,9 @@ class StreamState:
     counts: dict[str, int] = field(default_factory=lambda: dict.fromkeys(EXTRA_COUNTS, 0))
     details: dict[str, str] = field(default_factory=dict)
     aided_seen: int = 0
+    # per axis: the largest |ω| accepted so far and the last accepted ω (saturation check)
+    rate_max: list = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    rate_last: list = field(default_factory=lambda: [math.nan, math.nan, math.nan])
 
     def count(self, key: str, detail: str) -> None:
         self.counts[key] += 1
@@ -322,7 +340,8 @@ class AttitudeStream:
 
     @property
     def counts(self) -> dict[str, int]:
-        out = {**self.validator.counts, **self.state.counts}
+        out = {**self.validator.counts, **self.state.counts,
+               v.MISSING_SAMPLES: self.validator.missing_samples}
         if self.config.aiding is Aiding.MAGNETOMETER:
             out[MAG_MISSING] = self._mag_missing
             out[INVALID_MAG] = self.aiding.mag_invalid
@@ -373,7 +392,8 @@ class AttitudeStream:
         and aiding settings stay those of construction)."""
         self.config = replace(self.config, max_gap_s=config.max_gap_s,
                               time_jump_threshold_s=config.time_jump_threshold_s,
-                              max_rate_rad_s=config.max_rate_rad_s)
+                              max_rate_rad_s=config.max_rate_rad_s,
+                              max_missing_samples=config.max_missing_samples)
         self.validator.config = self.config.check_config()
 
     def set_algorithm(self, algorithm: str) -> None:
@@ -419,13 +439,17 @@ class AttitudeStream:
             return verdict, None
         t_ns = int(t_ns)
         var, invalid = gyro_variances(angular_velocity_covariance)
+        if var is None and not invalid and GYRO_NOISE_UNKNOWN not in st.details and \
+                angular_velocity_covariance is not None and \
+                v.no_estimate(np.asarray(angular_velocity_covariance).reshape(-1)):
+            st.details[GYRO_NOISE_UNKNOWN] = unknown_noise_note(self.config)
         if invalid:
             st.count(INVALID_COVARIANCE, "angular_velocity_covariance with a non-finite or "
                                          "negative diagonal: treated as unknown")
         if var is not None:
             st.variance_known = True
-        if verdict.action == v.RESET_TIME_JUMP:
-            st.details.setdefault("time_jump", verdict.detail)
+        if verdict.reason is not None:  # a time jump, a gap, missing samples
+            st.details.setdefault(verdict.reason, verdict.detail)
         a = self._accel(accel)
         self._mag = self._mag_sample(mag, t_ns)
         if st.start_t_ns is None:
@@ -433,6 +457,7 @@ class AttitudeStream:
         if verdict.action != v.ACCEPT:
             self._break_windows()  # a rest never spans a gap, a jump or a restart
         w = np.asarray(omega, dtype=np.float64)
+        self._saturation_step(w)
         # 2. rest -> gyro bias
         bias = self._bias_step(t_ns, w, a)
         # 3. alignment
@@ -453,6 +478,23 @@ class AttitudeStream:
                                                        "(none within mag_max_age_s)")
             return None
         return mag
+
+    def _saturation_step(self, w: np.ndarray) -> None:
+        """Count an accepted sample pinned at a repeated extreme: on some axis its value repeats
+        the previous one at the largest magnitude seen (≥ SATURATION_MIN_RAD_S): a clip."""
+        st = self.state
+        mx, last = st.rate_max, st.rate_last
+        pinned = None
+        for i in range(3):
+            x = float(w[i])
+            a = abs(x)
+            if a > mx[i]:
+                mx[i] = a
+            if a == mx[i] and x == last[i] and a >= SATURATION_MIN_RAD_S:
+                pinned = (i, x)
+            last[i] = x
+        if pinned is not None:
+            st.count(SATURATED, saturation_note(*pinned))
 
     def _accel(self, accel):
         """The sample's specific force as 3 floats, or None (absent or unusable, counted)."""
@@ -742,6 +784,11 @@ def alignment_variance(res: AlignmentResult, given_heading_variance: float) -> l
     # vertical component −sin θ·δφ turns the heading too when the body is pitched.
     s_p = math.sin(res.pitch)
     return [lv, lv, heading_var + s_p * s_p * lv]
+
+
+def saturation_note(axis: int, value: float) -> str:
+    return (f"gyro pinned at {value:g} rad/s on axis {'xyz'[axis]} (a repeated extreme: the "
+            "gyro saturated; the attitude is unreliable there)")
 
 
 def cannot_align(cfg: StreamConfig) -> str:

@@ -30,15 +30,20 @@ from gyro_attitude.core.attitude.alignment import level_quaternions
 from gyro_attitude.core.attitude.modes import GyroBiasMode
 from gyro_attitude.core.attitude.stream import (
     EXTRA_COUNTS,
+    GYRO_NOISE_UNKNOWN,
     INVALID_ACCEL,
     INVALID_COVARIANCE,
     RUNNING,
+    SATURATED,
+    SATURATION_MIN_RAD_S,
     RunForm,
     StreamResult,
     cannot_align,
     gyro_variances_array,
     nav_rows,
     rows,
+    saturation_note,
+    unknown_noise_note,
     usable_accel,
 )
 from gyro_attitude.core.rotation import quat_from_rotvec, quat_multiply
@@ -74,6 +79,7 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
             details.setdefault(INVALID_ACCEL, f"accelerometer sample {av[bad[0]].tolist()!r} is "
                                               "not 3 finite numbers: not used for rests or aiding")
     breaks = actv != _ACCEPT  # a rest never spans a gap, a jump or a restart
+    _count_saturated(wv, st, counts, details)
 
     # 3. alignment (it reads the raw rates and the accelerometer only)
     start = 0  # first row integrated
@@ -152,6 +158,8 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
         var_all, known_all, invalid_all = gyro_variances_array(cov)
         var_v, known_v = rows(var_all, valid), rows(known_all, valid)
         inv = rows(invalid_all, valid)
+        if v.no_estimate(rows(cov, valid)).any():
+            details.setdefault(GYRO_NOISE_UNKNOWN, unknown_noise_note(cfg))
         counts[INVALID_COVARIANCE] = int(np.count_nonzero(inv))
         if counts[INVALID_COVARIANCE]:
             k = int(valid[np.flatnonzero(inv)[0]])
@@ -210,6 +218,26 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
     return StreamResult(valid[out_from:], q_out, variance, variance_known, act,
                         s.counts, cls.time_jump_resets, dict(st.details), s.bias_report,
                         s.alignment, RunForm.ARRAYS)
+
+
+def _count_saturated(wv, st, counts, details) -> None:
+    """Array form of ``AttitudeStream._saturation_step`` over the accepted rows (the same
+    running maximum and repeats, exactly), leaving the state as it would."""
+    if wv.shape[0] == 0:
+        return
+    a = np.abs(wv)
+    run_max = np.maximum.accumulate(np.vstack([np.asarray(st.rate_max)[None], a]), axis=0)[1:]
+    prev = np.vstack([np.asarray(st.rate_last)[None], wv[:-1]])
+    with np.errstate(invalid="ignore"):
+        pinned = (a == run_max) & (wv == prev) & (a >= SATURATION_MIN_RAD_S)
+    rows_pinned = np.flatnonzero(pinned.any(axis=1))
+    counts[SATURATED] = int(rows_pinned.size)
+    if rows_pinned.size:
+        k = int(rows_pinned[0])
+        axis = int(np.flatnonzero(pinned[k])[-1])
+        details.setdefault(SATURATED, saturation_note(axis, float(wv[k, axis])))
+    st.rate_max = run_max[-1].tolist()
+    st.rate_last = wv[-1].tolist()
 
 
 def _bias_inputs(est, tv, av, a_ok, breaks):

@@ -15,7 +15,8 @@ import numpy as np
 
 from gyro_attitude.core.rotation import _exp_rotvec, _log_quat, _qmul, quat_conjugate
 
-__all__ = ["TruthStart", "default_max_interval_ns", "initial_attitude_from_truth", "truth_at"]
+__all__ = ["TruthStart", "default_max_interval_ns", "initial_attitude_from_truth", "truth_at",
+           "truth_at_stamps"]
 
 
 def _check(truth_t, truth_q) -> tuple[np.ndarray, np.ndarray]:
@@ -60,12 +61,42 @@ def truth_at(truth_t, truth_q, t_ns: int, max_interval_ns: int | None = None) ->
     if t[k] - t[k - 1] > limit:
         raise ValueError(f"no truth at {t_ns} ns: it falls in a truth gap of "
                          f"{(t[k] - t[k - 1]) * 1e-9:.3g} s")
-    # Slerp q_a ⊗ exp(f · log(q_a* ⊗ q_b)) (the shorter way round), with core.rotation's
-    # exp/log (tested against scipy): scipy.spatial's Slerp would add 0.16 s of imports
-    # to every replay for this one call.  f from int ns (no precision lost on long stamps).
-    f = (t_ns - int(t[k - 1])) / int(t[k] - t[k - 1])
-    out = _qmul(q[k - 1], _exp_rotvec(f * _log_quat(_qmul(quat_conjugate(q[k - 1]), q[k]))))
-    return out / np.sqrt(np.dot(out, out))
+    return _slerp(t, q, np.array([k]), np.array([t_ns], np.int64))[0]
+
+
+def _slerp(t: np.ndarray, q: np.ndarray, k: np.ndarray, t_ns: np.ndarray) -> np.ndarray:
+    """Truth at ``t_ns`` (M,) between truth samples ``k - 1`` and ``k`` (M,), (M, 4).
+
+    Slerp q_a ⊗ exp(f · log(q_a* ⊗ q_b)) (the shorter way round), with core.rotation's
+    exp/log (tested against scipy): scipy.spatial's Slerp would add 0.16 s of imports to
+    every replay for this.  f from int ns differences (no precision lost on long stamps).
+    """
+    a, b = q[k - 1], q[k]
+    f = (t_ns - t[k - 1]) / (t[k] - t[k - 1])
+    out = _qmul(a, _exp_rotvec(f[:, None] * _log_quat(_qmul(quat_conjugate(a), b))))
+    return out / np.linalg.norm(out, axis=1, keepdims=True)
+
+
+def truth_at_stamps(truth_t, truth_q, t_ns,
+                    max_interval_ns: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(q, covered)``: the truth at every stamp of ``t_ns`` (M,) that it covers, as
+    :func:`truth_at` takes it (a coinciding truth sample as is, else the slerp between
+    the two around it; nothing outside the truth's span or in a gap longer than
+    ``max_interval_ns``). ``covered`` (M,) bool; ``q`` (covered.sum(), 4)."""
+    t, q = _check(truth_t, truth_q)
+    s = np.asarray(t_ns, dtype=np.int64).reshape(-1)
+    k = np.searchsorted(t, s, side="left")
+    exact = (k < t.size) & (t[np.minimum(k, t.size - 1)] == s)
+    limit = default_max_interval_ns(t) if max_interval_ns is None else int(max_interval_ns)
+    inside = ~exact & (k > 0) & (k < t.size)
+    kk = np.clip(k, 1, max(t.size - 1, 1))
+    between = inside & (t.size > 1) & (t[kk] - t[kk - 1] <= limit)
+    out = np.empty((s.size, 4))
+    out[exact] = q[k[exact]]
+    if between.any():
+        out[between] = _slerp(t, q, k[between], s[between])
+    covered = exact | between
+    return out[covered], covered
 
 
 def initial_attitude_from_truth(imu_t, truth_t, truth_q, max_interval_ns: int | None = None,

@@ -42,6 +42,11 @@ FRAME_CHANGED = "frame_changed"
 # The sample itself becomes the new time base (RESTART_AFTER_GAP), otherwise every later
 # sample would also be "after a gap".
 GAP = "gap"
+# An accepted interval that spans missing samples (a hole of a few sample periods): counted,
+# integrated across; a longer hole is a gap.
+MISSING_SAMPLES = "missing_samples"
+# Intervals of a new time base whose median is the stream's nominal period.
+NOMINAL_INTERVALS = 16
 
 REJECT_REASONS: tuple[str, ...] = (
     NON_FINITE,
@@ -76,13 +81,21 @@ class ImuCheckConfig:
     time_jump_ns: a backward step longer than this is a time jump (reset); a backward
         step up to this long is an out-of-order sample (rejected).
     max_rate_rad_s: a sample whose rate exceeds this on any axis is implausible (rejected).
+    max_missing_samples: an interval longer than 1.5 nominal periods spans missing samples
+        (``round(dt / period) − 1``, counted); more than this many make it a gap.  The
+        nominal period is the median of the first :data:`NOMINAL_INTERVALS` intervals of each
+        time base (it restarts at a gap or a time jump).
     """
 
     max_gap_ns: int = 100_000_000
     time_jump_ns: int = 1_000_000_000
     max_rate_rad_s: float = DEFAULT_MAX_RATE_RAD_S
+    max_missing_samples: int = 4
 
     def __post_init__(self):
+        m = self.max_missing_samples
+        if isinstance(m, bool) or not isinstance(m, int | np.integer) or not 0 <= m <= 10**6:
+            raise ValueError(f"max_missing_samples must be an integer from 0 to 1e6, got {m!r}")
         for name in ("max_gap_ns", "time_jump_ns"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | np.integer):
@@ -131,6 +144,81 @@ def value_problem(omega, max_rate_rad_s: float) -> tuple[str, str] | None:
     return None
 
 
+class StampRule:
+    """The stamp rules, in one place for the per-sample validator and :func:`classify`: each
+    stamp against the last accepted one and the stream's nominal period (see
+    :class:`ImuCheckConfig`).  ``step(t)`` gives ``(action, reason, detail)`` and advances the
+    state (the last accepted stamp, the nominal period being learnt)."""
+
+    __slots__ = ("cfg", "last", "period", "_learn", "missing")
+
+    def __init__(self, cfg: ImuCheckConfig):
+        self.cfg = cfg
+        self.last: int | None = None
+        self.missing = 0  # samples missing in accepted intervals, counted over the stream
+        self._new_base()
+
+    def _new_base(self) -> None:
+        self.period: int | None = None
+        self._learn: list[int] = []
+
+    def reset(self) -> None:
+        self.last = None
+        self._new_base()
+
+    def step(self, t: int, skipped: int = 0) -> tuple[str, str | None, str]:
+        """The verdict of stamp ``t``; ``skipped`` samples were rejected since the last
+        accepted one (a hole they make is a gap alike, but they are not counted missing)."""
+        last = self.last
+        if last is None:
+            self.last = t
+            return START, None, ""
+        dt = t - last
+        if dt <= 0:
+            if dt == 0:
+                return REJECT, DUPLICATE_STAMP, f"stamp {t} ns repeats the previous one"
+            if -dt > self.cfg.time_jump_ns:
+                self.last = t
+                self._new_base()
+                return RESET_TIME_JUMP, "time_jump", f"time jumped back by {-dt / 1e9:.3f} s"
+            return REJECT, OUT_OF_ORDER, f"stamp {t} ns is {-dt / 1e6:.3f} ms before the previous"
+        self.last = t
+        if dt > self.cfg.max_gap_ns:
+            self._new_base()
+            return RESTART_AFTER_GAP, GAP, f"gap of {dt / 1e6:.3f} ms"
+        p = self.period
+        if p is None:
+            learn = self._learn
+            learn.append(dt)
+            if len(learn) == NOMINAL_INTERVALS:
+                self.period = sorted(learn)[NOMINAL_INTERVALS // 2]
+            return ACCEPT, None, ""
+        if 2 * dt < 3 * p:
+            return ACCEPT, None, ""
+        hole = round(dt / p) - 1
+        missing = max(hole - skipped, 0)
+        if hole > self.cfg.max_missing_samples:
+            self._new_base()
+            return RESTART_AFTER_GAP, GAP, (
+                f"hole of {hole} sample(s) ({missing} missing, {skipped} rejected): "
+                f"{dt / 1e6:.3f} ms after the previous at a nominal period of {p / 1e6:.3f} ms "
+                "(> max_missing_samples)")
+        if missing == 0:
+            return ACCEPT, None, ""
+        self.missing += missing
+        return ACCEPT, MISSING_SAMPLES, (f"{missing} missing sample(s): {dt / 1e6:.3f} ms after "
+                                         f"the previous at a nominal period of {p / 1e6:.3f} ms")
+
+
+def holes_from(dt: np.ndarray) -> bool:
+    """Whether a regular run of intervals ``dt`` (one time base, all within the gap limit)
+    holds an interval that :class:`StampRule` takes for missing samples."""
+    if dt.size <= NOMINAL_INTERVALS:
+        return False
+    p = int(np.sort(dt[:NOMINAL_INTERVALS])[NOMINAL_INTERVALS // 2])
+    return bool(np.any(2 * dt[NOMINAL_INTERVALS:] >= 3 * p))
+
+
 def sample_problem(t_ns, omega, max_rate_rad_s: float) -> tuple[str, str] | None:
     """(reason, detail) when a sample is unusable on its own (its values, a stamp that is not
     positive), else None: the checks that need no earlier sample."""
@@ -166,8 +254,36 @@ class ImuStreamValidator:
         self.counts: dict[str, int] = {reason: 0 for reason in REJECT_REASONS}
         self.accepted = 0
         self.time_jump_resets = 0
-        self.last_t_ns: int | None = None
         self.frame_id: str | None = None
+        self._stamps = StampRule(self.config)
+        self._skipped = 0  # samples rejected since the last accepted one
+
+    @property
+    def config(self) -> ImuCheckConfig:
+        return self._config
+
+    @config.setter
+    def config(self, config: ImuCheckConfig) -> None:
+        self._config = config
+        if hasattr(self, "_stamps"):
+            self._stamps.cfg = config
+
+    @property
+    def missing_samples(self) -> int:
+        """Samples missing inside accepted intervals (holes up to max_missing_samples)."""
+        return self._stamps.missing
+
+    @property
+    def last_t_ns(self) -> int | None:
+        """The last accepted stamp (None before the first, after a reset)."""
+        return self._stamps.last
+
+    @last_t_ns.setter
+    def last_t_ns(self, value: int | None) -> None:
+        if value is None:
+            self._stamps.reset()
+        else:
+            self._stamps.last = int(value)
 
     @property
     def rejected_total(self) -> int:
@@ -175,7 +291,7 @@ class ImuStreamValidator:
 
     def reset(self) -> None:
         """Forget the time base and the locked frame (counts are kept)."""
-        self.last_t_ns = None
+        self._stamps.reset()
         self.frame_id = None
 
     def run(self, t_ns, omega, frame_id: str | list[str] | None = "") -> Classification:
@@ -189,14 +305,16 @@ class ImuStreamValidator:
             self.counts[r] = cls.counts[r]
         self.accepted = cls.accepted
         self.time_jump_resets = cls.time_jump_resets
-        valid = np.flatnonzero(cls.action != ACTION_CODES[REJECT])
-        if valid.size:
-            self.last_t_ns = int(np.asarray(t_ns)[valid[-1]])
+        if cls.stamps.last is not None:
+            self._stamps = cls.stamps
+            self._stamps.cfg = self.config
             self.frame_id = cls.frame_id
+        self._skipped = cls.skipped_at_end
         return cls
 
     def _reject(self, reason: str, detail: str) -> Verdict:
         self.counts[reason] += 1
+        self._skipped += 1
         return Verdict(REJECT, reason, detail)
 
     def check(self, t_ns: int, omega, frame_id: str = "") -> Verdict:
@@ -212,32 +330,20 @@ class ImuStreamValidator:
             return self._reject(
                 FRAME_CHANGED, f"frame_id {frame_id!r} differs from {self.frame_id!r}"
             )
-        last = self.last_t_ns
-        if last is None:
-            self.last_t_ns = t_ns
+        action, reason, detail = self._stamps.step(t_ns, self._skipped)
+        if action == REJECT:
+            return self._reject(reason, detail)
+        self._skipped = 0
+        if action == START:
             self.frame_id = frame_id
             self.accepted += 1
             return _STARTED
-        dt = t_ns - last
-        if dt == 0:
-            return self._reject(DUPLICATE_STAMP, f"stamp {t_ns} ns repeats the previous one")
-        if dt < 0:
-            if -dt > self.config.time_jump_ns:
-                self.time_jump_resets += 1
-                self.last_t_ns = t_ns
-                self.accepted += 1
-                return Verdict(
-                    RESET_TIME_JUMP, "time_jump", f"time jumped back by {-dt / 1e9:.3f} s"
-                )
-            return self._reject(
-                OUT_OF_ORDER, f"stamp {t_ns} ns is {-dt / 1e6:.3f} ms before the previous"
-            )
-        self.last_t_ns = t_ns
         self.accepted += 1
-        if dt > self.config.max_gap_ns:
+        if action == RESET_TIME_JUMP:
+            self.time_jump_resets += 1
+        elif reason == GAP:
             self.counts[GAP] += 1
-            return Verdict(RESTART_AFTER_GAP, GAP, f"gap of {dt / 1e6:.3f} ms")
-        return _ACCEPTED
+        return _ACCEPTED if reason is None else Verdict(action, reason, detail)
 
 
 @dataclass
@@ -247,7 +353,8 @@ class Classification:
     ``action`` (N,) int8 codes of :data:`ACTION_CODES`; ``reason`` (N,) int8, 0 = none, else
     1 + the index in :data:`REJECT_REASONS` (rejections and gaps); ``counts`` per reason;
     ``details`` the first detail line per reason; ``time_jump_resets``; ``accepted``;
-    ``frame_id`` the locked frame.
+    ``frame_id`` the locked frame; ``missing_samples`` counted in accepted intervals;
+    ``stamps`` the :class:`StampRule` state after the last sample.
     """
 
     action: np.ndarray
@@ -257,6 +364,9 @@ class Classification:
     time_jump_resets: int
     accepted: int
     frame_id: str | None
+    missing_samples: int = 0
+    stamps: StampRule | None = None
+    skipped_at_end: int = 0
 
 
 def _frame_codes(frame_id, n: int) -> tuple[np.ndarray | None, list[str]]:
@@ -356,55 +466,55 @@ def classify(t_ns, omega, frame_id: str | list[str] | None = "",
     # no gap) is settled array-wide; anything else walks the candidate stamps in Python ints.
     idx = np.flatnonzero(ok)
     resets = 0
+    rule = StampRule(cfg)
     if idx.size:
         tc = t[idx]
         dt = np.diff(tc)
-        if dt.size == 0 or (dt.min() > 0 and dt.max() <= cfg.max_gap_ns):
+        if dt.size == 0 or (dt.min() > 0 and dt.max() <= cfg.max_gap_ns and not holes_from(dt)):
             action[idx] = ACTION_CODES[ACCEPT]
             action[idx[0]] = ACTION_CODES[START]
+            rule.last = int(tc[-1])
+            if dt.size >= NOMINAL_INTERVALS:
+                rule.period = int(np.sort(dt[:NOMINAL_INTERVALS])[NOMINAL_INTERVALS // 2])
+            else:
+                rule._learn = dt.tolist()
         else:
-            resets = _walk_stamps(tc.tolist(), idx, action, reason, details, cfg)
+            resets = _walk_stamps(tc.tolist(), idx, action, reason, details, rule)
+    skipped_end = int(t.size - 1 - idx[np.flatnonzero(action[idx])[-1]]) if idx.size and \
+        action[idx].any() else int(t.size)
     counts = {r: int(np.count_nonzero(reason == _REASON_CODES[r])) for r in REJECT_REASONS}
     accepted = int(np.count_nonzero(action != ACTION_CODES[REJECT]))
     return Classification(action, reason, counts, details, resets, accepted,
-                          None if locked is None else names[locked])
+                          None if locked is None else names[locked], rule.missing, rule,
+                          skipped_end)
 
 
 def _walk_stamps(stamps: list[int], idx: np.ndarray, action: np.ndarray, reason: np.ndarray,
-                 details: dict[str, str], cfg: ImuCheckConfig) -> int:
-    """The validator's stamp logic over candidate samples (plain ints: ~0.2 µs a sample)."""
+                 details: dict[str, str], rule: StampRule) -> int:
+    """The stamp rule over candidate samples (plain ints); the time-jump resets."""
     codes_a = ACTION_CODES
-    out_a = [codes_a[START]] + [0] * (len(stamps) - 1)
+    out_a = [0] * len(stamps)
     out_r = [0] * len(stamps)
-    dup, ooo, gap = (_REASON_CODES[DUPLICATE_STAMP], _REASON_CODES[OUT_OF_ORDER],
-                     _REASON_CODES[GAP])
-    accept, restart, reset = codes_a[ACCEPT], codes_a[RESTART_AFTER_GAP], codes_a[RESET_TIME_JUMP]
-    max_gap, jump = cfg.max_gap_ns, cfg.time_jump_ns
-    last = stamps[0]
     resets = 0
-    for i in range(1, len(stamps)):
-        s = stamps[i]
-        dt = s - last
-        if 0 < dt <= max_gap:
-            out_a[i] = accept
-            last = s
-        elif dt > max_gap:
-            out_a[i] = restart
-            out_r[i] = gap
-            details.setdefault(GAP, f"gap of {dt / 1e6:.3f} ms")
-            last = s
-        elif dt == 0:
-            out_r[i] = dup
-            details.setdefault(DUPLICATE_STAMP, f"stamp {s} ns repeats the previous one")
-        elif -dt > jump:
-            out_a[i] = reset
+    step = rule.step
+    rows = idx.tolist()
+    last_row = rows[0] - 1 if rows else -1  # START: what came before it does not matter
+    for i, s in enumerate(stamps):
+        act, why, detail = step(s, rows[i] - last_row - 1)
+        out_a[i] = codes_a[act]
+        if act != REJECT:
+            last_row = rows[i]
+        if why is None:
+            continue
+        if why == "time_jump":
             resets += 1
-            details.setdefault("time_jump", f"time jumped back by {-dt / 1e9:.3f} s")
-            last = s
-        else:
-            out_r[i] = ooo
-            details.setdefault(OUT_OF_ORDER, f"stamp {s} ns is {-dt / 1e6:.3f} ms before the "
-                                             "previous")
+            details.setdefault("time_jump", detail)
+            continue
+        if why == MISSING_SAMPLES:
+            details.setdefault(MISSING_SAMPLES, detail)
+            continue
+        out_r[i] = _REASON_CODES[why]
+        details.setdefault(why, detail)
     action[idx] = out_a
     reason[idx] = out_r
     return resets

@@ -47,9 +47,22 @@ from gyro_attitude.core.scene.fields import (
     keys_of,
     read_fields,
 )
-
-#: Highest sample rate a scene may ask for (Hz); also bounds the motion frequencies.
-MAX_RATE_HZ = 1.0e6
+from gyro_attitude.core.scene.limits import (
+    MAX_ACCEL_MPS2,
+    MAX_DURATION_S,
+    MAX_HEAVE_M,
+    MAX_PERIOD_S,
+    MAX_ROTATION_HZ,
+    MAX_SPEED_MPS,
+    MAX_TILT_AMPLITUDE_DEG,
+    MAX_YAW_AMPLITUDE_DEG,
+    MIN_PERIOD_S,
+)
+from gyro_attitude.core.trajectory import (
+    DEFAULT_MAX_GAP_S,
+    TRAJECTORY_FORMATS,
+    TrajectoryRequest,
+)
 
 TWO_PI = 2.0 * math.pi
 
@@ -62,6 +75,8 @@ class MotionKind:
     fields: tuple[Field, ...]
     build: Callable[[dict[str, Any]], Motion]
     help: str = ""
+    #: bounds that involve several keys: ``check(values, section)`` raises naming the key
+    check: Callable[[dict[str, Any], Fields], None] | None = None
 
     @property
     def keys(self) -> tuple[str, ...]:
@@ -111,23 +126,52 @@ ATTITUDE = Field(
 
 
 def _speed(default: Any = REQUIRED) -> Field:
-    return Field("speed_mps", Kind.NUMBER, "m/s", default, lo=0.0, help="speed along body x")
+    return Field("speed_mps", Kind.NUMBER, "m/s", default, lo=0.0, hi=MAX_SPEED_MPS,
+                 help="speed along body x")
 
 
-def _oscillation(key: str, unit: str, scale: float) -> Field:
+def _oscillation(key: str, unit: str, scale: float, max_amplitude: float) -> Field:
     def make(v: dict) -> tuple[float, float, float]:
         return (v[f"amplitude_{unit}"], v["period_s"], v["phase_deg"])
 
     return Field(key, Kind.SECTION, default=(0.0, 0.0, 0.0), make=make, fields=(
-        Field(f"amplitude_{unit}", Kind.NUMBER, unit, lo=0.0, scale=scale),
-        Field("period_s", Kind.NUMBER, "s", lo=0.0, lo_open=True),
-        degrees("phase_deg", 0.0),
+        Field(f"amplitude_{unit}", Kind.NUMBER, unit, lo=0.0, hi=max_amplitude, scale=scale),
+        Field("period_s", Kind.NUMBER, "s", lo=MIN_PERIOD_S, hi=MAX_PERIOD_S),
+        degrees("phase_deg", 0.0, -360.0, 360.0),
     ))
 
 
 def _cycles(key: str, help: str) -> Field:
-    """A frequency in Hz read into rad/s."""
-    return Field(key, Kind.NUMBER, "Hz", lo=-MAX_RATE_HZ, hi=MAX_RATE_HZ, scale=TWO_PI, help=help)
+    """A frequency in Hz (rev/s) read into rad/s."""
+    return Field(key, Kind.NUMBER, "Hz", lo=-MAX_ROTATION_HZ, hi=MAX_ROTATION_HZ, scale=TWO_PI,
+                 help=help)
+
+
+def _check_ship(v: dict, f: Fields) -> None:
+    """Heave acceleration a (2π/T)² within the acceleration limit (tilts are bounded by their
+    amplitude and period limits alone: 90° at 1 ms is 1.6e3 rad/s)."""
+    amp, period, _ = v["heave"]
+    if amp > 0.0 and amp * (TWO_PI / period) ** 2 > MAX_ACCEL_MPS2:
+        raise ValueError(f"{f.key('heave')}.period_s: amplitude {amp:g} m at period {period:g} s "
+                         f"is a peak acceleration of {amp * (TWO_PI / period) ** 2:.3g} m/s², "
+                         f"above the {MAX_ACCEL_MPS2:g} m/s² limit (20,000 g)")
+
+
+def _check_profile(v: dict, f: Fields) -> None:
+    """The velocity is piecewise linear, so its largest value is at a segment end."""
+    vel = np.array(v["velocity_enu_mps"], dtype=np.float64)
+    t = 0.0
+    for i, seg in enumerate(v["segments"]):
+        t += seg.duration
+        if t > MAX_DURATION_S:
+            raise ValueError(f"{f.key('segments')}[{i}].duration_s: the segments last more "
+                             f"than {MAX_DURATION_S:g} s in all")
+        vel = vel + seg.duration * np.asarray(seg.acceleration_enu, dtype=np.float64)
+        speed = float(np.linalg.norm(vel))
+        if speed > MAX_SPEED_MPS:
+            raise ValueError(f"{f.key('segments')}[{i}]: the speed reaches {speed:.3g} m/s at "
+                             f"the end of this segment (t = {t:g} s), above the "
+                             f"{MAX_SPEED_MPS:g} m/s limit")
 
 
 # --------------------------------------------------------------------------- motions
@@ -158,14 +202,15 @@ MOTIONS: dict[str, MotionKind] = {m.name: m for m in (
     MotionKind(
         "ship",
         (_speed(0.0), degrees("yaw_deg", 0.0, -360.0, 360.0, help="course"),
-         _oscillation("roll", "deg", math.pi / 180.0),
-         _oscillation("pitch", "deg", math.pi / 180.0),
-         _oscillation("yaw_oscillation", "deg", math.pi / 180.0),
-         _oscillation("heave", "m", 1.0)),
+         _oscillation("roll", "deg", math.pi / 180.0, MAX_TILT_AMPLITUDE_DEG),
+         _oscillation("pitch", "deg", math.pi / 180.0, MAX_TILT_AMPLITUDE_DEG),
+         _oscillation("yaw_oscillation", "deg", math.pi / 180.0, MAX_YAW_AMPLITUDE_DEG),
+         _oscillation("heave", "m", 1.0, MAX_HEAVE_M)),
         lambda v: ShipMotion(v["speed_mps"], v["yaw_deg"], {
             "roll": v["roll"], "pitch": v["pitch"], "yaw": v["yaw_oscillation"],
             "heave": v["heave"]}),
         "course at constant speed with harmonic roll, pitch, yaw and heave",
+        _check_ship,
     ),
     MotionKind(
         "coning",
@@ -186,15 +231,38 @@ MOTIONS: dict[str, MotionKind] = {m.name: m for m in (
     MotionKind(
         "profile",
         (ATTITUDE,
-         Field("velocity_enu_mps", Kind.VECTOR3, "m/s", default=np.zeros(3)),
+         Field("velocity_enu_mps", Kind.VECTOR3, "m/s", default=np.zeros(3),
+               lo=-MAX_SPEED_MPS, hi=MAX_SPEED_MPS),
          Field("segments", Kind.LIST, make=_segment, fields=(
-             Field("duration_s", Kind.NUMBER, "s", lo=0.0, lo_open=True),
+             Field("duration_s", Kind.NUMBER, "s", lo=0.0, lo_open=True, hi=MAX_DURATION_S),
              Field("angular_rate_deg_s", Kind.VECTOR3, "deg/s", default=np.zeros(3),
+                   lo=-360.0 * MAX_ROTATION_HZ, hi=360.0 * MAX_ROTATION_HZ,
                    scale=math.pi / 180.0, help="body rate"),
-             Field("acceleration_enu_mps2", Kind.VECTOR3, "m/s^2", default=np.zeros(3)),
+             Field("acceleration_enu_mps2", Kind.VECTOR3, "m/s^2", default=np.zeros(3),
+                   lo=-MAX_ACCEL_MPS2, hi=MAX_ACCEL_MPS2),
          ))),
         _build_profile,
         "scripted segments of constant body rate and ENU acceleration",
+        _check_profile,
+    ),
+    MotionKind(
+        "trajectory",
+        (Field("file", Kind.STRING, default=None,
+               help="pose file (relative to the scene file); or simulate --trajectory"),
+         Field("format", Kind.STRING, default=None, choices=TRAJECTORY_FORMATS,
+               help="default: from the extension (.csv, .mcap or a bag directory, else TUM)"),
+         Field("topic", Kind.STRING, default=None, help="MCAP: the pose topic"),
+         Field("child_frame_id", Kind.STRING, default=None,
+               help="MCAP tf2_msgs/TFMessage: the body frame"),
+         # 1 m and 0.5 rad: beyond that the "poses" are not a trajectory a fit can follow
+         Field("position_sigma_m", Kind.NUMBER, "m", 0.0, lo=0.0, hi=1.0,
+               help="expected position noise per axis; 0 interpolates"),
+         Field("attitude_sigma_rad", Kind.NUMBER, "rad", 0.0, lo=0.0, hi=0.5,
+               help="expected attitude noise per axis; 0 interpolates"),
+         Field("max_gap_s", Kind.NUMBER, "s", DEFAULT_MAX_GAP_S, lo=0.0, lo_open=True,
+               hi=3600.0, help="longer gaps between poses are refused")),
+        lambda v: TrajectoryRequest(**v),
+        "the user's own poses (TUM, CSV, MCAP), fitted by smoothing splines",
     ),
 )}
 
@@ -285,10 +353,10 @@ def _positive(key: str, unit: str, default: Any = REQUIRED, hi: float | None = N
 INSTRUMENTS: dict[str, InstrumentKind] = {i.name: i for i in (
     InstrumentKind(
         "gyrocompass",
-        (_positive("angular_momentum", "N·m·s"),
-         _positive("pendulous_moment", "kg·m", None),
+        (_positive("angular_momentum", "N·m·s", hi=1.0e4),
+         _positive("pendulous_moment", "kg·m", None, hi=1.0e3),
          Field("schuler_tuned", Kind.BOOLEAN, default=None),
-         _positive("period_s", "s", None, hi=1.0e6),
+         _positive("period_s", "s", None, hi=1.0e6),  # Schuler: 5064 s
          Field("damping_ratio", Kind.NUMBER, "", 0.0, lo=0.0, hi=10.0),
          Field("latitude_correction", Kind.BOOLEAN, default=True),
          degrees("azimuth0_deg", None, -180.0, 180.0),
@@ -305,7 +373,9 @@ INSTRUMENTS: dict[str, InstrumentKind] = {i.name: i for i in (
                lo_open=True, scale=math.pi / 180.0),
          Field("linear_zone_deg", Kind.NUMBER, "deg", None, lo=0.0, hi=89.0, lo_open=True,
                scale=math.pi / 180.0),
-         Field("spin_axis0", Kind.VECTOR3, "ENU", None, help="default: up")),
+         # a direction (normalized by the instrument): components of a unit-scale vector
+         Field("spin_axis0", Kind.VECTOR3, "ENU", None, lo=-1.0e3, hi=1.0e3,
+               help="default: up")),
         _build_vertical_gyro,
         default_max_step_s=1.0,
         help="vertical gyro with erection",
@@ -319,9 +389,10 @@ INSTRUMENTS: dict[str, InstrumentKind] = {i.name: i for i in (
     ),
     InstrumentKind(
         "spinning_shell",
-        (_positive("spin_inertia", "kg·m²"), _positive("transverse_inertia", "kg·m²"),
+        (_positive("spin_inertia", "kg·m²", hi=1.0e3),
+         _positive("transverse_inertia", "kg·m²", hi=1.0e3),
          _positive("spin_rate", "rad/s", hi=1.0e5),
-         _positive("overturning_moment", "N·m", None),
+         _positive("overturning_moment", "N·m", None, hi=1.0e6),
          _positive("stability_factor", "", None, hi=1.0e6),
          degrees("theta0_deg", math.radians(2.0), 0.0, 179.0)),
         _build_shell,
@@ -338,7 +409,10 @@ def build_motion(f: Fields) -> Motion:
     """The motion of a ``motion:`` section (``type`` picks the registry entry)."""
     kind = MOTIONS[f.string("type", choices=MOTION_TYPES)]
     section = Fields(f.d, f.path, ("type",) + kind.keys)  # this type's keys only
-    return kind.build(read_fields(section, kind.fields))
+    values = read_fields(section, kind.fields)
+    if kind.check is not None:
+        kind.check(values, section)
+    return kind.build(values)
 
 
 def build_instrument(f: Fields, latitude_rad: float, full_earth: bool, motion: Motion):

@@ -20,7 +20,7 @@ Schema (SI units; angles in the file are degrees where the key says ``_deg``)::
       transport_rate: true                # ω_en from the carrier velocity
     motion:
       type: stationary | constant_velocity | coordinated_turn | ship | coning
-            | spinning_projectile | profile
+            | spinning_projectile | profile | trajectory
       ...                                 # per type, below
     gyro:                                 # optional (ideal gyro triad)
       model: ideal | rate_gyro | integrating_gyro   # single-gimbal gyro per axis
@@ -34,6 +34,10 @@ Schema (SI units; angles in the file are degrees where the key says ``_deg``)::
       errors: {bias_m_s2, scale_factor, misalignment_rad, vrw_m_s_sqrt_s,
                bias_instability_m_s2, bias_instability_tau_s, quantization_m_s,
                vrw, bias_instability, acceleration_random_walk}
+      sampling: {bandwidth: {filter: mean | lowpass, order, cutoff_hz}, range_rad_s,
+                 turn_on_bias_rad_s, g_sensitivity_rad_s_per_m_s2}   # core.sensor_sampling
+    # accelerometer.sampling: {bandwidth, range_m_s2, turn_on_bias_m_s2}
+    # kalibr_imu: imu.yaml  (top level; read by io.scene_file: Kalibr's four noise terms)
     # Datasheet terms take a number (SI) or a string with units ("0.15 deg/sqrt(h)",
     # "3 deg/h", "12 deg/h/sqrt(h)"; gyro_attitude.core.units), scalar or 3 values;
     # bias_instability is the Allan floor B (not a Gauss–Markov σ: that is *_rad_s + tau).
@@ -62,6 +66,13 @@ Motion keys per type (``attitude: {roll_deg, pitch_deg, yaw_deg}`` is ROS roll/p
                          attitude (of the cone axis frame)
     profile:             attitude, velocity_enu_mps, segments: [{duration_s,
                          angular_rate_deg_s (body), acceleration_enu_mps2}, ...]
+    trajectory:          file (relative to the scene file), format (tum | csv | mcap), topic,
+                         child_frame_id, position_sigma_m, attitude_sigma_rad, max_gap_s
+                         (core.trajectory; the file is read by io.scene_file.load_scene)
+
+Every number is bounded at validation (:mod:`gyro_attitude.core.scene.limits`, the choice of
+each limit stated there); the motion and instrument keys are declared in
+:mod:`gyro_attitude.core.scene.registry`.
 
 Instrument keys per type (the instrument sees the full Earth: rotation and transport rate;
 its joints, published on ``gyro/joint_states``, are named in :mod:`gyro_attitude.core.instruments`)::
@@ -97,7 +108,16 @@ import numpy as np
 from gyro_attitude.core.gyro.free_gyro import FreeGyroParams, HarmonicTorque, ImpactTorque
 from gyro_attitude.core.gyro.rate_gyro import IntegratingGyroParams, RateGyroParams
 from gyro_attitude.core.motion import Motion
-from gyro_attitude.core.scene.fields import MAX_LIST_ITEMS, Fields, list_items
+from gyro_attitude.core.scene.fields import MAX_LIST_ITEMS, Fields, is_number, list_items
+from gyro_attitude.core.scene.limits import (
+    ACCEL_ERROR_LIMITS,
+    GYRO_ERROR_LIMITS,
+    MAX_DESCRIPTION_CHARS,
+    MAX_DURATION_S,
+    MAX_RATE_HZ,
+    MAX_SEED,
+    PARAM_LIMITS,
+)
 from gyro_attitude.core.scene.magnetometer import (
     MAGNETOMETER_KEYS,
     MagnetometerSpec,
@@ -106,13 +126,13 @@ from gyro_attitude.core.scene.magnetometer import (
 from gyro_attitude.core.scene.registry import (
     INSTRUMENT_TYPES,
     INSTRUMENTS,
-    MAX_RATE_HZ,
     MOTION_TYPES,
     MOTIONS,
     build_instrument,
     build_motion,
 )
 from gyro_attitude.core.sensor_errors import SensorErrorParams
+from gyro_attitude.core.sensor_sampling import BANDWIDTH_FILTERS, SamplingParams
 from gyro_attitude.core.units import to_si
 
 __all__ = [
@@ -127,8 +147,6 @@ __all__ = [
     "MAX_LIST_ITEMS",
 ]
 
-#: Longest suggested run (s): about 116 days.
-MAX_DURATION_S = 1.0e7
 #: Latest first stamp (ns), about 146 years: leaves as much again before int64 stamps overflow.
 MAX_START_TIME_NS = 2**62
 
@@ -188,11 +206,25 @@ def _datasheet_terms(f: Fields, datasheet: dict[str, tuple]) -> dict[str, np.nda
     return kw
 
 
+def _check_limits(key: str, value, lo: float, hi: float, unit: str = "") -> None:
+    """Every number in ``value`` (number or nested lists/arrays) within [lo, hi]."""
+    a = np.asarray(value, dtype=np.float64)
+    if a.size and (np.any(a < lo) or np.any(a > hi)):
+        bad = a[(a < lo) | (a > hi)].flat[0]
+        raise ValueError(f"{key}: must lie in [{lo:g}, {hi:g}]{' ' + unit if unit else ''}, "
+                         f"got {bad:g}")
+
+
 def _error_params(f: Fields | None, keys: dict[str, str],
-                  datasheet: dict[str, tuple] | None = None) -> SensorErrorParams:
+                  datasheet: dict[str, tuple] | None = None,
+                  limits: dict[str, tuple[float, float]] | None = None) -> SensorErrorParams:
     if f is None:
         return SensorErrorParams()
+    limits = limits or {}
     kw: dict[str, Any] = _datasheet_terms(f, datasheet or {})
+    for key, (field_name, _, _) in (datasheet or {}).items():
+        if field_name in kw and key in limits:
+            _check_limits(f.key(key), kw[field_name], *limits[key], "(SI)")
     for yaml_key, field_name in keys.items():
         if not f.has(yaml_key):
             continue
@@ -210,6 +242,8 @@ def _error_params(f: Fields | None, keys: dict[str, str],
                 yaml_key, (3,), scalar_ok=True,
                 nonnegative=field_name in ("noise_density", "bias_instability_sigma", "quantum"),
             )
+        if yaml_key in limits:
+            _check_limits(f.key(yaml_key), kw[field_name], *limits[yaml_key])
     return SensorErrorParams(**kw)
 
 
@@ -217,6 +251,7 @@ def _instrument_params(cls, d: Any, path: str):
     """Build an instrument's parameter dataclass from a YAML mapping, naming bad keys."""
     names = tuple(fl.name for fl in dataclasses.fields(cls))
     f = Fields({} if d is None else d, path, names)
+    _check_param_limits(f, cls)
     kw = dict(f.d)
     # Nested torque lists of the free gyro: mappings -> HarmonicTorque / ImpactTorque.
     for key, item_cls in (("harmonic_torques", HarmonicTorque), ("impacts", ImpactTorque)):
@@ -225,6 +260,7 @@ def _instrument_params(cls, d: Any, path: str):
             for i, item in enumerate(list_items(f, key)):
                 item_path = f"{path}.{key}[{i}]"
                 fi = Fields(item, item_path, tuple(fl.name for fl in dataclasses.fields(item_cls)))
+                _check_param_limits(fi, item_cls)
                 try:
                     built.append(item_cls(**fi.d))
                 except (TypeError, ValueError) as exc:
@@ -234,6 +270,57 @@ def _instrument_params(cls, d: Any, path: str):
         return cls(**kw)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"{path}: {exc}") from exc
+
+
+GYRO_SAMPLING_KEYS = ("bandwidth", "range_rad_s", "turn_on_bias_rad_s",
+                      "g_sensitivity_rad_s_per_m_s2")
+ACCEL_SAMPLING_KEYS = ("bandwidth", "range_m_s2", "turn_on_bias_m_s2")
+
+
+def _sampling(f: Fields | None, gyro: bool) -> SamplingParams:
+    """``gyro.sampling`` / ``accelerometer.sampling`` (core.sensor_sampling): each key off
+    unless given. Bounds: range up to 1e3 rad/s (MEMS saturate at 35–70 rad/s) or 2e5 m/s²;
+    turn-on bias σ as the error bias limits; g-sensitivity up to 0.02 rad/s per m/s²
+    (MEMS: 1e-4–1e-3); filter order 1–8, cut-off up to 100 kHz (below Nyquist at run time)."""
+    if f is None:
+        return SamplingParams()
+    kw: dict[str, Any] = {}
+    if f.has("bandwidth"):
+        b = f.section("bandwidth", ("filter", "order", "cutoff_hz"))
+        kw["bandwidth"] = b.string("filter", choices=BANDWIDTH_FILTERS)
+        if kw["bandwidth"] == "lowpass":
+            kw["order"] = b.integer("order", 2, lo=1, hi=8)
+            kw["cutoff_hz"] = b.number("cutoff_hz", lo=0.0, lo_open=True, hi=1.0e5)
+        elif b.has("order") or b.has("cutoff_hz"):
+            raise ValueError(f"{b.path}: order and cutoff_hz are for filter: lowpass")
+    unit, r_hi, bias_key = (("rad_s", 1.0e3, "bias_rad_s") if gyro
+                            else ("m_s2", 2.0e5, "bias_m_s2"))
+    if f.has(f"range_{unit}"):
+        kw["range"] = f.number(f"range_{unit}", lo=0.0, lo_open=True, hi=r_hi)
+    if f.has(f"turn_on_bias_{unit}"):
+        sig = f.array(f"turn_on_bias_{unit}", (3,), scalar_ok=True, nonnegative=True)
+        lo, hi = (GYRO_ERROR_LIMITS if gyro else ACCEL_ERROR_LIMITS)[bias_key]
+        _check_limits(f.key(f"turn_on_bias_{unit}"), sig, 0.0, hi)
+        kw["turn_on_bias_sigma"] = sig
+    if gyro and f.has("g_sensitivity_rad_s_per_m_s2"):
+        key = "g_sensitivity_rad_s_per_m_s2"
+        v = f.raw(key)
+        g_mat = (np.eye(3) * f.number(key) if is_number(v) else f.array(key, (3, 3)))
+        _check_limits(f.key(key), g_mat, -0.02, 0.02, "rad/s per m/s²")
+        kw["g_sensitivity"] = g_mat
+    return SamplingParams(**kw)
+
+
+def _check_param_limits(f: Fields, cls) -> None:
+    """The numbers given for a parameter dataclass within :data:`~.limits.PARAM_LIMITS`
+    (the dataclass's own checks, e.g. positive or non-zero, follow when it is built)."""
+    for name, (lo, hi, unit) in PARAM_LIMITS.get(cls.__name__, {}).items():
+        v = f.d.get(name)
+        if v is None or isinstance(v, bool | str):
+            continue
+        items = v if isinstance(v, list | tuple) else [v]
+        if len(items) <= 3 and all(is_number(x) for x in items):
+            _check_limits(f.key(name), items, lo, hi, unit)
 
 
 @dataclass(frozen=True)
@@ -283,6 +370,8 @@ class SceneSpec:
     instrument: InstrumentSpec | None = None
     magnetometer: MagnetometerSpec | None = None
     source: dict = dataclasses.field(default_factory=dict)
+    gyro_sampling: SamplingParams = dataclasses.field(default_factory=SamplingParams)
+    accel_sampling: SamplingParams = dataclasses.field(default_factory=SamplingParams)
 
     @classmethod
     def from_dict(cls, d: dict, name: str = "scene") -> SceneSpec:
@@ -292,7 +381,10 @@ class SceneSpec:
             "gyro", "accelerometer", "free_gyro", "instrument", "magnetometer",
         ))
         description = top.string("description")
-        seed = top.integer("seed", lo=0)
+        if len(description) > MAX_DESCRIPTION_CHARS:
+            raise ValueError(f"description: at most {MAX_DESCRIPTION_CHARS} characters, got "
+                             f"{len(description)}")
+        seed = top.integer("seed", lo=0, hi=MAX_SEED)
         start_time_ns = top.integer("start_time_ns", 0, lo=0, hi=MAX_START_TIME_NS)
         rate_hz = top.number("rate_hz", 200.0, lo=0.0, lo_open=True, hi=MAX_RATE_HZ)
         duration_s = top.number("duration_s", 60.0, lo=0.0, lo_open=True, hi=MAX_DURATION_S)
@@ -311,8 +403,9 @@ class SceneSpec:
                         required=True)
         motion = build_motion(m)
 
-        g = top.section("gyro", ("model", "rate_gyro", "integrating_gyro", "errors"))
+        g = top.section("gyro", ("model", "rate_gyro", "integrating_gyro", "errors", "sampling"))
         gyro_model, rate_params, gyro_errors = "ideal", None, SensorErrorParams()
+        gyro_sampling = accel_sampling = SamplingParams()
         if g is not None:
             gyro_model = g.string("model", "ideal",
                                   choices=("ideal", "rate_gyro", "integrating_gyro"))
@@ -324,18 +417,21 @@ class SceneSpec:
                     raise ValueError(f"{g.key(kind)}: given but gyro.model is {gyro_model!r}")
             gyro_errors = _error_params(
                 g.section("errors", tuple(_GYRO_ERROR_KEYS) + tuple(_GYRO_DATASHEET_KEYS)),
-                _GYRO_ERROR_KEYS, _GYRO_DATASHEET_KEYS,
+                _GYRO_ERROR_KEYS, _GYRO_DATASHEET_KEYS, GYRO_ERROR_LIMITS,
             )
+            gyro_sampling = _sampling(g.section("sampling", GYRO_SAMPLING_KEYS), gyro=True)
 
         accel, gravity, accel_errors = False, True, SensorErrorParams()
         if "accelerometer" in d:  # even an empty `accelerometer:` asks for accelerometers
             accel = True
-            a = Fields(d["accelerometer"] or {}, "accelerometer", ("gravity", "errors"))
+            a = Fields(d["accelerometer"] or {}, "accelerometer",
+                       ("gravity", "errors", "sampling"))
             gravity = a.boolean("gravity", True)
             accel_errors = _error_params(
                 a.section("errors", tuple(_ACCEL_ERROR_KEYS) + tuple(_ACCEL_DATASHEET_KEYS)),
-                _ACCEL_ERROR_KEYS, _ACCEL_DATASHEET_KEYS,
+                _ACCEL_ERROR_KEYS, _ACCEL_DATASHEET_KEYS, ACCEL_ERROR_LIMITS,
             )
+            accel_sampling = _sampling(a.section("sampling", ACCEL_SAMPLING_KEYS), gyro=False)
 
         free_params = None
         if top.has("free_gyro"):
@@ -363,5 +459,6 @@ class SceneSpec:
             duration_s=duration_s, gyro_model=gyro_model, rate_gyro_params=rate_params,
             gyro_errors=gyro_errors, accelerometer=accel, gravity=gravity,
             accel_errors=accel_errors, free_gyro_params=free_params, instrument=instrument,
+            gyro_sampling=gyro_sampling, accel_sampling=accel_sampling,
             magnetometer=magnetometer, source=dict(d),
         )

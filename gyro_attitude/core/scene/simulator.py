@@ -29,6 +29,8 @@ from gyro_attitude.core.rotation import quat_conjugate, quat_rotate
 from gyro_attitude.core.scene.magnetometer import measure_field
 from gyro_attitude.core.scene.schema import MAX_RATE_HZ, SceneSpec
 from gyro_attitude.core.sensor_errors import SensorErrorModel
+from gyro_attitude.core.sensor_sampling import SensorSampler
+from gyro_attitude.core.trajectory import TrajectoryMotion, TrajectorySample
 
 __all__ = [
     "SceneSimulator",
@@ -110,6 +112,43 @@ def integrate_position(motion: Motion, t0: float, llh0, t) -> np.ndarray:
     g_m = _lon_rate(lat_m, hgt_m, v_m[:, 0])
     lon = lon0 + _simpson_cumulative(h, g_n[:-1], g_m, g_n[1:])
     return np.stack((lat[1:], _wrap_lon(lon), hgt[1:]), axis=-1)
+
+
+#: Closest approach to a pole (rad of latitude, 1e-4° ≈ 11 m): the ENU frame has no East
+#: and North at the pole, and the longitude rate v_E/((R_N+h) cos L) diverges as L → ±90°.
+POLE_MARGIN_RAD = np.radians(1e-4)
+
+
+def _pole_error(motion: Motion, t0: float, lat0: float, t: np.ndarray,
+                start_lat: float) -> ValueError:
+    """The error of a run that reaches a pole: when (first order in the latitude rate, with
+    the radius at the start: good to the second order of the distance, enough to say when)."""
+    nodes = np.concatenate(([t0], t))
+    r_m, _ = earth.radii_of_curvature(lat0)
+    v_north = motion.velocity(nodes)[:, 1]
+    lat = lat0 + np.concatenate(([0.0], np.cumsum(np.diff(nodes) * 0.5
+                                                  * (v_north[1:] + v_north[:-1]) / r_m)))
+    over = np.nonzero(np.abs(lat) >= 0.5 * np.pi - POLE_MARGIN_RAD)[0]
+    when = f"t ≈ {nodes[over[0]]:.6g} s" if over.size else f"before t = {nodes[-1]:.6g} s"
+    pole = "North" if (lat[over[0]] if over.size else lat[-1]) > 0 else "South"
+    return ValueError(
+        f"position: the carrier reaches the {pole} pole at {when} (the scene starts at "
+        f"latitude {np.degrees(start_lat):.6g}°): the ENU navigation frame has no East or "
+        "North at a pole, so a scene cannot pass over one; start further from it, shorten the "
+        "run or change the course")
+
+
+def _checked_positions(motion: Motion, t0: float, llh0, t, start_lat: float) -> np.ndarray:
+    """:func:`integrate_position`, with a run that reaches a pole refused saying when."""
+    try:
+        llh = integrate_position(motion, t0, llh0, t)
+    except ValueError as exc:
+        if "latitude" not in str(exc):
+            raise
+        raise _pole_error(motion, t0, float(llh0[0]), t, start_lat) from None
+    if np.any(np.abs(llh[:, 0]) >= 0.5 * np.pi - POLE_MARGIN_RAD):
+        raise _pole_error(motion, t0, float(llh0[0]), t, start_lat)
+    return llh
 
 
 def _position_steps(motion: Motion, t_a: np.ndarray, llh_a: np.ndarray,
@@ -240,6 +279,12 @@ class SceneSimulator:
         self._accel_errors = (SensorErrorModel(spec.accel_errors, self.dt, accel_ss)
                               if spec.accelerometer and spec.accel_errors.active_effects()
                               else None)
+        # sampling options: their own streams (children 2, 3), so the error streams stay
+        samp_g, samp_a = np.random.SeedSequence(self.seed).spawn(4)[2:]
+        self._gyro_sampler = (SensorSampler(spec.gyro_sampling, self.dt, samp_g)
+                              if spec.gyro_sampling.active() else None)
+        self._accel_sampler = (SensorSampler(spec.accel_sampling, self.dt, samp_a)
+                               if spec.accelerometer and spec.accel_sampling.active() else None)
         self._rate_gyro = None
         self._free_gyro = None
         self._constant_case_rate = None
@@ -250,6 +295,7 @@ class SceneSimulator:
         # g-sensitive drift of a mass unbalance needs the specific force, accelerometer or not
         self._gyro_unbalance = (self._rate_gyro is not None
                                 and spec.rate_gyro_params.mass_unbalance != 0.0)
+        self._gyro_g_sensitive = spec.gyro_sampling.g_sensitivity is not None
         if spec.free_gyro_params is not None:
             force = (self._case_specific_force if spec.free_gyro_params.mass_unbalance != 0.0
                      else None)
@@ -292,7 +338,8 @@ class SceneSimulator:
         for j in range(first, s + 1):
             t = self._times_at(np.arange(j * POSITION_SEGMENT, (j + 1) * POSITION_SEGMENT,
                                          dtype=np.int64))
-            llh = integrate_position(self.spec.motion, *self._segment_anchor[j], t)
+            llh = _checked_positions(self.spec.motion, *self._segment_anchor[j], t,
+                                     float(self._llh0[0]))
             self._segment_anchor[j + 1] = (float(t[-1]), llh[-1].copy())
             self._segment_llh[j] = llh
         # Keep what a later request can still need: the free gyro's sub-steps cover the
@@ -308,6 +355,8 @@ class SceneSimulator:
         if not self.spec.motion.moves:
             return np.broadcast_to(self._llh0, (n, 3)).copy()
         self.effects_run.add("position")
+        if isinstance(self.spec.motion, TrajectoryMotion):  # exact, from the fit
+            return self.spec.motion.position_llh(self._times_at(np.arange(k0, k0 + n)))
         out = np.empty((n, 3))
         k = k0
         while k < k0 + n:
@@ -323,6 +372,8 @@ class SceneSimulator:
         if not self.spec.motion.moves:
             return np.broadcast_to(self._llh0, (t.shape[0], 3)).copy()
         self.effects_run.add("position")
+        if isinstance(self.spec.motion, TrajectoryMotion):
+            return self.spec.motion.position_llh(t)
         k = np.maximum(np.floor(t * self.rate_hz), 0).astype(np.int64)
         lowest = min(self._segment_anchor) * POSITION_SEGMENT
         k = np.maximum(k, lowest)  # never before the oldest segment kept
@@ -344,6 +395,8 @@ class SceneSimulator:
 
     def _truth(self, t: np.ndarray, need_accel: bool, llh: np.ndarray | None = None):
         """Truth at times ``t``; ``llh`` the positions when known (the sample grid)."""
+        if isinstance(self.spec.motion, TrajectoryMotion):
+            return self._trajectory_truth(t, need_accel)
         sample = self.spec.motion.evaluate(t, need_accel=need_accel)
         self.effects_run.add(f"motion.{self.spec.motion.name}")
         if llh is None:
@@ -355,6 +408,19 @@ class SceneSimulator:
             w_in = w_ie if w_en is None else (w_en if w_ie is None else w_ie + w_en)
             w_ib = quat_rotate(quat_conjugate(sample.q_nb), w_in) + sample.omega_nb_b
         return sample, llh, w_ie, w_en, w_ib
+
+    def _trajectory_truth(self, t: np.ndarray, need_accel: bool):
+        """A trajectory's truth and ideal sensors from its fit, in the Earth-fixed tangent
+        frame (:mod:`gyro_attitude.core.trajectory`): the transport rate does not enter (the
+        frame does not travel), ``earth.rotation`` switches Earth rate and Coriolis."""
+        motion = self.spec.motion
+        self.effects_run.update(("motion.trajectory", "position"))
+        rotation = self.spec.earth.rotation
+        if rotation:
+            self.effects_run.add("earth_rate")
+        sample = motion.imu(t, earth_rotation=rotation, gravity=self.spec.gravity,
+                            need_force=need_accel)
+        return sample, sample.llh, None, None, sample.omega_ib_b
 
     def _case_rate(self, t) -> np.ndarray:
         """Inertial angular velocity of the instrument case in the case (body) frame,
@@ -383,6 +449,12 @@ class SceneSimulator:
 
     def _specific_force(self, sample, llh, w_ie, w_en) -> np.ndarray:
         self.effects_run.add("specific_force")
+        if isinstance(sample, TrajectorySample):  # computed with the truth, from the fit
+            if self.spec.earth.rotation:
+                self.effects_run.add("coriolis")
+            if self.spec.gravity:
+                self.effects_run.add("gravity")
+            return sample.specific_force_b
         f_n = sample.accel_enu.copy()
         if self.spec.motion.moves and (w_ie is not None or w_en is not None):
             self.effects_run.add("coriolis")
@@ -420,31 +492,46 @@ class SceneSimulator:
         spec = self.spec
         t_ns = self._stamps(n)
         t = (t_ns - spec.start_time_ns).astype(np.float64) / 1e9
+        need_force = spec.accelerometer or self._gyro_unbalance or self._gyro_g_sensitive
         sample, llh, w_ie, w_en, w_ib = self._truth(
-            t, need_accel=spec.accelerometer or self._gyro_unbalance,
-            llh=self._grid_positions(self._k, n))
+            t, need_accel=need_force,
+            llh=(None if isinstance(spec.motion, TrajectoryMotion)  # exact from the fit
+                 else self._grid_positions(self._k, n)))
 
-        gyro_out = w_ib
+        f_ideal = self._specific_force(sample, llh, w_ie, w_en) if need_force else None
+        gyro_in, f_in = self._interval_means(t, w_ib, f_ideal)
+        gyro_out = gyro_in
         if self._rate_gyro is not None:
             self.effects_run.add(spec.gyro_model)
             f_gyro = None
             if self._gyro_unbalance:
                 self.effects_run.add("g_sensitive_drift")
-                f_gyro = self._specific_force(sample, llh, w_ie, w_en)
-            gyro_out = self._gyro_indication(w_ib, f_gyro)
+                f_gyro = f_ideal
+            gyro_out = self._gyro_indication(gyro_in, f_gyro)
+        if self._gyro_sampler is not None:
+            gyro_out = self._gyro_sampler.before_errors(gyro_out, f_ideal)
         if self._gyro_errors is not None:
             gyro_out = self._gyro_errors.apply(gyro_out)
             self.effects_run.update(f"gyro.{e}" for e in self._gyro_errors.effects_run)
         elif gyro_out is w_ib:
             gyro_out = w_ib.copy()
+        if self._gyro_sampler is not None:
+            gyro_out = self._gyro_sampler.clip(gyro_out)
+            self.effects_run.update(f"gyro.{e}" for e in self._gyro_sampler.effects_run)
 
         f_b = None
         if spec.accelerometer:
-            f_b = self._specific_force(sample, llh, w_ie, w_en)
+            f_b = f_in.copy()
+            if self._accel_sampler is not None:
+                f_b = self._accel_sampler.before_errors(f_b)
             if self._accel_errors is not None:
                 f_b = self._accel_errors.apply(f_b)
                 self.effects_run.update(f"accelerometer.{e}"
                                         for e in self._accel_errors.effects_run)
+            if self._accel_sampler is not None:
+                f_b = self._accel_sampler.clip(f_b)
+                self.effects_run.update(f"accelerometer.{e}"
+                                        for e in self._accel_sampler.effects_run)
 
         mag = None
         if spec.magnetometer is not None:
@@ -468,6 +555,33 @@ class SceneSimulator:
             truth_omega_nb_b=sample.omega_nb_b, truth_omega_ib_b=w_ib, position_llh=llh,
             velocity_enu=sample.velocity_enu, gimbal=gimbal, magnetic_field_b=mag,
         )
+
+    def _interval_means(self, t: np.ndarray, w_ib: np.ndarray, f_b: np.ndarray | None):
+        """Gyro and accelerometer inputs: the values at ``t``, or for a sensor whose
+        bandwidth is ``mean`` the mean over each sample interval (quadrature of the truth)."""
+        g_avg = self._gyro_sampler is not None and self._gyro_sampler.averages
+        a_avg = self._accel_sampler is not None and self._accel_sampler.averages
+        if not (g_avg or a_avg):
+            return w_ib, f_b
+        sampler = self._gyro_sampler if g_avg else self._accel_sampler
+        nodes = sampler.node_times(t).reshape(-1)
+        sample, llh, w_ie, w_en, w_nodes = self._truth(nodes, need_accel=a_avg)
+        n = t.shape[0]
+        if g_avg:
+            w_ib = self._gyro_sampler.mean_of(w_nodes.reshape(n, 3, 3))
+        if a_avg:
+            f_nodes = self._specific_force(sample, llh, w_ie, w_en)
+            f_b = self._accel_sampler.mean_of(f_nodes.reshape(n, 3, 3))
+        return w_ib, f_b
+
+    @property
+    def saturated(self) -> dict[str, int]:
+        """Samples with an axis clipped at the output range so far, per named range."""
+        out = {}
+        for name, s in (("gyro", self._gyro_sampler), ("accelerometer", self._accel_sampler)):
+            if s is not None and s.params.range is not None:
+                out[name] = s.saturated
+        return out
 
     def _gyro_indication(self, w_ib: np.ndarray, f_b: np.ndarray | None) -> np.ndarray:
         """Rate-gyro output, or for integrating gyros the mean rate over each sample interval

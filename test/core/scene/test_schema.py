@@ -83,7 +83,7 @@ def test_bad_profile_and_motion_values_are_refused_naming_the_key():
     with pytest.raises(ValueError, match=r"^motion\.speed_mps: must be >= 0"):
         SceneSpec.from_dict(speed)
     ship = scene(motion={"type": "ship", "roll": {"amplitude_deg": 3.0, "period_s": 0.0}})
-    with pytest.raises(ValueError, match=r"^motion\.roll\.period_s: must be > 0"):
+    with pytest.raises(ValueError, match=r"^motion\.roll\.period_s: must be >= 0\.001"):
         SceneSpec.from_dict(ship)
     with pytest.raises(ValueError, match=r"^motion: must be a mapping"):
         SceneSpec.from_dict(scene(motion="stationary"))
@@ -140,7 +140,7 @@ def test_largest_rate_is_accepted():
 @pytest.mark.parametrize("key", ["frequency_hz"])
 def test_motion_frequencies_are_bounded(key):
     d = scene(motion={"type": "coning", "half_angle_deg": 1.0, key: 1e300})
-    with pytest.raises(ValueError, match=rf"^motion\.{key}: must be <= 1e\+06"):
+    with pytest.raises(ValueError, match=rf"^motion\.{key}: must be <= 10000"):
         SceneSpec.from_dict(d)
 
 

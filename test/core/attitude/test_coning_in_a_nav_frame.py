@@ -1,4 +1,4 @@
-"""Increment (coning) algorithms in a navigation frame: a case a mutation run showed untested."""
+"""Increment (coning) algorithms in a navigation frame."""
 
 import math
 

@@ -1,4 +1,4 @@
-"""SafeOutput / check_output_path cases that a mutation run showed untested: hard links,
+"""SafeOutput / check_output_path: hard links,
 unwritable directories, the hidden partial folder, and forced replacement of a directory."""
 
 import os

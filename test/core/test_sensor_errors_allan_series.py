@@ -1,4 +1,4 @@
-"""Sensor-error cases that a mutation run showed untested: the Gauss–Markov Allan-variance
+"""Sensor-error cases: the Gauss–Markov Allan-variance
 series branch, and the exact variance of successive rate-random-walk samples."""
 
 from decimal import Decimal, localcontext

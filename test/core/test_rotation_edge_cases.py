@@ -1,4 +1,4 @@
-"""Rotation cases that a mutation run showed untested: inverse of a non-unit quaternion,
+"""Rotation edge cases: inverse of a non-unit quaternion,
 reflections and the default orthogonality tolerance, batched attitude-error angles."""
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""Attitude-stream cases a mutation run left unkilled, each against a closed form: the first-rest
+"""Attitude-stream cases, each against a closed form: the first-rest
 bias correction (when it applies, its sign on the attitude and the covariance), Earth-rate removal
 while estimating the bias, the gyrocompass heading variance after levelling, and the covariance
 state run() hands on to a later push()."""

@@ -1,4 +1,4 @@
-"""Attitude-stream and validation cases a mutation run showed untested: setting bounds that name
+"""Attitude-stream and validation cases: setting bounds that name
 the field, the stream state run() leaves, nav time series over skipped samples, the per-sample
 result, integrating the samples since the last rest after levelling, the live-node controls
 (restart, set_config, set_algorithm, update_nav) and the interval statistics."""

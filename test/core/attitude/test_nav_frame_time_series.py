@@ -1,4 +1,4 @@
-"""NavFrame time series and their validation: cases a mutation run showed untested."""
+"""NavFrame time series and their validation."""
 
 import numpy as np
 import pytest

@@ -1,0 +1,99 @@
+"""Missing samples against the stream's own nominal period (issue 22.5): a hole of a few sample
+periods is counted and integrated across; a longer one is a gap (not integrated across),
+whatever the absolute max_gap_s; both forms of the chain agree."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gyro_attitude.core.attitude import validation as iv
+from gyro_attitude.core.attitude.stream import AttitudeStream, StreamConfig
+
+MS = 1_000_000
+PERIOD = 5 * MS  # 200 Hz: max_gap_s 0.1 s would let 19 missing samples through
+
+
+def stream_with_holes(holes):
+    """400 samples at 200 Hz with the given (index, samples missing) holes cut out."""
+    keep = np.ones(400 + sum(m for _, m in holes), dtype=bool)
+    for k, m in holes:
+        keep[k:k + m] = False
+    t = (1 + np.flatnonzero(keep)).astype(np.int64) * PERIOD
+    w = np.tile([0.0, 0.0, 0.5], (t.size, 1))
+    return t, w
+
+
+def test_a_few_missing_samples_are_counted_and_a_long_hole_is_a_gap():
+    t, w = stream_with_holes([(100, 2), (200, 10), (300, 4)])
+    val = iv.ImuStreamValidator(StreamConfig().check_config())
+    verdicts = [val.check(int(x), w[0], "imu") for x in t]
+    hole = {int(m) - 1: int(k) + 1 for k, m in
+            zip(np.flatnonzero(np.diff(t) > PERIOD), np.diff(t)[np.diff(t) > PERIOD] // PERIOD,
+                strict=True)}  # samples missing -> row after the hole
+    gaps = [k for k, vd in enumerate(verdicts) if vd.action == iv.RESTART_AFTER_GAP]
+    assert gaps == [hole[10]] and "hole of 10 sample(s) (10 missing" in verdicts[hole[10]].detail
+    assert val.missing_samples == 2 + 4 and val.counts[iv.GAP] == 1
+    assert verdicts[hole[2]].reason == verdicts[hole[4]].reason == iv.MISSING_SAMPLES
+    # the array form gives the same verdicts and counts
+    cls = iv.classify(t, w, "imu", StreamConfig().check_config())
+    codes = [iv.ACTION_CODES[vd.action] for vd in verdicts]
+    assert cls.action.tolist() == codes and cls.missing_samples == 6 and cls.counts[iv.GAP] == 1
+
+
+@pytest.mark.parametrize("limit, gaps", [(0, 3), (4, 1), (10, 0)])
+def test_max_missing_samples_sets_which_holes_are_gaps(limit, gaps):
+    t, w = stream_with_holes([(100, 2), (200, 10), (300, 4)])
+    cfg = StreamConfig(max_missing_samples=limit)
+    res = AttitudeStream("rotvec_cubic", config=cfg).run(t, w, "imu")
+    assert res.counts[iv.GAP] == gaps
+    s = AttitudeStream("rotvec_cubic", config=cfg)
+    q = [s.push(int(x), w[k], "imu")[1] for k, x in enumerate(t)]
+    assert np.max(np.abs(np.array(q) - res.q)) <= 1e-12
+    assert s.counts == res.counts
+
+
+def test_holes_are_found_only_once_the_period_is_known_and_jitter_is_no_hole():
+    rng = np.random.default_rng(3)
+    dt = PERIOD + rng.integers(-PERIOD // 4, PERIOD // 4, 500)  # ±25 % jitter
+    t = np.cumsum(dt).astype(np.int64)
+    w = np.zeros((t.size, 3))
+    cls = iv.classify(t, w, "imu", StreamConfig().check_config())
+    assert cls.missing_samples == 0 and cls.counts[iv.GAP] == 0
+    # a hole within the first 16 intervals (while the period is learnt) is not counted
+    t2, w2 = stream_with_holes([(5, 3)])
+    assert iv.classify(t2, w2, "imu", StreamConfig().check_config()).missing_samples == 0
+
+
+def test_rejected_samples_make_holes_but_are_not_counted_missing():
+    t, w = stream_with_holes([])
+    w[100] = np.nan  # one rejected: a hole of 1, counted as non-finite, not as missing
+    w[200:210] = np.nan  # ten rejected in a row: the integration cannot bridge them: a gap
+    cfg = StreamConfig().check_config()
+    cls = iv.classify(t, w, "imu", cfg)
+    val = iv.ImuStreamValidator(cfg)
+    codes = [iv.ACTION_CODES[val.check(int(x), w[k], "imu").action] for k, x in enumerate(t)]
+    assert cls.action.tolist() == codes
+    assert cls.missing_samples == val.missing_samples == 0
+    assert cls.counts[iv.NON_FINITE] == 11 and cls.counts[iv.GAP] == 1
+    assert cls.action[210] == iv.ACTION_CODES[iv.RESTART_AFTER_GAP]
+
+
+def test_a_gyro_pinned_at_its_range_is_counted_as_saturated():
+    # ±2000 °/s (34.9 rad/s) clipped for 0.5 s at 200 Hz: the samples repeat the extreme
+    rng = np.random.default_rng(5)
+    n = 400
+    t = (1 + np.arange(n, dtype=np.int64)) * PERIOD
+    w = 0.01 * rng.standard_normal((n, 3))
+    clip = np.radians(2000.0)
+    w[100:200, 2] = clip  # 100 samples pinned: the first reaches the extreme, 99 repeat it
+    w[300:310, 0] = -clip
+    # a quantized gyro at rest repeats small values: no saturation
+    w[200:300] = np.round(w[200:300] / 0.001) * 0.001
+    res = AttitudeStream("rotvec_cubic", config=StreamConfig(gyro_bias="none")).run(t, w, "imu")
+    assert res.counts["saturated"] == 99 + 9
+    assert "pinned at 34.9066 rad/s on axis z" in res.details["saturated"]
+    s = AttitudeStream("rotvec_cubic", config=StreamConfig(gyro_bias="none"))
+    for k in range(n):
+        s.push(int(t[k]), w[k], "imu")
+    assert s.counts["saturated"] == 108
