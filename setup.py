@@ -66,7 +66,7 @@ setup(
     + _wheel_launchers(),
     package_data={package_name: ["py.typed"]},
     install_requires=["setuptools", "numpy", "scipy", "mcap", "pyyaml", "tqdm", "matplotlib",
-                      "allantools"],
+                      "allantools", "wmm-calculator"],
     zip_safe=True,
     maintainer="gyro_attitude developers",
     maintainer_email="gyro-attitude@example.org",

@@ -14,6 +14,9 @@ run as separate processes on loopback, as deployed (best-effort sensor-data QoS 
   (``raw=True``) and reads the stamp from the CDR bytes, so it stays light next to the
   nodes it measures.
 
+Peer in the same run: ``drain_queue:=false`` (plain rclpy, one message per executor wakeup)
+at 2 kHz.  ``GYRO_ATTITUDE_NODES_DURATION_S`` shortens (or lengthens) the time per rate.
+
 The highest rate with zero loss is the sustained rate. Everything shares the machine's
 cores (sim, integrator, probe, and whatever else runs): quote figures with the conditions.
 """
@@ -170,6 +173,8 @@ def run(quick: bool, out_dir: Path) -> list[dict]:
     out_dir.mkdir(parents=True, exist_ok=True)
     env = _env()
     duration = 5.0 if quick else 60.0
+    if os.environ.get("GYRO_ATTITUDE_NODES_DURATION_S"):
+        duration = float(os.environ["GYRO_ATTITUDE_NODES_DURATION_S"])
     rates = QUICK_RATES if quick else FULL_RATES
     rows = []
     print(f"nodes: gyro_sim -> attitude_integrator, {duration:g} s per rate, "
@@ -189,13 +194,16 @@ def run(quick: bool, out_dir: Path) -> list[dict]:
     # peer in the same run: the integrator without draining its queue per wakeup (plain
     # rclpy, one message per executor iteration), at the rate where the difference shows
     peer_rate = PEER_RATE_HZ
-    peer = measure_rate(peer_rate, duration, env, integrator_params=("drain_queue:=false",))
-    peer["peer_of"] = "drain_queue:=true (default)"
-    print(f"{peer_rate:9.0f} {peer['published']:10d} {peer['integrated']:10d} "
-          f"{peer['lost']:6d} {fmt(peer['latency_p50_ms'])} {fmt(peer['latency_p99_ms'])} "
-          f"{fmt(peer['latency_max_ms'])}   <- peer: drain_queue:=false", flush=True)
     main_rows = list(rows)
-    rows.append(peer)
+    peers = [(peer_rate, ("drain_queue:=false",), "drain_queue:=true (default)")]
+    for rate, params, of in peers:
+        peer = measure_rate(rate, duration, env, integrator_params=params)
+        peer["peer_of"] = of
+        peer["integrator_params"] = list(params)
+        rows.append(peer)
+        print(f"{rate:9.0f} {peer['published']:10d} {peer['integrated']:10d} "
+              f"{peer['lost']:6d} {fmt(peer['latency_p50_ms'])} {fmt(peer['latency_p99_ms'])} "
+              f"{fmt(peer['latency_max_ms'])}   <- peer: {' '.join(params)}", flush=True)
     ok = [r["rate_hz"] for r in main_rows if r["lost"] == 0]
     best = max(ok) if ok else None
     fast = [r["rate_hz"] for r in main_rows if r["lost"] == 0

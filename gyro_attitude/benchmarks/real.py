@@ -46,12 +46,22 @@ from gyro_attitude.core.attitude.rest import detect_rest, rest_segments
 from gyro_attitude.core.attitude.stream import AttitudeStream, StreamConfig
 from gyro_attitude.core.attitude.truth import initial_attitude_from_truth
 from gyro_attitude.core.earth import STANDARD_GRAVITY
-from gyro_attitude.core.rotation import quat_angle_between, quat_as_matrix, quat_multiply
-from gyro_attitude.io.imu_fast import read_imu_arrays, read_quaternion_stamped_arrays
+from gyro_attitude.core.rotation import (
+    quat_angle_between,
+    quat_as_matrix,
+    quat_conjugate,
+    quat_multiply,
+)
+from gyro_attitude.io.imu_fast import (
+    read_imu_arrays,
+    read_magnetic_field_arrays,
+    read_quaternion_stamped_arrays,
+)
 
 RECORDINGS = ("broad_05_slow_rotation_with_breaks", "broad_16_fast_translation")
 LATITUDE_RAD = np.radians(52.5)  # TU Berlin, where BROAD was recorded
-MODES = ("none", "none/push", "auto", "level", "gravity", "level+gravity")
+MODES = ("none", "none/push", "auto", "level", "gravity", "level+gravity", "tilt", "level+tilt",
+         "magnetometer", "level+magnetometer")
 # the offline (whole-recording) estimator, core/attitude/offline.py, same settings as the
 # causal mode after the "+"
 OFFLINE_MODES = ("offline/auto", "offline/level", "offline/gravity", "offline/level+gravity")
@@ -62,8 +72,9 @@ def stream_config(mode: str, heading_deg: float = 0.0) -> StreamConfig:
     kw: dict = {"gyro_bias": "none"} if mode.startswith("none") else {}
     if "level" in mode:
         kw |= {"initial_attitude_source": "level", "initial_heading_deg": heading_deg}
-    if "gravity" in mode:
-        kw["aiding"] = "gravity"
+    for aiding in ("gravity", "tilt", "magnetometer"):
+        if aiding in mode:
+            kw["aiding"] = aiding
     return StreamConfig(**kw)
 
 
@@ -88,6 +99,23 @@ def load(name: str, directory: pathlib.Path | None = None):
     truth = read_quaternion_stamped_arrays(path, "/truth/attitude")
     return (imu.stamp_ns, imu.angular_velocity, imu.linear_acceleration, truth.stamp_ns,
             truth.quaternion)
+
+
+def load_mag(name: str, directory: pathlib.Path | None = None) -> np.ndarray:
+    """The magnetometer (N, 3) tesla of one recording, on the Imu stamps (same stamps there)."""
+    from gyro_attitude.core.attitude.sample_alignment import latest_at
+
+    path = (directory or real_dir()) / f"{name}.mcap"
+    imu = read_imu_arrays(path, "/imu/data_raw")
+    mag = read_magnetic_field_arrays(path, "/imu/mag")
+    return latest_at(imu.stamp_ns, mag.stamp_ns, mag.magnetic_field, 0)
+
+
+def heading_error(q_est, q_true) -> np.ndarray:
+    """|rotation about the vertical| of the error ``q_est ⊗ q_true⁻¹`` (its twist about nav up,
+    rad): the heading part of the error, whatever the tilt."""
+    e = quat_multiply(q_est, quat_conjugate(q_true))
+    return np.abs((2.0 * np.arctan2(e[..., 2], e[..., 3]) + np.pi) % (2.0 * np.pi) - np.pi)
 
 
 def end_of_motion(t, g, a) -> int:
@@ -141,6 +169,7 @@ def _yaw_align(q_est, q_true0):
 def evaluate(name: str, directory=None, modes=MODES, peers=True,
              histories: dict | None = None, offline_modes=OFFLINE_MODES) -> list[dict]:
     t, g, a, tt, tq = load(name, directory)
+    mag = load_mag(name, directory)
     q_first, first, _ = initial_attitude_from_truth(t, tt, tq)
     ke_imu = end_of_motion(t, g, a)
     kt_end = int(np.searchsorted(tt, t[ke_imu], side="right")) - 1
@@ -148,24 +177,29 @@ def evaluate(name: str, directory=None, modes=MODES, peers=True,
     motion = slice(0, kt_end + 1)
     rows = []
 
-    def row(mode, q, seconds, peer=False, valid=None):
+    def row(mode, q, seconds, peer=False, valid=None, align_heading=None):
         qe = q[idx]
-        if peer:
+        if align_heading if align_heading is not None else peer:
             qe = _yaw_align(qe, tq[0])
         err = quat_angle_between(qe, tq)
         tilt = tilt_error(qe, tq)
+        head = heading_error(qe, tq)
         if valid is not None:  # truth samples before the first attitude (aligning): no error
             err = np.where(valid, err, np.nan)
             tilt = np.where(valid, tilt, np.nan)
+            head = np.where(valid, head, np.nan)
         if histories is not None and mode != "none/push":
             histories[(name, mode)] = ((tt - tt[0]) * 1e-9, np.degrees(err), np.degrees(tilt))
         m = err[motion][np.isfinite(err[motion])]
         mt = tilt[motion][np.isfinite(tilt[motion])]
+        mh = head[motion][np.isfinite(head[motion])]
         rows.append({"recording": name, "mode": mode, "peer": peer,
                      "end_error_deg": float(np.degrees(err[kt_end])),
                      "rms_error_deg": float(np.degrees(np.sqrt(np.mean(m ** 2)))),
                      "end_tilt_deg": float(np.degrees(tilt[kt_end])),
                      "rms_tilt_deg": float(np.degrees(np.sqrt(np.mean(mt ** 2)))),
+                     "peak_tilt_deg": float(np.degrees(mt.max())),
+                     "rms_heading_deg": float(np.degrees(np.sqrt(np.mean(mh ** 2)))),
                      "ns_per_sample": seconds / t.size * 1e9,
                      "samples_per_s": t.size / max(seconds, 1e-12),
                      "end_of_motion_s": float((tt[kt_end] - tt[0]) * 1e-9)})
@@ -182,7 +216,8 @@ def evaluate(name: str, directory=None, modes=MODES, peers=True,
             index = first + np.flatnonzero([x is not None for x in q_rows])
             q_res = np.array([x for x in q_rows if x is not None])
         else:
-            res = stream.run(t[first:], g[first:], "imu_link", None, a[first:])
+            res = stream.run(t[first:], g[first:], "imu_link", None, a[first:],
+                             mag[first:] if "magnetometer" in mode else None)
             index, q_res = first + res.index, res.q
         seconds = time.perf_counter() - t0
         # the attitude at every Imu sample (held before the first one: masked in the error)
@@ -246,6 +281,24 @@ def evaluate(name: str, directory=None, modes=MODES, peers=True,
             qv = out["quat6D"]  # w, x, y, z
             row("peer/offline_vqf_6d", np.column_stack([qv[:, 1:], qv[:, :1]]), seconds,
                 peer=True)
+        except ImportError:
+            pass
+        try:  # VQF 9D (real-time) and offlineVQF (6D, 9D): its 9D north is magnetic north
+            from vqf import VQF, offlineVQF
+            gc, ac, mc = (np.ascontiguousarray(x) for x in (g, a, mag * 1e6))
+            t0 = time.perf_counter()
+            out = VQF(dt).updateBatch(gc, ac, mc)
+            seconds = time.perf_counter() - t0
+            qv = out["quat9D"]
+            row("peer/vqf_9d", np.column_stack([qv[:, 1:], qv[:, :1]]), seconds, peer=True,
+                align_heading=False)
+            t0 = time.perf_counter()
+            out = offlineVQF(gc, ac, mc, dt)
+            seconds = time.perf_counter() - t0
+            for kind in ("6D", "9D"):
+                qv = out[f"quat{kind}"]
+                row(f"peer/offline_vqf_{kind.lower()}", np.column_stack([qv[:, 1:], qv[:, :1]]),
+                    seconds, peer=True, align_heading=kind == "6D")
         except ImportError:
             pass
         try:
@@ -396,12 +449,14 @@ def run(quick: bool = False, out_dir=None) -> list[dict]:
             print(f"real: {directory / name}.mcap missing, skipped")
             continue
         rows += evaluate(name, directory, histories=hist)
+    nan = float("nan")
     print(f"{'recording':36s} {'mode':24s} {'end°':>7s} {'rms°':>7s} {'tilt°':>7s} "
-          f"{'rms tilt°':>9s} {'samples/s':>10s}")
+          f"{'rms tilt°':>9s} {'peak tilt°':>10s} {'rms head°':>9s} {'samples/s':>10s}")
     for r in rows:
         print(f"{r['recording']:36s} {r['mode']:24s} {r['end_error_deg']:7.2f} "
               f"{r['rms_error_deg']:7.2f} {r['end_tilt_deg']:7.3f} {r['rms_tilt_deg']:9.3f} "
-              f"{r['samples_per_s']:10.3g}")
+              f"{r.get('peak_tilt_deg', nan):10.2f} {r.get('rms_heading_deg', nan):9.2f} "
+              f"{r.get('samples_per_s', nan):10.3g}")
     rows += _offline_ratios(rows)
     speed = []
     for name in names:

@@ -28,6 +28,7 @@ from gyro_attitude.io.mcap_writer import COMPRESSIONS, DEFAULT_COMPRESSION
 from gyro_attitude.io.safe_output import check_output_path
 from gyro_attitude.offline.replay import (
     DEFAULT_IMU_TOPIC,
+    DEFAULT_MAG_TOPIC,
     TRUTH_TOPIC,
     replay_file,
     write_error_plot,
@@ -70,6 +71,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "from gravity zero-phase); causal: the live node's attitudes, sample "
                         "for sample")
     add_estimator_flags(parser)  # the attitude_integrator node's settings, same names
+    parser.add_argument("--mag-topic", default=DEFAULT_MAG_TOPIC,
+                        help="sensor_msgs/MagneticField topic for --aiding magnetometer "
+                        f"(default {DEFAULT_MAG_TOPIC}; matched to the Imu stamps as the node "
+                        "does)")
     parser.add_argument("--odometry-topic", default=None, metavar="TOPIC",
                         help="nav_msgs/Odometry topic of the recording whose velocity sets the "
                         "transport rate (--frame enu), time-aligned to the Imu stamps as the "
@@ -106,6 +111,10 @@ _EVENT_WORDS = {
     "time_jump": "backward time jump(s): attitude reset",
     "invalid_covariance": "invalid angular_velocity_covariance(s) treated as unknown",
     "integrator_error": "non-finite update(s): last good attitude restored",
+    "mag_missing": "Imu sample(s) with no magnetic field within mag_max_age_s: heading gyro-only",
+    "invalid_mag": "magnetic field sample(s) not finite, absurd or zero: not used",
+    "mag_disturbed": "magnetic field sample(s) disturbed (norm or dip off the reference): "
+                     "heading gyro-only",
     "saturated": "gyro sample(s) pinned at a repeated extreme (saturated: attitude unreliable)",
     iv.MISSING_SAMPLES: "sample(s) missing inside accepted intervals (integrated across; "
                         "longer holes are gaps: --max-missing-samples)",
@@ -144,7 +153,8 @@ def run(args) -> int:
             args.input, args.out, imu_topic=args.imu_topic, algorithm=args.algorithm,
             truth_topic=args.truth_topic, odometry_topic=args.odometry_topic,
             compression=args.compression, force=args.force,
-            progress=update, config=config, estimator=args.estimator)
+            progress=update, config=config, estimator=args.estimator,
+            mag_topic=args.mag_topic)
         if bar is not None:
             bar.close()
             bar = None
@@ -167,7 +177,9 @@ def run(args) -> int:
     events = {**out["skipped"], iv.GAP: out["gaps"], "time_jump": out["time_jump_resets"],
               "invalid_covariance": out["invalid_covariances"],
               "integrator_error": out["integrator_errors"],
-              iv.MISSING_SAMPLES: out["missing_samples"], "saturated": out["saturated"]}
+              iv.MISSING_SAMPLES: out["missing_samples"], "saturated": out["saturated"],
+              **{k: v for k, v in (out["magnetometer"] or {}).items()
+                 if k in ("mag_missing", "invalid_mag", "mag_disturbed")}}
     for reason, n in events.items():
         if n:
             what = _EVENT_WORDS.get(reason, f"sample(s) skipped ({reason})")
@@ -197,6 +209,13 @@ def run(args) -> int:
           + (f"; {out['skipped_before_truth']} before the truth starts"
              if out["skipped_before_truth"] else ""))
     print(f"  {out['gyro_bias']}")
+    if out["magnetometer"]:
+        m = out["magnetometer"]
+        ref = ("not learned" if m["reference_norm_t"] is None else
+               f"|B| {m['reference_norm_t'] * 1e6:.1f} µT, dip {m['reference_dip_deg']:.1f}°")
+        print(f"  magnetometer {m['topic']}: {m['messages']} samples, reference {ref}, "
+              f"{m['mag_disturbed']} disturbed, {m['invalid_mag']} invalid, "
+              f"{m['mag_missing']} Imu samples without a field")
     if out["alignment"]:
         a = out["alignment"]
         print(f"  levelled over {a['rest_s']:.1f} s of rest: roll {a['roll_deg']:.3f}°, pitch "

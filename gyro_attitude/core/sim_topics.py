@@ -22,6 +22,7 @@ __all__ = [
     "JOINT_TOPIC",
     "TRUTH_TOPIC",
     "ODOM_TOPIC",
+    "MAG_TOPIC",
     "DEFAULT_FRAME_ID",
     "DEFAULT_WORLD_FRAME_ID",
     "TopicFields",
@@ -33,11 +34,13 @@ IMU_TOPIC = "imu/data_raw"
 JOINT_TOPIC = "gyro/joint_states"
 TRUTH_TOPIC = "truth/attitude"
 ODOM_TOPIC = "truth/odom"
+MAG_TOPIC = "imu/mag"
 TOPICS = {
     IMU_TOPIC: "sensor_msgs/msg/Imu",
     JOINT_TOPIC: "sensor_msgs/msg/JointState",
     TRUTH_TOPIC: "geometry_msgs/msg/QuaternionStamped",
     ODOM_TOPIC: "nav_msgs/msg/Odometry",
+    MAG_TOPIC: "sensor_msgs/msg/MagneticField",
 }
 DEFAULT_FRAME_ID = "imu_link"  # Imu header, odometry child frame, joint states
 DEFAULT_WORLD_FRAME_ID = "enu"  # truth/attitude and truth/odom header
@@ -62,7 +65,8 @@ class TopicFields:
     start); Imu: ``angular_velocity``, ``specific_force`` (``None``: no accelerometer);
     truth: ``q_nb``; odometry: ``position_enu`` (m, from the first sample), ``q_nb``,
     ``velocity_body`` (child frame), ``omega_nb_b``; joint states (free gyro only):
-    ``gimbal_names``, ``gimbal_angles``, ``gimbal_rates`` (else ``None``).
+    ``gimbal_names``, ``gimbal_angles``, ``gimbal_rates`` (else ``None``); magnetometer:
+    ``magnetic_field`` (tesla, else ``None``).
     """
 
     t_rel_ns: np.ndarray
@@ -75,6 +79,7 @@ class TopicFields:
     gimbal_names: tuple[str, ...] | None = None
     gimbal_angles: np.ndarray | None = None
     gimbal_rates: np.ndarray | None = None
+    magnetic_field: np.ndarray | None = None
 
 
 class SimTopics:
@@ -110,4 +115,6 @@ class SimTopics:
             gimbal_names=None if g is None else tuple(str(x) for x in g.names),
             gimbal_angles=None if g is None else np.asarray(g.positions, dtype=np.float64),
             gimbal_rates=None if g is None else np.asarray(g.velocities, dtype=np.float64),
+            magnetic_field=(None if b.magnetic_field_b is None
+                            else np.asarray(b.magnetic_field_b, dtype=np.float64)),
         )

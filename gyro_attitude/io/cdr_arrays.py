@@ -17,7 +17,8 @@ offset  field
 
 Imu doubles: orientation (x, y, z, w), orientation_covariance[9], angular_velocity[3],
 angular_velocity_covariance[9], linear_acceleration[3], linear_acceleration_covariance[9].
-QuaternionStamped: quaternion (x, y, z, w).  Odometry: child_frame_id, pose (position,
+QuaternionStamped: quaternion (x, y, z, w).  MagneticField:
+magnetic_field (x, y, z) tesla, magnetic_field_covariance[9].  Odometry: child_frame_id, pose (position,
 orientation, covariance[36]), twist (linear, angular, covariance[36]).  JointState:
 name[], position[], velocity[], effort[] (sequences: uint32 count, then the elements).
 
@@ -42,6 +43,7 @@ __all__ = [
     "IMU_TYPE",
     "QUATERNION_STAMPED_TYPE",
     "ODOMETRY_TYPE",
+    "MAGNETIC_FIELD_TYPE",
     "JOINT_STATE_TYPE",
     "CdrLayout",
     "CDR_LE_HEADER",
@@ -53,6 +55,7 @@ __all__ = [
     "MessageBatch",
     "imu_batch",
     "quaternion_stamped_batch",
+    "magnetic_field_batch",
     "odometry_batch",
     "joint_state_batch",
 ]
@@ -60,6 +63,7 @@ __all__ = [
 IMU_TYPE = "sensor_msgs/msg/Imu"
 QUATERNION_STAMPED_TYPE = "geometry_msgs/msg/QuaternionStamped"
 ODOMETRY_TYPE = "nav_msgs/msg/Odometry"
+MAGNETIC_FIELD_TYPE = "sensor_msgs/msg/MagneticField"
 JOINT_STATE_TYPE = "sensor_msgs/msg/JointState"
 CDR_LE_HEADER = b"\x00\x01\x00\x00"
 # The 4 encapsulation bytes read as one little-endian uint32.
@@ -75,6 +79,7 @@ BODY_FIELDS = {
         ("linear_acceleration_covariance", 9),
     ),
     QUATERNION_STAMPED_TYPE: (("quaternion", 4),),
+    MAGNETIC_FIELD_TYPE: (("magnetic_field", 3), ("magnetic_field_covariance", 9)),
 }
 
 # MCAP Message record: opcode u8, record length u64, channel_id u16, sequence u32,
@@ -359,6 +364,19 @@ def quaternion_stamped_batch(topic: str, stamp_ns, quaternion, *, frame_id: str 
     n = np.shape(stamp_ns)[0] if np.ndim(stamp_ns) == 1 else -1
     columns = {"quaternion": _rows(quaternion, n, 4, "quaternion")}
     return _batch(topic, QUATERNION_STAMPED_TYPE, frame_id, stamp_ns, log_time_ns,
+                  publish_time_ns, columns)
+
+
+def magnetic_field_batch(topic: str, stamp_ns, magnetic_field, *, frame_id: str = "imu_link",
+                         magnetic_field_covariance=None, log_time_ns=None,
+                         publish_time_ns=None) -> MessageBatch:
+    """N ``sensor_msgs/msg/MagneticField`` messages: ``magnetic_field`` (N, 3) tesla,
+    covariance (N, 9) or (9,) tesla², default all zeros ("unknown", REP-145)."""
+    n = _n_stamps(stamp_ns)
+    columns = {"magnetic_field": _rows(magnetic_field, n, 3, "magnetic_field"),
+               "magnetic_field_covariance": _rows(magnetic_field_covariance, n, 9,
+                                                  "magnetic_field_covariance", np.zeros(9))}
+    return _batch(topic, MAGNETIC_FIELD_TYPE, frame_id, stamp_ns, log_time_ns,
                   publish_time_ns, columns)
 
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gyro_attitude.io import cdr_arrays
-from gyro_attitude.io.cdr_arrays import IMU_TYPE, QUATERNION_STAMPED_TYPE
+from gyro_attitude.io.cdr_arrays import IMU_TYPE, MAGNETIC_FIELD_TYPE, QUATERNION_STAMPED_TYPE
 from gyro_attitude.io.mcap_reader import (
     McapStreamReader,
     bag_files,
@@ -32,8 +32,10 @@ from gyro_attitude.io.mcap_records import MESSAGE_FIXED, OP_MESSAGE, RECORD_HEAD
 
 __all__ = [
     "ImuArrays",
+    "MagneticFieldArrays",
     "QuaternionArrays",
     "read_imu_arrays",
+    "read_magnetic_field_arrays",
     "read_quaternion_stamped_arrays",
     "read_topic_arrays",
     "deserialized",
@@ -101,6 +103,19 @@ class QuaternionArrays(_TopicArrays):
     """All messages of one ``geometry_msgs/msg/QuaternionStamped`` topic (x, y, z, w)."""
 
     quaternion: np.ndarray = field(default=None)
+
+
+@dataclass
+class MagneticFieldArrays(_TopicArrays):
+    """All messages of one ``sensor_msgs/msg/MagneticField`` topic: ``magnetic_field`` (N, 3)
+    tesla, ``magnetic_field_covariance`` (N, 9)."""
+
+    magnetic_field: np.ndarray = field(default=None)
+    magnetic_field_covariance: np.ndarray = field(default=None)
+
+
+_ARRAY_CLASSES = {IMU_TYPE: ImuArrays, QUATERNION_STAMPED_TYPE: QuaternionArrays,
+                  MAGNETIC_FIELD_TYPE: MagneticFieldArrays}
 
 
 class _Collector:
@@ -223,6 +238,8 @@ class _Collector:
         Messages that do not deserialize are left out; returns what was wrong with them."""
         if self.type_name == IMU_TYPE:
             from sensor_msgs.msg import Imu as msg_type
+        elif self.type_name == MAGNETIC_FIELD_TYPE:
+            from sensor_msgs.msg import MagneticField as msg_type
         else:
             from geometry_msgs.msg import QuaternionStamped as msg_type
         cols: dict[str, list] = {k: [] for k in ("stamp_ns", "log_time_ns", "publish_time_ns",
@@ -264,7 +281,7 @@ class _Collector:
                 width = self.fields.get(k)
                 out[k] = np.zeros((0,) if width is None else (0, width),
                                   np.int64 if width is None else np.float64)
-        cls = ImuArrays if self.type_name == IMU_TYPE else QuaternionArrays
+        cls = _ARRAY_CLASSES[self.type_name]
         return cls(topic=self.topic, frame_id=self.frame_ids[0] if self.frame_ids else "",
                    frame_ids=set(self.frame_ids), fast_messages=self.fast,
                    fallback_messages=self.fallback, damage=damage, **out)
@@ -539,4 +556,11 @@ def read_quaternion_stamped_arrays(path, topic: str = "truth/attitude", *,
                                    progress=None) -> QuaternionArrays:
     """Every ``geometry_msgs/msg/QuaternionStamped`` message of ``topic``."""
     return read_topic_arrays(path, {topic: QUATERNION_STAMPED_TYPE}, on_damage=on_damage,
+                             validate_crc=validate_crc, progress=progress)[topic]
+
+
+def read_magnetic_field_arrays(path, topic: str = "imu/mag", *, on_damage: str = "raise",
+                               validate_crc: bool = True, progress=None) -> MagneticFieldArrays:
+    """Every ``sensor_msgs/msg/MagneticField`` message of ``topic``."""
+    return read_topic_arrays(path, {topic: MAGNETIC_FIELD_TYPE}, on_damage=on_damage,
                              validate_crc=validate_crc, progress=progress)[topic]

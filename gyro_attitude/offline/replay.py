@@ -26,10 +26,14 @@ import numpy as np
 
 from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, DEFAULT_OFFLINE_ALGORITHM, NavFrame
 from gyro_attitude.core.attitude import validation as iv
-from gyro_attitude.core.attitude.modes import Estimator, InitialAttitudeSource, parse_mode
+from gyro_attitude.core.attitude.modes import Aiding, Estimator, InitialAttitudeSource, parse_mode
 from gyro_attitude.core.attitude.nav_frame import velocity_series
 from gyro_attitude.core.attitude.offline import estimate_offline
+from gyro_attitude.core.attitude.sample_alignment import latest_at
 from gyro_attitude.core.attitude.stream import (
+    INVALID_MAG,
+    MAG_DISTURBED,
+    MAG_MISSING,
     AttitudeStream,
     PerSamplePathNeeded,
     StreamConfig,
@@ -37,9 +41,11 @@ from gyro_attitude.core.attitude.stream import (
     nav_rows,
 )
 from gyro_attitude.core.attitude.truth import initial_attitude_from_truth, truth_at_stamps
+from gyro_attitude.core.attitude.world_frame import frame_id_of, from_enu
 from gyro_attitude.core.rotation import quat_angle_between
 from gyro_attitude.io.cdr_arrays import (
     IMU_TYPE,
+    MAGNETIC_FIELD_TYPE,
     QUATERNION_STAMPED_TYPE,
     imu_batch,
     quaternion_stamped_batch,
@@ -58,6 +64,7 @@ __all__ = [
 ]
 
 DEFAULT_IMU_TOPIC = "imu/data_raw"
+DEFAULT_MAG_TOPIC = "imu/mag"
 TRUTH_TOPIC = "truth/attitude"
 OUTPUT_CHUNK_SIZE = 4 * 1024 * 1024
 # Output messages built and written per write_batches call (bounds the write side's memory).
@@ -105,6 +112,7 @@ class ReplayResult:
     messages_per_second: float
     input_damage: str | None
     estimator_notes: list[str] = field(default_factory=list)
+    magnetometer: dict | None = None
     truth_topic: str | None = None
     truth_matched: int = 0
     final_error_rad: float | None = None
@@ -198,18 +206,21 @@ class Estimate:
     first: int
     algorithm: str
     notes: list[str]
+    aiding: object = None  # the causal chain's aiding stage (its counts and reference)
 
 
 def estimate_recording(t_ns, omega, accel, gyro_covariance, frame_id, *, config: StreamConfig,
                        nav: NavFrame | None, algorithm: str | None,
                        estimator: Estimator | str = Estimator.OFFLINE,
-                       truth: tuple[np.ndarray, np.ndarray] | None = None) -> Estimate:
+                       truth: tuple[np.ndarray, np.ndarray] | None = None,
+                       mag: np.ndarray | None = None) -> Estimate:
     """The one way a recording is estimated (replay, montecarlo, fleet replay): the truth
     start at the first sample the estimator accepts (``initial_attitude_source`` truth: the
     samples before it are left out), then the whole-recording estimator (``offline``) or the
     node's chain (``causal``: the offline default algorithm where its array form runs, the
     node's causal default where the chain runs per sample and no algorithm was named).
-    ``nav`` may hold time series over all N samples; ``truth`` is (stamps, quaternions)."""
+    ``nav`` may hold time series over all N samples; ``truth`` is (stamps, quaternions);
+    ``mag`` (N, 3) the magnetic field at the samples (aiding magnetometer) or None."""
     estimator = parse_mode(Estimator, estimator, "estimator")
     n = t_ns.shape[0]
     first = 0
@@ -225,6 +236,7 @@ def estimate_recording(t_ns, omega, accel, gyro_covariance, frame_id, *, config:
         nav = nav_rows(nav, np.arange(first, n), n)
         t_ns, omega, gyro_covariance = t_ns[first:], omega[first:], gyro_covariance[first:]
         accel = None if accel is None else accel[first:]
+        mag = None if mag is None else mag[first:]
     if estimator is Estimator.OFFLINE:
         algorithm = algorithm or DEFAULT_OFFLINE_ALGORITHM
         res = estimate_offline(t_ns, omega, accel, config=config, q0=q0, nav=nav,
@@ -234,15 +246,15 @@ def estimate_recording(t_ns, omega, accel, gyro_covariance, frame_id, *, config:
     stream = AttitudeStream(algorithm or DEFAULT_OFFLINE_ALGORITHM, q0=q0, nav=nav,
                             config=config)
     try:
-        res = stream.run(t_ns, omega, frame_id, gyro_covariance, accel)
+        res = stream.run(t_ns, omega, frame_id, gyro_covariance, accel, mag)
     except PerSamplePathNeeded:
         if algorithm is not None:
             raise
         # the chain runs per sample on this recording (aiding): the offline algorithm cannot,
         # the node's default can
         stream = AttitudeStream(DEFAULT_ALGORITHM, q0=q0, nav=nav, config=config)
-        res = stream.run(t_ns, omega, frame_id, gyro_covariance, accel)
-    return Estimate(res, first, stream.algorithm, [])
+        res = stream.run(t_ns, omega, frame_id, gyro_covariance, accel, mag)
+    return Estimate(res, first, stream.algorithm, [], stream.aiding)
 
 
 def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
@@ -253,7 +265,8 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                 progress: Callable[[int, int], None] | None = None,
                 on_damage: str = "warn", config: StreamConfig | None = None,
                 odometry_topic: str | None = None,
-                estimator: Estimator | str = Estimator.OFFLINE) -> ReplayResult:
+                estimator: Estimator | str = Estimator.OFFLINE,
+                mag_topic: str = DEFAULT_MAG_TOPIC) -> ReplayResult:
     """Integrate every Imu message of ``input_path`` and write ``output_path``.
 
     ``estimator`` ``offline``: the whole-recording estimator
@@ -273,13 +286,17 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     transport rate (frame enu), time-aligned to the Imu stamps as the node applies it (each
     sample takes the newest message stamped at or before it).  The output must not be the
     input and must not exist unless ``force``; it appears only complete.
+    With ``aiding`` magnetometer the ``sensor_msgs/MagneticField`` topic ``mag_topic`` is read
+    and matched to the Imu stamps as the node matches it (the latest field sample at or before
+    each stamp, at most ``mag_max_age_s`` old: :mod:`.sample_alignment`).
     ``progress(bytes_done, bytes_total)`` is called while reading.  Raises ValueError (bad
     arguments, unusable input, nothing to write) and OSError.
     """
     for name, value in (("input_path", input_path), ("output_path", output_path)):
         if not isinstance(value, str | os.PathLike):
             raise ValueError(f"{name} must be a path, got {type(value).__name__}")
-    for name, value in (("imu_topic", imu_topic), ("truth_topic", truth_topic)):
+    for name, value in (("imu_topic", imu_topic), ("truth_topic", truth_topic),
+                        ("mag_topic", mag_topic)):
         if not isinstance(value, str) or not value:
             raise ValueError(f"{name} must be a topic name, got {value!r}")
     if config is not None and not isinstance(config, StreamConfig):
@@ -295,8 +312,11 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     _check_inputs(frame, nav)
     check_output_path(output_path, inputs=[input_path], force=force)
     t_start = time.perf_counter()
-    arrays = read_topic_arrays(input_path, {imu_topic: IMU_TYPE,
-                                            truth_topic: QUATERNION_STAMPED_TYPE},
+    use_mag = config.aiding is Aiding.MAGNETOMETER
+    topics = {imu_topic: IMU_TYPE, truth_topic: QUATERNION_STAMPED_TYPE}
+    if use_mag:
+        topics[mag_topic] = MAGNETIC_FIELD_TYPE
+    arrays = read_topic_arrays(input_path, topics,
                                on_damage=on_damage, progress=progress, required=False,
                                fields={imu_topic: ("angular_velocity", "linear_acceleration",
                                                    "angular_velocity_covariance",
@@ -311,6 +331,15 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     if len(imu) == 0:
         raise ValueError(f"{input_path}: topic {imu.topic} has no messages"
                          + (f"; {damage}" if damage else ""))
+    mag_rows = None
+    if use_mag:
+        mag = arrays.get(mag_topic)
+        if mag is None or len(mag) == 0:
+            raise ValueError(f"{input_path}: aiding magnetometer needs the "
+                             f"sensor_msgs/MagneticField topic {mag_topic!r} (use --mag-topic)"
+                             + ("" if mag is None else ": it has no messages"))
+        mag_rows = latest_at(imu.stamp_ns, mag.stamp_ns, mag.magnetic_field,
+                             int(round(config.mag_max_age_s * 1e9)))
     t_read = time.perf_counter()
 
     truth = arrays.get(truth_topic)
@@ -320,7 +349,6 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
             raise ValueError("--odometry-topic needs --frame enu (the transport rate of the "
                              "nav frame)")
         odo = read_odometry_velocities(input_path, odometry_topic)
-    if odometry_topic:
         nav = dataclasses.replace(nav, velocity_enu=velocity_series(
             t_all, odo.stamp_ns, odo.velocity, np.broadcast_to(nav.velocity_enu, (3,))))
     if config.initial_attitude_source is InitialAttitudeSource.TRUTH and (
@@ -336,7 +364,7 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         t_all, imu.angular_velocity, imu.linear_acceleration if has_accel else None,
         imu.angular_velocity_covariance, imu.frame_id, config=config, nav=nav,
         algorithm=algorithm, estimator=estimator,
-        truth=None if truth is None else (truth.stamp_ns, truth.quaternion))
+        truth=None if truth is None else (truth.stamp_ns, truth.quaternion), mag=mag_rows)
     res, first, algorithm, notes = est.result, est.first, est.algorithm, est.notes
     t = t_all[first:]
     if res.index.size == 0:
@@ -354,6 +382,8 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         return a if every else a[keep]
 
     tv, qv = kept(t), res.q
+    q_out = from_enu(qv, config.world_frame)  # the published frame (errors: in ENU, as truth)
+    out_frame = frame_id_of(config.frame, config.world_frame)
     with SafeOutput(output_path, force=force) as tmp:
         with Rosbag2McapWriter(tmp, compression=compression, chunk_size=chunk_size) as w:
             w.add_topic("attitude", QUATERNION_STAMPED_TYPE)
@@ -364,9 +394,9 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
             for lo in range(0, keep.size, OUTPUT_BLOCK_MESSAGES):
                 hi = min(lo + OUTPUT_BLOCK_MESSAGES, keep.size)
                 rows = slice(keep[lo], keep[hi - 1] + 1) if every else keep[lo:hi]
-                w.write_batches(_output_batches(imu, rows, tv[lo:hi], qv[lo:hi],
+                w.write_batches(_output_batches(imu, rows, tv[lo:hi], q_out[lo:hi],
                                                 _block(res.variance, lo, hi),
-                                                _block(res.variance_known, lo, hi), frame))
+                                                _block(res.variance_known, lo, hi), out_frame))
     t_end = time.perf_counter()
 
     result = ReplayResult(
@@ -389,7 +419,17 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         integrate_seconds=t_int - t_read, write_seconds=t_end - t_int,
         messages_per_second=len(imu) / max(t_end - t_start, 1e-12), input_damage=damage,
         estimator_notes=notes,
-        index=keep, t_ns=tv, q=qv, error_t_ns=np.zeros(0, np.int64), error_rad=np.zeros(0))
+        index=keep, t_ns=tv, q=q_out, error_t_ns=np.zeros(0, np.int64), error_rad=np.zeros(0))
+    if use_mag and est.aiding is not None:
+        aid = est.aiding
+        result.magnetometer = {
+            "topic": arrays[mag_topic].topic, "messages": len(arrays[mag_topic]),
+            **{k: res.counts[k] for k in (MAG_MISSING, INVALID_MAG, MAG_DISTURBED)},
+            "reference_changes": aid.mag_reference_changes,
+            "reference_norm_t": aid.mag_ref_norm,
+            "reference_dip_deg": None if aid.mag_ref_dip is None else math.degrees(
+                aid.mag_ref_dip),
+            "hard_iron_t": list(aid.hard_iron), "accel_rejected": aid.accel_rejected}
     if truth is not None and len(truth):
         _compare_with_truth(result, truth, tv, qv)
     return result

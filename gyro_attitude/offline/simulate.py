@@ -10,11 +10,13 @@ from pathlib import Path
 import numpy as np
 
 from gyro_attitude.core.scene import MAX_RATE_HZ, SceneSimulator, SceneSpec
+from gyro_attitude.core.scene.magnetometer import magnetometer_covariance
 from gyro_attitude.core.sim_topics import (
     DEFAULT_FRAME_ID,
     DEFAULT_WORLD_FRAME_ID,
     IMU_TOPIC,
     JOINT_TOPIC,
+    MAG_TOPIC,
     ODOM_TOPIC,
     TOPICS,
     TRUTH_TOPIC,
@@ -25,6 +27,7 @@ from gyro_attitude.io.cdr_arrays import (
     MessageBatch,
     imu_batch,
     joint_state_batch,
+    magnetic_field_batch,
     odometry_batch,
     quaternion_stamped_batch,
 )
@@ -133,6 +136,7 @@ def simulate(scene: str | SceneSpec, duration_s: float | None, out, *,
     gyro_var, accel_var = sim.imu_variances()
     gyro_cov = _diag9(gyro_var)
     accel_cov = None if accel_var is None else _diag9(accel_var)
+    mag_cov = None if spec.magnetometer is None else magnetometer_covariance(spec.magnetometer)
     topics = SimTopics()
     names = {t: normalize_topic(t) for t in TOPICS}
     counts = dict.fromkeys(names.values(), 0)
@@ -148,6 +152,8 @@ def simulate(scene: str | SceneSpec, duration_s: float | None, out, *,
             writer.add_topic(names[IMU_TOPIC], TOPICS[IMU_TOPIC])
             if spec.free_gyro_params is not None or spec.instrument is not None:
                 writer.add_topic(names[JOINT_TOPIC], TOPICS[JOINT_TOPIC])
+            if mag_cov is not None:
+                writer.add_topic(names[MAG_TOPIC], TOPICS[MAG_TOPIC])
             if publish_truth:
                 writer.add_topic(names[TRUTH_TOPIC], TOPICS[TRUTH_TOPIC])
                 writer.add_topic(names[ODOM_TOPIC], TOPICS[ODOM_TOPIC])
@@ -157,7 +163,7 @@ def simulate(scene: str | SceneSpec, duration_s: float | None, out, *,
                 f = topics.fields(sim.next_block(n), truth=publish_truth)
                 stamps = f.t_rel_ns + topics.t0_ns
                 batches = _block_batches(f, stamps, names, frame_id, world_frame_id, gyro_cov,
-                                         accel_cov, publish_truth)
+                                         accel_cov, publish_truth, mag_cov)
                 # One call per block with every topic: the writer merges them by log time
                 # (all share the stamps here, so message k of every topic sits together).
                 writer.write_batches(batches)
@@ -181,7 +187,7 @@ def _scene_inputs(scene) -> list:
 
 def _block_batches(f, stamps: np.ndarray, names: dict, frame_id: str, world_frame_id: str,
                    gyro_cov: np.ndarray, accel_cov: np.ndarray | None,
-                   publish_truth: bool) -> list[MessageBatch]:
+                   publish_truth: bool, mag_cov: np.ndarray | None = None) -> list[MessageBatch]:
     """Every topic's messages of one block, in gyro_sim's publishing order per sample."""
     batches = [imu_batch(names[IMU_TOPIC], stamps, f.angular_velocity, f.specific_force,
                          frame_id=frame_id, angular_velocity_covariance=gyro_cov,
@@ -189,6 +195,9 @@ def _block_batches(f, stamps: np.ndarray, names: dict, frame_id: str, world_fram
     if f.gimbal_angles is not None:
         batches.append(joint_state_batch(names[JOINT_TOPIC], stamps, f.gimbal_names,
                                          f.gimbal_angles, f.gimbal_rates, frame_id=frame_id))
+    if f.magnetic_field is not None:
+        batches.append(magnetic_field_batch(names[MAG_TOPIC], stamps, f.magnetic_field,
+                                            frame_id=frame_id, magnetic_field_covariance=mag_cov))
     if publish_truth:
         batches.append(quaternion_stamped_batch(names[TRUTH_TOPIC], stamps, f.q_nb,
                                                 frame_id=world_frame_id))

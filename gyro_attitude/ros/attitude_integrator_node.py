@@ -74,13 +74,14 @@ from geometry_msgs.msg import QuaternionStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, MagneticField
 from std_msgs.msg import Header
 
 from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, causal_algorithms
 from gyro_attitude.core.attitude import validation as iv
-from gyro_attitude.core.attitude.modes import InitialAttitudeSource, SettingError
+from gyro_attitude.core.attitude.modes import Aiding, InitialAttitudeSource, SettingError
 from gyro_attitude.core.attitude.nav_frame import VelocitySchedule
+from gyro_attitude.core.attitude.sample_alignment import LatestSamples
 from gyro_attitude.core.attitude.settings import SETTINGS, StreamConfig
 from gyro_attitude.core.attitude.stream import (
     ALIGNING,
@@ -88,13 +89,17 @@ from gyro_attitude.core.attitude.stream import (
     INTEGRATOR_ERROR,
     INVALID_ACCEL,
     INVALID_COVARIANCE,
+    INVALID_MAG,
+    MAG_DISTURBED,
+    MAG_MISSING,
     RUNNING,
     SATURATED,
     AttitudeStream,
 )
 from gyro_attitude.core.attitude.truth import TruthStart
+from gyro_attitude.core.attitude.world_frame import frame_id_of, from_enu_one
 from gyro_attitude.ros import convert
-from gyro_attitude.ros.node_main import run_node
+from gyro_attitude.ros.node_main import EXECUTORS, run_node
 from gyro_attitude.ros.params import (
     ParameterError,
     ParamSpec,
@@ -119,15 +124,27 @@ def parameter_specs(settings=SETTINGS) -> list[ParamSpec]:
                   "nav_msgs/Odometry topic giving the carrier velocity for the transport "
                   "rate (frame=enu; twist in child_frame_id, rotated to ENU with the pose "
                   "orientation); '' = off, velocity_enu is used"),
+        ParamSpec("mag_topic", "imu/mag",
+                  "sensor_msgs/MagneticField topic (tesla) for aiding magnetometer, matched to "
+                  "the Imu stamps (the latest sample at or before each, at most mag_max_age_s "
+                  "old)"),
         ParamSpec("world_frame_id", "",
-                  "header.frame_id of the attitude output ('' = 'enu' or 'inertial' per frame)"),
+                  "header.frame_id of the attitude output ('' = the world_frame's name, or "
+                  "'inertial' with frame inertial)"),
         ParamSpec("qos_reliability", "best_effort",
                   "imu/data_raw subscription reliability", choices=("best_effort", "reliable")),
         ParamSpec("qos_depth", 1000, "imu/data_raw subscription queue depth", low=1,
                   high=100000),
+        ParamSpec("executor", "single_threaded",
+                  "rclpy executor: single_threaded (rclpy's default; drain_queue applies) | "
+                  "events (rclpy.experimental.EventsExecutor: EXPERIMENTAL, with the pinned "
+                  "Jazzy rclpy its spin() holds the GIL while waiting, so timers and other "
+                  "threads starve; falls back to single_threaded where it is missing)",
+                  choices=EXECUTORS),
         ParamSpec("drain_queue", True,
-                  "take all queued Imu messages per executor wakeup (less overhead at high "
-                  "rates); false: one message per wakeup (plain rclpy)"),
+                  "single_threaded executor: take all queued Imu messages per wakeup (less "
+                  "overhead at high rates); false: one message per wakeup (plain rclpy). The "
+                  "events executor delivers every message itself and never drains"),
         ParamSpec("diagnostics_period_s", 1.0, "period of /diagnostics [s]", low=0.01,
                   high=3600.0),
     ]
@@ -142,6 +159,10 @@ class AttitudeIntegratorNode(Node):
         self._specs = {s.name: s for s in specs}
         p = declare_all(self, specs)  # raises ParameterError naming a bad parameter
         self._p = p
+        self.executor_kind = p["executor"]  # read by node_main.spin_with_executor
+        # taking messages from the subscription's handle behind the events executor's back
+        # would leave its per-message events without a message: drain only without it
+        self._drain = p["drain_queue"] and p["executor"] != "events"
         try:
             config = self._stream_config(p)
             self._nav = config.nav_frame()
@@ -156,7 +177,8 @@ class AttitudeIntegratorNode(Node):
             raise ParameterError(f"parameter '{exc.setting}': {exc}") from exc
         except ValueError as exc:  # e.g. an Euler-angle algorithm with frame=enu
             raise ParameterError(f"parameter 'algorithm' = {p['algorithm']!r}: {exc}") from exc
-        self._world_frame = p["world_frame_id"] or config.frame.value
+        self._world = config.world_frame
+        self._world_frame = p["world_frame_id"] or frame_id_of(config.frame, config.world_frame)
         self._truth_start = None
         if config.initial_attitude_source is InitialAttitudeSource.TRUTH:
             max_rate = config.max_rate_rad_s
@@ -189,6 +211,11 @@ class AttitudeIntegratorNode(Node):
                 self._sub_odom = self.create_subscription(
                     Odometry, p["odometry_topic"], self._on_odometry,
                     imu_qos(p["qos_reliability"], self._ODOM_QUEUE))
+        self._mag = None
+        if config.aiding is Aiding.MAGNETOMETER:
+            self._mag = LatestSamples(int(round(config.mag_max_age_s * 1e9)))
+            self._sub_mag = self.create_subscription(MagneticField, p["mag_topic"], self._on_mag,
+                                                     qos)
         self.create_timer(p["diagnostics_period_s"], self._publish_diagnostics)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.get_logger().info(
@@ -311,9 +338,13 @@ class AttitudeIntegratorNode(Node):
     # at most this many extra messages per wakeup, so timers (diagnostics) still run
     _DRAIN_MAX = 200
 
+    def _on_mag(self, msg: MagneticField) -> None:
+        f = msg.magnetic_field
+        self._mag.add(convert.stamp_to_ns(msg.header.stamp), (f.x, f.y, f.z))
+
     def _on_imu_wakeup(self, msg: Imu) -> None:
         self._on_imu(msg)
-        if not self._p["drain_queue"]:
+        if not self._drain:
             return
         # rclpy's executor rebuilds its wait set for every callback, which costs more than
         # integrating one sample; taking the messages already queued here (as the executor
@@ -340,7 +371,8 @@ class AttitudeIntegratorNode(Node):
         if self._sub_odom is not None:
             self._apply_odometry(t_ns)
         st = self._stream
-        verdict, q = st.push(t_ns, omega, frame_id, msg.angular_velocity_covariance, accel)
+        mag = None if self._mag is None else self._mag.at(t_ns)
+        verdict, q = st.push(t_ns, omega, frame_id, msg.angular_velocity_covariance, accel, mag)
         if st.phase != self._phase_seen:
             self._phase_seen = st.phase
             self._log_phase()
@@ -366,7 +398,7 @@ class AttitudeIntegratorNode(Node):
             self.get_logger().error(f"alignment failed: {st.alignment_error}")
 
     def _publish(self, msg: Imu, q: np.ndarray) -> None:
-        x, y, z, w = q.tolist()
+        x, y, z, w = from_enu_one(q.tolist(), self._world)
         o = msg.orientation
         o.x, o.y, o.z, o.w = x, y, z, w
         variance = self._stream.variance
@@ -408,6 +440,15 @@ class AttitudeIntegratorNode(Node):
             "invalid_accels": str(counts[INVALID_ACCEL]),
             "phase": st.phase,
         }
+        if self._mag is not None:
+            aid = st.aiding
+            values["mag_missing"] = str(counts[MAG_MISSING])
+            values["invalid_mags"] = str(counts[INVALID_MAG])
+            values["mag_disturbed"] = str(counts[MAG_DISTURBED])
+            values["mag_reference"] = ("learning" if aid.mag_ref_norm is None else
+                                       f"|B| {aid.mag_ref_norm * 1e6:.2f} uT, dip "
+                                       f"{math.degrees(aid.mag_ref_dip or 0.0):.2f} deg")
+            values["mag_hard_iron_t"] = _vec(aid.hard_iron)
         rep = st.bias_report
         values["gyro_bias_mode"] = rep.mode
         values["gyro_bias_rad_s"] = _vec(rep.bias)

@@ -19,7 +19,7 @@ import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Quaternion, QuaternionStamped, Vector3
 from nav_msgs.msg import Odometry
-from sensor_msgs.msg import Imu, JointState
+from sensor_msgs.msg import Imu, JointState, MagneticField
 
 from gyro_attitude.core.attitude.nav_frame import odometry_velocity
 from gyro_attitude.core.attitude.validation import NO_ESTIMATE, no_estimate
@@ -165,6 +165,23 @@ def imu_msg(
             else [float(c) for c in orientation_covariance]
         )
     return msg
+
+
+def magnetic_field_msg(t_ns: int, frame_id: str, field, covariance) -> MagneticField:
+    """``sensor_msgs/MagneticField`` of one sample: ``field`` (3,) tesla, ``covariance`` 9
+    floats (row-major, T²; all zeros: unknown, REP-145)."""
+    msg = MagneticField()
+    msg.header.stamp = ns_to_stamp(t_ns)
+    msg.header.frame_id = frame_id
+    msg.magnetic_field = vector3_to_msg(field)
+    msg.magnetic_field_covariance = [float(c) for c in covariance]
+    return msg
+
+
+def magnetic_field_arrays(msg: MagneticField) -> tuple[int, np.ndarray]:
+    """``(t_ns, field (3,) tesla)`` of a MagneticField message."""
+    f = msg.magnetic_field
+    return stamp_to_ns(msg.header.stamp), np.array([f.x, f.y, f.z], dtype=np.float64)
 
 
 def imu_arrays(msg: Imu) -> tuple[int, str, np.ndarray, np.ndarray]:

@@ -13,6 +13,9 @@ Publishes (relative names, so a namespace applies):
 * ``truth/attitude`` (geometry_msgs/QuaternionStamped): true q_nb, frame ``world_frame_id``.
 * ``truth/odom`` (nav_msgs/Odometry): position in the local ENU plane of the start point
   [m], orientation q_nb; twist in ``frame_id``: body-frame velocity and ω_nb^b.
+* ``imu/mag`` (sensor_msgs/MagneticField, tesla, frame ``frame_id``) when the scene has a
+  ``magnetometer:`` section; covariance σ² on the diagonal (all zeros for a noise-free one:
+  unknown, REP-145).
 * ``/clock`` (rosgraph_msgs/Clock) in ``time_mode: fast``.
 
 Timing. Stamps are on the sample grid: ``start + t_k`` with ``t_k`` the scene's own int-ns
@@ -41,13 +44,15 @@ from rclpy.node import Node
 from rclpy.serialization import serialize_message
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import Imu, JointState
+from sensor_msgs.msg import Imu, JointState, MagneticField
 from std_msgs.msg import Header
 
 from gyro_attitude.core.scene import BLOCK_SAMPLES, SceneSimulator
+from gyro_attitude.core.scene.magnetometer import magnetometer_covariance
 from gyro_attitude.core.sim_topics import (
     DEFAULT_FRAME_ID,
     DEFAULT_WORLD_FRAME_ID,
+    MAG_TOPIC,
     TOPICS,
     SimTopics,
     local_enu_position,  # noqa: F401  (re-exported: its home moved to core.sim_topics)
@@ -156,6 +161,13 @@ class GyroSimNode(Node):
         self._pub_truth = self.create_publisher(QuaternionStamped, "truth/attitude", 1000)
         self._pub_odom = self.create_publisher(Odometry, "truth/odom", 100)
         self._pub_clock = self.create_publisher(Clock, "/clock", 10) if self._fast else None
+        self._pub_mag = self._mag_cov = None
+        if spec.magnetometer is not None:
+            self._mag_cov = magnetometer_covariance(spec.magnetometer).tolist()
+            self._pub_mag = self.create_publisher(
+                MagneticField, MAG_TOPIC, imu_qos(p["qos_reliability"], p["qos_depth"]))
+        self._topics_published = {t: ty for t, ty in TOPICS.items()
+                                  if t != MAG_TOPIC or self._pub_mag is not None}
         self._odom_wall: float | None = None  # monotonic time of the last odometry
         self._created_at = time.monotonic()
         self._odom_intervals: list[int] = []
@@ -201,7 +213,7 @@ class GyroSimNode(Node):
         try:
             check_output_path(path, what="record_path")
             self._recording = SafeRecording(path)
-            for topic, type_name in TOPICS.items():
+            for topic, type_name in self._topics_published.items():
                 self._recording.add_topic(self._resolve(topic), type_name)
         except (OSError, ValueError) as exc:
             if self._recording is not None:
@@ -248,13 +260,14 @@ class GyroSimNode(Node):
                 f.q_nb.tolist(), f.position_enu.tolist(), f.velocity_body.tolist(),
                 f.omega_nb_b.tolist(),
                 None if f.gimbal_angles is None else f.gimbal_angles.tolist(),
-                None if f.gimbal_rates is None else f.gimbal_rates.tolist()]
+                None if f.gimbal_rates is None else f.gimbal_rates.tolist(),
+                None if f.magnetic_field is None else f.magnetic_field.tolist()]
         self._block = [tuple(None if c is None else c[k] for c in cols) for k in range(n)]
         self._gimbal_names = None if f.gimbal_names is None else list(f.gimbal_names)
         self._block_pos = 0
 
     def _publish_row(self, row) -> None:
-        t_rel, omega, sf, q, pos, v_b, w_nb, g_ang, g_rate = row
+        t_rel, omega, sf, q, pos, v_b, w_nb, g_ang, g_rate, mag = row
         t_ns = self._start_ns + t_rel
         imu = convert.imu_msg(t_ns, self._frame_id, omega, sf, self._gyro_var, self._accel_var)
         self._pub_imu.publish(imu)
@@ -264,6 +277,10 @@ class GyroSimNode(Node):
             js.header.frame_id = self._frame_id
             self._pub_joint.publish(js)
             msgs.append(("gyro/joint_states", js))
+        if mag is not None:
+            mm = convert.magnetic_field_msg(t_ns, self._frame_id, mag, self._mag_cov)
+            self._pub_mag.publish(mm)
+            msgs.append((MAG_TOPIC, mm))
         if self._p["publish_truth"]:
             att = QuaternionStamped()
             att.header = Header(stamp=imu.header.stamp, frame_id=self._world)
@@ -395,7 +412,7 @@ class GyroSimNode(Node):
         if self._start_ns is None:
             if not self._ready():
                 return
-            self._resolve_cache = {t: self._resolve(t) for t in TOPICS}
+            self._resolve_cache = {t: self._resolve(t) for t in self._topics_published}
             self._next_block()
             now = time.time_ns()
             until = self._timer.time_until_next_call()

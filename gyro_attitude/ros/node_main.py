@@ -31,7 +31,8 @@ from gyro_attitude.ros.params import ParameterError
 RCLError = _rclpy.RCLError
 
 __all__ = ["run_node", "InputError", "ShutdownSignals", "EXIT_OK", "EXIT_INPUT",
-           "EXIT_OUTPUT", "EXIT_PARAMETER"]
+           "EXIT_OUTPUT", "EXIT_PARAMETER", "EXECUTORS", "make_executor",
+           "spin_with_executor"]
 
 EXIT_OK = 0
 EXIT_INPUT = 1  # the input (a recording) cannot be used
@@ -122,6 +123,50 @@ def _params_file_problem(args: list[str] | None) -> str | None:
     return None
 
 
+#: ``executor`` parameter values: ``single_threaded`` is rclpy's default SingleThreadedExecutor;
+#: ``events`` is rclpy.experimental.EventsExecutor (Jazzy), which waits on the middleware's
+#: per-entity events instead of rebuilding a wait set for every callback (the tens of µs per
+#: message of the default executor).  Not the default: with the pinned Jazzy wheels
+#: (ros-jazzy-rclpy 7.1.6) its ``spin()`` holds the GIL while it waits: a 10 Hz timer did not
+#: fire once in 2 s, a publishing thread never ran, and ``spin_once`` hung on a queue of
+#: 20 000 messages (checked by hand, 2026-12-01).
+EXECUTORS = ("events", "single_threaded")
+
+
+def make_executor(kind: str, say: Callable[[str], None] | None = None):
+    """The executor ``kind`` (one of :data:`EXECUTORS`); ``events`` falls back to the
+    single-threaded one (with a line through ``say``) where this rclpy has no events executor
+    or it cannot be built."""
+    from rclpy.executors import SingleThreadedExecutor
+
+    if kind == "events":
+        try:
+            from rclpy.experimental import EventsExecutor
+
+            executor = EventsExecutor()
+            if say is not None:
+                say("executor 'events' is experimental in Jazzy (its spin holds the GIL: "
+                    "timers and threads may starve)")
+            return executor
+        except Exception as exc:  # ImportError on an older rclpy, or a failed construction
+            if say is not None:
+                say(f"events executor unavailable ({type(exc).__name__}: {exc}); "
+                    "using the single-threaded executor")
+    return SingleThreadedExecutor()
+
+
+def spin_with_executor(node: Node) -> None:
+    """Spin ``node`` on the executor it asks for (its ``executor_kind`` attribute, default
+    ``single_threaded``) until shutdown: what :func:`run_node` does by default."""
+    kind = getattr(node, "executor_kind", "single_threaded")
+    executor = make_executor(kind, lambda text: node.get_logger().warning(text))
+    executor.add_node(node)
+    try:
+        executor.spin()
+    finally:
+        executor.shutdown()
+
+
 def _destroy(node: Node) -> None:
     """``destroy_node`` that tolerates a context already shut down by a signal."""
     try:
@@ -131,7 +176,7 @@ def _destroy(node: Node) -> None:
 
 
 def run_node(name: str, make_node: Callable[[], Node], args=None, *,
-             spin: Callable[[Node], None] = rclpy.spin,
+             spin: Callable[[Node], None] = spin_with_executor,
              finish: Callable[[Node], None] | None = None) -> int:
     """Run a node until it is done or signalled; returns the process exit status.
 

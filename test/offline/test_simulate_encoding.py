@@ -61,3 +61,21 @@ def test_bad_input_refused():
         joint_state_batch("j", STAMPS[:1], "abc", [[0.0]], [[0.0]])
     with pytest.raises(ValueError, match="velocities"):
         joint_state_batch("j", STAMPS[:2], ["a", "b"], np.zeros((2, 2)), np.zeros((2, 3)))
+
+
+@pytest.mark.parametrize("frame", ["imu_link", "", "sensör"])
+def test_magnetic_field_matches_rclpy(frame):
+    from sensor_msgs.msg import MagneticField
+
+    from gyro_attitude.io.cdr_arrays import magnetic_field_batch
+
+    rng = np.random.default_rng(3)
+    n = STAMPS.size
+    b, cov = rng.normal(size=(n, 3)) * 1e-5, rng.normal(size=(n, 9)) * 1e-12
+    rows = magnetic_field_batch("imu/mag", STAMPS, b, frame_id=frame,
+                                magnetic_field_covariance=cov).payloads()
+    for k in range(n):
+        ref = convert.magnetic_field_msg(int(STAMPS[k]), frame, b[k], cov[k])
+        raw = rclpy_serialization.serialize_message(ref)
+        assert rows.shape[1] == len(raw)
+        assert rclpy_serialization.deserialize_message(rows[k].tobytes(), MagneticField) == ref

@@ -76,7 +76,8 @@ class GravityAiding:
         self.aided_samples = 0
         self._f_nav: list[float] | None = None  # low-passed specific force in the nav frame
 
-    def update(self, t_ns: int, gyro, accel, q_nb) -> np.ndarray:
+    def update(self, t_ns: int, gyro, accel, q_nb, mag=None) -> np.ndarray:
+        """One sample (``mag`` is not used: the aiding-stage signature of ahrs.py)."""
         t, w, f = check_sample(t_ns, gyro, accel)
         q = as_quat_array(q_nb, "q_nb")
         if q.shape != (4,):

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 from enum import Enum, StrEnum
 
-__all__ = ["Aiding", "Estimator", "Frame", "GyroBiasMode", "HeadingSource", "InitialAttitudeSource", "Phase",
+__all__ = ["Aiding", "Estimator", "Frame", "GyroBiasMode", "HeadingSource", "InitialAttitudeSource",
+           "Phase", "WorldFrame",
            "SettingError", "parse_mode"]
 
 
@@ -28,6 +29,16 @@ class Frame(StrEnum):
 
     INERTIAL = "inertial"
     ENU = "enu"
+
+
+class WorldFrame(StrEnum):
+    """The frame the published orientation is expressed in (core/attitude/world_frame.py):
+    ``enu`` (REP-103: x east, y north, z up), ``ned`` (x north, y east, z down), ``nwu``
+    (x north, y west, z up).  The body is the IMU's frame (header.frame_id) in every case."""
+
+    ENU = "enu"
+    NED = "ned"
+    NWU = "nwu"
 
 
 class InitialAttitudeSource(StrEnum):
@@ -55,10 +66,15 @@ class GyroBiasMode(StrEnum):
 
 
 class Aiding(StrEnum):
-    """Aiding of the integrated attitude: none, or tilt from gravity."""
+    """Aiding of the integrated attitude: none; tilt from gravity (``gravity``: the Mahony-style
+    complementary filter of gravity_aiding.py); ``tilt``: the AHRS filter of ahrs.py on the
+    accelerometer alone (heading gyro-only); ``magnetometer``: the AHRS filter with the
+    magnetometer for heading."""
 
     NONE = "none"
     GRAVITY = "gravity"
+    TILT = "tilt"
+    MAGNETOMETER = "magnetometer"
 
 
 class Estimator(StrEnum):

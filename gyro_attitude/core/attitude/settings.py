@@ -30,6 +30,7 @@ from gyro_attitude.core.attitude.modes import (
     HeadingSource,
     InitialAttitudeSource,
     SettingError,
+    WorldFrame,
     parse_mode,
 )
 from gyro_attitude.core.attitude.rest import RestThresholds
@@ -141,6 +142,10 @@ SETTINGS: tuple[Setting, ...] = (
     # -- frame and position
     Setting("frame", Frame.INERTIAL, "inertial: integrate q_ib; enu: q_nb with Earth and "
             "transport rate removed", choices=Frame, group="frame"),
+    Setting("world_frame", WorldFrame.ENU, "frame of the published orientation: enu (REP-103), "
+            "ned (x north, y east, z down) or nwu (x north, y west, z up); the body is the IMU "
+            "frame in each (for an FRD body with ned, turn by 180 deg about x)",
+            choices=WorldFrame, group="frame"),
     Setting("latitude_rad", 0.0, "geodetic latitude (frame enu; gyrocompassing; with frame enu "
             "the Earth rate is taken out of the gyro bias)", "rad", -_HALF_PI, _HALF_PI,
             group="frame"),
@@ -202,8 +207,10 @@ SETTINGS: tuple[Setting, ...] = (
             "m/s^2", 1e-4, 100.0, group="rest"),
     # -- aiding
     Setting("aiding", Aiding.NONE, "gravity: tilt pulled toward the accelerometer's vertical with "
-            "gyro-bias feedback, gated in fast motion (heading stays gyro-only)", choices=Aiding,
-            group="aiding"),
+            "gyro-bias feedback, gated in fast motion (heading stays gyro-only); tilt: the AHRS "
+            "filter (specific force low-passed in an almost-inertial frame, acceleration "
+            "rejection, settings ahrs_*); magnetometer: the same with the heading from the "
+            "magnetometer (mag_*)", choices=Aiding, group="aiding"),
     Setting("aiding_kp", 1.0, "gravity aiding: proportional gain of the tilt correction", "1/s",
             0.0, 1.0e3, group="aiding"),
     Setting("aiding_ki", 0.002, "gravity aiding: integral gain (tilt-axis bias feedback)",
@@ -218,6 +225,48 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("offline_tilt_tau_s", 3.0, "offline estimator (replay --estimator offline) with "
             "gravity aiding: time constant of the zero-phase low-pass of the specific force in the "
             "integration frame", "s", 0.01, 1000.0, group="aiding"),
+    # -- AHRS aiding (aiding tilt | magnetometer: core/attitude/ahrs.py)
+    Setting("ahrs_accel_tau_s", 3.0, "tilt/magnetometer aiding: time constant of the specific-"
+            "force low-pass in the almost-inertial frame", "s", 0.01, 100.0, group="ahrs"),
+    Setting("ahrs_accel_reject_deg", 3.0, "tilt/magnetometer aiding: the tilt is gyro-only while "
+            "the filtered vertical is further than this from the estimate (a sustained "
+            "acceleration)", "deg", 0.1, 180.0, group="ahrs"),
+    Setting("ahrs_accel_norm_tol", 3.0, "tilt/magnetometer aiding: gyro-only while | |f| - g | "
+            "exceeds this", "m/s^2", 0.0, 1.0e3, group="ahrs"),
+    Setting("ahrs_accel_recovery_s", 10.0, "tilt/magnetometer aiding: after this long rejected "
+            "the tilt follows again, at ahrs_recovery_rate_deg_s at most", "s", 0.0, 1.0e6,
+            group="ahrs"),
+    Setting("ahrs_recovery_rate_deg_s", 0.2, "tilt/magnetometer aiding: largest tilt correction "
+            "rate while recovering (as fast as a gyro may drift, not as an acceleration pulls)",
+            "deg/s", 0.0, 1.0e3, group="ahrs"),
+    Setting("ahrs_tilt_rate_max_deg_s", 1.0, "tilt/magnetometer aiding: largest tilt correction "
+            "rate", "deg/s", 0.0, 1.0e4, group="ahrs"),
+    Setting("ahrs_bias_gain", 0.02, "tilt/magnetometer aiding: gain of the gyro-bias integral "
+            "fed by the steady corrections (0 = off)", "1/s", 0.0, 10.0, group="ahrs"),
+    Setting("ahrs_mag_tau_s", 30.0, "magnetometer aiding: time constant of the heading toward "
+            "the field", "s", 0.01, 1.0e4, group="ahrs"),
+    Setting("magnetic_declination_deg", 0.0, "magnetometer aiding: declination east of true "
+            "north; the heading then points to true north (0: to magnetic north)", "deg",
+            -180.0, 180.0, group="ahrs"),
+    Setting("mag_norm_tol", 0.1, "magnetometer aiding: a field whose norm differs from the "
+            "reference by more than this fraction is a disturbance (heading gyro-only)", "",
+            1e-3, 10.0, group="ahrs"),
+    Setting("mag_dip_tol_deg", 10.0, "magnetometer aiding: a field whose dip differs from the "
+            "reference by more than this is a disturbance", "deg", 0.1, 180.0, group="ahrs"),
+    Setting("mag_recovery_s", 20.0, "magnetometer aiding: a disturbed field steady this long "
+            "becomes the new reference (never one of the other dip sign)", "s", 0.0, 1.0e6,
+            group="ahrs"),
+    Setting("mag_reference_enu_t", (0.0, 0.0, 0.0), "magnetometer aiding: the expected field "
+            "east, north, up for the disturbance test (zeros: learned from the first second)",
+            "T", -0.01, 0.01, length=3, group="ahrs"),
+    Setting("mag_hard_iron_t", (0.0, 0.0, 0.0), "magnetometer aiding: hard-iron offset "
+            "subtracted from the field (sensor frame)", "T", -0.01, 0.01, length=3,
+            group="ahrs"),
+    Setting("mag_hard_iron_estimate", False, "magnetometer aiding: estimate the hard iron by a "
+            "sphere fit once the sensor has turned about two axes", group="ahrs"),
+    Setting("mag_max_age_s", 0.1, "magnetometer aiding: a field sample serves the Imu samples "
+            "up to this long after its stamp (then heading gyro-only, counted mag_missing)", "s",
+            0.0, 10.0, group="ahrs"),
     # -- validation of the input stream
     Setting("max_gap_s", 0.1, "a forward stamp step longer than this is a gap: not integrated "
             "across, attitude held", "s", 1e-6, 1e6, runtime=True, group="input"),
@@ -372,6 +421,7 @@ def markdown_table(settings=SETTINGS) -> list[str]:
         elif s.low is not None and s.high is not None and s.kind != "vector":
             allowed = f" ({s.low:g} .. {s.high:g})"
         runtime = "; may change at runtime" if s.runtime else ""
-        out.append(f"| `{s.name}` `{s.flag}` | `{default}` | {s.unit} | {s.help}{allowed}"
+        text = s.help.replace("|", "\\|")  # a bar in the help would end the cell
+        out.append(f"| `{s.name}` `{s.flag}` | `{default}` | {s.unit} | {text}{allowed}"
                    f"{runtime} |")
     return out

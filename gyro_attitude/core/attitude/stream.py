@@ -56,6 +56,7 @@ from gyro_attitude.core.attitude import (
     get_algorithm,
 )
 from gyro_attitude.core.attitude import validation as v
+from gyro_attitude.core.attitude.ahrs import AhrsFilter, AhrsParams
 from gyro_attitude.core.attitude.alignment import (
     AlignmentResult,
     StaticAligner,
@@ -92,6 +93,11 @@ INVALID_COVARIANCE = "invalid_covariance"
 MAX_GYRO_VARIANCE = 1.0e6
 INTEGRATOR_ERROR = "integrator_error"
 INVALID_ACCEL = "invalid_accel"
+# aiding magnetometer: Imu samples with no field within mag_max_age_s, fields that are not a
+# reading (non-finite, absurd, zero), fields that disagree with the reference (disturbances)
+MAG_MISSING = "mag_missing"
+INVALID_MAG = "invalid_mag"
+MAG_DISTURBED = "mag_disturbed"
 # m/s²: a specific force beyond this (1e5 g) is no accelerometer reading
 ACCEL_ABSURD = 1e6
 # accepted samples pinned at a repeated extreme: a clipped (saturated) gyro
@@ -286,10 +292,14 @@ class AttitudeStream:
         self.aligner: StaticAligner | None = self._new_aligner() if cfg.levelling else None
         self._align_buffer: deque = deque()
         self.aiding = None
+        self._mag = None  # the current sample's magnetic field (aiding magnetometer)
+        self._mag_missing = 0
         if cfg.aiding is Aiding.GRAVITY:
             self.aiding = GravityAiding(cfg.aiding_kp, cfg.aiding_ki, cfg.aiding_accel_tol,
                                         cfg.aiding_rate_max,
                                         accel_lowpass_s=cfg.aiding_accel_lowpass_s)
+        elif cfg.aiding in (Aiding.TILT, Aiding.MAGNETOMETER):
+            self.aiding = AhrsFilter(AhrsParams.from_config(cfg))
         self.integrator = (StreamingIntegrator(algorithm=algorithm, q0=q_initial, nav=nav)
                            if get_algorithm(algorithm).causal else None)
         self.covariance = AttitudeCovariance(cfg.initial_attitude_variance,
@@ -331,8 +341,18 @@ class AttitudeStream:
 
     @property
     def counts(self) -> dict[str, int]:
-        return {**self.validator.counts, **self.state.counts,
-                v.MISSING_SAMPLES: self.validator.missing_samples}
+        out = {**self.validator.counts, **self.state.counts,
+               v.MISSING_SAMPLES: self.validator.missing_samples}
+        if self.config.aiding is Aiding.MAGNETOMETER:
+            out[MAG_MISSING] = self._mag_missing
+            out[INVALID_MAG] = self.aiding.mag_invalid
+            out[MAG_DISTURBED] = self.aiding.mag_disturbed
+            for key, text in ((INVALID_MAG, "a magnetic field sample not finite, beyond 10 mT "
+                                            "or below 0.1 µT"),
+                              (MAG_DISTURBED, "a field whose norm or dip is off the reference")):
+                if out[key]:
+                    self.state.details.setdefault(key, text)
+        return out
 
     @property
     def rejected_total(self) -> int:
@@ -403,9 +423,12 @@ class AttitudeStream:
 
     # ------------------------------------------------------------------ one sample
     def push(self, t_ns: int, omega, frame_id: str = "", angular_velocity_covariance=None,
-             accel=None) -> tuple[v.Verdict, np.ndarray | None]:
+             accel=None, mag=None) -> tuple[v.Verdict, np.ndarray | None]:
         """One sample through the chain: its verdict and the attitude at ``t_ns`` (None when it
-        was skipped or while aligning).  ``accel`` the specific force (3,) m/s² or None."""
+        was skipped or while aligning).  ``accel`` the specific force (3,) m/s² or None; ``mag``
+        the magnetic field (3,) tesla time-aligned to ``t_ns`` or None (aiding magnetometer:
+        counted ``mag_missing``, heading gyro-only; a field that is not finite, absurd or zero
+        is counted ``invalid_mag``, one that disagrees with the reference ``mag_disturbed``)."""
         if self.integrator is None:
             raise ValueError(f"{self.algorithm} is an offline algorithm: it cannot stream "
                              "(use run() over the whole recording, or a causal algorithm)")
@@ -429,6 +452,7 @@ class AttitudeStream:
         if verdict.reason is not None:  # a time jump, a gap, missing samples
             st.details.setdefault(verdict.reason, verdict.detail)
         a = self._accel(accel)
+        self._mag = self._mag_sample(mag, t_ns)
         if st.start_t_ns is None:
             st.start_t_ns = t_ns
         if verdict.action != v.ACCEPT:
@@ -442,6 +466,19 @@ class AttitudeStream:
             return verdict, self._align_step(t_ns, w, a, var, bias)
         # 4.-6. aiding, integration, covariance
         return self._integrate(verdict, t_ns, w - bias, a, var)
+
+    def _mag_sample(self, mag, t_ns):
+        """The sample's field for the aiding (magnetometer mode), counting absent ones (a row
+        of NaN is no sample); the filter checks and counts the values."""
+        if self.config.aiding is not Aiding.MAGNETOMETER:
+            return None
+        if mag is None or (isinstance(mag, np.ndarray) and mag.shape == (3,)
+                           and np.isnan(mag).all()):
+            self._mag_missing += 1
+            self.state.details.setdefault(MAG_MISSING, f"no field sample at stamp {t_ns} "
+                                                       "(none within mag_max_age_s)")
+            return None
+        return mag
 
     def _saturation_step(self, w: np.ndarray) -> None:
         """Count an accepted sample pinned at a repeated extreme: on some axis its value repeats
@@ -550,7 +587,7 @@ class AttitudeStream:
             self.aligner = self._new_aligner()
             return None
         buf = self._align_buffer
-        buf.append((t_ns, w, a, var))
+        buf.append((t_ns, w, a, var, self._mag))
         if not al.rest_open:
             while len(buf) > 1:
                 buf.popleft()
@@ -569,9 +606,9 @@ class AttitudeStream:
         entries = list(buf)
         buf.clear()
         self._start_aligned(res)
-        t0, w0, a0, var0 = entries[0]
+        t0, w0, a0, var0, self._mag = entries[0]
         _, q = self._integrate(v.Verdict(v.START, "", ""), t0, w0 - bias, a0, var0, fresh=True)
-        for tk, wk, ak, vk in entries[1:]:
+        for tk, wk, ak, vk, self._mag in entries[1:]:
             _, q = self._integrate(v.Verdict(v.ACCEPT, "", ""), tk, wk - bias, ak, vk)
         return q
 
@@ -599,7 +636,7 @@ class AttitudeStream:
         try:
             if action == v.ACCEPT:
                 if aid is not None:
-                    rate = aid.update(t_ns, rate, a, st.q)
+                    rate = aid.update(t_ns, rate, a, st.q, self._mag)
                 q = integ.update(t_ns, rate)
             else:
                 if action == v.RESET_TIME_JUMP:
@@ -617,7 +654,7 @@ class AttitudeStream:
                 integ.reset(q0, None)
                 if aid is not None:
                     aid.last_t_ns = None
-                    rate = aid.update(t_ns, rate, a, q0)
+                    rate = aid.update(t_ns, rate, a, q0, self._mag)
                 q = integ.update(t_ns, rate)
         except ValueError as exc:  # defensive: the validator should have caught it
             return self._integrator_error(verdict, f"integrator refused a sample: {exc}")
@@ -655,7 +692,7 @@ class AttitudeStream:
 
     # ------------------------------------------------------------------ a whole recording
     def run(self, t_ns, omega, frame_id: str | list[str] | None = "",
-            angular_velocity_covariance=None, accel=None) -> StreamResult:
+            angular_velocity_covariance=None, accel=None, mag=None) -> StreamResult:
         """All samples of a recording, in file order, on a fresh stream: what :meth:`push`
         would give sample by sample, in the form :func:`run_form` chooses.  The stream is left
         in the state after the last sample, except that the rest windows start again (as after
@@ -674,6 +711,11 @@ class AttitudeStream:
         w = np.asarray(omega, dtype=np.float64)
         n = w.shape[0]
         cov, acc = recording_arrays(n, angular_velocity_covariance, accel)
+        mg = None
+        if mag is not None:
+            mg = np.asarray(mag, dtype=np.float64)
+            if mg.shape != (n, 3):
+                raise ValueError(f"mag must have shape ({n}, 3), got {mg.shape}")
         if t.ndim != 1 or not (np.issubdtype(t.dtype, np.integer) or t.size == 0) or \
                 w.shape != (t.shape[0], 3):
             raise ValueError(f"t_ns must be a 1-D integer array of nanoseconds and omega must "
@@ -689,9 +731,9 @@ class AttitudeStream:
             raise PerSamplePathNeeded(
                 f"{self.algorithm} is an offline algorithm and runs on arrays only, but this "
                 f"recording needs the per-sample form ({why}): use a causal algorithm")
-        return self._run_pushing(t, w, frame_id, cov, acc)
+        return self._run_pushing(t, w, frame_id, cov, acc, mg)
 
-    def _run_pushing(self, t, w, frame_id, covariance, accel) -> StreamResult:
+    def _run_pushing(self, t, w, frame_id, covariance, accel, mag=None) -> StreamResult:
         """The per-sample form over the whole recording."""
         n = w.shape[0]
         frames = [frame_id] * n if frame_id is None or isinstance(frame_id, str) else frame_id
@@ -703,7 +745,8 @@ class AttitudeStream:
         for k in range(n):
             cov_k = None if covariance is None else covariance[k]
             acc_k = None if accel is None else accel[k]
-            verdict, q = push(int(t[k]), w[k], frames[k] or "", cov_k, acc_k)
+            verdict, q = push(int(t[k]), w[k], frames[k] or "", cov_k, acc_k,
+                              None if mag is None else mag[k])
             action[k] = codes[verdict.action]
             if q is None:
                 continue

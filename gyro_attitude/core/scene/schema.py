@@ -45,6 +45,10 @@ Schema (SI units; angles in the file are degrees where the key says ``_deg``)::
     instrument:                           # optional (not with free_gyro): one of the book's
       type: gyrocompass | vertical_gyro | directional_gyro | spinning_shell  # keys per type below
       max_step_s: 10.0                    # solver step limit (< the shortest manoeuvre)
+    magnetometer:                         # optional: imu/mag (core/scene/magnetometer.py)
+      model: wmm | given                  # WMM-2025 at the start position, or the three below
+      decimal_year, declination_deg, inclination_deg, intensity_ut, hard_iron_ut, soft_iron,
+      noise_ut, disturbances: [{start_s, duration_s, field_ut, frame: enu | body}]
 
 Motion keys per type (``attitude: {roll_deg, pitch_deg, yaw_deg}`` is ROS roll/pitch/yaw,
 ``q_nb = Rz(yaw) Ry(pitch) Rx(roll)``, yaw counter-clockwise from East; see
@@ -113,6 +117,11 @@ from gyro_attitude.core.scene.limits import (
     MAX_RATE_HZ,
     MAX_SEED,
     PARAM_LIMITS,
+)
+from gyro_attitude.core.scene.magnetometer import (
+    MAGNETOMETER_KEYS,
+    MagnetometerSpec,
+    parse_magnetometer,
 )
 from gyro_attitude.core.scene.registry import (
     INSTRUMENT_TYPES,
@@ -359,6 +368,7 @@ class SceneSpec:
     accel_errors: SensorErrorParams = dataclasses.field(default_factory=SensorErrorParams)
     free_gyro_params: FreeGyroParams | None = None
     instrument: InstrumentSpec | None = None
+    magnetometer: MagnetometerSpec | None = None
     source: dict = dataclasses.field(default_factory=dict)
     gyro_sampling: SamplingParams = dataclasses.field(default_factory=SamplingParams)
     accel_sampling: SamplingParams = dataclasses.field(default_factory=SamplingParams)
@@ -368,7 +378,7 @@ class SceneSpec:
         """Validate a scene mapping; ``ValueError`` names the offending key's path."""
         top = Fields(d, "", (
             "description", "seed", "start_time_ns", "rate_hz", "duration_s", "earth", "motion",
-            "gyro", "accelerometer", "free_gyro", "instrument",
+            "gyro", "accelerometer", "free_gyro", "instrument", "magnetometer",
         ))
         description = top.string("description")
         if len(description) > MAX_DESCRIPTION_CHARS:
@@ -439,6 +449,10 @@ class SceneSpec:
                 motion)
             instrument = InstrumentSpec(kind, inst, initial, max_step)
 
+        ea = earth_spec
+        magnetometer = parse_magnetometer(top.section("magnetometer", MAGNETOMETER_KEYS),
+                                          ea.latitude_rad, ea.longitude_rad, ea.height_m)
+
         return cls(
             name=name, description=description, seed=seed, earth=earth_spec, motion=motion,
             motion_type=motion.name, start_time_ns=start_time_ns, rate_hz=rate_hz,
@@ -446,5 +460,5 @@ class SceneSpec:
             gyro_errors=gyro_errors, accelerometer=accel, gravity=gravity,
             accel_errors=accel_errors, free_gyro_params=free_params, instrument=instrument,
             gyro_sampling=gyro_sampling, accel_sampling=accel_sampling,
-            source=dict(d),
+            magnetometer=magnetometer, source=dict(d),
         )

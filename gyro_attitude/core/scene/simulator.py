@@ -26,6 +26,7 @@ from gyro_attitude.core.gyro.rate_gyro import RateGyroTriad
 from gyro_attitude.core.instruments.common import InstrumentStepper
 from gyro_attitude.core.motion import Motion, Stationary
 from gyro_attitude.core.rotation import quat_conjugate, quat_rotate
+from gyro_attitude.core.scene.magnetometer import measure_field
 from gyro_attitude.core.scene.schema import MAX_RATE_HZ, SceneSpec
 from gyro_attitude.core.sensor_errors import SensorErrorModel
 from gyro_attitude.core.sensor_sampling import SensorSampler
@@ -205,7 +206,8 @@ class SimBlock:
     ``specific_force_b (n,3)`` measured accelerometer output (m/s²) or ``None`` when the scene
     has no accelerometer; truth: ``truth_q_nb (n,4)``, ``truth_omega_nb_b (n,3)``,
     ``truth_omega_ib_b (n,3)``, ``position_llh (n,3)`` (rad, rad, m), ``velocity_enu (n,3)``;
-    ``gimbal`` (named joints of the free gyro or the scene's instrument) or ``None``.
+    ``gimbal`` (named joints of the free gyro or the scene's instrument) or ``None``;
+    ``magnetic_field_b (n,3)`` the magnetometer's output (tesla) or ``None`` without one.
     """
 
     t_ns: np.ndarray
@@ -217,6 +219,7 @@ class SimBlock:
     position_llh: np.ndarray
     velocity_enu: np.ndarray
     gimbal: GimbalBlock | None = None
+    magnetic_field_b: np.ndarray | None = None
 
 
 def _concatenate(blocks: list[SimBlock]) -> SimBlock:
@@ -234,7 +237,8 @@ def _concatenate(blocks: list[SimBlock]) -> SimBlock:
                              np.concatenate([b.gimbal.velocities for b in blocks]))
     return SimBlock(**{f: cat(f) for f in ("t_ns", "omega_ib_b", "specific_force_b",
                                            "truth_q_nb", "truth_omega_nb_b", "truth_omega_ib_b",
-                                           "position_llh", "velocity_enu")}, gimbal=gimbal)
+                                           "position_llh", "velocity_enu",
+                                           "magnetic_field_b")}, gimbal=gimbal)
 
 
 class SceneSimulator:
@@ -266,7 +270,10 @@ class SceneSimulator:
         # {s: positions} of the segments computed (the recent ones are kept).
         self._segment_anchor: dict[int, tuple[float, np.ndarray]] = {0: (0.0, self._llh0)}
         self._segment_llh: dict[int, np.ndarray] = {}
-        gyro_ss, accel_ss = np.random.SeedSequence(self.seed).spawn(2)
+        # spawn(3)[:2] are spawn(2)'s children: adding the magnetometer stream left the gyro
+        # and accelerometer noise of every existing seed as it was
+        gyro_ss, accel_ss, mag_ss = np.random.SeedSequence(self.seed).spawn(3)
+        self._mag_rng = np.random.default_rng(mag_ss) if spec.magnetometer is not None else None
         self._gyro_errors = (SensorErrorModel(spec.gyro_errors, self.dt, gyro_ss)
                              if spec.gyro_errors.active_effects() else None)
         self._accel_errors = (SensorErrorModel(spec.accel_errors, self.dt, accel_ss)
@@ -526,6 +533,11 @@ class SceneSimulator:
                 self.effects_run.update(f"accelerometer.{e}"
                                         for e in self._accel_sampler.effects_run)
 
+        mag = None
+        if spec.magnetometer is not None:
+            self.effects_run.add("magnetometer")
+            mag = measure_field(spec.magnetometer, t, sample.q_nb, self._mag_rng)
+
         self._k += n
 
         gimbal = None
@@ -541,7 +553,7 @@ class SceneSimulator:
         return SimBlock(
             t_ns=t_ns, omega_ib_b=gyro_out, specific_force_b=f_b, truth_q_nb=sample.q_nb,
             truth_omega_nb_b=sample.omega_nb_b, truth_omega_ib_b=w_ib, position_llh=llh,
-            velocity_enu=sample.velocity_enu, gimbal=gimbal,
+            velocity_enu=sample.velocity_enu, gimbal=gimbal, magnetic_field_b=mag,
         )
 
     def _interval_means(self, t: np.ndarray, w_ib: np.ndarray, f_b: np.ndarray | None):

@@ -189,7 +189,7 @@ def test_gyrocompass_refused_for_a_mems_bias_and_needs_a_stated_bias():
                                                 "gyro_bias_rad_s"),
     ({"gyro_bias_rad_s": "0,0,0"}, "gyro_bias_rad_s"), ({"initial_attitude": "truth"},
                                                          "initial_attitude"),
-    ({"aiding": "magnetometer"}, "aiding"), ({"gyro_noise_density": -1.0}, "gyro_noise_density"),
+    ({"aiding": "compass"}, "aiding"), ({"gyro_noise_density": -1.0}, "gyro_noise_density"),
     ({"gyro_noise_density": math.inf}, "gyro_noise_density"), ({"min_rest_s": 0.0}, "min_rest_s"),
     ({"rest_gyro_std_max": math.nan}, "gyro_std_max"), ({"latitude_rad": 2.0}, "latitude_rad"),
     ({"initial_heading_deg": 1e300}, "initial_heading_deg"),

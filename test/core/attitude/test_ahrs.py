@@ -1,0 +1,265 @@
+"""The causal AHRS filter (core/attitude/ahrs.py) against closed forms and an independent rotation
+oracle (scipy): tilt and heading convergence, sustained acceleration, magnetic disturbances,
+bad magnetometer samples, reference recovery, hard iron."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from gyro_attitude.core.attitude.ahrs import AhrsFilter, AhrsParams, _butterworth2, ahrs_attitude
+
+FS = 200.0
+G = 9.81
+# a Berlin-like field in ENU (tesla): 16 µT north, 41 µT down
+B_ENU = np.array([0.0, 16e-6, -41e-6])
+
+
+def tilt_deg(q, q_true):
+    u = Rotation.from_quat(q).apply([0.0, 0.0, 1.0], inverse=True)
+    v = Rotation.from_quat(q_true).apply([0.0, 0.0, 1.0], inverse=True)
+    return np.degrees(np.arccos(np.clip(np.sum(u * v, axis=-1), -1.0, 1.0)))
+
+
+def heading_deg(q, q_true):
+    """Rotation about the vertical of the error q ⊗ q_true⁻¹ (twist about z), degrees."""
+    e = (Rotation.from_quat(q) * Rotation.from_quat(q_true).inv()).as_quat()
+    return np.degrees(np.abs((2 * np.arctan2(e[..., 2], e[..., 3]) + np.pi) % (2 * np.pi) - np.pi))
+
+
+def static(rot: Rotation, seconds: float, rng=None, b_enu=B_ENU, hard_iron=(0.0, 0.0, 0.0)):
+    """A still body at ``rot`` (body→ENU): stamps, gyro, accel, mag, truth."""
+    n = int(seconds * FS)
+    t = (np.arange(n) * (1e9 / FS)).astype(np.int64)
+    f = np.tile(rot.apply([0.0, 0.0, G], inverse=True), (n, 1))
+    m = np.tile(rot.apply(b_enu, inverse=True) + np.asarray(hard_iron), (n, 1))
+    w = np.zeros((n, 3))
+    if rng is not None:
+        w += rng.normal(0, 0.002, w.shape)
+        f += rng.normal(0, 0.02, f.shape)
+        m += rng.normal(0, 0.1e-6, m.shape)
+    return t, w, f, m, np.tile(rot.as_quat(), (n, 1))
+
+
+def test_butterworth_has_unit_dc_gain_and_half_power_at_its_cutoff():
+    tau, dt = 3.0, 0.005
+    b0, b1, b2, a1, a2 = _butterworth2(tau, dt)
+    assert (b0 + b1 + b2) / (1 + a1 + a2) == pytest.approx(1.0, rel=1e-8)  # 1+a1+a2 ~ 1e-5
+    fc = math.sqrt(2) / (2 * math.pi * tau)
+    z = np.exp(-2j * math.pi * fc * dt)
+    h = (b0 + b1 * z + b2 * z * z) / (1 + a1 * z + a2 * z * z)
+    assert abs(h) ** 2 == pytest.approx(0.5, rel=1e-6)
+
+
+def test_tilt_converges_to_the_static_tilt_from_a_level_start():
+    truth = Rotation.from_euler("xyz", [12.0, -7.0, 30.0], degrees=True)
+    t, w, f, m, qt = static(truth, 20.0, np.random.default_rng(1))
+    q, aid = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m)
+    assert tilt_deg(q[-1], qt[-1]) < 0.05
+    assert aid.aided_samples > 0 and aid.at_rest
+
+
+def test_heading_is_taken_from_the_field_and_points_to_magnetic_north():
+    truth = Rotation.from_euler("xyz", [5.0, 3.0, 123.0], degrees=True)
+    t, w, f, m, qt = static(truth, 15.0, np.random.default_rng(2))
+    q, aid = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m)
+    assert heading_deg(q[-1], qt[-1]) < 0.2
+    assert aid.heading_initialized and aid.mag_used > 0
+
+
+def test_declination_turns_the_heading_to_true_north():
+    # a field 10° east of true north; with declination 10° the estimate is the true heading,
+    # without it the estimate is off by the declination
+    decl = 10.0
+    b = np.array([16e-6 * math.sin(math.radians(decl)), 16e-6 * math.cos(math.radians(decl)),
+                  -41e-6])
+    truth = Rotation.from_euler("z", 40.0, degrees=True)
+    t, w, f, m, qt = static(truth, 10.0, b_enu=b)
+    q_true_north, _ = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m,
+                                    params=AhrsParams(declination_deg=decl))
+    q_magnetic, _ = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m)
+    assert heading_deg(q_true_north[-1], qt[-1]) < 0.05
+    assert heading_deg(q_magnetic[-1], qt[-1]) == pytest.approx(decl, abs=0.05)
+
+
+def _sustained_acceleration(accel_x):
+    """Level, still in rotation, 20 s at rest, then ``accel_x`` m/s² along x for 20 s."""
+    n = int(40 * FS)
+    t = (np.arange(n) * (1e9 / FS)).astype(np.int64)
+    f = np.zeros((n, 3))
+    f[:, 2] = G
+    f[n // 2:, 0] = accel_x
+    return t, np.zeros((n, 3)), f
+
+
+def test_sustained_acceleration_pulls_the_tilt_by_the_rejection_angle_only():
+    t, w, f = _sustained_acceleration(2.0)  # the apparent vertical tilts by atan(2/9.81)=11.5°
+    q, aid = ahrs_attitude(t, w, f, [0, 0, 0, 1.0])
+    tilt = tilt_deg(q, np.array([0, 0, 0, 1.0]))
+    assert tilt.max() < 4.0
+    assert aid.accel_rejected > 0
+    # without the rejection the filter follows the apparent vertical
+    q_free, _ = ahrs_attitude(t, w, f, [0, 0, 0, 1.0],
+                              params=AhrsParams(accel_reject_deg=180.0, accel_norm_tol=1e3))
+    assert tilt_deg(q_free, np.array([0, 0, 0, 1.0])).max() > 10.0
+
+
+def test_a_rest_after_a_real_tilt_error_is_corrected_by_the_recovery():
+    # started 8° off: the first seconds (a new low-pass) trust the accelerometer in full
+    truth = Rotation.from_euler("x", 8.0, degrees=True)
+    t, w, f, m, qt = static(truth, 30.0)
+    q, aid = ahrs_attitude(t, w, f, [0, 0, 0, 1.0])
+    assert tilt_deg(q[-1], qt[-1]) < 0.05
+
+
+def _turning(seconds=60.0, rate=(0.0, 0.0, 0.3), b_enu=B_ENU, hard_iron=(0.0, 0.0, 0.0)):
+    """A level body turning at a constant body rate: exact truth by composition."""
+    n = int(seconds * FS)
+    t = (np.arange(n) * (1e9 / FS)).astype(np.int64)
+    w = np.tile(np.asarray(rate, float), (n, 1))
+    rot = Rotation.from_rotvec(w * (np.arange(n) / FS)[:, None])
+    f = rot.apply([0.0, 0.0, G], inverse=True)
+    m = rot.apply(b_enu, inverse=True) + np.asarray(hard_iron)
+    return t, w, f, m, rot.as_quat()
+
+
+def test_a_magnet_brought_near_does_not_turn_the_heading():
+    t, w, f, m, qt = _turning()
+    disturbed = (t > 20e9) & (t < 35e9)
+    magnet = np.array([30e-6, -20e-6, 10e-6])  # fixed to the body, like a magnet carried along
+    m_bad = m.copy()
+    m_bad[disturbed] += magnet
+    q, aid = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m_bad)
+    err = heading_deg(q, qt)
+    # exact gyro, so the gyro-only drift over the disturbance is ~0
+    assert err[disturbed].max() < 0.05
+    assert aid.mag_disturbed > 0.9 * np.count_nonzero(disturbed)
+    assert aid.mag_reference_changes == 0
+
+
+def test_a_steady_new_field_becomes_the_reference_after_the_recovery_time():
+    t, w, f, m, qt = _turning(60.0)
+    later = t > 20e9
+    m2 = m.copy()
+    m2[later] *= 1.3  # a steady 30 % stronger field from 20 s (another building)
+    _, aid = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m2, params=AhrsParams(mag_recovery_s=15.0))
+    assert aid.mag_reference_changes == 1
+    assert aid.mag_ref_norm == pytest.approx(1.3 * np.linalg.norm(B_ENU), rel=0.01)
+
+
+@pytest.mark.parametrize("bad", ["nan", "huge", "zero", "flip", "inf"])
+def test_bad_field_samples_are_counted_and_the_heading_holds(bad):
+    t, w, f, m, qt = _turning(40.0)
+    sel = (t > 15e9) & (t < 38e9)
+    mb = m.copy()
+    mb[sel] = {"nan": np.nan, "huge": 1e300, "zero": 0.0, "inf": np.inf}.get(bad, 0.0) \
+        if bad != "flip" else -m[sel]
+    q, aid = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], mb)
+    assert np.isfinite(q).all()
+    assert heading_deg(q, qt)[sel].max() < 0.05
+    counted = aid.mag_disturbed if bad == "flip" else aid.mag_invalid
+    assert counted >= np.count_nonzero(sel) - 1
+    assert aid.mag_reference_changes == 0  # a flipped field is never taken for a new reference
+
+
+def test_hard_iron_given_is_taken_out():
+    hi = (20e-6, -10e-6, 5e-6)
+    truth = Rotation.from_euler("z", 70.0, degrees=True)
+    t, w, f, m, qt = static(truth, 10.0, hard_iron=hi)
+    q_given, _ = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m, params=AhrsParams(hard_iron_t=hi))
+    q_ignored, _ = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m)
+    assert heading_deg(q_given[-1], qt[-1]) < 0.05
+    assert heading_deg(q_ignored[-1], qt[-1]) > 5.0
+
+
+def test_hard_iron_is_estimated_by_the_sphere_fit_when_the_body_turns_about_two_axes():
+    hi = np.array([20e-6, -10e-6, 5e-6])
+    parts = [_turning(21.0, (0.3, 0.0, 0.0), hard_iron=hi), _turning(21.0, (0.0, 0.3, 0.0),
+                                                                     hard_iron=hi)]
+    m = np.concatenate([p[3] for p in parts])
+    f = np.concatenate([p[2] for p in parts])
+    w = np.concatenate([p[1] for p in parts])
+    t = (np.arange(m.shape[0]) * (1e9 / FS)).astype(np.int64)
+    aid = AhrsFilter(estimate_hard_iron=True)
+    q = np.array([0, 0, 0, 1.0])
+    for k in range(t.size):  # attitude not integrated: only the fit is under test
+        aid.update(int(t[k]), w[k], f[k], q, m[k])
+    assert aid.hard_iron_fits > 0
+    np.testing.assert_allclose(aid.hard_iron, hi, atol=0.2e-6)
+    assert aid.mag_ref_norm == pytest.approx(np.linalg.norm(B_ENU), rel=1e-3)
+
+
+def test_hard_iron_fit_refuses_a_field_seen_from_one_direction_only():
+    t, w, f, m, qt = static(Rotation.identity(), 10.0, np.random.default_rng(3),
+                            hard_iron=(20e-6, 0, 0))
+    aid = AhrsFilter(estimate_hard_iron=True)
+    for k in range(t.size):
+        aid.update(int(t[k]), w[k], f[k], qt[k], m[k])
+    assert aid.hard_iron_fits == 0 and aid.hard_iron == [0.0, 0.0, 0.0]
+
+
+@pytest.mark.parametrize("name,value,named", [
+    ("accel_tau_s", 0.0, "ahrs_accel_tau_s"), ("mag_tau_s", math.nan, "ahrs_mag_tau_s"),
+    ("declination_deg", 400.0, "magnetic_declination_deg"),
+    ("hard_iron_t", (1, 2), "mag_hard_iron_t"), ("mag_ref_norm_t", 1.0, "mag_ref_norm_t"),
+    ("estimate_hard_iron", "yes", "mag_hard_iron_estimate"),
+    ("accel_reject_deg", True, "ahrs_accel_reject_deg"), ("rest_min_s", -1.0, "rest_min_s")])
+def test_bad_settings_are_refused_naming_the_setting(name, value, named):
+    with pytest.raises(ValueError, match=named):
+        AhrsParams(**{name: value})
+
+
+def test_time_must_increase():
+    aid = AhrsFilter()
+    aid.update(10, (0, 0, 0), (0, 0, G), (0, 0, 0, 1.0))
+    with pytest.raises(ValueError, match="increase"):
+        aid.update(10, (0, 0, 0), (0, 0, G), (0, 0, 0, 1.0))
+
+
+def test_latest_sample_rule_is_the_same_for_arrays_and_the_live_buffer():
+    from gyro_attitude.core.attitude.sample_alignment import LatestSamples, latest_at
+
+    t = np.array([10, 20, 30, 40, 50, 200], dtype=np.int64)
+    src = np.array([5, 20, 21, 35, 35], dtype=np.int64)  # equal stamps: the later one wins
+    vals = np.arange(15, dtype=float).reshape(5, 3)
+    rows = latest_at(t, src, vals, max_age_ns=15)
+    expect = [vals[0], vals[1], vals[2], vals[4], vals[4], None]
+    live = LatestSamples(15)
+    for k, tk in enumerate(t):
+        for j in np.flatnonzero(src <= tk):
+            if all(j_ != j for j_ in getattr(live, "_seen", [])):
+                live.add(int(src[j]), vals[j])
+                live._seen = [*getattr(live, "_seen", []), j]
+        got = live.at(int(tk))
+        if expect[k] is None:
+            assert np.isnan(rows[k]).all() and got is None
+        else:
+            np.testing.assert_array_equal(rows[k], expect[k])
+            np.testing.assert_array_equal(got, expect[k])
+
+
+@pytest.mark.parametrize("world,axes", [
+    ("enu", np.eye(3)),
+    ("ned", np.array([[0, 1, 0], [1, 0, 0], [0, 0, -1.0]])),  # rows: ENU axes in NED
+    ("nwu", np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1.0]])),
+])
+def test_world_frame_expresses_the_same_body_axes_in_the_chosen_world(world, axes):
+    from gyro_attitude.core.attitude.modes import WorldFrame
+    from gyro_attitude.core.attitude.world_frame import from_enu, from_enu_one
+
+    rng = np.random.default_rng(7)
+    q = Rotation.random(20, random_state=rng).as_quat()
+    r_enu = Rotation.from_quat(q).as_matrix()  # body -> ENU
+    # world coordinates of a vector = (ENU -> world) of its ENU coordinates
+    enu_to_world = axes.T
+    expect = enu_to_world @ r_enu
+    got = Rotation.from_quat(from_enu(q, WorldFrame(world))).as_matrix()
+    np.testing.assert_allclose(got, expect, atol=1e-12)
+    one = np.array([from_enu_one(tuple(qk), WorldFrame(world)) for qk in q])
+    np.testing.assert_allclose(one, from_enu(q, WorldFrame(world)), atol=1e-15)
+    # a level body facing north has zero yaw in NED and NWU (x north)
+    if world != "enu":
+        north = Rotation.from_euler("z", 90, degrees=True).as_quat()
+        yaw = Rotation.from_quat(from_enu(north, WorldFrame(world))).as_euler("zyx")[0]
+        assert abs(yaw) < 1e-12
