@@ -45,6 +45,10 @@ def rendered(repo: Path) -> dict[Path, str]:
 
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
+    if len(argv) > 1 or (argv and argv[0].startswith("-")):
+        print("usage: python -m gyro_attitude.io.settings_docs [REPO]  (rewrites the settings "
+              "blocks of config/attitude_integrator.yaml and README.md)", file=sys.stderr)
+        return 0 if argv and argv[0] in ("-h", "--help") else 2
     repo = Path(argv[0] if argv else ".")
     try:
         for path, text in rendered(repo).items():

@@ -207,6 +207,7 @@ class Estimate:
     algorithm: str
     notes: list[str]
     aiding: object = None  # the causal chain's aiding stage (its counts and reference)
+    estimator: Estimator = Estimator.OFFLINE  # the one that ran
 
 
 def estimate_recording(t_ns, omega, accel, gyro_covariance, frame_id, *, config: StreamConfig,
@@ -237,12 +238,18 @@ def estimate_recording(t_ns, omega, accel, gyro_covariance, frame_id, *, config:
         t_ns, omega, gyro_covariance = t_ns[first:], omega[first:], gyro_covariance[first:]
         accel = None if accel is None else accel[first:]
         mag = None if mag is None else mag[first:]
+    notes = []
+    if estimator is Estimator.OFFLINE and config.aiding in (Aiding.TILT, Aiding.MAGNETOMETER):
+        # the whole-recording estimator aids with gravity only (core/attitude/offline.py)
+        estimator = Estimator.CAUSAL
+        notes.append(f"aiding {config.aiding.value}: the offline estimator has no such aiding, "
+                     "the causal chain (the node's AHRS stage) ran")
     if estimator is Estimator.OFFLINE:
         algorithm = algorithm or DEFAULT_OFFLINE_ALGORITHM
         res = estimate_offline(t_ns, omega, accel, config=config, q0=q0, nav=nav,
                                frame_id=frame_id, angular_velocity_covariance=gyro_covariance,
                                algorithm=algorithm)
-        return Estimate(res, first, algorithm, list(res.notes))
+        return Estimate(res, first, algorithm, list(res.notes), None, Estimator.OFFLINE)
     stream = AttitudeStream(algorithm or DEFAULT_OFFLINE_ALGORITHM, q0=q0, nav=nav,
                             config=config)
     try:
@@ -254,7 +261,7 @@ def estimate_recording(t_ns, omega, accel, gyro_covariance, frame_id, *, config:
         # the node's default can
         stream = AttitudeStream(DEFAULT_ALGORITHM, q0=q0, nav=nav, config=config)
         res = stream.run(t_ns, omega, frame_id, gyro_covariance, accel, mag)
-    return Estimate(res, first, stream.algorithm, [], stream.aiding)
+    return Estimate(res, first, stream.algorithm, notes, stream.aiding, Estimator.CAUSAL)
 
 
 def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
@@ -366,6 +373,7 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         algorithm=algorithm, estimator=estimator,
         truth=None if truth is None else (truth.stamp_ns, truth.quaternion), mag=mag_rows)
     res, first, algorithm, notes = est.result, est.first, est.algorithm, est.notes
+    estimator = est.estimator
     t = t_all[first:]
     if res.index.size == 0:
         reasons = ", ".join(f"{n} {r}" for r, n in res.counts.items() if n and r != iv.GAP)
