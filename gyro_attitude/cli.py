@@ -1,4 +1,5 @@
-"""The ``gyro-attitude`` console command: ``demo | replay | bench | scenes | simulate | allan``.
+"""The ``gyro-attitude`` console command: ``demo | replay | bench | scenes | simulate | allan |
+montecarlo``.
 
 Each subcommand lives in ``gyro_attitude.commands.<name>`` with two functions,
 ``configure(parser)`` (adds its arguments) and ``run(args) -> int`` (exit status); the
@@ -28,6 +29,7 @@ SUBCOMMANDS: dict[str, str] = {
     "scenes": "list the shipped scenes with one line each, or show one",
     "simulate": "run a scene offline (no ROS graph) into an MCAP file of gyro_sim's topics",
     "allan": "Allan deviation and IEEE 952 noise terms (ARW, bias instability, RRW) of a recording",
+    "montecarlo": "error budget over many noise draws of a scene (percentiles, NEES; local or Dask)",
 }
 
 

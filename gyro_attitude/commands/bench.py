@@ -32,6 +32,7 @@ SUITES: dict[str, str] = {
     "offline-memory": "gyro_attitude.benchmarks.offline_memory",
     "instruments": "gyro_attitude.benchmarks.instruments",
     "trajectory": "gyro_attitude.benchmarks.trajectory",
+    "montecarlo": "gyro_attitude.benchmarks.montecarlo",
 }
 
 

@@ -19,6 +19,7 @@ from gyro_attitude.commands.estimator_flags import (
     config_from_args,
     given_settings,
 )
+from gyro_attitude.commands.replay_fleet import add_fleet_flags, run_fleet
 from gyro_attitude.core.attitude import ALGORITHMS, DEFAULT_OFFLINE_ALGORITHM
 from gyro_attitude.core.attitude import validation as iv
 from gyro_attitude.core.attitude.modes import Estimator, Frame
@@ -45,10 +46,13 @@ def _one_line_error(parser: argparse.ArgumentParser):
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.error = _one_line_error(parser)  # one line, not usage + error
-    parser.add_argument("input", metavar="IN.mcap", help="recording (file or bag directory)")
-    parser.add_argument("--out", required=True, metavar="OUT.mcap",
+    parser.add_argument("input", metavar="IN.mcap", nargs="+",
+                        help="recording (file or bag directory); several, or a glob, with "
+                        "--out-dir (fleet replay)")
+    parser.add_argument("--out", metavar="OUT.mcap",
                         help="output MCAP file (never the input; written to a temporary "
                         "file and renamed when complete)")
+    add_fleet_flags(parser)
     parser.add_argument("--force", action="store_true",
                         help="overwrite an existing OUT (and --plot file)")
     parser.add_argument("--imu-topic", default=DEFAULT_IMU_TOPIC,
@@ -121,6 +125,13 @@ def run(args) -> int:
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    if args.out_dir is not None or len(args.input) > 1:
+        return run_fleet(args, config)
+    if args.out is None:
+        print("error: give --out OUT.mcap (or --out-dir DIR for several inputs)",
+              file=sys.stderr)
+        return 2
+    args.input = args.input[0]
     bar = None
     try:
         # Every output path is checked before the work (the plot is written last).

@@ -258,6 +258,9 @@ class _StreamConfigMethods:
             GyroBiasEstimator("auto", min_rest_s=self.min_rest_s, rest=self.rest_params())
         except ValueError as exc:  # e.g. rest_gyro_std_max below the noise floor
             raise SettingError("rest_gyro_std_max", f"rest settings: {exc}") from None
+        if not any(self.initial_attitude):
+            raise SettingError("initial_attitude", "initial_attitude must be a quaternion "
+                               "x, y, z, w, not all zero")
         if self.heading_source is HeadingSource.GYROCOMPASS:
             if self.initial_attitude_source is not InitialAttitudeSource.LEVEL:
                 raise SettingError("heading_source", "heading_source 'gyrocompass' needs "

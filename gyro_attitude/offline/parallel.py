@@ -1,0 +1,257 @@
+"""Independent tasks on a local process pool or a Dask cluster, with progress, retries and Ctrl-C.
+
+One engine for the Monte Carlo runs (:mod:`.montecarlo`) and the fleet replay (:mod:`.fleet`):
+:func:`run_tasks` calls a module-level function on each argument of a list, in worker processes,
+and hands every result to the caller's ``on_result(i, value)`` in the caller's process as it
+arrives (in completion order: the caller files it under ``i``).
+
+* ``workers == 1`` and no scheduler: the tasks run one after the other in this process (no
+  pool start-up, and exceptions and Ctrl-C arrive directly).
+* ``workers > 1``: :class:`concurrent.futures.ProcessPoolExecutor` with the ``forkserver``
+  start method (``spawn`` where there is none): a worker starts from a clean interpreter, not
+  from a copy of this process (its threads, its open files, the one-shot signal handler of the
+  command line).  Workers ignore SIGINT: a Ctrl-C on the terminal reaches the whole process
+  group, and only this process decides what happens; SIGTERM (how it stops them) ends a
+  worker's task with SystemExit, so the task's clean-up runs.  A worker that dies (killed, out of
+  memory) breaks the pool: the tasks not yet finished are run again in a new pool, at most
+  :data:`POOL_RESTARTS` times.
+* ``scheduler``: a running ``dask.distributed`` scheduler at that address; Dask is imported only
+  then.  The scheduler itself re-runs the tasks of a lost worker (its ``allowed-failures``
+  setting, 3 by default); a task that killed too many workers is reported as failed.
+
+A task function should catch its own errors (a run that fails is a result); an exception that
+still escapes is given to ``on_error(i, message)`` and the other tasks go on.  On
+KeyboardInterrupt the tasks not finished are cancelled, the local workers terminated (Dask's
+cancelled), and the KeyboardInterrupt re-raised: what ``on_result`` received so far is what
+finished.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import multiprocessing.forkserver
+import os
+import signal
+import sys
+from collections.abc import Callable, Sequence
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+
+__all__ = ["POOL_RESTARTS", "CONNECT_TIMEOUT_S", "default_workers", "run_tasks",
+           "SchedulerUnreachable"]
+
+POOL_RESTARTS = 2
+#: Seconds to wait for a Dask scheduler before giving up (one line, exit 1).
+CONNECT_TIMEOUT_S = 10.0
+
+
+class SchedulerUnreachable(OSError):
+    """No Dask scheduler answered at the address within the timeout."""
+
+
+def default_workers() -> int:
+    """CPUs this process may run on (the affinity mask, which a container or taskset narrows;
+    ``os.cpu_count()`` counts the machine's)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+_stopping = False  # set in a worker by SIGTERM: it takes no further task
+_in_task = False  # a worker is running a task's code (SIGTERM then raises in it)
+
+
+def _stop_on_sigterm(_signum, _frame) -> None:
+    global _stopping
+    _stopping = True
+    if not _in_task:  # between tasks: nothing to clean up, and no exception to escape
+        os._exit(128 + signal.SIGTERM)
+    raise SystemExit(128 + signal.SIGTERM)
+
+
+def _call(fn, arg):
+    """A task in a pool worker.  A worker whose task SIGTERM ended goes on to the next item
+    already queued to it (the executor catches the exception of a task): it ends instead."""
+    global _in_task
+    if _stopping:
+        os._exit(128 + signal.SIGTERM)
+    _in_task = True
+    try:
+        return fn(arg)
+    finally:
+        _in_task = False
+
+
+def _worker_signals() -> None:
+    """A worker ignores Ctrl-C (the command decides) and ends its task on SIGTERM by an
+    exception, so that the task's clean-up runs (a half-written output is removed) before
+    the process ends."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _stop_on_sigterm)
+
+
+def _context():
+    methods = multiprocessing.get_all_start_methods()
+    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+
+
+#: Thread counts of the BLAS/OpenMP libraries numpy may load, read once at their import: one
+#: thread per worker process (the workers are the parallelism; BLAS threads spinning beside
+#: them on the same cores slowed a 2-worker set down instead of up).  A value the user set wins.
+_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+@contextlib.contextmanager
+def _single_threaded_children():
+    """The environment of the worker processes started inside (and of the forkserver, which
+    passes its own on to the workers it forks), without changing this process's for good."""
+    added = [k for k in _THREAD_VARIABLES if k not in os.environ]
+    for k in added:
+        os.environ[k] = "1"
+    try:
+        yield
+    finally:
+        for k in added:
+            os.environ.pop(k, None)
+
+
+def _describe(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {text[0] if text else ''}".rstrip(": ")
+
+
+def run_tasks(fn: Callable, args: Sequence, on_result: Callable[[int, object], None], *,
+              workers: int = 1, scheduler: str | None = None,
+              on_error: Callable[[int, str], None] | None = None,
+              progress: Callable[[int], None] | None = None,
+              connect_timeout_s: float = CONNECT_TIMEOUT_S) -> None:
+    """``on_result(i, fn(args[i]))`` for every task (see the module docstring).
+
+    ``progress(i)`` is called after each task's result or error.  Raises
+    :class:`SchedulerUnreachable` when the scheduler does not answer within
+    ``connect_timeout_s``, and KeyboardInterrupt after cleaning up.
+    """
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+
+    def done(i: int, value=None, error: str | None = None) -> None:
+        if error is None:
+            on_result(i, value)
+        elif on_error is not None:
+            on_error(i, error)
+        else:
+            raise RuntimeError(f"task {i}: {error}")
+        if progress is not None:
+            progress(i)
+
+    if scheduler is not None:
+        _run_dask(fn, args, done, scheduler, connect_timeout_s)
+    elif workers == 1 or len(args) <= 1:
+        for i, a in enumerate(args):
+            try:
+                value = fn(a)
+            except Exception as exc:  # a bug in one task must not lose the others
+                done(i, error=_describe(exc))
+            else:
+                done(i, value)
+    else:
+        _run_pool(fn, args, done, workers)
+
+
+def _run_pool(fn, args, done, workers: int) -> None:
+    pending = list(range(len(args)))
+    for attempt in range(POOL_RESTARTS + 1):
+        context = _context()
+        with _single_threaded_children():
+            if context.get_start_method() == "forkserver":
+                # the server imports the task's module once and forks the workers from it:
+                # they start with numpy and the package loaded (one import, not one each)
+                context.set_forkserver_preload(["__main__", fn.__module__])
+                multiprocessing.forkserver.ensure_running()
+            pool = ProcessPoolExecutor(max_workers=min(workers, len(pending)),
+                                       mp_context=context, initializer=_worker_signals)
+        futures = {}
+        try:
+            with _single_threaded_children():  # the workers start at the first submits
+                futures = {pool.submit(_call, fn, args[i]): i for i in pending}
+            not_done = set(futures)
+            while not_done:
+                finished, not_done = wait(not_done, return_when=FIRST_COMPLETED)
+                for f in finished:
+                    i = futures[f]
+                    exc = f.exception()
+                    if isinstance(exc, BrokenProcessPool):
+                        continue  # a worker died: retried in the next pool
+                    pending.remove(i)
+                    if exc is not None:
+                        done(i, error=_describe(exc))
+                    else:
+                        done(i, f.result())
+        except BaseException:  # Ctrl-C, or on_result raised: stop the workers first
+            _terminate(pool)
+            raise
+        pool.shutdown(wait=True)
+        if not pending:
+            return
+        if attempt < POOL_RESTARTS:
+            print(f"warning: a worker process died; running its {len(pending)} unfinished "
+                  f"task(s) again in a new pool", file=sys.stderr)
+    for i in list(pending):
+        done(i, error=f"a worker process died while running it ({POOL_RESTARTS + 1} attempts)")
+
+
+def _terminate(pool: ProcessPoolExecutor) -> None:
+    """Stop the pool now: queued tasks cancelled, running workers terminated (Python 3.11
+    has no public call for the latter; ``_processes`` is the executor's own table)."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in processes:
+        if p.is_alive():
+            p.terminate()
+    for p in processes:
+        p.join(timeout=10)
+        if p.is_alive():  # its task did not end on SIGTERM within 10 s
+            p.kill()
+            p.join(timeout=5)
+
+
+def _run_dask(fn, args, done, address: str, timeout_s: float) -> None:
+    # Dask only here: the local path does not pay its import (~1 s).
+    try:
+        from distributed import Client, as_completed
+    except ImportError as exc:  # pragma: no cover - pinned in requirements.txt
+        raise OSError(f"--scheduler needs dask.distributed: {exc}") from None
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    try:  # a malformed address fails inside Client() and again in its finalizer: check first
+        parse_host_port(parse_address(address)[1])
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"--scheduler {address!r} is not a scheduler address "
+                         f"(tcp://host:port): {exc}") from None
+    try:
+        client = Client(address, timeout=f"{timeout_s}s", set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise SchedulerUnreachable(
+            f"no Dask scheduler answered at {address!r} within {timeout_s:g} s "
+            f"({_describe(exc)})") from None
+    futures = []
+    try:
+        # pure=False: every task runs (two equal arguments are still two runs to count)
+        futures = client.map(fn, list(args), pure=False)
+        index = {f.key: i for i, f in enumerate(futures)}
+        for f in as_completed(futures, loop=client.loop):
+            i = index[f.key]
+            try:
+                # waits: a future whose worker was lost can be handed out before its rerun ends
+                value = f.result()
+            except Exception as exc:  # the task raised, or killed too many workers
+                done(i, error=_describe(exc))
+            else:
+                done(i, value)
+    except KeyboardInterrupt:
+        client.cancel(futures)
+        raise
+    finally:
+        client.close(timeout=timeout_s)
