@@ -70,7 +70,8 @@ def run_fleet(args, config) -> int:
             pairs, workers=workers, scheduler=args.scheduler,
             connect_timeout_s=args.connect_timeout, on_file=report, imu_topic=args.imu_topic,
             algorithm=args.algorithm, truth_topic=args.truth_topic,
-            compression=args.compression, force=args.force, config=config)
+            compression=args.compression, force=args.force, config=config,
+            estimator=args.estimator)
     except (ValueError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
