@@ -454,41 +454,6 @@ def estimate_gyro_bias(t_ns, gyro, accel=None, q_nb=None, *, mode: str = "auto",
         e = _c_bn_times(x, y, z, w, 2.0 / (x * x + y * y + z * z + w * w), est._earth_n)
         value = g - np.column_stack(e)
     earth = latitude_rad is not None and q_nb is not None
-    r = detect_rest(t, g, a, **est._rest_params)
-    # Accumulation events: window k at rest whose oldest sample is new.
-    ev = np.flatnonzero(r.at_rest)
-    if ev.size:
-        new = np.concatenate([[True], r.oldest[ev][1:] > r.oldest[ev][:-1]])
-        ev = ev[new]
-    pool = est._pool
-    # A rest is a run of consecutive at-rest windows.
-    run_id = np.cumsum(np.diff(np.concatenate([[False], r.at_rest]).astype(np.int8)) == 1)
-    at_k: list[int] = []  # sample index from which a new estimate holds
-    values: list[list[float]] = []
-    last = None
-    for rid in np.unique(run_id[ev]):
-        kk = ev[run_id[ev] == rid]
-        j = r.oldest[kk]
-        v = value[j]
-        ref = v[0]
-        d = v - ref
-        s1 = np.cumsum(d, axis=0)
-        s2 = np.cumsum(d * d, axis=0)
-        qual = np.flatnonzero(t[j] - t[j[0]] >= est.min_rest_ns)
-        ref_l = ref.tolist()
-        for m in qual:  # one pooled estimate per sample while the open rest qualifies
-            mean, ssd = _Pool.seg_stats(int(m) + 1, ref_l, s1[m].tolist(), s2[m].tolist())
-            last = pool.estimate((int(m) + 1, mean, ssd))
-            at_k.append(int(kk[m]))
-            values.append(last[0])
-        if qual.size:
-            mean, ssd = _Pool.seg_stats(j.size, ref_l, s1[-1].tolist(), s2[-1].tolist())
-            pool.add(j.size, mean, ssd)
-    if at_k:
-        # Hold each estimate until the next one (and the initial value before the first).
-        pos = np.searchsorted(np.array(at_k), np.arange(t.size), side="right") - 1
-        vals = np.array(values)
-        out[pos >= 0] = vals[pos[pos >= 0]]
-        est._bias, est._se, est._k, est._n = tuple(last[0]), tuple(last[1]), last[2], last[3]
-        est._earth_now = earth
-    return out, est.report()
+    # the array form of the estimator itself (rests found on the rates, averages of the values)
+    track = est.run(t, g, a, earth_removed=earth, values=value)
+    return track.bias, est.report()
