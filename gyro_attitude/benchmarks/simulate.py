@@ -32,7 +32,7 @@ from gyro_attitude.io.cdr_arrays import (
     odometry_batch,
     quaternion_stamped_batch,
 )
-from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
+from gyro_attitude.io.mcap_writer import DEFAULT_COMPRESSION, Rosbag2McapWriter
 from gyro_attitude.io.scene_file import list_scenes, load_scene
 from gyro_attitude.offline.simulate import BLOCK_SAMPLES, simulate
 
@@ -63,7 +63,7 @@ def _measure(spec: SceneSpec, rate: float, n: int, tmp: pathlib.Path, repeats: i
     w = np.random.default_rng(0).normal(size=(n, 3))
 
     def writer_only():
-        with Rosbag2McapWriter(out, compression="zstd") as wr:
+        with Rosbag2McapWriter(out, compression=DEFAULT_COMPRESSION) as wr:
             wr.add_topic("imu/data_raw", "sensor_msgs/msg/Imu")
             for lo in range(0, n, BLOCK_SAMPLES):
                 hi = min(n, lo + BLOCK_SAMPLES)
@@ -72,7 +72,7 @@ def _measure(spec: SceneSpec, rate: float, n: int, tmp: pathlib.Path, repeats: i
     joints = spec.free_gyro_params is not None or spec.instrument is not None
 
     def writer_all_topics():
-        with Rosbag2McapWriter(out, compression="zstd") as wr:
+        with Rosbag2McapWriter(out, compression=DEFAULT_COMPRESSION) as wr:
             for topic, type_name in TOPICS.items():
                 if topic != JOINT_TOPIC or joints:
                     wr.add_topic(topic, type_name)

@@ -23,7 +23,7 @@ from gyro_attitude.io.cdr_arrays import (
     imu_batch,
     quaternion_stamped_batch,
 )
-from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
+from gyro_attitude.io.mcap_writer import DEFAULT_COMPRESSION, Rosbag2McapWriter
 from gyro_attitude.io.safe_output import SafeOutput, check_output_path
 from gyro_attitude.io.scene_file import load_scene
 
@@ -37,7 +37,7 @@ def default_output() -> Path:
 
 def make_sample_bag(out, *, scene: str = "coning", seconds: float = 20.0,
                     rate_hz: float = 200.0, seed: int | None = None,
-                    compression: str = "zstd") -> dict:
+                    compression: str = DEFAULT_COMPRESSION) -> dict:
     """Simulate ``scene`` and record it; returns {topic: message count}."""
     if not seconds > 0 or not rate_hz > 0:
         raise ValueError(f"seconds and rate_hz must be positive, got {seconds}, {rate_hz}")

@@ -31,7 +31,7 @@ from gyro_attitude.io.cdr_arrays import (
     odometry_batch,
     quaternion_stamped_batch,
 )
-from gyro_attitude.io.mcap_writer import Rosbag2McapWriter, normalize_topic
+from gyro_attitude.io.mcap_writer import DEFAULT_COMPRESSION, Rosbag2McapWriter, normalize_topic
 from gyro_attitude.io.safe_output import SafeOutput, check_output_path
 from gyro_attitude.io.scene_file import load_scene
 
@@ -148,7 +148,7 @@ def simulate(scene: str | SceneSpec, duration_s: float | None, out, *,
         bar = tqdm(total=n_total, unit="sample", unit_scale=True, desc=f"simulate {spec.name}")
     try:
         with SafeOutput(out, force=force) as tmp, \
-                Rosbag2McapWriter(tmp, compression="zstd") as writer:
+                Rosbag2McapWriter(tmp, compression=DEFAULT_COMPRESSION) as writer:
             writer.add_topic(names[IMU_TOPIC], TOPICS[IMU_TOPIC])
             if spec.free_gyro_params is not None or spec.instrument is not None:
                 writer.add_topic(names[JOINT_TOPIC], TOPICS[JOINT_TOPIC])
