@@ -64,7 +64,8 @@ MODES = ("none", "none/push", "auto", "level", "gravity", "level+gravity", "tilt
          "magnetometer", "level+magnetometer")
 # the offline (whole-recording) estimator, core/attitude/offline.py, same settings as the
 # causal mode after the "+"
-OFFLINE_MODES = ("offline/auto", "offline/level", "offline/gravity", "offline/level+gravity")
+OFFLINE_MODES = ("offline/auto", "offline/level", "offline/gravity", "offline/level+gravity",
+                 "offline/magnetometer", "offline/level+magnetometer")
 
 
 def stream_config(mode: str, heading_deg: float = 0.0) -> StreamConfig:
@@ -231,9 +232,9 @@ def evaluate(name: str, directory=None, modes=MODES, peers=True,
         rows[-1]["batch_path"] = mode != "none/push" and stream.run_form()[0] == "arrays"
     for mode in offline_modes:
         cfg = stream_config(mode.split("/", 1)[1], heading)
-        res, seconds = _best_of(lambda cfg=cfg: estimate_offline(
+        res, seconds = _best_of(lambda cfg=cfg, mode=mode: estimate_offline(
             t[first:], g[first:], a[first:], q0=q_first, nav=nav, frame_id="imu_link",
-            config=cfg))
+            config=cfg, mag=mag[first:] if "magnetometer" in mode else None))
         q = np.empty((t.size, 4))
         q[:] = res.q[0]
         q[first + res.index] = res.q
@@ -250,6 +251,8 @@ def evaluate(name: str, directory=None, modes=MODES, peers=True,
             sd = np.sqrt(np.maximum(_rows_at(res, first, t.size)[idx][motion], 1e-300))
             z = np.abs(e) / sd
             axes = [0, 1] if "gravity" in mode or "level" in mode else [0, 1, 2]
+            if "magnetometer" in mode:
+                axes = [0, 1, 2]
             rows[-1]["within_1sigma"] = float(np.mean(z[:, axes] <= 1.0))
             rows[-1]["within_3sigma"] = float(np.mean(z[:, axes] <= 3.0))
     # the rest-bias oracle: bias = the mean over the initial rest, gyro only, same frame
@@ -431,6 +434,13 @@ def _offline_ratios(rows: list[dict]) -> list[dict]:
              / ovqf["samples_per_s"],
              "offline_auto_speed_over_offline_vqf": gyro["samples_per_s"]
              / ovqf["samples_per_s"]}
+        ovqf9, mag9 = by.get("peer/offline_vqf_9d"), by.get("offline/magnetometer")
+        if ovqf9 and mag9:
+            r["offline_magnetometer_rms_heading_over_offline_vqf_9d"] = (
+                mag9["rms_heading_deg"] / ovqf9["rms_heading_deg"])
+            print(f"{name}: offline/magnetometer RMS heading = "
+                  f"{r['offline_magnetometer_rms_heading_over_offline_vqf_9d']:.2f}× offlineVQF "
+                  "9D's")
         print(f"{name}: offline/gravity RMS tilt = {r[next(iter(list(r)[2:]))]:.2f}× offlineVQF; "
               f"gyro-only end error = {r['offline_gyro_only_end_error_over_oracle']:.2f}× the "
               f"rest-bias oracle; speed {r['offline_gravity_speed_over_offline_vqf']:.2f}× "

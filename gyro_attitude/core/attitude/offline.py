@@ -63,6 +63,7 @@ from scipy.signal import lfilter
 
 from gyro_attitude.core.attitude import NavFrame, integrate_batch
 from gyro_attitude.core.attitude import validation as v
+from gyro_attitude.core.attitude.ahrs import MAG_ABSURD_T, MAG_ZERO_T
 from gyro_attitude.core.attitude.alignment import AlignmentResult, level_quaternion
 from gyro_attitude.core.attitude.gyro_bias import GyroBiasReport
 from gyro_attitude.core.attitude.modes import Aiding, Frame, GyroBiasMode, HeadingSource
@@ -73,6 +74,9 @@ from gyro_attitude.core.attitude.stream import (
     INTEGRATOR_ERROR,
     INVALID_ACCEL,
     INVALID_COVARIANCE,
+    INVALID_MAG,
+    MAG_DISTURBED,
+    MAG_MISSING,
     SATURATED,
     StreamResult,
     StreamState,
@@ -95,7 +99,7 @@ from gyro_attitude.core.rotation import (
     quat_rotate,
 )
 
-__all__ = ["DEFAULT_CHUNK_SAMPLES", "OfflineRest", "estimate_offline"]
+__all__ = ["DEFAULT_CHUNK_SAMPLES", "FieldReference", "OfflineRest", "estimate_offline"]
 
 #: Accepted samples per working chunk: ~25 MB of temporaries at most, whatever the length.
 DEFAULT_CHUNK_SAMPLES = 1 << 16
@@ -105,6 +109,26 @@ _KEEP_FORWARD = 1 << 20
 _OVERLAP = 8
 # rows per step of the covariance propagation (interpolated in between: it is smooth)
 _COV_BLOCK = 16
+# the learned field reference is the median over at most this many samples spread over the run
+_REFERENCE_SAMPLES = 1 << 17
+# the heading smoother needs this much weight within reach (e^-600: ~600 τ away from any field)
+_MAG_WEIGHT_MIN = 1e-260
+
+
+@dataclass
+class FieldReference:
+    """The magnetometer reference of the offline heading pass (what replay's summary shows,
+    named as the causal aiding stage names it): norm (T) and dip (rad, positive down) given by
+    ``mag_reference_enu_t`` or learned as the medians over the recording; the hard iron used;
+    the offline pass never replaces its reference (``mag_reference_changes`` 0) and rejects no
+    acceleration (``accel_rejected`` None: the tilt uses every sample, see step 4)."""
+
+    mag_ref_norm: float | None = None
+    mag_ref_dip: float | None = None
+    hard_iron: tuple = (0.0, 0.0, 0.0)
+    mag_reference_changes: int = 0
+    accel_rejected: int | None = None
+    learned: bool = False
 
 
 @dataclass(frozen=True)
@@ -227,7 +251,8 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
     None (gyro-only: no levelling, no aiding, rests from the gyro alone); ``config`` the stream
     settings (bias mode, rest thresholds, ``initial_attitude``, ``aiding``, noise figures);
     ``q0`` the initial attitude (``level``: its heading is ``initial_heading_deg``); ``nav`` a
-    constant :class:`NavFrame` for q_nb or None for q_ib; ``mag`` is accepted and not used yet;
+    constant :class:`NavFrame` for q_nb or None for q_ib; ``mag`` (N, 3) the magnetic field in
+    tesla at the samples (rows of NaN: none there), used with ``aiding="magnetometer"`` (step 6);
     ``angular_velocity_covariance`` (N, 9) or None.  Raises ValueError on malformed input and
     when ``initial_attitude="level"`` finds no rest to level on.
     """
@@ -271,6 +296,16 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
                                "finite or absurd: not used for rests, levelling or aiding")
         if not usable.any():
             av = usable = None
+    mv = None
+    if cfg.aiding is Aiding.MAGNETOMETER:
+        counts.update({MAG_MISSING: 0, INVALID_MAG: 0, MAG_DISTURBED: 0})
+        if mag is None:
+            counts[MAG_MISSING] = m
+        else:
+            mag = np.asarray(mag, dtype=np.float64)
+            if mag.shape != (n, 3):
+                raise ValueError(f"mag must have shape ({n}, 3), got {mag.shape}")
+            mv = rows(mag, valid)
     sig2 = None  # per-row gyro variance (M, 3) from the messages, where known
     if cov is not None:
         var_v, known_v = covariance_rows(cov, valid, counts, details)
@@ -284,23 +319,37 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
     # saturated samples: counted as the causal path counts them (its array form, fresh state)
     count_saturated(wv, StreamState(q_init, q_init), counts, details)
     est = _Estimator(cfg, q_init, nav, algorithm, chunk_samples, tv, wv, av, usable, sig2,
-                     rows(act, valid))
+                     rows(act, valid), mv)
     q_out, var_out, known_out = est.run()
     notes = est.notes
+    if cfg.aiding is Aiding.MAGNETOMETER:
+        for key, c in est.mag_counts.items():
+            counts[key] += c
+        for key, text in ((INVALID_MAG, "a magnetic field sample not finite, beyond 10 mT or "
+                                        "below 0.1 µT"),
+                          (MAG_DISTURBED, "a field whose norm or dip is off the reference"),
+                          (MAG_MISSING, "no magnetic field sample for these Imu samples")):
+            if counts[key]:
+                details.setdefault(key, text)
     if acc is None or av is None:
         notes.insert(0, "no accelerometer: gyro-only offline estimation (rests from the gyro, "
                      "no levelling, no gravity aiding)")
-    return StreamResult(valid, q_out, var_out, known_out, act, counts, cls.time_jump_resets,
-                        details, est.bias_report(), est.alignment, notes=notes)
+    res = StreamResult(valid, q_out, var_out, known_out, act, counts, cls.time_jump_resets,
+                       details, est.bias_report(), est.alignment, notes=notes)
+    res.field_reference = est.field_reference  # None unless aiding magnetometer
+    return res
 
 
 class _Estimator:
     """The passes of :func:`estimate_offline` over the accepted rows (visible state: the rests
     found, the notes, the alignment)."""
 
-    def __init__(self, cfg, q_init, nav, algorithm, size, t, w, a, usable, sig2, act):
+    def __init__(self, cfg, q_init, nav, algorithm, size, t, w, a, usable, sig2, act, mag=None):
         self.cfg, self.q_init, self.nav, self.algorithm, self.size = cfg, q_init, nav, algorithm, size
         self.t, self.w, self.a, self.usable, self.sig2, self.act = t, w, a, usable, sig2, act
+        self.mag = mag
+        self.mag_counts = {MAG_MISSING: 0, INVALID_MAG: 0, MAG_DISTURBED: 0}
+        self.field_reference: FieldReference | None = None
         self.all_usable = usable is not None and bool(usable.all())
         self.nav_series = None if nav is None else nav.series_length()
         self.rests: list[OfflineRest] = []
@@ -342,7 +391,7 @@ class _Estimator:
         cfg = self.cfg
         tau = self._clock(b0, b1, runs)
         rest = np.zeros(b1 - b0, dtype=bool)
-        if cfg.gyro_bias is GyroBiasMode.AUTO or cfg.levelling or cfg.aiding is Aiding.GRAVITY:
+        if cfg.gyro_bias is GyroBiasMode.AUTO or cfg.levelling or cfg.aiding is not Aiding.NONE:
             self._find_rests(b0, runs, rest)
         rests = self._rest_stats(b0, b1, rest, tau)
         self.rests += rests
@@ -381,10 +430,17 @@ class _Estimator:
         if tilt_var0 is not None:
             tt0[:2] = tilt_var0
         self._covariance(b0, b1, rest if zupt else None, rests, tau, q_out, var_out, tt0)
-        if self.a is not None and cfg.aiding is Aiding.GRAVITY:
+        if self.a is not None and cfg.aiding is not Aiding.NONE:
+            # gravity, tilt, magnetometer: the tilt from gravity of step 4 (the offline chain
+            # has one tilt method; the causal filters' differences are causal remedies)
             self._tilt_from_gravity(b0, b1, rest, q_out, var_out)
         elif self.a is not None and cfg.levelling:
             self._level_at_rests(b0, b1, rests, tau, q_out, var_out)
+        if cfg.aiding is Aiding.MAGNETOMETER:
+            if self.mag is None:
+                self.notes.append("aiding magnetometer without a field: heading gyro-only")
+            else:
+                self._heading_from_field(b0, b1, q_out, var_out)
 
     def _clock(self, b0, b1, runs) -> np.ndarray:
         """Seconds since the block's first row, gaps counted (the bias walks across them)."""
@@ -510,17 +566,47 @@ class _Estimator:
                 q_prev = q_out[p1 - 1]
             q_prev = q_out[r1 - 1]
 
-    # ------------------------------------------------------------------ 4. tilt
-    def _tilt_from_gravity(self, b0, b1, rest, q_out, var_out):
-        """Zero-phase weighted low-pass of ``f_i`` (module docstring, step 4): the forward pass
-        keeps its state at chunk starts (and its output while the block is short); the backward
-        pass recomputes each chunk's forward part where it was not kept and applies the
-        correction in place."""
-        cfg = self.cfg
+    # ------------------------------------------------------------------ 4. tilt, 6. heading
+    def _zero_phase(self, b0, b1, tau_s, columns, apply):
+        """The one zero-phase smoother of the chain: a first-order low-pass (time constant
+        ``tau_s``) of the columns ``columns(c0, c1)`` -> (rows, K), run forward over the block,
+        then backward over the forward output; ``apply(c0, c1, sm)`` gets each chunk's smoothed
+        columns, last chunk first.  The forward pass keeps its state at chunk starts (and its
+        output while the block is short); the backward pass recomputes a chunk's forward part
+        where it was not kept -- before ``apply`` of that chunk, so ``columns`` may read what
+        ``apply`` of later chunks changed, not what it changes in this one."""
         t = self.t
         dt = float(np.median(np.diff(t[b0:min(b1, b0 + 100_000)]))) * 1e-9 if b1 - b0 > 1 else 0.01
-        alpha = math.exp(-max(dt, 1e-9) / cfg.offline_tilt_tau_s)
+        alpha = math.exp(-max(dt, 1e-9) / tau_s)
         bcoef, acoef = np.array([1.0 - alpha]), np.array([1.0, -alpha])
+        chunks = list(_chunks(b0, b1, self.size))
+        keep = b1 - b0 <= _KEEP_FORWARD
+        zf = None
+        states = []
+        kept = []
+        for c0, c1 in chunks:  # forward
+            x = columns(c0, c1)
+            if zf is None:
+                zf = np.zeros((1, x.shape[1]))
+            states.append(zf)
+            fwd, zf = lfilter(bcoef, acoef, x, axis=0, zi=zf)
+            kept.append(fwd if keep else None)
+        zb = np.zeros_like(zf)
+        for (c0, c1), zi, fwd in zip(reversed(chunks), reversed(states), reversed(kept),
+                                     strict=True):
+            if fwd is None:
+                fwd, _ = lfilter(bcoef, acoef, columns(c0, c1), axis=0, zi=zi)
+            sm, zb = lfilter(bcoef, acoef, fwd[::-1], axis=0, zi=zb)
+            apply(c0, c1, sm[::-1])
+
+    def _tilt_from_gravity(self, b0, b1, rest, q_out, var_out):
+        """Zero-phase weighted low-pass of ``f_i`` (module docstring, step 4), the correction
+        applied in place chunk by chunk."""
+        cfg = self.cfg
+        g0 = STANDARD_GRAVITY
+        noise = [r.accel_var for r in self.rests if np.isfinite(r.accel_var).all()]
+        sf2 = float(np.mean(noise)) if noise else 0.0  # per-axis accelerometer noise at rest
+        floor = (cfg.accel_bias_sigma / g0) ** 2
 
         def columns(c0, c1):
             x = np.empty((c1 - c0, 5))
@@ -532,26 +618,7 @@ class _Estimator:
             x[:, 4] = wt * wt
             return x
 
-        chunks = list(_chunks(b0, b1, self.size))
-        keep = b1 - b0 <= _KEEP_FORWARD
-        zf = np.zeros((1, 5))
-        states = []
-        kept = []
-        for c0, c1 in chunks:  # forward
-            states.append(zf)
-            fwd, zf = lfilter(bcoef, acoef, columns(c0, c1), axis=0, zi=zf)
-            kept.append(fwd if keep else None)
-        zb = np.zeros((1, 5))
-        g0 = STANDARD_GRAVITY
-        noise = [r.accel_var for r in self.rests if np.isfinite(r.accel_var).all()]
-        sf2 = float(np.mean(noise)) if noise else 0.0  # per-axis accelerometer noise at rest
-        floor = (cfg.accel_bias_sigma / g0) ** 2
-        for (c0, c1), zi, fwd in zip(reversed(chunks), reversed(states), reversed(kept),
-                                     strict=True):
-            if fwd is None:
-                fwd, _ = lfilter(bcoef, acoef, columns(c0, c1), axis=0, zi=zi)
-            sm, zb = lfilter(bcoef, acoef, fwd[::-1], axis=0, zi=zb)
-            sm = sm[::-1]
+        def apply(c0, c1, sm):
             den = sm[:, 3]
             okd = den > 1e-12
             u = np.divide(sm[:, :3], den[:, None], out=np.zeros((c1 - c0, 3)), where=okd[:, None])
@@ -563,8 +630,123 @@ class _Estimator:
             tilt = floor + sf2 / (g0 * g0) / np.maximum(n_eff, 1.0)
             var_out[c0:c1, 0] = np.where(okd, tilt, var_out[c0:c1, 0])
             var_out[c0:c1, 1] = np.where(okd, tilt, var_out[c0:c1, 1])
+
+        self._zero_phase(b0, b1, cfg.offline_tilt_tau_s, columns, apply)
         self.notes.append(f"tilt from gravity: zero-phase low-pass, τ = {cfg.offline_tilt_tau_s:g} "
                           "s")
+
+    def _field(self, c0, c1, q):
+        """The field of rows ``[c0, c1)`` less the hard iron, rotated into the output frame by
+        ``q`` (zeros where unusable), its norm, and which rows are usable / missing."""
+        raw = self.mag[c0:c1]
+        missing = np.isnan(raw).all(axis=1)
+        with np.errstate(invalid="ignore"):
+            ok = np.isfinite(raw).all(axis=1) & (np.abs(raw).max(axis=1) <= MAG_ABSURD_T)
+            ok &= np.einsum("ij,ij->i", raw, raw) >= MAG_ZERO_T * MAG_ZERO_T
+        m = np.where(ok[:, None], raw - np.asarray(self.field_reference.hard_iron), 0.0)
+        norm = np.sqrt(np.einsum("ij,ij->i", m, m))
+        ok &= norm >= MAG_ZERO_T  # (almost) zero once the hard iron is taken out: no reading
+        return quat_rotate(q, m), norm, ok, missing
+
+    def _field_reference(self, b0, b1, q_out) -> FieldReference:
+        """Norm and dip of the undisturbed field: ``mag_reference_enu_t`` when given, else the
+        medians over (a spread sample of) the usable field in the tilt-corrected output frame
+        -- the whole recording votes, so a disturbance shorter than half of it cannot become
+        the reference (the causal stage must learn it from the first second)."""
+        cfg = self.cfg
+        ref = FieldReference(hard_iron=tuple(float(x) for x in cfg.mag_hard_iron_t))
+        given = np.asarray(cfg.mag_reference_enu_t, dtype=np.float64)
+        if np.any(given != 0.0):
+            ref.mag_ref_norm = float(np.linalg.norm(given))
+            ref.mag_ref_dip = math.atan2(-given[2], math.hypot(given[0], given[1]))
+            return ref
+        self.field_reference = ref  # the hard iron, for _field
+        step = max(1, (b1 - b0) // _REFERENCE_SAMPLES)
+        pick = np.arange(b0, b1, step)
+        raw = self.mag[pick]
+        fin = np.isfinite(raw).all(axis=1)
+        pick, raw = pick[fin], raw[fin]
+        if pick.size:
+            m = raw - np.asarray(ref.hard_iron)
+            mn = quat_rotate(q_out[pick], m)
+            norm = np.sqrt(np.einsum("ij,ij->i", m, m))
+            ok = (np.abs(raw).max(axis=1) <= MAG_ABSURD_T) & (norm >= MAG_ZERO_T)
+            if np.count_nonzero(ok) >= 10:
+                ref.mag_ref_norm = float(np.median(norm[ok]))
+                ref.mag_ref_dip = float(np.median(np.arctan2(-mn[ok, 2], np.hypot(mn[ok, 0],
+                                                                                  mn[ok, 1]))))
+                ref.learned = True
+        return ref
+
+    def _heading_from_field(self, b0, b1, q_out, var_out):
+        """Heading from the magnetometer, non-causally (module docstring, step 6): the field in
+        the tilt-corrected output frame, its horizontal direction less the declination
+        low-passed zero-phase with weight 1 where the field agrees with the reference (norm
+        within ``mag_norm_tol``, dip within ``mag_dip_tol_deg``) and 0 elsewhere; the
+        azimuth of the smoothed direction is the heading error, taken out about the vertical
+        (left, output frame: the tilt is untouched)."""
+        cfg = self.cfg
+        if self.field_reference is None or self.field_reference.mag_ref_norm is None:
+            self.field_reference = self._field_reference(b0, b1, q_out)
+        ref = self.field_reference
+        if ref.mag_ref_norm is None:
+            self.notes.append("magnetometer: too few usable field samples to learn the "
+                              "reference: heading gyro-only")
+            return
+        ref_n, ref_d = ref.mag_ref_norm, ref.mag_ref_dip
+        tol_n, tol_d = cfg.mag_norm_tol * ref_n, math.radians(cfg.mag_dip_tol_deg)
+        decl = math.radians(cfg.magnetic_declination_deg)
+        cd, sd = math.cos(decl), math.sin(decl)
+        coupling = math.tan(min(abs(ref_d), math.radians(89.0))) ** 2
+
+        def directions(c0, c1):
+            """(sin, cos) of each sample's azimuth less the declination, its weight, and the
+            usable / missing rows (counted by the caller)."""
+            mn, norm, ok, missing = self._field(c0, c1, q_out[c0:c1])
+            horiz = np.hypot(mn[:, 0], mn[:, 1])
+            dip = np.arctan2(-mn[:, 2], horiz)
+            good = ok & (np.abs(norm - ref_n) <= tol_n) & (np.abs(dip - ref_d) <= tol_d)
+            good &= horiz >= 1e-3 * norm  # at a magnetic pole the field gives no heading
+            hx = np.divide(mn[:, 0], horiz, out=np.zeros_like(horiz), where=good)
+            hy = np.divide(mn[:, 1], horiz, out=np.zeros_like(horiz), where=good)
+            return hx * cd - hy * sd, hy * cd + hx * sd, good, ok, missing
+
+        def columns(c0, c1):
+            ex, ey, good, _, _ = directions(c0, c1)
+            wt = good.astype(np.float64)
+            return np.column_stack((ex, ey, wt, wt))  # (w², w: weights are 0 or 1)
+
+        scatter = [None]  # the last measured azimuth scatter about the smoothed one (rad²)
+
+        def apply(c0, c1, sm):
+            ex, ey, good, ok, missing = directions(c0, c1)
+            self.mag_counts[MAG_MISSING] += int(np.count_nonzero(missing))
+            self.mag_counts[INVALID_MAG] += int(np.count_nonzero(~ok & ~missing))
+            self.mag_counts[MAG_DISTURBED] += int(np.count_nonzero(ok & ~good))
+            den = sm[:, 2]
+            okd = den > _MAG_WEIGHT_MIN
+            err = np.where(okd, np.arctan2(sm[:, 0], sm[:, 1]), 0.0)
+            # the correction R_z(err) on the left: the smoothed field direction to north
+            qz = np.zeros((c1 - c0, 4))
+            qz[:, 2] = np.sin(0.5 * err)
+            qz[:, 3] = np.cos(0.5 * err)
+            q_out[c0:c1] = _qmul(qz, q_out[c0:c1])
+            # heading variance: the azimuth scatter of the samples over the n_eff the smoother
+            # averages, plus the tilt error about north seen through the dip (δψ = tan(dip) δθ_N)
+            if good.any():
+                r = (np.arctan2(ex[good], ey[good]) - err[good] + math.pi) % (2 * math.pi) - math.pi
+                scatter[0] = float(np.mean(r * r))
+            if scatter[0] is not None:
+                n_eff = np.divide(den * den, sm[:, 3], out=np.ones_like(den), where=sm[:, 3] > 0)
+                head = scatter[0] / np.maximum(n_eff, 1.0) + coupling * var_out[c0:c1, 1]
+                var_out[c0:c1, 2] = np.where(okd, head, var_out[c0:c1, 2])
+
+        self._zero_phase(b0, b1, cfg.offline_mag_tau_s, columns, apply)
+        self.notes.append(f"heading from the magnetometer: zero-phase low-pass, τ = "
+                          f"{cfg.offline_mag_tau_s:g} s; reference |B| {ref_n * 1e6:.1f} µT, dip "
+                          f"{math.degrees(ref_d):.1f}° ("
+                          + ("learned: medians over the recording" if ref.learned else "given")
+                          + ")")
 
     def _level_at_rests(self, b0, b1, rests, tau, q_out, var_out):
         """Levelling at every rest, the correction interpolated in time between rests."""
