@@ -40,7 +40,7 @@ array operation over chunks of ``chunk_samples`` accepted samples (no per-sample
    angle random walk ``Σ C[k,m]² σ_m² dt²`` plus the random walk's bridge ``K²(s³/3 − s⁴/4T)``
    (``s`` motion time since the rest, ``T`` to the next).  The heading (third) axis keeps it and
    grows between rests; the tilt axes take the tilt-from-gravity variance where gravity is used:
-   ``(σ_ba/g)² + σ_f²/(g² n_eff)`` with ``n_eff = (Σw)²/Σw²`` of the smoother and ``σ_f²`` the
+   ``(σ_ba/g)² + σ_f²/(g² n_eff)`` with ``n_eff`` the samples the smoother averages and ``σ_f²`` the
    measured scatter of ``f_i`` about ``g u`` (accelerometer noise and the carrier's acceleration:
    the residual that leaks into the mean), or the levelling variance at rests with the gyro-only
    growth bridged between them.  The gyro noise ``σ_ω`` comes from the messages'
@@ -91,6 +91,7 @@ from gyro_attitude.core.attitude.stream_batch import count_saturated
 from gyro_attitude.core.earth import OMEGA_IE, STANDARD_GRAVITY
 from gyro_attitude.core.rotation import (
     _qmul,
+    _qrot,
     quat_as_matrix,
     quat_as_rotvec,
     quat_conjugate,
@@ -570,8 +571,10 @@ class _Estimator:
     def _zero_phase(self, b0, b1, tau_s, columns, apply):
         """The one zero-phase smoother of the chain: a first-order low-pass (time constant
         ``tau_s``) of the columns ``columns(c0, c1)`` -> (rows, K), run forward over the block,
-        then backward over the forward output; ``apply(c0, c1, sm)`` gets each chunk's smoothed
-        columns, last chunk first.  The forward pass keeps its state at chunk starts (and its
+        then backward over the forward output; ``apply(c0, c1, sm, n_full)`` gets each chunk's smoothed
+        columns, last chunk first, and the number of samples the smoother averages where every
+        weight is 1 (weights are 0 or 1: ``n_eff = den · n_full``, ``den`` the smoothed weight).
+        The forward pass keeps its state at chunk starts (and its
         output while the block is short); the backward pass recomputes a chunk's forward part
         where it was not kept -- before ``apply`` of that chunk, so ``columns`` may read what
         ``apply`` of later chunks changed, not what it changes in this one."""
@@ -579,6 +582,10 @@ class _Estimator:
         dt = float(np.median(np.diff(t[b0:min(b1, b0 + 100_000)]))) * 1e-9 if b1 - b0 > 1 else 0.01
         alpha = math.exp(-max(dt, 1e-9) / tau_s)
         bcoef, acoef = np.array([1.0 - alpha]), np.array([1.0, -alpha])
+        # the forward-backward kernel is c α^|m|, c = (1 − α)/(1 + α): with every weight 1 it
+        # averages n_full = 1/Σk² = (1 + α)²(1 − α²)/((1 − α)²(1 + α²)) ≈ 4τ/dt samples
+        n_full = (1 + alpha) ** 2 * (1 - alpha * alpha) / ((1 - alpha) ** 2 * (1 + alpha * alpha)) \
+            if alpha < 1.0 else 1.0
         chunks = list(_chunks(b0, b1, self.size))
         keep = b1 - b0 <= _KEEP_FORWARD
         zf = None
@@ -597,7 +604,7 @@ class _Estimator:
             if fwd is None:
                 fwd, _ = lfilter(bcoef, acoef, columns(c0, c1), axis=0, zi=zi)
             sm, zb = lfilter(bcoef, acoef, fwd[::-1], axis=0, zi=zb)
-            apply(c0, c1, sm[::-1])
+            apply(c0, c1, sm[::-1], n_full)
 
     def _tilt_from_gravity(self, b0, b1, rest, q_out, var_out):
         """Zero-phase weighted low-pass of ``f_i`` (module docstring, step 4), the correction
@@ -609,27 +616,34 @@ class _Estimator:
         floor = (cfg.accel_bias_sigma / g0) ** 2
 
         def columns(c0, c1):
-            x = np.empty((c1 - c0, 5))
-            wt = self.usable[c0:c1].astype(np.float64)
-            f_b = self.a[c0:c1] if self.all_usable else np.where(wt[:, None] > 0,
-                                                                 self.a[c0:c1], 0.0)
-            x[:, :3] = quat_rotate(q_out[c0:c1], f_b)
-            x[:, 3] = wt
-            x[:, 4] = wt * wt
+            x = np.empty((c1 - c0, 4))
+            if self.all_usable:
+                x[:, :3] = _qrot(q_out[c0:c1], self.a[c0:c1])
+                x[:, 3] = 1.0
+            else:
+                wt = self.usable[c0:c1]
+                x[:, :3] = _qrot(q_out[c0:c1], np.where(wt[:, None], self.a[c0:c1], 0.0))
+                x[:, 3] = wt
             return x
 
-        def apply(c0, c1, sm):
+        def apply(c0, c1, sm, n_full):
             den = sm[:, 3]
             okd = den > 1e-12
-            u = np.divide(sm[:, :3], den[:, None], out=np.zeros((c1 - c0, 3)), where=okd[:, None])
-            u[~okd] = (0.0, 0.0, 1.0)
+            # the smallest rotation taking the smoothed f_i to up (scale-free: Σ w f_i needs no
+            # division by Σ w)
+            u = sm[:, :3]
+            if not okd.all():
+                u = np.where(okd[:, None], u, (0.0, 0.0, 1.0))
             q_out[c0:c1] = _qmul(_up_correction(u), q_out[c0:c1])  # both unit: no checks
             # tilt variance: the accelerometer-bias floor plus its noise over the samples
-            # the smoother averages, n_eff = (Σw)²/Σw²
-            n_eff = np.divide(den * den, sm[:, 4], out=np.ones_like(den), where=sm[:, 4] > 0)
-            tilt = floor + sf2 / (g0 * g0) / np.maximum(n_eff, 1.0)
-            var_out[c0:c1, 0] = np.where(okd, tilt, var_out[c0:c1, 0])
-            var_out[c0:c1, 1] = np.where(okd, tilt, var_out[c0:c1, 1])
+            # the smoother averages
+            tilt = floor + sf2 / (g0 * g0) / np.maximum(den * n_full, 1.0)
+            if okd.all():
+                var_out[c0:c1, 0] = tilt
+                var_out[c0:c1, 1] = tilt
+            else:
+                var_out[c0:c1, 0] = np.where(okd, tilt, var_out[c0:c1, 0])
+                var_out[c0:c1, 1] = np.where(okd, tilt, var_out[c0:c1, 1])
 
         self._zero_phase(b0, b1, cfg.offline_tilt_tau_s, columns, apply)
         self.notes.append(f"tilt from gravity: zero-phase low-pass, τ = {cfg.offline_tilt_tau_s:g} "
@@ -646,7 +660,7 @@ class _Estimator:
         m = np.where(ok[:, None], raw - np.asarray(self.field_reference.hard_iron), 0.0)
         norm = np.sqrt(np.einsum("ij,ij->i", m, m))
         ok &= norm >= MAG_ZERO_T  # (almost) zero once the hard iron is taken out: no reading
-        return quat_rotate(q, m), norm, ok, missing
+        return _qrot(q, m), norm, ok, missing
 
     def _field_reference(self, b0, b1, q_out) -> FieldReference:
         """Norm and dip of the undisturbed field: ``mag_reference_enu_t`` when given, else the
@@ -713,12 +727,11 @@ class _Estimator:
 
         def columns(c0, c1):
             ex, ey, good, _, _ = directions(c0, c1)
-            wt = good.astype(np.float64)
-            return np.column_stack((ex, ey, wt, wt))  # (w², w: weights are 0 or 1)
+            return np.column_stack((ex, ey, good.astype(np.float64)))
 
         scatter = [None]  # the last measured azimuth scatter about the smoothed one (rad²)
 
-        def apply(c0, c1, sm):
+        def apply(c0, c1, sm, n_full):
             ex, ey, good, ok, missing = directions(c0, c1)
             self.mag_counts[MAG_MISSING] += int(np.count_nonzero(missing))
             self.mag_counts[INVALID_MAG] += int(np.count_nonzero(~ok & ~missing))
@@ -737,8 +750,7 @@ class _Estimator:
                 r = (np.arctan2(ex[good], ey[good]) - err[good] + math.pi) % (2 * math.pi) - math.pi
                 scatter[0] = float(np.mean(r * r))
             if scatter[0] is not None:
-                n_eff = np.divide(den * den, sm[:, 3], out=np.ones_like(den), where=sm[:, 3] > 0)
-                head = scatter[0] / np.maximum(n_eff, 1.0) + coupling * var_out[c0:c1, 1]
+                head = scatter[0] / np.maximum(den * n_full, 1.0) + coupling * var_out[c0:c1, 1]
                 var_out[c0:c1, 2] = np.where(okd, head, var_out[c0:c1, 2])
 
         self._zero_phase(b0, b1, cfg.offline_mag_tau_s, columns, apply)
