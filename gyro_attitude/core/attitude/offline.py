@@ -798,7 +798,9 @@ class _Estimator:
                                       weights=[r.stop - r.start for r in rr])
         k2 = getattr(self, "k2", cfg.gyro_bias_rw ** 2)
         sf2 = cfg.gyro_scale_factor_sigma ** 2
-        m_sf = np.zeros((3, 3))  # ∫ C_nb diag(ω) dτ: the scale-factor error's lever (never reset)
+        # ∫ C_nb[k, m] ω_n dτ: the lever of the gyro's gain-and-axes error matrix E[m, n]
+        # (scale factors on the diagonal, axis misalignments off it; never reset)
+        m_sf = np.zeros((3, 3, 3))
         x = np.asarray(xs)
         nr = x.size
         # interval s: before rest 0 (s = 0), between rests s-1 and s, after the last (s = nr);
@@ -849,10 +851,14 @@ class _Estimator:
             tr = tau[c0 - b0 + mid]
             out = tt0 + arw + np.cumsum(np.einsum("ikm,im->ik", c * c, s2b), axis=0)
             arw = out[-1] - tt0
-            if sf2 > 0:  # scale-factor error: δθ = ∫ C_nb diag(δs) ω dτ, the same δs throughout
+            if sf2 > 0:
+                # gain and axes error: δθ = ∫ C_nb E ω dτ with the same E throughout, every
+                # element of 1σ = gyro_scale_factor_sigma.  The off-diagonal terms matter: a
+                # turn about one axis leaks into the others (on BROAD trial 05, turns about the
+                # vertical tilt the attitude about east, beyond the diagonal's prediction).
                 turn = np.add.reduceat(self.w[c0:c1] * dt[:, None], nodes, axis=0)
-                msf = m_sf + np.cumsum(c * turn[:, None, :], axis=0)
-                out += sf2 * np.einsum("ikm,ikm->ik", msf, msf)
+                msf = m_sf + np.cumsum(c[:, :, :, None] * turn[:, None, None, :], axis=0)
+                out += sf2 * np.einsum("ikmn,ikmn->ik", msf, msf)
                 m_sf = msf[-1]
             mc = mclock + np.cumsum(dtb)  # motion clock after each block
             mclock = float(mc[-1])
