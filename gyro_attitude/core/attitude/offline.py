@@ -22,19 +22,23 @@ array operation over chunks of ``chunk_samples`` accepted samples (no per-sample
    correct tilt -- but does not turn the heading);
 3. **integration** of ``ω − b(t)`` with the chosen algorithm, the attitude **held at rests**
    (zero-rate update);
-4. **tilt from gravity** (``aiding="gravity"``): the specific force rotated into the integration
-   frame, ``f_i = C(q) f_b``, points up plus the slowly drifting gyro error plus the carrier's
-   acceleration, whose mean over a few seconds is small.  It is low-passed zero-phase (a
+4. **tilt from gravity** (``aiding`` gravity, tilt or magnetometer): the specific force rotated
+   into the integration frame, ``f_i = C(q) f_b``, points up plus the slowly drifting gyro
+   error plus the carrier's acceleration, whose mean over a few seconds is small.  It is
+   low-passed zero-phase (a
    first-order filter with time constant ``offline_tilt_tau_s`` run forward, then backward over
-   the forward output), each sample weighted 1 where ``| |f| − g | <= aiding_accel_tol`` (0
-   elsewhere) and ``offline_rest_weight`` at rests; the normalised result ``u`` gives the tilt
+   the forward output), every usable accelerometer sample weighted 1, no gate (a gate on
+   ``| |f| − g |`` keeps the samples whose norm happens to cross g during a translation, which
+   point anywhere: docs/real_sensors.md); the smoothed direction ``u`` gives the tilt
    correction, the smallest rotation taking ``u`` to up, applied on the left (integration
    frame) so that the heading is untouched.  With ``initial_attitude="level"`` (without aiding)
    the same correction is taken at **every rest** from the rest's mean specific force and
    interpolated in time between rests; the initial roll and pitch come from the first rest;
 5. **covariance** per output axis (:func:`_gyro_error_variance`): the gyro-only error is the
    integral of the body-frame bias and noise errors rotated into the output frame,
-   ``δθ(t) = ∫ C_nb (δb(τ) + n) dτ`` over the motion (held at rests); with the interpolated bias
+   ``δθ(t) = ∫ C_nb (δb(τ) + E ω + n) dτ`` over the motion (held at rests; ``E`` the gyro's 3×3
+   gain-and-axes error, every element of 1σ ``gyro_scale_factor_sigma``: ``var_k += σ² Σ_mn
+   (∫ C[k,m] ω_n dτ)²``); with the interpolated bias
    ``δb = (1 − w) δb_j + w δb_{j+1}`` this is ``Σ_j M_j(t) δb_j`` with ``M_j = ∫ C_nb φ_j dτ``
    (``φ_j`` the interpolation weights), so ``var_k = Σ_j Σ_m SE_{j,m}² M_j[k,m]²`` plus the
    angle random walk ``Σ C[k,m]² σ_m² dt²`` plus the random walk's bridge ``K²(s³/3 − s⁴/4T)``
@@ -46,6 +50,21 @@ array operation over chunks of ``chunk_samples`` accepted samples (no per-sample
    growth bridged between them.  The gyro noise ``σ_ω`` comes from the messages'
    ``angular_velocity_covariance``, else ``gyro_noise_density``, else the scatter measured at the
    rests.
+
+6. **heading from the magnetometer** (``aiding="magnetometer"``, ``mag`` given): the field less
+   ``mag_hard_iron_t``, rotated into the tilt-corrected output frame; a sample counts
+   (weight 1) when its norm is within ``mag_norm_tol`` of the reference and its dip within
+   ``mag_dip_tol_deg`` (reference: ``mag_reference_enu_t``, or the medians of norm and dip over
+   the recording -- the whole recording votes, so a disturbance covering less than half of it
+   cannot become the reference); its horizontal direction, turned by
+   ``magnetic_declination_deg``, is low-passed zero-phase (``offline_mag_tau_s``) and the
+   azimuth of the smoothed direction is the heading error, taken out about the vertical on the
+   left.  A disturbed stretch has weight 0: the heading there is interpolated by the smoother
+   from the field on both sides and the gyro in between -- no jump toward a false north.  The
+   heading variance is then the azimuth scatter over the samples averaged plus the tilt error
+   about north seen through the dip (``tan²(dip) var_N``).  Not done offline: hard-iron
+   estimation (``mag_hard_iron_estimate``: the given offset is used), reference replacement
+   after a lasting change (the causal ``mag_recovery_s``).
 
 Time jumps split the recording into blocks that are estimated independently (the attitude
 resets to ``q0``); gaps are held across.  Memory: the output (index, q, variance, action) plus
