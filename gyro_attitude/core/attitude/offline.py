@@ -744,14 +744,20 @@ class _Estimator:
             hy = np.divide(mn[:, 1], horiz, out=np.zeros_like(horiz), where=good)
             return hx * cd - hy * sd, hy * cd + hx * sd, good, ok, missing
 
+        # each chunk's directions, computed in the forward pass, are kept for the backward one
+        # while the block is short (as _zero_phase keeps its forward output)
+        kept = {} if b1 - b0 <= _KEEP_FORWARD else None
+
         def columns(c0, c1):
-            ex, ey, good, _, _ = directions(c0, c1)
-            return np.column_stack((ex, ey, good.astype(np.float64)))
+            d = directions(c0, c1)
+            if kept is not None:
+                kept[c0] = d
+            return np.column_stack((d[0], d[1], d[2].astype(np.float64)))
 
         scatter = [None]  # the last measured azimuth scatter about the smoothed one (rad²)
 
         def apply(c0, c1, sm, n_full):
-            ex, ey, good, ok, missing = directions(c0, c1)
+            ex, ey, good, ok, missing = kept.pop(c0) if kept is not None else directions(c0, c1)
             self.mag_counts[MAG_MISSING] += int(np.count_nonzero(missing))
             self.mag_counts[INVALID_MAG] += int(np.count_nonzero(~ok & ~missing))
             self.mag_counts[MAG_DISTURBED] += int(np.count_nonzero(ok & ~good))
