@@ -253,6 +253,28 @@ def _up_correction(u: np.ndarray) -> np.ndarray:
     return q
 
 
+def _level_left(u: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """``_up_correction(u) ⊗ q`` for unit ``q`` without building the correction: its z part is
+    0, so the product has three terms fewer per component (the tilt pass's hot step)."""
+    cx, cy = u[:, 1].copy(), -u[:, 0]
+    cw = np.sqrt(np.einsum("ij,ij->i", u, u)) + u[:, 2]
+    inv = cx * cx + cy * cy + cw * cw
+    down = inv <= 1e-300  # straight down: the half-turn about x (as _up_correction)
+    if down.any():
+        cx[down], cy[down], cw[down], inv[down] = 1.0, 0.0, 0.0, 1.0
+    inv = 1.0 / np.sqrt(inv)
+    cx *= inv
+    cy *= inv
+    cw *= inv
+    qx, qy, qz, qw = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    out = np.empty_like(q)
+    out[:, 0] = cw * qx + cx * qw + cy * qz
+    out[:, 1] = cw * qy - cx * qz + cy * qw
+    out[:, 2] = cw * qz + cx * qy - cy * qx
+    out[:, 3] = cw * qw - cx * qx - cy * qy
+    return out
+
+
 class _Block:
     """Accepted rows ``[b0, b1)`` between time-jump resets, estimated on their own."""
 
@@ -653,7 +675,7 @@ class _Estimator:
             u = sm[:, :3]
             if not okd.all():
                 u = np.where(okd[:, None], u, (0.0, 0.0, 1.0))
-            q_out[c0:c1] = _qmul(_up_correction(u), q_out[c0:c1])  # both unit: no checks
+            q_out[c0:c1] = _level_left(u, q_out[c0:c1])
             # tilt variance: the accelerometer-bias floor plus its noise over the samples
             # the smoother averages
             tilt = floor + sf2 / (g0 * g0) / np.maximum(den * n_full, 1.0)
