@@ -801,6 +801,10 @@ class _Estimator:
                 var_out[c0:c1, 2] = np.where(okd, head, var_out[c0:c1, 2])
 
         self._zero_phase(b0, b1, cfg.offline_mag_tau_s, columns, apply)
+        if cfg.mag_hard_iron_estimate and not any("hard iron" in n for n in self.notes):
+            self.notes.append("mag_hard_iron_estimate: the offline estimator does not estimate "
+                              "the hard iron; the given mag_hard_iron_t is used (--estimator "
+                              "causal estimates it)")
         self.notes.append(f"heading from the magnetometer: zero-phase low-pass, τ = "
                           f"{cfg.offline_mag_tau_s:g} s; reference |B| {ref_n * 1e6:.1f} µT, dip "
                           f"{math.degrees(ref_d):.1f}° ("

@@ -116,6 +116,9 @@ def test_bad_or_missing_field_samples_are_counted_and_the_attitude_stays_finite(
     # no field at all: counted, heading gyro-only, said so
     r3 = estimate_offline(t, w, a, q0=q_true[0], config=StreamConfig(aiding="magnetometer"))
     assert r3.counts[MAG_MISSING] == t.size and any("without a field" in n for n in r3.notes)
+    r4 = estimate_offline(t, w, a, q0=q_true[0], mag=mag,
+                          config=StreamConfig(aiding="magnetometer", mag_hard_iron_estimate=True))
+    assert any("does not estimate the hard iron" in n for n in r4.notes)
     with pytest.raises(ValueError, match="mag must have shape"):
         estimate_offline(t, w, a, config=StreamConfig(aiding="magnetometer"), mag=mag[:-1])
 
