@@ -130,7 +130,7 @@ _OVERLAP = 8
 # rows per step of the covariance propagation (interpolated in between: it is smooth)
 _COV_BLOCK = 16
 # the learned field reference is the median over at most this many samples spread over the run
-_REFERENCE_SAMPLES = 1 << 17
+_REFERENCE_SAMPLES = 1 << 14  # (a median of 16 Ki: within ~1 % of the field's scatter)
 # the heading smoother needs this much weight within reach (e^-600: ~600 τ away from any field)
 _MAG_WEIGHT_MIN = 1e-260
 
@@ -723,7 +723,7 @@ class _Estimator:
         pick, raw = pick[fin], raw[fin]
         if pick.size:
             m = raw - np.asarray(ref.hard_iron)
-            mn = quat_rotate(q_out[pick], m)
+            mn = _qrot(q_out[pick], m)
             norm = np.sqrt(np.einsum("ij,ij->i", m, m))
             ok = (np.abs(raw).max(axis=1) <= MAG_ABSURD_T) & (norm >= MAG_ZERO_T)
             if np.count_nonzero(ok) >= 10:
