@@ -309,8 +309,11 @@ def quat_from_matrix(matrix, atol: float = 1e-6) -> np.ndarray:
 # --------------------------------------------------------------------------- vectors, errors
 def quat_rotate(q, v) -> np.ndarray:
     """Rotate vectors: ``C(q) v`` (for ``q = q_ab``: b-frame vector into frame a)."""
-    q = quat_normalize(q)
-    v = as_vector_array(v)
+    return _qrot(quat_normalize(q), as_vector_array(v))
+
+
+def _qrot(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``C(q) v`` for unit quaternions, without validation (hot path of the offline passes)."""
     x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     vx, vy, vz = v[..., 0], v[..., 1], v[..., 2]
     # v' = v + w t + u × t with t = 2 u × v: two cross products, cheaper than building

@@ -206,7 +206,7 @@ class Estimate:
     first: int
     algorithm: str
     notes: list[str]
-    aiding: object = None  # the causal chain's aiding stage (its counts and reference)
+    aiding: object = None  # the causal aiding stage or the offline FieldReference (counts, reference)
     estimator: Estimator = Estimator.OFFLINE  # the one that ran
 
 
@@ -238,18 +238,16 @@ def estimate_recording(t_ns, omega, accel, gyro_covariance, frame_id, *, config:
         t_ns, omega, gyro_covariance = t_ns[first:], omega[first:], gyro_covariance[first:]
         accel = None if accel is None else accel[first:]
         mag = None if mag is None else mag[first:]
-    notes = []
-    if estimator is Estimator.OFFLINE and config.aiding in (Aiding.TILT, Aiding.MAGNETOMETER):
-        # the whole-recording estimator aids with gravity only (core/attitude/offline.py)
-        estimator = Estimator.CAUSAL
-        notes.append(f"aiding {config.aiding.value}: the offline estimator has no such aiding, "
-                     "the causal chain (the node's AHRS stage) ran")
     if estimator is Estimator.OFFLINE:
+        # aiding gravity | tilt | magnetometer: the offline chain's tilt from gravity, and with
+        # magnetometer its heading from the field (core/attitude/offline.py, steps 4 and 6)
         algorithm = algorithm or DEFAULT_OFFLINE_ALGORITHM
         res = estimate_offline(t_ns, omega, accel, config=config, q0=q0, nav=nav,
                                frame_id=frame_id, angular_velocity_covariance=gyro_covariance,
-                               algorithm=algorithm)
-        return Estimate(res, first, algorithm, list(res.notes), None, Estimator.OFFLINE)
+                               algorithm=algorithm, mag=mag)
+        return Estimate(res, first, algorithm, list(res.notes), res.field_reference,
+                        Estimator.OFFLINE)
+    notes = []
     stream = AttitudeStream(algorithm or DEFAULT_OFFLINE_ALGORITHM, q0=q0, nav=nav,
                             config=config)
     try:

@@ -42,6 +42,25 @@ def test_replay_takes_the_heading_from_the_field(recording, tmp_path, capsys):
     assert np.isfinite(att.quaternion).all()
 
 
+@pytest.mark.parametrize("estimator", ["offline", "causal"])
+def test_replay_aiding_magnetometer_runs_the_offline_estimator_by_default(recording, tmp_path,
+                                                                          capsys, estimator):
+    m = load_scene("magnet_disturbance").magnetometer
+    hard = ",".join(f"{c:.9g}" for c in m.hard_iron)
+    flags = [] if estimator == "offline" else ["--estimator", "causal"]
+    rc = cli_main(["replay", str(recording), "--out", str(tmp_path / "o.mcap"), "--aiding",
+                   "magnetometer", "--initial-attitude", "level", "--magnetic-declination-deg",
+                   f"{math.degrees(m.declination):.6f}", "--mag-hard-iron-t", hard, "--json",
+                   *flags])
+    assert rc == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["estimator"] == estimator
+    assert 1900 <= summary["magnetometer"]["mag_disturbed"] <= 2100  # the 10 s magnet
+    assert math.degrees(summary["final_error_rad"]) < 1.0
+    if estimator == "offline":
+        assert any("heading from the magnetometer" in n for n in summary["estimator_notes"])
+
+
 def test_replay_without_the_field_topic_says_so_in_one_line(recording, tmp_path, capsys):
     rc = cli_main(["replay", str(recording), "--out", str(tmp_path / "o.mcap"), "--aiding",
                    "magnetometer", "--mag-topic", "compass"])

@@ -22,30 +22,49 @@ array operation over chunks of ``chunk_samples`` accepted samples (no per-sample
    correct tilt -- but does not turn the heading);
 3. **integration** of ``ω − b(t)`` with the chosen algorithm, the attitude **held at rests**
    (zero-rate update);
-4. **tilt from gravity** (``aiding="gravity"``): the specific force rotated into the integration
-   frame, ``f_i = C(q) f_b``, points up plus the slowly drifting gyro error plus the carrier's
-   acceleration, whose mean over a few seconds is small.  It is low-passed zero-phase (a
+4. **tilt from gravity** (``aiding`` gravity, tilt or magnetometer): the specific force rotated
+   into the integration frame, ``f_i = C(q) f_b``, points up plus the slowly drifting gyro
+   error plus the carrier's acceleration, whose mean over a few seconds is small.  It is
+   low-passed zero-phase (a
    first-order filter with time constant ``offline_tilt_tau_s`` run forward, then backward over
-   the forward output), each sample weighted 1 where ``| |f| − g | <= aiding_accel_tol`` (0
-   elsewhere) and ``offline_rest_weight`` at rests; the normalised result ``u`` gives the tilt
+   the forward output), every usable accelerometer sample weighted 1, no gate (a gate on
+   ``| |f| − g |`` keeps the samples whose norm happens to cross g during a translation, which
+   point anywhere: docs/real_sensors.md); the smoothed direction ``u`` gives the tilt
    correction, the smallest rotation taking ``u`` to up, applied on the left (integration
    frame) so that the heading is untouched.  With ``initial_attitude="level"`` (without aiding)
    the same correction is taken at **every rest** from the rest's mean specific force and
    interpolated in time between rests; the initial roll and pitch come from the first rest;
 5. **covariance** per output axis (:func:`_gyro_error_variance`): the gyro-only error is the
    integral of the body-frame bias and noise errors rotated into the output frame,
-   ``δθ(t) = ∫ C_nb (δb(τ) + n) dτ`` over the motion (held at rests); with the interpolated bias
+   ``δθ(t) = ∫ C_nb (δb(τ) + E ω + n) dτ`` over the motion (held at rests; ``E`` the gyro's 3×3
+   gain-and-axes error, every element of 1σ ``gyro_scale_factor_sigma``: ``var_k += σ² Σ_mn
+   (∫ C[k,m] ω_n dτ)²``); with the interpolated bias
    ``δb = (1 − w) δb_j + w δb_{j+1}`` this is ``Σ_j M_j(t) δb_j`` with ``M_j = ∫ C_nb φ_j dτ``
    (``φ_j`` the interpolation weights), so ``var_k = Σ_j Σ_m SE_{j,m}² M_j[k,m]²`` plus the
    angle random walk ``Σ C[k,m]² σ_m² dt²`` plus the random walk's bridge ``K²(s³/3 − s⁴/4T)``
    (``s`` motion time since the rest, ``T`` to the next).  The heading (third) axis keeps it and
    grows between rests; the tilt axes take the tilt-from-gravity variance where gravity is used:
-   ``(σ_ba/g)² + σ_f²/(g² n_eff)`` with ``n_eff = (Σw)²/Σw²`` of the smoother and ``σ_f²`` the
+   ``(σ_ba/g)² + σ_f²/(g² n_eff)`` with ``n_eff`` the samples the smoother averages and ``σ_f²`` the
    measured scatter of ``f_i`` about ``g u`` (accelerometer noise and the carrier's acceleration:
    the residual that leaks into the mean), or the levelling variance at rests with the gyro-only
    growth bridged between them.  The gyro noise ``σ_ω`` comes from the messages'
    ``angular_velocity_covariance``, else ``gyro_noise_density``, else the scatter measured at the
    rests.
+
+6. **heading from the magnetometer** (``aiding="magnetometer"``, ``mag`` given): the field less
+   ``mag_hard_iron_t``, rotated into the tilt-corrected output frame; a sample counts
+   (weight 1) when its norm is within ``mag_norm_tol`` of the reference and its dip within
+   ``mag_dip_tol_deg`` (reference: ``mag_reference_enu_t``, or the medians of norm and dip over
+   the recording -- the whole recording votes, so a disturbance covering less than half of it
+   cannot become the reference); its horizontal direction, turned by
+   ``magnetic_declination_deg``, is low-passed zero-phase (``offline_mag_tau_s``) and the
+   azimuth of the smoothed direction is the heading error, taken out about the vertical on the
+   left.  A disturbed stretch has weight 0: the heading there is interpolated by the smoother
+   from the field on both sides and the gyro in between -- no jump toward a false north.  The
+   heading variance is then the azimuth scatter over the samples averaged plus the tilt error
+   about north seen through the dip (``tan²(dip) var_N``).  Not done offline: hard-iron
+   estimation (``mag_hard_iron_estimate``: the given offset is used), reference replacement
+   after a lasting change (the causal ``mag_recovery_s``).
 
 Time jumps split the recording into blocks that are estimated independently (the attitude
 resets to ``q0``); gaps are held across.  Memory: the output (index, q, variance, action) plus
@@ -63,6 +82,7 @@ from scipy.signal import lfilter
 
 from gyro_attitude.core.attitude import NavFrame, integrate_batch
 from gyro_attitude.core.attitude import validation as v
+from gyro_attitude.core.attitude.ahrs import MAG_ABSURD_T, MAG_ZERO_T
 from gyro_attitude.core.attitude.alignment import AlignmentResult, level_quaternion
 from gyro_attitude.core.attitude.gyro_bias import GyroBiasReport
 from gyro_attitude.core.attitude.modes import Aiding, Frame, GyroBiasMode, HeadingSource
@@ -73,6 +93,9 @@ from gyro_attitude.core.attitude.stream import (
     INTEGRATOR_ERROR,
     INVALID_ACCEL,
     INVALID_COVARIANCE,
+    INVALID_MAG,
+    MAG_DISTURBED,
+    MAG_MISSING,
     SATURATED,
     StreamResult,
     StreamState,
@@ -87,6 +110,7 @@ from gyro_attitude.core.attitude.stream_batch import count_saturated
 from gyro_attitude.core.earth import OMEGA_IE, STANDARD_GRAVITY
 from gyro_attitude.core.rotation import (
     _qmul,
+    _qrot,
     quat_as_matrix,
     quat_as_rotvec,
     quat_conjugate,
@@ -95,7 +119,7 @@ from gyro_attitude.core.rotation import (
     quat_rotate,
 )
 
-__all__ = ["DEFAULT_CHUNK_SAMPLES", "OfflineRest", "estimate_offline"]
+__all__ = ["DEFAULT_CHUNK_SAMPLES", "FieldReference", "OfflineRest", "estimate_offline"]
 
 #: Accepted samples per working chunk: ~25 MB of temporaries at most, whatever the length.
 DEFAULT_CHUNK_SAMPLES = 1 << 16
@@ -105,6 +129,26 @@ _KEEP_FORWARD = 1 << 20
 _OVERLAP = 8
 # rows per step of the covariance propagation (interpolated in between: it is smooth)
 _COV_BLOCK = 16
+# the learned field reference is the median over at most this many samples spread over the run
+_REFERENCE_SAMPLES = 1 << 14  # (a median of 16 Ki: within ~1 % of the field's scatter)
+# the heading smoother needs this much weight within reach (e^-600: ~600 τ away from any field)
+_MAG_WEIGHT_MIN = 1e-260
+
+
+@dataclass
+class FieldReference:
+    """The magnetometer reference of the offline heading pass (what replay's summary shows,
+    named as the causal aiding stage names it): norm (T) and dip (rad, positive down) given by
+    ``mag_reference_enu_t`` or learned as the medians over the recording; the hard iron used;
+    the offline pass never replaces its reference (``mag_reference_changes`` 0) and rejects no
+    acceleration (``accel_rejected`` None: the tilt uses every sample, see step 4)."""
+
+    mag_ref_norm: float | None = None
+    mag_ref_dip: float | None = None
+    hard_iron: tuple = (0.0, 0.0, 0.0)
+    mag_reference_changes: int = 0
+    accel_rejected: int | None = None
+    learned: bool = False
 
 
 @dataclass(frozen=True)
@@ -209,6 +253,28 @@ def _up_correction(u: np.ndarray) -> np.ndarray:
     return q
 
 
+def _level_left(u: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """``_up_correction(u) ⊗ q`` for unit ``q`` without building the correction: its z part is
+    0, so the product has three terms fewer per component (the tilt pass's hot step)."""
+    cx, cy = u[:, 1].copy(), -u[:, 0]
+    cw = np.sqrt(np.einsum("ij,ij->i", u, u)) + u[:, 2]
+    inv = cx * cx + cy * cy + cw * cw
+    down = inv <= 1e-300  # straight down: the half-turn about x (as _up_correction)
+    if down.any():
+        cx[down], cy[down], cw[down], inv[down] = 1.0, 0.0, 0.0, 1.0
+    inv = 1.0 / np.sqrt(inv)
+    cx *= inv
+    cy *= inv
+    cw *= inv
+    qx, qy, qz, qw = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    out = np.empty_like(q)
+    out[:, 0] = cw * qx + cx * qw + cy * qz
+    out[:, 1] = cw * qy - cx * qz + cy * qw
+    out[:, 2] = cw * qz + cx * qy - cy * qx
+    out[:, 3] = cw * qw - cx * qx - cy * qy
+    return out
+
+
 class _Block:
     """Accepted rows ``[b0, b1)`` between time-jump resets, estimated on their own."""
 
@@ -227,7 +293,8 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
     None (gyro-only: no levelling, no aiding, rests from the gyro alone); ``config`` the stream
     settings (bias mode, rest thresholds, ``initial_attitude``, ``aiding``, noise figures);
     ``q0`` the initial attitude (``level``: its heading is ``initial_heading_deg``); ``nav`` a
-    constant :class:`NavFrame` for q_nb or None for q_ib; ``mag`` is accepted and not used yet;
+    constant :class:`NavFrame` for q_nb or None for q_ib; ``mag`` (N, 3) the magnetic field in
+    tesla at the samples (rows of NaN: none there), used with ``aiding="magnetometer"`` (step 6);
     ``angular_velocity_covariance`` (N, 9) or None.  Raises ValueError on malformed input and
     when ``initial_attitude="level"`` finds no rest to level on.
     """
@@ -271,6 +338,16 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
                                "finite or absurd: not used for rests, levelling or aiding")
         if not usable.any():
             av = usable = None
+    mv = None
+    if cfg.aiding is Aiding.MAGNETOMETER:
+        counts.update({MAG_MISSING: 0, INVALID_MAG: 0, MAG_DISTURBED: 0})
+        if mag is None:
+            counts[MAG_MISSING] = m
+        else:
+            mag = np.asarray(mag, dtype=np.float64)
+            if mag.shape != (n, 3):
+                raise ValueError(f"mag must have shape ({n}, 3), got {mag.shape}")
+            mv = rows(mag, valid)
     sig2 = None  # per-row gyro variance (M, 3) from the messages, where known
     if cov is not None:
         var_v, known_v = covariance_rows(cov, valid, counts, details)
@@ -284,23 +361,37 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
     # saturated samples: counted as the causal path counts them (its array form, fresh state)
     count_saturated(wv, StreamState(q_init, q_init), counts, details)
     est = _Estimator(cfg, q_init, nav, algorithm, chunk_samples, tv, wv, av, usable, sig2,
-                     rows(act, valid))
+                     rows(act, valid), mv)
     q_out, var_out, known_out = est.run()
     notes = est.notes
+    if cfg.aiding is Aiding.MAGNETOMETER:
+        for key, c in est.mag_counts.items():
+            counts[key] += c
+        for key, text in ((INVALID_MAG, "a magnetic field sample not finite, beyond 10 mT or "
+                                        "below 0.1 µT"),
+                          (MAG_DISTURBED, "a field whose norm or dip is off the reference"),
+                          (MAG_MISSING, "no magnetic field sample for these Imu samples")):
+            if counts[key]:
+                details.setdefault(key, text)
     if acc is None or av is None:
         notes.insert(0, "no accelerometer: gyro-only offline estimation (rests from the gyro, "
                      "no levelling, no gravity aiding)")
-    return StreamResult(valid, q_out, var_out, known_out, act, counts, cls.time_jump_resets,
-                        details, est.bias_report(), est.alignment, notes=notes)
+    res = StreamResult(valid, q_out, var_out, known_out, act, counts, cls.time_jump_resets,
+                       details, est.bias_report(), est.alignment, notes=notes)
+    res.field_reference = est.field_reference  # None unless aiding magnetometer
+    return res
 
 
 class _Estimator:
     """The passes of :func:`estimate_offline` over the accepted rows (visible state: the rests
     found, the notes, the alignment)."""
 
-    def __init__(self, cfg, q_init, nav, algorithm, size, t, w, a, usable, sig2, act):
+    def __init__(self, cfg, q_init, nav, algorithm, size, t, w, a, usable, sig2, act, mag=None):
         self.cfg, self.q_init, self.nav, self.algorithm, self.size = cfg, q_init, nav, algorithm, size
         self.t, self.w, self.a, self.usable, self.sig2, self.act = t, w, a, usable, sig2, act
+        self.mag = mag
+        self.mag_counts = {MAG_MISSING: 0, INVALID_MAG: 0, MAG_DISTURBED: 0}
+        self.field_reference: FieldReference | None = None
         self.all_usable = usable is not None and bool(usable.all())
         self.nav_series = None if nav is None else nav.series_length()
         self.rests: list[OfflineRest] = []
@@ -342,7 +433,7 @@ class _Estimator:
         cfg = self.cfg
         tau = self._clock(b0, b1, runs)
         rest = np.zeros(b1 - b0, dtype=bool)
-        if cfg.gyro_bias is GyroBiasMode.AUTO or cfg.levelling or cfg.aiding is Aiding.GRAVITY:
+        if cfg.gyro_bias is GyroBiasMode.AUTO or cfg.levelling or cfg.aiding is not Aiding.NONE:
             self._find_rests(b0, runs, rest)
         rests = self._rest_stats(b0, b1, rest, tau)
         self.rests += rests
@@ -381,10 +472,17 @@ class _Estimator:
         if tilt_var0 is not None:
             tt0[:2] = tilt_var0
         self._covariance(b0, b1, rest if zupt else None, rests, tau, q_out, var_out, tt0)
-        if self.a is not None and cfg.aiding is Aiding.GRAVITY:
+        if self.a is not None and cfg.aiding is not Aiding.NONE:
+            # gravity, tilt, magnetometer: the tilt from gravity of step 4 (the offline chain
+            # has one tilt method; the causal filters' differences are causal remedies)
             self._tilt_from_gravity(b0, b1, rest, q_out, var_out)
         elif self.a is not None and cfg.levelling:
             self._level_at_rests(b0, b1, rests, tau, q_out, var_out)
+        if cfg.aiding is Aiding.MAGNETOMETER:
+            if self.mag is None:
+                self.notes.append("aiding magnetometer without a field: heading gyro-only")
+            else:
+                self._heading_from_field(b0, b1, q_out, var_out)
 
     def _clock(self, b0, b1, runs) -> np.ndarray:
         """Seconds since the block's first row, gaps counted (the bias walks across them)."""
@@ -510,61 +608,208 @@ class _Estimator:
                 q_prev = q_out[p1 - 1]
             q_prev = q_out[r1 - 1]
 
-    # ------------------------------------------------------------------ 4. tilt
-    def _tilt_from_gravity(self, b0, b1, rest, q_out, var_out):
-        """Zero-phase weighted low-pass of ``f_i`` (module docstring, step 4): the forward pass
-        keeps its state at chunk starts (and its output while the block is short); the backward
-        pass recomputes each chunk's forward part where it was not kept and applies the
-        correction in place."""
-        cfg = self.cfg
+    # ------------------------------------------------------------------ 4. tilt, 6. heading
+    def _zero_phase(self, b0, b1, tau_s, columns, apply):
+        """The one zero-phase smoother of the chain: a first-order low-pass (time constant
+        ``tau_s``) of the columns ``columns(c0, c1)`` -> (rows, K), run forward over the block,
+        then backward over the forward output; ``apply(c0, c1, sm, n_full)`` gets each chunk's smoothed
+        columns, last chunk first, and the number of samples the smoother averages where every
+        weight is 1 (weights are 0 or 1: ``n_eff = den · n_full``, ``den`` the smoothed weight).
+        The forward pass keeps its state at chunk starts (and its
+        output while the block is short); the backward pass recomputes a chunk's forward part
+        where it was not kept -- before ``apply`` of that chunk, so ``columns`` may read what
+        ``apply`` of later chunks changed, not what it changes in this one."""
         t = self.t
         dt = float(np.median(np.diff(t[b0:min(b1, b0 + 100_000)]))) * 1e-9 if b1 - b0 > 1 else 0.01
-        alpha = math.exp(-max(dt, 1e-9) / cfg.offline_tilt_tau_s)
+        alpha = math.exp(-max(dt, 1e-9) / tau_s)
         bcoef, acoef = np.array([1.0 - alpha]), np.array([1.0, -alpha])
-
-        def columns(c0, c1):
-            x = np.empty((c1 - c0, 5))
-            wt = self.usable[c0:c1].astype(np.float64)
-            f_b = self.a[c0:c1] if self.all_usable else np.where(wt[:, None] > 0,
-                                                                 self.a[c0:c1], 0.0)
-            x[:, :3] = quat_rotate(q_out[c0:c1], f_b)
-            x[:, 3] = wt
-            x[:, 4] = wt * wt
-            return x
-
+        # the forward-backward kernel is c α^|m|, c = (1 − α)/(1 + α): with every weight 1 it
+        # averages n_full = 1/Σk² = (1 + α)²(1 − α²)/((1 − α)²(1 + α²)) ≈ 4τ/dt samples
+        n_full = (1 + alpha) ** 2 * (1 - alpha * alpha) / ((1 - alpha) ** 2 * (1 + alpha * alpha)) \
+            if alpha < 1.0 else 1.0
         chunks = list(_chunks(b0, b1, self.size))
         keep = b1 - b0 <= _KEEP_FORWARD
-        zf = np.zeros((1, 5))
+        zf = None
         states = []
         kept = []
         for c0, c1 in chunks:  # forward
+            x = columns(c0, c1)
+            if zf is None:
+                zf = np.zeros((1, x.shape[1]))
             states.append(zf)
-            fwd, zf = lfilter(bcoef, acoef, columns(c0, c1), axis=0, zi=zf)
+            fwd, zf = lfilter(bcoef, acoef, x, axis=0, zi=zf)
             kept.append(fwd if keep else None)
-        zb = np.zeros((1, 5))
-        g0 = STANDARD_GRAVITY
-        noise = [r.accel_var for r in self.rests if np.isfinite(r.accel_var).all()]
-        sf2 = float(np.mean(noise)) if noise else 0.0  # per-axis accelerometer noise at rest
-        floor = (cfg.accel_bias_sigma / g0) ** 2
+        zb = np.zeros_like(zf)
         for (c0, c1), zi, fwd in zip(reversed(chunks), reversed(states), reversed(kept),
                                      strict=True):
             if fwd is None:
                 fwd, _ = lfilter(bcoef, acoef, columns(c0, c1), axis=0, zi=zi)
             sm, zb = lfilter(bcoef, acoef, fwd[::-1], axis=0, zi=zb)
-            sm = sm[::-1]
+            apply(c0, c1, sm[::-1], n_full)
+
+    def _tilt_from_gravity(self, b0, b1, rest, q_out, var_out):
+        """Zero-phase weighted low-pass of ``f_i`` (module docstring, step 4), the correction
+        applied in place chunk by chunk."""
+        cfg = self.cfg
+        g0 = STANDARD_GRAVITY
+        noise = [r.accel_var for r in self.rests if np.isfinite(r.accel_var).all()]
+        sf2 = float(np.mean(noise)) if noise else 0.0  # per-axis accelerometer noise at rest
+        floor = (cfg.accel_bias_sigma / g0) ** 2
+
+        def columns(c0, c1):
+            x = np.empty((c1 - c0, 4))
+            if self.all_usable:
+                x[:, :3] = _qrot(q_out[c0:c1], self.a[c0:c1])
+                x[:, 3] = 1.0
+            else:
+                wt = self.usable[c0:c1]
+                x[:, :3] = _qrot(q_out[c0:c1], np.where(wt[:, None], self.a[c0:c1], 0.0))
+                x[:, 3] = wt
+            return x
+
+        def apply(c0, c1, sm, n_full):
             den = sm[:, 3]
             okd = den > 1e-12
-            u = np.divide(sm[:, :3], den[:, None], out=np.zeros((c1 - c0, 3)), where=okd[:, None])
-            u[~okd] = (0.0, 0.0, 1.0)
-            q_out[c0:c1] = _qmul(_up_correction(u), q_out[c0:c1])  # both unit: no checks
+            # the smallest rotation taking the smoothed f_i to up (scale-free: Σ w f_i needs no
+            # division by Σ w)
+            u = sm[:, :3]
+            if not okd.all():
+                u = np.where(okd[:, None], u, (0.0, 0.0, 1.0))
+            q_out[c0:c1] = _level_left(u, q_out[c0:c1])
             # tilt variance: the accelerometer-bias floor plus its noise over the samples
-            # the smoother averages, n_eff = (Σw)²/Σw²
-            n_eff = np.divide(den * den, sm[:, 4], out=np.ones_like(den), where=sm[:, 4] > 0)
-            tilt = floor + sf2 / (g0 * g0) / np.maximum(n_eff, 1.0)
-            var_out[c0:c1, 0] = np.where(okd, tilt, var_out[c0:c1, 0])
-            var_out[c0:c1, 1] = np.where(okd, tilt, var_out[c0:c1, 1])
+            # the smoother averages
+            tilt = floor + sf2 / (g0 * g0) / np.maximum(den * n_full, 1.0)
+            if okd.all():
+                var_out[c0:c1, 0] = tilt
+                var_out[c0:c1, 1] = tilt
+            else:
+                var_out[c0:c1, 0] = np.where(okd, tilt, var_out[c0:c1, 0])
+                var_out[c0:c1, 1] = np.where(okd, tilt, var_out[c0:c1, 1])
+
+        self._zero_phase(b0, b1, cfg.offline_tilt_tau_s, columns, apply)
         self.notes.append(f"tilt from gravity: zero-phase low-pass, τ = {cfg.offline_tilt_tau_s:g} "
                           "s")
+
+    def _field(self, c0, c1, q):
+        """The field of rows ``[c0, c1)`` less the hard iron, rotated into the output frame by
+        ``q`` (zeros where unusable), its norm, and which rows are usable / missing."""
+        raw = self.mag[c0:c1]
+        missing = np.isnan(raw).all(axis=1)
+        with np.errstate(invalid="ignore"):
+            ok = np.isfinite(raw).all(axis=1) & (np.abs(raw).max(axis=1) <= MAG_ABSURD_T)
+            ok &= np.einsum("ij,ij->i", raw, raw) >= MAG_ZERO_T * MAG_ZERO_T
+        m = np.where(ok[:, None], raw - np.asarray(self.field_reference.hard_iron), 0.0)
+        norm = np.sqrt(np.einsum("ij,ij->i", m, m))
+        ok &= norm >= MAG_ZERO_T  # (almost) zero once the hard iron is taken out: no reading
+        return _qrot(q, m), norm, ok, missing
+
+    def _field_reference(self, b0, b1, q_out) -> FieldReference:
+        """Norm and dip of the undisturbed field: ``mag_reference_enu_t`` when given, else the
+        medians over (a spread sample of) the usable field in the tilt-corrected output frame
+        -- the whole recording votes, so a disturbance shorter than half of it cannot become
+        the reference (the causal stage must learn it from the first second)."""
+        cfg = self.cfg
+        ref = FieldReference(hard_iron=tuple(float(x) for x in cfg.mag_hard_iron_t))
+        given = np.asarray(cfg.mag_reference_enu_t, dtype=np.float64)
+        if np.any(given != 0.0):
+            ref.mag_ref_norm = float(np.linalg.norm(given))
+            ref.mag_ref_dip = math.atan2(-given[2], math.hypot(given[0], given[1]))
+            return ref
+        self.field_reference = ref  # the hard iron, for _field
+        step = max(1, (b1 - b0) // _REFERENCE_SAMPLES)
+        pick = np.arange(b0, b1, step)
+        raw = self.mag[pick]
+        fin = np.isfinite(raw).all(axis=1)
+        pick, raw = pick[fin], raw[fin]
+        if pick.size:
+            m = raw - np.asarray(ref.hard_iron)
+            mn = _qrot(q_out[pick], m)
+            norm = np.sqrt(np.einsum("ij,ij->i", m, m))
+            ok = (np.abs(raw).max(axis=1) <= MAG_ABSURD_T) & (norm >= MAG_ZERO_T)
+            if np.count_nonzero(ok) >= 10:
+                ref.mag_ref_norm = float(np.median(norm[ok]))
+                ref.mag_ref_dip = float(np.median(np.arctan2(-mn[ok, 2], np.hypot(mn[ok, 0],
+                                                                                  mn[ok, 1]))))
+                ref.learned = True
+        return ref
+
+    def _heading_from_field(self, b0, b1, q_out, var_out):
+        """Heading from the magnetometer, non-causally (module docstring, step 6): the field in
+        the tilt-corrected output frame, its horizontal direction less the declination
+        low-passed zero-phase with weight 1 where the field agrees with the reference (norm
+        within ``mag_norm_tol``, dip within ``mag_dip_tol_deg``) and 0 elsewhere; the
+        azimuth of the smoothed direction is the heading error, taken out about the vertical
+        (left, output frame: the tilt is untouched)."""
+        cfg = self.cfg
+        if self.field_reference is None or self.field_reference.mag_ref_norm is None:
+            self.field_reference = self._field_reference(b0, b1, q_out)
+        ref = self.field_reference
+        if ref.mag_ref_norm is None:
+            self.notes.append("magnetometer: too few usable field samples to learn the "
+                              "reference: heading gyro-only")
+            return
+        ref_n, ref_d = ref.mag_ref_norm, ref.mag_ref_dip
+        tol_n, tol_d = cfg.mag_norm_tol * ref_n, math.radians(cfg.mag_dip_tol_deg)
+        decl = math.radians(cfg.magnetic_declination_deg)
+        cd, sd = math.cos(decl), math.sin(decl)
+        coupling = math.tan(min(abs(ref_d), math.radians(89.0))) ** 2
+
+        def directions(c0, c1):
+            """(sin, cos) of each sample's azimuth less the declination, its weight, and the
+            usable / missing rows (counted by the caller)."""
+            mn, norm, ok, missing = self._field(c0, c1, q_out[c0:c1])
+            horiz = np.hypot(mn[:, 0], mn[:, 1])
+            dip = np.arctan2(-mn[:, 2], horiz)
+            good = ok & (np.abs(norm - ref_n) <= tol_n) & (np.abs(dip - ref_d) <= tol_d)
+            good &= horiz >= 1e-3 * norm  # at a magnetic pole the field gives no heading
+            hx = np.divide(mn[:, 0], horiz, out=np.zeros_like(horiz), where=good)
+            hy = np.divide(mn[:, 1], horiz, out=np.zeros_like(horiz), where=good)
+            return hx * cd - hy * sd, hy * cd + hx * sd, good, ok, missing
+
+        # each chunk's directions, computed in the forward pass, are kept for the backward one
+        # while the block is short (as _zero_phase keeps its forward output)
+        kept = {} if b1 - b0 <= _KEEP_FORWARD else None
+
+        def columns(c0, c1):
+            d = directions(c0, c1)
+            if kept is not None:
+                kept[c0] = d
+            return np.column_stack((d[0], d[1], d[2].astype(np.float64)))
+
+        scatter = [None]  # the last measured azimuth scatter about the smoothed one (rad²)
+
+        def apply(c0, c1, sm, n_full):
+            ex, ey, good, ok, missing = kept.pop(c0) if kept is not None else directions(c0, c1)
+            self.mag_counts[MAG_MISSING] += int(np.count_nonzero(missing))
+            self.mag_counts[INVALID_MAG] += int(np.count_nonzero(~ok & ~missing))
+            self.mag_counts[MAG_DISTURBED] += int(np.count_nonzero(ok & ~good))
+            den = sm[:, 2]
+            okd = den > _MAG_WEIGHT_MIN
+            err = np.where(okd, np.arctan2(sm[:, 0], sm[:, 1]), 0.0)
+            # the correction R_z(err) on the left: the smoothed field direction to north
+            qz = np.zeros((c1 - c0, 4))
+            qz[:, 2] = np.sin(0.5 * err)
+            qz[:, 3] = np.cos(0.5 * err)
+            q_out[c0:c1] = _qmul(qz, q_out[c0:c1])
+            # heading variance: the azimuth scatter of the samples over the n_eff the smoother
+            # averages, plus the tilt error about north seen through the dip (δψ = tan(dip) δθ_N)
+            if good.any():
+                r = (np.arctan2(ex[good], ey[good]) - err[good] + math.pi) % (2 * math.pi) - math.pi
+                scatter[0] = float(np.mean(r * r))
+            if scatter[0] is not None:
+                head = scatter[0] / np.maximum(den * n_full, 1.0) + coupling * var_out[c0:c1, 1]
+                var_out[c0:c1, 2] = np.where(okd, head, var_out[c0:c1, 2])
+
+        self._zero_phase(b0, b1, cfg.offline_mag_tau_s, columns, apply)
+        if cfg.mag_hard_iron_estimate and not any("hard iron" in n for n in self.notes):
+            self.notes.append("mag_hard_iron_estimate: the offline estimator does not estimate "
+                              "the hard iron; the given mag_hard_iron_t is used (--estimator "
+                              "causal estimates it)")
+        self.notes.append(f"heading from the magnetometer: zero-phase low-pass, τ = "
+                          f"{cfg.offline_mag_tau_s:g} s; reference |B| {ref_n * 1e6:.1f} µT, dip "
+                          f"{math.degrees(ref_d):.1f}° ("
+                          + ("learned: medians over the recording" if ref.learned else "given")
+                          + ")")
 
     def _level_at_rests(self, b0, b1, rests, tau, q_out, var_out):
         """Levelling at every rest, the correction interpolated in time between rests."""
@@ -604,7 +849,9 @@ class _Estimator:
                                       weights=[r.stop - r.start for r in rr])
         k2 = getattr(self, "k2", cfg.gyro_bias_rw ** 2)
         sf2 = cfg.gyro_scale_factor_sigma ** 2
-        m_sf = np.zeros((3, 3))  # ∫ C_nb diag(ω) dτ: the scale-factor error's lever (never reset)
+        # ∫ C_nb[k, m] ω_n dτ: the lever of the gyro's gain-and-axes error matrix E[m, n]
+        # (scale factors on the diagonal, axis misalignments off it; never reset)
+        m_sf = np.zeros((3, 3, 3))
         x = np.asarray(xs)
         nr = x.size
         # interval s: before rest 0 (s = 0), between rests s-1 and s, after the last (s = nr);
@@ -655,10 +902,14 @@ class _Estimator:
             tr = tau[c0 - b0 + mid]
             out = tt0 + arw + np.cumsum(np.einsum("ikm,im->ik", c * c, s2b), axis=0)
             arw = out[-1] - tt0
-            if sf2 > 0:  # scale-factor error: δθ = ∫ C_nb diag(δs) ω dτ, the same δs throughout
+            if sf2 > 0:
+                # gain and axes error: δθ = ∫ C_nb E ω dτ with the same E throughout, every
+                # element of 1σ = gyro_scale_factor_sigma.  The off-diagonal terms matter: a
+                # turn about one axis leaks into the others (on BROAD trial 05, turns about the
+                # vertical tilt the attitude about east, beyond the diagonal's prediction).
                 turn = np.add.reduceat(self.w[c0:c1] * dt[:, None], nodes, axis=0)
-                msf = m_sf + np.cumsum(c * turn[:, None, :], axis=0)
-                out += sf2 * np.einsum("ikm,ikm->ik", msf, msf)
+                msf = m_sf + np.cumsum(c[:, :, :, None] * turn[:, None, None, :], axis=0)
+                out += sf2 * np.einsum("ikmn,ikmn->ik", msf, msf)
                 m_sf = msf[-1]
             mc = mclock + np.cumsum(dtb)  # motion clock after each block
             mclock = float(mc[-1])

@@ -225,6 +225,9 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("offline_tilt_tau_s", 3.0, "offline estimator (replay --estimator offline) with "
             "gravity aiding: time constant of the zero-phase low-pass of the specific force in the "
             "integration frame", "s", 0.01, 1000.0, group="aiding"),
+    Setting("offline_mag_tau_s", 30.0, "offline estimator with magnetometer aiding: time constant "
+            "of the zero-phase low-pass of the field's horizontal direction (the heading "
+            "correction)", "s", 0.01, 1.0e4, group="aiding"),
     # -- AHRS aiding (aiding tilt | magnetometer: core/attitude/ahrs.py)
     Setting("ahrs_accel_tau_s", 3.0, "tilt/magnetometer aiding: time constant of the specific-"
             "force low-pass in the almost-inertial frame", "s", 0.01, 100.0, group="ahrs"),
