@@ -192,39 +192,42 @@ class _Reinsch:
 
 
 class _StackedReinsch:
-    """Several independent Reinsch systems of ``size`` knots each, solved as one
-    block-banded system (no coupling between the blocks): one LAPACK call per λ instead of
-    one per window. :meth:`rss` sums each window's squared residual over its middle rows
-    ``[edge, size − edge)`` (edge ≥ 2: there Q γ has all three terms inside the window, so
-    it is one vector expression over the stacked γ)."""
+    """The Reinsch systems of windows of ``size`` knots starting at the knots ``starts`` of
+    ``system``, solved as one block-banded system (no coupling between the blocks): one
+    LAPACK call per λ instead of one per window. Each window's bands are a slice of the
+    whole system's (they depend on the neighbouring knots only). :meth:`rss` sums each
+    window's squared residual over its middle rows ``[edge, size − edge)`` (edge ≥ 2:
+    there Q γ has all three terms inside the window, one vector expression over the
+    stacked γ)."""
 
-    def __init__(self, parts: list[_Reinsch], edge: int):
-        self.edge = edge
-        self.size = parts[0].size
+    def __init__(self, system: _Reinsch, starts, size: int, edge: int):
+        m = size - 2  # inner knots (γ) per window
 
-        def joined(name, pad):
-            return np.concatenate([np.concatenate((getattr(w, name), np.zeros(pad)))
-                                   for w in parts])[:-pad]
+        def joined(band, cut):
+            parts = []
+            for a in starts:
+                parts += [band[a:a + m - cut], np.zeros(cut)]
+            return np.concatenate(parts)[:-cut]
 
-        self.r_diag = np.concatenate([w.r_diag for w in parts])
-        self.qq0 = np.concatenate([w.qq0 for w in parts])
-        self.r_off, self.qq1, self.qq2 = joined("r_off", 1), joined("qq1", 1), joined("qq2", 2)
-        self.qty = np.concatenate([w.qty for w in parts], axis=1)
-        # Q's bands at the stacked rows j, j − 1, j − 2 of row j of Q γ
-        self.a = np.concatenate([w.a for w in parts])
-        self.b = np.concatenate([w.b for w in parts])
-        self.c = np.concatenate([w.c for w in parts])
-        self.windows = len(parts)
+        def stacked(band):
+            return np.concatenate([band[a:a + m] for a in starts])
+
+        self.r_diag, self.qq0 = stacked(system.r_diag), stacked(system.qq0)
+        self.r_off, self.qq1 = joined(system.r_off, 1), joined(system.qq1, 1)
+        self.qq2 = joined(system.qq2, 2)
+        self.qty = np.concatenate([system.qty[:, a:a + m] for a in starts], axis=1)
+        # row r of a window's Q γ: a_r γ_r + b_{r−1} γ_{r−1} + c_{r−2} γ_{r−2}, at the
+        # stacked rows j of the middles
+        a, b, c = stacked(system.a), stacked(system.b), stacked(system.c)
+        self.rows = (np.arange(len(starts))[:, None] * m + np.arange(edge, size - edge)).ravel()
+        j = self.rows
+        self.qa, self.qb, self.qc = a[j], b[j - 1], c[j - 2]
 
     def rss(self, lam: float) -> float:
         ab = _pentadiagonal(self.r_diag, self.r_off, self.qq0, self.qq1, self.qq2, lam)
         g = solveh_banded(ab, self.qty.T, check_finite=False).T
-        m = self.size - 2  # γ per window
-        e = self.edge
-        # row r of a window's Q γ: a_r γ_r + b_{r−1} γ_{r−1} + c_{r−2} γ_{r−2}
-        j = (np.arange(self.windows)[:, None] * m + np.arange(e, self.size - e)).ravel()
-        r = lam * (self.a[j] * g[:, j] + self.b[j - 1] * g[:, j - 1]
-                   + self.c[j - 2] * g[:, j - 2])
+        j = self.rows
+        r = lam * (self.qa * g[:, j] + self.qb * g[:, j - 1] + self.qc * g[:, j - 2])
         return float(np.sum(r * r))
 
 
@@ -315,8 +318,7 @@ def spline_coefficients(t: np.ndarray, y: np.ndarray, rss_target: float) -> np.n
         # a window's ends fit the data more closely than the middle of a long series:
         # count the residual of its middle only
         edge = LAMBDA_WINDOW // 10
-        windows = _StackedReinsch([_Reinsch(t[a:a + LAMBDA_WINDOW], y[:, a:a + LAMBDA_WINDOW])
-                                   for a in starts], edge)
+        windows = _StackedReinsch(system, starts, LAMBDA_WINDOW, edge)
         share = LAMBDA_WINDOWS * (LAMBDA_WINDOW - 2 * edge) / n
         rss = windows.rss
     else:
@@ -329,18 +331,25 @@ def spline_coefficients(t: np.ndarray, y: np.ndarray, rss_target: float) -> np.n
     def log_excess(log_lam: float) -> float:
         return np.log(max(rss(np.exp(log_lam)), 1e-300)) - np.log(rss_target * share)
 
-    # λ has units time³: the spline then smooths over (λ/h³)^¼ knots. Bracket that between
+    # λ has units time³: the spline then smooths over (λ/h³)^¼ knots. λ lies between
     # 0.01 and 1000 knots (8 s at 120 Hz: no motion is smoother); the banded system's
     # condition number is ~50 λ/h³, so the upper end also keeps Cholesky well conditioned.
-    scale = float(np.mean(np.diff(t))) ** 3
-    lo, hi = np.log(scale * 1e-8), np.log(scale * 1e12)
-    if log_excess(hi) <= 0.0:  # the noise is larger than the motion: the straightest fit
-        log_lam = hi
-    elif log_excess(lo) >= 0.0:
-        log_lam = lo
-    else:
-        # log λ to 0.02: the residual then matches to ~1 % (its own noise is ~1.5 %)
-        log_lam = brentq(log_excess, lo, hi, xtol=0.02)
+    # The residual grows with λ: start at one knot (λ = h³; pose files land within e^±9
+    # of it) and step outward, doubling, to the first sign change, then brentq on that
+    # bracket — about half the solves of brentq on the whole range, the same root.
+    log_h3 = np.log(float(np.mean(np.diff(t))) ** 3)
+    lo, hi = log_h3 + np.log(1e-8), log_h3 + np.log(1e12)
+    x, fx, step = log_h3, log_excess(log_h3), 3.0
+    log_lam = x if fx == 0.0 else None
+    while log_lam is None:
+        x2 = min(max(x + (step if fx < 0.0 else -step), lo), hi)
+        f2 = log_excess(x2)
+        if (f2 > 0.0) != (fx > 0.0) or f2 == 0.0:
+            # log λ to 0.02: the residual then matches to ~1 % (its own noise is ~1.5 %)
+            log_lam = brentq(log_excess, min(x, x2), max(x, x2), xtol=0.02)
+        elif x2 in (lo, hi):  # no root inside: the straightest (noise larger than the
+            log_lam = x2      # motion) or the closest fit
+        x, fx, step = x2, f2, 2.0 * step
     lam = np.exp(log_lam)
     inner = system.second_derivatives(lam)
     g = y - system.residual(lam, inner)
