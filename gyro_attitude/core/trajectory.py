@@ -429,7 +429,7 @@ def _q_en(lat, lon):
 
 #: IMU samples per pass of the evaluation: the pass's ~100 temporaries of this many
 #: doubles stay in the processor's L2 cache (a longer pass streams them through memory).
-EVAL_CHUNK = 4096
+EVAL_CHUNK = 8192
 #: What :meth:`TrajectoryMotion._fields` can compute, with its columns.
 _FIELD_WIDTH = {"q_tb": 4, "omega_tb_b": 3, "p": 3, "v": 3, "a": 3, "llh": 3, "q_nt": 4,
                 "omega_ib_b": 3, "f_b": 3, "q_nb": 4, "omega_nb_b": 3, "v_n": 3,
