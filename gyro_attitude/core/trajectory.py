@@ -46,6 +46,7 @@ from gyro_attitude.core.motion import Motion, MotionSample
 __all__ = [
     "PoseSeries",
     "check_poses",
+    "check_positions",
     "smoothing_spline",
     "spline_coefficients",
     "reinsch_smooth",
@@ -129,7 +130,45 @@ def check_poses(poses: PoseSeries, max_gap_s: float = DEFAULT_MAX_GAP_S) -> Pose
                          f"pose (at {_seconds(t[i - 1])} s) is longer than max_gap_s = "
                          f"{max_gap_s:g} s; a fit cannot bridge it: split the file or raise "
                          "motion.max_gap_s")
+    # pose to pose faster than any carrier: a glitch (hypot: 1e300 m must not overflow)
+    step = np.hypot(np.hypot(*np.diff(p[:, :2], axis=0).T), np.diff(p[:, 2]))
+    speed = step / (dt / 1e9)
+    from gyro_attitude.core.scene.limits import MAX_SPEED_MPS  # (core.scene imports us)
+
+    bad = speed > MAX_SPEED_MPS
+    if bad.any():
+        i = int(np.argmax(bad)) + 1
+        raise ValueError(f"{src}: {lab[i]}: moved {step[i - 1]:.6g} m in {dt[i - 1] / 1e9:.6g} s "
+                         f"({speed[i - 1]:.6g} m/s) since the previous pose, faster than "
+                         f"{MAX_SPEED_MPS:g} m/s (a scene's fastest carrier): a glitch in "
+                         "the poses?")
     return PoseSeries(t, p, q / norm[:, None], lab, src)
+
+
+def check_positions(poses: PoseSeries, origin_llh) -> None:
+    """``ValueError`` naming the first pose whose position (ENU at ``origin_llh``) lies
+    outside a scene's heights or within ``POLE_MARGIN_RAD`` of a pole, as built-in motions
+    are refused: the normal-gravity model holds near the Earth only, and the local-level
+    truth frame has no East or North at a pole."""
+    from gyro_attitude.core.scene.limits import MAX_HEIGHT_M, MIN_HEIGHT_M, POLE_MARGIN_RAD
+
+    origin = np.asarray(origin_llh, dtype=np.float64)
+    r = earth.ecef_from_llh(origin) + poses.p @ earth.enu_to_ecef_matrix(origin[0],
+                                                                         origin[1]).T
+    lat, _, h, _, _ = earth.geodetic_from_ecef(r[:, 0], r[:, 1], r[:, 2])
+    bad = (h < MIN_HEIGHT_M) | (h > MAX_HEIGHT_M)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ValueError(f"{poses.source}: {poses.labels[i]}: position {poses.p[i].tolist()} m "
+                         f"has a height of {h[i]:.6g} m, outside the scene's {MIN_HEIGHT_M:g} "
+                         f"… {MAX_HEIGHT_M:g} m (positions are ENU at the scene's earth origin)")
+    bad = np.abs(lat) >= 0.5 * np.pi - POLE_MARGIN_RAD
+    if bad.any():
+        i = int(np.argmax(bad))
+        pole = "North" if lat[i] > 0 else "South"
+        raise ValueError(f"{poses.source}: {poses.labels[i]}: the trajectory reaches the {pole} "
+                         f"pole (latitude {math.degrees(lat[i]):.6f}°): the local-level frame "
+                         "has no East or North there, so a scene cannot pass over one")
 
 
 # --------------------------------------------------------------------------- splines
@@ -447,6 +486,7 @@ class TrajectoryMotion(Motion):
     def __init__(self, poses: PoseSeries, origin_llh, position_sigma_m: float = 0.0,
                  attitude_sigma_rad: float = 0.0, max_gap_s: float = DEFAULT_MAX_GAP_S):
         poses = check_poses(poses, max_gap_s)
+        check_positions(poses, origin_llh)
         self.source = poses.source
         self.t0_ns = int(poses.t_ns[0])
         # float seconds from the first pose, exact integer-ns differences first
@@ -695,6 +735,20 @@ class LiveTrajectory(TrajectoryMotion):
             return f"quaternion is not a unit quaternion (|q| = {norm:.6g})"
         if self._t and t_ns <= self._t[-1]:
             return "stamp not after the previous pose"
+        # the file's checks on this pose and the one before: speed, height, poles
+        if self._t:
+            pair = PoseSeries(np.array([self._t[-1], t_ns], dtype=np.int64),
+                              np.stack((self._p[-1], p)), np.stack((self._q[-1], q / norm)),
+                              ("previous pose", "pose"), "motion_topic")
+        else:
+            pair = PoseSeries(np.array([t_ns], dtype=np.int64), p[None], (q / norm)[None],
+                              ("pose",), "motion_topic")
+        try:
+            if self._t:
+                check_poses(pair, max_gap_s=math.inf)
+            check_positions(pair, self.origin_llh)
+        except ValueError as exc:
+            return str(exc).split(": ", 2)[-1]
         q = q / norm
         if self._q and float(np.dot(q, self._q[-1])) < 0.0:
             q = -q  # sign-continuous, as the file fit does
