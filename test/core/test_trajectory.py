@@ -281,3 +281,16 @@ def test_live_poses_that_a_file_would_refuse_are_rejected_one_by_one():
     assert live.add(10**9 + 10 * 10**7, [0.1, 0.0, 0.0], q) is None
     s = live.imu(np.linspace(0.0, 0.1, 11))
     assert np.all(np.isfinite(s.specific_force_b))
+
+
+def test_a_trajectory_tens_of_km_from_the_origin_keeps_its_acceleration_digits():
+    """Splines reproduce constants, so poses shifted by 35 km have the same smoothing fit
+    shifted; fitted uncentred, differences of km-sized coordinates lost ~1e-6 m/s²."""
+    poses = mocap(noise=True)
+    shift = np.array([20e3, -35e3, 800.0])
+    far = dataclasses.replace(poses, p=poses.p + shift)
+    t = np.linspace(1.0, SPAN - 1.0, 2000)
+    near_fit = TrajectoryMotion(poses, ORIGIN, 1e-3, math.radians(0.1)).tangent(t, need_accel=True)
+    far_fit = TrajectoryMotion(far, ORIGIN, 1e-3, math.radians(0.1)).tangent(t, need_accel=True)
+    assert np.max(np.abs(far_fit.a - near_fit.a)) < 2e-8
+    assert np.max(np.abs(far_fit.p - shift - near_fit.p)) < 1e-10
