@@ -133,16 +133,38 @@ def check_poses(poses: PoseSeries, max_gap_s: float = DEFAULT_MAX_GAP_S) -> Pose
     # pose to pose faster than any carrier: a glitch (hypot: 1e300 m must not overflow)
     step = np.hypot(np.hypot(*np.diff(p[:, :2], axis=0).T), np.diff(p[:, 2]))
     speed = step / (dt / 1e9)
-    from gyro_attitude.core.scene.limits import MAX_SPEED_MPS  # (core.scene imports us)
-
-    bad = speed > MAX_SPEED_MPS
+    bad = speed > _limits().MAX_SPEED_MPS
     if bad.any():
         i = int(np.argmax(bad)) + 1
-        raise ValueError(f"{src}: {lab[i]}: moved {step[i - 1]:.6g} m in {dt[i - 1] / 1e9:.6g} s "
-                         f"({speed[i - 1]:.6g} m/s) since the previous pose, faster than "
-                         f"{MAX_SPEED_MPS:g} m/s (a scene's fastest carrier): a glitch in "
-                         "the poses?")
+        raise ValueError(f"{src}: {lab[i]}: {_too_fast(step[i - 1], dt[i - 1] / 1e9)}")
     return PoseSeries(t, p, q / norm[:, None], lab, src)
+
+
+def _limits():
+    """The scene bounds module (imported late: core.scene imports this module)."""
+    from gyro_attitude.core.scene import limits
+
+    return limits
+
+
+def _too_fast(step: float, dt: float) -> str:
+    return (f"moved {step:.6g} m in {dt:.6g} s ({step / dt:.6g} m/s) since the previous pose, "
+            f"faster than {_limits().MAX_SPEED_MPS:g} m/s (a scene's fastest carrier): a "
+            "glitch in the poses?")
+
+
+def _position_refusal(p, lat: float, h: float) -> str | None:
+    """Why a position (ENU ``p``, geodetic ``lat``, ``h``) is refused, or None."""
+    lim = _limits()
+    if not lim.MIN_HEIGHT_M <= h <= lim.MAX_HEIGHT_M:
+        return (f"position {list(map(float, p))} m has a height of {h:.6g} m, outside the "
+                f"scene's {lim.MIN_HEIGHT_M:g} … {lim.MAX_HEIGHT_M:g} m (positions are ENU "
+                "at the scene's earth origin)")
+    if abs(lat) >= 0.5 * np.pi - lim.POLE_MARGIN_RAD:
+        return (f"the trajectory reaches the {'North' if lat > 0 else 'South'} pole (latitude "
+                f"{math.degrees(lat):.6f}°): the local-level frame has no East or North "
+                "there, so a scene cannot pass over one")
+    return None
 
 
 def check_positions(poses: PoseSeries, origin_llh) -> None:
@@ -150,25 +172,17 @@ def check_positions(poses: PoseSeries, origin_llh) -> None:
     outside a scene's heights or within ``POLE_MARGIN_RAD`` of a pole, as built-in motions
     are refused: the normal-gravity model holds near the Earth only, and the local-level
     truth frame has no East or North at a pole."""
-    from gyro_attitude.core.scene.limits import MAX_HEIGHT_M, MIN_HEIGHT_M, POLE_MARGIN_RAD
-
+    lim = _limits()
     origin = np.asarray(origin_llh, dtype=np.float64)
     r = earth.ecef_from_llh(origin) + poses.p @ earth.enu_to_ecef_matrix(origin[0],
                                                                          origin[1]).T
     lat, _, h, _, _ = earth.geodetic_from_ecef(r[:, 0], r[:, 1], r[:, 2])
-    bad = (h < MIN_HEIGHT_M) | (h > MAX_HEIGHT_M)
+    bad = ((h < lim.MIN_HEIGHT_M) | (h > lim.MAX_HEIGHT_M)
+           | (np.abs(lat) >= 0.5 * np.pi - lim.POLE_MARGIN_RAD))
     if bad.any():
         i = int(np.argmax(bad))
-        raise ValueError(f"{poses.source}: {poses.labels[i]}: position {poses.p[i].tolist()} m "
-                         f"has a height of {h[i]:.6g} m, outside the scene's {MIN_HEIGHT_M:g} "
-                         f"… {MAX_HEIGHT_M:g} m (positions are ENU at the scene's earth origin)")
-    bad = np.abs(lat) >= 0.5 * np.pi - POLE_MARGIN_RAD
-    if bad.any():
-        i = int(np.argmax(bad))
-        pole = "North" if lat[i] > 0 else "South"
-        raise ValueError(f"{poses.source}: {poses.labels[i]}: the trajectory reaches the {pole} "
-                         f"pole (latitude {math.degrees(lat[i]):.6f}°): the local-level frame "
-                         "has no East or North there, so a scene cannot pass over one")
+        raise ValueError(f"{poses.source}: {poses.labels[i]}: "
+                         f"{_position_refusal(poses.p[i], float(lat[i]), float(h[i]))}")
 
 
 # --------------------------------------------------------------------------- splines
@@ -712,6 +726,8 @@ class LiveTrajectory(TrajectoryMotion):
     def __init__(self, origin_llh, t0_ns: int, window_s: float = 2.0,
                  position_sigma_m: float = 0.0, attitude_sigma_rad: float = 0.0):
         self.origin_llh = np.asarray(origin_llh, dtype=np.float64)
+        self._r0 = earth.ecef_from_llh(self.origin_llh)
+        self._c_et = earth.enu_to_ecef_matrix(self.origin_llh[0], self.origin_llh[1])
         self.t0_ns = int(t0_ns)
         self.window_ns = int(window_s * 1e9)
         self.position_sigma_m = float(position_sigma_m)
@@ -735,20 +751,16 @@ class LiveTrajectory(TrajectoryMotion):
             return f"quaternion is not a unit quaternion (|q| = {norm:.6g})"
         if self._t and t_ns <= self._t[-1]:
             return "stamp not after the previous pose"
-        # the file's checks on this pose and the one before: speed, height, poles
+        # the file's checks, on this pose and the one before: speed, height, poles
         if self._t:
-            pair = PoseSeries(np.array([self._t[-1], t_ns], dtype=np.int64),
-                              np.stack((self._p[-1], p)), np.stack((self._q[-1], q / norm)),
-                              ("previous pose", "pose"), "motion_topic")
-        else:
-            pair = PoseSeries(np.array([t_ns], dtype=np.int64), p[None], (q / norm)[None],
-                              ("pose",), "motion_topic")
-        try:
-            if self._t:
-                check_poses(pair, max_gap_s=math.inf)
-            check_positions(pair, self.origin_llh)
-        except ValueError as exc:
-            return str(exc).split(": ", 2)[-1]
+            step, dt = math.dist(p, self._p[-1]), (t_ns - self._t[-1]) / 1e9
+            if step / dt > _limits().MAX_SPEED_MPS:
+                return _too_fast(step, dt)
+        x, y, z = self._r0 + self._c_et @ p
+        lat, _, h, _, _ = earth.geodetic_from_ecef(x, y, z)
+        refusal = _position_refusal(p, float(lat), float(h))
+        if refusal is not None:
+            return refusal
         q = q / norm
         if self._q and float(np.dot(q, self._q[-1])) < 0.0:
             q = -q  # sign-continuous, as the file fit does
