@@ -24,6 +24,9 @@ __all__ = [
     "enu_to_ecef_matrix",
     "ecef_from_llh",
     "llh_from_ecef",
+    "geodetic_from_ecef",
+    "normal_gravity",
+    "transport_rate_components",
 ]
 
 OMEGA_IE = 7.292115e-5  # Earth rotation rate, rad/s (WGS-84)
@@ -55,8 +58,12 @@ def check_latitude(lat, name: str = "latitude") -> np.ndarray:
 def radii_of_curvature(lat) -> tuple[np.ndarray, np.ndarray]:
     """Meridian and prime-vertical radii ``(R_M, R_N)`` in m at geodetic latitude ``lat``."""
     lat = check_latitude(lat)
-    s2 = np.sin(lat) ** 2
-    d = 1.0 - WGS84_E2 * s2
+    return _radii(np.sin(lat) ** 2)
+
+
+def _radii(sin2_lat):
+    """``(R_M, R_N)`` from sin²L."""
+    d = 1.0 - WGS84_E2 * sin2_lat
     r_n = WGS84_A / np.sqrt(d)
     r_m = WGS84_A * (1.0 - WGS84_E2) / (d * np.sqrt(d))
     return r_m, r_n
@@ -78,11 +85,16 @@ def transport_rate_enu(lat, h, v_enu) -> np.ndarray:
     lat = check_latitude(lat)
     h = np.asarray(h, dtype=np.float64)
     v = np.asarray(v_enu, dtype=np.float64)
-    r_m, r_n = radii_of_curvature(lat)
-    ve, vn = v[..., 0], v[..., 1]
-    return np.stack(
-        (-vn / (r_m + h), ve / (r_n + h), ve * np.tan(lat) / (r_n + h)), axis=-1
-    )
+    return np.stack(transport_rate_components(np.sin(lat), np.cos(lat), h, v[..., 0],
+                                              v[..., 1]), axis=-1)
+
+
+def transport_rate_components(sin_lat, cos_lat, h, v_east, v_north):
+    """The three components of :func:`transport_rate_enu` from sin L and cos L (the form
+    :func:`geodetic_from_ecef` gives them in: no trigonometry)."""
+    r_m, r_n = _radii(sin_lat * sin_lat)
+    east = v_east / (r_n + h)
+    return -v_north / (r_m + h), east, east * (sin_lat / cos_lat)
 
 
 def nav_rate_enu(lat, h=0.0, v_enu=(0.0, 0.0, 0.0)) -> np.ndarray:
@@ -108,12 +120,15 @@ def gravity_enu(lat, h=0.0) -> np.ndarray:
     at rest measures specific force ``f^n = −g^n = [0, 0, +g]``.
     """
     lat = check_latitude(lat)
-    h = np.asarray(h, dtype=np.float64)
-    s2 = np.sin(lat) ** 2
-    g0 = _G_EQUATOR * (1.0 + _G_K * s2) / np.sqrt(1.0 - WGS84_E2 * s2)
-    g = g0 - (_FREE_AIR_1 - _FREE_AIR_LAT * s2) * h + _FREE_AIR_2 * h * h
+    g = normal_gravity(np.sin(lat) ** 2, np.asarray(h, dtype=np.float64))
     z = np.zeros_like(g)
     return np.stack((z, z, -g), axis=-1)
+
+
+def normal_gravity(sin2_lat, h):
+    """Magnitude g(L, h) of :func:`gravity_enu` (m/s²) from sin²L and the height."""
+    g0 = _G_EQUATOR * (1.0 + _G_K * sin2_lat) / np.sqrt(1.0 - WGS84_E2 * sin2_lat)
+    return g0 - (_FREE_AIR_1 - _FREE_AIR_LAT * sin2_lat) * h + _FREE_AIR_2 * h * h
 
 
 def enu_to_ecef_matrix(lat, lon) -> np.ndarray:
@@ -140,25 +155,41 @@ def ecef_from_llh(llh) -> np.ndarray:
 
 
 def llh_from_ecef(xyz) -> np.ndarray:
-    """Geodetic ``(lat, lon, h)`` (rad, rad, m) of ECEF positions ``(..., 3)``.
+    """Geodetic ``(lat, lon, h)`` (rad, rad, m) of ECEF positions ``(..., 3)``
+    (:func:`geodetic_from_ecef`)."""
+    xyz = np.asarray(xyz, dtype=np.float64)
+    lat, lon, h, _, _ = geodetic_from_ecef(xyz[..., 0], xyz[..., 1], xyz[..., 2])
+    return np.stack((lat, lon, h), axis=-1)
+
+
+def geodetic_from_ecef(x, y, z):
+    """Geodetic latitude, longitude, height and sin L, cos L of ECEF positions ``x, y, z``.
 
     Bowring's parametric-latitude start, then Newton-like fixed-point steps on
     ``tan L = (z + e² R_N sin L) / p``; three steps reach float precision for any height
     from the Earth's centre region outward (each step multiplies the error by ~e² h/R).
+    Each angle is carried as the pair (numerator, denominator) of its tangent, so the
+    steps need square roots only — no arctan2/sin/cos until the latitude itself (that is
+    most of the cost on arrays). ``sin L, cos L`` come with it: the local vertical is
+    ``(x cos L / p, y cos L / p, sin L) = (x, y, N) / |(p, N)|`` without the longitude.
     Written by hand: numpy/scipy have no geodetic conversion.
     """
-    xyz = np.asarray(xyz, dtype=np.float64)
-    x, y, z = xyz[..., 0], xyz[..., 1], xyz[..., 2]
     p = np.hypot(x, y)
     b = WGS84_A * np.sqrt(1.0 - WGS84_E2)
     ep2 = WGS84_E2 / (1.0 - WGS84_E2)
-    u = np.arctan2(z * WGS84_A, p * b)
-    lat = np.arctan2(z + ep2 * b * np.sin(u) ** 3, p - WGS84_E2 * WGS84_A * np.cos(u) ** 3)
+    # parametric latitude u: tan u = z a / (p b)
+    za, pb = z * WGS84_A, p * b
+    r = np.hypot(za, pb)
+    su, cu = za / r, pb / r
+    num = z + ep2 * b * (su * su * su)
+    den = p - WGS84_E2 * WGS84_A * (cu * cu * cu)
+    r = np.hypot(num, den)
+    sl, cl = num / r, den / r
     for _ in range(3):
-        r_n = WGS84_A / np.sqrt(1.0 - WGS84_E2 * np.sin(lat) ** 2)
-        lat = np.arctan2(z + WGS84_E2 * r_n * np.sin(lat), p)
-    sl, cl = np.sin(lat), np.cos(lat)
-    r_n = WGS84_A / np.sqrt(1.0 - WGS84_E2 * sl * sl)
-    # height along the normal, stable at every latitude
-    h = p * cl + z * sl - WGS84_A * WGS84_A / r_n
-    return np.stack((lat, np.arctan2(y, x), h), axis=-1)
+        r_n = WGS84_A / np.sqrt(1.0 - WGS84_E2 * (sl * sl))
+        num = z + WGS84_E2 * r_n * sl
+        r = np.hypot(num, p)
+        sl, cl = num / r, p / r
+    # height along the normal, stable at every latitude (a²/R_N = a √(1 − e² sin²L))
+    h = p * cl + z * sl - WGS84_A * np.sqrt(1.0 - WGS84_E2 * (sl * sl))
+    return np.arctan2(num, p), np.arctan2(y, x), h, sl, cl

@@ -36,8 +36,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import CubicSpline
-from scipy.linalg import solveh_banded
+from scipy.interpolate import CubicSpline, PPoly
+from scipy.linalg import solve_banded, solveh_banded
 from scipy.optimize import brentq
 
 from gyro_attitude.core import earth
@@ -46,7 +46,9 @@ from gyro_attitude.core.motion import Motion, MotionSample
 __all__ = [
     "PoseSeries",
     "check_poses",
+    "check_positions",
     "smoothing_spline",
+    "spline_coefficients",
     "reinsch_smooth",
     "TangentSample",
     "TrajectorySample",
@@ -128,10 +130,64 @@ def check_poses(poses: PoseSeries, max_gap_s: float = DEFAULT_MAX_GAP_S) -> Pose
                          f"pose (at {_seconds(t[i - 1])} s) is longer than max_gap_s = "
                          f"{max_gap_s:g} s; a fit cannot bridge it: split the file or raise "
                          "motion.max_gap_s")
+    # pose to pose faster than any carrier: a glitch (hypot: 1e300 m must not overflow)
+    step = np.hypot(np.hypot(*np.diff(p[:, :2], axis=0).T), np.diff(p[:, 2]))
+    speed = step / (dt / 1e9)
+    bad = speed > _limits().MAX_SPEED_MPS
+    if bad.any():
+        i = int(np.argmax(bad)) + 1
+        raise ValueError(f"{src}: {lab[i]}: {_too_fast(step[i - 1], dt[i - 1] / 1e9)}")
     return PoseSeries(t, p, q / norm[:, None], lab, src)
 
 
+def _limits():
+    """The scene bounds module (imported late: core.scene imports this module)."""
+    from gyro_attitude.core.scene import limits
+
+    return limits
+
+
+def _too_fast(step: float, dt: float) -> str:
+    return (f"moved {step:.6g} m in {dt:.6g} s ({step / dt:.6g} m/s) since the previous pose, "
+            f"faster than {_limits().MAX_SPEED_MPS:g} m/s (a scene's fastest carrier): a "
+            "glitch in the poses?")
+
+
+def _position_refusal(p, lat: float, h: float) -> str | None:
+    """Why a position (ENU ``p``, geodetic ``lat``, ``h``) is refused, or None."""
+    lim = _limits()
+    if not lim.MIN_HEIGHT_M <= h <= lim.MAX_HEIGHT_M:
+        return (f"position {list(map(float, p))} m has a height of {h:.6g} m, outside the "
+                f"scene's {lim.MIN_HEIGHT_M:g} … {lim.MAX_HEIGHT_M:g} m (positions are ENU "
+                "at the scene's earth origin)")
+    if abs(lat) >= 0.5 * np.pi - lim.POLE_MARGIN_RAD:
+        return (f"the trajectory reaches the {'North' if lat > 0 else 'South'} pole (latitude "
+                f"{math.degrees(lat):.6f}°): the local-level frame has no East or North "
+                "there, so a scene cannot pass over one")
+    return None
+
+
+def check_positions(poses: PoseSeries, origin_llh) -> None:
+    """``ValueError`` naming the first pose whose position (ENU at ``origin_llh``) lies
+    outside a scene's heights or within ``POLE_MARGIN_RAD`` of a pole, as built-in motions
+    are refused: the normal-gravity model holds near the Earth only, and the local-level
+    truth frame has no East or North at a pole."""
+    lim = _limits()
+    origin = np.asarray(origin_llh, dtype=np.float64)
+    r = earth.ecef_from_llh(origin) + poses.p @ earth.enu_to_ecef_matrix(origin[0],
+                                                                         origin[1]).T
+    lat, _, h, _, _ = earth.geodetic_from_ecef(r[:, 0], r[:, 1], r[:, 2])
+    bad = ((h < lim.MIN_HEIGHT_M) | (h > lim.MAX_HEIGHT_M)
+           | (np.abs(lat) >= 0.5 * np.pi - lim.POLE_MARGIN_RAD))
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ValueError(f"{poses.source}: {poses.labels[i]}: "
+                         f"{_position_refusal(poses.p[i], float(lat[i]), float(h[i]))}")
+
+
 # --------------------------------------------------------------------------- splines
+# The fit works on components in rows, y (k, n): each component's knots are contiguous, and
+# y.T is the Fortran-ordered (n, k) right-hand side LAPACK takes without a copy.
 def _reinsch_parts(t: np.ndarray):
     """Band entries of Q (n × n−2, columns a, b, c) and R (tridiagonal) of Reinsch's
     algorithm (Green & Silverman 1994, §2.3) for knots ``t``."""
@@ -145,124 +201,220 @@ def _reinsch_parts(t: np.ndarray):
 
 
 def _q_times(a, b, c, gamma: np.ndarray) -> np.ndarray:
-    """Q γ, shape (n, m), for γ (n−2, m)."""
-    m = gamma.shape[0]
-    out = np.zeros((m + 2, gamma.shape[1]))
-    out[:m] += a[:, None] * gamma
-    out[1:m + 1] += b[:, None] * gamma
-    out[2:] += c[:, None] * gamma
+    """Q γ, shape (k, n), for γ (k, n−2)."""
+    m = gamma.shape[1]
+    out = np.zeros((gamma.shape[0], m + 2))
+    out[:, :m] += a * gamma
+    out[:, 1:m + 1] += b * gamma
+    out[:, 2:] += c * gamma
     return out
 
 
+def _pentadiagonal(r_diag, r_off, qq0, qq1, qq2, lam: float) -> np.ndarray:
+    """R + λ QᵀQ in ``solveh_banded``'s upper form."""
+    ab = np.zeros((3, r_diag.shape[0]))
+    ab[2] = r_diag + lam * qq0
+    ab[1, 1:] = r_off + lam * qq1
+    ab[0, 2:] = lam * qq2
+    return ab
+
+
 class _Reinsch:
-    """Reinsch's banded system for knots ``t`` and data ``y (n, m)``: :meth:`residual`
+    """Reinsch's banded system for knots ``t`` and data ``y (k, n)``: :meth:`residual`
     ``y − g`` of the smoothing spline with parameter λ (one pentadiagonal solve, O(n))."""
 
     def __init__(self, t: np.ndarray, y: np.ndarray):
         self.size = t.shape[0]
         self.a, self.b, self.c, self.r_diag, self.r_off = _reinsch_parts(t)
         a, b, c = self.a, self.b, self.c
-        self.qty = a[:, None] * y[:-2] + b[:, None] * y[1:-1] + c[:, None] * y[2:]
+        self.qty = a * y[:, :-2] + b * y[:, 1:-1] + c * y[:, 2:]
         # QᵀQ bands (pentadiagonal, symmetric)
         self.qq0 = a * a + b * b + c * c
         self.qq1 = b[:-1] * a[1:] + c[:-1] * b[1:]
         self.qq2 = c[:-2] * a[2:]
 
-    def residual(self, lam: float) -> np.ndarray:
-        m = self.r_diag.shape[0]
-        ab = np.zeros((3, m))
-        ab[2] = self.r_diag + lam * self.qq0
-        ab[1, 1:] = self.r_off + lam * self.qq1
-        ab[0, 2:] = lam * self.qq2
-        gamma = solveh_banded(ab, self.qty, check_finite=False)
+    def second_derivatives(self, lam: float) -> np.ndarray:
+        """γ (k, n−2): the smoothing spline's second derivatives at the inner knots."""
+        ab = _pentadiagonal(self.r_diag, self.r_off, self.qq0, self.qq1, self.qq2, lam)
+        return solveh_banded(ab, self.qty.T, check_finite=False).T
+
+    def residual(self, lam: float, gamma: np.ndarray | None = None) -> np.ndarray:
+        if gamma is None:
+            gamma = self.second_derivatives(lam)
         return lam * _q_times(self.a, self.b, self.c, gamma)
 
 
 class _StackedReinsch:
-    """Several independent Reinsch systems solved as one block-banded system (no coupling
-    between the blocks): one LAPACK call per λ instead of one per window. :meth:`rss`
-    sums each window's squared residual over its middle rows ``[edge, size − edge)``."""
+    """The Reinsch systems of windows of ``size`` knots starting at the knots ``starts`` of
+    ``system``, solved as one block-banded system (no coupling between the blocks): one
+    LAPACK call per λ instead of one per window. Each window's bands are a slice of the
+    whole system's (they depend on the neighbouring knots only). :meth:`rss` sums each
+    window's squared residual over its middle rows ``[edge, size − edge)`` (edge ≥ 2:
+    there Q γ has all three terms inside the window, one vector expression over the
+    stacked γ)."""
 
-    def __init__(self, parts: list[_Reinsch], edge: int):
-        self.parts, self.edge = parts, edge
+    def __init__(self, system: _Reinsch, starts, size: int, edge: int):
+        m = size - 2  # inner knots (γ) per window
 
-        def joined(name, pad):
-            return np.concatenate([np.concatenate((getattr(w, name), np.zeros(pad)))
-                                   for w in parts])[:-pad]
+        def joined(band, cut):
+            parts = []
+            for a in starts:
+                parts += [band[a:a + m - cut], np.zeros(cut)]
+            return np.concatenate(parts)[:-cut]
 
-        self.r_diag = np.concatenate([w.r_diag for w in parts])
-        self.qq0 = np.concatenate([w.qq0 for w in parts])
-        self.r_off, self.qq1, self.qq2 = joined("r_off", 1), joined("qq1", 1), joined("qq2", 2)
-        self.qty = np.concatenate([w.qty for w in parts])
-        self.splits = np.cumsum([w.r_diag.shape[0] for w in parts])[:-1]
+        def stacked(band):
+            return np.concatenate([band[a:a + m] for a in starts])
+
+        self.r_diag, self.qq0 = stacked(system.r_diag), stacked(system.qq0)
+        self.r_off, self.qq1 = joined(system.r_off, 1), joined(system.qq1, 1)
+        self.qq2 = joined(system.qq2, 2)
+        self.qty = np.concatenate([system.qty[:, a:a + m] for a in starts], axis=1)
+        # row r of a window's Q γ: a_r γ_r + b_{r−1} γ_{r−1} + c_{r−2} γ_{r−2}, at the
+        # stacked rows j of the middles
+        a, b, c = stacked(system.a), stacked(system.b), stacked(system.c)
+        self.rows = (np.arange(len(starts))[:, None] * m + np.arange(edge, size - edge)).ravel()
+        j = self.rows
+        self.qa, self.qb, self.qc = a[j], b[j - 1], c[j - 2]
 
     def rss(self, lam: float) -> float:
-        m = self.r_diag.shape[0]
-        ab = np.zeros((3, m))
-        ab[2] = self.r_diag + lam * self.qq0
-        ab[1, 1:] = self.r_off + lam * self.qq1
-        ab[0, 2:] = lam * self.qq2
-        gammas = np.split(solveh_banded(ab, self.qty, check_finite=False), self.splits)
-        e = self.edge
-        return sum(float(np.sum((lam * _q_times(w.a, w.b, w.c, g))[e:w.size - e] ** 2))
-                   for w, g in zip(self.parts, gammas, strict=True))
+        ab = _pentadiagonal(self.r_diag, self.r_off, self.qq0, self.qq1, self.qq2, lam)
+        g = solveh_banded(ab, self.qty.T, check_finite=False).T
+        j = self.rows
+        r = lam * (self.qa * g[:, j] + self.qb * g[:, j - 1] + self.qc * g[:, j - 2])
+        return float(np.sum(r * r))
 
 
 def reinsch_smooth(t: np.ndarray, y: np.ndarray, lam: float) -> np.ndarray:
     """Values ``g (n, m)`` at the knots of the cubic smoothing spline minimising
     Σ|y_i − g(t_i)|² + λ ∫|g''|² (the same criterion as scipy's ``make_smoothing_spline``)."""
-    y = np.asarray(y, dtype=np.float64).reshape(len(t), -1)
-    return y - _Reinsch(np.asarray(t, dtype=np.float64), y).residual(lam)
+    y = np.asarray(y, dtype=np.float64).reshape(len(t), -1).T
+    return (y - _Reinsch(np.asarray(t, dtype=np.float64), y).residual(lam)).T
 
 
-def smoothing_spline(t: np.ndarray, y: np.ndarray, rss_target: float) -> CubicSpline:
+def smoothing_spline(t: np.ndarray, y: np.ndarray, rss_target: float) -> PPoly:
     """Cubic spline of ``y (n, m)`` over knots ``t``: interpolating (not-a-knot) when
     ``rss_target`` is 0, else the cubic smoothing spline whose residual Σ|y_i − g(t_i)|²
     equals ``rss_target`` (λ by root finding on log λ; the whole vector shares one λ).
+    A scipy ``PPoly`` of :func:`spline_coefficients`."""
+    y = np.asarray(y, dtype=np.float64).reshape(len(t), -1)
+    c = spline_coefficients(np.asarray(t, dtype=np.float64), np.ascontiguousarray(y.T),
+                            rss_target)
+    return PPoly.construct_fast(c.transpose(1, 2, 0), t)
 
-    Written by hand (Reinsch's O(n) banded algorithm) because scipy's smoothing splines
-    take λ, not the residual (``make_smoothing_spline``), or pick knots by FITPACK's
-    iteration (``make_splrep``/``make_splprep`` with ``s``), and both cost 0.1–0.4 s per
-    7200 poses — far from the 1 M IMU samples/s this fit must sustain. The result is the
-    natural cubic through the smoothed values, which is exactly the smoothing spline.
+
+def _hermite(dx: np.ndarray, y: np.ndarray, slope: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Coefficients (k, 4, n−1) of the cubics with values ``y`` and slopes ``s`` (k, n) at
+    the knots (scipy ``CubicHermiteSpline``'s formulas)."""
+    t = (s[:, :-1] + s[:, 1:] - 2 * slope) / dx
+    c = np.empty((y.shape[0], 4, dx.shape[0]))
+    c[:, 0] = t / dx
+    c[:, 1] = (slope - s[:, :-1]) / dx - t
+    c[:, 2] = s[:, :-1]
+    c[:, 3] = y[:, :-1]
+    return c
+
+
+def _not_a_knot(t: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Coefficients (k, 4, n−1) of scipy ``CubicSpline(t, y.T, bc_type="not-a-knot")``
+    for ``n ≥ 4`` knots: its slope equations and solve, written out for rows of
+    components because ``CubicSpline`` spends ~4/5 of its time outside the solve (input
+    checks, axis moves and copies of the (n, k) arrays) — most of the fit's cost."""
+    dx = np.diff(t)
+    slope = np.diff(y, axis=1) / dx
+    band = np.zeros((3, t.shape[0]))
+    band[1, 1:-1] = 2 * (dx[:-1] + dx[1:])  # the diagonal
+    band[0, 2:] = dx[:-1]                   # the upper diagonal
+    band[-1, :-2] = dx[1:]                  # the lower diagonal
+    b = np.empty_like(y)
+    b[:, 1:-1] = 3 * (dx[1:] * slope[:, :-1] + dx[:-1] * slope[:, 1:])
+    d = t[2] - t[0]
+    band[1, 0] = dx[1]
+    band[0, 1] = d
+    b[:, 0] = ((dx[0] + 2 * d) * dx[1] * slope[:, 0] + dx[0] ** 2 * slope[:, 1]) / d
+    d = t[-1] - t[-3]
+    band[1, -1] = dx[-2]
+    band[-1, -2] = d
+    b[:, -1] = (dx[-1] ** 2 * slope[:, -2] + (2 * d + dx[-1]) * dx[-2] * slope[:, -1]) / d
+    s = solve_banded((1, 1), band, b.T, overwrite_ab=True, overwrite_b=True,
+                     check_finite=False).T
+    return _hermite(dx, y, slope, s)
+
+
+def spline_coefficients(t: np.ndarray, y: np.ndarray, rss_target: float) -> np.ndarray:
+    """The piecewise-cubic coefficients ``(k, 4, n−1)`` of the components ``y (k, n)``
+    over knots ``t`` (per component scipy ``PPoly`` order: highest power first, in the
+    local coordinate t − t_i) of :func:`smoothing_spline`.
+
+    Interpolation is scipy ``CubicSpline``'s not-a-knot spline (:func:`_not_a_knot`).
+    Smoothing is written by hand (Reinsch's O(n) banded algorithm) because scipy's
+    smoothing splines take λ, not the residual (``make_smoothing_spline``), or pick knots by
+    FITPACK's iteration (``make_splrep``/``make_splprep`` with ``s``), and both cost
+    0.1–0.4 s per 7200 poses — far from the 1 M IMU samples/s this fit must sustain.
+    Reinsch's solve gives the fit's values g and its second derivatives γ at the knots
+    (Green & Silverman 1994, Thm 2.1: the natural cubic with Qᵀg = Rγ), so the
+    coefficients follow in closed form, without the second banded solve a natural
+    ``CubicSpline`` through g would make.
     """
-    if rss_target <= 0.0 or t.shape[0] < 4:
-        return CubicSpline(t, y, bc_type="not-a-knot" if t.shape[0] >= 4 else "natural")
+    n = t.shape[0]
+    if n < 4:
+        return CubicSpline(t, y.T, bc_type="natural").c.transpose(2, 0, 1)
+    if rss_target <= 0.0:
+        return _not_a_knot(t, y)
     system = _Reinsch(t, y)
     # λ is searched on up to LAMBDA_WINDOWS evenly spread windows of LAMBDA_WINDOW knots
     # (each a smoothing problem of its own, the residual target scaled by their share of
     # the knots), then the whole series is solved once with it: a long file costs a few
     # solves of its length instead of ~25, and the whole residual stays within ~6 % of
     # the target (test: test_smoothing_spline_residual_is_the_expected_noise).
-    n = t.shape[0]
-    windows = _StackedReinsch([system], 0)
-    share = 1.0
     if n > LAMBDA_WINDOWS * LAMBDA_WINDOW:
         starts = np.linspace(0, n - LAMBDA_WINDOW, LAMBDA_WINDOWS).astype(int)
         # a window's ends fit the data more closely than the middle of a long series:
         # count the residual of its middle only
         edge = LAMBDA_WINDOW // 10
-        windows = _StackedReinsch([_Reinsch(t[a:a + LAMBDA_WINDOW], y[a:a + LAMBDA_WINDOW])
-                                   for a in starts], edge)
+        windows = _StackedReinsch(system, starts, LAMBDA_WINDOW, edge)
         share = LAMBDA_WINDOWS * (LAMBDA_WINDOW - 2 * edge) / n
+        rss = windows.rss
+    else:
+        share = 1.0
+
+        def rss(lam: float) -> float:
+            r = system.residual(lam)
+            return float(np.sum(r * r))
 
     def log_excess(log_lam: float) -> float:
-        rss = windows.rss(np.exp(log_lam))
-        return np.log(max(rss, 1e-300)) - np.log(rss_target * share)
+        return np.log(max(rss(np.exp(log_lam)), 1e-300)) - np.log(rss_target * share)
 
-    # λ has units time³: the spline then smooths over (λ/h³)^¼ knots. Bracket that between
+    # λ has units time³: the spline then smooths over (λ/h³)^¼ knots. λ lies between
     # 0.01 and 1000 knots (8 s at 120 Hz: no motion is smoother); the banded system's
     # condition number is ~50 λ/h³, so the upper end also keeps Cholesky well conditioned.
-    scale = float(np.mean(np.diff(t))) ** 3
-    lo, hi = np.log(scale * 1e-8), np.log(scale * 1e12)
-    if log_excess(hi) <= 0.0:  # the noise is larger than the motion: the straightest fit
-        log_lam = hi
-    elif log_excess(lo) >= 0.0:
-        log_lam = lo
-    else:
-        # log λ to 0.02: the residual then matches to ~1 % (its own noise is ~1.5 %)
-        log_lam = brentq(log_excess, lo, hi, xtol=0.02)
-    return CubicSpline(t, y - system.residual(np.exp(log_lam)), bc_type="natural")
+    # The residual grows with λ: start at one knot (λ = h³; pose files land within e^±9
+    # of it) and step outward, doubling, to the first sign change, then brentq on that
+    # bracket — about half the solves of brentq on the whole range, the same root.
+    log_h3 = np.log(float(np.mean(np.diff(t))) ** 3)
+    lo, hi = log_h3 + np.log(1e-8), log_h3 + np.log(1e12)
+    x, fx, step = log_h3, log_excess(log_h3), 3.0
+    log_lam = x if fx == 0.0 else None
+    while log_lam is None:
+        x2 = min(max(x + (step if fx < 0.0 else -step), lo), hi)
+        f2 = log_excess(x2)
+        if (f2 > 0.0) != (fx > 0.0) or f2 == 0.0:
+            # log λ to 0.02: the residual then matches to ~1 % (its own noise is ~1.5 %)
+            log_lam = brentq(log_excess, min(x, x2), max(x, x2), xtol=0.02)
+        elif x2 in (lo, hi):  # no root inside: the straightest (noise larger than the
+            log_lam = x2      # motion) or the closest fit
+        x, fx, step = x2, f2, 2.0 * step
+    lam = np.exp(log_lam)
+    inner = system.second_derivatives(lam)
+    g = y - system.residual(lam, inner)
+    gamma = np.zeros_like(g)  # natural ends: γ = 0 at the first and last knot
+    gamma[:, 1:-1] = inner
+    h = np.diff(t)
+    c = np.empty((y.shape[0], 4, n - 1))
+    c[:, 0] = (gamma[:, 1:] - gamma[:, :-1]) / (6.0 * h)
+    c[:, 1] = 0.5 * gamma[:, :-1]
+    c[:, 2] = (g[:, 1:] - g[:, :-1]) / h - h * (2.0 * gamma[:, :-1] + gamma[:, 1:]) / 6.0
+    c[:, 3] = g[:, :-1]
+    return c
 
 
 # --------------------------------------------------------------------------- motion
@@ -291,37 +443,50 @@ class TrajectorySample(MotionSample):
     specific_force_b: np.ndarray | None = None
 
 
-# Kernels on unit quaternions (scalar last) and (n,3) vectors, written out per component:
-# these run once per IMU sample, and np.cross / generic einsum cost 3-5x more here.
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
-    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
-    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-    return out
+# Kernels on component tuples: a vector is (x, y, z), a unit quaternion (x, y, z, w) (scalar
+# last), each a contiguous 1-D array over the samples of one evaluation pass. The kernels
+# run once per IMU sample; on (n,3) arrays every column is a strided view and np.cross /
+# einsum cost 3-5x more, so the pass keeps each component in an array of its own.
+def _cross(ax, ay, az, bx, by, bz):
+    return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
 
 
-def _rotate(q: np.ndarray, v: np.ndarray, inverse: bool = False) -> np.ndarray:
-    """``C(q) v`` (or ``C(q)ᵀ v``) for unit ``q``: v + 2w (u×v) + 2 u×(u×v)."""
-    u = -q[..., :3] if inverse else q[..., :3]
-    t = 2.0 * _cross(u, v)
-    return v + q[..., 3:] * t + _cross(u, t)
+def _rotate(q, v, inverse: bool = False):
+    """``C(q) v`` (or ``C(q)ᵀ v``) for unit ``q``: v + 2w (u×v) + 2 u×(u×v); the inverse
+    is the same with u → −u, i.e. v − w t + u×t for t = 2 u×v (the same bits)."""
+    ux, uy, uz, w = q
+    vx, vy, vz = v
+    tx, ty, tz = _cross(ux, uy, uz, vx, vy, vz)
+    tx, ty, tz = 2.0 * tx, 2.0 * ty, 2.0 * tz
+    cx, cy, cz = _cross(ux, uy, uz, tx, ty, tz)
+    if inverse:
+        return vx - w * tx + cx, vy - w * ty + cy, vz - w * tz + cz
+    return vx + w * tx + cx, vy + w * ty + cy, vz + w * tz + cz
 
 
-def _qmul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    pv, pw, qv, qw = p[..., :3], p[..., 3:], q[..., :3], q[..., 3:]
-    out = np.empty(np.broadcast_shapes(p.shape, q.shape))
-    out[..., :3] = pw * qv + qw * pv + _cross(pv, qv)
-    out[..., 3] = (pw * qw)[..., 0] - np.sum(pv * qv, axis=-1)
-    return out
+def _qmul(p, q):
+    px, py, pz, pw = p
+    qx, qy, qz, qw = q
+    cx, cy, cz = _cross(px, py, pz, qx, qy, qz)
+    return (pw * qx + qw * px + cx, pw * qy + qw * py + cy, pw * qz + qw * pz + cz,
+            pw * qw - (px * qx + py * qy + pz * qz))
 
 
-def _q_en(lat: np.ndarray, lon: np.ndarray) -> np.ndarray:
+def _q_en(lat, lon):
     """ENU → ECEF rotation as a quaternion: ``C_en = Rz(λ + π/2) Rx(π/2 − φ)``."""
     a = 0.5 * (lon + 0.5 * np.pi)
     b = 0.5 * (0.5 * np.pi - lat)
     ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
-    return np.stack((ca * sb, sa * sb, sa * cb, ca * cb), axis=-1)
+    return ca * sb, sa * sb, sa * cb, ca * cb
+
+
+#: IMU samples per pass of the evaluation: the pass's ~100 temporaries of this many
+#: doubles stay in the processor's L2 cache (a longer pass streams them through memory).
+EVAL_CHUNK = 8192
+#: What :meth:`TrajectoryMotion._fields` can compute, with its columns.
+_FIELD_WIDTH = {"q_tb": 4, "omega_tb_b": 3, "p": 3, "v": 3, "a": 3, "llh": 3, "q_nt": 4,
+                "omega_ib_b": 3, "f_b": 3, "q_nb": 4, "omega_nb_b": 3, "v_n": 3,
+                "acc_n": 3}
 
 
 class TrajectoryMotion(Motion):
@@ -335,6 +500,7 @@ class TrajectoryMotion(Motion):
     def __init__(self, poses: PoseSeries, origin_llh, position_sigma_m: float = 0.0,
                  attitude_sigma_rad: float = 0.0, max_gap_s: float = DEFAULT_MAX_GAP_S):
         poses = check_poses(poses, max_gap_s)
+        check_positions(poses, origin_llh)
         self.source = poses.source
         self.t0_ns = int(poses.t_ns[0])
         # float seconds from the first pose, exact integer-ns differences first
@@ -344,16 +510,27 @@ class TrajectoryMotion(Motion):
         self.position_sigma_m = float(position_sigma_m)
         self.attitude_sigma_rad = float(attitude_sigma_rad)
         n = self.pose_count
-        self._pos = smoothing_spline(self._t, poses.p, 3.0 * n * self.position_sigma_m ** 2)
-        self._vel = self._pos.derivative(1)
-        self._acc = self._pos.derivative(2)
         # sign-continuous quaternions: q and −q are one rotation; the spline must not jump
         q = poses.q.copy()
         flip = np.sum(q[1:] * q[:-1], axis=1) < 0.0
         sign = np.concatenate(([1.0], np.where(np.cumsum(flip) % 2 == 1, -1.0, 1.0)))
         q *= sign[:, None]
-        self._att = smoothing_spline(self._t, q, 0.75 * n * self.attitude_sigma_rad ** 2)
-        self._att_rate = self._att.derivative(1)
+        rss_p = 3.0 * n * self.position_sigma_m ** 2
+        rss_q = 0.75 * n * self.attitude_sigma_rad ** 2
+        # Positions relative to the first pose: the fit is the same shifted (splines
+        # reproduce constants), but differences of km-sized coordinates lose digits — at
+        # 35 km the acceleration's rounding is ~1e-7 m/s² uncentred, ~1e-13 centred.
+        p0 = poses.p[0].copy()
+        y = np.concatenate(((poses.p - p0).T, q.T))  # components in rows (the fit's layout)
+        if rss_p <= 0.0 and rss_q <= 0.0:  # both interpolated: one spline of 7 rows
+            c = spline_coefficients(self._t, y, 0.0)
+        else:
+            c = np.concatenate((spline_coefficients(self._t, y[:3], rss_p),
+                                spline_coefficients(self._t, y[3:], rss_q)))
+        c[:3, 3] += p0[:, None]
+        # the coefficient table of the evaluation: row 4 j + d is power 3 − d of component
+        # j (x, y, z position, then the 4 quaternion components) over the intervals
+        self._coef = c.reshape(28, n - 1)
         self.origin_llh = np.asarray(origin_llh, dtype=np.float64)
         self._r0 = earth.ecef_from_llh(self.origin_llh)
         self._c_et = earth.enu_to_ecef_matrix(self.origin_llh[0], self.origin_llh[1])
@@ -370,72 +547,146 @@ class TrajectoryMotion(Motion):
                              f" s is outside the {self.span_s:.9g} s the poses cover")
         return np.clip(t, 0.0, self.span_s)
 
+    def _fields(self, t, want: frozenset, earth_rotation: bool = True,
+                gravity: bool = True) -> dict[str, np.ndarray]:
+        """The fields named in ``want`` (:data:`_FIELD_WIDTH`) at times ``t``, each
+        ``(n, width)``, evaluated in passes of :data:`EVAL_CHUNK` samples."""
+        t = self._times(t)
+        n = t.shape[0]
+        out = {name: np.empty((n, _FIELD_WIDTH[name])) for name in want}
+        for lo in range(0, n, EVAL_CHUNK):
+            part = self._pass(t[lo:lo + EVAL_CHUNK], want, earth_rotation, gravity)
+            for name, cols in part.items():
+                dest = out[name][lo:lo + EVAL_CHUNK]
+                for k, col in enumerate(cols):
+                    dest[:, k] = col
+        return out
+
+    def _pass(self, t: np.ndarray, want: frozenset, earth_rotation: bool,
+              gravity: bool) -> dict[str, tuple]:
+        """One pass of :meth:`_fields`: the fit and the Earth geometry at ``t``, component
+        by component (the kernels above), only what ``want`` needs."""
+        truth = bool(want & {"q_nt", "q_nb", "omega_nb_b", "v_n", "acc_n"})
+        force = "f_b" in want
+        need_q = truth or bool(want & {"q_tb", "omega_tb_b", "omega_ib_b", "f_b"})
+        need_v = force or truth or "v" in want
+        need_a = force or bool(want & {"a", "acc_n"})
+        # one interval search for all 7 components, then Horner on their coefficients
+        # (scipy's PPoly would search again for each spline and each derivative order)
+        i = np.searchsorted(self._t, t, side="right") - 1
+        np.clip(i, 0, self._t.shape[0] - 2, out=i)
+        dx = t - self._t[i]
+        c = self._coef.take(i, axis=1) if need_q else self._coef[:12].take(i, axis=1)
+
+        def value(j):
+            return ((c[4 * j] * dx + c[4 * j + 1]) * dx + c[4 * j + 2]) * dx + c[4 * j + 3]
+
+        def rate(j):
+            return ((3.0 * c[4 * j]) * dx + 2.0 * c[4 * j + 1]) * dx + c[4 * j + 2]
+
+        def accel(j):
+            return (6.0 * c[4 * j]) * dx + 2.0 * c[4 * j + 1]
+
+        got: dict[str, tuple] = {}
+        p = (value(0), value(1), value(2))
+        v = (rate(0), rate(1), rate(2)) if need_v else None
+        a = (accel(0), accel(1), accel(2)) if need_a else None
+        got.update(p=p, v=v, a=a)
+        if need_q:
+            s = (value(3), value(4), value(5), value(6))
+            sd = (rate(3), rate(4), rate(5), rate(6))
+            sx, sy, sz, sw = s
+            n2 = sx * sx + sy * sy + sz * sz + sw * sw
+            norm = np.sqrt(n2)
+            q_tb = (sx / norm, sy / norm, sz / norm, sw / norm)
+            cx, cy, cz = _cross(sx, sy, sz, sd[0], sd[1], sd[2])
+            w_tb = tuple(2.0 * (sw * d - sd[3] * sv - cr) / n2
+                         for sv, d, cr in zip(s[:3], sd[:3], (cx, cy, cz), strict=True))
+            got.update(q_tb=q_tb, omega_tb_b=w_tb)
+        # the Earth geometry at the position: ECEF, geodetic, the local vertical in t
+        c_et = self._c_et
+        x, y, z = (self._r0[k] + (c_et[k, 0] * p[0] + c_et[k, 1] * p[1] + c_et[k, 2] * p[2])
+                   for k in range(3))
+        lat, lon, h, sl, cl = earth.geodetic_from_ecef(x, y, z)
+        got["llh"] = (lat, lon, h)
+        if "omega_ib_b" in want:
+            w = w_tb
+            if earth_rotation:
+                rot = _rotate(q_tb, self.omega_ie_t, inverse=True)
+                w = tuple(wk + rk for wk, rk in zip(w_tb, rot, strict=True))
+            got["omega_ib_b"] = w
+        if force:
+            f_t = a
+            if earth_rotation:
+                cor = _cross(*self.omega_ie_t, *v)
+                f_t = tuple(ak + 2.0 * ck for ak, ck in zip(a, cor, strict=True))
+            if gravity:
+                # g^t = C_tn g^n = −g up^t, the geodetic normal (x, y, N)/|(p, N)| in t
+                g = earth.normal_gravity(sl * sl, h)
+                k = cl / np.hypot(x, y)
+                ne = (x * k, y * k, sl)
+                up = tuple(c_et[0, j] * ne[0] + c_et[1, j] * ne[1] + c_et[2, j] * ne[2]
+                           for j in range(3))
+                f_t = tuple(fk + g * uk for fk, uk in zip(f_t, up, strict=True))
+            got["f_b"] = _rotate(q_tb, f_t, inverse=True)
+        if truth:
+            qx, qy, qz, qw = _q_en(lat, lon)
+            q_nt = _qmul((-qx, -qy, -qz, qw), self._q_et)  # C_nt = C_ne C_et
+            got["q_nt"] = q_nt
+            if want & {"q_nb", "omega_nb_b", "v_n", "acc_n"}:
+                q_nb = _qmul(q_nt, q_tb)
+                v_n = _rotate(q_nt, v)
+                w_en = earth.transport_rate_components(sl, cl, h, v_n[0], v_n[1])
+                rot = _rotate(q_nb, w_en, inverse=True)
+                got.update(q_nb=q_nb, v_n=v_n, omega_nb_b=tuple(
+                    wk - rk for wk, rk in zip(w_tb, rot, strict=True)))
+                if "acc_n" in want:
+                    an = _rotate(q_nt, a)
+                    cr = _cross(*w_en, *v_n)
+                    got["acc_n"] = tuple(ak - ck for ak, ck in zip(an, cr, strict=True))
+        return {name: got[name] for name in want}
+
     def tangent(self, t, need_accel: bool = False) -> TangentSample:
         """The fit at times ``t`` (s since the first pose)."""
-        t = self._times(t)
-        s = self._att(t)
-        sd = self._att_rate(t)
-        n2 = np.sum(s * s, axis=1)[:, None]
-        q_tb = s / np.sqrt(n2)
-        sv, sw, dv, dw = s[:, :3], s[:, 3:], sd[:, :3], sd[:, 3:]
-        omega = 2.0 * (sw * dv - dw * sv - _cross(sv, dv)) / n2
-        p = self._pos(t)
-        v = self._vel(t)
-        a = self._acc(t) if need_accel else None
-        llh = earth.llh_from_ecef(self._r0 + p @ self._c_et.T)
-        q_ne = _q_en(llh[:, 0], llh[:, 1])
-        q_ne[:, :3] *= -1.0  # conjugate: ECEF → local-level ENU
-        return TangentSample(q_tb, omega, p, v, a, llh, _qmul(q_ne, self._q_et))
+        want = {"q_tb", "omega_tb_b", "p", "v", "llh", "q_nt"} | ({"a"} if need_accel else set())
+        f = self._fields(t, frozenset(want))
+        return TangentSample(f["q_tb"], f["omega_tb_b"], f["p"], f["v"], f.get("a"),
+                             f["llh"], f["q_nt"])
 
     def imu(self, t, earth_rotation: bool = True, gravity: bool = True,
             need_force: bool = True, truth: bool = True) -> TrajectorySample:
         """Ideal sensors at times ``t`` (``omega_ib_b``, ``specific_force_b``): the module
         docstring's equations, each Earth term only when asked for; with ``truth`` also
         the local-level truth (else its fields are None)."""
-        s = self.tangent(t, need_accel=need_force)
-        w = s.omega_tb_b
-        if earth_rotation:
-            w = w + _rotate(s.q_tb, np.broadcast_to(self.omega_ie_t, w.shape), inverse=True)
-        f = None
+        want = {"omega_ib_b", "llh"}
         if need_force:
-            f_t = s.a.copy()
-            if earth_rotation:
-                f_t += 2.0 * _cross(self.omega_ie_t, s.v)
-            if gravity:
-                g_n = earth.gravity_enu(s.llh[:, 0], s.llh[:, 2])
-                f_t -= _rotate(s.q_nt, g_n, inverse=True)  # g^t = C_tn g^n
-            f = _rotate(s.q_tb, f_t, inverse=True)
+            want |= {"f_b"}
+        if truth:
+            want |= {"q_nb", "omega_nb_b", "v_n"} | ({"acc_n"} if need_force else set())
+        f = self._fields(t, frozenset(want), earth_rotation, gravity)
         if not truth:
-            return TrajectorySample(None, None, None, None, llh=s.llh, omega_ib_b=w,
-                                    specific_force_b=f)
-        return self._local_level(s, w, f)
-
-    def _local_level(self, s: TangentSample, w_ib=None, f_b=None) -> TrajectorySample:
-        q_nb = _qmul(s.q_nt, s.q_tb)
-        v_n = _rotate(s.q_nt, s.v)
-        w_en = earth.transport_rate_enu(s.llh[:, 0], s.llh[:, 2], v_n)
-        omega_nb = s.omega_tb_b - _rotate(q_nb, w_en, inverse=True)
-        acc = None
-        if s.a is not None:
-            acc = _rotate(s.q_nt, s.a) - _cross(w_en, v_n)
-        return TrajectorySample(q_nb, omega_nb, v_n, acc, llh=s.llh, omega_ib_b=w_ib,
-                                specific_force_b=f_b)
+            return TrajectorySample(None, None, None, None, llh=f["llh"],
+                                    omega_ib_b=f["omega_ib_b"], specific_force_b=f.get("f_b"))
+        return TrajectorySample(f["q_nb"], f["omega_nb_b"], f["v_n"], f.get("acc_n"),
+                                llh=f["llh"], omega_ib_b=f["omega_ib_b"],
+                                specific_force_b=f.get("f_b"))
 
     def evaluate(self, t, need_accel: bool = False) -> MotionSample:
         """Truth in the local-level ENU frame ``n`` at the actual position: ``q_nb = C_nt
         q_tb``, ``v^n = C_nt v^t``, ``ω_nb^b = ω_tb^b − C_bn ω_en^n`` (the local-level frame
         turns against the Earth-fixed tangent frame at the transport rate) and
         ``dv^n/dt = C_nt a^t − ω_en^n × v^n``."""
-        return self._local_level(self.tangent(t, need_accel=need_accel))
+        want = {"q_nb", "omega_nb_b", "v_n", "llh"} | ({"acc_n"} if need_accel else set())
+        f = self._fields(t, frozenset(want))
+        return TrajectorySample(f["q_nb"], f["omega_nb_b"], f["v_n"], f.get("acc_n"),
+                                llh=f["llh"])
 
     def velocity(self, t) -> np.ndarray:
-        s = self.tangent(t)
-        return _rotate(s.q_nt, s.v)
+        return self._fields(t, frozenset({"v_n"}))["v_n"]
 
     def position_llh(self, t) -> np.ndarray:
         """Geodetic position (rad, rad, m) of the fit at times ``t``: exact, no integration."""
-        p = self._pos(self._times(t))
-        return earth.llh_from_ecef(self._r0 + p @ self._c_et.T)
+        return self._fields(t, frozenset({"llh"}))["llh"]
 
 
 class TrajectoryRequest(Motion):
@@ -475,6 +726,8 @@ class LiveTrajectory(TrajectoryMotion):
     def __init__(self, origin_llh, t0_ns: int, window_s: float = 2.0,
                  position_sigma_m: float = 0.0, attitude_sigma_rad: float = 0.0):
         self.origin_llh = np.asarray(origin_llh, dtype=np.float64)
+        self._r0 = earth.ecef_from_llh(self.origin_llh)
+        self._c_et = earth.enu_to_ecef_matrix(self.origin_llh[0], self.origin_llh[1])
         self.t0_ns = int(t0_ns)
         self.window_ns = int(window_s * 1e9)
         self.position_sigma_m = float(position_sigma_m)
@@ -498,6 +751,16 @@ class LiveTrajectory(TrajectoryMotion):
             return f"quaternion is not a unit quaternion (|q| = {norm:.6g})"
         if self._t and t_ns <= self._t[-1]:
             return "stamp not after the previous pose"
+        # the file's checks, on this pose and the one before: speed, height, poles
+        if self._t:
+            step, dt = math.dist(p, self._p[-1]), (t_ns - self._t[-1]) / 1e9
+            if step / dt > _limits().MAX_SPEED_MPS:
+                return _too_fast(step, dt)
+        x, y, z = self._r0 + self._c_et @ p
+        lat, _, h, _, _ = earth.geodetic_from_ecef(x, y, z)
+        refusal = _position_refusal(p, float(lat), float(h))
+        if refusal is not None:
+            return refusal
         q = q / norm
         if self._q and float(np.dot(q, self._q[-1])) < 0.0:
             q = -q  # sign-continuous, as the file fit does

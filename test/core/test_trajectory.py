@@ -226,3 +226,71 @@ def test_times_outside_the_poses_are_refused():
     motion = TrajectoryMotion(mocap(), ORIGIN)
     with pytest.raises(ValueError, match="outside the 30 s the poses cover"):
         motion.tangent(np.array([0.0, 30.5]))
+
+
+def _line_poses(p, origin_rate=100.0):
+    p = np.asarray(p, float)
+    t = np.arange(p.shape[0]) / origin_rate
+    return poses_of(t, p, np.tile([0.0, 0.0, 0.0, 1.0], (p.shape[0], 1)))
+
+
+@pytest.mark.parametrize("height, message", [
+    (2e6, r"line 1: position .* height of 2e\+06 m, outside the scene's -12000 … 1e\+06 m"),
+    (-3e4, r"line 1: position .* height of -30000 m, outside"),
+])
+def test_a_position_outside_the_scene_heights_is_refused_naming_the_line(height, message):
+    """2000 km up, the normal-gravity model is far outside what it describes (its free-air
+    series gave g ≈ 7e5 m/s² at 1e9 m); 30 km below the origin is under any ground."""
+    p = np.zeros((200, 3))
+    p[:, 0] = np.arange(200) * 0.01
+    p[:, 2] = height
+    with pytest.raises(ValueError, match=message):
+        TrajectoryMotion(_line_poses(p), (ORIGIN[0], ORIGIN[1], 0.0))
+
+
+@pytest.mark.parametrize("jump, moved", [(5e4, r"50000"), (1e300, r"1e\+300")])
+def test_a_pose_that_jumps_faster_than_any_carrier_is_refused_naming_the_line(jump, moved):
+    """A motion-capture glitch (a marker swap: 50 km in one frame) is not a motion; 1e300 m
+    once overflowed the fit into NaN specific force."""
+    p = np.zeros((200, 3))
+    p[150, 1] = jump
+    with pytest.raises(ValueError, match=rf"line 151: moved {moved} m in 0\.01 s .* faster "
+                                         r"than 12000 m/s"):
+        TrajectoryMotion(_line_poses(p), ORIGIN)
+
+
+def test_a_trajectory_over_a_pole_is_refused_as_the_built_in_motions_are():
+    """The local-level ENU frame of the truth has no East or North at a pole."""
+    p = np.zeros((300, 3))
+    p[:, 1] = np.arange(300) * 10.0  # 1 km/s north from 1.1 km short of the pole
+    with pytest.raises(ValueError, match=r"line \d+: .* reaches the North pole"):
+        TrajectoryMotion(_line_poses(p), (math.radians(89.99), 0.0, 0.0))
+
+
+def test_live_poses_that_a_file_would_refuse_are_rejected_one_by_one():
+    """gyro_sim's motion_topic: a glitch or an absurd height is counted and skipped, not
+    fitted (the refit would otherwise raise inside the node's timer)."""
+    from gyro_attitude.core.trajectory import LiveTrajectory
+
+    live = LiveTrajectory(ORIGIN, 10**9)
+    q = [0.0, 0.0, 0.0, 1.0]
+    for k in range(10):
+        assert live.add(10**9 + k * 10**7, [0.01 * k, 0.0, 0.0], q) is None
+    assert "faster than 12000 m/s" in live.add(10**9 + 10 * 10**7, [5e4, 0.0, 0.0], q)
+    assert "outside the scene's" in LiveTrajectory(ORIGIN, 10**9).add(10**9, [0.0, 0.0, 2e6], q)
+    assert live.add(10**9 + 10 * 10**7, [0.1, 0.0, 0.0], q) is None
+    s = live.imu(np.linspace(0.0, 0.1, 11))
+    assert np.all(np.isfinite(s.specific_force_b))
+
+
+def test_a_trajectory_tens_of_km_from_the_origin_keeps_its_acceleration_digits():
+    """Splines reproduce constants, so poses shifted by 35 km have the same smoothing fit
+    shifted; fitted uncentred, differences of km-sized coordinates lost ~1e-6 m/s²."""
+    poses = mocap(noise=True)
+    shift = np.array([20e3, -35e3, 800.0])
+    far = dataclasses.replace(poses, p=poses.p + shift)
+    t = np.linspace(1.0, SPAN - 1.0, 2000)
+    near_fit = TrajectoryMotion(poses, ORIGIN, 1e-3, math.radians(0.1)).tangent(t, need_accel=True)
+    far_fit = TrajectoryMotion(far, ORIGIN, 1e-3, math.radians(0.1)).tangent(t, need_accel=True)
+    assert np.max(np.abs(far_fit.a - near_fit.a)) < 2e-8
+    assert np.max(np.abs(far_fit.p - shift - near_fit.p)) < 1e-10

@@ -30,6 +30,12 @@ MAX_RATE_HZ = 1.0e6
 MAX_DURATION_S = 1.0e7
 #: Fastest carrier speed (m/s) — and each ENU velocity component.
 MAX_SPEED_MPS = 1.2e4
+#: Lowest and highest ellipsoidal height (m) of a scene's origin and of a trajectory's poses.
+MIN_HEIGHT_M = -12_000.0
+MAX_HEIGHT_M = 1.0e6
+#: Closest approach to a pole (rad of latitude, 1e-4° ≈ 11 m): the ENU frame has no East
+#: and North at the pole, and the longitude rate v_E/((R_N+h) cos L) diverges as L → ±90°.
+POLE_MARGIN_RAD = math.radians(1e-4)
 #: Fastest rotation any motion may reach (rev/s = Hz); in rad/s below.
 MAX_ROTATION_HZ = 1.0e4
 MAX_BODY_RATE_RAD_S = 2.0 * math.pi * MAX_ROTATION_HZ

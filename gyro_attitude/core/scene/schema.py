@@ -114,8 +114,10 @@ from gyro_attitude.core.scene.limits import (
     GYRO_ERROR_LIMITS,
     MAX_DESCRIPTION_CHARS,
     MAX_DURATION_S,
+    MAX_HEIGHT_M,
     MAX_RATE_HZ,
     MAX_SEED,
+    MIN_HEIGHT_M,
     PARAM_LIMITS,
 )
 from gyro_attitude.core.scene.magnetometer import (
@@ -394,7 +396,7 @@ class SceneSpec:
         earth_spec = EarthSpec(
             math.radians(e.number("latitude_deg", lo=-90.0, hi=90.0)),
             math.radians(e.number("longitude_deg", 0.0, -180.0, 180.0)),
-            e.number("height_m", 0.0, -12000.0, 1.0e6),
+            e.number("height_m", 0.0, MIN_HEIGHT_M, MAX_HEIGHT_M),
             e.boolean("rotation", True),
             e.boolean("transport_rate", True),
         )

@@ -26,6 +26,7 @@ from gyro_attitude.core.gyro.rate_gyro import RateGyroTriad
 from gyro_attitude.core.instruments.common import InstrumentStepper
 from gyro_attitude.core.motion import Motion, Stationary
 from gyro_attitude.core.rotation import quat_conjugate, quat_rotate
+from gyro_attitude.core.scene.limits import POLE_MARGIN_RAD
 from gyro_attitude.core.scene.magnetometer import measure_field
 from gyro_attitude.core.scene.schema import MAX_RATE_HZ, SceneSpec
 from gyro_attitude.core.sensor_errors import SensorErrorModel
@@ -114,9 +115,6 @@ def integrate_position(motion: Motion, t0: float, llh0, t) -> np.ndarray:
     return np.stack((lat[1:], _wrap_lon(lon), hgt[1:]), axis=-1)
 
 
-#: Closest approach to a pole (rad of latitude, 1e-4° ≈ 11 m): the ENU frame has no East
-#: and North at the pole, and the longitude rate v_E/((R_N+h) cos L) diverges as L → ±90°.
-POLE_MARGIN_RAD = np.radians(1e-4)
 
 
 def _pole_error(motion: Motion, t0: float, lat0: float, t: np.ndarray,
