@@ -35,6 +35,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
+import resource
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -56,7 +58,7 @@ from gyro_attitude.core.rotation import (
 from gyro_attitude.core.scene import MAX_RATE_HZ, SceneSimulator, SceneSpec
 from gyro_attitude.core.sensor_errors import SensorErrorParams
 from gyro_attitude.core.sim_topics import DEFAULT_FRAME_ID
-from gyro_attitude.offline.parallel import CONNECT_TIMEOUT_S, run_tasks
+from gyro_attitude.offline.parallel import CONNECT_TIMEOUT_S, TaskCost, run_tasks
 from gyro_attitude.offline.replay import estimate_recording
 
 __all__ = [
@@ -454,7 +456,11 @@ def grade_statistics(setup: MonteCarloSetup, runs: list[dict]) -> dict:
 @dataclass
 class MonteCarloResult:
     """Runs finished (``runs``: one entry per run, grade by grade in index order; a failed run
-    has ``error``), whether the set was ``interrupted``, the wall time and where it ran."""
+    has ``error``), whether the set was ``interrupted``, the wall time and where it ran;
+    ``cost`` what the processes that ran it used (:class:`~.parallel.TaskCost`; None when
+    interrupted), ``own_cpu_s`` this process's CPU seconds over the set (in a pool: submitting,
+    collecting; in this process: the runs too), ``load_average`` the 1-minute load average
+    of the machine at the start and the end (what the wall time competed with)."""
 
     setup: MonteCarloSetup
     runs: list[dict]
@@ -462,6 +468,9 @@ class MonteCarloResult:
     wall_s: float
     workers: int
     scheduler: str | None
+    cost: TaskCost | None = None
+    own_cpu_s: float | None = None
+    load_average: tuple[float, float] | None = None
 
     @property
     def complete(self) -> bool:
@@ -477,14 +486,23 @@ class MonteCarloResult:
             for g in self.setup.grades]
 
     def cost_per_run_s(self) -> float | None:
-        """Wall time of the whole set per finished run (pool start-up included) and the
-        compute time of one run in its worker."""
+        """Wall time of the whole set per finished run (pool start-up included)."""
         done = [r for r in self.runs if "error" not in r]
         return self.wall_s / len(done) if done else None
+
+    def total_cpu_s(self) -> float | None:
+        """CPU seconds of every process of ours that worked on the set (the workers' whole
+        lives and this process's share; None on Dask or when interrupted)."""
+        if self.cost is None or self.cost.cpu_s is None or self.own_cpu_s is None:
+            return None
+        if self.scheduler is None and self.workers == 1:
+            return self.own_cpu_s  # the runs ran in this process: counted once
+        return self.cost.cpu_s + self.own_cpu_s
 
     def to_json(self) -> dict:
         s = self.setup
         done = [r for r in self.runs if "error" not in r]
+        total_cpu = self.total_cpu_s()
         return _jsonable({
             "scene": s.grades[0].spec.name, "runs_requested": s.runs,
             "duration_s": s.duration_s, "rate_hz": s.rate_hz, "samples_per_run": s.samples,
@@ -494,6 +512,14 @@ class MonteCarloResult:
             "runs_finished": len(done), "runs_failed": len(self.failed),
             "workers": self.workers, "scheduler": self.scheduler, "wall_s": self.wall_s,
             "cost_per_run_s": self.cost_per_run_s(),
+            # everything our processes spent, per run: start-up, transfer and waits included
+            "cpu_s": total_cpu,
+            "total_cpu_per_run_s": (total_cpu / len(done) if done and total_cpu is not None
+                                    else None),
+            "worker_processes": None if self.cost is None else self.cost.processes,
+            "pool_startup_s": None if self.cost is None else self.cost.startup_s,
+            "load_average_1min": (None if self.load_average is None
+                                  else list(self.load_average)),
             "compute_per_run_s": (float(np.mean([r["wall_s"] for r in done])) if done
                                   else None),
             "cpu_per_run_s": float(np.mean([r["cpu_s"] for r in done])) if done else None,
@@ -559,20 +585,36 @@ def run_montecarlo(setup: MonteCarloSetup, *, workers: int = 1, scheduler: str |
             bar.update(len(tasks[i][2]))
 
     interrupted = False
-    t0 = time.perf_counter()
+    cost = None
+    load0 = _load_average()
+    t0, c0 = time.perf_counter(), _own_cpu_s()
     try:
-        run_tasks(_run_chunk, tasks, on_result, workers=workers, scheduler=scheduler,
-                  on_error=on_error, progress=advance, connect_timeout_s=connect_timeout_s)
+        cost = run_tasks(_run_chunk, tasks, on_result, workers=workers, scheduler=scheduler,
+                         on_error=on_error, progress=advance,
+                         connect_timeout_s=connect_timeout_s)
     except KeyboardInterrupt:
         interrupted = True
     finally:
         if bar is not None:
             bar.close()
-    wall = time.perf_counter() - t0
+    wall, own = time.perf_counter() - t0, _own_cpu_s() - c0
     runs = [r for i in sorted(results) for r in results[i]]
     order = {g.label: k for k, g in enumerate(setup.grades)}
     runs.sort(key=lambda r: (order[r["grade"]], r["index"]))
-    return MonteCarloResult(setup, runs, interrupted, wall, workers, scheduler)
+    return MonteCarloResult(setup, runs, interrupted, wall, workers, scheduler, cost, own,
+                            (load0, _load_average()))
+
+
+def _own_cpu_s() -> float:
+    u = resource.getrusage(resource.RUSAGE_SELF)  # every thread of this process
+    return u.ru_utime + u.ru_stime
+
+
+def _load_average() -> float:
+    try:
+        return os.getloadavg()[0]
+    except OSError:  # not available on this platform
+        return math.nan
 
 
 # --------------------------------------------------------------------------- plot
