@@ -543,12 +543,18 @@ def _jsonable(x):
     return x
 
 
+_RUNS_PER_TASK = 4
+
+
 def _chunks(setup: MonteCarloSetup, workers: int) -> list[tuple]:
-    """Tasks of a few runs each: few enough that the per-task cost (pickling the set-up, a
-    round trip) vanishes, enough that every worker has several (a late straggler is short)."""
+    """Tasks of a few runs each: enough that every worker has many (the last task, which
+    may run while the other workers have nothing left, is short: at most
+    :data:`_RUNS_PER_TASK` runs), few enough that the per-task cost vanishes (a task's
+    set-up pickles to ~5 kB and a run's result to ~12 kB, a round trip of a few ms against
+    the tenths of a second of a run)."""
     seeds = run_seeds(setup.seed, setup.runs)
     total = setup.runs * len(setup.grades)
-    size = max(1, min(32, math.ceil(total / (4 * max(workers, 1)))))
+    size = max(1, min(_RUNS_PER_TASK, math.ceil(total / (16 * max(workers, 1)))))
     tasks = []
     for g in range(len(setup.grades)):
         for a in range(0, setup.runs, size):
