@@ -173,7 +173,7 @@ def run_tasks(fn: Callable, args: Sequence, on_result: Callable[[int, object], N
               progress: Callable[[int], None] | None = None,
               connect_timeout_s: float = CONNECT_TIMEOUT_S) -> TaskCost:
     """``on_result(i, fn(args[i]))`` for every task (see the module docstring); returns what
-    they cost (:class:`TaskCost`, also when interrupted: not returned then).
+    they cost (:class:`TaskCost`; an interrupted run raises instead).
 
     ``progress(i)`` is called after each task's result or error.  Raises
     :class:`SchedulerUnreachable` when the scheduler does not answer within
