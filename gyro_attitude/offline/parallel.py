@@ -40,6 +40,7 @@ import os
 import resource
 import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -162,6 +163,30 @@ def _single_threaded_children():
             os.environ.pop(k, None)
 
 
+@contextlib.contextmanager
+def _signals_held():
+    """SIGINT and SIGTERM held while the pool starts its workers, and delivered after.
+
+    A Ctrl-C in the middle of starting a worker interrupts this process after the forkserver
+    forked the worker but before the executor knew its pid: the worker cannot be stopped, and
+    it prints a traceback when it finds the pool gone.  Held here, the signal arrives when
+    every worker is known (at most the start-up later), and the clean-up stops them all.
+    Only in the main thread (where Python runs signal handlers)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    got: list[int] = []
+    held = (signal.SIGINT, signal.SIGTERM)
+    previous = {s: signal.signal(s, lambda sig, _frame: got.append(sig)) for s in held}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+        if got:
+            signal.raise_signal(got[0])  # to the handler it was meant for
+
+
 def _describe(exc: BaseException) -> str:
     text = str(exc).strip().splitlines()
     return f"{type(exc).__name__}: {text[0] if text else ''}".rstrip(": ")
@@ -226,7 +251,8 @@ def _run_pool(fn, args, done, workers: int) -> TaskCost:
                                        mp_context=context, initializer=_worker_init)
         futures = {}
         try:
-            with _single_threaded_children():  # the workers start at the first submits
+            # the workers start at the first submits
+            with _single_threaded_children(), _signals_held():
                 futures = {pool.submit(_call, fn, args[i]): i for i in pending}
             not_done = set(futures)
             while not_done:
