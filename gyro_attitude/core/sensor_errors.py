@@ -110,19 +110,32 @@ def flicker_floor_components(floor_b: float) -> tuple[np.ndarray, np.ndarray]:
     return np.full(FLOOR_PROCESSES, sigma), taus
 
 
-def _gauss_markov(rng, phi, w_std, state, n: int) -> np.ndarray:
+def _gauss_markov(rng, phi, w_std, state, n: int, groups: int | None = None) -> np.ndarray:
     """``(columns, n)`` samples of independent AR(1) processes β_k = φ β_{k−1} + w_k from
-    ``state`` (each column's value one step before the first sample; updated in place)."""
-    out = np.empty((phi.shape[0], n))
+    ``state`` (each column's value one step before the first sample; updated in place).
+
+    ``groups`` G: the columns are G equal consecutive groups (axis-major) and the result is
+    each group's sum, ``(G, n)``, added column by column in order (the same sums as
+    ``out.reshape(G, -1, n).sum(axis=1)``) without holding every column's samples."""
+    cols = phi.shape[0]
+    per = cols if groups is None else cols // groups
+    out = np.empty((cols if groups is None else groups, n))
     for lo in range(0, n, _GM_BLOCK):
         m = min(_GM_BLOCK, n - lo)
         # Drawn sample-major (so the stream does not depend on block sizes), filtered
-        # column-major: contiguous rows are several times faster through the filter.
-        w = (w_std * rng.standard_normal((m, phi.shape[0]))).T
-        for a in range(phi.shape[0]):
+        # column-major: contiguous rows are faster through the filter than strided ones.
+        w = rng.standard_normal((m, cols))
+        w *= w_std
+        w = np.ascontiguousarray(w.T)
+        for a in range(cols):
             # scipy's IIR filter runs the sequential recursion in C; zi carries φ·β_prev.
-            out[a, lo:lo + m] = lfilter([1.0], [1.0, -phi[a]], w[a], zi=[phi[a] * state[a]])[0]
-            state[a] = out[a, lo + m - 1]
+            beta = lfilter([1.0], [1.0, -phi[a]], w[a], zi=[phi[a] * state[a]])[0]
+            state[a] = beta[-1]
+            row, j = divmod(a, per) if groups is not None else (a, 0)
+            if j == 0:
+                out[row, lo:lo + m] = beta
+            else:
+                out[row, lo:lo + m] += beta
     return out
 
 
@@ -250,8 +263,7 @@ class SensorErrorModel:
 
     def _bias_instability_floor(self, n: int) -> np.ndarray:
         phi, w_std, state = self._floor
-        rows = _gauss_markov(self._floor_rng, phi, w_std, state, n)
-        return rows.reshape(3, FLOOR_PROCESSES, n).sum(axis=1).T
+        return _gauss_markov(self._floor_rng, phi, w_std, state, n, groups=3).T
 
     def _rate_random_walk(self, n: int) -> np.ndarray:
         k_sqrt_dt = self.params.rate_random_walk * math.sqrt(self.dt)

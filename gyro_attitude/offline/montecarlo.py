@@ -35,6 +35,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
+import resource
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -48,15 +50,18 @@ from gyro_attitude.core.attitude.stream import (
     StreamConfig,
 )
 from gyro_attitude.core.rotation import (
+    _log_quat,
+    _qmul,
     quat_as_rotvec,
     quat_conjugate,
     quat_multiply,
+    quat_normalize,
     quat_rotate,
 )
 from gyro_attitude.core.scene import MAX_RATE_HZ, SceneSimulator, SceneSpec
 from gyro_attitude.core.sensor_errors import SensorErrorParams
 from gyro_attitude.core.sim_topics import DEFAULT_FRAME_ID
-from gyro_attitude.offline.parallel import CONNECT_TIMEOUT_S, run_tasks
+from gyro_attitude.offline.parallel import CONNECT_TIMEOUT_S, TaskCost, run_tasks
 from gyro_attitude.offline.replay import estimate_recording
 
 __all__ = [
@@ -85,6 +90,7 @@ MAX_RUNS = 1_000_000
 MAX_SAMPLES_PER_RUN = 5_000_000
 NEES_CONFIDENCE = 0.95
 _UP = np.array([0.0, 0.0, 1.0])
+_CONJ = np.array([-1.0, -1.0, -1.0, 1.0])
 
 
 # --------------------------------------------------------------------------- set-up
@@ -315,9 +321,14 @@ def run_one(spec: SceneSpec, setup: MonteCarloSetup, index: int, seed: int, labe
         reasons = ", ".join(f"{k} {r}" for r, k in res.counts.items() if k)
         raise ValueError(f"no attitude: every sample skipped ({reasons})")
     sample = res.index + first  # sample indices of the attitudes
-    q_true = block.truth_q_nb[sample]
-    # the body-frame error at every attitude (its RMS); the rest at the grid and the end only
-    body_all = quat_as_rotvec(quat_multiply(quat_conjugate(q_true), res.q))
+    if sample[-1] - sample[0] == m - 1:  # none skipped: a view, not a copy
+        q_true = block.truth_q_nb[sample[0]:sample[-1] + 1]
+    else:
+        q_true = block.truth_q_nb[sample]
+    # the body-frame error at every attitude (its RMS); the rest at the grid and the end only.
+    # Kernels without the public functions' finiteness checks: both inputs are unit
+    # quaternions the simulator and the estimator guarantee (the same arithmetic).
+    body_all = _log_quat(quat_normalize(_qmul(q_true * _CONJ, res.q)))
     grid = setup.grid_indices()
     pos = np.searchsorted(sample, grid, side="right") - 1
     have = pos >= 0
@@ -454,7 +465,11 @@ def grade_statistics(setup: MonteCarloSetup, runs: list[dict]) -> dict:
 @dataclass
 class MonteCarloResult:
     """Runs finished (``runs``: one entry per run, grade by grade in index order; a failed run
-    has ``error``), whether the set was ``interrupted``, the wall time and where it ran."""
+    has ``error``), whether the set was ``interrupted``, the wall time and where it ran;
+    ``cost`` what the processes that ran it used (:class:`~.parallel.TaskCost`; None when
+    interrupted), ``own_cpu_s`` this process's CPU seconds over the set (in a pool: submitting,
+    collecting; in this process: the runs too), ``load_average`` the 1-minute load average
+    of the machine at the start and the end (what the wall time competed with)."""
 
     setup: MonteCarloSetup
     runs: list[dict]
@@ -462,6 +477,9 @@ class MonteCarloResult:
     wall_s: float
     workers: int
     scheduler: str | None
+    cost: TaskCost | None = None
+    own_cpu_s: float | None = None
+    load_average: tuple[float, float] | None = None
 
     @property
     def complete(self) -> bool:
@@ -477,14 +495,23 @@ class MonteCarloResult:
             for g in self.setup.grades]
 
     def cost_per_run_s(self) -> float | None:
-        """Wall time of the whole set per finished run (pool start-up included) and the
-        compute time of one run in its worker."""
+        """Wall time of the whole set per finished run (pool start-up included)."""
         done = [r for r in self.runs if "error" not in r]
         return self.wall_s / len(done) if done else None
+
+    def total_cpu_s(self) -> float | None:
+        """CPU seconds of every process of ours that worked on the set (the workers' whole
+        lives and this process's share; None on Dask or when interrupted)."""
+        if self.cost is None or self.cost.cpu_s is None or self.own_cpu_s is None:
+            return None
+        if self.scheduler is None and self.workers == 1:
+            return self.own_cpu_s  # the runs ran in this process: counted once
+        return self.cost.cpu_s + self.own_cpu_s
 
     def to_json(self) -> dict:
         s = self.setup
         done = [r for r in self.runs if "error" not in r]
+        total_cpu = self.total_cpu_s()
         return _jsonable({
             "scene": s.grades[0].spec.name, "runs_requested": s.runs,
             "duration_s": s.duration_s, "rate_hz": s.rate_hz, "samples_per_run": s.samples,
@@ -494,6 +521,14 @@ class MonteCarloResult:
             "runs_finished": len(done), "runs_failed": len(self.failed),
             "workers": self.workers, "scheduler": self.scheduler, "wall_s": self.wall_s,
             "cost_per_run_s": self.cost_per_run_s(),
+            # everything our processes spent, per run: start-up, transfer and waits included
+            "cpu_s": total_cpu,
+            "total_cpu_per_run_s": (total_cpu / len(done) if done and total_cpu is not None
+                                    else None),
+            "worker_processes": None if self.cost is None else self.cost.processes,
+            "pool_startup_s": None if self.cost is None else self.cost.startup_s,
+            "load_average_1min": (None if self.load_average is None
+                                  else list(self.load_average)),
             "compute_per_run_s": (float(np.mean([r["wall_s"] for r in done])) if done
                                   else None),
             "cpu_per_run_s": float(np.mean([r["cpu_s"] for r in done])) if done else None,
@@ -517,12 +552,18 @@ def _jsonable(x):
     return x
 
 
+_RUNS_PER_TASK = 4
+
+
 def _chunks(setup: MonteCarloSetup, workers: int) -> list[tuple]:
-    """Tasks of a few runs each: few enough that the per-task cost (pickling the set-up, a
-    round trip) vanishes, enough that every worker has several (a late straggler is short)."""
+    """Tasks of a few runs each: enough that every worker has many (the last task, which
+    may run while the other workers have nothing left, is short: at most
+    :data:`_RUNS_PER_TASK` runs), few enough that the per-task cost vanishes (a task's
+    set-up pickles to ~5 kB and a run's result to ~12 kB, a round trip of a few ms against
+    the tenths of a second of a run)."""
     seeds = run_seeds(setup.seed, setup.runs)
     total = setup.runs * len(setup.grades)
-    size = max(1, min(32, math.ceil(total / (4 * max(workers, 1)))))
+    size = max(1, min(_RUNS_PER_TASK, math.ceil(total / (16 * max(workers, 1)))))
     tasks = []
     for g in range(len(setup.grades)):
         for a in range(0, setup.runs, size):
@@ -559,20 +600,36 @@ def run_montecarlo(setup: MonteCarloSetup, *, workers: int = 1, scheduler: str |
             bar.update(len(tasks[i][2]))
 
     interrupted = False
-    t0 = time.perf_counter()
+    cost = None
+    load0 = _load_average()
+    t0, c0 = time.perf_counter(), _own_cpu_s()
     try:
-        run_tasks(_run_chunk, tasks, on_result, workers=workers, scheduler=scheduler,
-                  on_error=on_error, progress=advance, connect_timeout_s=connect_timeout_s)
+        cost = run_tasks(_run_chunk, tasks, on_result, workers=workers, scheduler=scheduler,
+                         on_error=on_error, progress=advance,
+                         connect_timeout_s=connect_timeout_s)
     except KeyboardInterrupt:
         interrupted = True
     finally:
         if bar is not None:
             bar.close()
-    wall = time.perf_counter() - t0
+    wall, own = time.perf_counter() - t0, _own_cpu_s() - c0
     runs = [r for i in sorted(results) for r in results[i]]
     order = {g.label: k for k, g in enumerate(setup.grades)}
     runs.sort(key=lambda r: (order[r["grade"]], r["index"]))
-    return MonteCarloResult(setup, runs, interrupted, wall, workers, scheduler)
+    return MonteCarloResult(setup, runs, interrupted, wall, workers, scheduler, cost, own,
+                            (load0, _load_average()))
+
+
+def _own_cpu_s() -> float:
+    u = resource.getrusage(resource.RUSAGE_SELF)  # every thread of this process
+    return u.ru_utime + u.ru_stime
+
+
+def _load_average() -> float:
+    try:
+        return os.getloadavg()[0]
+    except OSError:  # not available on this platform
+        return math.nan
 
 
 # --------------------------------------------------------------------------- plot

@@ -15,6 +15,10 @@ arrives (in completion order: the caller files it under ``i``).
   worker's task with SystemExit, so the task's clean-up runs.  A worker that dies (killed, out of
   memory) breaks the pool: the tasks not yet finished are run again in a new pool, at most
   :data:`POOL_RESTARTS` times.
+* Every worker process and every Dask task composes attitudes single-threaded
+  (:func:`gyro_attitude.core.attitude.compose.set_prepare_threads` 0, and one BLAS/OpenMP
+  thread in the pool): the workers are the parallelism, and threads of their own beside them
+  on the same cores only add switching.
 * ``scheduler``: a running ``dask.distributed`` scheduler at that address; Dask is imported only
   then.  The scheduler itself re-runs the tasks of a lost worker (its ``allowed-failures``
   setting, 3 by default); a task that killed too many workers is reported as failed.
@@ -29,17 +33,24 @@ finished.
 from __future__ import annotations
 
 import contextlib
+import functools
 import multiprocessing
 import multiprocessing.forkserver
 import os
+import resource
 import signal
 import sys
+import threading
+import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass
+
+from gyro_attitude.core.attitude.compose import set_prepare_threads
 
 __all__ = ["POOL_RESTARTS", "CONNECT_TIMEOUT_S", "default_workers", "run_tasks",
-           "SchedulerUnreachable"]
+           "SchedulerUnreachable", "TaskCost"]
 
 POOL_RESTARTS = 2
 #: Seconds to wait for a Dask scheduler before giving up (one line, exit 1).
@@ -48,6 +59,30 @@ CONNECT_TIMEOUT_S = 10.0
 
 class SchedulerUnreachable(OSError):
     """No Dask scheduler answered at the address within the timeout."""
+
+
+@dataclass(frozen=True)
+class TaskCost:
+    """What running a list of tasks cost, as :func:`run_tasks` measured it.
+
+    ``cpu_s``: CPU seconds (user + system, all threads) of the processes that ran the tasks:
+    in this process, its CPU during the tasks; on a local pool, each worker's whole life since
+    it was forked (start-up, unpickling and idle waits included; this process's own share,
+    submitting and collecting, is not); None on Dask (its workers are not ours to measure).
+    ``processes``: worker processes that ran tasks.  ``startup_s``: seconds from creating the
+    local pool until the last of its workers began its first task (0 in this process, None on
+    Dask)."""
+
+    cpu_s: float | None
+    processes: int
+    startup_s: float | None
+
+
+def _process_cpu_s() -> float:
+    """CPU seconds of this process so far, every thread (``getrusage(RUSAGE_SELF)``; a forked
+    worker's count starts at its fork)."""
+    u = resource.getrusage(resource.RUSAGE_SELF)
+    return u.ru_utime + u.ru_stime
 
 
 def default_workers() -> int:
@@ -72,24 +107,35 @@ def _stop_on_sigterm(_signum, _frame) -> None:
 
 
 def _call(fn, arg):
-    """A task in a pool worker.  A worker whose task SIGTERM ended goes on to the next item
+    """A task in a pool worker: ``(fn(arg), (pid, the worker's CPU seconds after it, the
+    monotonic time it began))``.  A worker whose task SIGTERM ended goes on to the next item
     already queued to it (the executor catches the exception of a task): it ends instead."""
     global _in_task
     if _stopping:
         os._exit(128 + signal.SIGTERM)
+    began = time.monotonic()
     _in_task = True
     try:
-        return fn(arg)
+        value = fn(arg)
     finally:
         _in_task = False
+    return value, (os.getpid(), _process_cpu_s(), began)
 
 
-def _worker_signals() -> None:
+def _dask_call(fn, arg):
+    """A task on a Dask worker: composed single-threaded (the cluster's workers are the
+    parallelism; idempotent, so every task may set it)."""
+    set_prepare_threads(0)
+    return fn(arg)
+
+
+def _worker_init() -> None:
     """A worker ignores Ctrl-C (the command decides) and ends its task on SIGTERM by an
     exception, so that the task's clean-up runs (a half-written output is removed) before
-    the process ends."""
+    the process ends; it composes attitudes single-threaded (the module docstring)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _stop_on_sigterm)
+    set_prepare_threads(0)
 
 
 def _context():
@@ -117,6 +163,30 @@ def _single_threaded_children():
             os.environ.pop(k, None)
 
 
+@contextlib.contextmanager
+def _signals_held():
+    """SIGINT and SIGTERM held while the pool starts its workers, and delivered after.
+
+    A Ctrl-C in the middle of starting a worker interrupts this process after the forkserver
+    forked the worker but before the executor knew its pid: the worker cannot be stopped, and
+    it prints a traceback when it finds the pool gone.  Held here, the signal arrives when
+    every worker is known (at most the start-up later), and the clean-up stops them all.
+    Only in the main thread (where Python runs signal handlers)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    got: list[int] = []
+    held = (signal.SIGINT, signal.SIGTERM)
+    previous = {s: signal.signal(s, lambda sig, _frame: got.append(sig)) for s in held}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+        if got:
+            signal.raise_signal(got[0])  # to the handler it was meant for
+
+
 def _describe(exc: BaseException) -> str:
     text = str(exc).strip().splitlines()
     return f"{type(exc).__name__}: {text[0] if text else ''}".rstrip(": ")
@@ -126,8 +196,9 @@ def run_tasks(fn: Callable, args: Sequence, on_result: Callable[[int, object], N
               workers: int = 1, scheduler: str | None = None,
               on_error: Callable[[int, str], None] | None = None,
               progress: Callable[[int], None] | None = None,
-              connect_timeout_s: float = CONNECT_TIMEOUT_S) -> None:
-    """``on_result(i, fn(args[i]))`` for every task (see the module docstring).
+              connect_timeout_s: float = CONNECT_TIMEOUT_S) -> TaskCost:
+    """``on_result(i, fn(args[i]))`` for every task (see the module docstring); returns what
+    they cost (:class:`TaskCost`; an interrupted run raises instead).
 
     ``progress(i)`` is called after each task's result or error.  Raises
     :class:`SchedulerUnreachable` when the scheduler does not answer within
@@ -148,7 +219,9 @@ def run_tasks(fn: Callable, args: Sequence, on_result: Callable[[int, object], N
 
     if scheduler is not None:
         _run_dask(fn, args, done, scheduler, connect_timeout_s)
-    elif workers == 1 or len(args) <= 1:
+        return TaskCost(None, 0, None)
+    if workers == 1 or len(args) <= 1:
+        cpu0 = _process_cpu_s()
         for i, a in enumerate(args):
             try:
                 value = fn(a)
@@ -156,13 +229,17 @@ def run_tasks(fn: Callable, args: Sequence, on_result: Callable[[int, object], N
                 done(i, error=_describe(exc))
             else:
                 done(i, value)
-    else:
-        _run_pool(fn, args, done, workers)
+        return TaskCost(_process_cpu_s() - cpu0, 1, 0.0)
+    return _run_pool(fn, args, done, workers)
 
 
-def _run_pool(fn, args, done, workers: int) -> None:
+def _run_pool(fn, args, done, workers: int) -> TaskCost:
     pending = list(range(len(args)))
+    cpu: dict[int, float] = {}  # worker pid: its CPU seconds at its latest finished task
+    first_start: dict[int, float] = {}  # worker pid: when it began its first task
+    startup = None
     for attempt in range(POOL_RESTARTS + 1):
+        created = time.monotonic()
         context = _context()
         with _single_threaded_children():
             if context.get_start_method() == "forkserver":
@@ -171,10 +248,11 @@ def _run_pool(fn, args, done, workers: int) -> None:
                 context.set_forkserver_preload(["__main__", fn.__module__])
                 multiprocessing.forkserver.ensure_running()
             pool = ProcessPoolExecutor(max_workers=min(workers, len(pending)),
-                                       mp_context=context, initializer=_worker_signals)
+                                       mp_context=context, initializer=_worker_init)
         futures = {}
         try:
-            with _single_threaded_children():  # the workers start at the first submits
+            # the workers start at the first submits
+            with _single_threaded_children(), _signals_held():
                 futures = {pool.submit(_call, fn, args[i]): i for i in pending}
             not_done = set(futures)
             while not_done:
@@ -188,18 +266,24 @@ def _run_pool(fn, args, done, workers: int) -> None:
                     if exc is not None:
                         done(i, error=_describe(exc))
                     else:
-                        done(i, f.result())
+                        value, (pid, cpu_s, began) = f.result()
+                        cpu[pid] = max(cpu.get(pid, 0.0), cpu_s)
+                        first_start[pid] = min(first_start.get(pid, began), began)
+                        done(i, value)
         except BaseException:  # Ctrl-C, or on_result raised: stop the workers first
             _terminate(pool)
             raise
         pool.shutdown(wait=True)
+        if startup is None and first_start:
+            startup = max(first_start.values()) - created
         if not pending:
-            return
+            break
         if attempt < POOL_RESTARTS:
             print(f"warning: a worker process died; running its {len(pending)} unfinished "
                   f"task(s) again in a new pool", file=sys.stderr)
     for i in list(pending):
         done(i, error=f"a worker process died while running it ({POOL_RESTARTS + 1} attempts)")
+    return TaskCost(sum(cpu.values()), len(cpu), startup)
 
 
 def _terminate(pool: ProcessPoolExecutor) -> None:
@@ -239,7 +323,7 @@ def _run_dask(fn, args, done, address: str, timeout_s: float) -> None:
     futures = []
     try:
         # pure=False: every task runs (two equal arguments are still two runs to count)
-        futures = client.map(fn, list(args), pure=False)
+        futures = client.map(functools.partial(_dask_call, fn), list(args), pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
         for f in as_completed(futures, loop=client.loop):
             i = index[f.key]

@@ -120,6 +120,14 @@ def test_same_runs_with_one_and_two_workers(two_grade_setup):
     # the grades differ (different error models on the same seeds)
     assert one.runs[0]["final_error_rad"] != one.runs[6]["final_error_rad"]
     assert one.runs[0]["seed"] == one.runs[6]["seed"]
+    # what the sets cost: every process's CPU, at least what the runs themselves used
+    for res, processes in ((one, {1}), (two, {1, 2})):  # a fast worker may take every task
+        doc = res.to_json()
+        inside = sum(r["cpu_s"] for r in res.runs)
+        assert inside <= doc["cpu_s"] and doc["total_cpu_per_run_s"] == doc["cpu_s"] / 12
+        assert doc["worker_processes"] in processes
+        assert len(doc["load_average_1min"]) == 2
+    assert one.to_json()["pool_startup_s"] == 0.0 < two.to_json()["pool_startup_s"]
 
 
 def test_same_runs_on_a_dask_local_cluster(two_grade_setup):

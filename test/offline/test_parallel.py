@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import os
+import time
 
 import pytest
 
+from gyro_attitude.core.attitude import compose
 from gyro_attitude.offline import parallel
 
 
@@ -17,6 +19,16 @@ def _square_or_die_once(arg):
         open(marker, "w").close()
         os._exit(9)
     return x * x
+
+
+def _burn(seconds):
+    """Worker task: spends ``seconds`` of its process's CPU; returns what it spent, the
+    composition threads of its process and its pid."""
+    c0 = time.process_time()
+    x = 0
+    while time.process_time() - c0 < seconds:
+        x += 1
+    return time.process_time() - c0, compose._prepare_threads, os.getpid()
 
 
 def _raise_on_two(x):
@@ -44,6 +56,29 @@ def test_a_task_that_raises_is_reported_and_the_others_finish(workers):
     assert errors == {2: "RuntimeError: planted bug"}
 
 
+def test_pool_workers_compose_single_threaded_and_their_cpu_is_counted():
+    out = {}
+    cost = parallel.run_tasks(_burn, [0.15] * 4, out.__setitem__, workers=2)
+    spent = sum(v[0] for v in out.values())
+    assert {v[1] for v in out.values()} == {0}  # no chunk threads beside the workers
+    assert cost.processes == len({v[2] for v in out.values()}) >= 1
+    assert os.getpid() not in {v[2] for v in out.values()}
+    # each worker's whole life is counted: at least what the tasks spent, not the parent's
+    assert spent <= cost.cpu_s < spent + 5.0
+    assert cost.startup_s is not None and cost.startup_s > 0
+
+
+def test_in_process_tasks_keep_the_composition_threads_and_count_this_process():
+    out = {}
+    before = compose._prepare_threads
+    cost = parallel.run_tasks(_burn, [0.1, 0.1], out.__setitem__, workers=1)
+    assert {v[1] for v in out.values()} == {before}
+    assert {v[2] for v in out.values()} == {os.getpid()}
+    spent = sum(v[0] for v in out.values())
+    assert cost.processes == 1 and cost.startup_s == 0.0
+    assert spent <= cost.cpu_s < spent + 1.0
+
+
 def test_bad_worker_counts_are_refused():
     for bad in (0, -1, 1.5, True):
         with pytest.raises(ValueError, match="workers"):
@@ -58,5 +93,10 @@ def test_dask_reruns_the_task_of_a_lost_worker(tmp_path):
                                   host="127.0.0.1", dashboard_address=None) as cluster:
         parallel.run_tasks(_square_or_die_once, [(x, marker) for x in range(6)],
                            out.__setitem__, scheduler=cluster.scheduler_address)
+        threads = {}
+        cost = parallel.run_tasks(_burn, [0.01], threads.__setitem__,
+                                  scheduler=cluster.scheduler_address)
     assert os.path.exists(marker)  # the worker did die (its nanny starts a new one)
     assert out == {i: i * i for i in range(6)}
+    assert threads[0][1] == 0  # a Dask task composes single-threaded
+    assert cost.cpu_s is None  # the cluster's processes are not ours to measure

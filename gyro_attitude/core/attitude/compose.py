@@ -18,6 +18,31 @@ CHUNK = 61440  # intervals per batch chunk: a multiple of 1..4 (N-sample blocks 
 _CONJ = np.array([-1.0, -1.0, -1.0, 1.0])
 
 
+def _cpus() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+#: Worker threads of :func:`compose_chunked` that prepare chunks ahead of the thread carrying
+#: the attitude: two when this process may use several CPUs, else none.  A process that is one
+#: of several workers sharing the cores (the Monte Carlo and fleet pools, a Dask task) sets 0
+#: once with :func:`set_prepare_threads`: its peers already keep every core busy, and two more
+#: threads per process only add switching.  The arithmetic is the same either way.
+_prepare_threads = 2 if _cpus() >= 2 else 0
+
+
+def set_prepare_threads(n: int) -> int:
+    """Set the chunk-preparing threads of this process (0: every chunk in the caller's
+    thread); returns the previous number."""
+    global _prepare_threads
+    if isinstance(n, bool) or not isinstance(n, int) or not 0 <= n <= 64:
+        raise ValueError(f"prepare threads must be an integer from 0 to 64, got {n!r}")
+    previous, _prepare_threads = _prepare_threads, n
+    return previous
+
+
 def normalize_rows(q: np.ndarray) -> np.ndarray:
     return q / np.sqrt(np.einsum("...i,...i->...", q, q))[..., None]
 
@@ -110,14 +135,17 @@ def compose_chunked(n_samples: int, q0: np.ndarray, n_per_update: int, increment
 
 
 def _in_order(fn, items):
-    """``fn(item)`` for each item, in order; with several chunks and cores, computed ahead by
-    two worker threads (at most three submitted ahead: memory stays a few chunks)."""
-    if len(items) < 2 or (os.cpu_count() or 1) < 2:
+    """``fn(item)`` for each item, in order; with several chunks, computed ahead by the
+    :data:`_prepare_threads` worker threads when there are any (at most one more submitted
+    ahead than threads: memory stays a few chunks)."""
+    threads = _prepare_threads
+    if len(items) < 2 or threads == 0:
         yield from map(fn, items)
         return
-    with ThreadPoolExecutor(max_workers=2, thread_name_prefix="attitude_chunk") as pool:
-        pending = deque(pool.submit(fn, it) for it in items[:3])
-        for it in items[3:]:
+    ahead = threads + 1
+    with ThreadPoolExecutor(max_workers=threads, thread_name_prefix="attitude_chunk") as pool:
+        pending = deque(pool.submit(fn, it) for it in items[:ahead])
+        for it in items[ahead:]:
             yield pending.popleft().result()
             pending.append(pool.submit(fn, it))
         while pending:

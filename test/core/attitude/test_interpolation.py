@@ -119,9 +119,23 @@ def test_threaded_composition_equals_single_thread(monkeypatch, algorithm):
     t = _stamps(n, 100_000, seed=8)
     w = np.random.default_rng(9).normal(size=(n, 3)) * 2.0
     kw = {"quadrature": "cubic"} if algorithm == "coning2" else {}
-    monkeypatch.setattr(compose.os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(compose, "_prepare_threads", 2)
     threaded = integrate_batch(t, w, algorithm=algorithm, **kw)
-    monkeypatch.setattr(compose.os, "cpu_count", lambda: 1)
+    previous = compose.set_prepare_threads(0)
+    assert previous == 2
+
+    def no_threads(*_a, **_k):
+        raise AssertionError("a thread pool was started with 0 prepare threads")
+
+    monkeypatch.setattr(compose, "ThreadPoolExecutor", no_threads)
     single = integrate_batch(t, w, algorithm=algorithm, **kw)
     np.testing.assert_array_equal(threaded, single)
     assert np.allclose(np.linalg.norm(threaded, axis=1), 1.0, rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("bad", [-1, 65, 1.5, True, "2", None])
+def test_prepare_threads_rejects_what_is_not_a_thread_count(bad):
+    before = compose._prepare_threads
+    with pytest.raises(ValueError, match="prepare threads"):
+        compose.set_prepare_threads(bad)
+    assert compose._prepare_threads == before
