@@ -328,6 +328,8 @@ class AhrsFilter:
         inv = 1.0 / dt
         return ox + ex * inv, oy + ey * inv, oz + ez * inv
 
+    step = update  # the stage's step on checked inputs (the stream's chain): the same step
+
     def _tilt(self, dt, ox, oy, oz, fx, fy, fz, c00, c01, c02, c10, c11, c12, c20, c21, c22):
         """The tilt correction (nav x, y rotation) of one accelerometer sample."""
         p = self.params

@@ -194,11 +194,11 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
         if acc is None:
             st.accel_present = False
         if q_out.shape[0]:
-            st.q = q_out[-1].copy()
+            st.q = tuple(q_out[-1].tolist())
             if s.integrator is not None:
                 # the last sample is the integrator's history: the next push() integrates from
                 # it (as after a restart: the fit rebuilds from two samples on)
-                s.integrator.reset(st.q, None)
+                s.integrator.reset(q_out[-1], None)
                 s.integrator.update(int(tv[-1]), rate[-1])
     for key in EXTRA_COUNTS:
         st.counts[key] = counts[key]

@@ -469,7 +469,7 @@ def test_counted_problems_keep_their_first_detail():
 def test_integrator_error_verdict(monkeypatch):
     s = AttitudeStream("exp_map", config=StreamConfig(gyro_bias="none"))
     s.push(MS, [0.0, 0.0, 1.0], "imu")
-    monkeypatch.setattr(s.integrator, "update", lambda t_ns, omega: np.full(4, np.nan))
+    monkeypatch.setattr(s.integrator, "advance", lambda t_ns, omega: (math.nan,) * 4)
     verdict, q = s.push(2 * MS, [0.0, 0.0, 1.0], "imu")
     assert q is None and verdict.rejected and verdict.reason == INTEGRATOR_ERROR
     assert verdict.detail == "non-finite attitude: last good one restored"
