@@ -243,17 +243,21 @@ class RunForm(StrEnum):
     """Which form of the chain :meth:`AttitudeStream.run` takes (:func:`run_form`)."""
 
     ARRAYS = "arrays"
+    LOOP = "arrays+loop"  # the data-only stages as arrays, the feedback in one loop
     PER_SAMPLE = "per-sample"
 
 
 def run_form(config: StreamConfig) -> tuple[RunForm, str]:
-    """The one decision of the form :meth:`AttitudeStream.run` takes, and why: per sample
-    where a stage feeds back through the attitude sample by sample (gravity aiding: its
-    correction depends on the attitude it corrects), arrays otherwise.  (The Earth rate taken
-    out of the rest averages at the current attitude couples the bias to the attitude too,
-    but only through the slow Earth rate: the array form iterates it to the fixed point.)"""
+    """The one decision of the form :meth:`AttitudeStream.run` takes, and why: where a stage
+    feeds back through the attitude sample by sample (aiding: its correction depends on the
+    attitude it corrects), the data-only stages as arrays and one loop over the samples for
+    the rest (:mod:`.stream_loop`); arrays end to end otherwise.  (The Earth rate taken out of
+    the rest averages at the current attitude couples the bias to the attitude too, but only
+    through the slow Earth rate: the array form iterates it to the fixed point.)  The
+    per-sample form (every sample pushed) is the fallback of both when an integrator error
+    needs it."""
     if config.aiding is not Aiding.NONE:
-        return RunForm.PER_SAMPLE, "aiding is a feedback loop through the attitude"
+        return RunForm.LOOP, "aiding is a feedback loop through the attitude"
     return RunForm.ARRAYS, "every stage has an array form for these settings"
 
 
@@ -751,6 +755,7 @@ class AttitudeStream:
         Raises ValueError when levelling cannot align on the recording.
         """
         from gyro_attitude.core.attitude.stream_batch import run_arrays
+        from gyro_attitude.core.attitude.stream_loop import run_loop
 
         if self.validator.last_t_ns is not None or self.validator.accepted:
             raise ValueError("run() needs a fresh AttitudeStream (it replays a whole recording)")
@@ -774,6 +779,11 @@ class AttitudeStream:
                 return result
             why = "the array form met a non-finite attitude"
             self.__init__(*self._init_args)  # the per-sample form starts from scratch
+        elif self.integrator is not None:
+            result = run_loop(self, t.astype(np.int64, copy=False), w, frame_id, cov, acc, mg)
+            if result is not None:
+                return result
+            self.__init__(*self._init_args)  # an integrator error: every sample pushed
         if self.integrator is None:
             raise PerSamplePathNeeded(
                 f"{self.algorithm} is an offline algorithm and runs on arrays only, but this "

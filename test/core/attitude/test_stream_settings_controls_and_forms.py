@@ -400,7 +400,7 @@ def test_run_form_is_arrays_for_every_setting_but_aiding():
         assert AttitudeStream(config=cfg).run_form()[0] is RunForm.ARRAYS
     # aiding feeds back through the attitude, sample by sample
     form, why = AttitudeStream(config=StreamConfig(aiding="gravity")).run_form()
-    assert form is RunForm.PER_SAMPLE and "aiding" in why
+    assert form is RunForm.LOOP and "aiding" in why
 
 
 def test_bias_summary_line():
