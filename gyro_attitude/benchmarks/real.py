@@ -40,6 +40,7 @@ import time
 
 import numpy as np
 
+from gyro_attitude.core.angles import wrap_pi
 from gyro_attitude.core.attitude import NavFrame, integrate_batch
 from gyro_attitude.core.attitude.offline import estimate_offline
 from gyro_attitude.core.attitude.rest import detect_rest, rest_segments
@@ -115,7 +116,7 @@ def heading_error(q_est, q_true) -> np.ndarray:
     """|rotation about the vertical| of the error ``q_est ⊗ q_true⁻¹`` (its twist about nav up,
     rad): the heading part of the error, whatever the tilt."""
     e = quat_multiply(q_est, quat_conjugate(q_true))
-    return np.abs((2.0 * np.arctan2(e[..., 2], e[..., 3]) + np.pi) % (2.0 * np.pi) - np.pi)
+    return np.abs(wrap_pi(2.0 * np.arctan2(e[..., 2], e[..., 3])))
 
 
 def end_of_motion(t, g, a) -> int:

@@ -60,6 +60,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gyro_attitude.core.angles import wrap_pi
 from gyro_attitude.core.attitude.modes import SettingError
 from gyro_attitude.core.attitude.settings import setting
 from gyro_attitude.core.earth import STANDARD_GRAVITY
@@ -184,10 +185,6 @@ def _butterworth2(tau: float, dt: float) -> tuple[float, float, float, float, fl
     d = c * c + _SQRT2 * c + 1.0
     b0 = c * c / d
     return b0, 2.0 * b0, b0, 2.0 * (c * c - 1.0) / d, (1.0 - _SQRT2 * c + c * c) / d
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def _as_floats(v) -> tuple[float, float, float] | None:
@@ -437,7 +434,7 @@ class AhrsFilter:
             return 0.0, False
         if horiz < 1e-3 * norm:
             return 0.0, False  # at a magnetic pole the horizontal field gives no heading
-        err = _wrap(math.atan2(ex, ey) - self._decl)
+        err = wrap_pi(math.atan2(ex, ey) - self._decl)
         self.mag_used += 1
         if not self.heading_initialized:
             self.heading_initialized = True

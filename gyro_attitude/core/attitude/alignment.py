@@ -13,6 +13,13 @@ Heading convention: ``heading`` is the azimuth of the body x axis, clockwise fro
 with roll ``φ = atan2(f_y, f_z)`` and pitch ``θ = atan2(−f_x, √(f_y² + f_z²))`` from the mean
 specific force (which points up at rest).
 
+Heading from the magnetometer (``mag_heading``, the stream's ``aiding: magnetometer`` with
+``initial_attitude_source: level``): the mean field over the same rest samples, less the hard
+iron, levelled with the roll and pitch (tilt-compensated), gives the magnetic azimuth of the
+body x axis, ``heading = atan2(−m_e, m_n) + declination`` with ``(m_e, m_n)`` the horizontal
+field in the yaw-0 level frame... written out in :func:`magnetic_heading`.  The mean of N
+samples, not one: the heading's noise falls as ``σ_m / (B_h √N)``.
+
 Expected errors (1σ, reported):
 
 * levelling: ``√(σ_ba² + σ_f²/n) / g`` per tilt axis — an accelerometer bias ``b`` tilts the
@@ -37,6 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gyro_attitude.core.angles import wrap_2pi
 from gyro_attitude.core.attitude.modes import SettingError
 from gyro_attitude.core.attitude.rest import RestDetector, check_sample, check_samples, detect_rest
 from gyro_attitude.core.earth import OMEGA_IE, check_latitude
@@ -61,6 +69,10 @@ class AlignmentResult:
     samples: int
     mean_specific_force: np.ndarray  # (3,) m/s²
     mean_rate: np.ndarray  # (3,) rad/s, raw (bias not removed)
+    # heading from the field: the mean field over the rest (tesla, body, hard iron removed)
+    # and how many rest samples had one; None, 0 otherwise
+    mean_magnetic_field: np.ndarray | None = None
+    mag_samples: int = 0
 
 
 def _c_lb(roll: float, pitch: float) -> np.ndarray:
@@ -111,7 +123,22 @@ def gyrocompass_heading(w_b, roll: float, pitch: float) -> float:
     the horizontal Earth rate is ``ω_ie cos L · [sin ψ, cos ψ]``, so ``ψ = atan2(ω_x, ω_y)``."""
     w_l = _c_lb(roll, pitch) @ np.asarray(w_b, dtype=np.float64)
     psi = math.atan2(float(w_l[0]), float(w_l[1]))
-    return (math.pi / 2 - psi) % (2 * math.pi)
+    return wrap_2pi(math.pi / 2 - psi)
+
+
+def magnetic_heading(m_b, roll: float, pitch: float, declination: float = 0.0) -> float:
+    """Heading (clockwise from true north, [0, 2π)) of the body x axis from the field ``m_b``
+    (body, hard iron removed) with the body levelled by ``roll`` and ``pitch``: in the yaw-0
+    level frame (x along the body's horizontal x, y to its left, z up) the horizontal field
+    points at the magnetic azimuth ``α`` east of the heading-frame's north... the field's
+    direction seen from the body is ``atan2(−m_y, m_x)`` clockwise from the body x axis, so
+    the body x axis lies that much counter-clockwise of magnetic north; true north is
+    ``declination`` (east positive) counter-clockwise of magnetic north seen from the field."""
+    m_l = _c_lb(roll, pitch) @ np.asarray(m_b, dtype=np.float64)
+    # the field's azimuth clockwise from the body x axis is atan2(−m_y, m_x); the body x axis
+    # is at heading h, the field at the declination: h + azimuth = declination
+    azimuth = math.atan2(-float(m_l[1]), float(m_l[0]))
+    return wrap_2pi(declination - azimuth)
 
 
 def check_gyrocompass_feasible(gyro_bias_sigma_rad_s: float, latitude_rad: float | None,
@@ -149,7 +176,7 @@ class _Options:
         if isinstance(initial_heading_deg, bool) or not isinstance(initial_heading_deg, int | float) \
                 or not math.isfinite(initial_heading_deg) or abs(initial_heading_deg) > 1e6:
             raise ValueError(f"initial_heading_deg must be a finite number, got {initial_heading_deg!r}")
-        self.heading = math.radians(initial_heading_deg) % (2 * math.pi)
+        self.heading = wrap_2pi(math.radians(initial_heading_deg))
         self.gyrocompass = bool(gyrocompass)
         self.lat = None if latitude_rad is None else float(check_latitude(float(latitude_rad),
                                                                           "latitude_rad"))
