@@ -251,6 +251,18 @@ class AhrsFilter:
         self._hi_since_s = 0.0
         self.hard_iron_fits = 0
 
+    def heading_from_field(self, seconds: float, norm_t: float, dip_rad: float) -> None:
+        """The heading was just set from the mean field over ``seconds`` of rest (the static
+        alignment, with the levelled attitude): the filter goes on from it as a running average
+        that has already seen that much field (no fast first phase, the time constant starts at
+        ``seconds``), and that field (norm, dip) is the reference unless one is given."""
+        self.heading_initialized = True
+        self._since_heading_s = HEADING_INIT_S + seconds
+        if self.mag_ref_norm is None:
+            self.mag_ref_norm = norm_t
+        if self.mag_ref_dip is None:
+            self.mag_ref_dip = dip_rad
+
     def restart(self) -> None:
         """A new time base (gap, reset): the low-pass starts again from the next sample; the
         references, the bias and the hard iron are kept."""

@@ -76,7 +76,12 @@ from gyro_attitude.core.attitude.modes import (
 )
 from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.core.earth import STANDARD_GRAVITY
-from gyro_attitude.core.rotation import quat_from_rotvec, quat_multiply, quat_normalize
+from gyro_attitude.core.rotation import (
+    quat_from_rotvec,
+    quat_multiply,
+    quat_normalize,
+    quat_rotate,
+)
 
 __all__ = ["AttitudeStream", "PerSamplePathNeeded", "RunForm", "StreamConfig", "StreamResult",
            "StreamState", "bias_summary", "gyro_variances", "gyro_variances_array", "run_form"]
@@ -330,7 +335,8 @@ class AttitudeStream:
             gyro_bias_sigma=cfg.gyro_bias_sigma_rad_s if gc else None,
             accel_bias_sigma=cfg.accel_bias_sigma,
             heading_error_limit_deg=cfg.heading_error_limit_deg, min_rest_s=cfg.min_rest_s,
-            rest=cfg.rest_params())
+            rest=cfg.rest_params(), mag_heading=cfg.aiding is Aiding.MAGNETOMETER,
+            declination_deg=cfg.magnetic_declination_deg, hard_iron_t=cfg.mag_hard_iron_t)
 
     # ------------------------------------------------------------------ queries
     @property
@@ -613,7 +619,7 @@ class AttitudeStream:
         self.alignment_error = None
         al = self.aligner
         try:
-            done = al.update(t_ns, w, a)
+            done = al.update(t_ns, w, a, mag)
         except ValueError:
             self.aligner = self._new_aligner()
             return None
@@ -667,6 +673,13 @@ class AttitudeStream:
             self.integrator.reset(res.q_nb, None)
         if self.aiding is not None:
             self.aiding.last_t_ns = None
+            if res.heading_source == "magnetometer":
+                # the heading is the mean field's over the rest: the filter goes on from it
+                m_n = quat_rotate(res.q_nb, res.mean_magnetic_field)
+                self.aiding.heading_from_field((res.rest_end_ns - res.rest_start_ns) * 1e-9,
+                                               float(np.linalg.norm(m_n)),
+                                               math.atan2(-float(m_n[2]),
+                                                          math.hypot(m_n[0], m_n[1])))
 
     def _integrate(self, verdict: v.Verdict, t_ns: int, rate: tuple, a, var, mag=None,
                    fresh: bool = False):

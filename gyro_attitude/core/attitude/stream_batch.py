@@ -80,10 +80,10 @@ class Recording:
     align: tuple | None
 
 
-def data_stages(s, t, w, frame_id, acc) -> Recording:
+def data_stages(s, t, w, frame_id, acc, mag=None) -> Recording:
     """Validation, the accelerometer's usability, saturation and alignment over a recording on
     the fresh stream ``s`` (their array forms, leaving each stage as its per-sample step
-    would)."""
+    would); ``mag`` (N, 3) the field for a heading from it at the alignment, or None."""
     cfg, st = s.config, s.state
     cls = s.validator.run(t, w, frame_id)  # 1. validate
     act = cls.action
@@ -111,7 +111,8 @@ def data_stages(s, t, w, frame_id, acc) -> Recording:
         idx = np.flatnonzero(a_ok)
         cut = breaks.copy()
         cut[1:] |= ~a_ok[:-1]
-        got = s.aligner.run(tv[idx], wv[idx], av[idx], cut[idx])
+        got = s.aligner.run(tv[idx], wv[idx], av[idx], cut[idx],
+                            None if mag is None else rows(mag, valid)[idx])
         if got is None:
             raise ValueError(cannot_align(cfg))
         align = (int(idx[got[0]]), int(idx[got[1]]), got[2])

@@ -58,7 +58,8 @@ def run_loop(s, t, w, frame_id, cov, acc, mag) -> StreamResult | None:
     """The chain over a recording on the fresh stream ``s`` (see the module docstring); None
     when an integrator error needs the per-sample form."""
     cfg, st = s.config, s.state
-    rec = data_stages(s, t, w, frame_id, acc)
+    rec = data_stages(s, t, w, frame_id, acc,
+                      mag if cfg.aiding is Aiding.MAGNETOMETER else None)
     valid, tv, wv, actv, counts, details = (rec.valid, rec.tv, rec.wv, rec.actv, rec.counts,
                                             rec.details)
     m = valid.size
