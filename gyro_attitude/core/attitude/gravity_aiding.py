@@ -125,18 +125,24 @@ class GravityAiding:
     def _lowpass(self, f, x, y, z, s, k, dt):
         """The specific force low-passed in the nav frame, seen in the body (see the module
         docstring): ``f_n = C_nb f`` is averaged with time constant ``accel_lowpass_s``."""
-        c = ((1 - k * (y * y + z * z), k * (x * y - z * s), k * (x * z + y * s)),
-             (k * (x * y + z * s), 1 - k * (x * x + z * z), k * (y * z - x * s)),
-             (k * (x * z - y * s), k * (y * z + x * s), 1 - k * (x * x + y * y)))
-        fn = [c[i][0] * f[0] + c[i][1] * f[1] + c[i][2] * f[2] for i in range(3)]
+        c00, c01, c02 = 1 - k * (y * y + z * z), k * (x * y - z * s), k * (x * z + y * s)
+        c10, c11, c12 = k * (x * y + z * s), 1 - k * (x * x + z * z), k * (y * z - x * s)
+        c20, c21, c22 = k * (x * z - y * s), k * (y * z + x * s), 1 - k * (x * x + y * y)
+        f0, f1, f2 = f
+        n0 = c00 * f0 + c01 * f1 + c02 * f2
+        n1 = c10 * f0 + c11 * f1 + c12 * f2
+        n2 = c20 * f0 + c21 * f1 + c22 * f2
         lp = self._f_nav
         if lp is None:
-            lp = self._f_nav = fn
+            lp = self._f_nav = [n0, n1, n2]
         else:
             alpha = dt / (self.accel_lowpass_s + dt)
-            for i in range(3):
-                lp[i] = lp[i] + alpha * (fn[i] - lp[i])
-        return tuple(c[0][i] * lp[0] + c[1][i] * lp[1] + c[2][i] * lp[2] for i in range(3))
+            lp[0] = lp[0] + alpha * (n0 - lp[0])
+            lp[1] = lp[1] + alpha * (n1 - lp[1])
+            lp[2] = lp[2] + alpha * (n2 - lp[2])
+        l0, l1, l2 = lp
+        return (c00 * l0 + c10 * l1 + c20 * l2, c01 * l0 + c11 * l1 + c21 * l2,
+                c02 * l0 + c12 * l1 + c22 * l2)
 
 
 def gravity_aided_attitude(t_ns, gyro, accel, q0, *, kp: float = 1.0, ki: float = 0.002,
