@@ -203,8 +203,8 @@ def run_loop(s, t, w, frame_id, cov, acc, mag) -> StreamResult | None:
         if acc is None:
             st.accel_present = False
         st.variance_known = bool(variance_known[-1])
-    for key in EXTRA_COUNTS:
-        st.counts[key] = counts[key]
+    for key in EXTRA_COUNTS:  # the data-only stages' counts beside what the loop counted
+        st.counts[key] += counts[key]
     for key, text in details.items():
         st.details.setdefault(key, text)
     if st.phase is not RUNNING:
