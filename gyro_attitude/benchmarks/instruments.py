@@ -16,6 +16,7 @@ import time
 
 import numpy as np
 
+from gyro_attitude.core.angles import wrap_pi
 from gyro_attitude.core.instruments.cases import instrument_case
 from gyro_attitude.core.instruments.directional_gyro import (
     DirectionalGyro,
@@ -38,8 +39,7 @@ def _timed(fn):
     return out, time.perf_counter() - t0
 
 
-def _wrap(a):
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+_wrap = wrap_pi
 
 
 def _gyrocompass_rows(quick: bool) -> list[dict]:

@@ -16,10 +16,12 @@ so these are the figures users get), in the ENU frame at the recording's latitud
 bias from rests; ``level`` roll/pitch from the initial rest's specific force, heading from the
 truth (the truth's north is magnetic), auto bias; ``gravity`` auto bias + gravity aiding;
 ``level+gravity`` both.  ``none/push`` is ``none`` through the per-sample path (the cost of the
-sequential path against the batch one, same numbers).  Peers in the same run on the same data:
-naive exponential map without bias, ``vqf`` (VQF 6D, no magnetometer) and ``imufusion``
-(Madgwick's Fusion AHRS, 6D); their heading is not observable, so their full-attitude error is
-taken after aligning the heading at the start and their tilt error is the fair comparison.
+sequential path against the batch one, same numbers); likewise ``<aided mode>/push``, the
+node's per-sample cost of the aided modes against ``run()``'s (``form``: which form ran).
+Peers in the same run on the same data: naive exponential map without bias, ``vqf`` (VQF 6D,
+no magnetometer) and ``imufusion`` (Madgwick's Fusion AHRS, 6D); their heading is not
+observable, so their full-attitude error is taken after aligning the heading at the start and
+their tilt error is the fair comparison.
 
 Offline rows (``offline/<mode>``): the whole-recording estimator
 (:func:`~gyro_attitude.core.attitude.offline.estimate_offline`, what ``replay`` runs by
@@ -43,6 +45,7 @@ import time
 
 import numpy as np
 
+from gyro_attitude.core.angles import wrap_pi
 from gyro_attitude.core.attitude import NavFrame, integrate_batch
 from gyro_attitude.core.attitude.offline import estimate_offline
 from gyro_attitude.core.attitude.rest import detect_rest, rest_segments
@@ -64,7 +67,8 @@ from gyro_attitude.io.imu_fast import (
 RECORDINGS = ("broad_05_slow_rotation_with_breaks", "broad_16_fast_translation")
 LATITUDE_RAD = np.radians(52.5)  # TU Berlin, where BROAD was recorded
 MODES = ("none", "none/push", "auto", "level", "gravity", "level+gravity", "tilt", "level+tilt",
-         "magnetometer", "level+magnetometer")
+         "magnetometer", "level+magnetometer", "gravity/push", "tilt/push", "magnetometer/push",
+         "level+magnetometer/push")
 # the offline (whole-recording) estimator, core/attitude/offline.py, same settings as the
 # causal mode after the "+"
 OFFLINE_MODES = ("offline/auto", "offline/level", "offline/gravity", "offline/level+gravity",
@@ -119,7 +123,7 @@ def heading_error(q_est, q_true) -> np.ndarray:
     """|rotation about the vertical| of the error ``q_est ⊗ q_true⁻¹`` (its twist about nav up,
     rad): the heading part of the error, whatever the tilt."""
     e = quat_multiply(q_est, quat_conjugate(q_true))
-    return np.abs((2.0 * np.arctan2(e[..., 2], e[..., 3]) + np.pi) % (2.0 * np.pi) - np.pi)
+    return np.abs(wrap_pi(2.0 * np.arctan2(e[..., 2], e[..., 3])))
 
 
 def end_of_motion(t, g, a) -> int:
@@ -217,7 +221,7 @@ def evaluate(name: str, directory=None, modes=MODES, peers=True,
             err = np.where(valid, err, np.nan)
             tilt = np.where(valid, tilt, np.nan)
             head = np.where(valid, head, np.nan)
-        if histories is not None and mode != "none/push":
+        if histories is not None and not mode.endswith("/push"):
             histories[(name, mode)] = ((tt - tt[0]) * 1e-9, np.degrees(err), np.degrees(tilt))
         m = err[motion][np.isfinite(err[motion])]
         mt = tilt[motion][np.isfinite(tilt[motion])]
@@ -243,8 +247,9 @@ def evaluate(name: str, directory=None, modes=MODES, peers=True,
     for mode in modes:
         t0 = time.perf_counter()
         stream = AttitudeStream(q0=q_first, nav=nav, config=stream_config(mode, heading))
-        if mode == "none/push":
-            q_rows = [stream.push(int(t[k]), g[k], "imu_link", None, a[k])[1]
+        if mode.endswith("/push"):  # the node's path: every sample pushed
+            m = mag if "magnetometer" in mode else [None] * t.size
+            q_rows = [stream.push(int(t[k]), g[k], "imu_link", None, a[k], m[k])[1]
                       for k in range(first, t.size)]
             index = first + np.flatnonzero([x is not None for x in q_rows])
             q_res = np.array([x for x in q_rows if x is not None])
@@ -261,7 +266,7 @@ def evaluate(name: str, directory=None, modes=MODES, peers=True,
         has[index[0]:] = True
         row(mode, q, seconds, valid=has[idx])
         rows[-1]["bias_note"] = stream.bias_report.note
-        rows[-1]["batch_path"] = mode != "none/push" and stream.run_form()[0] == "arrays"
+        rows[-1]["form"] = "push" if mode.endswith("/push") else str(stream.run_form()[0])
     for mode in offline_modes:
         cfg = stream_config(mode.split("/", 1)[1], heading)
         res, seconds = _best_of(lambda cfg=cfg, mode=mode: estimate_offline(

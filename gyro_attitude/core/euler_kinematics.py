@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from gyro_attitude.core.angles import wrap_pi_closed
 from gyro_attitude.core.rotation import (
     as_matrix_array,
     as_quat_array,
@@ -134,9 +135,7 @@ def _as_angle_array(a, name: str) -> np.ndarray:
     return a
 
 
-def _wrap_pi(a: np.ndarray) -> np.ndarray:
-    """Wrap angles into (−π, π]."""
-    return np.pi - np.mod(np.pi - a, _TWO_PI)
+_wrap_pi = wrap_pi_closed  # (−π, π]
 
 
 def _check_lock_tol(lock_tol: float) -> float:

@@ -507,7 +507,7 @@ def _vec(x) -> str:
 def alignment_summary(res) -> str:
     """One line on an alignment result (degrees)."""
     heading = f"{math.degrees(res.heading):.2f}° ({res.heading_source}"
-    if res.heading_source == "gyrocompass":
+    if res.heading_source in ("gyrocompass", "magnetometer"):
         heading += f", ±{math.degrees(res.heading_error_expected):.2g}°"
     return (f"roll {math.degrees(res.roll):.2f}°, pitch {math.degrees(res.pitch):.2f}° "
             f"(±{math.degrees(res.level_error_expected):.2g}°), heading {heading}) over "

@@ -60,6 +60,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gyro_attitude.core.angles import wrap_pi
 from gyro_attitude.core.attitude.modes import SettingError
 from gyro_attitude.core.attitude.settings import setting
 from gyro_attitude.core.earth import STANDARD_GRAVITY
@@ -186,10 +187,6 @@ def _butterworth2(tau: float, dt: float) -> tuple[float, float, float, float, fl
     return b0, 2.0 * b0, b0, 2.0 * (c * c - 1.0) / d, (1.0 - _SQRT2 * c + c * c) / d
 
 
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
-
-
 def _as_floats(v) -> tuple[float, float, float] | None:
     """3 finite floats, or None (absent, wrong shape, non-finite)."""
     if v is None:
@@ -253,6 +250,18 @@ class AhrsFilter:
         self._hi_sums = [0.0] * 14 if p.estimate_hard_iron else None
         self._hi_since_s = 0.0
         self.hard_iron_fits = 0
+
+    def heading_from_field(self, seconds: float, norm_t: float, dip_rad: float) -> None:
+        """The heading was just set from the mean field over ``seconds`` of rest (the static
+        alignment, with the levelled attitude): the filter goes on from it as a running average
+        that has already seen that much field (no fast first phase, the time constant starts at
+        ``seconds``), and that field (norm, dip) is the reference unless one is given."""
+        self.heading_initialized = True
+        self._since_heading_s = HEADING_INIT_S + seconds
+        if self.mag_ref_norm is None:
+            self.mag_ref_norm = norm_t
+        if self.mag_ref_dip is None:
+            self.mag_ref_dip = dip_rad
 
     def restart(self) -> None:
         """A new time base (gap, reset): the low-pass starts again from the next sample; the
@@ -327,6 +336,8 @@ class AhrsFilter:
             b[2] -= g * (c02 * lx + c12 * ly + c22 * lz)
         inv = 1.0 / dt
         return ox + ex * inv, oy + ey * inv, oz + ez * inv
+
+    step = update  # the stage's step on checked inputs (the stream's chain): the same step
 
     def _tilt(self, dt, ox, oy, oz, fx, fy, fz, c00, c01, c02, c10, c11, c12, c20, c21, c22):
         """The tilt correction (nav x, y rotation) of one accelerometer sample."""
@@ -435,7 +446,7 @@ class AhrsFilter:
             return 0.0, False
         if horiz < 1e-3 * norm:
             return 0.0, False  # at a magnetic pole the horizontal field gives no heading
-        err = _wrap(math.atan2(ex, ey) - self._decl)
+        err = wrap_pi(math.atan2(ex, ey) - self._decl)
         self.mag_used += 1
         if not self.heading_initialized:
             self.heading_initialized = True

@@ -13,6 +13,16 @@ Heading convention: ``heading`` is the azimuth of the body x axis, clockwise fro
 with roll ``φ = atan2(f_y, f_z)`` and pitch ``θ = atan2(−f_x, √(f_y² + f_z²))`` from the mean
 specific force (which points up at rest).
 
+Heading from the magnetometer (``mag_heading``: the stream's ``aiding: magnetometer`` with
+``initial_attitude_source: level``): the mean field over the same rest samples, less the hard
+iron, levelled with the roll and pitch (tilt-compensated) gives the heading,
+``h = declination − atan2(−m_y, m_x)`` with ``(m_x, m_y)`` the horizontal field in the yaw-0
+level frame (:func:`magnetic_heading`).  The mean of the N rest samples, not one sample: its
+noise is ``σ_m / (B_h √N)`` (``σ_m`` per axis, ``B_h`` the horizontal field), and a tilt error
+``δ`` turns it by ``tan(dip)·δ``; expected ``√(σ_m²/(N B_h²) + tan²(dip) σ_level²)``.  Rest
+samples without a usable field (absent, non-finite, beyond 10 mT, below 0.1 µT) are left out
+of the mean; with none, or at a magnetic pole, the heading stays the given one.
+
 Expected errors (1σ, reported):
 
 * levelling: ``√(σ_ba² + σ_f²/n) / g`` per tilt axis — an accelerometer bias ``b`` tilts the
@@ -37,6 +47,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gyro_attitude.core.angles import wrap_2pi
+from gyro_attitude.core.attitude.ahrs import MAG_ABSURD_T, MAG_ZERO_T
 from gyro_attitude.core.attitude.modes import SettingError
 from gyro_attitude.core.attitude.rest import RestDetector, check_sample, check_samples, detect_rest
 from gyro_attitude.core.earth import OMEGA_IE, check_latitude
@@ -61,6 +73,10 @@ class AlignmentResult:
     samples: int
     mean_specific_force: np.ndarray  # (3,) m/s²
     mean_rate: np.ndarray  # (3,) rad/s, raw (bias not removed)
+    # heading from the field: the mean field over the rest (tesla, body, hard iron removed)
+    # and how many rest samples had one; None, 0 otherwise
+    mean_magnetic_field: np.ndarray | None = None
+    mag_samples: int = 0
 
 
 def _c_lb(roll: float, pitch: float) -> np.ndarray:
@@ -111,7 +127,18 @@ def gyrocompass_heading(w_b, roll: float, pitch: float) -> float:
     the horizontal Earth rate is ``ω_ie cos L · [sin ψ, cos ψ]``, so ``ψ = atan2(ω_x, ω_y)``."""
     w_l = _c_lb(roll, pitch) @ np.asarray(w_b, dtype=np.float64)
     psi = math.atan2(float(w_l[0]), float(w_l[1]))
-    return (math.pi / 2 - psi) % (2 * math.pi)
+    return wrap_2pi(math.pi / 2 - psi)
+
+
+def magnetic_heading(m_b, roll: float, pitch: float, declination: float = 0.0) -> float:
+    """Heading (clockwise from true north, [0, 2π)) of the body x axis from the field ``m_b``
+    (body, hard iron removed), the body levelled by ``roll`` and ``pitch``, the field's
+    horizontal part pointing ``declination`` east of true north."""
+    m_l = _c_lb(roll, pitch) @ np.asarray(m_b, dtype=np.float64)
+    # in the yaw-0 level frame (x the body's x made horizontal, y to its left, z up) the
+    # horizontal field lies atan2(−m_y, m_x) clockwise of the body x axis; the x axis is at
+    # heading h, the field at the declination: h + that angle = declination
+    return wrap_2pi(declination - math.atan2(-float(m_l[1]), float(m_l[0])))
 
 
 def check_gyrocompass_feasible(gyro_bias_sigma_rad_s: float, latitude_rad: float | None,
@@ -143,13 +170,30 @@ def _check_nonneg(name, v) -> float:
     return x
 
 
+def usable_field(m, hard_iron) -> tuple[float, float, float] | None:
+    """A magnetometer sample as 3 floats less the hard iron, or None when it is no reading
+    (absent, not 3 finite numbers, beyond MAG_ABSURD_T or below MAG_ZERO_T: the AHRS's rule)."""
+    if m is None:
+        return None
+    try:
+        x, y, z = (float(c) for c in m)
+    except (TypeError, ValueError):
+        return None
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)
+            and max(abs(x), abs(y), abs(z)) <= MAG_ABSURD_T
+            and x * x + y * y + z * z >= MAG_ZERO_T * MAG_ZERO_T):
+        return None
+    return x - hard_iron[0], y - hard_iron[1], z - hard_iron[2]
+
+
 class _Options:
     def __init__(self, initial_heading_deg, gyrocompass, latitude_rad, gyro_bias, gyro_bias_sigma,
-                 accel_bias_sigma, heading_error_limit_deg, min_rest_s, rest):
+                 accel_bias_sigma, heading_error_limit_deg, min_rest_s, rest, mag_heading=False,
+                 declination_deg=0.0, hard_iron_t=(0.0, 0.0, 0.0)):
         if isinstance(initial_heading_deg, bool) or not isinstance(initial_heading_deg, int | float) \
                 or not math.isfinite(initial_heading_deg) or abs(initial_heading_deg) > 1e6:
             raise ValueError(f"initial_heading_deg must be a finite number, got {initial_heading_deg!r}")
-        self.heading = math.radians(initial_heading_deg) % (2 * math.pi)
+        self.heading = wrap_2pi(math.radians(initial_heading_deg))
         self.gyrocompass = bool(gyrocompass)
         self.lat = None if latitude_rad is None else float(check_latitude(float(latitude_rad),
                                                                           "latitude_rad"))
@@ -165,12 +209,16 @@ class _Options:
         self.limit = math.radians(_check_nonneg("heading_error_limit_deg", heading_error_limit_deg))
         self.min_rest_ns = int(round(_check_nonneg("min_rest_s", min_rest_s) * 1e9))
         self.rest = dict(rest or {})
+        self.mag_heading = bool(mag_heading)
+        self.declination = math.radians(float(declination_deg))
+        self.hard_iron = tuple(float(c) for c in hard_iron_t)
         if self.gyrocompass and (self.lat is None or self.bias_sigma is None):
             raise ValueError("gyrocompass alignment needs latitude_rad and gyro_bias_sigma (the "
                              "1σ uncertainty of the gyro_bias subtracted, rad/s)")
 
 
-def _result(opt: _Options, n: int, t0: int, t1: int, ref_f, s1f, s2f, ref_w, s1w, s2w):
+def _result(opt: _Options, n: int, t0: int, t1: int, ref_f, s1f, s2f, ref_w, s1w, s2w,
+            mag=None):
     f = np.array([ref_f[i] + s1f[i] / n for i in range(3)])
     w = np.array([ref_w[i] + s1w[i] / n for i in range(3)])
     var_f = np.array([max(s2f[i] - s1f[i] * s1f[i] / n, 0.0) / max(n - 1, 1) for i in range(3)])
@@ -193,8 +241,22 @@ def _result(opt: _Options, n: int, t0: int, t1: int, ref_f, s1f, s2f, ref_w, s1w
         heading = gyrocompass_heading(w - opt.bias, roll, pitch)
         q, roll, pitch = level_quaternion(f, heading)
         source = "gyrocompass"
+    m_mean, n_m = None, 0
+    if opt.mag_heading and mag is not None and mag[0] > 0:
+        n_m, ref_m, s1m, s2m = mag
+        m_mean = np.array([ref_m[i] + s1m[i] / n_m for i in range(3)])
+        var_m = [max(s2m[i] - s1m[i] * s1m[i] / n_m, 0.0) / max(n_m - 1, 1) for i in range(3)]
+        m_l = _c_lb(roll, pitch) @ m_mean
+        horizontal = math.hypot(float(m_l[0]), float(m_l[1]))
+        if horizontal >= 1e-3 * float(np.linalg.norm(m_mean)):  # not at a magnetic pole
+            heading = magnetic_heading(m_mean, roll, pitch, opt.declination)
+            q, roll, pitch = level_quaternion(f, heading)
+            source = "magnetometer"
+            tan_dip = abs(float(m_l[2])) / horizontal
+            sigma_heading = math.sqrt(float(np.mean(var_m)) / n_m / horizontal ** 2
+                                      + (tan_dip * sigma_level) ** 2)
     return AlignmentResult(q, roll, pitch, heading, source, sigma_level, sigma_heading, t0, t1, n,
-                           f, w)
+                           f, w, m_mean, n_m)
 
 
 class StaticAligner:
@@ -204,10 +266,11 @@ class StaticAligner:
                  latitude_rad: float | None = None, gyro_bias=(0.0, 0.0, 0.0),
                  gyro_bias_sigma: float | None = None, accel_bias_sigma: float = 0.05,
                  heading_error_limit_deg: float = 5.0, min_rest_s: float = 1.0,
-                 rest: dict | None = None):
+                 rest: dict | None = None, mag_heading: bool = False,
+                 declination_deg: float = 0.0, hard_iron_t=(0.0, 0.0, 0.0)):
         self._opt = _Options(initial_heading_deg, gyrocompass, latitude_rad, gyro_bias,
                              gyro_bias_sigma, accel_bias_sigma, heading_error_limit_deg,
-                             min_rest_s, rest)
+                             min_rest_s, rest, mag_heading, declination_deg, hard_iron_t)
         self.detector = RestDetector(**self._opt.rest)
         self._pending: deque = deque()
         self._seg = None  # [t0, t1, n, ref_f, s1f, s2f, ref_w, s1w, s2w]
@@ -233,8 +296,9 @@ class StaticAligner:
         """Time of the last sample accumulated into the open rest (None without one)."""
         return None if self._seg is None else self._seg[1]
 
-    def update(self, t_ns: int, gyro, accel) -> bool:
-        """Consume one sample; True once the first qualifying rest has ended."""
+    def update(self, t_ns: int, gyro, accel, mag=None) -> bool:
+        """Consume one sample (``mag`` the field, tesla, or None; used with ``mag_heading``);
+        True once the first qualifying rest has ended."""
         if self.done:
             return True
         if accel is None:
@@ -242,15 +306,16 @@ class StaticAligner:
         at_rest = self.detector.update(t_ns, gyro, accel)
         t, g, a = check_sample(t_ns, gyro, accel)
         index = self.detector.samples - 1
-        self._pending.append((index, t, g, a))
+        m = usable_field(mag, self._opt.hard_iron) if self._opt.mag_heading else None
+        self._pending.append((index, t, g, a, m))
         j = self.detector.oldest_index
         while self._pending[0][0] < j:
             self._pending.popleft()
         if at_rest:
             if j > self._last_acc:
                 self._last_acc = j
-                _, tj, gj, aj = self._pending[0]
-                self._add(tj, gj, aj)
+                _, tj, gj, aj, mj = self._pending[0]
+                self._add(tj, gj, aj, mj)
         elif self._seg is not None:
             if self._seg[1] - self._seg[0] >= self._opt.min_rest_ns:
                 self.done = True
@@ -258,10 +323,19 @@ class StaticAligner:
                 self._seg = None  # too short: wait for a longer rest
         return self.done
 
-    def _add(self, t, g, a) -> None:
+    def _add(self, t, g, a, m=None) -> None:
         s = self._seg
         if s is None:
-            s = self._seg = [t, t, 0, a, [0.0] * 3, [0.0] * 3, g, [0.0] * 3, [0.0] * 3]
+            s = self._seg = [t, t, 0, a, [0.0] * 3, [0.0] * 3, g, [0.0] * 3, [0.0] * 3,
+                             0, None, [0.0] * 3, [0.0] * 3]
+        if m is not None:  # the field's sums: n, reference, Σ d, Σ d² (d = m − reference)
+            if s[10] is None:
+                s[10] = m
+            s[9] += 1
+            for i in range(3):
+                d = m[i] - s[10][i]
+                s[11][i] = s[11][i] + d
+                s[12][i] = s[12][i] + d * d
         s[1] = t
         s[2] += 1
         for i in range(3):
@@ -272,13 +346,14 @@ class StaticAligner:
             s[7][i] = s[7][i] + e
             s[8][i] = s[8][i] + e * e
 
-    def run(self, t, g, a, breaks=None) -> tuple[int, int, AlignmentResult] | None:
+    def run(self, t, g, a, breaks=None, mag=None) -> tuple[int, int, AlignmentResult] | None:
         """Array form of :meth:`update` over a recording (a fresh aligner; the windows broken
         before every row where ``breaks`` (N,) is True, which discards an open rest as the
         stream does): ``(done_row, first_row, result)`` — the row at which the first qualifying
         rest ended, the row of its last rest sample (from which the attitude is integrated),
         and the alignment — or None when no rest qualifies.  ``result`` raises as
-        :meth:`result` does (gyrocompass refused) through :func:`_result`."""
+        :meth:`result` does (gyrocompass refused) through :func:`_result`.  ``mag`` (N, 3)
+        the field (tesla; rows of NaN: none) for ``mag_heading``."""
         n = t.shape[0]
         starts = [0] if breaks is None else [0, *np.flatnonzero(breaks[1:]) + 1]
         for r0, r1 in zip(starts, [*starts[1:], n], strict=True):
@@ -307,16 +382,34 @@ class StaticAligner:
                 self.done = True
                 res = _result(self._opt, j.size, int(tt[j[0]]), int(tt[j[-1]]),
                               aa[j[0]].tolist(), sums[0], sums[1], gg[j[0]].tolist(), sums[2],
-                              sums[3])
+                              sums[3], self._field_sums(mag, r0 + j))
                 return r0 + int(end), r0 + int(j[-1]), res
         return None
+
+    def _field_sums(self, mag, j):
+        """The field's sums over the rest samples ``j`` (the array form of :meth:`_add`)."""
+        if not self._opt.mag_heading or mag is None:
+            return None
+        hi = self._opt.hard_iron
+        mm = np.asarray(mag, dtype=np.float64)[j]
+        with np.errstate(invalid="ignore", over="ignore"):
+            ok = (np.abs(mm).max(axis=1) <= MAG_ABSURD_T) & (
+                (mm * mm).sum(axis=1) >= MAG_ZERO_T * MAG_ZERO_T)
+        mm = mm[ok]
+        if not mm.shape[0]:
+            return None
+        mm = np.column_stack([mm[:, i] - hi[i] for i in range(3)])
+        d = mm - mm[0]
+        return (mm.shape[0], mm[0].tolist(), np.cumsum(d, axis=0)[-1].tolist(),
+                np.cumsum(d * d, axis=0)[-1].tolist())
 
     def result(self) -> AlignmentResult:
         s = self._seg
         if s is None or s[1] - s[0] < self._opt.min_rest_ns:
             raise ValueError(f"cannot align: no rest of at least {self._opt.min_rest_ns / 1e9:g} s "
                              "seen yet (alignment needs the IMU still)")
-        return _result(self._opt, s[2], s[0], s[1], s[3], s[4], s[5], s[6], s[7], s[8])
+        mag = (s[9], s[10], s[11], s[12]) if s[9] else None
+        return _result(self._opt, s[2], s[0], s[1], s[3], s[4], s[5], s[6], s[7], s[8], mag)
 
 
 def align(t_ns, gyro, accel, initial_heading_deg: float = 0.0, *, gyrocompass: bool = False,

@@ -39,47 +39,76 @@ __all__ = ["AttitudeCovariance", "propagate_batch"]
 
 
 class AttitudeCovariance:
-    """Per-axis 2×2 attitude/bias error covariance (see the module docstring)."""
+    """Per-axis 2×2 attitude/bias error covariance (see the module docstring).
+
+    The per-row updates (:meth:`propagate`, :meth:`aid_tilt`, ...) run on plain floats (three
+    axes: numpy's per-call overhead would be most of their cost); ``tt``, ``tb``, ``bb``,
+    ``noise`` and ``initial_tt`` read and set as (3,) arrays."""
 
     def __init__(self, initial_tt, bias_sigma: float = 0.0, bias_rw: float = 0.0):
-        self.initial_tt = np.broadcast_to(np.asarray(initial_tt, dtype=np.float64), (3,)).copy()
-        self.tt = self.initial_tt.copy()
-        self.tb = np.zeros(3)
-        self.bb = np.full(3, float(bias_sigma) ** 2)
+        self.initial_tt = initial_tt
+        self._tt = list(self._it)
+        self._tb = [0.0, 0.0, 0.0]
+        self._bb = [float(bias_sigma) ** 2] * 3
         self.k2 = float(bias_rw) ** 2
-        self.noise = np.zeros(3)  # Σ q since the attitude was last set
+        self._noise = [0.0, 0.0, 0.0]  # Σ q since the attitude was last set
 
-    def first_rest_update(self, standard_error: np.ndarray, elapsed_s: float) -> None:
+    @staticmethod
+    def _three(x) -> list[float]:
+        return np.broadcast_to(np.asarray(x, dtype=np.float64), (3,)).tolist()
+
+    initial_tt = property(lambda self: np.array(self._it),
+                          lambda self, x: setattr(self, "_it", self._three(x)))
+    tt = property(lambda self: np.array(self._tt),
+                  lambda self, x: setattr(self, "_tt", self._three(x)))
+    tb = property(lambda self: np.array(self._tb),
+                  lambda self, x: setattr(self, "_tb", self._three(x)))
+    bb = property(lambda self: np.array(self._bb),
+                  lambda self, x: setattr(self, "_bb", self._three(x)))
+    noise = property(lambda self: np.array(self._noise),
+                     lambda self, x: setattr(self, "_noise", self._three(x)))
+
+    def tt_floats(self) -> tuple[float, float, float]:
+        """``tt`` as three floats (no array made)."""
+        return tuple(self._tt)
+
+    def first_rest_update(self, standard_error, elapsed_s: float) -> None:
         """The first bias estimate, applied back to the start ``elapsed_s`` ago (still since)."""
-        self.bb = np.asarray(standard_error, dtype=np.float64) ** 2
-        self.tt = self.initial_tt + self.noise + (elapsed_s * elapsed_s) * self.bb
-        self.tb = -elapsed_s * self.bb
+        bb = self._bb = [float(se) ** 2 for se in standard_error]
+        e2 = elapsed_s * elapsed_s
+        self._tt = [(self._it[i] + self._noise[i]) + e2 * bb[i] for i in range(3)]
+        self._tb = [-elapsed_s * bb[i] for i in range(3)]
 
-    def propagate(self, dt_s: float, q: np.ndarray) -> None:
+    def propagate(self, dt_s: float, q) -> None:
         """One accepted interval of ``dt_s`` seconds with angle-random-walk increment ``q`` (3,)."""
-        tb, bb = self.tb, self.bb
-        self.tt = self.tt + ((q - (2.0 * dt_s) * tb) + (dt_s * dt_s) * bb)
-        self.noise = self.noise + q
-        self.tb = tb + -(dt_s * bb)
-        self.bb = bb + self.k2 * dt_s
+        tt, tb, bb, nz = self._tt, self._tb, self._bb, self._noise
+        q0, q1, q2 = q
+        d2 = 2.0 * dt_s
+        dd = dt_s * dt_s
+        k2dt = self.k2 * dt_s
+        b0, b1, b2 = bb
+        t0, t1, t2 = tb
+        self._tt = [tt[0] + ((q0 - d2 * t0) + dd * b0), tt[1] + ((q1 - d2 * t1) + dd * b1),
+                    tt[2] + ((q2 - d2 * t2) + dd * b2)]
+        self._noise = [nz[0] + q0, nz[1] + q1, nz[2] + q2]
+        self._tb = [t0 + -(dt_s * b0), t1 + -(dt_s * b1), t2 + -(dt_s * b2)]
+        self._bb = [b0 + k2dt, b1 + k2dt, b2 + k2dt]
 
-    def zero_rate_update(self, standard_error: np.ndarray) -> None:
+    def zero_rate_update(self, standard_error) -> None:
         """A new bias estimate from a rest with per-axis standard error (3,) rad/s."""
-        self.bb = np.asarray(standard_error, dtype=np.float64) ** 2
-        self.tb = np.zeros(3)
+        self._bb = [float(se) ** 2 for se in standard_error]
+        self._tb = [0.0, 0.0, 0.0]
 
     def align(self, tt) -> None:
         """The attitude became known with per-axis variance ``tt`` (also the reset value)."""
-        self.initial_tt = np.broadcast_to(np.asarray(tt, dtype=np.float64), (3,)).copy()
-        self.tt = self.initial_tt.copy()
-        self.tb = np.zeros(3)
-        self.noise = np.zeros(3)
+        self.initial_tt = tt
+        self.reset_attitude()
 
     def reset_attitude(self) -> None:
         """Back to the initial attitude (time-jump reset)."""
-        self.tt = self.initial_tt.copy()
-        self.tb = np.zeros(3)
-        self.noise = np.zeros(3)
+        self._tt = list(self._it)
+        self._tb = [0.0, 0.0, 0.0]
+        self._noise = [0.0, 0.0, 0.0]
 
     def run(self, dt_s: np.ndarray, q: np.ndarray, reset: np.ndarray | None = None,
             zero_rate: np.ndarray | None = None, standard_error: np.ndarray | None = None,
@@ -137,9 +166,11 @@ class AttitudeCovariance:
     def aid_tilt(self, kp_dt: float, floor_var: float) -> None:
         """Gravity aiding over one interval (loop gain × dt): tilt axes 0 and 1 relax to the floor."""
         a = 1.0 - min(kp_dt, 1.0)
+        a2 = a * a
+        tt, tb = self._tt, self._tb
         for i in (0, 1):
-            self.tt[i] = a * a * self.tt[i] + (1.0 - a * a) * floor_var
-            self.tb[i] = a * self.tb[i]
+            tt[i] = a2 * tt[i] + (1.0 - a2) * floor_var
+            tb[i] = a * tb[i]
 
 
 _SHORT = 16  # segments up to this long are summed position by position, longer ones by cumsum

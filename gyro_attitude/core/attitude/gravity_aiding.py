@@ -82,50 +82,67 @@ class GravityAiding:
         q = as_quat_array(q_nb, "q_nb")
         if q.shape != (4,):
             raise ValueError(f"q_nb must have shape (4,), got {q.shape}")
-        x, y, z, s = (float(c) for c in q)
-        dt = 0.0 if self.last_t_ns is None else (t - self.last_t_ns) * 1e-9
-        if self.last_t_ns is not None and dt <= 0:
-            raise ValueError(f"t_ns must increase: {t} after {self.last_t_ns}")
+        return np.array(self.step(t, w, f, q.tolist()))
+
+    def step(self, t: int, w, f, q, mag=None) -> tuple[float, float, float]:
+        """:meth:`update` on inputs already checked (what the stream's chain passes): ``t`` int
+        ns, ``w`` 3 finite floats, ``f`` 3 finite floats or None, ``q`` 4 floats; the rate as
+        a 3-tuple."""
+        x, y, z, s = q
+        last = self.last_t_ns
+        dt = 0.0 if last is None else (t - last) * 1e-9
+        if last is not None and dt <= 0:
+            raise ValueError(f"t_ns must increase: {t} after {last}")
         self.last_t_ns = t
         b = self.bias
-        out = [w[0] - b[0], w[1] - b[1], w[2] - b[2]]
+        w0, w1, w2 = w
+        o0, o1, o2 = w0 - b[0], w1 - b[1], w2 - b[2]
         if f is None:
-            return np.array(out)
+            return o0, o1, o2
         if dt == 0.0:
             self._f_nav = None  # a new time base: the low-pass starts again
-        fn = math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
+        f0, f1, f2 = f
+        fn = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
         nq = x * x + y * y + z * z + s * s
         if self.accel_lowpass_s > 0.0:
-            f = self._lowpass(f, x, y, z, s, 2.0 / nq, dt)
-        wn = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+            f0, f1, f2 = self._lowpass((f0, f1, f2), x, y, z, s, 2.0 / nq, dt)
+        wn = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
         if abs(fn - self.gravity) > self.accel_tol or wn > self.rate_max or dt == 0.0:
-            return np.array(out)
+            return o0, o1, o2
         # v = C_bn e_up: the third row of C_nb (unit quaternion, scalar last), normalized.
-        v = (2 * (x * z - s * y) / nq, 2 * (y * z + s * x) / nq, 1 - 2 * (x * x + y * y) / nq)
-        fa = math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
-        a = (f[0] / fa, f[1] / fa, f[2] / fa)
-        e = (a[1] * v[2] - a[2] * v[1], a[2] * v[0] - a[0] * v[2], a[0] * v[1] - a[1] * v[0])
-        for i in range(3):
-            out[i] = out[i] + self.kp * e[i]
-            b[i] = b[i] - self.ki * e[i] * dt
+        v0, v1, v2 = (2 * (x * z - s * y) / nq, 2 * (y * z + s * x) / nq,
+                      1 - 2 * (x * x + y * y) / nq)
+        fa = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+        a0, a1, a2 = f0 / fa, f1 / fa, f2 / fa
+        e0, e1, e2 = a1 * v2 - a2 * v1, a2 * v0 - a0 * v2, a0 * v1 - a1 * v0
+        kp, ki = self.kp, self.ki
+        b[0] = b[0] - ki * e0 * dt
+        b[1] = b[1] - ki * e1 * dt
+        b[2] = b[2] - ki * e2 * dt
         self.aided_samples += 1
-        return np.array(out)
+        return o0 + kp * e0, o1 + kp * e1, o2 + kp * e2
 
     def _lowpass(self, f, x, y, z, s, k, dt):
         """The specific force low-passed in the nav frame, seen in the body (see the module
         docstring): ``f_n = C_nb f`` is averaged with time constant ``accel_lowpass_s``."""
-        c = ((1 - k * (y * y + z * z), k * (x * y - z * s), k * (x * z + y * s)),
-             (k * (x * y + z * s), 1 - k * (x * x + z * z), k * (y * z - x * s)),
-             (k * (x * z - y * s), k * (y * z + x * s), 1 - k * (x * x + y * y)))
-        fn = [c[i][0] * f[0] + c[i][1] * f[1] + c[i][2] * f[2] for i in range(3)]
+        c00, c01, c02 = 1 - k * (y * y + z * z), k * (x * y - z * s), k * (x * z + y * s)
+        c10, c11, c12 = k * (x * y + z * s), 1 - k * (x * x + z * z), k * (y * z - x * s)
+        c20, c21, c22 = k * (x * z - y * s), k * (y * z + x * s), 1 - k * (x * x + y * y)
+        f0, f1, f2 = f
+        n0 = c00 * f0 + c01 * f1 + c02 * f2
+        n1 = c10 * f0 + c11 * f1 + c12 * f2
+        n2 = c20 * f0 + c21 * f1 + c22 * f2
         lp = self._f_nav
         if lp is None:
-            lp = self._f_nav = fn
+            lp = self._f_nav = [n0, n1, n2]
         else:
             alpha = dt / (self.accel_lowpass_s + dt)
-            for i in range(3):
-                lp[i] = lp[i] + alpha * (fn[i] - lp[i])
-        return tuple(c[0][i] * lp[0] + c[1][i] * lp[1] + c[2][i] * lp[2] for i in range(3))
+            lp[0] = lp[0] + alpha * (n0 - lp[0])
+            lp[1] = lp[1] + alpha * (n1 - lp[1])
+            lp[2] = lp[2] + alpha * (n2 - lp[2])
+        l0, l1, l2 = lp
+        return (c00 * l0 + c10 * l1 + c20 * l2, c01 * l0 + c11 * l1 + c21 * l2,
+                c02 * l0 + c12 * l1 + c22 * l2)
 
 
 def gravity_aided_attitude(t_ns, gyro, accel, q0, *, kp: float = 1.0, ki: float = 0.002,

@@ -190,7 +190,7 @@ class GyroBiasEstimator:
         """The stream broke (gap, time jump, unusable accelerometer sample): close the open rest
         and start a fresh window; the rests pooled so far and the estimate are kept."""
         if self._seg is not None:
-            self._close()
+            self.close_rest()
         self.detector.reset()
         self._pending.clear()
         self._last_acc = -1
@@ -218,37 +218,58 @@ class GyroBiasEstimator:
     def bias(self) -> np.ndarray:
         return np.array(self._bias)
 
+    @property
+    def bias_floats(self) -> tuple[float, float, float]:
+        """:attr:`bias` as 3 floats (the per-sample step's form)."""
+        return self._bias
+
+    @property
+    def standard_error_floats(self) -> tuple[float, float, float]:
+        """:attr:`standard_error` as 3 floats."""
+        return self._se
+
     def update(self, t_ns: int, gyro, accel=None, q_nb=None) -> np.ndarray:
         """Consume one sample; return the bias (3,) rad/s to subtract from it."""
+        t, g, a = check_sample(t_ns, gyro, accel)
+        return np.array(self.step(t, g, a, q_nb))
+
+    def step(self, t: int, g: tuple, a: tuple | None, q_nb=None) -> tuple:
+        """:meth:`update` on a sample already through :func:`check_sample`; the bias as 3
+        floats.  The rest decision of the window ending here is the detector's; what it
+        accumulates (:meth:`value`, :meth:`accumulate`, :meth:`close_rest`) is the estimator's
+        own step, which the stream's array-and-loop form drives from the array form of the
+        detector (:meth:`rests`)."""
         self.updated = False
         if self.mode != "auto":
-            check_sample(t_ns, gyro, accel)
-            return np.array(self._bias)
-        t, g, a = check_sample(t_ns, gyro, accel)
+            return self._bias
         at_rest = self.detector.update_checked(t, g, a)
-        value = g
-        if self._earth_n is not None and q_nb is not None:
-            e = _earth_rate_body(q_nb, self._earth_n)
-            value = (g[0] - e[0], g[1] - e[1], g[2] - e[2])
-            earth = True
-        else:
-            earth = False
         index = self.detector.samples - 1
-        self._pending.append((index, t, value, earth))
+        self._pending.append((index, t, *self.value(g, q_nb)))
         j = self.detector.oldest_index
         pend = self._pending
         while pend[0][0] < j:
             pend.popleft()
         if at_rest:
             if j > self._last_acc:
-                self._accumulate(pend[0])
+                self.accumulate(pend[0][1], pend[0][2], pend[0][3])
                 self._last_acc = j
         elif self._seg is not None:
-            self._close()
-        return np.array(self._bias)
+            self.close_rest()
+        return self._bias
 
-    def _accumulate(self, entry) -> None:
-        _, t, v, earth = entry
+    def value(self, g, q_nb=None) -> tuple[tuple, bool]:
+        """(what a rest averages for the rate sample ``g``: ``g − C_bn ω_ie^n`` with a latitude
+        and an attitude ``q_nb``, else ``g``; whether the Earth rate was taken out)."""
+        if self._earth_n is not None and q_nb is not None:
+            e = _earth_rate_body(q_nb, self._earth_n)
+            return (g[0] - e[0], g[1] - e[1], g[2] - e[2]), True
+        return g, False
+
+    def accumulate(self, t: int, v, earth: bool) -> None:
+        """Add the rest sample of time ``t`` with value ``v`` (:meth:`value`) to the open rest
+        (opened by the first); publish the pooled estimate once the rest spans ``min_rest_s``
+        (``updated`` then says so)."""
+        self.updated = False
         seg = self._seg
         if seg is None:
             seg = self._seg = [t, t, 0, v, [0.0] * 3, [0.0] * 3, True]
@@ -264,7 +285,8 @@ class GyroBiasEstimator:
             mean, ssd = _Pool.seg_stats(seg[2], ref, s1, s2)
             self._publish(self._pool.estimate((seg[2], mean, ssd)), seg[6])
 
-    def _close(self) -> None:
+    def close_rest(self) -> None:
+        """The open rest ended: pooled when it spans ``min_rest_s``."""
         seg, self._seg = self._seg, None
         if seg[1] - seg[0] >= self.min_rest_ns:
             mean, ssd = _Pool.seg_stats(seg[2], seg[3], seg[4], seg[5])

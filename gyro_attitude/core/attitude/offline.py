@@ -80,6 +80,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.signal import lfilter
 
+from gyro_attitude.core.angles import wrap_2pi
 from gyro_attitude.core.attitude import NavFrame, integrate_batch
 from gyro_attitude.core.attitude import validation as v
 from gyro_attitude.core.attitude.ahrs import MAG_ABSURD_T, MAG_ZERO_T
@@ -462,7 +463,7 @@ class _Estimator:
             tilt_var0 = sl * sl
             if self.alignment is None:
                 self.alignment = AlignmentResult(
-                    q_start, roll, pitch, math.radians(cfg.initial_heading_deg) % (2 * math.pi),
+                    q_start, roll, pitch, wrap_2pi(math.radians(cfg.initial_heading_deg)),
                     "given", sl, math.nan, int(self.t[b0 + r0.start]),
                     int(self.t[b0 + r0.stop - 1]), r0.stop - r0.start, r0.accel_mean,
                     r0.bias)

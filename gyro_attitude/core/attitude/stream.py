@@ -76,7 +76,12 @@ from gyro_attitude.core.attitude.modes import (
 )
 from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.core.earth import STANDARD_GRAVITY
-from gyro_attitude.core.rotation import quat_from_rotvec, quat_multiply, quat_normalize
+from gyro_attitude.core.rotation import (
+    quat_from_rotvec,
+    quat_multiply,
+    quat_normalize,
+    quat_rotate,
+)
 
 __all__ = ["AttitudeStream", "PerSamplePathNeeded", "RunForm", "StreamConfig", "StreamResult",
            "StreamState", "bias_summary", "gyro_variances", "gyro_variances_array", "run_form"]
@@ -118,6 +123,7 @@ def unknown_noise_note(cfg: StreamConfig) -> str:
                "variance (set gyro_noise_density)"))
 
 ALIGNING, RUNNING, FAILED = Phase.ALIGNING, Phase.RUNNING, Phase.FAILED
+_ACCEPTED, _STARTED = v.Verdict(v.ACCEPT, "", ""), v.Verdict(v.START, "", "")
 
 
 def gyro_variances(covariance) -> tuple[np.ndarray | None, bool]:
@@ -207,7 +213,8 @@ class StreamResult:
 class StreamState:
     """What the chain carries between samples (each stage keeps its own state besides).
 
-    ``q`` the last attitude handed out (the initial one before any); ``q_initial`` the attitude
+    ``q`` the last attitude handed out, 4 floats (the initial one before any: the per-sample
+    stages take plain floats); ``q_initial`` the attitude
     a time-jump reset goes back to; ``resume_q`` the attitude to go on from after an integrator
     error; ``phase``; ``start_t_ns`` the first accepted stamp; ``accel_present`` whether the
     last usable sample had an accelerometer (None after an unusable one); ``first_rest_pending``
@@ -217,10 +224,10 @@ class StreamState:
     filter's sample count at the last covariance update.
     """
 
-    q: np.ndarray
+    q: tuple[float, float, float, float]
     q_initial: np.ndarray
     phase: Phase = RUNNING
-    resume_q: np.ndarray | None = None
+    resume_q: tuple | None = None
     start_t_ns: int | None = None
     accel_present: bool | None = None
     first_rest_pending: bool = False
@@ -241,17 +248,21 @@ class RunForm(StrEnum):
     """Which form of the chain :meth:`AttitudeStream.run` takes (:func:`run_form`)."""
 
     ARRAYS = "arrays"
+    LOOP = "arrays+loop"  # the data-only stages as arrays, the feedback in one loop
     PER_SAMPLE = "per-sample"
 
 
 def run_form(config: StreamConfig) -> tuple[RunForm, str]:
-    """The one decision of the form :meth:`AttitudeStream.run` takes, and why: per sample
-    where a stage feeds back through the attitude sample by sample (gravity aiding: its
-    correction depends on the attitude it corrects), arrays otherwise.  (The Earth rate taken
-    out of the rest averages at the current attitude couples the bias to the attitude too,
-    but only through the slow Earth rate: the array form iterates it to the fixed point.)"""
+    """The one decision of the form :meth:`AttitudeStream.run` takes, and why: where a stage
+    feeds back through the attitude sample by sample (aiding: its correction depends on the
+    attitude it corrects), the data-only stages as arrays and one loop over the samples for
+    the rest (:mod:`.stream_loop`); arrays end to end otherwise.  (The Earth rate taken out of
+    the rest averages at the current attitude couples the bias to the attitude too, but only
+    through the slow Earth rate: the array form iterates it to the fixed point.)  The
+    per-sample form (every sample pushed) is the fallback of both when an integrator error
+    needs it."""
     if config.aiding is not Aiding.NONE:
-        return RunForm.PER_SAMPLE, "aiding is a feedback loop through the attitude"
+        return RunForm.LOOP, "aiding is a feedback loop through the attitude"
     return RunForm.ARRAYS, "every stage has an array form for these settings"
 
 
@@ -307,7 +318,7 @@ class AttitudeStream:
         self._n2 = cfg.gyro_noise_density * cfg.gyro_noise_density
         # -- the chain's own state
         self.state = StreamState(
-            q=q_initial, q_initial=q_initial, phase=ALIGNING if cfg.levelling else RUNNING,
+            q=tuple(q_initial.tolist()), q_initial=q_initial, phase=ALIGNING if cfg.levelling else RUNNING,
             first_rest_pending=cfg.gyro_bias is GyroBiasMode.AUTO and not cfg.levelling,
             variance_known=bool(cfg.gyro_noise_density > 0 or cfg.gyro_bias_sigma_rad_s > 0
                                 or cfg.levelling))
@@ -324,7 +335,8 @@ class AttitudeStream:
             gyro_bias_sigma=cfg.gyro_bias_sigma_rad_s if gc else None,
             accel_bias_sigma=cfg.accel_bias_sigma,
             heading_error_limit_deg=cfg.heading_error_limit_deg, min_rest_s=cfg.min_rest_s,
-            rest=cfg.rest_params())
+            rest=cfg.rest_params(), mag_heading=cfg.aiding is Aiding.MAGNETOMETER,
+            declination_deg=cfg.magnetic_declination_deg, hard_iron_t=cfg.mag_hard_iron_t)
 
     # ------------------------------------------------------------------ queries
     @property
@@ -372,7 +384,7 @@ class AttitudeStream:
 
     @property
     def quaternion(self) -> np.ndarray:
-        return self.state.q.copy()
+        return np.array(self.state.q, dtype=np.float64)
 
     @property
     def variance(self) -> np.ndarray | None:
@@ -415,7 +427,8 @@ class AttitudeStream:
         (which also becomes the initial attitude), or from the initial attitude."""
         st = self.state
         if q0 is not None:
-            st.q_initial = st.q = _unit_quat(q0)
+            st.q_initial = _unit_quat(q0)
+            st.q = tuple(st.q_initial.tolist())
         st.resume_q = None
         self.validator.reset()
         self.intervals.clear()
@@ -439,33 +452,45 @@ class AttitudeStream:
             st.details.setdefault(verdict.reason, verdict.detail)
             return verdict, None
         t_ns = int(t_ns)
-        var, invalid = gyro_variances(angular_velocity_covariance)
-        if var is None and not invalid and GYRO_NOISE_UNKNOWN not in st.details and \
-                angular_velocity_covariance is not None and \
-                v.no_estimate(np.asarray(angular_velocity_covariance).reshape(-1)):
-            st.details[GYRO_NOISE_UNKNOWN] = unknown_noise_note(self.config)
-        if invalid:
-            st.count(INVALID_COVARIANCE, "angular_velocity_covariance with a non-finite or "
-                                         "negative diagonal: treated as unknown")
-        if var is not None:
-            st.variance_known = True
+        var = None
+        if angular_velocity_covariance is not None:
+            var = self._gyro_variance(angular_velocity_covariance)
         if verdict.reason is not None:  # a time jump, a gap, missing samples
             st.details.setdefault(verdict.reason, verdict.detail)
         a = self._accel(accel)
-        self._mag = self._mag_sample(mag, t_ns)
+        mag = self._mag_sample(mag, t_ns)
         if st.start_t_ns is None:
             st.start_t_ns = t_ns
         if verdict.action != v.ACCEPT:
             self._break_windows()  # a rest never spans a gap, a jump or a restart
-        w = np.asarray(omega, dtype=np.float64)
+        # the validator took 3 finite numbers: plain floats from here on
+        w = tuple(omega.tolist() if isinstance(omega, np.ndarray) else (float(c) for c in omega))
         self._saturation_step(w)
         # 2. rest -> gyro bias
         bias = self._bias_step(t_ns, w, a)
         # 3. alignment
         if st.phase is not RUNNING:
-            return verdict, self._align_step(t_ns, w, a, var, bias)
-        # 4.-6. aiding, integration, covariance
-        return self._integrate(verdict, t_ns, w - bias, a, var)
+            q = self._align_step(t_ns, w, a, var, bias, mag)
+        else:  # 4.-6. aiding, integration, covariance
+            verdict, q = self._integrate(verdict, t_ns, (w[0] - bias[0], w[1] - bias[1],
+                                                         w[2] - bias[2]), a, var, mag)
+        return verdict, None if q is None else np.array(q)
+
+    def _gyro_variance(self, covariance):
+        """The sample's per-axis gyro variances as 3 floats, or None (unknown; an invalid
+        covariance counted, "no estimate" said once)."""
+        st = self.state
+        var, invalid = gyro_variances(covariance)
+        if var is None and not invalid and GYRO_NOISE_UNKNOWN not in st.details and \
+                v.no_estimate(np.asarray(covariance).reshape(-1)):
+            st.details[GYRO_NOISE_UNKNOWN] = unknown_noise_note(self.config)
+        if invalid:
+            st.count(INVALID_COVARIANCE, "angular_velocity_covariance with a non-finite or "
+                                         "negative diagonal: treated as unknown")
+        if var is None:
+            return None
+        st.variance_known = True
+        return tuple(var.tolist())
 
     def _mag_sample(self, mag, t_ns):
         """The sample's field for the aiding (magnetometer mode), counting absent ones (a row
@@ -529,49 +554,61 @@ class AttitudeStream:
         if self.aiding is not None:
             self.aiding.last_t_ns = None
 
-    def _bias_step(self, t_ns: int, w: np.ndarray, a) -> np.ndarray:
+    def _bias_step(self, t_ns: int, w: tuple, a) -> tuple:
+        """Step 2: the bias (3 floats) to subtract from this sample."""
         est = self.bias_estimator
         if est.mode is not GyroBiasMode.AUTO:
-            return est.bias
-        st = self.state
-        q_nb = None
-        if self.latitude_rad is not None:
-            if st.phase is RUNNING:
-                q_nb = st.q
-            elif a is not None:  # aligning: level from this sample with the given heading
-                try:
-                    q_nb = level_quaternion(a, math.radians(self.config.initial_heading_deg))[0]
-                except ValueError:
-                    q_nb = None
-        previous = est.bias
+            return est.step(t_ns, w, a)
+        previous = est.bias_floats
         try:
-            bias = est.update(t_ns, w, a, q_nb)
+            bias = est.step(t_ns, w, a, self._bias_attitude(a))
         except ValueError:  # a value the rest statistics refuse (e.g. > 1e6): no rest here
             est.break_window()
-            return est.bias
+            return est.bias_floats
         if est.updated:
-            t_prev = self.integrator.last_t_ns
-            rest_start = est.open_rest_start_ns
-            if st.first_rest_pending and st.phase is RUNNING and rest_start is not None \
-                    and rest_start - st.start_t_ns <= est.window_ns and t_prev is not None \
-                    and est.rests_completed == 0:
-                # (a full window is needed before the first decision, so the first rest sample
-                # is at best the second sample of the stream)
-                # Still since the start: the samples so far were integrated with the previous
-                # bias; the body did not turn, so the attitude error is the bias change times
-                # the elapsed time, a body-frame rotation taken back here.
-                elapsed = (t_prev - st.start_t_ns) * 1e-9
-                q_fix = quat_multiply(self.integrator.quaternion,
-                                      quat_from_rotvec(-(bias - previous) * elapsed))
-                self.integrator.reset(q_fix, t_prev)
-                st.q = q_fix
-                self.covariance.first_rest_update(est.standard_error, elapsed)
-            else:
-                self.covariance.zero_rate_update(est.standard_error)
-            st.first_rest_pending = False
+            self._bias_published(previous)
         return bias
 
-    def _align_step(self, t_ns, w, a, var, bias):
+    def _bias_attitude(self, a):
+        """The attitude the bias stage takes the Earth rate out at (None: it is absorbed): the
+        current one, or while aligning levelled from this sample with the given heading."""
+        if self.latitude_rad is None:
+            return None
+        if self.state.phase is RUNNING:
+            return self.state.q
+        if a is None:
+            return None
+        try:
+            return level_quaternion(a, math.radians(self.config.initial_heading_deg))[0]
+        except ValueError:
+            return None
+
+    def _bias_published(self, previous: tuple) -> None:
+        """The bias stage published a new estimate (a zero-rate update at a rest); with the
+        stream still since its start, the first one is applied back to the start."""
+        est, st = self.bias_estimator, self.state
+        t_prev = self.integrator.last_t_ns
+        rest_start = est.open_rest_start_ns
+        if st.first_rest_pending and st.phase is RUNNING and rest_start is not None \
+                and rest_start - st.start_t_ns <= est.window_ns and t_prev is not None \
+                and est.rests_completed == 0:
+            # (a full window is needed before the first decision, so the first rest sample
+            # is at best the second sample of the stream)
+            # Still since the start: the samples so far were integrated with the previous
+            # bias; the body did not turn, so the attitude error is the bias change times
+            # the elapsed time, a body-frame rotation taken back here.
+            bias = est.bias_floats
+            elapsed = (t_prev - st.start_t_ns) * 1e-9
+            q_fix = quat_multiply(self.integrator.quaternion, quat_from_rotvec(
+                -(np.array(bias) - np.array(previous)) * elapsed))
+            self.integrator.reset(q_fix, t_prev)
+            st.q = tuple(q_fix.tolist())
+            self.covariance.first_rest_update(est.standard_error_floats, elapsed)
+        else:
+            self.covariance.zero_rate_update(est.standard_error_floats)
+        st.first_rest_pending = False
+
+    def _align_step(self, t_ns, w, a, var, bias, mag):
         st = self.state
         if st.phase is FAILED:
             return None
@@ -582,12 +619,12 @@ class AttitudeStream:
         self.alignment_error = None
         al = self.aligner
         try:
-            done = al.update(t_ns, w, a)
+            done = al.update(t_ns, w, a, mag)
         except ValueError:
             self.aligner = self._new_aligner()
             return None
         buf = self._align_buffer
-        buf.append((t_ns, w, a, var, self._mag))
+        buf.append((t_ns, w, a, var, mag))
         if not al.rest_open:
             while len(buf) > 1:
                 buf.popleft()
@@ -605,11 +642,21 @@ class AttitudeStream:
             return None
         entries = list(buf)
         buf.clear()
+        return self._aligned(res, entries, bias)
+
+    def _aligned(self, res: AlignmentResult, entries, bias):
+        """The alignment is done: start from it and integrate the samples since the last rest
+        sample (``entries`` of (t, w, a, var, mag)) with the bias in force now; the attitude
+        at the last one."""
         self._start_aligned(res)
-        t0, w0, a0, var0, self._mag = entries[0]
-        _, q = self._integrate(v.Verdict(v.START, "", ""), t0, w0 - bias, a0, var0, fresh=True)
-        for tk, wk, ak, vk, self._mag in entries[1:]:
-            _, q = self._integrate(v.Verdict(v.ACCEPT, "", ""), tk, wk - bias, ak, vk)
+        b0, b1, b2 = bias
+        q = None
+        verdict = _STARTED
+        fresh = True
+        for tk, wk, ak, vk, mk in entries:
+            _, q = self._integrate(verdict, tk, (wk[0] - b0, wk[1] - b1, wk[2] - b2), ak, vk,
+                                   mk, fresh)
+            verdict, fresh = _ACCEPTED, False
         return q
 
     def _start_aligned(self, res: AlignmentResult) -> None:
@@ -618,16 +665,28 @@ class AttitudeStream:
         self.alignment = res
         self.alignment_error = None
         st.phase = RUNNING
-        st.q_initial = st.q = res.q_nb
+        st.q_initial = res.q_nb
+        st.q = tuple(res.q_nb.tolist())
         st.resume_q = None
         self.covariance.align(alignment_variance(res, self.config.initial_attitude_variance))
         if self.integrator is not None:
             self.integrator.reset(res.q_nb, None)
         if self.aiding is not None:
             self.aiding.last_t_ns = None
+            if res.heading_source == "magnetometer":
+                # the heading is the mean field's over the rest: the filter goes on from it
+                m_n = quat_rotate(res.q_nb, res.mean_magnetic_field)
+                self.aiding.heading_from_field((res.rest_end_ns - res.rest_start_ns) * 1e-9,
+                                               float(np.linalg.norm(m_n)),
+                                               math.atan2(-float(m_n[2]),
+                                                          math.hypot(m_n[0], m_n[1])))
 
-    def _integrate(self, verdict: v.Verdict, t_ns: int, rate: np.ndarray, a, var,
+    def _integrate(self, verdict: v.Verdict, t_ns: int, rate: tuple, a, var, mag=None,
                    fresh: bool = False):
+        """Steps 4.-6. of one sample: aiding, integration, covariance; ``(verdict, attitude as
+        4 floats)``, or ``(rejection, None)`` on an integrator error.  The one sequential step
+        of the chain: :meth:`push` and the loop of :meth:`run` (:mod:`.stream_loop`) both
+        take it."""
         st = self.state
         integ = self.integrator
         action = verdict.action
@@ -636,8 +695,8 @@ class AttitudeStream:
         try:
             if action == v.ACCEPT:
                 if aid is not None:
-                    rate = aid.update(t_ns, rate, a, st.q, self._mag)
-                q = integ.update(t_ns, rate)
+                    rate = aid.step(t_ns, rate, a, st.q, mag)
+                q = integ.advance(t_ns, rate)
             else:
                 if action == v.RESET_TIME_JUMP:
                     q0 = st.q_initial
@@ -654,11 +713,11 @@ class AttitudeStream:
                 integ.reset(q0, None)
                 if aid is not None:
                     aid.last_t_ns = None
-                    rate = aid.update(t_ns, rate, a, q0, self._mag)
-                q = integ.update(t_ns, rate)
+                    rate = aid.step(t_ns, rate, a, tuple(float(c) for c in q0), mag)
+                q = integ.advance(t_ns, rate)
         except ValueError as exc:  # defensive: the validator should have caught it
             return self._integrator_error(verdict, f"integrator refused a sample: {exc}")
-        x, y, z, w = q.tolist()
+        x, y, z, w = q
         if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z) and math.isfinite(w)):
             return self._integrator_error(verdict, "non-finite attitude: last good one restored")
         if action == v.ACCEPT:
@@ -667,7 +726,12 @@ class AttitudeStream:
             dt_s = dt * 1e-9
             # angle random walk: each interval adds an independent angle error of variance
             # σ_ω² dt² per axis (σ_ω² per sample), i.e. N² dt with the noise density N.
-            qv = var * (dt_s * dt_s) if var is not None else self._n2 * dt_s * _ONES
+            if var is not None:
+                d2 = dt_s * dt_s
+                qv = (var[0] * d2, var[1] * d2, var[2] * d2)
+            else:
+                n = self._n2 * dt_s
+                qv = (n, n, n)
             cov = self.covariance
             cov.propagate(dt_s, qv)
             if aid is not None and aid.aided_samples != st.aided_seen:
@@ -704,6 +768,7 @@ class AttitudeStream:
         Raises ValueError when levelling cannot align on the recording.
         """
         from gyro_attitude.core.attitude.stream_batch import run_arrays
+        from gyro_attitude.core.attitude.stream_loop import run_loop
 
         if self.validator.last_t_ns is not None or self.validator.accepted:
             raise ValueError("run() needs a fresh AttitudeStream (it replays a whole recording)")
@@ -727,6 +792,11 @@ class AttitudeStream:
                 return result
             why = "the array form met a non-finite attitude"
             self.__init__(*self._init_args)  # the per-sample form starts from scratch
+        elif self.integrator is not None:
+            result = run_loop(self, t.astype(np.int64, copy=False), w, frame_id, cov, acc, mg)
+            if result is not None:
+                return result
+            self.__init__(*self._init_args)  # an integrator error: every sample pushed
         if self.integrator is None:
             raise PerSamplePathNeeded(
                 f"{self.algorithm} is an offline algorithm and runs on arrays only, but this "

@@ -21,6 +21,7 @@ then runs the per-sample form, which restores the last good attitude and counts 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -47,7 +48,7 @@ from gyro_attitude.core.attitude.stream import (
 )
 from gyro_attitude.core.rotation import quat_from_rotvec, quat_multiply
 
-__all__ = ["count_saturated", "run_arrays"]
+__all__ = ["Recording", "count_saturated", "data_stages", "rest_plan", "run_arrays"]
 
 _EARTH_PASSES = 8  # fixed-point passes allowed for the Earth rate at the current attitude
 
@@ -57,9 +58,32 @@ _RESTART = v.ACTION_CODES[v.RESTART_AFTER_GAP]
 _RESET = v.ACTION_CODES[v.RESET_TIME_JUMP]
 
 
-def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
-    """The chain's array form over a recording on the fresh stream ``s`` (see the module
-    docstring); None when an integration met a non-finite attitude."""
+@dataclass
+class Recording:
+    """The data-only stages of the chain over a recording (:func:`data_stages`), which every
+    form of :meth:`AttitudeStream.run` shares: the verdicts ``cls``, the accepted rows
+    ``valid`` (M,) with their stamps ``tv``, rates ``wv``, verdict codes ``actv``, specific
+    force ``av`` and whether it is usable ``a_ok`` (None without accelerometer), the rows that
+    break the rest windows ``breaks``, the counts and details of those stages, and the
+    alignment ``align = (done row, first integrated row, AlignmentResult)`` when levelling."""
+
+    cls: v.Classification
+    valid: np.ndarray
+    tv: np.ndarray
+    wv: np.ndarray
+    actv: np.ndarray
+    av: np.ndarray | None
+    a_ok: np.ndarray | None
+    breaks: np.ndarray
+    counts: dict
+    details: dict
+    align: tuple | None
+
+
+def data_stages(s, t, w, frame_id, acc, mag=None) -> Recording:
+    """Validation, the accelerometer's usability, saturation and alignment over a recording on
+    the fresh stream ``s`` (their array forms, leaving each stage as its per-sample step
+    would); ``mag`` (N, 3) the field for a heading from it at the alignment, or None."""
     cfg, st = s.config, s.state
     cls = s.validator.run(t, w, frame_id)  # 1. validate
     act = cls.action
@@ -79,11 +103,7 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
                                               "not 3 finite numbers: not used for rests or aiding")
     breaks = actv != _ACCEPT  # a rest never spans a gap, a jump or a restart
     count_saturated(wv, st, counts, details)
-
     # 3. alignment (it reads the raw rates and the accelerometer only)
-    start = 0  # first row integrated
-    out_from = 0  # first row with an attitude
-    q_start = st.q_initial
     align = None
     if cfg.levelling:
         if av is None:
@@ -91,10 +111,27 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
         idx = np.flatnonzero(a_ok)
         cut = breaks.copy()
         cut[1:] |= ~a_ok[:-1]
-        got = s.aligner.run(tv[idx], wv[idx], av[idx], cut[idx])
+        got = s.aligner.run(tv[idx], wv[idx], av[idx], cut[idx],
+                            None if mag is None else rows(mag, valid)[idx])
         if got is None:
             raise ValueError(cannot_align(cfg))
         align = (int(idx[got[0]]), int(idx[got[1]]), got[2])
+    return Recording(cls, valid, tv, wv, actv, av, a_ok, breaks, counts, details, align)
+
+
+def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
+    """The chain's array form over a recording on the fresh stream ``s`` (see the module
+    docstring); None when an integration met a non-finite attitude."""
+    cfg, st = s.config, s.state
+    rec = data_stages(s, t, w, frame_id, acc)
+    cls, valid, tv, wv, actv = rec.cls, rec.valid, rec.tv, rec.wv, rec.actv
+    av, a_ok, counts, details, align = rec.av, rec.a_ok, rec.counts, rec.details, rec.align
+    act = cls.action
+    m = valid.size
+    start = 0  # first row integrated
+    out_from = 0  # first row with an attitude
+    q_start = st.q_initial
+    if align is not None:
         start, out_from = align[1], align[0]
         q_start = align[2].q_nb
 
@@ -111,12 +148,7 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
                                      math.radians(cfg.initial_heading_deg))
         q_nb[:align[0] + 1] = q_lv
         known[:align[0] + 1] = ok & a_ok[:align[0] + 1]
-    fed = _bias_inputs(est, tv, av, a_ok, breaks)
-    plan = None
-    if est.mode is GyroBiasMode.AUTO and m:  # the rests: found once, on the rates
-        idx, cut = fed
-        a_fed = None if av is None else np.where(a_ok[idx, None], av[idx], 0.0)
-        plan = est.rests(tv[idx], wv[idx], a_fed, cut)
+    fed, plan = rest_plan(est, rec)
     q_prev = None
     for _ in range(_EARTH_PASSES if earth else 1):
         values = est.values_without_earth(wv, q_nb, known) if earth else wv
@@ -194,11 +226,11 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
         if acc is None:
             st.accel_present = False
         if q_out.shape[0]:
-            st.q = q_out[-1].copy()
+            st.q = tuple(q_out[-1].tolist())
             if s.integrator is not None:
                 # the last sample is the integrator's history: the next push() integrates from
                 # it (as after a restart: the fit rebuilds from two samples on)
-                s.integrator.reset(st.q, None)
+                s.integrator.reset(q_out[-1], None)
                 s.integrator.update(int(tv[-1]), rate[-1])
     for key in EXTRA_COUNTS:
         st.counts[key] = counts[key]
@@ -229,6 +261,19 @@ def count_saturated(wv, st, counts, details) -> None:
         details.setdefault(SATURATED, saturation_note(axis, float(wv[k, axis])))
     st.rate_max = run_max[-1].tolist()
     st.rate_last = wv[-1].tolist()
+
+
+def rest_plan(est, rec: Recording):
+    """The rows the bias stage's detector takes (:func:`_bias_inputs`) and the rests it finds
+    there (:meth:`.gyro_bias.GyroBiasEstimator.rests`, on the rates: found once), or None
+    without an ``auto`` bias."""
+    fed = _bias_inputs(est, rec.tv, rec.av, rec.a_ok, rec.breaks)
+    plan = None
+    if est.mode is GyroBiasMode.AUTO and rec.tv.shape[0]:
+        idx, cut = fed
+        a_fed = None if rec.av is None else np.where(rec.a_ok[idx, None], rec.av[idx], 0.0)
+        plan = est.rests(rec.tv[idx], rec.wv[idx], a_fed, cut)
+    return fed, plan
 
 
 def _bias_inputs(est, tv, av, a_ok, breaks):

@@ -85,7 +85,7 @@ class StreamingIntegrator:
 
     @property
     def quaternion(self) -> np.ndarray:
-        return self._q.copy()
+        return np.array(self._q, dtype=np.float64)
 
     def update_nav(self, nav: NavFrame) -> None:
         """Use the constant navigation frame ``nav`` from the next sample on.
@@ -150,27 +150,34 @@ class StreamingIntegrator:
             raise ValueError(f"omega_ib_b must be 3 finite numbers, got {omega_ib_b!r}") from None
         if not (math.isfinite(wx) and math.isfinite(wy) and math.isfinite(wz)):
             raise ValueError("omega_ib_b contains non-finite values (NaN or inf)")
-        t = self._check_time(t_ns)
-        w = (wx, wy, wz)
+        return np.array(self.advance(self._check_time(t_ns), (wx, wy, wz)))
+
+    def advance(self, t: int, w: tuple[float, float, float]) -> tuple[float, ...]:
+        """:meth:`update` on a sample already checked (``t`` an int after ``last_t_ns``, ``w``
+        3 finite floats): the attitude as 4 floats (the stream's per-sample path: no arrays)."""
         zeta = None if self.nav is None else self._nav_zeta(t)
         self.samples += 1
         if self.last_t_ns is None:
             self.last_t_ns = t
             self._ts, self._ws = [t], [w]
-            return self.quaternion
+            return tuple(self._q)
         if not self._ws:
             self._ws = [w]  # reset(q0, t_ns): hold the first rate back to the start time
-        self._ts = (self._ts + [t])[-_HISTORY:]
-        self._ws = (self._ws + [w])[-_HISTORY:]
+        ts, ws = self._ts, self._ws
+        ts.append(t)
+        ws.append(w)
+        if len(ts) > _HISTORY:
+            del ts[0]
+            del ws[0]
         stepper = self._stepper
         if self.samples == 2:
             self._zeta_first = zeta
         elif self.samples == 3:
-            stepper.redo_first(self._ts, self._ws, self._zeta_first)
-        q = stepper.interval(self._ts, self._ws, zeta)
+            stepper.redo_first(ts, ws, self._zeta_first)
+        q = stepper.interval(ts, ws, zeta)
         self.last_t_ns = t
-        self._q = np.array(q)
-        return self._q.copy()
+        self._q = q
+        return q
 
     def update_increment(self, t_ns: int, delta_theta) -> np.ndarray:
         """Consume one angle increment over ``(last_t_ns, t_ns]`` (increment algorithms).
@@ -195,5 +202,5 @@ class StreamingIntegrator:
         q = self._stepper.increment((dx, dy, dz), zeta)
         self.last_t_ns = t
         self.samples += 1
-        self._q = np.array(q)
-        return self._q.copy()
+        self._q = q
+        return np.array(q)

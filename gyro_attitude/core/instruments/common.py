@@ -22,6 +22,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from gyro_attitude.core.angles import wrap_2pi, wrap_pi
 from gyro_attitude.core.earth import (
     OMEGA_IE,
     check_latitude,
@@ -59,16 +60,6 @@ __all__ = [
 #: :class:`InstrumentStepper`): instrument states move at ≲ 1 rad/s, so the truncation error
 #: (∝ step²) and the round-off (∝ 1e-16/step) both stay below 1e-9 rad/s.
 JOINT_RATE_STEP_S = 1e-4
-
-
-def wrap_2pi(a):
-    """Angles wrapped to [0, 2π) (compass headings)."""
-    return np.mod(a, 2.0 * np.pi)
-
-
-def wrap_pi(a):
-    """Angles wrapped to [−π, π) (differences of headings)."""
-    return np.mod(np.asarray(a) + np.pi, 2.0 * np.pi) - np.pi
 
 
 def heading_from_quat(q_nb) -> np.ndarray:

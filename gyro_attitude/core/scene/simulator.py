@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gyro_attitude.core import earth
+from gyro_attitude.core.angles import wrap_pi
 from gyro_attitude.core.gyro.free_gyro import FreeGyroSimulator
 from gyro_attitude.core.gyro.rate_gyro import RateGyroTriad
 from gyro_attitude.core.instruments.common import InstrumentStepper
@@ -73,9 +74,7 @@ def _lon_rate(lat, height, v_east):
     return v_east / ((r_n + height) * np.cos(lat))
 
 
-def _wrap_lon(lon):
-    """Longitude wrapped into [-π, π)."""
-    return (lon + np.pi) % (2.0 * np.pi) - np.pi
+_wrap_lon = wrap_pi  # longitudes in [−π, π)
 
 
 def integrate_position(motion: Motion, t0: float, llh0, t) -> np.ndarray:

@@ -180,15 +180,15 @@ def test_non_finite_update_restores_last_good_attitude(monkeypatch):
     t = np.arange(1, 21, dtype=np.int64) * MS
     w = np.tile([0.0, 0.0, 1.0], (20, 1))
     s = AttitudeStream("exp_map")
-    real_update = s.integrator.update
+    real_advance = s.integrator.advance  # the integrator's step that the stream takes
     calls = {"n": 0}
 
     def flaky(t_ns, omega):
         calls["n"] += 1
-        q = real_update(t_ns, omega)
-        return np.full(4, np.nan) if calls["n"] == 10 else q
+        q = real_advance(t_ns, omega)
+        return (math.nan,) * 4 if calls["n"] == 10 else q
 
-    monkeypatch.setattr(s.integrator, "update", flaky)
+    monkeypatch.setattr(s.integrator, "advance", flaky)
     out = push_all(s, t, w)
     q = np.array([q for _, q, _ in out])
     assert np.isfinite(q).all() and len(out) == 19

@@ -34,6 +34,15 @@ MODES = {
     "auto_enu": StreamConfig(frame="enu", latitude_rad=0.9, gyro_noise_density=1e-4),
     "level_enu": StreamConfig(frame="enu", latitude_rad=0.9, initial_attitude_source="level",
                               initial_heading_deg=30.0),
+    # the AHRS stage, and aiding with the Earth rate taken out of the bias at the attitude the
+    # aiding corrects (the loop of run() carries the coupling sample by sample)
+    "tilt": StreamConfig(aiding="tilt", gyro_noise_density=1e-4),
+    "level_tilt": StreamConfig(initial_attitude_source="level", aiding="tilt"),
+    "magnetometer": StreamConfig(aiding="magnetometer", gyro_noise_density=1e-4),
+    "level_magnetometer_enu": StreamConfig(frame="enu", latitude_rad=0.9, aiding="magnetometer",
+                                           initial_attitude_source="level"),
+    "gravity_enu": StreamConfig(frame="enu", latitude_rad=0.9, aiding="gravity",
+                                gyro_noise_density=1e-4),
 }
 
 
@@ -58,10 +67,22 @@ def hostile_rest_motion_rest():
     return t, g, a, cov
 
 
-def push_all(stream, t, g, a, cov):
+def hostile_field(n):
+    """A field fixed in the body (the motion of rest_motion_rest turns and comes back) with
+    noise, rows without a field (NaN), a NaN component and an absurd reading."""
+    rng = np.random.default_rng(7)
+    mag = np.array([20e-6, 5e-6, -40e-6]) + 2e-7 * rng.standard_normal((n, 3))
+    mag[300:340] = np.nan
+    mag[700, 1] = np.nan
+    mag[1200] = [1e300, 0.0, 0.0]
+    return mag
+
+
+def push_all(stream, t, g, a, cov, mag=None):
     out = []
     for k in range(t.size):
-        _, q = stream.push(int(t[k]), g[k], "imu", cov[k], a[k])
+        _, q = stream.push(int(t[k]), g[k], "imu", cov[k], a[k],
+                           None if mag is None else mag[k])
         if q is not None:
             out.append((k, q, stream.variance))
     return out
@@ -71,9 +92,12 @@ def push_all(stream, t, g, a, cov):
 def test_run_equals_push_in_every_mode(mode):
     t, g, a, cov = hostile_rest_motion_rest()
     cfg = MODES[mode]
-    pushed = push_all(AttitudeStream("rotvec_cubic", config=cfg), t, g, a, cov)
+    mag = hostile_field(t.size) if "magnetometer" in mode else None
+    s_push = AttitudeStream("rotvec_cubic", config=cfg)
+    pushed = push_all(s_push, t, g, a, cov, mag)
     s = AttitudeStream("rotvec_cubic", config=cfg)
-    res = s.run(t, g, "imu", cov, a)
+    res = s.run(t, g, "imu", cov, a, mag)
+    assert res.counts == s_push.counts
     assert res.index.tolist() == [k for k, _, _ in pushed]
     assert np.max(np.abs(res.q - np.array([q for _, q, _ in pushed]))) <= 1e-12
     np.testing.assert_allclose(res.variance, np.array([v for _, _, v in pushed]), rtol=1e-12,
@@ -84,11 +108,11 @@ def test_run_equals_push_in_every_mode(mode):
         assert res.alignment is not None and res.index[0] > 600  # no attitude while aligning
 
 
-def test_array_form_taken_for_every_mode_but_aiding():
+def test_array_form_taken_for_every_mode_and_the_loop_for_aiding():
     for mode in ("parameter", "none_rw", "auto", "auto_noise", "level", "auto_enu", "level_enu"):
         assert AttitudeStream(config=MODES[mode]).run_form()[0] is RunForm.ARRAYS
-    for mode in ("gravity", "level_gravity"):
-        assert AttitudeStream(config=MODES[mode]).run_form()[0] is RunForm.PER_SAMPLE
+    for mode in ("gravity", "level_gravity", "tilt", "magnetometer", "gravity_enu"):
+        assert AttitudeStream(config=MODES[mode]).run_form()[0] is RunForm.LOOP
 
 
 def test_auto_bias_removed_and_first_rest_applied_back():

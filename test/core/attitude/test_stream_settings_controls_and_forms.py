@@ -400,7 +400,7 @@ def test_run_form_is_arrays_for_every_setting_but_aiding():
         assert AttitudeStream(config=cfg).run_form()[0] is RunForm.ARRAYS
     # aiding feeds back through the attitude, sample by sample
     form, why = AttitudeStream(config=StreamConfig(aiding="gravity")).run_form()
-    assert form is RunForm.PER_SAMPLE and "aiding" in why
+    assert form is RunForm.LOOP and "aiding" in why
 
 
 def test_bias_summary_line():
@@ -469,7 +469,7 @@ def test_counted_problems_keep_their_first_detail():
 def test_integrator_error_verdict(monkeypatch):
     s = AttitudeStream("exp_map", config=StreamConfig(gyro_bias="none"))
     s.push(MS, [0.0, 0.0, 1.0], "imu")
-    monkeypatch.setattr(s.integrator, "update", lambda t_ns, omega: np.full(4, np.nan))
+    monkeypatch.setattr(s.integrator, "advance", lambda t_ns, omega: (math.nan,) * 4)
     verdict, q = s.push(2 * MS, [0.0, 0.0, 1.0], "imu")
     assert q is None and verdict.rejected and verdict.reason == INTEGRATOR_ERROR
     assert verdict.detail == "non-finite attitude: last good one restored"
