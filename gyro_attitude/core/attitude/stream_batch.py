@@ -32,6 +32,7 @@ from gyro_attitude.core.attitude.stream import (
     EXTRA_COUNTS,
     GYRO_NOISE_UNKNOWN,
     INVALID_ACCEL,
+    RATE_FIT_FALLBACK,
     RUNNING,
     SATURATED,
     SATURATION_MIN_RAD_S,
@@ -40,6 +41,7 @@ from gyro_attitude.core.attitude.stream import (
     cannot_align,
     covariance_rows,
     nav_rows,
+    rate_fit_note,
     rows,
     saturation_note,
     unknown_noise_note,
@@ -124,8 +126,9 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
                                            plan)
         if align is not None:
             bias[align[1]:align[0]] = bias[align[0]]  # buffered samples: the bias at the end
+        fallbacks = []
         got = _integrate(s, t.shape[0], valid, tv, bias, wv - bias, actv, track, updates,
-                         start, q_start)
+                         start, q_start, fallbacks)
         if got is None:
             return None
         q, first_rest = got
@@ -136,6 +139,10 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
         q_nb[out_from + 1:] = q[out_from - start:-1]
     else:
         return None
+    counts[RATE_FIT_FALLBACK] = sum(int(f[1].size) for f in fallbacks)
+    if fallbacks:
+        r0, kk = fallbacks[0]
+        details.setdefault(RATE_FIT_FALLBACK, rate_fit_note(int(tv[r0 + int(kk[0])])))
     if updates.size:
         st.first_rest_pending = False
     if align is not None:
@@ -266,9 +273,10 @@ def _bias_track(est, tv, wv, values, fed, earth, plan):
     return bias, track, idx[track.updates]
 
 
-def _integrate(s, n, valid, tv, bias, rate, actv, track, updates, start, q_start):
+def _integrate(s, n, valid, tv, bias, rate, actv, track, updates, start, q_start, fallbacks):
     """Step 4: (attitudes of the rows from ``start`` on, the first-rest correction or None),
-    or None on a non-finite attitude."""
+    or None on a non-finite attitude.  ``fallbacks`` collects (first row of the run, its
+    intervals whose rate fit fell back)."""
     st = s.state
     m = tv.shape[0]
     first_rest = None
@@ -299,14 +307,18 @@ def _integrate(s, n, valid, tv, bias, rate, actv, track, updates, start, q_start
             tt = tv[sel]
             rr = rate[sel].copy()
             rr[0] = rate[r0]
+            fb = []
             q_run = integrate_batch(tt, rr, q0=q0, algorithm=s.algorithm,
                                     nav=None if nav_all is None else nav_rows(
-                                        nav_all, sel, m))[1:]
+                                        nav_all, sel, m), fallbacks=fb)[1:]
+            fallbacks.extend((r0 - 1, f) for f in fb)
         else:
             sel = slice(r0, r1)
+            fb = []
             q_run = integrate_batch(tv[sel], rate[sel], q0=q0, algorithm=s.algorithm,
                                     nav=None if nav_all is None else nav_rows(
-                                        nav_all, np.arange(r0, r1), m))
+                                        nav_all, np.arange(r0, r1), m), fallbacks=fb)
+            fallbacks.extend((r0, f) for f in fb)
         if not np.isfinite(q_run).all():
             return None
         q[r0 - start:r1 - start] = q_run
