@@ -161,6 +161,9 @@ def _c_bn_times(x, y, z, w, s, w_n):
             c02 * e0 + c12 * e1 + c22 * e2)
 
 
+_REST_CHUNK = 1 << 16  # rows of one rest summed at a time (run)
+
+
 class GyroBiasEstimator:
     """Streaming gyro bias (see the module docstring for modes and the contract)."""
 
@@ -351,45 +354,68 @@ class GyroBiasEstimator:
         for kk, j in plan:
             self._accumulate_rest(t, values, kk, j, out, bool(earth_rows[j].all()))
         if out["rows"]:
-            upd, se, prev, est, t0 = (np.concatenate(out[k]) for k in
+            # (each list freed as it is joined: one copy of the rests' rows at a time)
+            upd, se, prev, est, t0 = (np.concatenate(out.pop(k)) for k in
                                       ("rows", "se", "prev", "bias", "t0"))
-            # each estimate holds from its row until the next one
-            pos = np.searchsorted(upd, np.arange(n), side="right") - 1
-            bias[pos >= 0] = est[pos[pos >= 0]]
+            # each estimate holds from its row until the next one: runs of rows between two
+            # updates (a loop over runs of one estimate: rests are one row each, motion one run)
+            nxt = np.append(upd[1:], n)
+            gap = np.flatnonzero(nxt - upd > 1)  # estimates that hold over later rows too
+            bias[upd] = est
+            for i in gap.tolist():
+                bias[upd[i] + 1:nxt[i]] = est[i]
         else:
             upd, se, prev, t0 = (np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)),
                                  np.zeros(0, np.int64))
         return BiasTrack(bias, upd, se, prev, t0)
 
     def _accumulate_rest(self, t, values, kk, j, out: dict, earth: bool) -> None:
-        """One rest of :meth:`run`: its estimates (appended to ``out``), then pooled."""
-        v = values[j]
-        ref = v[0]
-        d = v - ref
-        # sequential running sums (np.cumsum), as update() adds them: identical numbers
-        s1 = np.cumsum(d, axis=0)
-        s2 = np.cumsum(d * d, axis=0)
-        qual = np.flatnonzero(t[j] - t[j[0]] >= self.min_rest_ns)
-        if not qual.size:
-            return
-        nc = (qual + 1).astype(np.float64)[:, None]
-        mean = ref + s1[qual] / nc
-        ssd = np.maximum(s2[qual] - s1[qual] * s1[qual] / nc, 0.0)
-        est, se = self._pool.estimate_many(nc, mean, ssd)
-        prev = np.empty_like(est)
-        prev[0] = self._bias
-        prev[1:] = est[:-1]
-        out["rows"].append(kk[qual])
-        out["se"].append(se)
-        out["prev"].append(prev)
-        out["t0"].append(np.full(qual.size, int(t[j[0]]), np.int64))
-        out["bias"].append(est)
-        self._bias, self._se = tuple(est[-1].tolist()), tuple(se[-1].tolist())
-        self._k, self._n = self._pool.k + 1, self._pool.n + int(qual[-1]) + 1
-        self._earth_now = self._earth_all and earth
+        """One rest of :meth:`run`: its estimates (appended to ``out``), then pooled.  Chunk
+        by chunk of the rest's rows (the running sums carried into each chunk's first row:
+        the same additions in the same order, so identical numbers), so a long rest costs
+        bounded temporaries."""
+        ref = values[j[0]].copy()
+        t_first = int(t[j[0]])
         n_all = j.size
-        mean_all = (ref + s1[-1] / n_all).tolist()
-        ssd_all = np.maximum(s2[-1] - s1[-1] * s1[-1] / n_all, 0.0).tolist()
+        c1 = c2 = None  # the running sums through the chunk before
+        prev_bias = self._bias
+        last = None
+        for r0 in range(0, n_all, _REST_CHUNK):
+            jj = j[r0:r0 + _REST_CHUNK]
+            d = values[jj] - ref
+            d2 = d * d
+            if c1 is not None:
+                d[0] += c1
+                d2[0] += c2
+            # sequential running sums (np.cumsum), as update() adds them: identical numbers
+            s1 = np.cumsum(d, axis=0)
+            s2 = np.cumsum(d2, axis=0)
+            del d, d2
+            c1, c2 = s1[-1].copy(), s2[-1].copy()
+            qual = np.flatnonzero(t[jj] - t_first >= self.min_rest_ns)
+            if not qual.size:
+                continue
+            nc = (qual + (r0 + 1)).astype(np.float64)[:, None]
+            mean = ref + s1[qual] / nc
+            ssd = np.maximum(s2[qual] - s1[qual] * s1[qual] / nc, 0.0)
+            est, se = self._pool.estimate_many(nc, mean, ssd)
+            prev = np.empty_like(est)
+            prev[0] = prev_bias
+            prev[1:] = est[:-1]
+            prev_bias = est[-1].copy()
+            out["rows"].append(kk[r0 + qual])
+            out["se"].append(se)
+            out["prev"].append(prev)
+            out["t0"].append(np.full(qual.size, t_first, np.int64))
+            out["bias"].append(est)
+            last = (est[-1], se[-1], int(qual[-1]) + r0)
+        if last is None:
+            return
+        self._bias, self._se = tuple(last[0].tolist()), tuple(last[1].tolist())
+        self._k, self._n = self._pool.k + 1, self._pool.n + last[2] + 1
+        self._earth_now = self._earth_all and earth
+        mean_all = (ref + c1 / n_all).tolist()
+        ssd_all = np.maximum(c2 - c1 * c1 / n_all, 0.0).tolist()
         self._pool.add(n_all, mean_all, ssd_all)
         self._earth_all = self._earth_all and earth
 
