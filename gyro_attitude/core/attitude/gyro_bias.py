@@ -350,27 +350,26 @@ class GyroBiasEstimator:
             plan = self.rests(t, g, a, breaks)
         values = g if values is None else values
         earth_rows = np.broadcast_to(np.asarray(earth_removed, dtype=bool), (n,))
-        out: dict[str, list] = {"rows": [], "se": [], "prev": [], "t0": [], "bias": []}
+        out: dict[str, list] = {"rows": [], "se": [], "prev": [], "t0": []}
         for kk, j in plan:
-            self._accumulate_rest(t, values, kk, j, out, bool(earth_rows[j].all()))
+            self._accumulate_rest(t, values, kk, j, out, bool(earth_rows[j].all()), bias)
         if out["rows"]:
             # (each list freed as it is joined: one copy of the rests' rows at a time)
-            upd, se, prev, est, t0 = (np.concatenate(out.pop(k)) for k in
-                                      ("rows", "se", "prev", "bias", "t0"))
-            # each estimate holds from its row until the next one: runs of rows between two
-            # updates (a loop over runs of one estimate: rests are one row each, motion one run)
+            upd, se, prev, t0 = (np.concatenate(out.pop(k)) for k in ("rows", "se", "prev", "t0"))
+            # each estimate (written at its row) holds until the next one: the runs of rows
+            # between two updates (a loop over those runs: at a rest every row is an update)
             nxt = np.append(upd[1:], n)
-            gap = np.flatnonzero(nxt - upd > 1)  # estimates that hold over later rows too
-            bias[upd] = est
-            for i in gap.tolist():
-                bias[upd[i] + 1:nxt[i]] = est[i]
+            for i in np.flatnonzero(nxt - upd > 1).tolist():
+                bias[upd[i] + 1:nxt[i]] = bias[upd[i]]
         else:
             upd, se, prev, t0 = (np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)),
                                  np.zeros(0, np.int64))
         return BiasTrack(bias, upd, se, prev, t0)
 
-    def _accumulate_rest(self, t, values, kk, j, out: dict, earth: bool) -> None:
-        """One rest of :meth:`run`: its estimates (appended to ``out``), then pooled.  Chunk
+    def _accumulate_rest(self, t, values, kk, j, out: dict, earth: bool, bias) -> None:
+        """One rest of :meth:`run`: its estimates (written into ``bias`` at their rows; the
+        rows and standard errors appended to ``out``, the bias before the rest and its start
+        once), then pooled.  Chunk
         by chunk of the rest's rows (the running sums carried into each chunk's first row:
         the same additions in the same order, so identical numbers), so a long rest costs
         bounded temporaries."""
@@ -399,15 +398,13 @@ class GyroBiasEstimator:
             mean = ref + s1[qual] / nc
             ssd = np.maximum(s2[qual] - s1[qual] * s1[qual] / nc, 0.0)
             est, se = self._pool.estimate_many(nc, mean, ssd)
-            prev = np.empty_like(est)
-            prev[0] = prev_bias
-            prev[1:] = est[:-1]
-            prev_bias = est[-1].copy()
-            out["rows"].append(kk[r0 + qual])
+            rows_ = kk[r0 + qual]
+            if last is None:  # the rest's first estimate: what it replaces, and the rest's start
+                out["prev"].append(np.asarray(prev_bias, dtype=np.float64)[None])
+                out["t0"].append(np.array([t_first], np.int64))
+            bias[rows_] = est
+            out["rows"].append(rows_)
             out["se"].append(se)
-            out["prev"].append(prev)
-            out["t0"].append(np.full(qual.size, t_first, np.int64))
-            out["bias"].append(est)
             last = (est[-1], se[-1], int(qual[-1]) + r0)
         if last is None:
             return
@@ -443,8 +440,9 @@ class BiasTrack:
 
     ``bias`` (N, 3) the bias subtracted from each sample; ``updates`` (U,) the rows where a new
     estimate was published (a zero-rate update: every sample of a qualifying rest),
-    ``standard_error`` (U, 3) its standard error, ``previous`` (U, 3) the bias before it, and
-    ``rest_start_ns`` (U,) the first sample time of the rest it came from.
+    ``standard_error`` (U, 3) its standard error; per rest that gave an estimate (R,):
+    ``previous`` (R, 3) the bias before its first estimate and ``rest_start_ns`` (R,) its first
+    sample time (per rest, not per update: a long rest costs 32 B per row, not 88).
     """
 
     bias: np.ndarray
