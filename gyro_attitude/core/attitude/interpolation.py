@@ -226,24 +226,36 @@ def untrusted_fits(t_ns: np.ndarray, omega: np.ndarray, k: np.ndarray, fitted: n
     if m == 0:
         return None
     k0 = int(k[0])
+    kmin, kmax = (k0, int(k[-1])) if k[-1] - k0 == m - 1 else (int(k.min()), int(k.max()))
+    steps = np.diff(t_ns[max(kmin - 6, 0):min(kmax + 6, t_ns.size)])
+    s_min = int(steps.min()) if steps.size else 1
+    s_max = int(steps.max()) if steps.size else 1
+    h_max = s_max * 1e-9
     bad = None
     # the turn of the rate's change, where the change is an angle that matters: changes
-    # j-1 and j, j = k (interval 1: the next change, where sample 2 exists)
-    if k[-1] - k0 == m - 1 and k0 >= 2:  # a run of intervals: slices
-        d = np.diff(omega[k0 - 2:k0 + m], axis=0)  # (m + 1, 3): Δω_{k-1}, Δω_k
-        da, db = d[:-1], d[1:]
-        h = (t_ns[k0:k0 + m] - t_ns[k0 - 1:k0 + m - 1]) * 1e-9
+    # j-1 and j, j = k (interval 1: the next change, where sample 2 exists).  A first pass
+    # with the longest step keeps the rows that may pass the angle test (few: noise at rest
+    # and resolved motion change by far less); the exact tests run on those rows only.
+    run = k[-1] - k0 == m - 1 and (k0 >= 2 or (k0 == 1 and t_ns.size > 2 and m >= 2))
+    if run:  # a run of intervals: slices (interval 1 takes change 2, as interval 2 does)
+        j0 = max(k0, 2)
+        db = omega[j0:k0 + m] - omega[j0 - 1:k0 + m - 1]
+        if k0 == 1:
+            db = np.concatenate((db[:1], db))
         rows_ = None
     else:
         rows_ = np.flatnonzero((k >= 2) | (t_ns.size > 2))
         kk = np.maximum(k[rows_], 2)
-        da = omega[kk - 1] - omega[kk - 2]
         db = omega[kk] - omega[kk - 1]
-        h = (t_ns[kk] - t_ns[kk - 1]) * 1e-9
     nb = np.einsum("ij,ij->i", db, db)
-    cand = np.flatnonzero(nb * (h * h) >= _CHANGE_MIN2)
+    cand = np.flatnonzero(nb >= _CHANGE_MIN2 / (h_max * h_max))
     if cand.size:
-        da, db, nb = da[cand], db[cand], nb[cand]
+        j = np.maximum(k0 + cand if run else k[rows_[cand]], 2)
+        h = (t_ns[j] - t_ns[j - 1]) * 1e-9
+        nb, db = nb[cand], db[cand]
+        keep = nb * (h * h) >= _CHANGE_MIN2
+        cand, j, nb, db = cand[keep], j[keep], nb[keep], db[keep]
+        da = omega[j - 1] - omega[j - 2]
         dot = np.einsum("ij,ij->i", da, db)
         na = np.einsum("ij,ij->i", da, da)
         turned = (dot < 0.0) & (dot * dot > _TURN_COS2 * na * nb)
@@ -254,13 +266,11 @@ def untrusted_fits(t_ns: np.ndarray, omega: np.ndarray, k: np.ndarray, fitted: n
             bad[hit if rows_ is None else rows_[hit]] = np.clip(
                 (turn - FIT_TURN_MAX_RAD) / (math.pi - FIT_TURN_MAX_RAD), 1e-300, 1.0)
     # overshoot beyond the samples' range: only on uneven stamps
-    lo_t = max(int(k.min()) - 6, 0)
-    steps = np.diff(t_ns[lo_t:min(int(k.max()) + 6, t_ns.size)])
-    if steps.size and int(steps.max()) - int(steps.min()) > _EVEN_TOL * int(steps.min()):
+    if s_max - s_min > _EVEN_TOL * s_min:
         first, last = window(k)
         lo = hi = omega[first]
-        for j in range(1, int((last - first).max()) + 1):
-            wj = omega[np.minimum(first + j, last)]
+        for jj in range(1, int((last - first).max()) + 1):
+            wj = omega[np.minimum(first + jj, last)]
             lo, hi = np.minimum(lo, wj), np.maximum(hi, wj)
         slack = FIT_OVERSHOOT_MAX * (hi - lo) + 1e-12 * (np.abs(lo) + np.abs(hi))
         over = ((fitted > (hi + slack)[:, None]) | (fitted < (lo - slack)[:, None])).any(axis=(1, 2))
