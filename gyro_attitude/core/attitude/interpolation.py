@@ -200,13 +200,15 @@ def causal_rates_scalar(ts, ws, k, nodes, fractions):
 #   2π/h − Ω give the same samples (the transverse ones), so no fit can know the sign of the
 #   commutation term that the higher-order step adds; the exponential map of the held rate
 #   adds none.  Only where that change is an angle that matters (h·|Δω| ≥
-#   FIT_CHANGE_MIN_RAD): white noise turns its differences by ~120° on average, and at a
-#   rest it is harmless.
+#   FIT_CHANGE_MIN_RAD): white noise turns its differences by ~120° on average (often past
+#   the bound), but its change per step is h·|Δω| ≈ 2.4·N·√h for a noise density N — 1e-2 rad
+#   needs N ≥ 4e-3/√h (0.03 rad/√s at 50 Hz, ~100× a poor MEMS gyro), while the aliased cones
+#   this is for (half-angle ≥ 0.1° at 100 Hz) exceed it;
 # The step of such an interval falls back to the exponential map of the endpoint mean
 # (``exp_map``), counted; the same rule serves the batch kernels and their streaming twins.
 FIT_OVERSHOOT_MAX = 2.0
 FIT_TURN_MAX_RAD = 2.6
-FIT_CHANGE_MIN_RAD = 1e-3
+FIT_CHANGE_MIN_RAD = 1e-2
 _TURN_COS = math.cos(FIT_TURN_MAX_RAD)
 _TURN_COS2 = _TURN_COS * _TURN_COS
 _CHANGE_MIN2 = FIT_CHANGE_MIN_RAD * FIT_CHANGE_MIN_RAD

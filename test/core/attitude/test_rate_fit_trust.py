@@ -105,6 +105,21 @@ def test_shipped_scenes_have_no_fallback(name, monkeypatch):
                                                      algorithm=algorithm))
 
 
+@pytest.mark.parametrize("algorithm", ["rotvec_cubic", "magnus6_quintic"])
+def test_a_very_noisy_gyro_at_rest_never_falls_back(algorithm, monkeypatch):
+    # white noise of 5e-3 rad/sqrt(s) at 50 Hz (~20x a poor MEMS gyro): its changes turn past
+    # the bound all the time, but they are no angle that matters
+    rng = np.random.default_rng(4)
+    n = 5000
+    t = 1_000_000_000 + np.arange(n, dtype=np.int64) * 20_000_000
+    w = rng.normal(scale=5e-3 * np.sqrt(50.0), size=(n, 3))
+    fb = []
+    q = integrate_batch(t, w, algorithm=algorithm, fallbacks=fb)
+    assert sum(f.size for f in fb) == 0
+    _rule_off(monkeypatch)
+    assert np.array_equal(q, integrate_batch(t, w, algorithm=algorithm))
+
+
 def test_a_fit_extrapolating_over_a_hole_falls_back():
     # a jolt two samples before four missing ones: the cubic through samples 0, 1, 2 and 7
     # (periods) dips to -4.7x the jolt inside the hole, where no sample shows anything like it
@@ -112,7 +127,7 @@ def test_a_fit_extrapolating_over_a_hole_falls_back():
     t = np.concatenate((t[:50], t[54:]))
     w = np.zeros((t.size, 3))
     w[:, 0] = 0.5
-    w[48, 2] = 1.0
+    w[48, 2] = 2.0
     fb = []
     q = integrate_batch(t, w, algorithm="rotvec_cubic", fallbacks=fb)
     # 50: the overshoot; 49: the jolt's rise and fall, a change that turns by π (unresolved)
