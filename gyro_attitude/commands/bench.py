@@ -30,6 +30,7 @@ SUITES: dict[str, str] = {
     "scenes": "gyro_attitude.benchmarks.scenes",
     "real": "gyro_attitude.benchmarks.real",
     "offline-memory": "gyro_attitude.benchmarks.offline_memory",
+    "nyquist": "gyro_attitude.benchmarks.nyquist",
     "instruments": "gyro_attitude.benchmarks.instruments",
     "trajectory": "gyro_attitude.benchmarks.trajectory",
     "montecarlo": "gyro_attitude.benchmarks.montecarlo",

@@ -116,6 +116,9 @@ _EVENT_WORDS = {
     "mag_disturbed": "magnetic field sample(s) disturbed (norm or dip off the reference): "
                      "heading gyro-only",
     "saturated": "gyro sample(s) pinned at a repeated extreme (saturated: attitude unreliable)",
+    "rate_fit_fallback": "interval(s) whose rate fit could not be trusted (the samples alias "
+                         "the motion): integrated toward the exponential map, attitude "
+                         "unreliable there",
     iv.MISSING_SAMPLES: "sample(s) missing inside accepted intervals (integrated across; "
                         "longer holes are gaps: --max-missing-samples)",
 }
@@ -178,6 +181,7 @@ def run(args) -> int:
               "invalid_covariance": out["invalid_covariances"],
               "integrator_error": out["integrator_errors"],
               iv.MISSING_SAMPLES: out["missing_samples"], "saturated": out["saturated"],
+              "rate_fit_fallback": out["rate_fit_fallbacks"],
               **{k: v for k, v in (out["magnetometer"] or {}).items()
                  if k in ("mag_missing", "invalid_mag", "mag_disturbed")}}
     for reason, n in events.items():

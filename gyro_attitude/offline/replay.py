@@ -99,6 +99,7 @@ class ReplayResult:
     integrator_errors: int
     missing_samples: int
     saturated: int
+    rate_fit_fallbacks: int
     details: dict[str, str]
     skipped_before_truth: int
     gyro_bias: str
@@ -416,7 +417,7 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         invalid_covariances=res.counts["invalid_covariance"],
         integrator_errors=res.counts["integrator_error"],
         missing_samples=res.counts[iv.MISSING_SAMPLES], saturated=res.counts["saturated"],
-        details=res.details,
+        rate_fit_fallbacks=res.counts.get("rate_fit_fallback", 0), details=res.details,
         skipped_before_truth=first, gyro_bias=bias_summary(res.bias),
         gyro_bias_rad_s=np.asarray(res.bias.bias, float).tolist(),
         alignment=None if res.alignment is None else _alignment_summary(res.alignment),

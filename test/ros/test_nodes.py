@@ -139,6 +139,7 @@ def test_sim_to_integrator_coning_against_truth(launch, ros_node):
     values = {kv.key: kv.value for kv in status.values}
     assert status.name.endswith("attitude_integrator: imu input")
     assert values["rejected_total"] == "0" and values["gaps"] == "0"
+    assert values["rate_fit_fallbacks"] == "0"  # resolved coning: the rate fit is trusted
     assert float(values["input_rate_hz"]) == pytest.approx(rate, rel=1e-6)
     assert float(values["dt_jitter_s"]) == pytest.approx(0.0, abs=1e-12)
 

@@ -73,6 +73,10 @@ class RateAlgorithm(Algorithm):
     #: True when the rate is fitted by a polynomial: the first interval's causal linear fit
     #: is redone with the quadratic through samples 0..2 once sample 2 is in.
     fits_rate_polynomial = False
+    #: True when the step checks its rate fit and falls back to the exponential map where the
+    #: fit cannot be trusted (:func:`.interpolation.untrusted_fits`): ``body_increments`` takes
+    #: ``fallbacks`` (a list that collects the intervals that fell back).
+    checks_rate_fit = False
 
     def body_increments(self, t_ns, omega, k, lookahead=False) -> np.ndarray:
         """Body increments ``b_k`` (len(k), 4) of intervals ``k``."""
@@ -82,9 +86,16 @@ class RateAlgorithm(Algorithm):
         """``b_k`` of interval ``k`` from plain-float histories fitted on ``nodes``."""
         raise NotImplementedError
 
-    def integrate(self, t, w, q0, rate_n, quadrature, singular_tol):
+    def body_increment_checked(self, ts, ws, k, nodes):
+        """``(b_k, fell_back)``: :meth:`body_increment_scalar` and whether its fit could not be
+        trusted (the step then is the exponential map's)."""
+        return self.body_increment_scalar(ts, ws, k, nodes), False
+
+    def integrate(self, t, w, q0, rate_n, quadrature, singular_tol, fallbacks=None):
+        kw = {"fallbacks": fallbacks} if self.checks_rate_fit else {}
+
         def increments(k):
-            b = self.body_increments(t, w, k, lookahead=True)
+            b = self.body_increments(t, w, k, lookahead=True, **kw)
             a = None if rate_n is None else _exp_rotvec(-nav_zeta(t, rate_n, k))
             return b, a
 
@@ -108,15 +119,26 @@ class RateStepper:
     """
 
     def __init__(self, algorithm: RateAlgorithm, q0: tuple):
-        self._step = algorithm.body_increment_scalar
+        self._step = algorithm.body_increment_checked
         self._redo = algorithm.fits_rate_polynomial
         self.q = self._q_start = q0
+        #: intervals whose step fell back to the exponential map (the batch's count: the first
+        #: interval is counted as redone, not as first emitted)
+        self.fit_fallbacks = 0
+        self._first_fell_back = False
 
     def interval(self, ts, ws, zeta):
         n = len(ts)
-        self.q = compose_scalar(self.q, self._step(ts, ws, n - 1, NODES[n]), zeta)
+        b, fell_back = self._step(ts, ws, n - 1, NODES[n])
+        if fell_back:
+            self.fit_fallbacks += 1
+        if n == 2:
+            self._first_fell_back = fell_back
+        self.q = compose_scalar(self.q, b, zeta)
         return self.q
 
     def redo_first(self, ts, ws, zeta_first):
         if self._redo:  # the quadratic through samples 0, 1, 2, as the batch
-            self.q = compose_scalar(self._q_start, self._step(ts, ws, 1, NODES[3]), zeta_first)
+            b, fell_back = self._step(ts, ws, 1, NODES[3])
+            self.fit_fallbacks += int(fell_back) - int(self._first_fell_back)
+            self.q = compose_scalar(self._q_start, b, zeta_first)

@@ -14,7 +14,8 @@ from gyro_attitude.core.rotation import as_vector_array
 
 def integrate_batch(t_ns, omega_ib_b, q0=(0.0, 0.0, 0.0, 1.0),
                     algorithm: str = DEFAULT_ALGORITHM, nav: NavFrame | None = None,
-                    quadrature: str = "trapezoid", singular_tol: float = 1e-3) -> np.ndarray:
+                    quadrature: str = "trapezoid", singular_tol: float = 1e-3,
+                    fallbacks: list | None = None) -> np.ndarray:
     """Attitudes ``q[k]`` (N, 4) at ``t_ns[k]`` from rate samples ``ω_ib^b`` (N, 3).
 
     ``q[0] = q0``; ``q_ib`` when ``nav`` is None, else ``q_nb`` with the nav-frame rate
@@ -22,6 +23,11 @@ def integrate_batch(t_ns, omega_ib_b, q0=(0.0, 0.0, 0.0, 1.0),
     (see :func:`~gyro_attitude.core.attitude.increments_from_rates`).  ``singular_tol``
     applies to the Euler-angle baselines only.  Raises ``ValueError`` for non-increasing
     times, wrong shapes, non-finite input, unknown names.
+
+    ``fallbacks``: a list that collects, as int arrays, the intervals k (sample k-1 to k)
+    whose rate fit could not be trusted and whose step fell back to the exponential map
+    (algorithms that check their fit: ``rotvec_cubic``, ``magnus6_quintic``;
+    :func:`~gyro_attitude.core.attitude.interpolation.untrusted_fits`).
     """
     alg = get_algorithm(algorithm)
     t = check_times(t_ns)
@@ -32,6 +38,8 @@ def integrate_batch(t_ns, omega_ib_b, q0=(0.0, 0.0, 0.0, 1.0),
     if rate_n is not None and not alg.supports_nav:
         raise ValueError(f"{alg.name} integrates q_ib only; nav frames need a quaternion "
                          "algorithm")
+    if fallbacks is not None and getattr(alg, "checks_rate_fit", False):
+        return alg.integrate(t, w, q0, rate_n, quad, float(singular_tol), fallbacks=fallbacks)
     return alg.integrate(t, w, q0, rate_n, quad, float(singular_tol))
 
 

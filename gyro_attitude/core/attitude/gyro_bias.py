@@ -161,6 +161,9 @@ def _c_bn_times(x, y, z, w, s, w_n):
             c02 * e0 + c12 * e1 + c22 * e2)
 
 
+_REST_CHUNK = 1 << 16  # rows of one rest summed at a time (run)
+
+
 class GyroBiasEstimator:
     """Streaming gyro bias (see the module docstring for modes and the contract)."""
 
@@ -369,49 +372,69 @@ class GyroBiasEstimator:
             plan = self.rests(t, g, a, breaks)
         values = g if values is None else values
         earth_rows = np.broadcast_to(np.asarray(earth_removed, dtype=bool), (n,))
-        out: dict[str, list] = {"rows": [], "se": [], "prev": [], "t0": [], "bias": []}
+        out: dict[str, list] = {"rows": [], "se": [], "prev": [], "t0": []}
         for kk, j in plan:
-            self._accumulate_rest(t, values, kk, j, out, bool(earth_rows[j].all()))
+            self._accumulate_rest(t, values, kk, j, out, bool(earth_rows[j].all()), bias)
         if out["rows"]:
-            upd, se, prev, est, t0 = (np.concatenate(out[k]) for k in
-                                      ("rows", "se", "prev", "bias", "t0"))
-            # each estimate holds from its row until the next one
-            pos = np.searchsorted(upd, np.arange(n), side="right") - 1
-            bias[pos >= 0] = est[pos[pos >= 0]]
+            # (each list freed as it is joined: one copy of the rests' rows at a time)
+            upd, se, prev, t0 = (np.concatenate(out.pop(k)) for k in ("rows", "se", "prev", "t0"))
+            # each estimate (written at its row) holds until the next one: the runs of rows
+            # between two updates (a loop over those runs: at a rest every row is an update)
+            nxt = np.append(upd[1:], n)
+            for i in np.flatnonzero(nxt - upd > 1).tolist():
+                bias[upd[i] + 1:nxt[i]] = bias[upd[i]]
         else:
             upd, se, prev, t0 = (np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)),
                                  np.zeros(0, np.int64))
         return BiasTrack(bias, upd, se, prev, t0)
 
-    def _accumulate_rest(self, t, values, kk, j, out: dict, earth: bool) -> None:
-        """One rest of :meth:`run`: its estimates (appended to ``out``), then pooled."""
-        v = values[j]
-        ref = v[0]
-        d = v - ref
-        # sequential running sums (np.cumsum), as update() adds them: identical numbers
-        s1 = np.cumsum(d, axis=0)
-        s2 = np.cumsum(d * d, axis=0)
-        qual = np.flatnonzero(t[j] - t[j[0]] >= self.min_rest_ns)
-        if not qual.size:
-            return
-        nc = (qual + 1).astype(np.float64)[:, None]
-        mean = ref + s1[qual] / nc
-        ssd = np.maximum(s2[qual] - s1[qual] * s1[qual] / nc, 0.0)
-        est, se = self._pool.estimate_many(nc, mean, ssd)
-        prev = np.empty_like(est)
-        prev[0] = self._bias
-        prev[1:] = est[:-1]
-        out["rows"].append(kk[qual])
-        out["se"].append(se)
-        out["prev"].append(prev)
-        out["t0"].append(np.full(qual.size, int(t[j[0]]), np.int64))
-        out["bias"].append(est)
-        self._bias, self._se = tuple(est[-1].tolist()), tuple(se[-1].tolist())
-        self._k, self._n = self._pool.k + 1, self._pool.n + int(qual[-1]) + 1
-        self._earth_now = self._earth_all and earth
+    def _accumulate_rest(self, t, values, kk, j, out: dict, earth: bool, bias) -> None:
+        """One rest of :meth:`run`: its estimates (written into ``bias`` at their rows; the
+        rows and standard errors appended to ``out``, the bias before the rest and its start
+        once), then pooled.  Chunk
+        by chunk of the rest's rows (the running sums carried into each chunk's first row:
+        the same additions in the same order, so identical numbers), so a long rest costs
+        bounded temporaries."""
+        ref = values[j[0]].copy()
+        t_first = int(t[j[0]])
         n_all = j.size
-        mean_all = (ref + s1[-1] / n_all).tolist()
-        ssd_all = np.maximum(s2[-1] - s1[-1] * s1[-1] / n_all, 0.0).tolist()
+        c1 = c2 = None  # the running sums through the chunk before
+        prev_bias = self._bias
+        last = None
+        for r0 in range(0, n_all, _REST_CHUNK):
+            jj = j[r0:r0 + _REST_CHUNK]
+            d = values[jj] - ref
+            d2 = d * d
+            if c1 is not None:
+                d[0] += c1
+                d2[0] += c2
+            # sequential running sums (np.cumsum), as update() adds them: identical numbers
+            s1 = np.cumsum(d, axis=0)
+            s2 = np.cumsum(d2, axis=0)
+            del d, d2
+            c1, c2 = s1[-1].copy(), s2[-1].copy()
+            qual = np.flatnonzero(t[jj] - t_first >= self.min_rest_ns)
+            if not qual.size:
+                continue
+            nc = (qual + (r0 + 1)).astype(np.float64)[:, None]
+            mean = ref + s1[qual] / nc
+            ssd = np.maximum(s2[qual] - s1[qual] * s1[qual] / nc, 0.0)
+            est, se = self._pool.estimate_many(nc, mean, ssd)
+            rows_ = kk[r0 + qual]
+            if last is None:  # the rest's first estimate: what it replaces, and the rest's start
+                out["prev"].append(np.asarray(prev_bias, dtype=np.float64)[None])
+                out["t0"].append(np.array([t_first], np.int64))
+            bias[rows_] = est
+            out["rows"].append(rows_)
+            out["se"].append(se)
+            last = (est[-1], se[-1], int(qual[-1]) + r0)
+        if last is None:
+            return
+        self._bias, self._se = tuple(last[0].tolist()), tuple(last[1].tolist())
+        self._k, self._n = self._pool.k + 1, self._pool.n + last[2] + 1
+        self._earth_now = self._earth_all and earth
+        mean_all = (ref + c1 / n_all).tolist()
+        ssd_all = np.maximum(c2 - c1 * c1 / n_all, 0.0).tolist()
         self._pool.add(n_all, mean_all, ssd_all)
         self._earth_all = self._earth_all and earth
 
@@ -439,8 +462,9 @@ class BiasTrack:
 
     ``bias`` (N, 3) the bias subtracted from each sample; ``updates`` (U,) the rows where a new
     estimate was published (a zero-rate update: every sample of a qualifying rest),
-    ``standard_error`` (U, 3) its standard error, ``previous`` (U, 3) the bias before it, and
-    ``rest_start_ns`` (U,) the first sample time of the rest it came from.
+    ``standard_error`` (U, 3) its standard error; per rest that gave an estimate (R,):
+    ``previous`` (R, 3) the bias before its first estimate and ``rest_start_ns`` (R,) its first
+    sample time (per rest, not per update: a long rest costs 32 B per row, not 88).
     """
 
     bias: np.ndarray

@@ -181,3 +181,175 @@ def causal_rates_scalar(ts, ws, k, nodes, fractions):
     xs = [(ts[i] - t_prev) * 1e-9 for i in nodes]
     ys = [ws[i] for i in nodes]
     return [lagrange_scalar(xs, ys, h * f) for f in fractions]
+
+
+# --------------------------------------------------------------------------- trusting a fit
+# A rate fit is a polynomial through samples; it can be trusted only where the samples resolve
+# the motion.  Two signs that they do not (docs/equations.md "When a rate fit cannot be trusted";
+# the thresholds are measured by ``bench --suite nyquist``):
+#
+# * the fitted rate leaves the range of the samples it was fitted to by more than
+#   FIT_OVERSHOOT_MAX times their spread.  On equally spaced samples it cannot: the Lagrange
+#   weights bound the overshoot by (Σ|w| − 1)/2 of the spread — 0.232 for the causal cubic's
+#   Gauss points, 0.195 for the centered quintic's, 0.996 for the quintic's one-sided windows at
+#   the ends of a record — so this fires only on uneven stamps (after missing samples the
+#   cubic extrapolates over the hole), and is not evaluated on (nearly) even ones;
+# * the rate's change turns by more than FIT_TURN_MAX_RAD from one sample to the next: a rate
+#   vector turning at Ω rad/s sampled every h turns its sample-to-sample change by Ωh, which
+#   reaches π at the Nyquist rate, where a cone turning one way at Ω and the other way at
+#   2π/h − Ω give the same samples (the transverse ones), so no fit can know the sign of the
+#   commutation term that the higher-order step adds; the exponential map of the held rate
+#   adds none.  Only where that change is an angle that matters (h·|Δω| ≥
+#   FIT_CHANGE_MIN_RAD): white noise turns its differences by ~120° on average (often past
+#   the bound), but its change per step is h·|Δω| ≈ 2.4·N·√h for a noise density N — 1e-2 rad
+#   needs N ≥ 4e-3/√h (0.03 rad/√s at 50 Hz, ~100× a poor MEMS gyro), while the aliased cones
+#   this is for (half-angle ≥ 0.1° at 100 Hz) exceed it;
+# The step of such an interval falls back to the exponential map of the endpoint mean
+# (``exp_map``), counted; the same rule serves the batch kernels and their streaming twins.
+FIT_OVERSHOOT_MAX = 2.0
+FIT_TURN_MAX_RAD = 2.6
+FIT_CHANGE_MIN_RAD = 1e-2
+_TURN_COS = math.cos(FIT_TURN_MAX_RAD)
+_TURN_COS2 = _TURN_COS * _TURN_COS
+_CHANGE_MIN2 = FIT_CHANGE_MIN_RAD * FIT_CHANGE_MIN_RAD
+_EVEN_TOL = 1e-3  # relative spread of the steps under which the stamps count as even
+
+
+def untrusted_fits(t_ns: np.ndarray, omega: np.ndarray, k: np.ndarray, fitted: np.ndarray,
+                   window) -> np.ndarray | None:
+    """Which intervals ``k`` (sample k-1 to k) have a rate fit that cannot be trusted (the
+    rule above): a bool mask (len(k),), or None when none has (the usual case, found with a
+    few array operations over the rows).
+
+    ``fitted`` (len(k), p, 3) the fitted rates; ``window(k)`` → (first, last) sample of each
+    row's fit (inclusive), needed only on uneven stamps.
+    """
+    m = k.size
+    if m == 0:
+        return None
+    k0 = int(k[0])
+    kmin, kmax = (k0, int(k[-1])) if k[-1] - k0 == m - 1 else (int(k.min()), int(k.max()))
+    steps = np.diff(t_ns[max(kmin - 6, 0):min(kmax + 6, t_ns.size)])
+    s_min = int(steps.min()) if steps.size else 1
+    s_max = int(steps.max()) if steps.size else 1
+    h_max = s_max * 1e-9
+    bad = None
+    # the turn of the rate's change, where the change is an angle that matters: changes
+    # j-1 and j, j = k (interval 1: the next change, where sample 2 exists).  A first pass
+    # with the longest step keeps the rows that may pass the angle test (few: noise at rest
+    # and resolved motion change by far less); the exact tests run on those rows only.
+    run = k[-1] - k0 == m - 1 and (k0 >= 2 or (k0 == 1 and t_ns.size > 2 and m >= 2))
+    if run:  # a run of intervals: slices (interval 1 takes change 2, as interval 2 does)
+        j0 = max(k0, 2)
+        db = omega[j0:k0 + m] - omega[j0 - 1:k0 + m - 1]
+        if k0 == 1:
+            db = np.concatenate((db[:1], db))
+        rows_ = None
+    else:
+        rows_ = np.flatnonzero((k >= 2) | (t_ns.size > 2))
+        kk = np.maximum(k[rows_], 2)
+        db = omega[kk] - omega[kk - 1]
+    nb = np.einsum("ij,ij->i", db, db)
+    cand = np.flatnonzero(nb >= _CHANGE_MIN2 / (h_max * h_max))
+    if cand.size:
+        j = np.maximum(k0 + cand if run else k[rows_[cand]], 2)
+        h = (t_ns[j] - t_ns[j - 1]) * 1e-9
+        nb, db = nb[cand], db[cand]
+        keep = nb * (h * h) >= _CHANGE_MIN2
+        cand, j, nb, db = cand[keep], j[keep], nb[keep], db[keep]
+        da = omega[j - 1] - omega[j - 2]
+        dot = np.einsum("ij,ij->i", da, db)
+        na = np.einsum("ij,ij->i", da, da)
+        turned = (dot < 0.0) & (dot * dot > _TURN_COS2 * na * nb)
+        if turned.any():
+            bad = np.zeros(m)
+            hit = cand[turned]
+            turn = np.arccos(np.clip(dot[turned] / np.sqrt(na[turned] * nb[turned]), -1.0, 1.0))
+            bad[hit if rows_ is None else rows_[hit]] = np.clip(
+                (turn - FIT_TURN_MAX_RAD) / (math.pi - FIT_TURN_MAX_RAD), 1e-300, 1.0)
+    # overshoot beyond the samples' range: only on uneven stamps
+    if s_max - s_min > _EVEN_TOL * s_min:
+        first, last = window(k)
+        lo = hi = omega[first]
+        for jj in range(1, int((last - first).max()) + 1):
+            wj = omega[np.minimum(first + jj, last)]
+            lo, hi = np.minimum(lo, wj), np.maximum(hi, wj)
+        slack = FIT_OVERSHOOT_MAX * (hi - lo) + 1e-12 * (np.abs(lo) + np.abs(hi))
+        over = ((fitted > (hi + slack)[:, None]) | (fitted < (lo - slack)[:, None])).any(axis=(1, 2))
+        if over.any():
+            bad = over.astype(np.float64) if bad is None else np.where(over, 1.0, bad)
+    return bad
+
+
+def untrusted_fit_scalar(ts, ws, k, nodes, fitted) -> float:
+    """Plain-float twin of :func:`untrusted_fits` for one interval ``k`` of the histories
+    ``ts, ws`` fitted on ``nodes`` (``fitted``: the fitted 3-tuples): the weight of the
+    exponential map's step, 0.0 when the fit can be trusted."""
+    weight = 0.0
+    j = max(k, 2)
+    if j < len(ts):
+        b0, b1, b2 = ws[j]
+        m0, m1, m2 = ws[j - 1]
+        a0, a1, a2 = ws[j - 2]
+        db0, db1, db2 = b0 - m0, b1 - m1, b2 - m2
+        da0, da1, da2 = m0 - a0, m1 - a1, m2 - a2
+        h = (ts[j] - ts[j - 1]) * 1e-9
+        nb = db0 * db0 + db1 * db1 + db2 * db2
+        if nb * (h * h) >= _CHANGE_MIN2:
+            dot = da0 * db0 + da1 * db1 + da2 * db2
+            na = da0 * da0 + da1 * da1 + da2 * da2
+            if dot < 0.0 and dot * dot > _TURN_COS2 * na * nb:
+                turn = math.acos(max(-1.0, min(1.0, dot / math.sqrt(na * nb))))
+                weight = min(max((turn - FIT_TURN_MAX_RAD) / (math.pi - FIT_TURN_MAX_RAD),
+                                 1e-300), 1.0)
+    steps = [ts[i + 1] - ts[i] for i in range(len(ts) - 1)]
+    if len(steps) > 1 and max(steps) - min(steps) > _EVEN_TOL * min(steps):
+        for c in range(3):
+            vals = [ws[i][c] for i in nodes]
+            lo, hi = min(vals), max(vals)
+            slack = FIT_OVERSHOOT_MAX * (hi - lo) + 1e-12 * (abs(lo) + abs(hi))
+            for f in fitted:
+                if f[c] > hi + slack or f[c] < lo - slack:
+                    return 1.0
+    return weight
+
+
+def hold_untrusted(t_ns, omega, k, fitted, phi, h, window, fallbacks) -> None:
+    """Where the fit of intervals ``k`` cannot be trusted (:func:`untrusted_fits`), replace
+    the rotation vector ``phi`` (len(k), 3) of the step by the exponential map's,
+    ``½(ω_{k-1}+ω_k)h`` (``h`` (len(k), 1)); the intervals that fell back are appended to the
+    list ``fallbacks`` (None: not collected)."""
+    lam = untrusted_fits(t_ns, omega, k, fitted, window)
+    if lam is None:
+        return
+    bad = np.flatnonzero(lam > 0.0)
+    if bad.size == 0:
+        return
+    kb = k[bad]
+    held = 0.5 * (omega[kb - 1] + omega[kb]) * h[bad]
+    lb = lam[bad][:, None]
+    phi[bad] = (1.0 - lb) * phi[bad] + lb * held
+    if fallbacks is not None:
+        fallbacks.append(kb)
+
+
+def causal_window(n_samples: int, lookahead: bool):
+    """``window(k)`` of :func:`causal_rates_at`'s fits: samples k-3..k (fewer at the start;
+    0..2 for interval 1 with ``lookahead``)."""
+    def window(k):
+        last = k.copy()
+        if lookahead and n_samples >= 3:
+            last[k == 1] = 2
+        return np.maximum(k - 3, 0), last
+    return window
+
+
+def causal_fit_scalar_checked(ts, ws, k, nodes, fractions):
+    """The causal fit's rates at ``fractions`` of interval ``k`` and whether they can be
+    trusted (:func:`untrusted_fit_scalar`): (rates, h, untrusted)."""
+    t_prev = ts[k - 1]
+    h = (ts[k] - t_prev) * 1e-9
+    xs = [(ts[i] - t_prev) * 1e-9 for i in nodes]
+    ys = [ws[i] for i in nodes]
+    rates = [lagrange_scalar(xs, ys, h * f) for f in fractions]
+    return rates, h, untrusted_fit_scalar(ts, ws, k, nodes, rates)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from gyro_attitude.core.attitude.algorithm import RateAlgorithm
-from gyro_attitude.core.attitude.interpolation import fitted_rates, lagrange_eval
+from gyro_attitude.core.attitude.interpolation import fitted_rates, hold_untrusted, lagrange_eval
 from gyro_attitude.core.rotation import _exp_rotvec
 
 _S15 = math.sqrt(15.0)
@@ -58,12 +58,21 @@ class Magnus6Quintic(RateAlgorithm):
     polynomial through all of them.  Exact for constant rate of any magnitude."""
 
     causal = False
+    checks_rate_fit = True
 
-    def body_increments(self, t_ns, omega, k, lookahead=False):
+    def body_increments(self, t_ns, omega, k, lookahead=False, fallbacks=None):
         h = ((t_ns[k] - t_ns[k - 1]) * 1e-9)[:, None]
         g = fitted_rates(t_ns, omega, k, GAUSS3, _BEFORE + 1, _FIT_SAMPLES,
                          lambda kk: _gathered_rates(t_ns, omega, kk))
-        return _exp_rotvec(magnus6_rotation_vector(g[:, 0], g[:, 1], g[:, 2], h))
+        phi = magnus6_rotation_vector(g[:, 0], g[:, 1], g[:, 2], h)
+        hold_untrusted(t_ns, omega, k, g, phi, h, lambda kk: _window(kk, t_ns.size), fallbacks)
+        return _exp_rotvec(phi)
+
+
+def _window(k, n_samples):
+    """(first, last) sample of the fits of intervals ``k``."""
+    first = quintic_window_start(k, n_samples)
+    return first, first + min(_FIT_SAMPLES, n_samples) - 1
 
 
 def _gathered_rates(t_ns, omega, k):

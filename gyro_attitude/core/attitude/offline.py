@@ -97,12 +97,14 @@ from gyro_attitude.core.attitude.stream import (
     INVALID_MAG,
     MAG_DISTURBED,
     MAG_MISSING,
+    RATE_FIT_FALLBACK,
     SATURATED,
     StreamResult,
     StreamState,
     _unit_quat,
     covariance_rows,
     nav_rows,
+    rate_fit_note,
     recording_arrays,
     rows,
     usable_accel,
@@ -323,7 +325,8 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
     act = cls.action
     valid = np.flatnonzero(act != codes[v.REJECT])
     counts = {**cls.counts, v.MISSING_SAMPLES: cls.missing_samples, INVALID_COVARIANCE: 0,
-              INVALID_ACCEL: 0, INTEGRATOR_ERROR: 0, SATURATED: 0}
+              INVALID_ACCEL: 0, INTEGRATOR_ERROR: 0, SATURATED: 0,
+              RATE_FIT_FALLBACK: 0}
     details = dict(cls.details)
     m = valid.size
     tv = rows(t, valid)
@@ -364,6 +367,10 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
     est = _Estimator(cfg, q_init, nav, algorithm, chunk_samples, tv, wv, av, usable, sig2,
                      rows(act, valid), mv)
     q_out, var_out, known_out = est.run()
+    fell_back = np.concatenate(est.fit_fallbacks) if est.fit_fallbacks else np.zeros(0, int)
+    counts[RATE_FIT_FALLBACK] = int(fell_back.size)
+    if fell_back.size:
+        details.setdefault(RATE_FIT_FALLBACK, rate_fit_note(int(tv[int(fell_back.min())])))
     notes = est.notes
     if cfg.aiding is Aiding.MAGNETOMETER:
         for key, c in est.mag_counts.items():
@@ -402,6 +409,7 @@ class _Estimator:
             cfg.latitude_rad if cfg.latitude_known else None)
         self.latitude = None if lat is None else float(np.asarray(lat).reshape(-1)[0])
         self.window_ns = int(round(cfg.rest_window_s * 1e9))
+        self.fit_fallbacks: list[np.ndarray] = []  # rows whose interval's rate fit fell back
 
     # ------------------------------------------------------------------ the chain
     def run(self):
@@ -593,8 +601,12 @@ class _Estimator:
                     wc = self.w[lo:hi] - self._bias_rows(rests, tau[lo - b0:hi - b0])
                     nav = self.nav if self.nav_series is None else nav_rows(
                         self.nav, np.arange(lo, hi), self.nav_series)
+                    fb = []
                     q = integrate_batch(self.t[lo:hi], wc, q0=q_prev if start else q_out[lo],
-                                        algorithm=self.algorithm, nav=nav)
+                                        algorithm=self.algorithm, nav=nav, fallbacks=fb)
+                    for f in fb:  # counted once: the intervals of the rows this chunk keeps
+                        r = f + lo
+                        self.fit_fallbacks.append(r[(r >= c0) & (r < c1)])
                     # Higher-order algorithms take each interval's increment from neighbouring
                     # samples: the chunk runs _OVERLAP rows into its neighbours and, after the
                     # first, is re-anchored at its first row (the attitude there came from the

@@ -261,6 +261,9 @@ class RestDetector:
         return bool(ok)
 
 
+_STATS_CHUNK = 1 << 16  # rows of window statistics computed at a time
+
+
 def detect_rest(t_ns, gyro, accel=None, window_s: float = RestThresholds.window_s,
                 gyro_std_max: float = RestThresholds.gyro_std_max,
                 gyro_mean_max: float = RestThresholds.gyro_mean_max,
@@ -277,14 +280,27 @@ def detect_rest(t_ns, gyro, accel=None, window_s: float = RestThresholds.window_
     full = t - t[0] >= window_ns
 
     def window_stats(x: np.ndarray, ref: np.ndarray):
+        size = x.shape[0]
+        # Sequential running sums (np.add.accumulate), as the streaming class adds them; the
+        # window statistics from them chunk by chunk (the same numbers, bounded temporaries).
+        c1 = np.zeros((size + 1, 3))
+        c2 = np.zeros((size + 1, 3))
         d = x - ref
-        # Sequential running sums (np.add.accumulate), as the streaming class adds them.
-        c1 = np.concatenate([np.zeros((1, 3)), np.cumsum(d, axis=0)])
-        c2 = np.concatenate([np.zeros((1, 3)), np.cumsum(d * d, axis=0)])
-        m = (c1[1:] - c1[oldest]) / n[:, None]
-        v = (c2[1:] - c2[oldest]) / n[:, None] - m * m
-        std = np.sqrt(np.maximum(v[:, 0] + v[:, 1] + v[:, 2], 0.0))
-        return np.where(full, std, np.nan), ref + m
+        np.cumsum(d, axis=0, out=c1[1:])
+        np.multiply(d, d, out=d)
+        np.cumsum(d, axis=0, out=c2[1:])
+        del d
+        std = np.empty(size)
+        mean = np.empty((size, 3))
+        for r0 in range(0, size, _STATS_CHUNK):
+            r1 = min(r0 + _STATS_CHUNK, size)
+            o, nn = oldest[r0:r1], n[r0:r1, None]
+            m = (c1[r0 + 1:r1 + 1] - c1[o]) / nn
+            v = (c2[r0 + 1:r1 + 1] - c2[o]) / nn - m * m
+            std[r0:r1] = np.sqrt(np.maximum(v[:, 0] + v[:, 1] + v[:, 2], 0.0))
+            mean[r0:r1] = ref + m
+        std[~full] = np.nan
+        return std, mean
 
     gyro_std, gyro_mean = window_stats(g, g[0])
     with np.errstate(invalid="ignore"):

@@ -8,7 +8,13 @@ import numpy as np
 
 from gyro_attitude.core.attitude.algorithm import RateAlgorithm
 from gyro_attitude.core.attitude.compose import exp_scalar
-from gyro_attitude.core.attitude.interpolation import GAUSS2, causal_rates_at, lagrange_scalar
+from gyro_attitude.core.attitude.interpolation import (
+    GAUSS2,
+    causal_fit_scalar_checked,
+    causal_rates_at,
+    causal_window,
+    hold_untrusted,
+)
 from gyro_attitude.core.rotation import _exp_rotvec
 
 _SQRT3_12 = math.sqrt(3.0) / 12.0
@@ -39,21 +45,33 @@ class RotvecCubic(RateAlgorithm):
     back to the linear/quadratic fit."""
 
     fits_rate_polynomial = True
+    checks_rate_fit = True
 
-    def body_increments(self, t_ns, omega, k, lookahead=False):
+    def body_increments(self, t_ns, omega, k, lookahead=False, fallbacks=None):
         h = ((t_ns[k] - t_ns[k - 1]) * 1e-9)[:, None]
         g = causal_rates_at(t_ns, omega, k, GAUSS2, lookahead)
         wa, wb = g[:, 0], g[:, 1]
-        return _exp_rotvec(0.5 * h * (wa + wb) + _SQRT3_12 * (h * h) * np.cross(wa, wb))
+        phi = 0.5 * h * (wa + wb) + _SQRT3_12 * (h * h) * np.cross(wa, wb)
+        hold_untrusted(t_ns, omega, k, g, phi, h, causal_window(t_ns.size, lookahead), fallbacks)
+        return _exp_rotvec(phi)
 
     def body_increment_scalar(self, ts, ws, k, nodes):
-        t_prev = ts[k - 1]
-        h = (ts[k] - t_prev) * 1e-9
-        xs = [(ts[i] - t_prev) * 1e-9 for i in nodes]
-        ys = [ws[i] for i in nodes]
-        ax, ay, az = lagrange_scalar(xs, ys, h * _GA)
-        bx, by, bz = lagrange_scalar(xs, ys, h * _GB)
-        return _magnus4_scalar(ax, ay, az, bx, by, bz, 0.5 * h, _SQRT3_12 * (h * h))
+        return self.body_increment_checked(ts, ws, k, nodes)[0]
+
+    def body_increment_checked(self, ts, ws, k, nodes):
+        ((ax, ay, az), (bx, by, bz)), h, held = causal_fit_scalar_checked(ts, ws, k, nodes,
+                                                                        GAUSS2)
+        half, c = 0.5 * h, _SQRT3_12 * (h * h)
+        px = half * (ax + bx) + c * (ay * bz - az * by)
+        py = half * (ay + by) + c * (az * bx - ax * bz)
+        pz = half * (az + bz) + c * (ax * by - ay * bx)
+        if held > 0.0:  # toward the exponential map of the endpoint mean (hold_untrusted)
+            (ux, uy, uz), (vx, vy, vz) = ws[k - 1], ws[k]
+            keep = 1.0 - held
+            px = keep * px + held * (0.5 * (ux + vx) * h)
+            py = keep * py + held * (0.5 * (uy + vy) * h)
+            pz = keep * pz + held * (0.5 * (uz + vz) * h)
+        return exp_scalar(px, py, pz), held > 0.0
 
 
 def _magnus4_scalar(ax, ay, az, bx, by, bz, half, c):

@@ -110,7 +110,10 @@ SATURATED = "saturated"
 # rad/s: a value repeated at the largest magnitude seen is a clip only this high (every gyro's
 # range is above 2 rad/s; a quantized gyro at rest repeats its small values)
 SATURATION_MIN_RAD_S = 1.0
-EXTRA_COUNTS = (INVALID_COVARIANCE, INVALID_ACCEL, INTEGRATOR_ERROR, SATURATED)
+# intervals whose rate fit could not be trusted (the samples alias the motion, or the fit leaves
+# their range): integrated toward the exponential map (interpolation.untrusted_fits)
+RATE_FIT_FALLBACK = "rate_fit_fallback"
+EXTRA_COUNTS = (INVALID_COVARIANCE, INVALID_ACCEL, INTEGRATOR_ERROR, SATURATED, RATE_FIT_FALLBACK)
 GYRO_NOISE_UNKNOWN = "gyro_noise_unknown"  # a detail (said once), not a count
 
 
@@ -696,7 +699,11 @@ class AttitudeStream:
             if action == v.ACCEPT:
                 if aid is not None:
                     rate = aid.step(t_ns, rate, a, st.q, mag)
+                fell_back = integ.fit_fallbacks
                 q = integ.advance(t_ns, rate)
+                if integ.fit_fallbacks != fell_back:
+                    st.counts[RATE_FIT_FALLBACK] += integ.fit_fallbacks - fell_back
+                    st.details.setdefault(RATE_FIT_FALLBACK, rate_fit_note(t_ns))
             else:
                 if action == v.RESET_TIME_JUMP:
                     q0 = st.q_initial
@@ -850,6 +857,13 @@ def alignment_variance(res: AlignmentResult, given_heading_variance: float) -> l
 def saturation_note(axis: int, value: float) -> str:
     return (f"gyro pinned at {value:g} rad/s on axis {'xyz'[axis]} (a repeated extreme: the "
             "gyro saturated; the attitude is unreliable there)")
+
+
+def rate_fit_note(t_ns: int) -> str:
+    return (f"rate fit not trusted at stamp {t_ns}: the samples alias the motion (the rate "
+            "turns by nearly half a turn between samples) or the fit leaves their range; the "
+            "step moved toward the exponential map (the attitude is unreliable there: sample "
+            "faster)")
 
 
 def cannot_align(cfg: StreamConfig) -> str:

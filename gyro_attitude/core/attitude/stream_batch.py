@@ -33,6 +33,7 @@ from gyro_attitude.core.attitude.stream import (
     EXTRA_COUNTS,
     GYRO_NOISE_UNKNOWN,
     INVALID_ACCEL,
+    RATE_FIT_FALLBACK,
     RUNNING,
     SATURATED,
     SATURATION_MIN_RAD_S,
@@ -41,6 +42,7 @@ from gyro_attitude.core.attitude.stream import (
     cannot_align,
     covariance_rows,
     nav_rows,
+    rate_fit_note,
     rows,
     saturation_note,
     unknown_noise_note,
@@ -141,8 +143,9 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
     # change: a few passes reach rounding), or the per-sample form when it does not settle.
     est = s.bias_estimator
     earth = est.mode is GyroBiasMode.AUTO and s.latitude_rad is not None
-    q_nb = np.tile(st.q_initial, (m, 1))
-    known = np.ones(m, dtype=bool)
+    # the attitude each row's bias step sees (only where the Earth rate is taken out)
+    q_nb = np.tile(st.q_initial, (m, 1)) if earth else None
+    known = np.ones(m, dtype=bool) if earth else None
     if earth and align is not None:  # while aligning: levelled from each sample's force
         q_lv, ok = level_quaternions(np.where(a_ok[:, None], av, 0.0)[:align[0] + 1],
                                      math.radians(cfg.initial_heading_deg))
@@ -155,9 +158,12 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
         bias, track, updates = _bias_track(est, tv, wv, values, fed, known if earth else False,
                                            plan)
         if align is not None:
+            if not bias.flags.writeable:
+                bias = bias.copy()
             bias[align[1]:align[0]] = bias[align[0]]  # buffered samples: the bias at the end
+        fallbacks = []
         got = _integrate(s, t.shape[0], valid, tv, bias, wv - bias, actv, track, updates,
-                         start, q_start)
+                         start, q_start, fallbacks)
         if got is None:
             return None
         q, first_rest = got
@@ -168,6 +174,10 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
         q_nb[out_from + 1:] = q[out_from - start:-1]
     else:
         return None
+    counts[RATE_FIT_FALLBACK] = sum(int(f[1].size) for f in fallbacks)
+    if fallbacks:
+        r0, kk = fallbacks[0]
+        details.setdefault(RATE_FIT_FALLBACK, rate_fit_note(int(tv[r0 + int(kk[0])])))
     if updates.size:
         st.first_rest_pending = False
     if align is not None:
@@ -192,25 +202,8 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
     variance = variance_known = None
     known_any = known_v is not None and bool(known_v[out_from:].any())
     if known_any or st.variance_known:
-        sl = slice(start, m)
-        dt = np.zeros(m - start)
-        dt[1:] = (tv[start + 1:] - tv[start:-1]) * 1e-9
-        dt[actv[sl] != _ACCEPT] = 0.0
-        dt[0] = 0.0
-        qv = s._n2 * dt[:, None] * np.ones(3)
-        if var_v is not None:
-            qv = np.where(known_v[sl, None], var_v[sl] * (dt * dt)[:, None], qv)
-        zero_rate = np.zeros(m - start, dtype=bool)
-        se = np.zeros((m - start, 3))
-        if track is not None and updates_after.size:
-            k = np.searchsorted(updates, updates_after)
-            zero_rate[updates_after - start] = True
-            se[updates_after - start] = track.standard_error[k]
-        fr = None
-        if first_rest is not None:
-            zero_rate[first_rest[0]] = False
-            fr = (first_rest[0], first_rest[1], first_rest[2])
-        tt = s.covariance.run(dt, qv, actv[sl] == _RESET, zero_rate, se, fr)
+        tt = _covariance_chunked(s, tv, actv, start, var_v, known_v, track, updates,
+                                 updates_after, first_rest)
         variance = tt[out_from - start:]
         kv = np.zeros(m - out_from, dtype=bool) if known_v is None else known_v[out_from:]
         variance_known = np.maximum.accumulate(kv) | st.variance_known
@@ -243,9 +236,53 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
                         s.alignment, RunForm.ARRAYS)
 
 
+#: rows per covariance chunk: its per-row inputs (dt, noise, zero-rate rows, standard errors)
+#: and the cumulative sums' temporaries are built a chunk at a time (the covariance carries
+#: its state from one chunk to the next, as from one sample to the next: the same bits)
+COVARIANCE_CHUNK = 1 << 16
+
+
+def _covariance_chunked(s, tv, actv, start, var_v, known_v, track, updates, updates_after,
+                        first_rest) -> np.ndarray:
+    """Step 5 over rows ``start`` … of the accepted rows, chunk by chunk: ``tt`` (rows, 3)."""
+    m = tv.shape[0]
+    tt = np.empty((m - start, 3))
+    upd_rows = updates_after - start
+    upd_k = None if track is None else np.searchsorted(updates, updates_after)
+    for c0 in range(0, m - start, COVARIANCE_CHUNK):
+        c1 = min(c0 + COVARIANCE_CHUNK, m - start)
+        r0, r1 = start + c0, start + c1
+        dt = np.zeros(c1 - c0)
+        lo = max(r0, start + 1)
+        dt[lo - r0:] = (tv[lo:r1] - tv[lo - 1:r1 - 1]) * 1e-9
+        dt[actv[r0:r1] != _ACCEPT] = 0.0
+        qv = s._n2 * dt[:, None] * np.ones(3)
+        if var_v is not None:
+            qv = np.where(known_v[r0:r1, None], var_v[r0:r1] * (dt * dt)[:, None], qv)
+        zero_rate = np.zeros(c1 - c0, dtype=bool)
+        se = np.zeros((c1 - c0, 3))
+        if upd_k is not None and upd_rows.size:
+            i0, i1 = np.searchsorted(upd_rows, (c0, c1))
+            zero_rate[upd_rows[i0:i1] - c0] = True
+            se[upd_rows[i0:i1] - c0] = track.standard_error[upd_k[i0:i1]]
+        fr = None
+        if first_rest is not None and c0 <= first_rest[0] - start < c1:
+            zero_rate[first_rest[0] - start - c0] = False
+            fr = (first_rest[0] - start - c0, first_rest[1], first_rest[2])
+        tt[c0:c1] = s.covariance.run(dt, qv, actv[r0:r1] == _RESET, zero_rate, se, fr)
+    return tt
+
+
 def count_saturated(wv, st, counts, details) -> None:
     """Array form of ``AttitudeStream._saturation_step`` over the accepted rows (the same
-    running maximum and repeats, exactly), leaving the state as it would."""
+    running maximum and repeats, exactly), leaving the state as it would; chunk by chunk, the
+    running maximum and the last row carried (as from one sample to the next)."""
+    counts[SATURATED] = 0
+    for c0 in range(0, wv.shape[0], COVARIANCE_CHUNK):
+        _count_saturated(wv[c0:c0 + COVARIANCE_CHUNK], st, counts, details)
+
+
+def _count_saturated(wv, st, counts, details) -> None:
     if wv.shape[0] == 0:
         return
     a = np.abs(wv)
@@ -254,7 +291,7 @@ def count_saturated(wv, st, counts, details) -> None:
     with np.errstate(invalid="ignore"):
         pinned = (a == run_max) & (wv == prev) & (a >= SATURATION_MIN_RAD_S)
     rows_pinned = np.flatnonzero(pinned.any(axis=1))
-    counts[SATURATED] = int(rows_pinned.size)
+    counts[SATURATED] += int(rows_pinned.size)
     if rows_pinned.size:
         k = int(rows_pinned[0])
         axis = int(np.flatnonzero(pinned[k])[-1])
@@ -271,8 +308,11 @@ def rest_plan(est, rec: Recording):
     plan = None
     if est.mode is GyroBiasMode.AUTO and rec.tv.shape[0]:
         idx, cut = fed
-        a_fed = None if rec.av is None else np.where(rec.a_ok[idx, None], rec.av[idx], 0.0)
-        plan = est.rests(rec.tv[idx], rec.wv[idx], a_fed, cut)
+        # (views where every accepted row is fed and every accelerometer row usable: no copy
+        # of the recording)
+        a_fed = None if rec.av is None else (rows(rec.av, idx) if rec.a_ok.all() else
+                                             np.where(rec.a_ok[idx, None], rec.av[idx], 0.0))
+        plan = est.rests(rows(rec.tv, idx), rows(rec.wv, idx), a_fed, cut)
     return fed, plan
 
 
@@ -298,22 +338,27 @@ def _bias_inputs(est, tv, av, a_ok, breaks):
 def _bias_track(est, tv, wv, values, fed, earth, plan):
     """Step 2 on the accepted rows: (bias (M, 3), the BiasTrack or None, update rows (U,))."""
     m = tv.shape[0]
+    if est.mode is not GyroBiasMode.AUTO or m == 0:
+        return np.broadcast_to(np.asarray(est.bias, dtype=np.float64), (m, 3)), None, \
+            np.zeros(0, np.int64)
     bias = np.empty((m, 3))
     bias[:] = est.bias
-    if est.mode is not GyroBiasMode.AUTO or m == 0:
-        return bias, None, np.zeros(0, np.int64)
     est.reset()
     idx, _ = fed
-    earth_fed = earth[idx] if isinstance(earth, np.ndarray) else earth
-    track = est.run(tv[idx], wv[idx], earth_removed=earth_fed, values=values[idx], plan=plan)
+    earth_fed = rows(earth, idx) if isinstance(earth, np.ndarray) else earth
+    track = est.run(rows(tv, idx), rows(wv, idx), earth_removed=earth_fed,
+                    values=rows(values, idx), plan=plan)
+    if idx.size == m:  # every row fed: the track's bias is the rows' bias
+        return track.bias, track, idx[track.updates]
     pos = np.searchsorted(idx, np.arange(m), side="right") - 1
     bias[pos >= 0] = track.bias[pos[pos >= 0]]
     return bias, track, idx[track.updates]
 
 
-def _integrate(s, n, valid, tv, bias, rate, actv, track, updates, start, q_start):
+def _integrate(s, n, valid, tv, bias, rate, actv, track, updates, start, q_start, fallbacks):
     """Step 4: (attitudes of the rows from ``start`` on, the first-rest correction or None),
-    or None on a non-finite attitude."""
+    or None on a non-finite attitude.  ``fallbacks`` collects (first row of the run, its
+    intervals whose rate fit fell back)."""
     st = s.state
     m = tv.shape[0]
     first_rest = None
@@ -324,7 +369,7 @@ def _integrate(s, n, valid, tv, bias, rate, actv, track, updates, start, q_start
                           (int(tv[u0 - 1]) - int(tv[0])) * 1e-9, track.previous[0])
     ev = np.flatnonzero(actv[start:] != _ACCEPT) + start
     bounds = sorted({start, *ev.tolist(), *([first_rest[0]] if first_rest else []), m})
-    q = np.empty((m - start, 4))
+    q = np.empty((m - start, 4)) if len(bounds) != 2 else None
     nav_all = nav_rows(s.nav, valid, n)
     for r0, r1 in zip(bounds[:-1], bounds[1:], strict=True):
         a0 = actv[r0]
@@ -340,20 +385,31 @@ def _integrate(s, n, valid, tv, bias, rate, actv, track, updates, start, q_start
             q0 = q_start
         if first_rest is not None and r0 == first_rest[0]:
             # the integrator restarted at the previous sample, its rate held back to it
-            sel = np.arange(r0 - 1, r1)
-            tt = tv[sel]
-            rr = rate[sel].copy()
-            rr[0] = rate[r0]
-            q_run = integrate_batch(tt, rr, q0=q0, algorithm=s.algorithm,
-                                    nav=None if nav_all is None else nav_rows(
-                                        nav_all, sel, m))[1:]
+            # (``rate`` is this call's own array: its row r0-1 is set for the run and restored,
+            # sparing a copy of the run)
+            held = rate[r0 - 1].copy()
+            rate[r0 - 1] = rate[r0]
+            fb = []
+            try:
+                q_run = integrate_batch(tv[r0 - 1:r1], rate[r0 - 1:r1], q0=q0,
+                                        algorithm=s.algorithm,
+                                        nav=None if nav_all is None else nav_rows(
+                                            nav_all, np.arange(r0 - 1, r1), m),
+                                        fallbacks=fb)[1:]
+            finally:
+                rate[r0 - 1] = held
+            fallbacks.extend((r0 - 1, f) for f in fb)
         else:
             sel = slice(r0, r1)
+            fb = []
             q_run = integrate_batch(tv[sel], rate[sel], q0=q0, algorithm=s.algorithm,
                                     nav=None if nav_all is None else nav_rows(
-                                        nav_all, np.arange(r0, r1), m))
+                                        nav_all, np.arange(r0, r1), m), fallbacks=fb)
+            fallbacks.extend((r0, f) for f in fb)
         if not np.isfinite(q_run).all():
             return None
+        if len(bounds) == 2:  # one run: its attitudes are the result (no second array)
+            return q_run, first_rest
         q[r0 - start:r1 - start] = q_run
     return q, first_rest
 

@@ -52,6 +52,7 @@ class StreamingIntegrator:
         self.nav = nav
         self._nav_const = None
         self._nav_rates = None
+        self._fallbacks_before = 0
         if nav is not None:
             if not isinstance(nav, NavFrame):
                 raise ValueError(f"nav must be a NavFrame or None, got {type(nav).__name__}")
@@ -67,6 +68,7 @@ class StreamingIntegrator:
     def reset(self, q0, t_ns: int | None = None) -> None:
         """Restart from attitude ``q0`` (at ``t_ns`` if given), dropping all history."""
         self._q = check_q0(q0)
+        self._fallbacks_before = self.fit_fallbacks if hasattr(self, "_stepper") else 0
         self.samples = 0
         self.last_t_ns: int | None = None
         self._stepper = self.info.stepper(tuple(float(c) for c in self._q), self._quadrature,
@@ -86,6 +88,12 @@ class StreamingIntegrator:
     @property
     def quaternion(self) -> np.ndarray:
         return np.array(self._q, dtype=np.float64)
+
+    @property
+    def fit_fallbacks(self) -> int:
+        """Intervals integrated so far (since construction, across resets) whose rate fit could
+        not be trusted, integrated with the exponential map (the batch's ``fallbacks``)."""
+        return self._fallbacks_before + getattr(self._stepper, "fit_fallbacks", 0)
 
     def update_nav(self, nav: NavFrame) -> None:
         """Use the constant navigation frame ``nav`` from the next sample on.
