@@ -159,7 +159,7 @@ class AttitudeIntegratorNode(Node):
         self._specs = {s.name: s for s in specs}
         p = declare_all(self, specs)  # raises ParameterError naming a bad parameter
         self._p = p
-        self.executor_kind = p["executor"]  # read by node_main.spin_with_executor
+        self.executor_kind = p["executor"]  # read by node_main.run_node
         # taking messages from the subscription's handle behind the events executor's back
         # would leave its per-message events without a message: drain only without it
         self._drain = p["drain_queue"] and p["executor"] != "events"

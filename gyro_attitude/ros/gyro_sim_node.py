@@ -39,7 +39,6 @@ import rclpy
 from geometry_msgs.msg import QuaternionStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.serialization import serialize_message
 from rclpy.task import Future
@@ -452,9 +451,7 @@ class GyroSimNode(Node):
         self.get_logger().info(f"published {self.published} samples{sat}; done")
 
 
-def _spin_until_done(node: GyroSimNode) -> None:
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
+def _spin_until_done(node: GyroSimNode, executor) -> None:
     executor.spin_until_future_complete(node.done)
     if node.finished:
         # let DDS deliver the last samples before the participant goes away
