@@ -74,8 +74,8 @@ from geometry_msgs.msg import QuaternionStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
+from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu, MagneticField
-from std_msgs.msg import Header
 
 from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, causal_algorithms
 from gyro_attitude.core.attitude import validation as iv
@@ -160,7 +160,7 @@ class AttitudeIntegratorNode(Node):
         self._specs = {s.name: s for s in specs}
         p = declare_all(self, specs)  # raises ParameterError naming a bad parameter
         self._p = p
-        self.executor_kind = p["executor"]  # read by node_main.spin_with_executor
+        self.executor_kind = p["executor"]  # read by node_main.run_node
         # taking messages from the subscription's handle behind the events executor's back
         # would leave its per-message events without a message: drain only without it
         self._drain = p["drain_queue"] and p["executor"] != "events"
@@ -195,13 +195,18 @@ class AttitudeIntegratorNode(Node):
         self._sub_odom = None
         self._velocities = VelocitySchedule(kept=self._ODOM_QUEUE)
 
+        self._undecodable = 0
+        self._att_cdr = convert.QuaternionStampedCdr(self._world_frame)
         self._pub_imu = self.create_publisher(Imu, "imu/data", 100)
         self._pub_att = self.create_publisher(QuaternionStamped, "attitude", 100)
         self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         # every input takes the one QoS rule: best effort (the default) matches any publisher,
         # reliable ones and the best-effort republishing of a bag without offered profiles
         qos = imu_qos(p["qos_reliability"], p["qos_depth"])
-        self._sub_imu = self.create_subscription(Imu, "imu/data_raw", self._on_imu_wakeup, qos)
+        # serialized (raw): read in place and republished with the orientation filled in
+        # (convert.ImuCdr), instead of a Python message built and serialized per sample
+        self._sub_imu = self.create_subscription(Imu, "imu/data_raw", self._on_imu_wakeup, qos,
+                                                 raw=True)
         if self._truth_start is not None:
             self.create_subscription(QuaternionStamped, "truth/attitude", self._on_truth, qos)
         if p["odometry_topic"]:
@@ -290,7 +295,7 @@ class AttitudeIntegratorNode(Node):
         self._stream.restart(q0)
         self.get_logger().info(
             "initial attitude from truth/attitude interpolated at the Imu stamp "
-            f"{convert.stamp_to_ns(waiting[0].header.stamp)} ns ({skipped} Imu sample(s) "
+            f"{waiting[0].t_ns} ns ({skipped} Imu sample(s) "
             "skipped before it)")
         for m in waiting:
             self._on_imu(m)
@@ -343,8 +348,8 @@ class AttitudeIntegratorNode(Node):
         f = msg.magnetic_field
         self._mag.add(convert.stamp_to_ns(msg.header.stamp), (f.x, f.y, f.z))
 
-    def _on_imu_wakeup(self, msg: Imu) -> None:
-        self._on_imu(msg)
+    def _on_imu_wakeup(self, raw: bytes) -> None:
+        self._on_imu_raw(raw)
         if not self._drain:
             return
         # rclpy's executor rebuilds its wait set for every callback, which costs more than
@@ -354,15 +359,35 @@ class AttitudeIntegratorNode(Node):
         for _ in range(self._DRAIN_MAX):
             try:
                 with sub.handle:
-                    taken = sub.handle.take_message(Imu, False)
+                    taken = sub.handle.take_message(Imu, True)
             except Exception:  # handle destroyed at shutdown: the executor handles the rest
                 return
             if taken is None:
                 return
-            self._on_imu(taken[0])
+            self._on_imu_raw(taken[0])
 
-    def _on_imu(self, msg: Imu) -> None:
-        t_ns, frame_id, omega, accel = convert.imu_arrays(msg)
+    def _on_imu_raw(self, raw: bytes) -> None:
+        sample = convert.ImuCdr.parse(raw)
+        if sample is None:
+            # not the plain little-endian layout: rclpy reads it, and its serialization of
+            # the message (the plain layout) is what the old typed path published
+            try:
+                sample = convert.ImuCdr.parse(serialize_message(deserialize_message(raw, Imu)))
+            except Exception as exc:  # bytes that are no Imu at all
+                sample = None
+                problem = f"{type(exc).__name__}: {exc}"
+            else:
+                problem = "unreadable layout"
+            if sample is None:
+                self._undecodable += 1
+                self._warn("undecodable", f"skipped an Imu message that does not deserialize "
+                           f"({len(raw)} bytes; {problem})")
+                return
+        self._on_imu(sample)
+
+    def _on_imu(self, msg: convert.ImuCdr) -> None:
+        t_ns, frame_id = msg.t_ns, msg.frame_id
+        omega, accel = msg.angular_velocity, msg.linear_acceleration
         if self._truth_start is not None:
             self._truth_start.add_sample(t_ns, omega, msg)
             self._start_from_truth()
@@ -398,21 +423,13 @@ class AttitudeIntegratorNode(Node):
         elif st.phase == FAILED:
             self.get_logger().error(f"alignment failed: {st.alignment_error}")
 
-    def _publish(self, msg: Imu, q: np.ndarray) -> None:
+    def _publish(self, msg: convert.ImuCdr, q: np.ndarray) -> None:
         x, y, z, w = from_enu_one(q.tolist(), self._world)
-        o = msg.orientation
-        o.x, o.y, o.z, o.w = x, y, z, w
         variance = self._stream.variance
-        if variance is not None:
-            msg.orientation_covariance = convert.covariance_from_variances(variance)
-        else:
-            msg.orientation_covariance = list(convert.UNKNOWN_COVARIANCE)
-        self._pub_imu.publish(msg)
-        att = QuaternionStamped()
-        att.header = Header(stamp=msg.header.stamp, frame_id=self._world_frame)
-        a = att.quaternion
-        a.x, a.y, a.z, a.w = x, y, z, w
-        self._pub_att.publish(att)
+        cov = (convert.UNKNOWN_COVARIANCE if variance is None
+               else convert.covariance_from_variances(variance))
+        self._pub_imu.publish(msg.with_orientation(x, y, z, w, cov))
+        self._pub_att.publish(self._att_cdr.encode(msg.stamp_cdr, x, y, z, w))
         self._published += 1
 
     # ------------------------------------------------------------------ diagnostics
@@ -428,6 +445,7 @@ class AttitudeIntegratorNode(Node):
             "dt_max_s": f"{s['max_dt_s']:.9f}",
             "accepted": str(st.accepted),
             "published": str(self._published),
+            "undecodable_messages": str(self._undecodable),
             "rejected_total": str(st.rejected_total),
             "time_jump_resets": str(st.time_jump_resets),
             "skipped_before_initial_attitude": str(self._skipped_before_truth

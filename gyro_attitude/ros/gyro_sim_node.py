@@ -39,7 +39,6 @@ import rclpy
 from geometry_msgs.msg import QuaternionStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.serialization import serialize_message
 from rclpy.task import Future
@@ -58,6 +57,7 @@ from gyro_attitude.core.sim_topics import (
     local_enu_position,  # noqa: F401  (re-exported: its home moved to core.sim_topics)
 )
 from gyro_attitude.core.trajectory import LiveTrajectory
+from gyro_attitude.io.cdr_arrays import imu_batch
 from gyro_attitude.io.recording import SafeRecording
 from gyro_attitude.io.safe_output import check_output_path
 from gyro_attitude.io.scene_file import load_scene
@@ -144,8 +144,11 @@ class GyroSimNode(Node):
         self._live: LiveTrajectory | None = None
         self._live_mode = bool(p["motion_topic"])
         gyro_var, accel_var = self._sim.imu_variances()
-        self._gyro_var = None if gyro_var is None else np.asarray(gyro_var, float)
-        self._accel_var = None if accel_var is None else np.asarray(accel_var, float)
+        # covariances on the Imu diagonal; None: all zeros, "unknown" (REP-145)
+        self._gyro_cov = (None if gyro_var is None
+                          else convert.covariance_from_variances(np.asarray(gyro_var, float)))
+        self._accel_cov = (None if accel_var is None
+                           else convert.covariance_from_variances(np.asarray(accel_var, float)))
         self._frame_id = p["frame_id"]
         self._world = p["world_frame_id"]
         self._fast = p["time_mode"] == "fast"
@@ -191,6 +194,8 @@ class GyroSimNode(Node):
         self._start_ns: int | None = None
         self._topics = SimTopics()  # message fields, shared with offline `simulate`
         self._block: list | None = None  # rows of the current block, ready to publish
+        self._imu_raw: list[bytes] | None = None  # their Imu messages, serialized
+        self._block_fields = None
         self._block_pos = 0
         self._generated = 0
         self._wait_deadline = time.monotonic() + p["wait_timeout_s"]
@@ -227,7 +232,8 @@ class GyroSimNode(Node):
 
     def _record(self, topic: str, msg, t_ns: int) -> None:
         # log_time = when the sample is published (receive time of an in-process recorder)
-        self._recording.write(self._resolve_cache[topic], self._serialize(msg), t_ns, t_ns)
+        data = msg if isinstance(msg, bytes) else self._serialize(msg)
+        self._recording.write(self._resolve_cache[topic], data, t_ns, t_ns)
 
     def close(self) -> None:
         """Finish the recording (idempotent); a full disk raises OutputWriteError (one line,
@@ -265,13 +271,29 @@ class GyroSimNode(Node):
         self._block = [tuple(None if c is None else c[k] for c in cols) for k in range(n)]
         self._gimbal_names = None if f.gimbal_names is None else list(f.gimbal_names)
         self._block_pos = 0
+        self._block_fields = f
+        self._imu_raw = None
+        if self._start_ns is not None:
+            self._serialize_imu_block()
 
-    def _publish_row(self, row) -> None:
+    def _serialize_imu_block(self) -> None:
+        """The block's Imu messages serialized at once (io/cdr_arrays.py: the same bytes
+        rclpy writes for ``convert.imu_msg`` of each row), published as they are: building
+        and serializing one Python message per sample cost more than the rest of the sample
+        at kHz rates."""
+        f = self._block_fields
+        self._imu_raw = [bytes(row) for row in imu_batch(
+            "imu/data_raw", self._start_ns + f.t_rel_ns.astype(np.int64), f.angular_velocity,
+            f.specific_force, frame_id=self._frame_id,
+            angular_velocity_covariance=self._gyro_cov,
+            linear_acceleration_covariance=(None if f.specific_force is None
+                                            else self._accel_cov)).payloads()]
+
+    def _publish_row(self, row, imu_raw: bytes) -> None:
         t_rel, omega, sf, q, pos, v_b, w_nb, g_ang, g_rate, mag = row
         t_ns = self._start_ns + t_rel
-        imu = convert.imu_msg(t_ns, self._frame_id, omega, sf, self._gyro_var, self._accel_var)
-        self._pub_imu.publish(imu)
-        msgs = [("imu/data_raw", imu)]
+        self._pub_imu.publish(imu_raw)
+        msgs = [("imu/data_raw", imu_raw)]
         if g_ang is not None:
             js = convert.joint_state_msg(t_ns, self._gimbal_names, g_ang, g_rate)
             js.header.frame_id = self._frame_id
@@ -283,7 +305,7 @@ class GyroSimNode(Node):
             msgs.append((MAG_TOPIC, mm))
         if self._p["publish_truth"]:
             att = QuaternionStamped()
-            att.header = Header(stamp=imu.header.stamp, frame_id=self._world)
+            att.header = Header(stamp=convert.ns_to_stamp(t_ns), frame_id=self._world)
             a = att.quaternion
             a.x, a.y, a.z, a.w = q
             self._pub_truth.publish(att)
@@ -291,7 +313,7 @@ class GyroSimNode(Node):
             self._pub_odom.publish(odom)
             msgs += [("truth/attitude", att), ("truth/odom", odom)]
         if self._pub_clock is not None:
-            self._pub_clock.publish(Clock(clock=imu.header.stamp))
+            self._pub_clock.publish(Clock(clock=convert.ns_to_stamp(t_ns)))
         if self._recording is not None and not self._recording.closed:
             for topic, m in msgs:
                 self._record(topic, m, t_ns)
@@ -333,6 +355,7 @@ class GyroSimNode(Node):
         self._start_ns = t_ns
         self._generated = 0
         self._block, self._block_pos = [], 0
+        self._imu_raw = []
         self._resolve_cache = {t: self._resolve(t) for t in TOPICS}
 
     def _on_odometry(self, msg: Odometry) -> None:
@@ -399,8 +422,8 @@ class GyroSimNode(Node):
             n = min(n_ready, BLOCK_SAMPLES)
             self._block_n = n
             self._next_block()
-            for row in self._block:
-                self._publish_row(row)
+            for row, raw in zip(self._block, self._imu_raw, strict=True):
+                self._publish_row(row, raw)
             n_ready -= n
 
     def _tick(self) -> None:
@@ -425,6 +448,7 @@ class GyroSimNode(Node):
                 # scheduling jitter after their stamps), instead of up to a period late when
                 # the grid's phase falls just after the ticks'.
                 self._start_ns = now + until - self._timer.timer_period_ns - _GRID_MARGIN_NS
+            self._serialize_imu_block()  # the first block: its stamps are known only now
         if self._fast:
             due = None  # everything in the current block
         else:
@@ -440,7 +464,7 @@ class GyroSimNode(Node):
             row = self._block[self._block_pos]
             if due is not None and row[0] > due:
                 return
-            self._publish_row(row)
+            self._publish_row(row, self._imu_raw[self._block_pos])
             self._block_pos += 1
 
     def _finish(self) -> None:
@@ -452,9 +476,7 @@ class GyroSimNode(Node):
         self.get_logger().info(f"published {self.published} samples{sat}; done")
 
 
-def _spin_until_done(node: GyroSimNode) -> None:
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
+def _spin_until_done(node: GyroSimNode, executor) -> None:
     executor.spin_until_future_complete(node.done)
     if node.finished:
         # let DDS deliver the last samples before the participant goes away

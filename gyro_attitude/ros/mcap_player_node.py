@@ -25,8 +25,8 @@ from pathlib import Path
 import rclpy
 from mcap.exceptions import McapError
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.task import Future
 
 from gyro_attitude.io.imu_fast import deserialized
 from gyro_attitude.io.mcap_reader import (
@@ -265,31 +265,34 @@ class McapPlayerNode(Node):
         return count
 
 
-def _serve(executor) -> None:
-    """Spin ``executor`` until it is shut down (the player's services while it plays)."""
+def _serve(executor, stop: Future) -> None:
+    """Spin ``executor`` (the player's parameter services) until ``stop`` is done or a
+    signal shuts the context down."""
     try:
-        executor.spin()
+        executor.spin_until_future_complete(stop)
     except Exception:  # a signal shut the context down under it: the play loop ends too
         if rclpy.ok():
             raise
 
 
-def _play(node: McapPlayerNode) -> None:
+def _play(node: McapPlayerNode, executor) -> None:
     node.get_logger().info(f"playing {node.path} at rate {node.rate:g}"
                            + (" (loop)" if node.loop else ""))
     # The play loop keeps this thread (it sleeps to the next message's time); parameter
-    # services (set/get/describe/list) are answered meanwhile by an executor on its own
-    # thread. Publishing from one thread while another spins is safe in rclpy.
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    services = threading.Thread(target=_serve, args=(executor,), name="mcap_player_services",
-                                daemon=True)
+    # services (set/get/describe/list) are answered meanwhile by the node's executor on a
+    # thread of its own. Publishing from one thread while another spins is safe in rclpy.
+    # That thread is stopped (``stop`` wakes its wait) and joined before this returns:
+    # run_node shuts the executor down and destroys the node only after, so no thread is
+    # inside the executor's wait when its guard conditions and the node's handles go.
+    stop = Future()
+    services = threading.Thread(target=_serve, args=(executor, stop),
+                                name="mcap_player_services", daemon=True)
     services.start()
     try:
         _play_passes(node)
     finally:
-        executor.shutdown(timeout_sec=1.0)
-        services.join(timeout=2.0)
+        stop.set_result(None)  # its done callback wakes the executor's wait set
+        services.join()
 
 
 def _play_passes(node: McapPlayerNode) -> None:

@@ -1,12 +1,14 @@
 """The one ``main()`` life cycle every gyro_attitude node shares (demo_nodes_py style).
 
-init → build the node → ``gc.freeze()`` → spin → the node's own ``finish`` → destroy →
-shutdown. Exit status: 0 when the node is done or on SIGINT/SIGTERM/SIGHUP (a closed
-terminal is an orderly shutdown too; also when the signal is repeated during shutdown:
-``ros2 launch`` forwards the terminal's Ctrl-C, so every node gets it twice); 2 with one
-line on an invalid parameter (:class:`~gyro_attitude.ros.params.ParameterError`, also a
-missing or unreadable ``--params-file``); 1 with one line when the node's input is unusable
-(:class:`InputError`) or its output cannot be written (a full disk:
+init → build the node and its executor → ``gc.freeze()`` → rclpy's signal handlers → spin →
+rclpy's signal handlers off → the executor's shutdown → the node's own ``finish`` → destroy
+→ shutdown (:func:`run_node` says why in this order). Exit status: 0 when the node is done
+or on SIGINT/SIGTERM/SIGHUP (a closed terminal is an orderly shutdown too; also when the
+signal is repeated during shutdown: ``ros2 launch`` forwards the terminal's Ctrl-C, so every
+node gets it twice); 2 with one line on an invalid parameter
+(:class:`~gyro_attitude.ros.params.ParameterError`, also a missing or unreadable
+``--params-file``); 1 with one line when the node's input is unusable (:class:`InputError`)
+or its output cannot be written (a full disk:
 :class:`~gyro_attitude.io.safe_output.OutputWriteError`). Never a traceback for any of these.
 """
 
@@ -23,6 +25,11 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
+from rclpy.signals import (
+    SignalHandlerOptions,
+    install_signal_handlers,
+    uninstall_signal_handlers,
+)
 
 from gyro_attitude.io.ament_prefix import ensure_ament_prefix_path
 from gyro_attitude.io.safe_output import OutputWriteError
@@ -32,7 +39,7 @@ RCLError = _rclpy.RCLError
 
 __all__ = ["run_node", "InputError", "ShutdownSignals", "EXIT_OK", "EXIT_INPUT",
            "EXIT_OUTPUT", "EXIT_PARAMETER", "EXECUTORS", "make_executor",
-           "spin_with_executor"]
+           "spin_executor"]
 
 EXIT_OK = 0
 EXIT_INPUT = 1  # the input (a recording) cannot be used
@@ -52,10 +59,11 @@ class ShutdownSignals:
     including inside ``destroy_node`` or a file's ``finish`` when the signal repeats; its
     default SIGTERM kills the process without finishing anything. These handlers raise
     nothing: they only record the signal. The wake-up comes from rclpy's own C-level handler
-    (installed by ``rclpy.init`` after these, so it chains to them): it shuts the contexts
-    down, which ends ``spin`` with ``ExternalShutdownException`` and makes ``rclpy.ok()``
-    false for hand-written loops. A shutdown must not be started from here: a Python handler
-    runs between two bytecodes of the main thread, possibly while it holds the context's
+    (installed by :func:`run_node` after these, so it chains to them): its signal thread
+    triggers every executor's signal guard condition and shuts the contexts down, which ends
+    ``spin`` with ``ExternalShutdownException`` and makes ``rclpy.ok()`` false for
+    hand-written loops. A shutdown must not be started from here: a Python handler runs
+    between two bytecodes of the main thread, possibly while it holds the context's
     (non-reentrant) lock.
 
     SIGHUP (the terminal was closed) would kill the process without finishing anything, and
@@ -155,16 +163,11 @@ def make_executor(kind: str, say: Callable[[str], None] | None = None):
     return SingleThreadedExecutor()
 
 
-def spin_with_executor(node: Node) -> None:
-    """Spin ``node`` on the executor it asks for (its ``executor_kind`` attribute, default
-    ``single_threaded``) until shutdown: what :func:`run_node` does by default."""
-    kind = getattr(node, "executor_kind", "single_threaded")
-    executor = make_executor(kind, lambda text: node.get_logger().warning(text))
-    executor.add_node(node)
-    try:
-        executor.spin()
-    finally:
-        executor.shutdown()
+def spin_executor(node: Node, executor) -> None:
+    """Spin ``executor`` (which holds ``node``) until shutdown: what :func:`run_node` does by
+    default. A node's own ``spin`` gets the same two arguments and must leave the executor to
+    :func:`run_node` (no ``shutdown``): see there why."""
+    executor.spin()
 
 
 def _destroy(node: Node) -> None:
@@ -175,18 +178,44 @@ def _destroy(node: Node) -> None:
         pass
 
 
+def _quiesce_signal_handling() -> None:
+    """Stop rclpy's signal thread and hand SIGINT/SIGTERM back to :class:`ShutdownSignals`.
+
+    rclpy (7.1, Jazzy) answers a signal from a thread of its own that walks a global list of
+    raw guard-condition pointers (one per executor) and triggers each, with no lock against
+    an executor registering or destroying its guard condition meanwhile: a signal that
+    arrives while an executor is created or shut down makes that thread trigger freed memory
+    (a segfault; reproduced in seconds by creating and destroying executors under a stream of
+    SIGTERMs). A repeated signal is exactly that case, since the first one starts the
+    teardown. Uninstalling rclpy's handlers joins that thread (after any trigger it is in)
+    and restores the handlers it chained to, ours, which ignore repeats; from then on no
+    thread touches a guard condition behind our back."""
+    try:
+        uninstall_signal_handlers()
+    except Exception:  # nothing installed (init failed): nothing to stop
+        pass
+
+
 def run_node(name: str, make_node: Callable[[], Node], args=None, *,
-             spin: Callable[[Node], None] = spin_with_executor,
+             spin: Callable[[Node, object], None] = spin_executor,
              finish: Callable[[Node], None] | None = None) -> int:
     """Run a node until it is done or signalled; returns the process exit status.
 
     Meant as the whole of a node process's ``main()``: it installs SIGINT/SIGTERM/SIGHUP
     handlers and leaves these signals ignored when it returns.
+
+    The node's executor (its ``executor_kind`` attribute, default ``single_threaded``) is
+    built here, before rclpy's signal handlers are installed, and shut down here, after they
+    are uninstalled (:func:`_quiesce_signal_handling`): every guard condition rclpy's signal
+    thread triggers exists for exactly the time that thread runs. ``spin(node, executor)``
+    may spin the executor on another thread; it must have stopped and joined that thread
+    when it returns.
     """
     signals = ShutdownSignals()
     signals.install()
     signals.silence_unraisable_after_signal()
     node = None
+    executor = None
     initialized = False
     status = EXIT_OK
 
@@ -200,18 +229,24 @@ def run_node(name: str, make_node: Callable[[], Node], args=None, *,
             say(f"invalid parameter file: {problem}")
             return EXIT_PARAMETER
         try:
-            rclpy.init(args=args)
+            # rclpy's signal handlers come later (below): a signal meanwhile is recorded by
+            # ours, and the node is not spun
+            rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
         except RCLError as exc:  # malformed --ros-args, unparsable parameter file
             say(f"invalid ROS arguments: {str(exc).splitlines()[0]}")
             return EXIT_PARAMETER
         initialized = True
         node = make_node()
+        executor = make_executor(getattr(node, "executor_kind", "single_threaded"),
+                                 lambda text: node.get_logger().warning(text))
+        executor.add_node(node)
         # Move everything allocated at start-up (modules, message classes, numpy) out of the
         # collector's reach: a full gen-2 collection then scans only recent objects instead
         # of ~10^5, which keeps its pauses (latency spikes at 1 kHz) well below a millisecond.
         gc.freeze()
+        install_signal_handlers(SignalHandlerOptions.ALL)
         if signals.received is None:  # a signal during start-up: nothing to spin for
-            spin(node)
+            spin(node, executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except ParameterError as exc:
@@ -234,6 +269,13 @@ def run_node(name: str, make_node: Callable[[], Node], args=None, *,
             raise
     finally:
         try:
+            if initialized:
+                _quiesce_signal_handling()  # before any guard condition is destroyed
+            if executor is not None:
+                try:
+                    executor.shutdown()
+                except Exception:  # handles of a context a signal shut down
+                    pass
             if node is not None:
                 try:
                     if finish is not None:

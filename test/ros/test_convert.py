@@ -85,3 +85,57 @@ def test_odometry_and_joint_state():
     assert list(js.name) == ["outer_gimbal", "inner_gimbal"] and list(js.velocity) == [1.0, 2.0]
     with pytest.raises(ValueError, match="names"):
         convert.joint_state_msg(7, ["a"], [0.1, 0.2], [1.0, 2.0])
+
+
+def _imu(frame_id: str, t_ns: int, rng) -> Imu:
+    m = convert.imu_msg(t_ns, frame_id, rng.normal(size=3), rng.normal(size=3),
+                        rng.uniform(1e-8, 1e-6, 3), rng.uniform(1e-5, 1e-3, 3))
+    m.orientation_covariance = list(rng.normal(size=9))
+    return m
+
+
+@pytest.mark.parametrize("frame_id", ["", "a", "imu", "imu_link", "imu_link_1", "ö/base"])
+def test_serialized_imu_is_read_and_filled_in_as_rclpy_serializes_it(frame_id):
+    """ImuCdr reads every field rclpy wrote, and with_orientation gives the bytes rclpy
+    serializes for the message with that orientation (every frame_id length, so every
+    alignment of the float64 body)."""
+    from geometry_msgs.msg import QuaternionStamped
+
+    rng = np.random.default_rng(len(frame_id))
+    for t_ns in (1, 1_763_700_000_123_456_789):
+        m = _imu(frame_id, t_ns, rng)
+        s = convert.ImuCdr.parse(serialize_message(m))
+        assert s is not None and s.t_ns == t_ns and s.frame_id == frame_id
+        assert s.angular_velocity.tolist() == [m.angular_velocity.x, m.angular_velocity.y,
+                                               m.angular_velocity.z]
+        assert s.linear_acceleration.tolist() == [m.linear_acceleration.x,
+                                                  m.linear_acceleration.y,
+                                                  m.linear_acceleration.z]
+        assert s.angular_velocity_covariance.tolist() == list(m.angular_velocity_covariance)
+        assert (s.linear_acceleration_covariance.tolist()
+                == list(m.linear_acceleration_covariance))
+        q, cov = rng.normal(size=4).tolist(), rng.normal(size=9).tolist()
+        m.orientation.x, m.orientation.y, m.orientation.z, m.orientation.w = q
+        m.orientation_covariance = cov
+        assert s.with_orientation(*q, cov) == serialize_message(m)
+        att = QuaternionStamped()
+        att.header.stamp = m.header.stamp
+        att.header.frame_id = frame_id + "_world"
+        att.quaternion.x, att.quaternion.y, att.quaternion.z, att.quaternion.w = q
+        enc = convert.QuaternionStampedCdr(frame_id + "_world").encode(s.stamp_cdr, *q)
+        ref = serialize_message(att)
+        # equal but for the alignment padding after frame_id (rclpy leaves it unset)
+        pad = slice(16 + len((frame_id + "_world").encode()) + 1, len(ref) - 32)
+        assert len(enc) == len(ref) and enc[pad] == bytes(len(ref[pad]))
+        assert enc[:pad.start] + enc[pad.stop:] == ref[:pad.start] + ref[pad.stop:]
+        assert deserialize_message(enc, QuaternionStamped) == att
+
+
+def test_serialized_imu_other_than_plain_little_endian_is_left_to_rclpy():
+    raw = serialize_message(_imu("imu_link", 5, np.random.default_rng(0)))
+    assert convert.ImuCdr.parse(raw) is not None
+    assert convert.ImuCdr.parse(b"\x00\x00" + raw[2:]) is None  # big-endian encapsulation
+    assert convert.ImuCdr.parse(raw[:-1]) is None  # truncated
+    assert convert.ImuCdr.parse(raw + b"\x00" * 8) is None  # longer than the layout
+    assert convert.ImuCdr.parse(raw[:12] + (200).to_bytes(4, "little") + raw[16:]) is None
+    assert convert.ImuCdr.parse(b"") is None

@@ -114,3 +114,45 @@ def test_descriptors_carry_ranges_and_descriptions(ros_domain_id):
         integ.destroy_node()
     finally:
         rclpy.shutdown(context=context)
+
+
+@pytest.mark.parametrize("scene", ["coning", "handheld_mems"])
+def test_gyro_sim_publishes_the_imu_rclpy_would_serialize(ros_domain_id, scene):
+    """gyro_sim serializes a block's Imu messages at once (io/cdr_arrays): each equals
+    rclpy's serialization of convert.imu_msg for its row (noise covariances, accelerometer
+    or its absence), bytes outside the alignment padding included."""
+    import numpy as np
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.parameter import Parameter
+    from rclpy.serialization import deserialize_message, serialize_message
+    from sensor_msgs.msg import Imu
+
+    from gyro_attitude.ros import convert
+
+    context = Context()
+    rclpy.init(context=context, domain_id=ros_domain_id)
+    try:
+        sim = gyro_sim_node.GyroSimNode(
+            context=context, parameter_overrides=[Parameter("scene", value=scene)])
+        sim._start_ns = 1_763_700_000_123_456_789
+        sim._next_block()
+        f = sim._block_fields
+        gyro_var, accel_var = sim._sim.imu_variances()
+        for k in (0, 1, len(sim._block) - 1):
+            sf = None if f.specific_force is None else f.specific_force[k]
+            ref = serialize_message(convert.imu_msg(
+                sim._start_ns + int(f.t_rel_ns[k]), sim._frame_id, f.angular_velocity[k], sf,
+                gyro_var, accel_var))
+            raw = sim._imu_raw[k]
+            assert deserialize_message(raw, Imu) == deserialize_message(ref, Imu)
+            head = 16 + len(sim._frame_id.encode()) + 1
+            body = len(ref) - 37 * 8
+            assert len(raw) == len(ref) and raw[:head] == ref[:head]
+            assert raw[body:] == ref[body:]
+        assert (f.specific_force is None) == (scene == "coning")
+        assert scene == "coning" or np.any(np.asarray(gyro_var) > 0)
+        sim.close()
+        sim.destroy_node()
+    finally:
+        rclpy.shutdown(context=context)

@@ -5,9 +5,12 @@ traceback, every time; the recorder's file is finished under its requested name.
 from __future__ import annotations
 
 import itertools
+import json
 import os
 import random
 import signal
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -84,3 +87,57 @@ def test_signal_single_and_repeated_exit_zero_without_traceback(sig, launch, tmp
     assert sorted(p.name for p in tmp_path.iterdir() if not p.name.endswith(".log")) == recorded, \
         "a temporary recording was left behind"
     assert not failures, f"{len(failures)} of {len(runs)} runs failed:\n" + "\n".join(failures)
+
+
+# Runs a node's real main() in a fresh interpreter with SignalHandlerGuardCondition watched:
+# each creation and destruction records which rclpy signal handlers are installed then.
+_GUARD_WATCH = r"""
+import json, os, signal, sys, threading, time
+import rclpy.signals as rs
+events = []
+init, destroy = rs.SignalHandlerGuardCondition.__init__, rs.SignalHandlerGuardCondition.destroy
+def watched_init(self, *a, **k):
+    events.append(("create", int(rs.get_current_signal_handlers_options())))
+    init(self, *a, **k)
+def watched_destroy(self):
+    events.append(("destroy", int(rs.get_current_signal_handlers_options())))
+    destroy(self)
+rs.SignalHandlerGuardCondition.__init__ = watched_init
+rs.SignalHandlerGuardCondition.destroy = watched_destroy
+def signal_twice():  # once the node spins (rclpy's handlers are in), twice in 2 ms
+    while int(rs.get_current_signal_handlers_options()) == 0:
+        time.sleep(0.01)
+    time.sleep(float(sys.argv[2]))
+    os.kill(os.getpid(), signal.SIGTERM)
+    time.sleep(0.002)
+    os.kill(os.getpid(), signal.SIGTERM)
+threading.Thread(target=signal_twice, daemon=True).start()
+import importlib
+code = importlib.import_module(sys.argv[1]).main(sys.argv[3:])
+print("GUARDS " + json.dumps(events), flush=True)
+sys.exit(code)
+"""
+
+
+@pytest.mark.parametrize("module, params", [
+    ("gyro_attitude.ros.mcap_player_node", ["-p", f"input:={BAG}", "-p", "loop:=true"]),
+    ("gyro_attitude.ros.attitude_integrator_node", []),
+    ("gyro_attitude.ros.gyro_sim_node", ["-p", "scene:=coning"]),
+], ids=lambda v: v.rsplit(".", 1)[-1] if isinstance(v, str) else "")
+def test_signal_guard_conditions_never_change_while_rclpy_handles_signals(
+        module, params, ros_env, namespace):
+    """rclpy 7.1's signal thread triggers every executor's signal guard condition through a
+    list it reads without a lock: creating or destroying one while a (repeated) signal is
+    being handled lets it trigger freed memory (the segfault of a double SIGTERM). So the
+    executors are built before rclpy's handlers are installed and shut down after they
+    are uninstalled: every creation and destruction sees no rclpy handler."""
+    proc = subprocess.run(
+        [sys.executable, "-c", _GUARD_WATCH, module, "1.0", "--ros-args", "-r",
+         f"__ns:={namespace}", *params],
+        env=ros_env, capture_output=True, text=True, timeout=60)
+    lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("GUARDS ")]
+    assert proc.returncode == 0 and lines, proc.stdout + proc.stderr
+    events = json.loads(lines[-1][len("GUARDS "):])
+    assert [e[0] for e in events].count("create") >= 1, events
+    assert "destroy" in [e[0] for e in events], events
+    assert all(options == 0 for _, options in events), events  # 0 = SignalHandlerOptions.NO
