@@ -154,6 +154,15 @@ def main(argv: list[str] | None = None) -> int:
         if is_process_main:
             sys.stdout = open(os.devnull, "w")  # no second error when Python flushes at exit
         return 1
+    except Exception:
+        if not interrupt.received:
+            raise
+        # The interrupt surfaced as another exception: a C extension whose initialisation the
+        # KeyboardInterrupt broke re-raises it as "ImportError: initialization failed" (scipy's
+        # HiGHS module during the subcommand's imports). It is still the user's Ctrl-C.
+        print(f"gyro-attitude {name}: interrupted; no output written under the requested names",
+              file=sys.stderr)
+        return EXIT_INTERRUPTED
     finally:
         if is_process_main:
             _Interrupt.ignore_from_now_on()

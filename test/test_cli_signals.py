@@ -36,3 +36,32 @@ def test_interrupted_simulate_exits_130_cleanly(tmp_path, sig, after_s):
     assert len([ln for ln in err.splitlines() if ln.strip()]) <= 2, err
     assert not out.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_interrupt_breaking_an_extension_import_exits_130(monkeypatch, capsys):
+    """A Ctrl-C inside a C extension's initialisation comes back as "ImportError:
+    initialization failed" (its cause the KeyboardInterrupt): still exit 130, one line."""
+    from gyro_attitude import cli
+
+    def interrupted_import(_name):
+        try:
+            signal.raise_signal(signal.SIGINT)
+        except KeyboardInterrupt as exc:
+            raise ImportError("initialization failed") from exc
+
+    monkeypatch.setattr(cli.importlib, "import_module", interrupted_import)
+    assert cli.main(["simulate", "coning"]) == cli.EXIT_INTERRUPTED
+    err = capsys.readouterr().err
+    assert "interrupted" in err and "Traceback" not in err
+    assert len([ln for ln in err.splitlines() if ln.strip()]) == 1
+
+
+def test_an_error_without_interrupt_is_not_taken_for_one(monkeypatch):
+    from gyro_attitude import cli
+
+    def broken_import(_name):
+        raise ImportError("a real missing module")
+
+    monkeypatch.setattr(cli.importlib, "import_module", broken_import)
+    with pytest.raises(ImportError, match="real missing"):
+        cli.main(["simulate", "coning"])
