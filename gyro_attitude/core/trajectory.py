@@ -109,7 +109,8 @@ def check_poses(poses: PoseSeries, max_gap_s: float = DEFAULT_MAX_GAP_S) -> Pose
     bad = ~np.all(np.isfinite(p), axis=1)
     if bad.any():
         raise ValueError(f"{src}: {lab[int(np.argmax(bad))]}: position is not finite")
-    norm = np.linalg.norm(q, axis=1)
+    with np.errstate(over="ignore"):  # a 1e300 component: |q| = inf, refused below
+        norm = np.linalg.norm(q, axis=1)
     bad = ~np.isfinite(norm) | (np.abs(norm - 1.0) > UNIT_QUATERNION_TOLERANCE)
     if bad.any():
         i = int(np.argmax(bad))
