@@ -24,6 +24,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import stat
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
 
@@ -94,9 +95,13 @@ def _number(text: str, where: str, column: str) -> float:
 
 def _open_text(path: Path):
     try:
-        size = path.stat().st_size
+        st = path.stat()
     except OSError as exc:
         raise ValueError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(st.st_mode):
+        # a FIFO would block on open, /dev/zero stream NULs without end
+        raise ValueError(f"{path}: not a regular file (a pipe or device): give the pose file")
+    size = st.st_size
     if size > MAX_POSE_FILE_BYTES:
         raise ValueError(f"{path}: {size} bytes is more than a pose file may hold "
                          f"({MAX_POSE_FILE_BYTES})")

@@ -239,6 +239,22 @@ def test_binary_or_missing_file_is_one_line(tmp_path, capsys):
     assert math.isfinite(1.0)
 
 
+@pytest.mark.parametrize("kind", ["fifo", "device"])
+@pytest.mark.timeout(20)
+def test_a_pipe_or_device_as_the_pose_file_is_one_line_not_a_hang(tmp_path, capsys, kind):
+    import os
+
+    path = tmp_path / "poses.tum"
+    if kind == "fifo":
+        os.mkfifo(path)  # open() would wait for a writer for ever
+    else:
+        path = "/dev/zero"  # an endless line of NULs
+    rc, out = _simulate(tmp_path, path)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 1 and len(err) == 1 and "not a regular file" in err[0], err
+    assert not out.exists()
+
+
 def test_output_never_overwrites_the_pose_file_and_flags_are_checked(tmp_path, capsys):
     t, p, q = _rows()
     tum = write_tum(tmp_path / "a.tum", t, p, q)
