@@ -93,7 +93,8 @@ def add_estimator_flags(parser: argparse.ArgumentParser, settings=SETTINGS) -> N
                                       "parameters, same names)")
     for s in settings:
         kwargs = dict(dest=_DEST + s.name, default=argparse.SUPPRESS, metavar=_metavar(s),
-                      help=f"{s.describe()}; default {_default_text(s)}")
+                      # argparse formats help with %: a literal one ("0.3-1 %") must be doubled
+                      help=f"{s.describe()}; default {_default_text(s)}".replace("%", "%%"))
         if s.name == "initial_attitude":
             group.add_argument(s.flag, action=_Shorthand,
                                const=("initial_attitude_source", InitialAttitudeSource.PARAMETER),

@@ -574,3 +574,13 @@ def test_odometry_topic_sets_the_transport_rate_as_the_node_does(tmp_path, capsy
     rc = cli_main([*common, "--out", str(tmp_path / "x.mcap"), "--odometry-topic",
                    "truth/attitude"])
     assert rc == 1 and "not nav_msgs/msg/Odometry" in _one_line(capsys.readouterr().err)
+
+
+@pytest.mark.parametrize("command", ["replay", "montecarlo"])
+def test_help_of_a_command_with_the_estimator_settings_prints(command, capsys):
+    # a setting's help text holds a literal "%" ("0.3-1 %"), which argparse formats
+    with pytest.raises(SystemExit) as exc:
+        cli_main([command, "--help"])
+    assert exc.value.code == 0
+    out = capsys.readouterr().out
+    assert "--gyro-scale-factor-sigma" in out and "0.3-1 %" in out
