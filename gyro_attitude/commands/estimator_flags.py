@@ -42,7 +42,13 @@ def _parse(setting: Setting, text: str):
         raise argparse.ArgumentTypeError(str(exc)) from None
     except ValueError:
         raise argparse.ArgumentTypeError(
-            f"{setting.name} must be {_metavar(setting)}, got {text!r}") from None
+            f"{setting.name} must be {_expected(setting)}, got {text!r}") from None
+
+
+def _expected(setting: Setting) -> str:
+    """What a flag's text must be, in words ("N" alone reads as a typo)."""
+    m = _metavar(setting)
+    return "a number" if m == "N" else ("numbers " + m if "," in m else m)
 
 
 def _metavar(setting: Setting) -> str:
