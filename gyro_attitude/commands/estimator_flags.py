@@ -42,7 +42,13 @@ def _parse(setting: Setting, text: str):
         raise argparse.ArgumentTypeError(str(exc)) from None
     except ValueError:
         raise argparse.ArgumentTypeError(
-            f"{setting.name} must be {_metavar(setting)}, got {text!r}") from None
+            f"{setting.name} must be {_expected(setting)}, got {text!r}") from None
+
+
+def _expected(setting: Setting) -> str:
+    """What a flag's text must be, in words ("N" alone reads as a typo)."""
+    m = _metavar(setting)
+    return "a number" if m == "N" else ("numbers " + m if "," in m else m)
 
 
 def _metavar(setting: Setting) -> str:
@@ -93,7 +99,8 @@ def add_estimator_flags(parser: argparse.ArgumentParser, settings=SETTINGS) -> N
                                       "parameters, same names)")
     for s in settings:
         kwargs = dict(dest=_DEST + s.name, default=argparse.SUPPRESS, metavar=_metavar(s),
-                      help=f"{s.describe()}; default {_default_text(s)}")
+                      # argparse formats help with %: a literal one ("0.3-1 %") must be doubled
+                      help=f"{s.describe()}; default {_default_text(s)}".replace("%", "%%"))
         if s.name == "initial_attitude":
             group.add_argument(s.flag, action=_Shorthand,
                                const=("initial_attitude_source", InitialAttitudeSource.PARAMETER),

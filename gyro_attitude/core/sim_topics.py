@@ -52,7 +52,10 @@ def local_enu_position(llh: np.ndarray, llh0: np.ndarray) -> np.ndarray:
     for the km-scale paths of the scenes)."""
     r_m, r_n = radii_of_curvature(llh0[0])
     h0 = llh0[2]
-    east = (llh[:, 1] - llh0[1]) * (r_n + h0) * np.cos(llh0[0])
+    # the longitude difference wrapped to [−π, π): a path across the antimeridian (lon +π to
+    # −π) is a few metres east, not the Earth's circumference west
+    dlon = np.remainder(llh[:, 1] - llh0[1] + np.pi, 2.0 * np.pi) - np.pi
+    east = dlon * (r_n + h0) * np.cos(llh0[0])
     north = (llh[:, 0] - llh0[0]) * (r_m + h0)
     return np.stack([east, north, llh[:, 2] - h0], axis=-1)
 

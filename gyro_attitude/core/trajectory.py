@@ -109,7 +109,8 @@ def check_poses(poses: PoseSeries, max_gap_s: float = DEFAULT_MAX_GAP_S) -> Pose
     bad = ~np.all(np.isfinite(p), axis=1)
     if bad.any():
         raise ValueError(f"{src}: {lab[int(np.argmax(bad))]}: position is not finite")
-    norm = np.linalg.norm(q, axis=1)
+    with np.errstate(over="ignore"):  # a 1e300 component: |q| = inf, refused below
+        norm = np.linalg.norm(q, axis=1)
     bad = ~np.isfinite(norm) | (np.abs(norm - 1.0) > UNIT_QUATERNION_TOLERANCE)
     if bad.any():
         i = int(np.argmax(bad))
@@ -137,7 +138,27 @@ def check_poses(poses: PoseSeries, max_gap_s: float = DEFAULT_MAX_GAP_S) -> Pose
     if bad.any():
         i = int(np.argmax(bad)) + 1
         raise ValueError(f"{src}: {lab[i]}: {_too_fast(step[i - 1], dt[i - 1] / 1e9)}")
-    return PoseSeries(t, p, q / norm[:, None], lab, src)
+    q = q / norm[:, None]
+    # pose to pose a turn faster than any motion may spin: a glitch or a re-sent pose a few
+    # ns after the original (0.1° in 1 ns would be a 1.7e6 rad/s gyro); |q·q'|: q ≡ −q
+    turn = _turn_angle(np.abs(np.sum(q[1:] * q[:-1], axis=1)))
+    bad = turn > _limits().MAX_BODY_RATE_RAD_S * (dt / 1e9)
+    if bad.any():
+        i = int(np.argmax(bad)) + 1
+        raise ValueError(f"{src}: {lab[i]}: {_too_quick_turn(turn[i - 1], dt[i - 1] / 1e9)}")
+    return PoseSeries(t, p, q, lab, src)
+
+
+def _turn_angle(dot):
+    """Rotation angle (rad) between unit quaternions of ``|q · q'|`` = ``dot``."""
+    dot = np.minimum(dot, 1.0)
+    return 2.0 * np.arctan2(np.sqrt(1.0 - dot * dot), dot)
+
+
+def _too_quick_turn(angle: float, dt: float) -> str:
+    return (f"turned {math.degrees(angle):.6g}° in {dt:.6g} s ({angle / dt:.6g} rad/s) since "
+            f"the previous pose, faster than {_limits().MAX_BODY_RATE_RAD_S:.6g} rad/s (the "
+            "fastest rotation of a scene): a glitch or a repeated pose?")
 
 
 def _limits():
@@ -762,6 +783,10 @@ class LiveTrajectory(TrajectoryMotion):
         if refusal is not None:
             return refusal
         q = q / norm
+        if self._t:
+            turn = float(_turn_angle(abs(float(np.dot(q, self._q[-1])))))
+            if turn > _limits().MAX_BODY_RATE_RAD_S * dt:
+                return _too_quick_turn(turn, dt)
         if self._q and float(np.dot(q, self._q[-1])) < 0.0:
             q = -q  # sign-continuous, as the file fit does
         self._t.append(int(t_ns))

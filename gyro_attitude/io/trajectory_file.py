@@ -24,6 +24,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import stat
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
 
@@ -54,14 +55,23 @@ COLUMNS = ("timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw")
 POSE_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped", "tf2_msgs/msg/TFMessage")
 
 
+#: Stamps a pose may carry (ns): the int32 seconds of a ROS ``builtin_interfaces/Time``
+#: (the IMU is stamped in the poses' time base), up to 2038-01-19.
+MAX_STAMP_NS = (2**31 - 1) * 1_000_000_000
+
+
 def _stamp_ns(text: str, where: str) -> int:
     whole, dot, frac = text.partition(".")
     if (whole.isascii() and whole.isdigit() and frac.isascii() and (not frac or frac.isdigit())
-            and len(frac) <= 9):
+            and len(frac) <= 9 and len(whole) < 12):
         # the common "seconds.fraction" form, exactly, without Decimal's cost
-        return int(whole) * 1_000_000_000 + int(frac.ljust(9, "0") or 0) if len(whole) < 12 \
-            else _stamp_decimal(text, where)
-    return _stamp_decimal(text, where)
+        ns = int(whole) * 1_000_000_000 + int(frac.ljust(9, "0") or 0)
+    else:
+        ns = _stamp_decimal(text, where)
+    if not 0 <= ns <= MAX_STAMP_NS:
+        raise ValueError(f"{where}: timestamp {text[:40]} s is outside [0, {MAX_STAMP_NS // 10**9}]"
+                         " s (the int32 seconds of a ROS stamp)")
+    return ns
 
 
 def _stamp_decimal(text: str, where: str) -> int:
@@ -71,10 +81,9 @@ def _stamp_decimal(text: str, where: str) -> int:
         raise ValueError(f"{where}: timestamp {text[:40]!r} is not a number") from None
     if not d.is_finite():
         raise ValueError(f"{where}: timestamp {text[:40]!r} is not finite")
-    ns = int((d * 1_000_000_000).to_integral_value())
-    if not 0 <= ns < 2**62:
-        raise ValueError(f"{where}: timestamp {text[:40]} s is outside [0, 1.4e11] s")
-    return ns
+    if d.adjusted() > 12:  # beyond any stamp (an exponent of 1e999999999 overflows Decimal's
+        return -1          # arithmetic): refused by the caller
+    return int((d * 1_000_000_000).to_integral_value())
 
 
 def _number(text: str, where: str, column: str) -> float:
@@ -86,14 +95,19 @@ def _number(text: str, where: str, column: str) -> float:
 
 def _open_text(path: Path):
     try:
-        size = path.stat().st_size
+        st = path.stat()
     except OSError as exc:
         raise ValueError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(st.st_mode):
+        # a FIFO would block on open, /dev/zero stream NULs without end
+        raise ValueError(f"{path}: not a regular file (a pipe or device): give the pose file")
+    size = st.st_size
     if size > MAX_POSE_FILE_BYTES:
         raise ValueError(f"{path}: {size} bytes is more than a pose file may hold "
                          f"({MAX_POSE_FILE_BYTES})")
     try:
-        return open(path, encoding="utf-8", newline="")
+        # utf-8-sig: a byte-order mark (Windows editors, Excel CSV) is not part of line 1
+        return open(path, encoding="utf-8-sig", newline="")
     except OSError as exc:
         raise ValueError(f"{path}: cannot read: {exc.strerror or exc}") from None
 

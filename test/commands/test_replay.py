@@ -574,3 +574,24 @@ def test_odometry_topic_sets_the_transport_rate_as_the_node_does(tmp_path, capsy
     rc = cli_main([*common, "--out", str(tmp_path / "x.mcap"), "--odometry-topic",
                    "truth/attitude"])
     assert rc == 1 and "not nav_msgs/msg/Odometry" in _one_line(capsys.readouterr().err)
+
+
+@pytest.mark.parametrize("command", ["replay", "montecarlo"])
+def test_help_of_a_command_with_the_estimator_settings_prints(command, capsys):
+    # a setting's help text holds a literal "%" ("0.3-1 %"), which argparse formats
+    with pytest.raises(SystemExit) as exc:
+        cli_main([command, "--help"])
+    assert exc.value.code == 0
+    out = capsys.readouterr().out
+    assert "--gyro-scale-factor-sigma" in out and "0.3-1 %" in out
+
+
+@pytest.mark.parametrize("value", ["abc", "nan", "0", "-1", "inf", "1e300"])
+def test_a_bad_offline_time_constant_flag_is_one_line_and_exit_2(value, tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli_main(["replay", str(tmp_path / "in.mcap"), "--out", str(tmp_path / "o.mcap"),
+                  "--offline-mag-tau-s", value])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "offline_mag_tau_s must be a" in err and "Traceback" not in err
+    assert ("must be a number, got 'abc'" in err) if value == "abc" else "[0.01, 10000]" in err

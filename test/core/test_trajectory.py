@@ -283,6 +283,49 @@ def test_live_poses_that_a_file_would_refuse_are_rejected_one_by_one():
     assert np.all(np.isfinite(s.specific_force_b))
 
 
+def _turning_poses(n=120, rate=100.0, flip_every_other=False):
+    """A 0.5 rad/s turn about z sampled at ``rate``; with ``flip_every_other`` every second
+    quaternion is written as −q (the same rotation)."""
+    t = np.arange(n) / rate
+    q = np.stack((np.zeros(n), np.zeros(n), np.sin(0.25 * t), np.cos(0.25 * t)), axis=1)
+    if flip_every_other:
+        q[1::2] *= -1.0
+    return t, np.zeros((n, 3)), q
+
+
+def test_q_and_minus_q_alternating_give_the_rates_of_a_consistent_sign():
+    t, p, q = _turning_poses()
+    _, _, q_alt = _turning_poses(flip_every_other=True)
+    ts = np.linspace(0.05, t[-1] - 0.05, 200)
+    w = TrajectoryMotion(poses_of(t, p, q), ORIGIN).tangent(ts).omega_tb_b
+    w_alt = TrajectoryMotion(poses_of(t, p, q_alt), ORIGIN).tangent(ts).omega_tb_b
+    np.testing.assert_allclose(w, [[0.0, 0.0, 0.5]] * len(ts), atol=1e-6)  # closed form
+    np.testing.assert_array_equal(w_alt, w)
+
+
+def test_a_pose_repeated_a_nanosecond_later_with_another_attitude_is_refused():
+    """0.1° in 1 ns would be a 1.7e6 rad/s gyro, beyond any scene's rotation."""
+    from gyro_attitude.core.trajectory import LiveTrajectory
+
+    t, p, q = _turning_poses()
+    t_ns = 10**9 + np.round(t * 1e9).astype(np.int64)
+    k = 60
+    d = math.radians(0.1) / 2  # about x, applied on the right
+    qk = q[k]
+    q_re = [qk[3] * d + qk[0], qk[1] + qk[2] * d, qk[2] - qk[1] * d, qk[3] - qk[0] * d]
+    poses = PoseSeries(np.insert(t_ns, k + 1, t_ns[k] + 1), np.insert(p, k + 1, p[k], axis=0),
+                       np.insert(q, k + 1, q_re, axis=0),
+                       tuple(f"line {i + 1}" for i in range(len(t) + 1)), "test.tum")
+    with pytest.raises(ValueError, match=r"line 62: turned 0\.1\d*° in 1e-09 s .* faster than "
+                                         r"62831\.9 rad/s"):
+        check_poses(poses)
+    live = LiveTrajectory(ORIGIN, int(t_ns[0]))
+    for j in range(k + 1):
+        assert live.add(int(t_ns[j]), p[j], q[j]) is None
+    assert "faster than 62831.9 rad/s" in live.add(int(t_ns[k]) + 1, p[k], q_re)
+    assert live.add(int(t_ns[k]) + 1, p[k], -q[k]) is None  # −q: the same attitude
+
+
 def test_a_trajectory_tens_of_km_from_the_origin_keeps_its_acceleration_digits():
     """Splines reproduce constants, so poses shifted by 35 km have the same smoothing fit
     shifted; fitted uncentred, differences of km-sized coordinates lost ~1e-6 m/s²."""

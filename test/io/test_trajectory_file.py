@@ -157,9 +157,17 @@ BAD = [
      r"line 5: quaternion .* not a unit"),
     ("one pose", lambda lines: lines[:1], r"1 pose; a trajectory needs at least 2"),
     ("text", lambda lines: [*lines[:2], "1.0 2.0 three", *lines[3:]], r"line 3: 3 values, expected 8"),
+    ("stamp past int32 seconds", lambda lines: [lines[0], "10000000000.5" + lines[1][
+        lines[1].index(" "):], *lines[2:]],
+     r"line 2: timestamp 10000000000\.5 s is outside \[0, 2147483647\] s"),
+    ("stamp of a huge exponent", lambda lines: ["1e999999999" + lines[0][lines[0].index(" "):],
+                                                *lines[1:]], r"line 1: timestamp 1e999999999 s is outside"),
+    ("1e300 in q", lambda lines: [*lines[:4], lines[4].rsplit(" ", 4)[0] + " 1e300 0 0 1",
+                                  *lines[5:]], r"line 5: quaternion .* \(\|q\| = inf"),
 ]
 
 
+@pytest.mark.filterwarnings("error")  # a numpy overflow warning is a second line on stderr
 @pytest.mark.parametrize("name, edit, message", BAD, ids=[b[0] for b in BAD])
 def test_bad_pose_file_is_one_line_and_exit_1(tmp_path, capsys, name, edit, message):
     t, p, q = _rows()
@@ -170,6 +178,19 @@ def test_bad_pose_file_is_one_line_and_exit_1(tmp_path, capsys, name, edit, mess
     assert rc == 1 and len(err) == 1 and "Traceback" not in err[0], err
     assert __import__("re").search(message, err[0]), err[0]
     assert not out.exists()
+
+
+@pytest.mark.parametrize("kind", ["tum", "csv"])
+def test_a_byte_order_mark_is_not_part_of_the_first_line(tmp_path, kind):
+    t, p, q = _rows()
+    text = write_tum(tmp_path / "a.tum", t, p, q, comment=False).read_text()
+    if kind == "csv":
+        text = "timestamp,tx,ty,tz,qx,qy,qz,qw\r\n" + text.replace(" ", ",").replace("\n", "\r\n")
+    path = tmp_path / f"bom.{kind}"
+    path.write_bytes(b"\xef\xbb\xbf" + text.encode())  # as Windows editors and Excel save
+    poses = read_poses(path)
+    assert np.array_equal(poses.t_ns, t)
+    np.testing.assert_allclose(poses.q, q, rtol=0, atol=1e-11)
 
 
 def test_gap_of_minutes_is_refused_naming_the_line(tmp_path, capsys):
@@ -216,6 +237,22 @@ def test_binary_or_missing_file_is_one_line(tmp_path, capsys):
     rc, _ = _simulate(tmp_path, tmp_path / "missing.tum")
     assert rc == 1 and "trajectory file not found" in capsys.readouterr().err
     assert math.isfinite(1.0)
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device"])
+@pytest.mark.timeout(20)
+def test_a_pipe_or_device_as_the_pose_file_is_one_line_not_a_hang(tmp_path, capsys, kind):
+    import os
+
+    path = tmp_path / "poses.tum"
+    if kind == "fifo":
+        os.mkfifo(path)  # open() would wait for a writer for ever
+    else:
+        path = "/dev/zero"  # an endless line of NULs
+    rc, out = _simulate(tmp_path, path)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 1 and len(err) == 1 and "not a regular file" in err[0], err
+    assert not out.exists()
 
 
 def test_output_never_overwrites_the_pose_file_and_flags_are_checked(tmp_path, capsys):

@@ -136,6 +136,7 @@ _COV_BLOCK = 16
 _REFERENCE_SAMPLES = 1 << 14  # (a median of 16 Ki: within ~1 % of the field's scatter)
 # the heading smoother needs this much weight within reach (e^-600: ~600 τ away from any field)
 _MAG_WEIGHT_MIN = 1e-260
+_IDENTITY = np.array([0.0, 0.0, 0.0, 1.0])
 
 
 @dataclass
@@ -706,15 +707,27 @@ class _Estimator:
     def _field(self, c0, c1, q):
         """The field of rows ``[c0, c1)`` less the hard iron, rotated into the output frame by
         ``q`` (zeros where unusable), its norm, and which rows are usable / missing."""
-        raw = self.mag[c0:c1]
+        return self._field_rows(self.mag[c0:c1], q)
+
+    def _field_rows(self, raw, q):
+        """:meth:`_field` of the rows ``raw``: the one validity rule of the heading pass and
+        of the reference it learns (a zero reading must not vote for the reference)."""
         missing = np.isnan(raw).all(axis=1)
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid="ignore", over="ignore"):
             ok = np.isfinite(raw).all(axis=1) & (np.abs(raw).max(axis=1) <= MAG_ABSURD_T)
             ok &= np.einsum("ij,ij->i", raw, raw) >= MAG_ZERO_T * MAG_ZERO_T
         m = np.where(ok[:, None], raw - np.asarray(self.field_reference.hard_iron), 0.0)
         norm = np.sqrt(np.einsum("ij,ij->i", m, m))
         ok &= norm >= MAG_ZERO_T  # (almost) zero once the hard iron is taken out: no reading
         return _qrot(q, m), norm, ok, missing
+
+    def _count_unusable(self, b0, b1):
+        """The missing and invalid field samples of rows ``[b0, b1)`` counted, in a block
+        whose heading stays gyro-only (no reference to judge disturbance by)."""
+        for c0, c1 in _chunks(b0, b1, self.size):
+            _, _, ok, missing = self._field_rows(self.mag[c0:c1], _IDENTITY)
+            self.mag_counts[MAG_MISSING] += int(np.count_nonzero(missing))
+            self.mag_counts[INVALID_MAG] += int(np.count_nonzero(~ok & ~missing))
 
     def _field_reference(self, b0, b1, q_out) -> FieldReference:
         """Norm and dip of the undisturbed field: ``mag_reference_enu_t`` when given, else the
@@ -731,14 +744,8 @@ class _Estimator:
         self.field_reference = ref  # the hard iron, for _field
         step = max(1, (b1 - b0) // _REFERENCE_SAMPLES)
         pick = np.arange(b0, b1, step)
-        raw = self.mag[pick]
-        fin = np.isfinite(raw).all(axis=1)
-        pick, raw = pick[fin], raw[fin]
         if pick.size:
-            m = raw - np.asarray(ref.hard_iron)
-            mn = _qrot(q_out[pick], m)
-            norm = np.sqrt(np.einsum("ij,ij->i", m, m))
-            ok = (np.abs(raw).max(axis=1) <= MAG_ABSURD_T) & (norm >= MAG_ZERO_T)
+            mn, norm, ok, _ = self._field_rows(self.mag[pick], q_out[pick])
             if np.count_nonzero(ok) >= 10:
                 ref.mag_ref_norm = float(np.median(norm[ok]))
                 ref.mag_ref_dip = float(np.median(np.arctan2(-mn[ok, 2], np.hypot(mn[ok, 0],
@@ -760,6 +767,7 @@ class _Estimator:
         if ref.mag_ref_norm is None:
             self.notes.append("magnetometer: too few usable field samples to learn the "
                               "reference: heading gyro-only")
+            self._count_unusable(b0, b1)
             return
         ref_n, ref_d = ref.mag_ref_norm, ref.mag_ref_dip
         tol_n, tol_d = cfg.mag_norm_tol * ref_n, math.radians(cfg.mag_dip_tol_deg)

@@ -123,6 +123,28 @@ def test_bad_or_missing_field_samples_are_counted_and_the_attitude_stays_finite(
         estimate_offline(t, w, a, config=StreamConfig(aiding="magnetometer"), mag=mag[:-1])
 
 
+def test_zero_readings_do_not_vote_for_the_reference_and_unusable_fields_are_counted():
+    t, w, a, q_true, var, k_end = rest_motion_rest(35)
+    rng = np.random.default_rng(35)
+    mag = body_field(q_true, field_enu(), rng)
+    hard = (12e-6, -7e-6, 4e-6)
+    cfg = StreamConfig(aiding="magnetometer", mag_hard_iron_t=hard)
+    # a sensor that reads zeros for the first 60 % (less the hard iron they are 14 µT, a
+    # plausible norm): invalid, and the reference is the true field's, not theirs
+    zeros = mag + np.asarray(hard)
+    zeros[: int(0.6 * t.size)] = 0.0
+    res = estimate_offline(t, w, a, q0=yaw(q_true[0], 10.0), config=cfg, mag=zeros)
+    assert res.counts[INVALID_MAG] == int(0.6 * t.size)
+    assert res.field_reference.mag_ref_norm == pytest.approx(44e-6, rel=1e-2)
+    assert heading_error_deg(res.q, q_true[res.index])[-1] < 0.5
+    # no usable field at all: every sample counted, the heading gyro-only and said so
+    for bad in (np.inf, 1e300, 0.0):
+        r = estimate_offline(t, w, a, q0=q_true[0], config=cfg, mag=np.full_like(mag, bad))
+        assert r.counts[INVALID_MAG] == t.size, bad
+        assert any("too few usable field samples" in n for n in r.notes)
+        assert np.isfinite(r.q).all()
+
+
 @pytest.mark.parametrize("keep_forward", [True, False])
 def test_chunked_heading_pass_gives_the_whole_recording_result(keep_forward, monkeypatch):
     t, w, a, q_true, var, k_end = rest_motion_rest(34, motion_s=24.0)
