@@ -30,8 +30,9 @@ def test_node_takes_the_heading_from_the_magnetometer(launch, ros_node, tmp_path
               "mag_hard_iron_t": [float(c) for c in m.hard_iron]}
     from gyro_attitude.core.attitude.settings import StreamConfig
 
+    # the node's chain (replay's default for magnetometer aiding is now the offline estimator)
     offline = replay_file(rec, tmp_path / "replayed.mcap", algorithm="rotvec_cubic",
-                          config=StreamConfig(**params))
+                          config=StreamConfig(**params), estimator="causal")
     got: list = []
     diag: list = []
     ros_node.create_subscription(
