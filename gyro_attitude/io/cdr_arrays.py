@@ -33,6 +33,7 @@ The tests check every field against rclpy's own (de)serialization.
 
 from __future__ import annotations
 
+import struct
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,6 +47,9 @@ __all__ = [
     "MAGNETIC_FIELD_TYPE",
     "JOINT_STATE_TYPE",
     "CdrLayout",
+    "ImuCdr",
+    "QuaternionStampedCdr",
+    "header_body_offset",
     "CDR_LE_HEADER",
     "MESSAGE_RECORD_PREFIX",
     "message_record_dtype",
@@ -459,3 +463,124 @@ def _exact_rows(value, n: int, width: int, name: str) -> np.ndarray:
     if a.shape != (n, width):
         raise ValueError(f"{name} must have shape ({n}, {width}), got {a.shape}")
     return a
+
+
+# ---------------------------------------------------------------------------------------
+# One serialized Imu read in place, serialized Imu and QuaternionStamped out: the
+# attitude_integrator's per-message path at kHz rates. rclpy's deserialize_message builds a
+# Python message with numpy covariance arrays, and publish() serializes one back, at tens of
+# µs each; the fixed layout of these messages (above) makes both a slice and a struct call.
+# Any message that is not the plain little-endian layout (another encapsulation, a length
+# that does not add up, a frame_id that is not UTF-8) takes rclpy's path instead, so the
+# result is the same message either way (checked byte for byte against rclpy in the tests).
+
+def _double_slices(type_name: str) -> dict[str, slice]:
+    """Each body field's slice of the message's float64 values (:data:`BODY_FIELDS` order)."""
+    out, k = {}, 0
+    for name, count in BODY_FIELDS[type_name]:
+        out[name] = slice(k, k + count)
+        k += count
+    return out
+
+
+_IMU_SLICES = _double_slices(IMU_TYPE)
+_IMU_DOUBLES = _IMU_SLICES["linear_acceleration_covariance"].stop
+_ORIENTATION_DOUBLES = _IMU_SLICES["orientation_covariance"].stop  # orientation + covariance
+_U32 = struct.Struct("<I")
+_STAMP = struct.Struct("<iI")
+_ORIENTATION = struct.Struct(f"<{_ORIENTATION_DOUBLES}d")
+
+
+def header_body_offset(frame_len: int) -> int:
+    """Offset of the first float64 after a std_msgs/Header whose frame_id takes
+    ``frame_len`` bytes (its NUL included): :class:`CdrLayout`'s rule (stamp at 4, the
+    string's length at 12, XCDR1 alignment counted from offset 4) in one expression, for a
+    per-message parse where building a layout would cost more than the message."""
+    return 4 + (12 + frame_len + 7) // 8 * 8
+
+
+class ImuCdr:
+    """One serialized ``sensor_msgs/Imu`` read in place (:meth:`parse`), and the same bytes
+    with the orientation filled in (:meth:`with_orientation`)."""
+
+    __slots__ = ("raw", "t_ns", "frame_id", "values", "_body")
+
+    @property
+    def stamp_cdr(self) -> bytes:
+        """header.stamp as serialized (sec int32, nanosec uint32), copied as is."""
+        return self.raw[4:12]
+
+    def __init__(self, raw: bytes, t_ns: int, frame_id: str, values: np.ndarray, body: int):
+        self.raw = raw
+        self.t_ns = t_ns
+        self.frame_id = frame_id
+        self.values = values  # the 37 float64 of the body, in field order
+        self._body = body
+
+    _last_frame: tuple[bytes, str] = (b"", "")  # frame_id bytes -> str, decoded once
+
+    @classmethod
+    def parse(cls, raw: bytes) -> ImuCdr | None:
+        """The fields of ``raw``, or None when it is not the plain CDR_LE layout."""
+        n = len(raw)
+        if n < 16 + 1 + _IMU_DOUBLES * 8 or raw[:4] != CDR_LE_HEADER:
+            return None
+        (frame_len,) = _U32.unpack_from(raw, 12)
+        body = header_body_offset(frame_len)
+        if frame_len < 1 or body + _IMU_DOUBLES * 8 != n or raw[15 + frame_len] != 0:
+            return None
+        frame_bytes = raw[16:15 + frame_len]
+        cached = cls._last_frame
+        if frame_bytes == cached[0]:
+            frame_id = cached[1]
+        else:
+            try:
+                frame_id = frame_bytes.decode("utf-8")
+            except UnicodeDecodeError:
+                return None
+            if "\x00" in frame_id:
+                return None
+            cls._last_frame = (frame_bytes, frame_id)
+        sec, nanosec = _STAMP.unpack_from(raw, 4)
+        values = np.frombuffer(raw, np.float64, _IMU_DOUBLES, body).copy()
+        return cls(raw, sec * 1_000_000_000 + nanosec, frame_id, values, body)
+
+    @property
+    def angular_velocity(self) -> np.ndarray:
+        return self.values[_IMU_SLICES["angular_velocity"]]
+
+    @property
+    def angular_velocity_covariance(self) -> np.ndarray:
+        return self.values[_IMU_SLICES["angular_velocity_covariance"]]
+
+    @property
+    def linear_acceleration(self) -> np.ndarray:
+        return self.values[_IMU_SLICES["linear_acceleration"]]
+
+    @property
+    def linear_acceleration_covariance(self) -> np.ndarray:
+        return self.values[_IMU_SLICES["linear_acceleration_covariance"]]
+
+    def with_orientation(self, x: float, y: float, z: float, w: float, covariance) -> bytes:
+        """These bytes with ``orientation`` and ``orientation_covariance`` (9) replaced."""
+        b = self._body
+        raw = self.raw
+        return raw[:b] + _ORIENTATION.pack(x, y, z, w, *covariance) + raw[b + _ORIENTATION.size:]
+
+
+class QuaternionStampedCdr:
+    """Serialized ``geometry_msgs/QuaternionStamped`` with one ``frame_id``."""
+
+    __slots__ = ("_head", "_tail")
+
+    def __init__(self, frame_id: str):
+        frame = _frame_bytes(frame_id)
+        body = header_body_offset(len(frame))
+        head_len = 16 + len(frame)
+        self._head = _U32.pack(len(frame)) + frame + b"\x00" * (body - head_len)
+        self._tail = struct.Struct("<4d")
+
+    def encode(self, stamp_cdr: bytes, x: float, y: float, z: float, w: float) -> bytes:
+        """The message with header.stamp ``stamp_cdr`` (8 serialized bytes, e.g.
+        :attr:`ImuCdr.stamp_cdr`) and quaternion (x, y, z, w)."""
+        return CDR_LE_HEADER + stamp_cdr + self._head + self._tail.pack(x, y, z, w)

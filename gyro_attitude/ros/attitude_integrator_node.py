@@ -99,6 +99,7 @@ from gyro_attitude.core.attitude.stream import (
 )
 from gyro_attitude.core.attitude.truth import TruthStart
 from gyro_attitude.core.attitude.world_frame import frame_id_of, from_enu_one
+from gyro_attitude.io.cdr_arrays import ImuCdr, QuaternionStampedCdr
 from gyro_attitude.ros import convert
 from gyro_attitude.ros.node_main import EXECUTORS, run_node
 from gyro_attitude.ros.params import (
@@ -196,7 +197,7 @@ class AttitudeIntegratorNode(Node):
         self._velocities = VelocitySchedule(kept=self._ODOM_QUEUE)
 
         self._undecodable = 0
-        self._att_cdr = convert.QuaternionStampedCdr(self._world_frame)
+        self._att_cdr = QuaternionStampedCdr(self._world_frame)
         self._pub_imu = self.create_publisher(Imu, "imu/data", 100)
         self._pub_att = self.create_publisher(QuaternionStamped, "attitude", 100)
         self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
@@ -204,7 +205,7 @@ class AttitudeIntegratorNode(Node):
         # reliable ones and the best-effort republishing of a bag without offered profiles
         qos = imu_qos(p["qos_reliability"], p["qos_depth"])
         # serialized (raw): read in place and republished with the orientation filled in
-        # (convert.ImuCdr), instead of a Python message built and serialized per sample
+        # (ImuCdr), instead of a Python message built and serialized per sample
         self._sub_imu = self.create_subscription(Imu, "imu/data_raw", self._on_imu_wakeup, qos,
                                                  raw=True)
         if self._truth_start is not None:
@@ -367,12 +368,12 @@ class AttitudeIntegratorNode(Node):
             self._on_imu_raw(taken[0])
 
     def _on_imu_raw(self, raw: bytes) -> None:
-        sample = convert.ImuCdr.parse(raw)
+        sample = ImuCdr.parse(raw)
         if sample is None:
             # not the plain little-endian layout: rclpy reads it, and its serialization of
             # the message (the plain layout) is what the old typed path published
             try:
-                sample = convert.ImuCdr.parse(serialize_message(deserialize_message(raw, Imu)))
+                sample = ImuCdr.parse(serialize_message(deserialize_message(raw, Imu)))
             except Exception as exc:  # bytes that are no Imu at all
                 sample = None
                 problem = f"{type(exc).__name__}: {exc}"
@@ -385,7 +386,7 @@ class AttitudeIntegratorNode(Node):
                 return
         self._on_imu(sample)
 
-    def _on_imu(self, msg: convert.ImuCdr) -> None:
+    def _on_imu(self, msg: ImuCdr) -> None:
         t_ns, frame_id = msg.t_ns, msg.frame_id
         omega, accel = msg.angular_velocity, msg.linear_acceleration
         if self._truth_start is not None:
@@ -423,7 +424,7 @@ class AttitudeIntegratorNode(Node):
         elif st.phase == FAILED:
             self.get_logger().error(f"alignment failed: {st.alignment_error}")
 
-    def _publish(self, msg: convert.ImuCdr, q: np.ndarray) -> None:
+    def _publish(self, msg: ImuCdr, q: np.ndarray) -> None:
         x, y, z, w = from_enu_one(q.tolist(), self._world)
         variance = self._stream.variance
         cov = (convert.UNKNOWN_COVARIANCE if variance is None

@@ -15,8 +15,6 @@ Conventions (docs/conventions.md, REP-103, REP-145):
 
 from __future__ import annotations
 
-import struct
-
 import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Quaternion, QuaternionStamped, Vector3
@@ -26,7 +24,6 @@ from sensor_msgs.msg import Imu, JointState, MagneticField
 from gyro_attitude.core.attitude.nav_frame import odometry_velocity
 from gyro_attitude.core.attitude.validation import NO_ESTIMATE, no_estimate
 from gyro_attitude.core.rotation import as_quat_array, as_vector_array
-from gyro_attitude.io.cdr_arrays import CDR_LE_HEADER
 
 __all__ = [
     "NO_ESTIMATE_COVARIANCE",
@@ -45,8 +42,6 @@ __all__ = [
     "odometry_msg",
     "odometry_velocity_parent",
     "joint_state_msg",
-    "ImuCdr",
-    "QuaternionStampedCdr",
 ]
 
 _NS = 1_000_000_000
@@ -268,111 +263,3 @@ def joint_state_msg(t_ns: int, names, positions, velocities) -> JointState:
     msg.position = pos.tolist()
     msg.velocity = vel.tolist()
     return msg
-
-
-# ---------------------------------------------------------------------------------------
-# Serialized (CDR) Imu in, serialized Imu and QuaternionStamped out: the integrator's
-# per-message path at kHz rates. rclpy's deserialize_message builds a Python message with
-# numpy covariance arrays, and publish() serializes one back, at tens of µs each; the fixed
-# layout of these messages (io/cdr_arrays.py) makes both a slice and a struct call.  Any
-# message that is not the plain little-endian layout (another encapsulation, a length that
-# does not add up, a frame_id that is not UTF-8) takes rclpy's path instead, so the result
-# is the same message either way (checked byte for byte against rclpy in the tests).
-
-_IMU_DOUBLES = 37  # orientation 4, its covariance 9, angular_velocity 3, covariance 9, ...
-_U32 = struct.Struct("<I")
-_STAMP = struct.Struct("<iI")
-_ORIENTATION = struct.Struct("<13d")  # orientation (x, y, z, w) and its covariance[9]
-
-
-def _body_offset(frame_len: int) -> int:
-    """Offset of the first float64 after a header whose frame_id takes ``frame_len`` bytes
-    (its NUL included): XCDR1 alignment counts from offset 4, after the encapsulation."""
-    return 4 + (12 + frame_len + 7) // 8 * 8
-
-
-class ImuCdr:
-    """One serialized ``sensor_msgs/Imu`` read in place (:meth:`parse`), and the same bytes
-    with the orientation filled in (:meth:`with_orientation`)."""
-
-    __slots__ = ("raw", "t_ns", "frame_id", "values", "_body")
-
-    @property
-    def stamp_cdr(self) -> bytes:
-        """header.stamp as serialized (sec int32, nanosec uint32), copied as is."""
-        return self.raw[4:12]
-
-    def __init__(self, raw: bytes, t_ns: int, frame_id: str, values: np.ndarray, body: int):
-        self.raw = raw
-        self.t_ns = t_ns
-        self.frame_id = frame_id
-        self.values = values  # the 37 float64 of the body, in field order
-        self._body = body
-
-    _last_frame: tuple[bytes, str] = (b"", "")  # frame_id bytes -> str, decoded once
-
-    @classmethod
-    def parse(cls, raw: bytes) -> ImuCdr | None:
-        """The fields of ``raw``, or None when it is not the plain CDR_LE layout."""
-        n = len(raw)
-        if n < 16 + 1 + _IMU_DOUBLES * 8 or raw[:4] != CDR_LE_HEADER:
-            return None
-        (frame_len,) = _U32.unpack_from(raw, 12)
-        body = _body_offset(frame_len)
-        if frame_len < 1 or body + _IMU_DOUBLES * 8 != n or raw[15 + frame_len] != 0:
-            return None
-        frame_bytes = raw[16:15 + frame_len]
-        cached = cls._last_frame
-        if frame_bytes == cached[0]:
-            frame_id = cached[1]
-        else:
-            try:
-                frame_id = frame_bytes.decode("utf-8")
-            except UnicodeDecodeError:
-                return None
-            if "\x00" in frame_id:
-                return None
-            cls._last_frame = (frame_bytes, frame_id)
-        sec, nanosec = _STAMP.unpack_from(raw, 4)
-        values = np.frombuffer(raw, np.float64, _IMU_DOUBLES, body).copy()
-        return cls(raw, sec * _NS + nanosec, frame_id, values, body)
-
-    @property
-    def angular_velocity(self) -> np.ndarray:
-        return self.values[13:16]
-
-    @property
-    def angular_velocity_covariance(self) -> np.ndarray:
-        return self.values[16:25]
-
-    @property
-    def linear_acceleration(self) -> np.ndarray:
-        return self.values[25:28]
-
-    @property
-    def linear_acceleration_covariance(self) -> np.ndarray:
-        return self.values[28:37]
-
-    def with_orientation(self, x: float, y: float, z: float, w: float, covariance) -> bytes:
-        """These bytes with ``orientation`` and ``orientation_covariance`` (9) replaced."""
-        b = self._body
-        raw = self.raw
-        return raw[:b] + _ORIENTATION.pack(x, y, z, w, *covariance) + raw[b + 104:]
-
-
-class QuaternionStampedCdr:
-    """Serialized ``geometry_msgs/QuaternionStamped`` with one ``frame_id``."""
-
-    __slots__ = ("_head", "_tail")
-
-    def __init__(self, frame_id: str):
-        frame = frame_id.encode("utf-8") + b"\x00"
-        body = _body_offset(len(frame))
-        head_len = 16 + len(frame)
-        self._head = _U32.pack(len(frame)) + frame + b"\x00" * (body - head_len)
-        self._tail = struct.Struct("<4d")
-
-    def encode(self, stamp_cdr: bytes, x: float, y: float, z: float, w: float) -> bytes:
-        """The message with header.stamp ``stamp_cdr`` (8 serialized bytes, e.g.
-        :attr:`ImuCdr.stamp_cdr`) and quaternion (x, y, z, w)."""
-        return CDR_LE_HEADER + stamp_cdr + self._head + self._tail.pack(x, y, z, w)

@@ -189,3 +189,15 @@ def test_write_batches_files_are_byte_identical_to_the_reference(tmp_path, monke
     assert got == expected
     assert all(s == list(range(len(s))) for s in seqs.values())
     assert {c.compression for c in chunks} == {compression}
+
+
+def test_header_body_offset_follows_the_cdr_layout():
+    """The per-message parse's one-expression offset is CdrLayout's for every frame_id
+    length (alignment counted from offset 4, after the encapsulation)."""
+    from gyro_attitude.io.cdr_arrays import CdrLayout, header_body_offset
+
+    for n in range(0, 40):
+        lay = CdrLayout()
+        frame = lay.header("x" * n)
+        lay.doubles("body", 1)
+        assert header_body_offset(len(frame)) == lay.fields[-1][2], n

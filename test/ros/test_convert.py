@@ -8,6 +8,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import Imu
 
+from gyro_attitude.io.cdr_arrays import ImuCdr, QuaternionStampedCdr
 from gyro_attitude.ros import convert
 
 
@@ -104,7 +105,7 @@ def test_serialized_imu_is_read_and_filled_in_as_rclpy_serializes_it(frame_id):
     rng = np.random.default_rng(len(frame_id))
     for t_ns in (1, 1_763_700_000_123_456_789):
         m = _imu(frame_id, t_ns, rng)
-        s = convert.ImuCdr.parse(serialize_message(m))
+        s = ImuCdr.parse(serialize_message(m))
         assert s is not None and s.t_ns == t_ns and s.frame_id == frame_id
         assert s.angular_velocity.tolist() == [m.angular_velocity.x, m.angular_velocity.y,
                                                m.angular_velocity.z]
@@ -122,7 +123,7 @@ def test_serialized_imu_is_read_and_filled_in_as_rclpy_serializes_it(frame_id):
         att.header.stamp = m.header.stamp
         att.header.frame_id = frame_id + "_world"
         att.quaternion.x, att.quaternion.y, att.quaternion.z, att.quaternion.w = q
-        enc = convert.QuaternionStampedCdr(frame_id + "_world").encode(s.stamp_cdr, *q)
+        enc = QuaternionStampedCdr(frame_id + "_world").encode(s.stamp_cdr, *q)
         ref = serialize_message(att)
         # equal but for the alignment padding after frame_id (rclpy leaves it unset)
         pad = slice(16 + len((frame_id + "_world").encode()) + 1, len(ref) - 32)
@@ -133,9 +134,9 @@ def test_serialized_imu_is_read_and_filled_in_as_rclpy_serializes_it(frame_id):
 
 def test_serialized_imu_other_than_plain_little_endian_is_left_to_rclpy():
     raw = serialize_message(_imu("imu_link", 5, np.random.default_rng(0)))
-    assert convert.ImuCdr.parse(raw) is not None
-    assert convert.ImuCdr.parse(b"\x00\x00" + raw[2:]) is None  # big-endian encapsulation
-    assert convert.ImuCdr.parse(raw[:-1]) is None  # truncated
-    assert convert.ImuCdr.parse(raw + b"\x00" * 8) is None  # longer than the layout
-    assert convert.ImuCdr.parse(raw[:12] + (200).to_bytes(4, "little") + raw[16:]) is None
-    assert convert.ImuCdr.parse(b"") is None
+    assert ImuCdr.parse(raw) is not None
+    assert ImuCdr.parse(b"\x00\x00" + raw[2:]) is None  # big-endian encapsulation
+    assert ImuCdr.parse(raw[:-1]) is None  # truncated
+    assert ImuCdr.parse(raw + b"\x00" * 8) is None  # longer than the layout
+    assert ImuCdr.parse(raw[:12] + (200).to_bytes(4, "little") + raw[16:]) is None
+    assert ImuCdr.parse(b"") is None
