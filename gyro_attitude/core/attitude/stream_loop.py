@@ -50,7 +50,7 @@ from gyro_attitude.core.attitude.stream_batch import data_stages, rest_plan
 
 __all__ = ["run_loop"]
 
-_ACCEPT = v.ACTION_CODES[v.ACCEPT]
+_ACCEPT, _START = v.ACTION_CODES[v.ACCEPT], v.ACTION_CODES[v.START]
 _VERDICT_OF_CODE = {code: action for action, code in v.ACTION_CODES.items()}
 
 
@@ -186,7 +186,7 @@ def run_loop(s, t, w, frame_id, cov, acc, mag) -> StreamResult | None:
             aid.last_t_ns = None
         code = actl[r]
         verdict = _ACCEPTED if code == _ACCEPT else (
-            _STARTED if code == 1 else v.Verdict(_VERDICT_OF_CODE[code], None, ""))
+            _STARTED if code == _START else v.Verdict(_VERDICT_OF_CODE[code], None, ""))
         x = wl[r]
         _, q = integrate(verdict, t_r, (x[0] - bias[0], x[1] - bias[1], x[2] - bias[2]), al[r],
                          var_rows[r], ml[r])
