@@ -162,16 +162,51 @@ def _gathered_causal_rates(t_ns, omega, k, fractions, lookahead):
 
 def lagrange_scalar(xs, ys, e):
     """Plain-float twin of :func:`lagrange_eval` at one point ``e`` (ys: 3-tuples)."""
-    ox = oy = oz = 0.0
+    return lagrange_points_scalar(xs, ys, (e,))[0]
+
+
+def lagrange_points_scalar(xs, ys, es):
+    """The polynomial through ``(xs[i], ys[i])`` (ys: 3-tuples) at each point of ``es``: a
+    list of 3-tuples.  The weights' denominators ∏_{j≠i}(x_i − x_j) depend only on the nodes,
+    so they are formed once for all points (the causal cubic is evaluated at two Gauss points
+    per sample); the four-node case, every sample's, is written out."""
+    if len(xs) == 4:
+        x0, x1, x2, x3 = xs
+        d01, d02, d03, d12, d13, d23 = x0 - x1, x0 - x2, x0 - x3, x1 - x2, x1 - x3, x2 - x3
+        i0 = 1.0 / (d01 * d02 * d03)
+        i1 = -1.0 / (d01 * d12 * d13)
+        i2 = 1.0 / (d02 * d12 * d23)
+        i3 = -1.0 / (d03 * d13 * d23)
+        (p0, p1, p2), (q0, q1, q2), (r0, r1, r2), (s0, s1, s2) = ys
+        out = []
+        for e in es:
+            a0, a1, a2, a3 = e - x0, e - x1, e - x2, e - x3
+            a01, a23 = a0 * a1, a2 * a3
+            w0, w1, w2, w3 = a1 * a23 * i0, a0 * a23 * i1, a01 * a3 * i2, a01 * a2 * i3
+            out.append((w0 * p0 + w1 * q0 + w2 * r0 + w3 * s0,
+                        w0 * p1 + w1 * q1 + w2 * r1 + w3 * s1,
+                        w0 * p2 + w1 * q2 + w2 * r2 + w3 * s2))
+        return out
+    inv = []
     for i, xi in enumerate(xs):
-        wgt = 1.0
+        d = 1.0
         for j, xj in enumerate(xs):
             if j != i:
-                wgt = wgt * (e - xj) / (xi - xj)
-        ox += wgt * ys[i][0]
-        oy += wgt * ys[i][1]
-        oz += wgt * ys[i][2]
-    return ox, oy, oz
+                d *= xi - xj
+        inv.append(1.0 / d)
+    out = []
+    for e in es:
+        ox = oy = oz = 0.0
+        for i, y in enumerate(ys):
+            wgt = inv[i]
+            for j, xj in enumerate(xs):
+                if j != i:
+                    wgt *= e - xj
+            ox += wgt * y[0]
+            oy += wgt * y[1]
+            oz += wgt * y[2]
+        out.append((ox, oy, oz))
+    return out
 
 
 def causal_rates_scalar(ts, ws, k, nodes, fractions):
@@ -179,8 +214,7 @@ def causal_rates_scalar(ts, ws, k, nodes, fractions):
     t_prev = ts[k - 1]
     h = (ts[k] - t_prev) * 1e-9
     xs = [(ts[i] - t_prev) * 1e-9 for i in nodes]
-    ys = [ws[i] for i in nodes]
-    return [lagrange_scalar(xs, ys, h * f) for f in fractions]
+    return lagrange_points_scalar(xs, [ws[i] for i in nodes], [h * f for f in fractions])
 
 
 # --------------------------------------------------------------------------- trusting a fit
@@ -302,8 +336,7 @@ def untrusted_fit_scalar(ts, ws, k, nodes, fitted) -> float:
                 turn = math.acos(max(-1.0, min(1.0, dot / math.sqrt(na * nb))))
                 weight = min(max((turn - FIT_TURN_MAX_RAD) / (math.pi - FIT_TURN_MAX_RAD),
                                  1e-300), 1.0)
-    steps = [ts[i + 1] - ts[i] for i in range(len(ts) - 1)]
-    if len(steps) > 1 and max(steps) - min(steps) > _EVEN_TOL * min(steps):
+    if len(ts) > 2 and _uneven(ts):
         for c in range(3):
             vals = [ws[i][c] for i in nodes]
             lo, hi = min(vals), max(vals)
@@ -312,6 +345,20 @@ def untrusted_fit_scalar(ts, ws, k, nodes, fitted) -> float:
                 if f[c] > hi + slack or f[c] < lo - slack:
                     return 1.0
     return weight
+
+
+def _uneven(ts) -> bool:
+    """Whether the steps of the stamps ``ts`` spread by more than _EVEN_TOL of the shortest."""
+    prev = ts[1]
+    s_min = s_max = prev - ts[0]
+    for i in range(2, len(ts)):
+        step = ts[i] - prev
+        prev = ts[i]
+        if step < s_min:
+            s_min = step
+        elif step > s_max:
+            s_max = step
+    return s_max - s_min > _EVEN_TOL * s_min
 
 
 def hold_untrusted(t_ns, omega, k, fitted, phi, h, window, fallbacks) -> None:
@@ -351,5 +398,5 @@ def causal_fit_scalar_checked(ts, ws, k, nodes, fractions):
     h = (ts[k] - t_prev) * 1e-9
     xs = [(ts[i] - t_prev) * 1e-9 for i in nodes]
     ys = [ws[i] for i in nodes]
-    rates = [lagrange_scalar(xs, ys, h * f) for f in fractions]
+    rates = lagrange_points_scalar(xs, ys, [h * f for f in fractions])
     return rates, h, untrusted_fit_scalar(ts, ws, k, nodes, rates)

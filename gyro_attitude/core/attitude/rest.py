@@ -239,24 +239,28 @@ class RestDetector:
         return self.at_rest
 
     def _decide(self, t: int, n: float, c: list, c0: tuple) -> bool:
+        # written out per axis (it runs once per live sample); the same operations in the same
+        # order as detect_rest's arrays, so the decisions stay bit-identical
         th = self.thresholds
-        gm = [(c[i] - c0[i]) / n for i in range(3)]
-        gv = [(c[3 + i] - c0[3 + i]) / n - gm[i] * gm[i] for i in range(3)]
-        self.gyro_std = math.sqrt(max(gv[0] + gv[1] + gv[2], 0.0))
-        self.gyro_mean = tuple(self._ref_g[i] + gm[i] for i in range(3))
+        m0, m1, m2 = (c[0] - c0[0]) / n, (c[1] - c0[1]) / n, (c[2] - c0[2]) / n
+        v0 = (c[3] - c0[3]) / n - m0 * m0
+        v1 = (c[4] - c0[4]) / n - m1 * m1
+        v2 = (c[5] - c0[5]) / n - m2 * m2
+        r0, r1, r2 = self._ref_g
+        self.gyro_mean = gm0, gm1, gm2 = r0 + m0, r1 + m1, r2 + m2
         full = t - self._t_first >= self._window_ns
-        if not full:
-            self.gyro_std = math.nan
-        gm0, gm1, gm2 = self.gyro_mean
+        self.gyro_std = math.sqrt(max(v0 + v1 + v2, 0.0)) if full else math.nan
         ok = full and th.gyro_std_min <= self.gyro_std <= th.gyro_std_max and max(
             abs(gm0), abs(gm1), abs(gm2)) <= th.gyro_mean_max
         if self._has_accel:
-            am = [(c[6 + i] - c0[6 + i]) / n for i in range(3)]
-            av = [(c[9 + i] - c0[9 + i]) / n - am[i] * am[i] for i in range(3)]
-            self.accel_std = math.sqrt(max(av[0] + av[1] + av[2], 0.0)) if full else math.nan
-            self.accel_mean = tuple(self._ref_a[i] + am[i] for i in range(3))
-            fm = self.accel_mean
-            norm = math.sqrt(fm[0] * fm[0] + fm[1] * fm[1] + fm[2] * fm[2])
+            m0, m1, m2 = (c[6] - c0[6]) / n, (c[7] - c0[7]) / n, (c[8] - c0[8]) / n
+            v0 = (c[9] - c0[9]) / n - m0 * m0
+            v1 = (c[10] - c0[10]) / n - m1 * m1
+            v2 = (c[11] - c0[11]) / n - m2 * m2
+            self.accel_std = math.sqrt(max(v0 + v1 + v2, 0.0)) if full else math.nan
+            r0, r1, r2 = self._ref_a
+            self.accel_mean = f0, f1, f2 = r0 + m0, r1 + m1, r2 + m2
+            norm = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
             ok = ok and self.accel_std <= th.accel_std_max and abs(norm - th.gravity) <= th.accel_norm_tol
         return bool(ok)
 

@@ -129,24 +129,25 @@ ALIGNING, RUNNING, FAILED = Phase.ALIGNING, Phase.RUNNING, Phase.FAILED
 _ACCEPTED, _STARTED = v.Verdict(v.ACCEPT, "", ""), v.Verdict(v.START, "", "")
 
 
-def gyro_variances(covariance) -> tuple[np.ndarray | None, bool]:
+def gyro_variances(covariance) -> tuple[tuple[float, float, float] | None, bool]:
     """(per-axis variances, invalid) of a row-major 3x3 ``angular_velocity_covariance``.
 
     ``None, False`` when it carries no estimate (REP-145, :func:`.validation.no_estimate`) or is
     all zeros (unknown); ``None, True`` when its diagonal is non-finite, negative or beyond
-    MAX_GYRO_VARIANCE (treated as unknown).
+    MAX_GYRO_VARIANCE (treated as unknown).  Plain floats: it runs once per live sample.
     """
     if covariance is None:
         return None, False
-    c = np.asarray(covariance, dtype=np.float64).reshape(-1)
-    if c.size != 9:
+    c = np.asarray(covariance, dtype=np.float64).reshape(-1).tolist()
+    if len(c) != 9:
         return None, True
     if v.no_estimate(c):
         return None, False
-    d = c[[0, 4, 8]]
-    if not np.all(np.isfinite(d)) or np.any(d < 0) or np.any(d > MAX_GYRO_VARIANCE):
+    d = c[0], c[4], c[8]
+    # a chained comparison is False for NaN, so this refuses non-finite values too
+    if not all(0.0 <= x <= MAX_GYRO_VARIANCE for x in d):
         return None, True
-    if not np.any(c):
+    if not any(c):
         return None, False
     return d, False
 
@@ -493,7 +494,7 @@ class AttitudeStream:
         if var is None:
             return None
         st.variance_known = True
-        return tuple(var.tolist())
+        return var
 
     def _mag_sample(self, mag, t_ns):
         """The sample's field for the aiding (magnetometer mode), counting absent ones (a row
@@ -532,7 +533,8 @@ class AttitudeStream:
             a = None
         else:
             try:
-                x, y, z = (float(c) for c in accel)
+                x, y, z = (float(c) for c in (
+                    accel.tolist() if isinstance(accel, np.ndarray) and accel.ndim == 1 else accel))
             except (TypeError, ValueError):
                 x = y = z = math.nan
             if math.isfinite(x) and math.isfinite(y) and math.isfinite(z) and \

@@ -133,7 +133,8 @@ _STARTED = Verdict(START)
 def value_problem(omega, max_rate_rad_s: float) -> tuple[str, str] | None:
     """(reason, detail) when the rate sample itself is unusable, else None."""
     try:
-        values = [float(c) for c in omega]
+        values = [float(c) for c in (
+            omega.tolist() if isinstance(omega, np.ndarray) and omega.ndim == 1 else omega)]
     except (TypeError, ValueError):
         return NON_FINITE, f"not numbers: {omega!r}"
     if len(values) != 3 or not all(math.isfinite(x) for x in values):
@@ -389,6 +390,8 @@ NO_ESTIMATE = -1.0
 def no_estimate(covariance):
     """REP-145's "no estimate" rule, the one home of it: element 0 of a row-major covariance
     (9,) — or of every row of (N, 9) — is −1.  A bool, or a bool array (N,)."""
+    if isinstance(covariance, list):  # one row as plain floats (the per-sample path)
+        return bool(covariance) and covariance[0] == NO_ESTIMATE
     c = np.asarray(covariance)
     if c.ndim == 1:
         return bool(c.size and c[0] == NO_ESTIMATE)
