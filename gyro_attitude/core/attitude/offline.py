@@ -78,7 +78,6 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.signal import lfilter
 
 from gyro_attitude.core.angles import wrap_2pi
 from gyro_attitude.core.attitude import NavFrame, integrate_batch
@@ -633,6 +632,10 @@ class _Estimator:
         output while the block is short); the backward pass recomputes a chunk's forward part
         where it was not kept -- before ``apply`` of that chunk, so ``columns`` may read what
         ``apply`` of later chunks changed, not what it changes in this one."""
+        # imported here: scipy.signal pulls in scipy.stats, seconds of start-up that the causal
+        # estimator, the node and every refused command line would pay for nothing
+        from scipy.signal import lfilter
+
         t = self.t
         dt = float(np.median(np.diff(t[b0:min(b1, b0 + 100_000)]))) * 1e-9 if b1 - b0 > 1 else 0.01
         alpha = math.exp(-max(dt, 1e-9) / tau_s)
