@@ -29,6 +29,7 @@ import signal
 import struct
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -101,15 +102,19 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
     node.create_subscription(DiagnosticArray, f"{ns}/diagnostics", on_diag, 50)
     for assignment in integrator_params:
         integ_args += ["-p", assignment]
+    # the nodes' output goes to files, read after: a pipe nobody reads while they run fills
+    # (64 KiB) and then blocks the node that writes to it, which the latency would measure
+    integ_log = tempfile.TemporaryFile("w+")
+    sim_log = tempfile.TemporaryFile("w+")
     integ = subprocess.Popen(node_command("attitude_integrator") + integ_args, env=env,
-                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                             stdout=subprocess.DEVNULL, stderr=integ_log, text=True,
                              start_new_session=True)
     sim = subprocess.Popen(
         node_command("gyro_sim") + common + [
             "-p", f"scene:={scene}", "-p", f"rate_hz:={rate_hz!r}",
             "-p", f"duration_s:={duration_s!r}", "-p", "wait_for_subscribers:=2",
             "-p", "wait_timeout_s:=30.0", "-p", "publish_truth:=false"],
-        env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        env=env, stdout=sim_log, stderr=subprocess.STDOUT, text=True,
         start_new_session=True)
     n_expected = int(round(rate_hz * duration_s))
     try:
@@ -119,8 +124,8 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
         end = time.monotonic() + 1.0  # late attitudes and the last diagnostics
         while time.monotonic() < end:
             ex.spin_once(timeout_sec=0.01)
-        sim_out = sim.communicate(timeout=10)[0] if sim.poll() is not None else ""
-        for line in sim_out.splitlines():
+        sim_log.seek(0)
+        for line in sim_log.read().splitlines():
             if "published" in line and "samples" in line:
                 published_total[0] = int(line.split("published")[1].split()[0])
     finally:
@@ -135,6 +140,10 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
         ex.shutdown()
         node.destroy_node()
         rclpy.shutdown(context=context)
+        integ_log.seek(0)
+        integ_tail = integ_log.read().splitlines()[-5:]
+        sim_log.close()
+        integ_log.close()
 
     pairs = [received_at[s] - published_at[s] for s in received_at if s in published_at]
     # where losses happened (sample index from the first stamp seen by the probe)
@@ -165,6 +174,8 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
         "sim_late_p50_ms": float(np.percentile(late, 50)) if late.size else None,
         "sim_late_p99_ms": float(np.percentile(late, 99)) if late.size else None,
         "cpu_count": os.cpu_count(),
+        # what the integrator said last, where it integrated nothing (why is then the question)
+        "integrator_log_tail": integ_tail if accepted[0] == 0 else [],
     }
 
 
