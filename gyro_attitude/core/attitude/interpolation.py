@@ -380,6 +380,26 @@ def hold_untrusted(t_ns, omega, k, fitted, phi, h, window, fallbacks) -> None:
         fallbacks.append(kb)
 
 
+def hold_untrusted_rates(t_ns, omega, k, fitted, rates, window, fallbacks) -> None:
+    """:func:`hold_untrusted` for a step built from rates (``rates``: (len(k), 3) arrays, the
+    rates the step takes, changed in place): where the fit cannot be trusted every rate moves
+    toward the endpoint mean ``½(ω_{k-1}+ω_k)`` -- a step with one constant rate, which adds no
+    commutation term (the exponential map's step, to the order of the stepper)."""
+    lam = untrusted_fits(t_ns, omega, k, fitted, window)
+    if lam is None:
+        return
+    bad = np.flatnonzero(lam > 0.0)
+    if bad.size == 0:
+        return
+    kb = k[bad]
+    held = 0.5 * (omega[kb - 1] + omega[kb])
+    lb = lam[bad][:, None]
+    for r in rates:
+        r[bad] = (1.0 - lb) * r[bad] + lb * held
+    if fallbacks is not None:
+        fallbacks.append(kb)
+
+
 def causal_window(n_samples: int, lookahead: bool):
     """``window(k)`` of :func:`causal_rates_at`'s fits: samples k-3..k (fewer at the start;
     0..2 for interval 1 with ``lookahead``)."""

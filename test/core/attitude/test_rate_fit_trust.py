@@ -42,7 +42,8 @@ def _rule_off(monkeypatch):
     monkeypatch.setattr(ip, "untrusted_fit_scalar", lambda *a, **k: 0.0)
 
 
-@pytest.mark.parametrize("algorithm, margin", [("rotvec_cubic", 1.02), ("magnus6_quintic", 1.05)])
+@pytest.mark.parametrize("algorithm, margin", [("rotvec_cubic", 1.02), ("magnus6_quintic", 1.05),
+                                               ("quat_rk4", 1.02)])
 def test_nyquist_coning_falls_back_to_the_exponential_map_and_counts(algorithm, margin):
     # 300 rad/s coning sampled at 100 Hz: the rate turns by 3 rad (0.95 π) between samples.
     # Without the rule: cubic 3.79e-2, quintic 6.63e-2 rad RMS against exp_map's 3.44e-2.
@@ -54,11 +55,12 @@ def test_nyquist_coning_falls_back_to_the_exponential_map_and_counts(algorithm, 
     assert sum(f.size for f in fb) == t.size - 1  # every interval
 
 
-def test_streaming_applies_the_same_rule_and_count_as_the_batch():
+@pytest.mark.parametrize("algorithm", ["rotvec_cubic", "quat_rk4"])
+def test_streaming_applies_the_same_rule_and_count_as_the_batch(algorithm):
     t, w, truth = _coning(300.0)
     fb = []
-    qb = integrate_batch(t, w, q0=truth[0], algorithm="rotvec_cubic", fallbacks=fb)
-    s = StreamingIntegrator("rotvec_cubic", q0=truth[0])
+    qb = integrate_batch(t, w, q0=truth[0], algorithm=algorithm, fallbacks=fb)
+    s = StreamingIntegrator(algorithm, q0=truth[0])
     qs = np.array([s.update(int(a), b) for a, b in zip(t, w, strict=True)])
     assert np.max(np.abs(qs - qb)) < 1e-12
     assert s.fit_fallbacks == sum(f.size for f in fb) == t.size - 1
@@ -77,7 +79,7 @@ def test_the_stream_counts_fallbacks_in_push_run_and_offline():
 
 
 @pytest.mark.parametrize("omega, rate_hz", [(62.8, 1000.0), (62.8, 100.0), (200.0, 100.0)])
-@pytest.mark.parametrize("algorithm", ["rotvec_cubic", "magnus6_quintic"])
+@pytest.mark.parametrize("algorithm", ["rotvec_cubic", "magnus6_quintic", "quat_rk4"])
 def test_resolved_coning_is_untouched_bit_for_bit(omega, rate_hz, algorithm, monkeypatch):
     # up to Ωh = 2 rad the fit is better than the exponential map (docs/bench/nyquist.json):
     # no fallback, and the attitudes are those of the kernel without the rule
@@ -95,7 +97,7 @@ def test_shipped_scenes_have_no_fallback(name, monkeypatch):
     rate = float(spec.source.get("rate_hz", 200.0))
     block = SceneSimulator(spec, rate).next_block(int(min(2.0, spec.source.get("duration_s", 2.0))
                                                       * rate))
-    for algorithm in ("rotvec_cubic", "magnus6_quintic"):
+    for algorithm in ("rotvec_cubic", "magnus6_quintic", "quat_rk4"):
         fb = []
         q = integrate_batch(block.t_ns, block.omega_ib_b, algorithm=algorithm, fallbacks=fb)
         assert sum(f.size for f in fb) == 0, (name, algorithm)
@@ -105,7 +107,7 @@ def test_shipped_scenes_have_no_fallback(name, monkeypatch):
                                                      algorithm=algorithm))
 
 
-@pytest.mark.parametrize("algorithm", ["rotvec_cubic", "magnus6_quintic"])
+@pytest.mark.parametrize("algorithm", ["rotvec_cubic", "magnus6_quintic", "quat_rk4"])
 def test_a_very_noisy_gyro_at_rest_never_falls_back(algorithm, monkeypatch):
     # white noise of 5e-3 rad/sqrt(s) at 50 Hz (~20x a poor MEMS gyro): its changes turn past
     # the bound all the time, but they are no angle that matters
