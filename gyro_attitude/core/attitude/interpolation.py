@@ -366,18 +366,7 @@ def hold_untrusted(t_ns, omega, k, fitted, phi, h, window, fallbacks) -> None:
     the rotation vector ``phi`` (len(k), 3) of the step by the exponential map's,
     ``½(ω_{k-1}+ω_k)h`` (``h`` (len(k), 1)); the intervals that fell back are appended to the
     list ``fallbacks`` (None: not collected)."""
-    lam = untrusted_fits(t_ns, omega, k, fitted, window)
-    if lam is None:
-        return
-    bad = np.flatnonzero(lam > 0.0)
-    if bad.size == 0:
-        return
-    kb = k[bad]
-    held = 0.5 * (omega[kb - 1] + omega[kb]) * h[bad]
-    lb = lam[bad][:, None]
-    phi[bad] = (1.0 - lb) * phi[bad] + lb * held
-    if fallbacks is not None:
-        fallbacks.append(kb)
+    _hold(t_ns, omega, k, fitted, ((phi, h),), window, fallbacks)
 
 
 def hold_untrusted_rates(t_ns, omega, k, fitted, rates, window, fallbacks) -> None:
@@ -385,6 +374,12 @@ def hold_untrusted_rates(t_ns, omega, k, fitted, rates, window, fallbacks) -> No
     rates the step takes, changed in place): where the fit cannot be trusted every rate moves
     toward the endpoint mean ``½(ω_{k-1}+ω_k)`` -- a step with one constant rate, which adds no
     commutation term (the exponential map's step, to the order of the stepper)."""
+    _hold(t_ns, omega, k, fitted, tuple((r, None) for r in rates), window, fallbacks)
+
+
+def _hold(t_ns, omega, k, fitted, targets, window, fallbacks) -> None:
+    """Blend each ``(array, scale)`` of ``targets`` toward the endpoint mean (times ``scale``
+    (len(k), 1), or as is for None) by the weight :func:`untrusted_fits` gives each row."""
     lam = untrusted_fits(t_ns, omega, k, fitted, window)
     if lam is None:
         return
@@ -392,10 +387,11 @@ def hold_untrusted_rates(t_ns, omega, k, fitted, rates, window, fallbacks) -> No
     if bad.size == 0:
         return
     kb = k[bad]
-    held = 0.5 * (omega[kb - 1] + omega[kb])
+    mean = 0.5 * (omega[kb - 1] + omega[kb])
     lb = lam[bad][:, None]
-    for r in rates:
-        r[bad] = (1.0 - lb) * r[bad] + lb * held
+    for arr, scale in targets:
+        held = mean if scale is None else mean * scale[bad]
+        arr[bad] = (1.0 - lb) * arr[bad] + lb * held
     if fallbacks is not None:
         fallbacks.append(kb)
 
