@@ -20,7 +20,11 @@ __all__ = ["LatestSamples", "latest_at"]
 def latest_at(t_ns, src_t_ns, values, max_age_ns: int) -> np.ndarray:
     """``(N, W)`` rows of ``values`` (M, W) for stamps ``t_ns`` (N,): the latest source sample
     with stamp ≤ t and age ≤ ``max_age_ns``, NaN where there is none.  Source stamps need not
-    be sorted (a recording's file order); of equal stamps the last in file order wins."""
+    be sorted (a recording's file order); of equal stamps the last in file order wins.
+
+    A source row of NaN is a message whose values are no numbers, not a missing message: it is
+    given as +inf, so that it stays unusable (counted invalid by the consumer, as the live path
+    counts the message itself) instead of reading as "no sample"."""
     t = np.asarray(t_ns, dtype=np.int64)
     st = np.asarray(src_t_ns, dtype=np.int64)
     vals = np.asarray(values, dtype=np.float64)
@@ -31,6 +35,9 @@ def latest_at(t_ns, src_t_ns, values, max_age_ns: int) -> np.ndarray:
         return out
     order = np.argsort(st, kind="stable")
     st, vals = st[order], vals[order]
+    no_numbers = np.isnan(vals).all(axis=1)
+    if no_numbers.any():
+        vals[no_numbers] = np.inf
     k = np.searchsorted(st, t, side="right") - 1
     ok = k >= 0
     ok[ok] = (t[ok] - st[k[ok]]) <= max_age_ns

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from gyro_attitude.core.attitude.sample_alignment import latest_at
 from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.core.attitude.stream import (
     INVALID_MAG,
@@ -92,6 +93,18 @@ def test_bad_or_missing_field_is_counted_and_the_attitude_stays_finite(sim, bad)
     err = heading_deg(res.q, b.truth_q_nb[res.index])
     tt = t[res.index]
     assert err[tt > 20.0].max() < err[np.flatnonzero(tt > 20.0)[0]] + 1.0
+
+
+def test_a_field_message_of_nan_is_counted_invalid_not_missing_once_aligned(sim):
+    # replay aligns the field to the Imu stamps (latest_at), where NaN means "no sample"; a
+    # message whose values are NaN is a broken reading, as the live node counts it
+    spec, b = sim
+    sel = (b.t_ns - spec.start_time_ns) * 1e-9 > 20.0
+    messages = b.magnetic_field_b.copy()
+    messages[sel] = np.nan
+    _, res = run(spec, b, latest_at(b.t_ns, b.t_ns, messages, 0))
+    assert res.counts[INVALID_MAG] >= sel.sum() - 1
+    assert res.counts[MAG_MISSING] == 0
 
 
 def test_push_gives_what_run_gives_with_a_magnetometer(sim):
