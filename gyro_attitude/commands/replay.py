@@ -23,6 +23,7 @@ from gyro_attitude.commands.replay_fleet import add_fleet_flags, run_fleet
 from gyro_attitude.core.attitude import ALGORITHMS, DEFAULT_OFFLINE_ALGORITHM
 from gyro_attitude.core.attitude import validation as iv
 from gyro_attitude.core.attitude.modes import Estimator, Frame
+from gyro_attitude.core.attitude.sample_alignment import field_clock_warning
 from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.io.mcap_writer import COMPRESSIONS, DEFAULT_COMPRESSION
 from gyro_attitude.io.safe_output import check_output_path
@@ -189,6 +190,9 @@ def run(args) -> int:
             what = _EVENT_WORDS.get(reason, f"sample(s) skipped ({reason})")
             print(f"warning: {n} {what}; first: {out['details'].get(reason, '')}",
                   file=sys.stderr)
+    offset_warning = field_clock_warning((out["magnetometer"] or {}).get("clock_offset_s"))
+    if offset_warning:
+        print(f"warning: {offset_warning}", file=sys.stderr)
     if "gyro_noise_unknown" in out["details"]:
         print(f"note: {out['details']['gyro_noise_unknown']}", file=sys.stderr)
     if len(out["frame_ids"]) > 1:

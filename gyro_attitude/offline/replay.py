@@ -29,7 +29,7 @@ from gyro_attitude.core.attitude import validation as iv
 from gyro_attitude.core.attitude.modes import Aiding, Estimator, InitialAttitudeSource, parse_mode
 from gyro_attitude.core.attitude.nav_frame import velocity_series
 from gyro_attitude.core.attitude.offline import estimate_offline
-from gyro_attitude.core.attitude.sample_alignment import latest_at
+from gyro_attitude.core.attitude.sample_alignment import field_clock_offset, latest_at
 from gyro_attitude.core.attitude.stream import (
     INVALID_MAG,
     MAG_DISTURBED,
@@ -337,7 +337,7 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     if len(imu) == 0:
         raise ValueError(f"{input_path}: topic {imu.topic} has no messages"
                          + (f"; {damage}" if damage else ""))
-    mag_rows = None
+    mag_rows = mag_offset = None
     if use_mag:
         mag = arrays.get(mag_topic)
         if mag is None or len(mag) == 0:
@@ -346,6 +346,7 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                              + ("" if mag is None else ": it has no messages"))
         mag_rows = latest_at(imu.stamp_ns, mag.stamp_ns, mag.magnetic_field,
                              int(round(config.mag_max_age_s * 1e9)))
+        mag_offset = field_clock_offset(imu.stamp_ns, imu.angular_velocity, mag_rows)
     t_read = time.perf_counter()
 
     truth = arrays.get(truth_topic)
@@ -436,7 +437,8 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
             "reference_norm_t": aid.mag_ref_norm,
             "reference_dip_deg": None if aid.mag_ref_dip is None else math.degrees(
                 aid.mag_ref_dip),
-            "hard_iron_t": list(aid.hard_iron), "accel_rejected": aid.accel_rejected}
+            "hard_iron_t": list(aid.hard_iron), "accel_rejected": aid.accel_rejected,
+            "clock_offset_s": mag_offset}
     if truth is not None and len(truth):
         _compare_with_truth(result, truth, tv, qv)
     return result

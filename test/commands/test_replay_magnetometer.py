@@ -36,6 +36,7 @@ def test_replay_takes_the_heading_from_the_field(recording, tmp_path, capsys):
     assert mag["messages"] == 12000 and mag["mag_missing"] == 0
     assert 1900 <= mag["mag_disturbed"] <= 2100  # the 10 s magnet at 200 Hz
     assert mag["reference_norm_t"] == pytest.approx(m.intensity, rel=0.01)
+    assert mag["clock_offset_s"] is None  # a steady turn cannot tell a delay of the field
     # heading from the field, no truth given: the final error is that of the filter
     assert math.degrees(summary["final_error_rad"]) < 1.0
     att = read_quaternion_stamped_arrays(out, "attitude")
@@ -68,3 +69,20 @@ def test_replay_without_the_field_topic_says_so_in_one_line(recording, tmp_path,
     assert rc == 1 and len(err) == 1
     assert "MagneticField topic 'compass'" in err[0] and "--mag-topic" in err[0]
     assert not (tmp_path / "o.mcap").exists()
+
+
+def test_a_field_late_against_the_gyro_is_warned_about(recording, tmp_path, capsys, monkeypatch):
+    import gyro_attitude.offline.replay as replay_module
+
+    seen = []
+
+    def late(t_ns, omega, rows):
+        seen.append(rows.shape)
+        return 0.2
+
+    monkeypatch.setattr(replay_module, "field_clock_offset", late)
+    rc = cli_main(["replay", str(recording), "--out", str(tmp_path / "o.mcap"), "--aiding",
+                   "magnetometer", "--initial-attitude", "level"])
+    assert rc == 0 and seen == [(12000, 3)]  # the field rows at the Imu stamps
+    err = capsys.readouterr().err
+    assert "warning: the magnetic field's stamps look 200 ms late against the gyro's" in err

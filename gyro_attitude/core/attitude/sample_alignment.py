@@ -10,11 +10,12 @@ the next one).
 
 from __future__ import annotations
 
+import math
 from collections import deque
 
 import numpy as np
 
-__all__ = ["LatestSamples", "latest_at"]
+__all__ = ["LatestSamples", "field_clock_offset", "latest_at"]
 
 
 def latest_at(t_ns, src_t_ns, values, max_age_ns: int) -> np.ndarray:
@@ -65,3 +66,110 @@ class LatestSamples:
         if best is None or t_ns - best[0] > self.max_age_ns:
             return None
         return best[1]
+
+
+#: Block length of :func:`field_clock_offset`'s series: the lag's resolution (refined between
+#: blocks), and the smoothing that lifts the field's turning above its noise.
+OFFSET_BLOCK_S = 0.02
+#: At most this much of the recording is searched (a bounded cost whatever its length).
+OFFSET_SPAN_S = 1200.0
+#: Below this normalised correlation the motion does not explain the field's change (a rest,
+#: a disturbed field): no offset is claimed.
+OFFSET_MIN_CORRELATION = 0.1
+#: The correlation OFFSET_PEAK_WIDTH_S either side of its peak must be OFFSET_PEAK_DROP of
+#: the peak below it (hand-held motion, the two BROAD trials: 38 % and 145 %; the steady turn
+#: of the magnet_disturbance scene: 0.5-12 %, where the lag it finds is wrong).
+OFFSET_PEAK_WIDTH_S = 0.25
+OFFSET_PEAK_DROP = 0.2
+#: Blocks whose field norm is this far (relative) from the median are left out (disturbed).
+OFFSET_NORM_TOL = 0.05
+
+
+def field_clock_offset(t_ns, omega, field, max_offset_s: float = 30.0) -> float | None:
+    """How late (s; negative: early) the field rows ``field`` (N, 3), aligned to the gyro's
+    stamps ``t_ns`` (NaN: no sample), are against the gyro ``omega`` (N, 3): the lag at which
+    the field's change best matches the change the gyro predicts for it.  None when the
+    recording cannot tell (too short, no motion, no field).
+
+    A constant field seen from a turning body changes as ``ṁ(t) = −ω(t − τ) × m(t)`` when its
+    stamps are τ late, so ``ṁ × m = |m|² ω⊥(t − τ)``, the rate across the field: the
+    cross-correlation of ``ṁ × m`` with the gyro's ``ω`` over lags peaks at τ (hard iron adds
+    a constant to ``m``, which the derivative drops).  Both are averaged over OFFSET_BLOCK_S
+    blocks first (the field's noise would swamp its change per
+    sample), over the first OFFSET_SPAN_S of the recording, leaving out blocks whose field
+    norm is off the median by more than OFFSET_NORM_TOL (a disturbance changes the field, a
+    turn does not change its norm); the peak is refined by a parabola through its neighbours.
+    """
+    t = np.asarray(t_ns, dtype=np.int64)
+    n = t.shape[0]
+    if n < 3:
+        return None
+    rel = (t - t[0]) * 1e-9
+    blocks = np.floor(rel[rel <= OFFSET_SPAN_S] / OFFSET_BLOCK_S).astype(np.int64)
+    nb = int(blocks[-1]) + 1
+    n = blocks.shape[0]
+    m = np.asarray(field[:n], dtype=np.float64)
+    w = np.asarray(omega[:n], dtype=np.float64)
+    ok = np.isfinite(m).all(axis=1) & np.isfinite(w).all(axis=1)
+    count = np.bincount(blocks[ok], minlength=nb)
+    if nb < 8 or np.count_nonzero(count) < 8:
+        return None
+    mean_m = np.stack([np.bincount(blocks[ok], m[ok, i], nb) for i in range(3)], axis=1)
+    mean_w = np.stack([np.bincount(blocks[ok], w[ok, i], nb) for i in range(3)], axis=1)
+    full = count > 0
+    mean_m[full] /= count[full, None]
+    mean_w[full] /= count[full, None]
+    # a turn keeps |m|; a block whose norm is off the median is disturbed (a magnet near):
+    # its change is not the gyro's and would only blur the correlation
+    size_m = np.sqrt(np.einsum("ij,ij->i", mean_m, mean_m))
+    if full.any():
+        median = float(np.median(size_m[full]))
+        full &= np.abs(size_m - median) <= OFFSET_NORM_TOL * median
+    # central differences between full neighbours; rows without them weigh nothing
+    g = np.zeros((nb, 3))
+    r = np.zeros((nb, 3))
+    inner = full[:-2] & full[1:-1] & full[2:]
+    rate = (mean_m[2:][inner] - mean_m[:-2][inner]) / (2.0 * OFFSET_BLOCK_S)
+    g[1:-1][inner] = np.cross(rate, mean_m[1:-1][inner])
+    r[1:-1][inner] = mean_w[1:-1][inner]
+    norm = math.sqrt(float(np.sum(g * g)) * float(np.sum(r * r)))
+    if norm == 0.0:
+        return None
+    max_lag = min(int(max_offset_s / OFFSET_BLOCK_S), nb - 2)
+    size = 1 << int(math.ceil(math.log2(2 * nb)))
+    cc = np.zeros(size)
+    for i in range(3):  # Σ_k g[k]·ω[k − lag], for every lag at once
+        cc += np.fft.irfft(np.fft.rfft(g[:, i], size) * np.conj(np.fft.rfft(r[:, i], size)), size)
+    lags = np.r_[np.arange(-max_lag, 0), np.arange(0, max_lag + 1)]
+    vals = cc[lags] / norm
+    k = int(np.argmax(vals))
+    if vals[k] < OFFSET_MIN_CORRELATION:
+        return None
+    # only the rate's changes tell a delay (a steady turn matches the field at any lag): the
+    # peak must stand out of its surroundings, else the recording cannot tell
+    apart = int(round(OFFSET_PEAK_WIDTH_S / OFFSET_BLOCK_S))
+    around = vals[[j for j in (k - apart, k + apart) if 0 <= j < vals.size]]
+    if around.size == 0 or vals[k] - around.max() < OFFSET_PEAK_DROP * vals[k]:
+        return None
+    frac = 0.0
+    if 0 < k < lags.size - 1:
+        a, b, c = vals[k - 1], vals[k], vals[k + 1]
+        den = a - 2.0 * b + c
+        frac = 0.5 * (a - c) / den if den < 0.0 else 0.0
+    return (lags[k] + frac) * OFFSET_BLOCK_S
+
+
+#: A field this late or early is worth a warning: turning at 1 rad/s, 50 ms put the heading's
+#: reference 2.9° off (BROAD's magnetometer: 11 ms late, measured by :func:`field_clock_offset`).
+OFFSET_WARN_S = 0.05
+
+
+def field_clock_warning(offset_s: float | None) -> str | None:
+    """One line for a field offset (:func:`field_clock_offset`) worth a warning, else None."""
+    if offset_s is None or abs(offset_s) < OFFSET_WARN_S:
+        return None
+    late = offset_s > 0
+    return (f"the magnetic field's stamps look {abs(offset_s) * 1e3:.0f} ms "
+            f"{'late' if late else 'early'} against the gyro's (the field turns as the gyro says "
+            f"that much {'later' if late else 'earlier'}): while turning at ω the heading "
+            "reference is off by about ω times that; fix the magnetometer's stamps")
