@@ -99,7 +99,14 @@ def field_clock_offset(t_ns, omega, field, max_offset_s: float = 30.0) -> float 
     sample), over the first OFFSET_SPAN_S of the recording, leaving out blocks whose field
     norm is off the median by more than OFFSET_NORM_TOL (a disturbance changes the field, a
     turn does not change its norm); the peak is refined by a parabola through its neighbours.
+    Absurd values (1e300, inf) leave their blocks out or give None, silently: the filter
+    counts them.
     """
+    with np.errstate(all="ignore"):
+        return _field_clock_offset(t_ns, omega, field, max_offset_s)
+
+
+def _field_clock_offset(t_ns, omega, field, max_offset_s: float) -> float | None:
     t = np.asarray(t_ns, dtype=np.int64)
     n = t.shape[0]
     if n < 3:
@@ -133,7 +140,7 @@ def field_clock_offset(t_ns, omega, field, max_offset_s: float = 30.0) -> float 
     g[1:-1][inner] = np.cross(rate, mean_m[1:-1][inner])
     r[1:-1][inner] = mean_w[1:-1][inner]
     norm = math.sqrt(float(np.sum(g * g)) * float(np.sum(r * r)))
-    if norm == 0.0:
+    if not (norm > 0.0 and math.isfinite(norm)):  # nothing turned, or absurd values
         return None
     max_lag = min(int(max_offset_s / OFFSET_BLOCK_S), nb - 2)
     size = 1 << int(math.ceil(math.log2(2 * nb)))
@@ -143,7 +150,7 @@ def field_clock_offset(t_ns, omega, field, max_offset_s: float = 30.0) -> float 
     lags = np.r_[np.arange(-max_lag, 0), np.arange(0, max_lag + 1)]
     vals = cc[lags] / norm
     k = int(np.argmax(vals))
-    if vals[k] < OFFSET_MIN_CORRELATION:
+    if not vals[k] >= OFFSET_MIN_CORRELATION:
         return None
     # only the rate's changes tell a delay (a steady turn matches the field at any lag): the
     # peak must stand out of its surroundings, else the recording cannot tell
