@@ -38,7 +38,6 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import CubicSpline, PPoly
 from scipy.linalg import solve_banded, solveh_banded
-from scipy.optimize import brentq
 
 from gyro_attitude.core import earth
 from gyro_attitude.core.motion import Motion, MotionSample
@@ -283,26 +282,107 @@ class _StackedReinsch:
                 parts += [band[a:a + m - cut], np.zeros(cut)]
             return np.concatenate(parts)[:-cut]
 
-        def stacked(band):
-            return np.concatenate([band[a:a + m] for a in starts])
+        def windows(band):  # (windows, m): row w is window w's slice of the band
+            return np.stack([band[a:a + m] for a in starts])
 
-        self.r_diag, self.qq0 = stacked(system.r_diag), stacked(system.qq0)
+        self.r_diag, self.qq0 = windows(system.r_diag).ravel(), windows(system.qq0).ravel()
         self.r_off, self.qq1 = joined(system.r_off, 1), joined(system.qq1, 1)
         self.qq2 = joined(system.qq2, 2)
         self.qty = np.concatenate([system.qty[:, a:a + m] for a in starts], axis=1)
-        # row r of a window's Q γ: a_r γ_r + b_{r−1} γ_{r−1} + c_{r−2} γ_{r−2}, at the
-        # stacked rows j of the middles
-        a, b, c = stacked(system.a), stacked(system.b), stacked(system.c)
-        self.rows = (np.arange(len(starts))[:, None] * m + np.arange(edge, size - edge)).ravel()
-        j = self.rows
-        self.qa, self.qb, self.qc = a[j], b[j - 1], c[j - 2]
+        # row r of a window's Q γ: a_r γ_r + b_{r−1} γ_{r−1} + c_{r−2} γ_{r−2}; over the
+        # middle rows r these are three shifted slices of each window's γ (strided views
+        # of the solution reshaped to (k, windows, m), no gathered copies)
+        self.shape = (len(starts), m)
+        self.cuts = tuple(slice(edge - d, size - edge - d) for d in range(3))
+        self.qa, self.qb, self.qc = (windows(band)[:, cut] for band, cut in
+                                     zip((system.a, system.b, system.c), self.cuts, strict=True))
 
     def rss(self, lam: float) -> float:
         ab = _pentadiagonal(self.r_diag, self.r_off, self.qq0, self.qq1, self.qq2, lam)
-        g = solveh_banded(ab, self.qty.T, check_finite=False).T
-        j = self.rows
-        r = lam * (self.qa * g[:, j] + self.qb * g[:, j - 1] + self.qc * g[:, j - 2])
-        return float(np.sum(r * r))
+        g = solveh_banded(ab, self.qty.T, check_finite=False).T.reshape(-1, *self.shape)
+        c0, c1, c2 = self.cuts
+        r = self.qa * g[:, :, c0] + self.qb * g[:, :, c1] + self.qc * g[:, :, c2]
+        return lam * lam * float(np.sum(r * r))  # (not np.vdot: BLAS threads cost ms here)
+
+
+def _increasing_root(f, x: float, lo: float, hi: float, xtol: float, step: float = 3.0,
+                     slope: float | None = None) -> tuple[float, float | None]:
+    """A root of ``f``, increasing on ``[lo, hi]``, searched from ``x``: ``(root, slope)``,
+    the slope being the last secant's (a start for the search of a similar ``f``).
+
+    Until the sign changes, secant steps (the first with ``slope`` when given; a walk of
+    ``step``, doubling, while there is no usable slope), stretched by :data:`_OVERSHOOT`
+    so that they pass the root: f increasing, a point where f < 0 lies below it, so two
+    points of opposite signs bracket it. Then false-position steps inside the bracket
+    with the Anderson–Björck rule (when the same end is kept twice its f is scaled down,
+    so the steps do not stall on one side of a curved f: superlinear, ~1.7). Ends when
+    the next secant step is shorter than ``xtol`` (:func:`_close`), when the bracket is,
+    or at ``lo`` / ``hi`` when f has no sign change inside (f's closest end)."""
+    fx = f(x)
+    points = [(x, fx)]
+    while fx != 0.0:  # --- walk to a sign change
+        if len(points) > 1:
+            (x0, f0), (x1, f1) = points[-2:]
+            slope = (f1 - f0) / (x1 - x0) if f1 != f0 else None
+        if slope is not None and math.isfinite(slope) and slope > 0.0:
+            t = x - _OVERSHOOT * fx / slope
+        else:
+            t = x + (step if fx < 0.0 else -step)
+            step *= 2.0
+        t = min(max(t, lo), hi)
+        if t == x:  # at lo or hi, no sign change
+            return x, slope
+        ft = f(t)
+        points.append((t, ft))
+        slope = (ft - fx) / (t - x) if ft != fx else slope
+        if _close(t, ft, slope, xtol):
+            return t - ft / slope, slope
+        if (ft > 0.0) != (fx > 0.0) or ft == 0.0:
+            break
+        x, fx = t, ft
+    (x, fx), (t, ft) = points[-2], points[-1]
+    if ft == 0.0 or fx == 0.0:
+        return (t if ft == 0.0 else x), slope
+    (a, fa), (b, fb) = sorted(points[-2:])  # fa < 0 < fb
+    side = 0
+    for _ in range(200):  # --- Anderson–Björck false position on [a, b]
+        t = (a * fb - b * fa) / (fb - fa)
+        if not a < t < b:  # rounding at a bracket of a few ulps
+            return t, slope
+        ft = f(t)
+        (x0, f0), (x1, f1) = points[-1], (t, ft)
+        points.append((t, ft))
+        if f1 != f0:
+            slope = (f1 - f0) / (x1 - x0)
+        if ft == 0.0:
+            return t, slope
+        if _close(t, ft, slope, xtol):
+            return t - ft / slope, slope
+        if ft < 0.0:
+            if side < 0:
+                m = 1.0 - ft / fa
+                fb *= m if m > 0.0 else 0.5
+            a, fa, side = t, ft, -1
+        else:
+            if side > 0:
+                m = 1.0 - ft / fb
+                fa *= m if m > 0.0 else 0.5
+            b, fb, side = t, ft, 1
+        if b - a < xtol:
+            return t, slope
+    return t, slope
+
+
+def _close(x: float, fx: float, slope: float | None, xtol: float) -> bool:
+    """Whether ``x`` is within ``xtol`` of the root by the secant's estimate: the next
+    step, ``fx / slope``, is shorter than ``xtol`` (then taken without evaluating f: the
+    secant's error is of higher order than the step)."""
+    return slope is not None and math.isfinite(slope) and slope > 0.0 and \
+        abs(fx / slope) < xtol
+
+
+#: Secant steps towards a root not yet bracketed are stretched by this, to pass it.
+_OVERSHOOT = 1.2
 
 
 def reinsch_smooth(t: np.ndarray, y: np.ndarray, lam: float) -> np.ndarray:
@@ -386,44 +466,41 @@ def spline_coefficients(t: np.ndarray, y: np.ndarray, rss_target: float) -> np.n
     # (each a smoothing problem of its own, the residual target scaled by their share of
     # the knots), then the whole series is solved once with it: a long file costs a few
     # solves of its length instead of ~25, and the whole residual stays within ~6 % of
-    # the target (test: test_smoothing_spline_residual_is_the_expected_noise).
-    if n > LAMBDA_WINDOWS * LAMBDA_WINDOW:
-        starts = np.linspace(0, n - LAMBDA_WINDOW, LAMBDA_WINDOWS).astype(int)
-        # a window's ends fit the data more closely than the middle of a long series:
-        # count the residual of its middle only
-        edge = LAMBDA_WINDOW // 10
-        windows = _StackedReinsch(system, starts, LAMBDA_WINDOW, edge)
-        share = LAMBDA_WINDOWS * (LAMBDA_WINDOW - 2 * edge) / n
-        rss = windows.rss
-    else:
-        share = 1.0
-
-        def rss(lam: float) -> float:
+    # the target (test: test_smoothing_spline_residual_is_the_expected_noise). The root
+    # is first estimated on windows a fifth as long (same knots, so the same λ up to
+    # their noise: a few % of residual, ~0.1–0.5 in log λ), then refined from there.
+    problems = []
+    for size in (LAMBDA_WINDOW // 5, LAMBDA_WINDOW):
+        if n > LAMBDA_WINDOWS * size:
+            starts = np.linspace(0, n - size, LAMBDA_WINDOWS).astype(int)
+            # a window's ends fit the data more closely than the middle of a long series:
+            # count the residual of its middle only
+            edge = size // 10
+            problems.append((_StackedReinsch(system, starts, size, edge).rss,
+                             LAMBDA_WINDOWS * (size - 2 * edge) / n))
+    if len(problems) < 2:
+        def rss_all(lam: float) -> float:
             r = system.residual(lam)
             return float(np.sum(r * r))
 
-    def log_excess(log_lam: float) -> float:
-        return np.log(max(rss(np.exp(log_lam)), 1e-300)) - np.log(rss_target * share)
+        problems.append((rss_all, 1.0))
 
     # λ has units time³: the spline then smooths over (λ/h³)^¼ knots. λ lies between
     # 0.01 and 1000 knots (8 s at 120 Hz: no motion is smoother); the banded system's
     # condition number is ~50 λ/h³, so the upper end also keeps Cholesky well conditioned.
-    # The residual grows with λ: start at one knot (λ = h³; pose files land within e^±9
-    # of it) and step outward, doubling, to the first sign change, then brentq on that
-    # bracket — about half the solves of brentq on the whole range, the same root.
+    # The residual grows with λ: the first search starts at one knot (λ = h³; pose files
+    # land within e^±9 of it), the next at the first's root and slope.
     log_h3 = np.log(float(np.mean(np.diff(t))) ** 3)
     lo, hi = log_h3 + np.log(1e-8), log_h3 + np.log(1e12)
-    x, fx, step = log_h3, log_excess(log_h3), 3.0
-    log_lam = x if fx == 0.0 else None
-    while log_lam is None:
-        x2 = min(max(x + (step if fx < 0.0 else -step), lo), hi)
-        f2 = log_excess(x2)
-        if (f2 > 0.0) != (fx > 0.0) or f2 == 0.0:
-            # log λ to 0.02: the residual then matches to ~1 % (its own noise is ~1.5 %)
-            log_lam = brentq(log_excess, min(x, x2), max(x, x2), xtol=0.02)
-        elif x2 in (lo, hi):  # no root inside: the straightest (noise larger than the
-            log_lam = x2      # motion) or the closest fit
-        x, fx, step = x2, f2, 2.0 * step
+    log_lam, slope = log_h3, None
+    for k, (rss, share) in enumerate(problems):
+        def log_excess(log_lam: float, rss=rss, share=share) -> float:
+            return np.log(max(rss(np.exp(log_lam)), 1e-300)) - np.log(rss_target * share)
+
+        # log λ to 1e-4 at the end (the residual to 0.01 %, far inside its own noise of
+        # ~1.5 %: the fit no longer depends on the search); 0.05 for the estimate
+        xtol = 1e-4 if k == len(problems) - 1 else 0.05
+        log_lam, slope = _increasing_root(log_excess, log_lam, lo, hi, xtol, slope=slope)
     lam = np.exp(log_lam)
     inner = system.second_derivatives(lam)
     g = y - system.residual(lam, inner)
