@@ -194,15 +194,25 @@ def check_positions(poses: PoseSeries, origin_llh) -> None:
     truth frame has no East or North at a pole."""
     lim = _limits()
     origin = np.asarray(origin_llh, dtype=np.float64)
-    r = earth.ecef_from_llh(origin) + poses.p @ earth.enu_to_ecef_matrix(origin[0],
-                                                                         origin[1]).T
-    lat, _, h, _, _ = earth.geodetic_from_ecef(r[:, 0], r[:, 1], r[:, 2])
-    bad = ((h < lim.MIN_HEIGHT_M) | (h > lim.MAX_HEIGHT_M)
-           | (np.abs(lat) >= 0.5 * np.pi - lim.POLE_MARGIN_RAD))
+    x, y, z = _ecef(earth.ecef_from_llh(origin), earth.enu_to_ecef_matrix(origin[0], origin[1]),
+                    poses.p.T)
+    lat, _, h, _, _ = earth.geodetic_from_ecef(x, y, z)
+    # NaN-safe: a position too far out to convert (~1e145 m) is refused too
+    bad = ~((h >= lim.MIN_HEIGHT_M) & (h <= lim.MAX_HEIGHT_M)
+            & (np.abs(lat) < 0.5 * np.pi - lim.POLE_MARGIN_RAD))
     if bad.any():
         i = int(np.argmax(bad))
         raise ValueError(f"{poses.source}: {poses.labels[i]}: "
                          f"{_position_refusal(poses.p[i], float(lat[i]), float(h[i]))}")
+
+
+def _ecef(r0, c_et, p):
+    """ECEF components ``x, y, z`` of tangent-frame positions ``p = (east, north, up)``
+    (arrays) for the frame's origin ``r0`` and its ``C_et``: scalar times array, component
+    by component (an (n,3) @ (3,3) product goes to BLAS, whose threads cost more than the
+    product on a shared 2-core machine)."""
+    return tuple(r0[k] + (c_et[k, 0] * p[0] + c_et[k, 1] * p[1] + c_et[k, 2] * p[2])
+                 for k in range(3))
 
 
 # --------------------------------------------------------------------------- splines
@@ -570,11 +580,24 @@ def _qmul(p, q):
             pw * qw - (px * qx + py * qy + pz * qz))
 
 
-def _q_en(lat, lon):
-    """ENU → ECEF rotation as a quaternion: ``C_en = Rz(λ + π/2) Rx(π/2 − φ)``."""
-    a = 0.5 * (lon + 0.5 * np.pi)
-    b = 0.5 * (0.5 * np.pi - lat)
-    ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
+def _q_en(sl, cl, so, co):
+    """ENU → ECEF rotation as a quaternion, ``C_en = Rz(λ + π/2) Rx(π/2 − φ)``, from the
+    sines and cosines of latitude φ and longitude λ: (cos, sin) of the half angles
+    a = (λ + π/2)/2 ∈ (−π/4, 3π/4] and b = (π/2 − φ)/2 ∈ [0, π/2] by the half-angle
+    formulas, no trigonometry (four sin/cos per sample were the pass's dearest step). Of
+    each pair the larger magnitude is √((1 + |cos 2x|)/2) (no cancellation), its sign
+    that of the quadrant, and the other sin 2x / (2 · it)."""
+    # b: cos 2b = sin φ, sin 2b = cos φ ≥ 0 (both halves ≥ 0); cos b is the larger north
+    big = np.sqrt(0.5 * (1.0 + np.abs(sl)))
+    other = 0.5 * cl / big
+    north = sl >= 0.0
+    cb, sb = np.where(north, big, other), np.where(north, other, big)
+    # a: cos 2a = −sin λ, sin 2a = cos λ; sin λ > 0: a ∈ (π/4, 3π/4), sin a the larger
+    # (> 0); else a ∈ (−π/4, π/4], cos a the larger (> 0); the other takes cos λ's sign
+    big = np.sqrt(0.5 * (1.0 + np.abs(so)))
+    other = 0.5 * co / big
+    east = so > 0.0
+    ca, sa = np.where(east, other, big), np.where(east, big, other)
     return ca * sb, sa * sb, sa * cb, ca * cb
 
 
@@ -632,7 +655,8 @@ class TrajectoryMotion(Motion):
         self.origin_llh = np.asarray(origin_llh, dtype=np.float64)
         self._r0 = earth.ecef_from_llh(self.origin_llh)
         self._c_et = earth.enu_to_ecef_matrix(self.origin_llh[0], self.origin_llh[1])
-        self._q_et = _q_en(self.origin_llh[0], self.origin_llh[1])
+        lat0, lon0 = self.origin_llh[0], self.origin_llh[1]
+        self._q_et = _q_en(np.sin(lat0), np.cos(lat0), np.sin(lon0), np.cos(lon0))
         self.omega_ie_t = earth.earth_rate_enu(self.origin_llh[0])  # constant in t
 
     # ------------------------------------------------------------------ evaluation
@@ -703,10 +727,11 @@ class TrajectoryMotion(Motion):
             got.update(q_tb=q_tb, omega_tb_b=w_tb)
         # the Earth geometry at the position: ECEF, geodetic, the local vertical in t
         c_et = self._c_et
-        x, y, z = (self._r0[k] + (c_et[k, 0] * p[0] + c_et[k, 1] * p[1] + c_et[k, 2] * p[2])
-                   for k in range(3))
+        x, y, z = _ecef(self._r0, c_et, p)
         lat, lon, h, sl, cl = earth.geodetic_from_ecef(x, y, z)
         got["llh"] = (lat, lon, h)
+        # 1 / distance from the polar axis: x, y times it are cos λ, sin λ (no pole: refused)
+        inv_p = 1.0 / np.sqrt(x * x + y * y) if truth or (force and gravity) else None
         if "omega_ib_b" in want:
             w = w_tb
             if earth_rotation:
@@ -721,14 +746,14 @@ class TrajectoryMotion(Motion):
             if gravity:
                 # g^t = C_tn g^n = −g up^t, the geodetic normal (x, y, N)/|(p, N)| in t
                 g = earth.normal_gravity(sl * sl, h)
-                k = cl / np.hypot(x, y)
+                k = cl * inv_p
                 ne = (x * k, y * k, sl)
                 up = tuple(c_et[0, j] * ne[0] + c_et[1, j] * ne[1] + c_et[2, j] * ne[2]
                            for j in range(3))
                 f_t = tuple(fk + g * uk for fk, uk in zip(f_t, up, strict=True))
             got["f_b"] = _rotate(q_tb, f_t, inverse=True)
         if truth:
-            qx, qy, qz, qw = _q_en(lat, lon)
+            qx, qy, qz, qw = _q_en(sl, cl, y * inv_p, x * inv_p)
             q_nt = _qmul((-qx, -qy, -qz, qw), self._q_et)  # C_nt = C_ne C_et
             got["q_nt"] = q_nt
             if want & {"q_nb", "omega_nb_b", "v_n", "acc_n"}:
