@@ -413,19 +413,19 @@ def smoothing_spline(t: np.ndarray, y: np.ndarray, rss_target: float) -> PPoly:
     return PPoly.construct_fast(c.transpose(1, 2, 0), t)
 
 
-def _hermite(dx: np.ndarray, y: np.ndarray, slope: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """Coefficients (k, 4, n−1) of the cubics with values ``y`` and slopes ``s`` (k, n) at
-    the knots (scipy ``CubicHermiteSpline``'s formulas)."""
+def _hermite(dx: np.ndarray, y: np.ndarray, slope: np.ndarray, s: np.ndarray,
+             out: np.ndarray) -> np.ndarray:
+    """Coefficients ``out`` (k, 4, n−1) of the cubics with values ``y`` and slopes ``s``
+    (k, n) at the knots (scipy ``CubicHermiteSpline``'s formulas)."""
     t = (s[:, :-1] + s[:, 1:] - 2 * slope) / dx
-    c = np.empty((y.shape[0], 4, dx.shape[0]))
-    c[:, 0] = t / dx
-    c[:, 1] = (slope - s[:, :-1]) / dx - t
-    c[:, 2] = s[:, :-1]
-    c[:, 3] = y[:, :-1]
-    return c
+    out[:, 0] = t / dx
+    out[:, 1] = (slope - s[:, :-1]) / dx - t
+    out[:, 2] = s[:, :-1]
+    out[:, 3] = y[:, :-1]
+    return out
 
 
-def _not_a_knot(t: np.ndarray, y: np.ndarray) -> np.ndarray:
+def _not_a_knot(t: np.ndarray, y: np.ndarray, out: np.ndarray) -> np.ndarray:
     """Coefficients (k, 4, n−1) of scipy ``CubicSpline(t, y.T, bc_type="not-a-knot")``
     for ``n ≥ 4`` knots: its slope equations and solve, written out for rows of
     components because ``CubicSpline`` spends ~4/5 of its time outside the solve (input
@@ -448,13 +448,15 @@ def _not_a_knot(t: np.ndarray, y: np.ndarray) -> np.ndarray:
     b[:, -1] = (dx[-1] ** 2 * slope[:, -2] + (2 * d + dx[-1]) * dx[-2] * slope[:, -1]) / d
     s = solve_banded((1, 1), band, b.T, overwrite_ab=True, overwrite_b=True,
                      check_finite=False).T
-    return _hermite(dx, y, slope, s)
+    return _hermite(dx, y, slope, s, out)
 
 
-def spline_coefficients(t: np.ndarray, y: np.ndarray, rss_target: float) -> np.ndarray:
+def spline_coefficients(t: np.ndarray, y: np.ndarray, rss_target: float,
+                        out: np.ndarray | None = None) -> np.ndarray:
     """The piecewise-cubic coefficients ``(k, 4, n−1)`` of the components ``y (k, n)``
     over knots ``t`` (per component scipy ``PPoly`` order: highest power first, in the
-    local coordinate t − t_i) of :func:`smoothing_spline`.
+    local coordinate t − t_i) of :func:`smoothing_spline`, written into ``out`` when
+    given (a view into a larger table: no copy of the result).
 
     Interpolation is scipy ``CubicSpline``'s not-a-knot spline (:func:`_not_a_knot`).
     Smoothing is written by hand (Reinsch's O(n) banded algorithm) because scipy's
@@ -467,10 +469,13 @@ def spline_coefficients(t: np.ndarray, y: np.ndarray, rss_target: float) -> np.n
     ``CubicSpline`` through g would make.
     """
     n = t.shape[0]
+    if out is None:
+        out = np.empty((y.shape[0], 4, n - 1))
     if n < 4:
-        return CubicSpline(t, y.T, bc_type="natural").c.transpose(2, 0, 1)
+        out[...] = CubicSpline(t, y.T, bc_type="natural").c.transpose(2, 0, 1)
+        return out
     if rss_target <= 0.0:
-        return _not_a_knot(t, y)
+        return _not_a_knot(t, y, out)
     system = _Reinsch(t, y)
     # λ is searched on up to LAMBDA_WINDOWS evenly spread windows of LAMBDA_WINDOW knots
     # (each a smoothing problem of its own, the residual target scaled by their share of
@@ -513,16 +518,27 @@ def spline_coefficients(t: np.ndarray, y: np.ndarray, rss_target: float) -> np.n
         log_lam, slope = _increasing_root(log_excess, log_lam, lo, hi, xtol, slope=slope)
     lam = np.exp(log_lam)
     inner = system.second_derivatives(lam)
-    g = y - system.residual(lam, inner)
+    g = system.residual(lam, inner)
+    np.subtract(y, g, out=g)  # the fit's values at the knots
     gamma = np.zeros_like(g)  # natural ends: γ = 0 at the first and last knot
     gamma[:, 1:-1] = inner
     h = np.diff(t)
-    c = np.empty((y.shape[0], 4, n - 1))
-    c[:, 0] = (gamma[:, 1:] - gamma[:, :-1]) / (6.0 * h)
-    c[:, 1] = 0.5 * gamma[:, :-1]
-    c[:, 2] = (g[:, 1:] - g[:, :-1]) / h - h * (2.0 * gamma[:, :-1] + gamma[:, 1:]) / 6.0
-    c[:, 3] = g[:, :-1]
-    return c
+    # the cubic on [t_i, t_i+1] from its end values g and second derivatives γ, written
+    # in place (fresh multi-MB temporaries cost more in page faults than in arithmetic):
+    # c0 = (γ_i+1 − γ_i) / 6h, c1 = γ_i / 2, c2 = (g_i+1 − g_i) / h − h (2γ_i + γ_i+1) / 6,
+    # c3 = g_i
+    c0, c1, c2, c3 = (out[:, d] for d in range(4))
+    np.subtract(gamma[:, 1:], gamma[:, :-1], out=c0)
+    c0 /= 6.0 * h
+    np.multiply(gamma[:, :-1], 0.5, out=c1)
+    np.multiply(gamma[:, :-1], 2.0, out=c2)
+    c2 += gamma[:, 1:]
+    c2 *= h / 6.0
+    np.subtract(g[:, 1:], g[:, :-1], out=c3)
+    c3 /= h
+    np.subtract(c3, c2, out=c2)
+    c3[...] = g[:, :-1]
+    return out
 
 
 # --------------------------------------------------------------------------- motion
@@ -631,23 +647,26 @@ class TrajectoryMotion(Motion):
         self.position_sigma_m = float(position_sigma_m)
         self.attitude_sigma_rad = float(attitude_sigma_rad)
         n = self.pose_count
-        # sign-continuous quaternions: q and −q are one rotation; the spline must not jump
-        q = poses.q.copy()
-        flip = np.sum(q[1:] * q[:-1], axis=1) < 0.0
-        sign = np.concatenate(([1.0], np.where(np.cumsum(flip) % 2 == 1, -1.0, 1.0)))
-        q *= sign[:, None]
         rss_p = 3.0 * n * self.position_sigma_m ** 2
         rss_q = 0.75 * n * self.attitude_sigma_rad ** 2
-        # Positions relative to the first pose: the fit is the same shifted (splines
-        # reproduce constants), but differences of km-sized coordinates lose digits — at
-        # 35 km the acceleration's rounding is ~1e-7 m/s² uncentred, ~1e-13 centred.
+        # the fit's layout: components in rows, positions then quaternions. Positions
+        # relative to the first pose: the fit is the same shifted (splines reproduce
+        # constants), but differences of km-sized coordinates lose digits — at 35 km the
+        # acceleration's rounding is ~1e-7 m/s² uncentred, ~1e-13 centred.
+        y = np.empty((7, n))
         p0 = poses.p[0].copy()
-        y = np.concatenate(((poses.p - p0).T, q.T))  # components in rows (the fit's layout)
+        np.subtract(poses.p.T, p0[:, None], out=y[:3])
+        # sign-continuous quaternions: q and −q are one rotation; the spline must not jump
+        qx, qy, qz, qw = poses.q.T
+        flip = (qx[1:] * qx[:-1] + qy[1:] * qy[:-1] + qz[1:] * qz[:-1] + qw[1:] * qw[:-1]) < 0.0
+        sign = np.concatenate(([1.0], np.where(np.cumsum(flip) % 2 == 1, -1.0, 1.0)))
+        np.multiply(poses.q.T, sign, out=y[3:])
+        c = np.empty((7, 4, n - 1))
         if rss_p <= 0.0 and rss_q <= 0.0:  # both interpolated: one spline of 7 rows
-            c = spline_coefficients(self._t, y, 0.0)
+            spline_coefficients(self._t, y, 0.0, out=c)
         else:
-            c = np.concatenate((spline_coefficients(self._t, y[:3], rss_p),
-                                spline_coefficients(self._t, y[3:], rss_q)))
+            spline_coefficients(self._t, y[:3], rss_p, out=c[:3])
+            spline_coefficients(self._t, y[3:], rss_q, out=c[3:])
         c[:3, 3] += p0[:, None]
         # the coefficient table of the evaluation: row 4 j + d is power 3 − d of component
         # j (x, y, z position, then the 4 quaternion components) over the intervals
