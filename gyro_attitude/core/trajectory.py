@@ -62,6 +62,10 @@ __all__ = [
 #: Times this close outside the poses (s) are taken at the end pose: a finite-difference step
 #: of a consumer (the free gyro's base acceleration, 1e-5 s) may reach past the ends.
 EDGE_S = 1e-3
+#: IMU samples per pass of the evaluation (and poses per pass of the position check): the
+#: pass's ~100 temporaries of this many doubles stay in the processor's L2 cache and are
+#: reused by the allocator (a longer pass streams them through memory and page faults).
+EVAL_CHUNK = 8192
 #: Windows on which the smoothing parameter is searched (module docstring).
 LAMBDA_WINDOWS = 8
 LAMBDA_WINDOW = 1000
@@ -105,11 +109,12 @@ def check_poses(poses: PoseSeries, max_gap_s: float = DEFAULT_MAX_GAP_S) -> Pose
                          "2 (4 or more for a cubic fit)")
     if p.shape != (n, 3) or q.shape != (n, 4) or len(lab) != n:
         raise ValueError(f"{src}: poses must be (n,3) positions and (n,4) quaternions")
-    bad = ~np.all(np.isfinite(p), axis=1)
-    if bad.any():
+    if not np.isfinite(p).all():
+        bad = ~np.all(np.isfinite(p), axis=1)
         raise ValueError(f"{src}: {lab[int(np.argmax(bad))]}: position is not finite")
+    qx, qy, qz, qw = q.T  # component by component: numpy's reductions over rows of 4 are slow
     with np.errstate(over="ignore"):  # a 1e300 component: |q| = inf, refused below
-        norm = np.linalg.norm(q, axis=1)
+        norm = np.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
     bad = ~np.isfinite(norm) | (np.abs(norm - 1.0) > UNIT_QUATERNION_TOLERANCE)
     if bad.any():
         i = int(np.argmax(bad))
@@ -130,17 +135,22 @@ def check_poses(poses: PoseSeries, max_gap_s: float = DEFAULT_MAX_GAP_S) -> Pose
                          f"pose (at {_seconds(t[i - 1])} s) is longer than max_gap_s = "
                          f"{max_gap_s:g} s; a fit cannot bridge it: split the file or raise "
                          "motion.max_gap_s")
-    # pose to pose faster than any carrier: a glitch (hypot: 1e300 m must not overflow)
-    step = np.hypot(np.hypot(*np.diff(p[:, :2], axis=0).T), np.diff(p[:, 2]))
-    speed = step / (dt / 1e9)
-    bad = speed > _limits().MAX_SPEED_MPS
+    # pose to pose faster than any carrier: a glitch (squared lengths: a 1e300 m step
+    # overflows to inf, which is refused too; hypot for the message)
+    dx, dy, dz = np.diff(p, axis=0).T
+    reach = _limits().MAX_SPEED_MPS * (dt / 1e9)
+    with np.errstate(over="ignore"):
+        bad = dx * dx + dy * dy + dz * dz > reach * reach
     if bad.any():
         i = int(np.argmax(bad)) + 1
-        raise ValueError(f"{src}: {lab[i]}: {_too_fast(step[i - 1], dt[i - 1] / 1e9)}")
+        step = math.hypot(dx[i - 1], dy[i - 1], dz[i - 1])
+        raise ValueError(f"{src}: {lab[i]}: {_too_fast(step, dt[i - 1] / 1e9)}")
     q = q / norm[:, None]
     # pose to pose a turn faster than any motion may spin: a glitch or a re-sent pose a few
     # ns after the original (0.1° in 1 ns would be a 1.7e6 rad/s gyro); |q·q'|: q ≡ −q
-    turn = _turn_angle(np.abs(np.sum(q[1:] * q[:-1], axis=1)))
+    qx, qy, qz, qw = q.T
+    turn = _turn_angle(np.abs(qx[1:] * qx[:-1] + qy[1:] * qy[:-1] + qz[1:] * qz[:-1]
+                              + qw[1:] * qw[:-1]))
     bad = turn > _limits().MAX_BODY_RATE_RAD_S * (dt / 1e9)
     if bad.any():
         i = int(np.argmax(bad)) + 1
@@ -194,16 +204,19 @@ def check_positions(poses: PoseSeries, origin_llh) -> None:
     truth frame has no East or North at a pole."""
     lim = _limits()
     origin = np.asarray(origin_llh, dtype=np.float64)
-    x, y, z = _ecef(earth.ecef_from_llh(origin), earth.enu_to_ecef_matrix(origin[0], origin[1]),
-                    poses.p.T)
-    lat, _, h, _, _ = earth.geodetic_from_ecef(x, y, z)
-    # NaN-safe: a position too far out to convert (~1e145 m) is refused too
-    bad = ~((h >= lim.MIN_HEIGHT_M) & (h <= lim.MAX_HEIGHT_M)
-            & (np.abs(lat) < 0.5 * np.pi - lim.POLE_MARGIN_RAD))
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise ValueError(f"{poses.source}: {poses.labels[i]}: "
-                         f"{_position_refusal(poses.p[i], float(lat[i]), float(h[i]))}")
+    r0 = earth.ecef_from_llh(origin)
+    c_et = earth.enu_to_ecef_matrix(origin[0], origin[1])
+    pt = poses.p.T
+    for lo in range(0, pt.shape[1], EVAL_CHUNK):  # chunks: as the evaluation (EVAL_CHUNK)
+        x, y, z = _ecef(r0, c_et, pt[:, lo:lo + EVAL_CHUNK])
+        lat, _, h, _, _ = earth.geodetic_from_ecef(x, y, z)
+        # NaN-safe: a position too far out to convert (~1e145 m) is refused too
+        bad = ~((h >= lim.MIN_HEIGHT_M) & (h <= lim.MAX_HEIGHT_M)
+                & (np.abs(lat) < 0.5 * np.pi - lim.POLE_MARGIN_RAD))
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise ValueError(f"{poses.source}: {poses.labels[lo + i]}: "
+                             f"{_position_refusal(pt[:, lo + i], float(lat[i]), float(h[i]))}")
 
 
 def _ecef(r0, c_et, p):
@@ -617,9 +630,6 @@ def _q_en(sl, cl, so, co):
     return ca * sb, sa * sb, sa * cb, ca * cb
 
 
-#: IMU samples per pass of the evaluation: the pass's ~100 temporaries of this many
-#: doubles stay in the processor's L2 cache (a longer pass streams them through memory).
-EVAL_CHUNK = 8192
 #: What :meth:`TrajectoryMotion._fields` can compute, with its columns.
 _FIELD_WIDTH = {"q_tb": 4, "omega_tb_b": 3, "p": 3, "v": 3, "a": 3, "llh": 3, "q_nt": 4,
                 "omega_ib_b": 3, "f_b": 3, "q_nb": 4, "omega_nb_b": 3, "v_n": 3,
