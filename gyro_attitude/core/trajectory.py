@@ -208,15 +208,19 @@ def check_positions(poses: PoseSeries, origin_llh) -> None:
     c_et = earth.enu_to_ecef_matrix(origin[0], origin[1])
     pt = poses.p.T
     for lo in range(0, pt.shape[1], EVAL_CHUNK):  # chunks: as the evaluation (EVAL_CHUNK)
-        x, y, z = _ecef(r0, c_et, pt[:, lo:lo + EVAL_CHUNK])
-        lat, _, h, _, _ = earth.geodetic_from_ecef(x, y, z)
-        # NaN-safe: a position too far out to convert (~1e145 m) is refused too
+        # a position too far out to convert (~1e145 m) gives NaN or inf, refused below
+        with np.errstate(over="ignore", invalid="ignore"):
+            x, y, z = _ecef(r0, c_et, pt[:, lo:lo + EVAL_CHUNK])
+            lat, _, h, _, _ = earth.geodetic_from_ecef(x, y, z)
         bad = ~((h >= lim.MIN_HEIGHT_M) & (h <= lim.MAX_HEIGHT_M)
                 & (np.abs(lat) < 0.5 * np.pi - lim.POLE_MARGIN_RAD))
         if bad.any():
             i = int(np.argmax(bad))
+            hi = float(h[i])
+            if not math.isfinite(hi):  # that far out the height is the distance
+                hi = math.hypot(float(x[i]), float(y[i]), float(z[i]))
             raise ValueError(f"{poses.source}: {poses.labels[lo + i]}: "
-                             f"{_position_refusal(pt[:, lo + i], float(lat[i]), float(h[i]))}")
+                             f"{_position_refusal(pt[:, lo + i], float(lat[i]), hi)}")
 
 
 def _ecef(r0, c_et, p):

@@ -303,7 +303,9 @@ def _line_poses(p, origin_rate=100.0):
 @pytest.mark.parametrize("height, message", [
     (2e6, r"line 1: position .* height of 2e\+06 m, outside the scene's -12000 … 1e\+06 m"),
     (-3e4, r"line 1: position .* height of -30000 m, outside"),
+    (1e300, r"line 1: position .* height of 1e\+300 m, outside"),  # past squares' range
 ])
+@pytest.mark.filterwarnings("error")  # no overflow warning: one line of error
 def test_a_position_outside_the_scene_heights_is_refused_naming_the_line(height, message):
     """2000 km up, the normal-gravity model is far outside what it describes (its free-air
     series gave g ≈ 7e5 m/s² at 1e9 m); 30 km below the origin is under any ground."""
