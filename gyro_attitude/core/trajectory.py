@@ -208,19 +208,27 @@ def check_positions(poses: PoseSeries, origin_llh) -> None:
     c_et = earth.enu_to_ecef_matrix(origin[0], origin[1])
     pt = poses.p.T
     for lo in range(0, pt.shape[1], EVAL_CHUNK):  # chunks: as the evaluation (EVAL_CHUNK)
-        # a position too far out to convert (~1e145 m) gives NaN or inf, refused below
-        with np.errstate(over="ignore", invalid="ignore"):
+        with np.errstate(over="ignore"):
             x, y, z = _ecef(r0, c_et, pt[:, lo:lo + EVAL_CHUNK])
-            lat, _, h, _, _ = earth.geodetic_from_ecef(x, y, z)
+        lat, h = _latitude_height(x, y, z)
         bad = ~((h >= lim.MIN_HEIGHT_M) & (h <= lim.MAX_HEIGHT_M)
                 & (np.abs(lat) < 0.5 * np.pi - lim.POLE_MARGIN_RAD))
         if bad.any():
             i = int(np.argmax(bad))
-            hi = float(h[i])
-            if not math.isfinite(hi):  # that far out the height is the distance
-                hi = math.hypot(float(x[i]), float(y[i]), float(z[i]))
             raise ValueError(f"{poses.source}: {poses.labels[lo + i]}: "
-                             f"{_position_refusal(pt[:, lo + i], float(lat[i]), hi)}")
+                             f"{_position_refusal(pt[:, lo + i], float(lat[i]), float(h[i]))}")
+
+
+def _latitude_height(x, y, z):
+    """Geodetic latitude and height of ECEF ``x, y, z`` for the position checks; a position
+    too far out for :func:`~gyro_attitude.core.earth.geodetic_from_ecef`'s squares
+    (~1e145 m) gets its distance as the height (refused: above any scene) and no warning."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        lat, _, h, _, _ = earth.geodetic_from_ecef(x, y, z)
+    far = ~np.isfinite(h)
+    if np.any(far):
+        h = np.where(far, np.hypot(np.hypot(x, y), z), h)
+    return lat, h
 
 
 def _ecef(r0, c_et, p):
@@ -913,7 +921,7 @@ class LiveTrajectory(TrajectoryMotion):
             if step / dt > _limits().MAX_SPEED_MPS:
                 return _too_fast(step, dt)
         x, y, z = self._r0 + self._c_et @ p
-        lat, _, h, _, _ = earth.geodetic_from_ecef(x, y, z)
+        lat, h = _latitude_height(x, y, z)
         refusal = _position_refusal(p, float(lat), float(h))
         if refusal is not None:
             return refusal
