@@ -38,7 +38,6 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import CubicSpline, PPoly
 from scipy.linalg import solve_banded, solveh_banded
-from scipy.optimize import brentq
 
 from gyro_attitude.core import earth
 from gyro_attitude.core.motion import Motion, MotionSample
@@ -63,6 +62,10 @@ __all__ = [
 #: Times this close outside the poses (s) are taken at the end pose: a finite-difference step
 #: of a consumer (the free gyro's base acceleration, 1e-5 s) may reach past the ends.
 EDGE_S = 1e-3
+#: IMU samples per pass of the evaluation (and poses per pass of the position check): the
+#: pass's ~100 temporaries of this many doubles stay in the processor's L2 cache and are
+#: reused by the allocator (a longer pass streams them through memory and page faults).
+EVAL_CHUNK = 8192
 #: Windows on which the smoothing parameter is searched (module docstring).
 LAMBDA_WINDOWS = 8
 LAMBDA_WINDOW = 1000
@@ -106,11 +109,12 @@ def check_poses(poses: PoseSeries, max_gap_s: float = DEFAULT_MAX_GAP_S) -> Pose
                          "2 (4 or more for a cubic fit)")
     if p.shape != (n, 3) or q.shape != (n, 4) or len(lab) != n:
         raise ValueError(f"{src}: poses must be (n,3) positions and (n,4) quaternions")
-    bad = ~np.all(np.isfinite(p), axis=1)
-    if bad.any():
+    if not np.isfinite(p).all():
+        bad = ~np.all(np.isfinite(p), axis=1)
         raise ValueError(f"{src}: {lab[int(np.argmax(bad))]}: position is not finite")
+    qx, qy, qz, qw = q.T  # component by component: numpy's reductions over rows of 4 are slow
     with np.errstate(over="ignore"):  # a 1e300 component: |q| = inf, refused below
-        norm = np.linalg.norm(q, axis=1)
+        norm = np.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
     bad = ~np.isfinite(norm) | (np.abs(norm - 1.0) > UNIT_QUATERNION_TOLERANCE)
     if bad.any():
         i = int(np.argmax(bad))
@@ -131,17 +135,22 @@ def check_poses(poses: PoseSeries, max_gap_s: float = DEFAULT_MAX_GAP_S) -> Pose
                          f"pose (at {_seconds(t[i - 1])} s) is longer than max_gap_s = "
                          f"{max_gap_s:g} s; a fit cannot bridge it: split the file or raise "
                          "motion.max_gap_s")
-    # pose to pose faster than any carrier: a glitch (hypot: 1e300 m must not overflow)
-    step = np.hypot(np.hypot(*np.diff(p[:, :2], axis=0).T), np.diff(p[:, 2]))
-    speed = step / (dt / 1e9)
-    bad = speed > _limits().MAX_SPEED_MPS
+    # pose to pose faster than any carrier: a glitch (squared lengths: a 1e300 m step
+    # overflows to inf, which is refused too; hypot for the message)
+    dx, dy, dz = np.diff(p, axis=0).T
+    reach = _limits().MAX_SPEED_MPS * (dt / 1e9)
+    with np.errstate(over="ignore"):
+        bad = dx * dx + dy * dy + dz * dz > reach * reach
     if bad.any():
         i = int(np.argmax(bad)) + 1
-        raise ValueError(f"{src}: {lab[i]}: {_too_fast(step[i - 1], dt[i - 1] / 1e9)}")
+        step = math.hypot(dx[i - 1], dy[i - 1], dz[i - 1])
+        raise ValueError(f"{src}: {lab[i]}: {_too_fast(step, dt[i - 1] / 1e9)}")
     q = q / norm[:, None]
     # pose to pose a turn faster than any motion may spin: a glitch or a re-sent pose a few
     # ns after the original (0.1° in 1 ns would be a 1.7e6 rad/s gyro); |q·q'|: q ≡ −q
-    turn = _turn_angle(np.abs(np.sum(q[1:] * q[:-1], axis=1)))
+    qx, qy, qz, qw = q.T
+    turn = _turn_angle(np.abs(qx[1:] * qx[:-1] + qy[1:] * qy[:-1] + qz[1:] * qz[:-1]
+                              + qw[1:] * qw[:-1]))
     bad = turn > _limits().MAX_BODY_RATE_RAD_S * (dt / 1e9)
     if bad.any():
         i = int(np.argmax(bad)) + 1
@@ -195,15 +204,40 @@ def check_positions(poses: PoseSeries, origin_llh) -> None:
     truth frame has no East or North at a pole."""
     lim = _limits()
     origin = np.asarray(origin_llh, dtype=np.float64)
-    r = earth.ecef_from_llh(origin) + poses.p @ earth.enu_to_ecef_matrix(origin[0],
-                                                                         origin[1]).T
-    lat, _, h, _, _ = earth.geodetic_from_ecef(r[:, 0], r[:, 1], r[:, 2])
-    bad = ((h < lim.MIN_HEIGHT_M) | (h > lim.MAX_HEIGHT_M)
-           | (np.abs(lat) >= 0.5 * np.pi - lim.POLE_MARGIN_RAD))
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise ValueError(f"{poses.source}: {poses.labels[i]}: "
-                         f"{_position_refusal(poses.p[i], float(lat[i]), float(h[i]))}")
+    r0 = earth.ecef_from_llh(origin)
+    c_et = earth.enu_to_ecef_matrix(origin[0], origin[1])
+    pt = poses.p.T
+    for lo in range(0, pt.shape[1], EVAL_CHUNK):  # chunks: as the evaluation (EVAL_CHUNK)
+        with np.errstate(over="ignore"):
+            x, y, z = _ecef(r0, c_et, pt[:, lo:lo + EVAL_CHUNK])
+        lat, h = _latitude_height(x, y, z)
+        bad = ~((h >= lim.MIN_HEIGHT_M) & (h <= lim.MAX_HEIGHT_M)
+                & (np.abs(lat) < 0.5 * np.pi - lim.POLE_MARGIN_RAD))
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise ValueError(f"{poses.source}: {poses.labels[lo + i]}: "
+                             f"{_position_refusal(pt[:, lo + i], float(lat[i]), float(h[i]))}")
+
+
+def _latitude_height(x, y, z):
+    """Geodetic latitude and height of ECEF ``x, y, z`` for the position checks; a position
+    too far out for :func:`~gyro_attitude.core.earth.geodetic_from_ecef`'s squares
+    (~1e145 m) gets its distance as the height (refused: above any scene) and no warning."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        lat, _, h, _, _ = earth.geodetic_from_ecef(x, y, z)
+    far = ~np.isfinite(h)
+    if np.any(far):
+        h = np.where(far, np.hypot(np.hypot(x, y), z), h)
+    return lat, h
+
+
+def _ecef(r0, c_et, p):
+    """ECEF components ``x, y, z`` of tangent-frame positions ``p = (east, north, up)``
+    (arrays) for the frame's origin ``r0`` and its ``C_et``: scalar times array, component
+    by component (an (n,3) @ (3,3) product goes to BLAS, whose threads cost more than the
+    product on a shared 2-core machine)."""
+    return tuple(r0[k] + (c_et[k, 0] * p[0] + c_et[k, 1] * p[1] + c_et[k, 2] * p[2])
+                 for k in range(3))
 
 
 # --------------------------------------------------------------------------- splines
@@ -283,26 +317,107 @@ class _StackedReinsch:
                 parts += [band[a:a + m - cut], np.zeros(cut)]
             return np.concatenate(parts)[:-cut]
 
-        def stacked(band):
-            return np.concatenate([band[a:a + m] for a in starts])
+        def windows(band):  # (windows, m): row w is window w's slice of the band
+            return np.stack([band[a:a + m] for a in starts])
 
-        self.r_diag, self.qq0 = stacked(system.r_diag), stacked(system.qq0)
+        self.r_diag, self.qq0 = windows(system.r_diag).ravel(), windows(system.qq0).ravel()
         self.r_off, self.qq1 = joined(system.r_off, 1), joined(system.qq1, 1)
         self.qq2 = joined(system.qq2, 2)
         self.qty = np.concatenate([system.qty[:, a:a + m] for a in starts], axis=1)
-        # row r of a window's Q γ: a_r γ_r + b_{r−1} γ_{r−1} + c_{r−2} γ_{r−2}, at the
-        # stacked rows j of the middles
-        a, b, c = stacked(system.a), stacked(system.b), stacked(system.c)
-        self.rows = (np.arange(len(starts))[:, None] * m + np.arange(edge, size - edge)).ravel()
-        j = self.rows
-        self.qa, self.qb, self.qc = a[j], b[j - 1], c[j - 2]
+        # row r of a window's Q γ: a_r γ_r + b_{r−1} γ_{r−1} + c_{r−2} γ_{r−2}; over the
+        # middle rows r these are three shifted slices of each window's γ (strided views
+        # of the solution reshaped to (k, windows, m), no gathered copies)
+        self.shape = (len(starts), m)
+        self.cuts = tuple(slice(edge - d, size - edge - d) for d in range(3))
+        self.qa, self.qb, self.qc = (windows(band)[:, cut] for band, cut in
+                                     zip((system.a, system.b, system.c), self.cuts, strict=True))
 
     def rss(self, lam: float) -> float:
         ab = _pentadiagonal(self.r_diag, self.r_off, self.qq0, self.qq1, self.qq2, lam)
-        g = solveh_banded(ab, self.qty.T, check_finite=False).T
-        j = self.rows
-        r = lam * (self.qa * g[:, j] + self.qb * g[:, j - 1] + self.qc * g[:, j - 2])
-        return float(np.sum(r * r))
+        g = solveh_banded(ab, self.qty.T, check_finite=False).T.reshape(-1, *self.shape)
+        c0, c1, c2 = self.cuts
+        r = self.qa * g[:, :, c0] + self.qb * g[:, :, c1] + self.qc * g[:, :, c2]
+        return lam * lam * float(np.sum(r * r))  # (not np.vdot: BLAS threads cost ms here)
+
+
+def _increasing_root(f, x: float, lo: float, hi: float, xtol: float, step: float = 3.0,
+                     slope: float | None = None) -> tuple[float, float | None]:
+    """A root of ``f``, increasing on ``[lo, hi]``, searched from ``x``: ``(root, slope)``,
+    the slope being the last secant's (a start for the search of a similar ``f``).
+
+    Until the sign changes, secant steps (the first with ``slope`` when given; a walk of
+    ``step``, doubling, while there is no usable slope), stretched by :data:`_OVERSHOOT`
+    so that they pass the root: f increasing, a point where f < 0 lies below it, so two
+    points of opposite signs bracket it. Then false-position steps inside the bracket
+    with the Anderson–Björck rule (when the same end is kept twice its f is scaled down,
+    so the steps do not stall on one side of a curved f: superlinear, ~1.7). Ends when
+    the next secant step is shorter than ``xtol`` (:func:`_close`), when the bracket is,
+    or at ``lo`` / ``hi`` when f has no sign change inside (f's closest end)."""
+    fx = f(x)
+    points = [(x, fx)]
+    while fx != 0.0:  # --- walk to a sign change
+        if len(points) > 1:
+            (x0, f0), (x1, f1) = points[-2:]
+            slope = (f1 - f0) / (x1 - x0) if f1 != f0 else None
+        if slope is not None and math.isfinite(slope) and slope > 0.0:
+            t = x - _OVERSHOOT * fx / slope
+        else:
+            t = x + (step if fx < 0.0 else -step)
+            step *= 2.0
+        t = min(max(t, lo), hi)
+        if t == x:  # at lo or hi, no sign change
+            return x, slope
+        ft = f(t)
+        points.append((t, ft))
+        slope = (ft - fx) / (t - x) if ft != fx else slope
+        if _close(t, ft, slope, xtol):
+            return t - ft / slope, slope
+        if (ft > 0.0) != (fx > 0.0) or ft == 0.0:
+            break
+        x, fx = t, ft
+    (x, fx), (t, ft) = points[-2], points[-1]
+    if ft == 0.0 or fx == 0.0:
+        return (t if ft == 0.0 else x), slope
+    (a, fa), (b, fb) = sorted(points[-2:])  # fa < 0 < fb
+    side = 0
+    for _ in range(200):  # --- Anderson–Björck false position on [a, b]
+        t = (a * fb - b * fa) / (fb - fa)
+        if not a < t < b:  # rounding at a bracket of a few ulps
+            return t, slope
+        ft = f(t)
+        (x0, f0), (x1, f1) = points[-1], (t, ft)
+        points.append((t, ft))
+        if f1 != f0:
+            slope = (f1 - f0) / (x1 - x0)
+        if ft == 0.0:
+            return t, slope
+        if _close(t, ft, slope, xtol):
+            return t - ft / slope, slope
+        if ft < 0.0:
+            if side < 0:
+                m = 1.0 - ft / fa
+                fb *= m if m > 0.0 else 0.5
+            a, fa, side = t, ft, -1
+        else:
+            if side > 0:
+                m = 1.0 - ft / fb
+                fa *= m if m > 0.0 else 0.5
+            b, fb, side = t, ft, 1
+        if b - a < xtol:
+            return t, slope
+    return t, slope
+
+
+def _close(x: float, fx: float, slope: float | None, xtol: float) -> bool:
+    """Whether ``x`` is within ``xtol`` of the root by the secant's estimate: the next
+    step, ``fx / slope``, is shorter than ``xtol`` (then taken without evaluating f: the
+    secant's error is of higher order than the step)."""
+    return slope is not None and math.isfinite(slope) and slope > 0.0 and \
+        abs(fx / slope) < xtol
+
+
+#: Secant steps towards a root not yet bracketed are stretched by this, to pass it.
+_OVERSHOOT = 1.2
 
 
 def reinsch_smooth(t: np.ndarray, y: np.ndarray, lam: float) -> np.ndarray:
@@ -323,19 +438,19 @@ def smoothing_spline(t: np.ndarray, y: np.ndarray, rss_target: float) -> PPoly:
     return PPoly.construct_fast(c.transpose(1, 2, 0), t)
 
 
-def _hermite(dx: np.ndarray, y: np.ndarray, slope: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """Coefficients (k, 4, n−1) of the cubics with values ``y`` and slopes ``s`` (k, n) at
-    the knots (scipy ``CubicHermiteSpline``'s formulas)."""
+def _hermite(dx: np.ndarray, y: np.ndarray, slope: np.ndarray, s: np.ndarray,
+             out: np.ndarray) -> np.ndarray:
+    """Coefficients ``out`` (k, 4, n−1) of the cubics with values ``y`` and slopes ``s``
+    (k, n) at the knots (scipy ``CubicHermiteSpline``'s formulas)."""
     t = (s[:, :-1] + s[:, 1:] - 2 * slope) / dx
-    c = np.empty((y.shape[0], 4, dx.shape[0]))
-    c[:, 0] = t / dx
-    c[:, 1] = (slope - s[:, :-1]) / dx - t
-    c[:, 2] = s[:, :-1]
-    c[:, 3] = y[:, :-1]
-    return c
+    out[:, 0] = t / dx
+    out[:, 1] = (slope - s[:, :-1]) / dx - t
+    out[:, 2] = s[:, :-1]
+    out[:, 3] = y[:, :-1]
+    return out
 
 
-def _not_a_knot(t: np.ndarray, y: np.ndarray) -> np.ndarray:
+def _not_a_knot(t: np.ndarray, y: np.ndarray, out: np.ndarray) -> np.ndarray:
     """Coefficients (k, 4, n−1) of scipy ``CubicSpline(t, y.T, bc_type="not-a-knot")``
     for ``n ≥ 4`` knots: its slope equations and solve, written out for rows of
     components because ``CubicSpline`` spends ~4/5 of its time outside the solve (input
@@ -358,13 +473,15 @@ def _not_a_knot(t: np.ndarray, y: np.ndarray) -> np.ndarray:
     b[:, -1] = (dx[-1] ** 2 * slope[:, -2] + (2 * d + dx[-1]) * dx[-2] * slope[:, -1]) / d
     s = solve_banded((1, 1), band, b.T, overwrite_ab=True, overwrite_b=True,
                      check_finite=False).T
-    return _hermite(dx, y, slope, s)
+    return _hermite(dx, y, slope, s, out)
 
 
-def spline_coefficients(t: np.ndarray, y: np.ndarray, rss_target: float) -> np.ndarray:
+def spline_coefficients(t: np.ndarray, y: np.ndarray, rss_target: float,
+                        out: np.ndarray | None = None) -> np.ndarray:
     """The piecewise-cubic coefficients ``(k, 4, n−1)`` of the components ``y (k, n)``
     over knots ``t`` (per component scipy ``PPoly`` order: highest power first, in the
-    local coordinate t − t_i) of :func:`smoothing_spline`.
+    local coordinate t − t_i) of :func:`smoothing_spline`, written into ``out`` when
+    given (a view into a larger table: no copy of the result).
 
     Interpolation is scipy ``CubicSpline``'s not-a-knot spline (:func:`_not_a_knot`).
     Smoothing is written by hand (Reinsch's O(n) banded algorithm) because scipy's
@@ -377,65 +494,76 @@ def spline_coefficients(t: np.ndarray, y: np.ndarray, rss_target: float) -> np.n
     ``CubicSpline`` through g would make.
     """
     n = t.shape[0]
+    if out is None:
+        out = np.empty((y.shape[0], 4, n - 1))
     if n < 4:
-        return CubicSpline(t, y.T, bc_type="natural").c.transpose(2, 0, 1)
+        out[...] = CubicSpline(t, y.T, bc_type="natural").c.transpose(2, 0, 1)
+        return out
     if rss_target <= 0.0:
-        return _not_a_knot(t, y)
+        return _not_a_knot(t, y, out)
     system = _Reinsch(t, y)
     # λ is searched on up to LAMBDA_WINDOWS evenly spread windows of LAMBDA_WINDOW knots
     # (each a smoothing problem of its own, the residual target scaled by their share of
     # the knots), then the whole series is solved once with it: a long file costs a few
     # solves of its length instead of ~25, and the whole residual stays within ~6 % of
-    # the target (test: test_smoothing_spline_residual_is_the_expected_noise).
-    if n > LAMBDA_WINDOWS * LAMBDA_WINDOW:
-        starts = np.linspace(0, n - LAMBDA_WINDOW, LAMBDA_WINDOWS).astype(int)
-        # a window's ends fit the data more closely than the middle of a long series:
-        # count the residual of its middle only
-        edge = LAMBDA_WINDOW // 10
-        windows = _StackedReinsch(system, starts, LAMBDA_WINDOW, edge)
-        share = LAMBDA_WINDOWS * (LAMBDA_WINDOW - 2 * edge) / n
-        rss = windows.rss
-    else:
-        share = 1.0
-
-        def rss(lam: float) -> float:
+    # the target (test: test_smoothing_spline_residual_is_the_expected_noise). The root
+    # is first estimated on windows a fifth as long (same knots, so the same λ up to
+    # their noise: a few % of residual, ~0.1–0.5 in log λ), then refined from there.
+    problems = []
+    for size in (LAMBDA_WINDOW // 5, LAMBDA_WINDOW):
+        if n > LAMBDA_WINDOWS * size:
+            starts = np.linspace(0, n - size, LAMBDA_WINDOWS).astype(int)
+            # a window's ends fit the data more closely than the middle of a long series:
+            # count the residual of its middle only
+            edge = size // 10
+            problems.append((_StackedReinsch(system, starts, size, edge).rss,
+                             LAMBDA_WINDOWS * (size - 2 * edge) / n))
+    if len(problems) < 2:
+        def rss_all(lam: float) -> float:
             r = system.residual(lam)
             return float(np.sum(r * r))
 
-    def log_excess(log_lam: float) -> float:
-        return np.log(max(rss(np.exp(log_lam)), 1e-300)) - np.log(rss_target * share)
+        problems.append((rss_all, 1.0))
 
     # λ has units time³: the spline then smooths over (λ/h³)^¼ knots. λ lies between
     # 0.01 and 1000 knots (8 s at 120 Hz: no motion is smoother); the banded system's
     # condition number is ~50 λ/h³, so the upper end also keeps Cholesky well conditioned.
-    # The residual grows with λ: start at one knot (λ = h³; pose files land within e^±9
-    # of it) and step outward, doubling, to the first sign change, then brentq on that
-    # bracket — about half the solves of brentq on the whole range, the same root.
+    # The residual grows with λ: the first search starts at one knot (λ = h³; pose files
+    # land within e^±9 of it), the next at the first's root and slope.
     log_h3 = np.log(float(np.mean(np.diff(t))) ** 3)
     lo, hi = log_h3 + np.log(1e-8), log_h3 + np.log(1e12)
-    x, fx, step = log_h3, log_excess(log_h3), 3.0
-    log_lam = x if fx == 0.0 else None
-    while log_lam is None:
-        x2 = min(max(x + (step if fx < 0.0 else -step), lo), hi)
-        f2 = log_excess(x2)
-        if (f2 > 0.0) != (fx > 0.0) or f2 == 0.0:
-            # log λ to 0.02: the residual then matches to ~1 % (its own noise is ~1.5 %)
-            log_lam = brentq(log_excess, min(x, x2), max(x, x2), xtol=0.02)
-        elif x2 in (lo, hi):  # no root inside: the straightest (noise larger than the
-            log_lam = x2      # motion) or the closest fit
-        x, fx, step = x2, f2, 2.0 * step
+    log_lam, slope = log_h3, None
+    for k, (rss, share) in enumerate(problems):
+        def log_excess(log_lam: float, rss=rss, share=share) -> float:
+            return np.log(max(rss(np.exp(log_lam)), 1e-300)) - np.log(rss_target * share)
+
+        # log λ to 1e-4 at the end (the residual to 0.01 %, far inside its own noise of
+        # ~1.5 %: the fit no longer depends on the search); 0.05 for the estimate
+        xtol = 1e-4 if k == len(problems) - 1 else 0.05
+        log_lam, slope = _increasing_root(log_excess, log_lam, lo, hi, xtol, slope=slope)
     lam = np.exp(log_lam)
     inner = system.second_derivatives(lam)
-    g = y - system.residual(lam, inner)
+    g = system.residual(lam, inner)
+    np.subtract(y, g, out=g)  # the fit's values at the knots
     gamma = np.zeros_like(g)  # natural ends: γ = 0 at the first and last knot
     gamma[:, 1:-1] = inner
     h = np.diff(t)
-    c = np.empty((y.shape[0], 4, n - 1))
-    c[:, 0] = (gamma[:, 1:] - gamma[:, :-1]) / (6.0 * h)
-    c[:, 1] = 0.5 * gamma[:, :-1]
-    c[:, 2] = (g[:, 1:] - g[:, :-1]) / h - h * (2.0 * gamma[:, :-1] + gamma[:, 1:]) / 6.0
-    c[:, 3] = g[:, :-1]
-    return c
+    # the cubic on [t_i, t_i+1] from its end values g and second derivatives γ, written
+    # in place (fresh multi-MB temporaries cost more in page faults than in arithmetic):
+    # c0 = (γ_i+1 − γ_i) / 6h, c1 = γ_i / 2, c2 = (g_i+1 − g_i) / h − h (2γ_i + γ_i+1) / 6,
+    # c3 = g_i
+    c0, c1, c2, c3 = (out[:, d] for d in range(4))
+    np.subtract(gamma[:, 1:], gamma[:, :-1], out=c0)
+    c0 /= 6.0 * h
+    np.multiply(gamma[:, :-1], 0.5, out=c1)
+    np.multiply(gamma[:, :-1], 2.0, out=c2)
+    c2 += gamma[:, 1:]
+    c2 *= h / 6.0
+    np.subtract(g[:, 1:], g[:, :-1], out=c3)
+    c3 /= h
+    np.subtract(c3, c2, out=c2)
+    c3[...] = g[:, :-1]
+    return out
 
 
 # --------------------------------------------------------------------------- motion
@@ -493,17 +621,27 @@ def _qmul(p, q):
             pw * qw - (px * qx + py * qy + pz * qz))
 
 
-def _q_en(lat, lon):
-    """ENU → ECEF rotation as a quaternion: ``C_en = Rz(λ + π/2) Rx(π/2 − φ)``."""
-    a = 0.5 * (lon + 0.5 * np.pi)
-    b = 0.5 * (0.5 * np.pi - lat)
-    ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
+def _q_en(sl, cl, so, co):
+    """ENU → ECEF rotation as a quaternion, ``C_en = Rz(λ + π/2) Rx(π/2 − φ)``, from the
+    sines and cosines of latitude φ and longitude λ: (cos, sin) of the half angles
+    a = (λ + π/2)/2 ∈ (−π/4, 3π/4] and b = (π/2 − φ)/2 ∈ [0, π/2] by the half-angle
+    formulas, no trigonometry (four sin/cos per sample were the pass's dearest step). Of
+    each pair the larger magnitude is √((1 + |cos 2x|)/2) (no cancellation), its sign
+    that of the quadrant, and the other sin 2x / (2 · it)."""
+    # b: cos 2b = sin φ, sin 2b = cos φ ≥ 0 (both halves ≥ 0); cos b is the larger north
+    big = np.sqrt(0.5 * (1.0 + np.abs(sl)))
+    other = 0.5 * cl / big
+    north = sl >= 0.0
+    cb, sb = np.where(north, big, other), np.where(north, other, big)
+    # a: cos 2a = −sin λ, sin 2a = cos λ; sin λ > 0: a ∈ (π/4, 3π/4), sin a the larger
+    # (> 0); else a ∈ (−π/4, π/4], cos a the larger (> 0); the other takes cos λ's sign
+    big = np.sqrt(0.5 * (1.0 + np.abs(so)))
+    other = 0.5 * co / big
+    east = so > 0.0
+    ca, sa = np.where(east, other, big), np.where(east, big, other)
     return ca * sb, sa * sb, sa * cb, ca * cb
 
 
-#: IMU samples per pass of the evaluation: the pass's ~100 temporaries of this many
-#: doubles stay in the processor's L2 cache (a longer pass streams them through memory).
-EVAL_CHUNK = 8192
 #: What :meth:`TrajectoryMotion._fields` can compute, with its columns.
 _FIELD_WIDTH = {"q_tb": 4, "omega_tb_b": 3, "p": 3, "v": 3, "a": 3, "llh": 3, "q_nt": 4,
                 "omega_ib_b": 3, "f_b": 3, "q_nb": 4, "omega_nb_b": 3, "v_n": 3,
@@ -531,23 +669,26 @@ class TrajectoryMotion(Motion):
         self.position_sigma_m = float(position_sigma_m)
         self.attitude_sigma_rad = float(attitude_sigma_rad)
         n = self.pose_count
-        # sign-continuous quaternions: q and −q are one rotation; the spline must not jump
-        q = poses.q.copy()
-        flip = np.sum(q[1:] * q[:-1], axis=1) < 0.0
-        sign = np.concatenate(([1.0], np.where(np.cumsum(flip) % 2 == 1, -1.0, 1.0)))
-        q *= sign[:, None]
         rss_p = 3.0 * n * self.position_sigma_m ** 2
         rss_q = 0.75 * n * self.attitude_sigma_rad ** 2
-        # Positions relative to the first pose: the fit is the same shifted (splines
-        # reproduce constants), but differences of km-sized coordinates lose digits — at
-        # 35 km the acceleration's rounding is ~1e-7 m/s² uncentred, ~1e-13 centred.
+        # the fit's layout: components in rows, positions then quaternions. Positions
+        # relative to the first pose: the fit is the same shifted (splines reproduce
+        # constants), but differences of km-sized coordinates lose digits — at 35 km the
+        # acceleration's rounding is ~1e-7 m/s² uncentred, ~1e-13 centred.
+        y = np.empty((7, n))
         p0 = poses.p[0].copy()
-        y = np.concatenate(((poses.p - p0).T, q.T))  # components in rows (the fit's layout)
+        np.subtract(poses.p.T, p0[:, None], out=y[:3])
+        # sign-continuous quaternions: q and −q are one rotation; the spline must not jump
+        qx, qy, qz, qw = poses.q.T
+        flip = (qx[1:] * qx[:-1] + qy[1:] * qy[:-1] + qz[1:] * qz[:-1] + qw[1:] * qw[:-1]) < 0.0
+        sign = np.concatenate(([1.0], np.where(np.cumsum(flip) % 2 == 1, -1.0, 1.0)))
+        np.multiply(poses.q.T, sign, out=y[3:])
+        c = np.empty((7, 4, n - 1))
         if rss_p <= 0.0 and rss_q <= 0.0:  # both interpolated: one spline of 7 rows
-            c = spline_coefficients(self._t, y, 0.0)
+            spline_coefficients(self._t, y, 0.0, out=c)
         else:
-            c = np.concatenate((spline_coefficients(self._t, y[:3], rss_p),
-                                spline_coefficients(self._t, y[3:], rss_q)))
+            spline_coefficients(self._t, y[:3], rss_p, out=c[:3])
+            spline_coefficients(self._t, y[3:], rss_q, out=c[3:])
         c[:3, 3] += p0[:, None]
         # the coefficient table of the evaluation: row 4 j + d is power 3 − d of component
         # j (x, y, z position, then the 4 quaternion components) over the intervals
@@ -555,7 +696,8 @@ class TrajectoryMotion(Motion):
         self.origin_llh = np.asarray(origin_llh, dtype=np.float64)
         self._r0 = earth.ecef_from_llh(self.origin_llh)
         self._c_et = earth.enu_to_ecef_matrix(self.origin_llh[0], self.origin_llh[1])
-        self._q_et = _q_en(self.origin_llh[0], self.origin_llh[1])
+        lat0, lon0 = self.origin_llh[0], self.origin_llh[1]
+        self._q_et = _q_en(np.sin(lat0), np.cos(lat0), np.sin(lon0), np.cos(lon0))
         self.omega_ie_t = earth.earth_rate_enu(self.origin_llh[0])  # constant in t
 
     # ------------------------------------------------------------------ evaluation
@@ -626,10 +768,11 @@ class TrajectoryMotion(Motion):
             got.update(q_tb=q_tb, omega_tb_b=w_tb)
         # the Earth geometry at the position: ECEF, geodetic, the local vertical in t
         c_et = self._c_et
-        x, y, z = (self._r0[k] + (c_et[k, 0] * p[0] + c_et[k, 1] * p[1] + c_et[k, 2] * p[2])
-                   for k in range(3))
+        x, y, z = _ecef(self._r0, c_et, p)
         lat, lon, h, sl, cl = earth.geodetic_from_ecef(x, y, z)
         got["llh"] = (lat, lon, h)
+        # 1 / distance from the polar axis: x, y times it are cos λ, sin λ (no pole: refused)
+        inv_p = 1.0 / np.sqrt(x * x + y * y) if truth or (force and gravity) else None
         if "omega_ib_b" in want:
             w = w_tb
             if earth_rotation:
@@ -644,14 +787,14 @@ class TrajectoryMotion(Motion):
             if gravity:
                 # g^t = C_tn g^n = −g up^t, the geodetic normal (x, y, N)/|(p, N)| in t
                 g = earth.normal_gravity(sl * sl, h)
-                k = cl / np.hypot(x, y)
+                k = cl * inv_p
                 ne = (x * k, y * k, sl)
                 up = tuple(c_et[0, j] * ne[0] + c_et[1, j] * ne[1] + c_et[2, j] * ne[2]
                            for j in range(3))
                 f_t = tuple(fk + g * uk for fk, uk in zip(f_t, up, strict=True))
             got["f_b"] = _rotate(q_tb, f_t, inverse=True)
         if truth:
-            qx, qy, qz, qw = _q_en(lat, lon)
+            qx, qy, qz, qw = _q_en(sl, cl, y * inv_p, x * inv_p)
             q_nt = _qmul((-qx, -qy, -qz, qw), self._q_et)  # C_nt = C_ne C_et
             got["q_nt"] = q_nt
             if want & {"q_nb", "omega_nb_b", "v_n", "acc_n"}:
@@ -778,7 +921,7 @@ class LiveTrajectory(TrajectoryMotion):
             if step / dt > _limits().MAX_SPEED_MPS:
                 return _too_fast(step, dt)
         x, y, z = self._r0 + self._c_et @ p
-        lat, _, h, _, _ = earth.geodetic_from_ecef(x, y, z)
+        lat, h = _latitude_height(x, y, z)
         refusal = _position_refusal(p, float(lat), float(h))
         if refusal is not None:
             return refusal

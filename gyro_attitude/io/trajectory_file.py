@@ -51,6 +51,8 @@ __all__ = [
 MAX_POSE_FILE_BYTES = 2 << 30
 #: Most poses in one trajectory (a day at 120 Hz is 1.04e7).
 MAX_POSES = 50_000_000
+#: Rows of a text pose file held as strings at a time (:class:`_Rows`).
+TEXT_BLOCK_ROWS = 65_536
 COLUMNS = ("timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw")
 POSE_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped", "tf2_msgs/msg/TFMessage")
 
@@ -125,7 +127,7 @@ def _read_lines(path: Path):
 def read_tum(path) -> PoseSeries:
     """A TUM trajectory file (module docstring)."""
     path = Path(path)
-    stamps, values, labels = [], [], []
+    rows = _Rows(path)
     for i, line in _read_lines(path):
         body = line.split("#", 1)[0].strip()
         if not body:
@@ -134,29 +136,63 @@ def read_tum(path) -> PoseSeries:
         if len(parts) != 8:
             raise ValueError(f"{path}: line {i}: {len(parts)} values, expected 8 "
                              f"({' '.join(COLUMNS)})")
-        stamps.append(parts[0])
-        values.append(parts[1:])
-        labels.append(i)
-        if len(stamps) > MAX_POSES:
-            raise ValueError(f"{path}: more than {MAX_POSES} poses")
-    return _series(path, stamps, values, [f"line {i}" for i in labels], COLUMNS[1:])
+        rows.add(i, parts[0], parts[1:])
+    return rows.series()
 
 
-def _series(path: Path, stamps: list[str], values: list[list[str]], labels: list[str],
-            columns) -> PoseSeries:
-    """Columns of text to a PoseSeries: numpy converts all numbers at once; only when
-    that fails is each row converted alone, to name the first bad one."""
-    try:
-        a = np.array(values, dtype=np.float64).reshape(-1, 7)
-    except ValueError:
-        for row, where in zip(values, labels, strict=True):
-            for x, c in zip(row, columns, strict=True):
-                _number(x, f"{path}: {where}", c)
-        raise
-    t = np.array([_stamp_ns(x, f"{path}: {where}") for x, where in zip(stamps, labels,
-                                                                       strict=True)],
-                 dtype=np.int64).reshape(-1)
-    return PoseSeries(t, a[:, :3], a[:, 3:], tuple(labels), str(path))
+class _Rows:
+    """The rows of a text pose file, converted to numbers a block of
+    :data:`TEXT_BLOCK_ROWS` at a time: as Python strings a row takes ~14x its numbers
+    (0.9 GB for a file of 1 M poses, whose arrays are 64 MB), so only one block of them
+    is held. numpy converts a block's numbers at once; only when that fails is each row
+    converted alone, to name the first bad one."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self.count = 0
+        self._lines: list[int] = []
+        self._stamps: list[str] = []
+        self._values: list[list[str]] = []
+        self._t: list[np.ndarray] = []
+        self._a: list[np.ndarray] = []
+        self._labels: list[str] = []
+
+    def add(self, line: int, stamp: str, values: list[str]) -> None:
+        """One pose: its line number, stamp text and the 7 numbers' texts (COLUMNS order)."""
+        self._lines.append(line)
+        self._stamps.append(stamp)
+        self._values.append(values)
+        self.count += 1
+        if self.count > MAX_POSES:
+            raise ValueError(f"{self.path}: more than {MAX_POSES} poses")
+        if len(self._lines) >= TEXT_BLOCK_ROWS:
+            self._convert()
+
+    def _convert(self) -> None:
+        if not self._lines:
+            return
+        path, values = self.path, self._values
+        labels = [f"line {i}" for i in self._lines]
+        try:
+            a = np.array(values, dtype=np.float64).reshape(-1, 7)
+        except ValueError:
+            for row, where in zip(values, labels, strict=True):
+                for x, c in zip(row, COLUMNS[1:], strict=True):
+                    _number(x, f"{path}: {where}", c)
+            raise
+        t = np.array([_stamp_ns(x, f"{path}: {where}")
+                      for x, where in zip(self._stamps, labels, strict=True)],
+                     dtype=np.int64).reshape(-1)
+        self._t.append(t)
+        self._a.append(a)
+        self._labels += labels
+        self._lines, self._stamps, self._values = [], [], []
+
+    def series(self) -> PoseSeries:
+        self._convert()
+        t = np.concatenate(self._t) if self._t else np.zeros(0, dtype=np.int64)
+        a = np.concatenate(self._a) if self._a else np.zeros((0, 7))
+        return PoseSeries(t, a[:, :3], a[:, 3:], tuple(self._labels), str(self.path))
 
 
 def read_csv(path) -> PoseSeries:
@@ -164,7 +200,7 @@ def read_csv(path) -> PoseSeries:
     import csv
 
     path = Path(path)
-    stamps, values, labels = [], [], []
+    rows = _Rows(path)
     index = None
     with _open_text(path) as f:
         reader = csv.reader(f)
@@ -185,11 +221,7 @@ def read_csv(path) -> PoseSeries:
                 if len(record) <= max(index):
                     raise ValueError(f"{path}: line {i}: {len(record)} values, the header has "
                                      f"{max(index) + 1} or more")
-                stamps.append(record[index[0]].strip())
-                values.append([record[j] for j in index[1:]])
-                labels.append(f"line {i}")
-                if len(stamps) > MAX_POSES:
-                    raise ValueError(f"{path}: more than {MAX_POSES} poses")
+                rows.add(i, record[index[0]].strip(), [record[j] for j in index[1:]])
         except UnicodeDecodeError as exc:
             raise ValueError(f"{path}: not a text file (byte 0x{exc.object[exc.start]:02x} "
                              "is not UTF-8)") from None
@@ -197,7 +229,7 @@ def read_csv(path) -> PoseSeries:
             raise ValueError(f"{path}: line {reader.line_num}: not CSV: {exc}") from None
     if index is None:
         raise ValueError(f"{path}: empty: no header line")
-    return _series(path, stamps, values, labels, COLUMNS[1:])
+    return rows.series()
 
 
 def read_pose_topic(path, topic: str, child_frame_id: str | None = None) -> PoseSeries:

@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pytest
 from scipy.interpolate import make_smoothing_spline
+from scipy.optimize import brentq
 from scipy.spatial.transform import Rotation, RotationSpline
 
 from gyro_attitude.core import earth
@@ -14,6 +15,9 @@ from gyro_attitude.core.scene import SceneSimulator, SceneSpec
 from gyro_attitude.core.trajectory import (
     PoseSeries,
     TrajectoryMotion,
+    _increasing_root,
+    _Reinsch,
+    _StackedReinsch,
     check_poses,
     reinsch_smooth,
     smoothing_spline,
@@ -95,6 +99,68 @@ def test_long_series_smoothing_parameter_found_on_windows_keeps_the_residual():
     target = 30_000 * 2 * 1e-6
     fit = smoothing_spline(t, y, target)
     assert np.sum((fit(t) - y) ** 2) == pytest.approx(target, rel=0.1)  # measured 1.00-1.06
+
+
+def test_window_residual_equals_scipy_smoothing_splines_fitted_window_by_window():
+    """The stacked windows' residual (one banded solve, strided middles) is the sum over
+    the windows of scipy's smoothing spline fitted to each window alone."""
+    rng = np.random.default_rng(4)
+    t = np.cumsum(rng.uniform(0.006, 0.011, 3000))  # uneven stamps
+    y = np.stack((np.sin(3 * t), np.cos(0.5 * t))) + 0.01 * rng.standard_normal((2, t.size))
+    starts, size, edge, lam = [0, 700, 1400, 2700], 300, 30, 1e-6
+    expected = 0.0
+    for a in starts:
+        tw = t[a:a + size]
+        for row in y[:, a:a + size]:
+            r = row - make_smoothing_spline(tw, row, lam=lam)(tw)
+            expected += np.sum(r[edge:size - edge] ** 2)
+    rss = _StackedReinsch(_Reinsch(t, y), starts, size, edge).rss(lam)
+    assert rss == pytest.approx(expected, rel=1e-7)
+
+
+def _window_log_excess():
+    """log(residual / target) of the windows' smoothing problem spline_coefficients solves
+    for a long noisy series, and the search range it uses."""
+    rng = np.random.default_rng(5)
+    t = np.arange(12_000) / 120.0
+    y = np.stack((np.sin(0.7 * t), np.cos(0.3 * t), np.sin(2.0 * t)))
+    y = y + 1e-3 * rng.standard_normal(y.shape)
+    windows = _StackedReinsch(_Reinsch(t, y), np.linspace(0, 11_000, 8).astype(int), 1000, 100)
+    target = 8 * 800 * 3 * 1e-6
+    log_h3 = 3 * math.log(1 / 120.0)
+    return (lambda x: math.log(windows.rss(math.exp(x)) / target),
+            log_h3, log_h3 + math.log(1e-8), log_h3 + math.log(1e12))
+
+
+def test_smoothing_parameter_search_finds_the_root_brentq_finds_in_a_few_solves():
+    f, start, lo, hi = _window_log_excess()
+    exact = brentq(f, lo, hi, xtol=1e-12)
+    calls = []
+
+    def counted(x):
+        calls.append(x)
+        return f(x)
+
+    root, slope = _increasing_root(counted, start, lo, hi, 1e-4)
+    assert abs(root - exact) < 1e-4 and len(calls) <= 12
+    calls.clear()  # restarted near the root with the slope, as the long windows' search is
+    root, _ = _increasing_root(counted, exact + 0.1, lo, hi, 1e-4, slope=slope)
+    assert abs(root - exact) < 1e-4 and len(calls) <= 5
+
+
+@pytest.mark.parametrize("f, lo, hi", [
+    (lambda x: math.expm1(3 * x) - 5.0, -20.0, 20.0),      # flat, then steep
+    (lambda x: math.atan(50 * (x - 2.0)), -30.0, 30.0),    # steep, between two plateaus
+    (lambda x: x ** 3 + 1e-3 * x - 0.5, -10.0, 10.0),      # an inflection at the root
+])
+def test_increasing_root_agrees_with_brentq_on_curved_functions(f, lo, hi):
+    root, _ = _increasing_root(f, 0.0, lo, hi, 1e-6)
+    assert abs(root - brentq(f, lo, hi, xtol=1e-14)) < 1e-6
+
+
+def test_increasing_root_without_a_sign_change_ends_at_the_nearer_end():
+    assert _increasing_root(lambda x: x - 100.0, 0.0, -5.0, 5.0, 1e-4)[0] == 5.0
+    assert _increasing_root(lambda x: x + 100.0, 0.0, -5.0, 5.0, 1e-4)[0] == -5.0
 
 
 def test_interpolated_attitude_rate_agrees_with_scipy_rotation_spline():
@@ -237,7 +303,9 @@ def _line_poses(p, origin_rate=100.0):
 @pytest.mark.parametrize("height, message", [
     (2e6, r"line 1: position .* height of 2e\+06 m, outside the scene's -12000 … 1e\+06 m"),
     (-3e4, r"line 1: position .* height of -30000 m, outside"),
+    (1e300, r"line 1: position .* height of 1e\+300 m, outside"),  # past squares' range
 ])
+@pytest.mark.filterwarnings("error")  # no overflow warning: one line of error
 def test_a_position_outside_the_scene_heights_is_refused_naming_the_line(height, message):
     """2000 km up, the normal-gravity model is far outside what it describes (its free-air
     series gave g ≈ 7e5 m/s² at 1e9 m); 30 km below the origin is under any ground."""

@@ -45,6 +45,33 @@ def test_tum_is_read_with_exact_nanosecond_stamps_and_comments(tmp_path):
     assert poses.labels[0] == "line 3"  # after the comment and the blank line
 
 
+@pytest.mark.parametrize("kind", ["tum", "csv"])
+def test_a_file_longer_than_a_text_block_is_read_whole_and_a_late_bad_row_named(
+        tmp_path, monkeypatch, kind):
+    """Text rows are converted a block at a time (memory): blocks of 8 rows give the same
+    poses as one, and a bad number in a later block is named by its own line."""
+    import gyro_attitude.io.trajectory_file as tf
+
+    monkeypatch.setattr(tf, "TEXT_BLOCK_ROWS", 8)
+    t, p, q = _rows(n=37)
+    text = write_tum(tmp_path / "a.tum", t, p, q).read_text()
+    if kind == "csv":
+        text = "timestamp,tx,ty,tz,qx,qy,qz,qw\n" + "\n".join(
+            ",".join(line.split("#")[0].split()) for line in text.splitlines()
+            if line.strip() and not line.startswith("#")) + "\n"
+    path = tmp_path / f"a.{kind}"
+    path.write_text(text)
+    poses = read_poses(path)
+    assert np.array_equal(poses.t_ns, t) and len(poses.labels) == 37
+    np.testing.assert_allclose(poses.p, p, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(poses.q, q, rtol=0, atol=1e-11)
+    lines = text.splitlines()
+    lines[30] = lines[30].replace(lines[30].split(" " if kind == "tum" else ",")[2], "x2", 1)
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(ValueError, match=r"line 31: ty 'x2' is not a number"):
+        read_poses(path)
+
+
 def test_csv_columns_in_any_order_with_extra_columns(tmp_path):
     t, p, q = _rows()
     cols = ["qw", "note", "tz", "timestamp", "tx", "qx", "ty", "qz", "qy"]
