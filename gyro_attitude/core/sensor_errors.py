@@ -151,7 +151,7 @@ def floor_realisation(dt: float) -> FloorRealisation:
     # E[s_i s_j] = σ_iσ_j ρ_ij u_i u_j with ρ_ij = √((1 − φ_i²)(1 − φ_j²))/(1 − φ_iφ_j) in
     # (0, 1], the correlation of two sections fed the same input, and the equations
     # Σ_j E[s_i s_j] = σ_i² read u_i Σ_j A_ij u_j = 1, A_ij = ρ_ij σ_j/σ_i. Newton from
-    # u_i = 1/√(Σ_j A_ij) (exact when all ρ are equal): quadratic, 4-5 steps to rounding;
+    # u_i = 1/√(Σ_j A_ij): quadratic, 4-5 steps to rounding;
     # the Jacobian stays well conditioned (cond < 3) at every dt, even where sections
     # coincide (ρ → 1 at low rates: dt ≫ τ_j makes sections white).
     rho = np.sqrt(one_minus_sq[:, None] * one_minus_sq[None, :]) / one_minus
@@ -203,7 +203,7 @@ def _floor_bank(rng, real: FloorRealisation, scale, state, n: int) -> np.ndarray
         w = np.ascontiguousarray(rng.standard_normal((m, 3)).T)  # sample-major draws
         acc = out[:, lo:lo + m]
         for j, (phi, g) in enumerate(zip(real.phi, real.gain, strict=True)):
-            s, zf = lfilter([g], [1.0, -phi], w, axis=-1, zi=phi * state[:, j:j + 1])
+            s, _ = lfilter([g], [1.0, -phi], w, axis=-1, zi=phi * state[:, j:j + 1])
             state[:, j] = s[:, -1]
             if j == 0:
                 acc[...] = s
