@@ -12,7 +12,8 @@ What a row holds, so that a figure measured on a shared machine can be read:
 
 * ``speedup``: wall time with 1 worker over the wall time with all (target ≥ 1.5 with 2), and
   ``speedup_without_startup`` with the pool's start-up taken out of the latter (paid once per
-  command: the forkserver imports numpy, scipy and the package);
+  command: the forkserver imports numpy, scipy and the package; the command's process runs
+  tasks meanwhile, ``parent_tasks_all_workers`` of them, so the start-up is not all lost);
 * CPU seconds per run inside the run (``cpu_per_run_*``) and of every process of ours over the
   set (``total_cpu_per_run_*``: the workers' whole lives, start-up, transfer and idle waits
   included, and this process's share): their ratio ``cpu_efficiency`` says whether the pool
@@ -110,6 +111,8 @@ def _set_figures(res: mc.MonteCarloResult, tag: str) -> dict:
             f"total_cpu_per_run_{tag}_s": total / n,
             f"cores_used_{tag}": total / res.wall_s,
             f"pool_startup_{tag}_s": res.cost.startup_s,
+            # tasks this process ran itself while the pool's workers started
+            f"parent_tasks_{tag}": res.cost.parent_tasks,
             f"load_average_{tag}": list(res.load_average)}
 
 

@@ -19,13 +19,22 @@ the output is
     ``var w = σ²(1 − φ²)``; it starts from its stationary distribution;
   - the datasheet figure B, the flat floor of the Allan deviation (IEEE Std 952:
     ``σ_floor = √(2 ln 2/π)·B ≈ 0.664 B``, flicker noise of two-sided PSD B²/(2πf)).
-    Rule: B is realised as a sum of :data:`FLOOR_PROCESSES` independent Gauss–Markov
-    processes (each as above) with correlation times one decade apart from
-    ``FLOOR_TAU_MIN_S`` = 0.1 s to ``FLOOR_TAU_MAX_S`` = 10⁵ s and equal σ_j. Equal σ_j²
-    per log-step give a 1/f PSD between the band's corner frequencies (σ_j² ≈ B² ln10/π);
-    σ_j is then scaled so that the maximum of the sum's closed-form Allan deviation is
-    exactly 0.664 B. That floor is flat within 3.2 % for Allan times from 1 s to 10⁴ s
-    (2.3 % from 3 s to 3000 s); below 1 s the white noise hides it in any real sensor.
+    Rule: B is realised as a Gaussian process with the autocovariance of a sum of
+    :data:`FLOOR_PROCESSES` independent Gauss–Markov processes (each as above) with
+    correlation times one decade apart from ``FLOOR_TAU_MIN_S`` = 0.1 s to
+    ``FLOOR_TAU_MAX_S`` = 10⁵ s and equal σ_j. Equal σ_j² per log-step give a 1/f PSD
+    between the band's corner frequencies (σ_j² ≈ B² ln10/π); σ_j is then scaled so that
+    the maximum of the sum's closed-form Allan deviation is exactly 0.664 B. That floor is
+    flat within 3.2 % for Allan times from 1 s to 10⁴ s (2.3 % from 3 s to 3000 s); below
+    1 s the white noise hides it in any real sensor.
+    Realisation (:func:`floor_realisation`): ONE white sequence per axis drives the bank of
+    first-order sections ``s_j,k = φ_j s_j,k−1 + g_j w_k``, output Σ_j s_j. The sections
+    are then correlated (``E[s_i s_j] = g_i g_j/(1 − φ_iφ_j)``), and the sum's
+    autocovariance at lag m ≥ 0 is ``Σ_i φ_i^m Σ_j E[s_i s_j]``; the gains are solved so
+    that ``Σ_j E[s_i s_j] = σ_i²`` for every i, which makes it ``Σ_i σ_i² φ_i^m``: exactly
+    that of the independent sum, at every rate (and, the process being Gaussian, the same
+    distribution), for a seventh of the random draws. The bank starts from its joint
+    stationary distribution.
 * ``r_k`` rate random walk of coefficient K (rad/s/√s; m/s²/√s for an accelerometer): a
   Wiener process of intensity K² that starts at 0, averaged over each sample interval like
   the white noise. Exact discretization: with the walk ``r(t_{k−1})`` at the start of the
@@ -43,6 +52,7 @@ does not change the others' draws.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -56,6 +66,8 @@ __all__ = [
     "FLICKER_FLOOR_FACTOR",
     "gauss_markov_allan_variance",
     "flicker_floor_components",
+    "FloorRealisation",
+    "floor_realisation",
 ]
 
 # Names of the error effects, in the order they are applied.
@@ -110,16 +122,62 @@ def flicker_floor_components(floor_b: float) -> tuple[np.ndarray, np.ndarray]:
     return np.full(FLOOR_PROCESSES, sigma), taus
 
 
-def _gauss_markov(rng, phi, w_std, state, n: int, groups: int | None = None) -> np.ndarray:
-    """``(columns, n)`` samples of independent AR(1) processes β_k = φ β_{k−1} + w_k from
-    ``state`` (each column's value one step before the first sample; updated in place).
+@dataclass(frozen=True)
+class FloorRealisation:
+    """The filter bank that realises an Allan floor B = 1 at step dt (scale it by B).
 
-    ``groups`` G: the columns are G equal consecutive groups (axis-major) and the result is
-    each group's sum, ``(G, n)``, added column by column in order (the same sums as
-    ``out.reshape(G, -1, n).sum(axis=1)``) without holding every column's samples."""
+    Section j: ``s_j,k = phi[j] s_j,k−1 + gain[j] w_k``, one standard normal w_k shared by
+    the sections of an axis; ``state_sqrt`` (S, S): a square root of the sections' joint
+    stationary covariance (its columns times S standard normals: a stationary start);
+    ``variance``: the stationary variance of the sum, Σσ_j²."""
+
+    phi: np.ndarray
+    gain: np.ndarray
+    state_sqrt: np.ndarray
+    variance: float
+
+
+@functools.lru_cache(maxsize=32)
+def floor_realisation(dt: float) -> FloorRealisation:
+    """Gains of the shared-input bank for a floor B = 1 at step ``dt`` (module docstring),
+    computed once per step (every run of a Monte Carlo set shares it)."""
+    sig, taus = flicker_floor_components(1.0)
+    r = dt / taus
+    phi = np.exp(-r)
+    # 1 − φ_iφ_j and 1 − φ² through expm1: full accuracy when dt ≪ τ (φ within 1e-7 of 1).
+    one_minus = -np.expm1(-(r[:, None] + r[None, :]))
+    one_minus_sq = np.diag(one_minus).copy()
+    # Unknowns u_j with g_j = σ_j √(1 − φ_j²) u_j (u = 1: independent inputs). Then
+    # E[s_i s_j] = σ_iσ_j ρ_ij u_i u_j with ρ_ij = √((1 − φ_i²)(1 − φ_j²))/(1 − φ_iφ_j) in
+    # (0, 1], the correlation of two sections fed the same input, and the equations
+    # Σ_j E[s_i s_j] = σ_i² read u_i Σ_j A_ij u_j = 1, A_ij = ρ_ij σ_j/σ_i. Newton from
+    # u_i = 1/√(Σ_j A_ij): quadratic, 4-5 steps to rounding;
+    # the Jacobian stays well conditioned (cond < 3) at every dt, even where sections
+    # coincide (ρ → 1 at low rates: dt ≫ τ_j makes sections white).
+    rho = np.sqrt(one_minus_sq[:, None] * one_minus_sq[None, :]) / one_minus
+    a = rho * (sig[None, :] / sig[:, None])
+    u = 1.0 / np.sqrt(a.sum(axis=1))
+    for _ in range(50):
+        au = a @ u
+        resid = u * au - 1.0
+        if np.max(np.abs(resid)) < 1e-14:
+            break
+        u = u - np.linalg.solve(np.diag(au) + u[:, None] * a, resid)
+    else:  # pragma: no cover - not seen at any step from 1e-9 s to 1e6 s
+        raise RuntimeError(f"floor gains did not converge at dt={dt:g} s")
+    gain = sig * np.sqrt(one_minus_sq) * u
+    cov = (sig * u)[:, None] * rho * (sig * u)[None, :]
+    # Symmetric square root (eigh): cov is singular where sections coincide.
+    w, v = np.linalg.eigh(cov)
+    state_sqrt = v * np.sqrt(np.clip(w, 0.0, None))
+    return FloorRealisation(phi, gain, state_sqrt, float(np.sum(sig**2)))
+
+
+def _gauss_markov(rng, phi, w_std, state, n: int) -> np.ndarray:
+    """``(columns, n)`` samples of independent AR(1) processes β_k = φ β_{k−1} + w_k from
+    ``state`` (each column's value one step before the first sample; updated in place)."""
     cols = phi.shape[0]
-    per = cols if groups is None else cols // groups
-    out = np.empty((cols if groups is None else groups, n))
+    out = np.empty((cols, n))
     for lo in range(0, n, _GM_BLOCK):
         m = min(_GM_BLOCK, n - lo)
         # Drawn sample-major (so the stream does not depend on block sizes), filtered
@@ -131,11 +189,27 @@ def _gauss_markov(rng, phi, w_std, state, n: int, groups: int | None = None) -> 
             # scipy's IIR filter runs the sequential recursion in C; zi carries φ·β_prev.
             beta = lfilter([1.0], [1.0, -phi[a]], w[a], zi=[phi[a] * state[a]])[0]
             state[a] = beta[-1]
-            row, j = divmod(a, per) if groups is not None else (a, 0)
+            out[a, lo:lo + m] = beta
+    return out
+
+
+def _floor_bank(rng, real: FloorRealisation, scale, state, n: int) -> np.ndarray:
+    """``(3, n)`` floor samples: the bank ``real`` on one white sequence per axis times
+    ``scale`` (B per axis), from ``state`` (3, S) (the sections one step before the first
+    sample, in units of B; updated in place)."""
+    out = np.empty((3, n))
+    for lo in range(0, n, _GM_BLOCK):
+        m = min(_GM_BLOCK, n - lo)
+        w = np.ascontiguousarray(rng.standard_normal((m, 3)).T)  # sample-major draws
+        acc = out[:, lo:lo + m]
+        for j, (phi, g) in enumerate(zip(real.phi, real.gain, strict=True)):
+            s, _ = lfilter([g], [1.0, -phi], w, axis=-1, zi=phi * state[:, j:j + 1])
+            state[:, j] = s[:, -1]
             if j == 0:
-                out[row, lo:lo + m] = beta
+                acc[...] = s
             else:
-                out[row, lo:lo + m] += beta
+                acc += s
+        acc *= scale[:, None]
     return out
 
 
@@ -240,12 +314,12 @@ class SensorErrorModel:
             tau = np.where(p.bias_instability_tau > 0, p.bias_instability_tau, 1.0)
             self._gm = self._gm_setup(p.bias_instability_sigma, tau, self._gm_rng)
         if "bias_instability_floor" in self.active:
-            # Columns: 3 axes x FLOOR_PROCESSES components, axis-major.
-            comps = [flicker_floor_components(b) for b in p.bias_instability_floor]
-            sig = np.concatenate([c[0] for c in comps])
-            tau = np.concatenate([c[1] for c in comps])
-            self._floor_var = np.array([np.sum(c[0] ** 2) for c in comps])
-            self._floor = self._gm_setup(sig, tau, self._floor_rng)
+            real = floor_realisation(self.dt)
+            self._floor_real = real
+            self._floor_var = real.variance * p.bias_instability_floor**2
+            # Stationary start of each axis's sections (in units of B).
+            z = self._floor_rng.standard_normal((3, FLOOR_PROCESSES))
+            self._floor_state = z @ real.state_sqrt.T
         self._rrw_state = np.zeros(3)
 
     def _gm_setup(self, sigma, tau, rng):
@@ -262,8 +336,8 @@ class SensorErrorModel:
         return _gauss_markov(self._gm_rng, phi, w_std, state, n).T
 
     def _bias_instability_floor(self, n: int) -> np.ndarray:
-        phi, w_std, state = self._floor
-        return _gauss_markov(self._floor_rng, phi, w_std, state, n, groups=3).T
+        return _floor_bank(self._floor_rng, self._floor_real, self.params.bias_instability_floor,
+                           self._floor_state, n).T
 
     def _rate_random_walk(self, n: int) -> np.ndarray:
         k_sqrt_dt = self.params.rate_random_walk * math.sqrt(self.dt)

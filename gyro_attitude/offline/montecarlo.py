@@ -606,7 +606,7 @@ def run_montecarlo(setup: MonteCarloSetup, *, workers: int = 1, scheduler: str |
     try:
         cost = run_tasks(_run_chunk, tasks, on_result, workers=workers, scheduler=scheduler,
                          on_error=on_error, progress=advance,
-                         connect_timeout_s=connect_timeout_s)
+                         connect_timeout_s=connect_timeout_s, help_while_starting=True)
     except KeyboardInterrupt:
         interrupted = True
     finally:

@@ -15,6 +15,12 @@ arrives (in completion order: the caller files it under ``i``).
   worker's task with SystemExit, so the task's clean-up runs.  A worker that dies (killed, out of
   memory) breaks the pool: the tasks not yet finished are run again in a new pool, at most
   :data:`POOL_RESTARTS` times.
+* ``help_while_starting``: while the pool's first worker is being started (the forkserver
+  importing numpy, scipy and the task's module: seconds, once per call), this process runs
+  tasks itself, from the end of the list (single-threaded, as a worker would); it stops
+  taking tasks once the workers exist (the one it is in finishes: at most one task beside
+  the workers).  For short tasks of equal cost (Monte Carlo runs); a long task would keep
+  this process from collecting the others' results meanwhile.
 * Every worker process and every Dask task composes attitudes single-threaded
   (:func:`gyro_attitude.core.attitude.compose.set_prepare_threads` 0, and one BLAS/OpenMP
   thread in the pool): the workers are the parallelism, and threads of their own beside them
@@ -71,11 +77,13 @@ class TaskCost:
     submitting and collecting, is not); None on Dask (its workers are not ours to measure).
     ``processes``: worker processes that ran tasks.  ``startup_s``: seconds from creating the
     local pool until the last of its workers began its first task (0 in this process, None on
-    Dask)."""
+    Dask).  ``parent_tasks``: tasks a pool's caller ran itself while its workers started
+    (``help_while_starting``; their CPU is this process's, not in ``cpu_s``)."""
 
     cpu_s: float | None
     processes: int
     startup_s: float | None
+    parent_tasks: int = 0
 
 
 def _process_cpu_s() -> float:
@@ -196,7 +204,8 @@ def run_tasks(fn: Callable, args: Sequence, on_result: Callable[[int, object], N
               workers: int = 1, scheduler: str | None = None,
               on_error: Callable[[int, str], None] | None = None,
               progress: Callable[[int], None] | None = None,
-              connect_timeout_s: float = CONNECT_TIMEOUT_S) -> TaskCost:
+              connect_timeout_s: float = CONNECT_TIMEOUT_S,
+              help_while_starting: bool = False) -> TaskCost:
     """``on_result(i, fn(args[i]))`` for every task (see the module docstring); returns what
     they cost (:class:`TaskCost`; an interrupted run raises instead).
 
@@ -230,14 +239,28 @@ def run_tasks(fn: Callable, args: Sequence, on_result: Callable[[int, object], N
             else:
                 done(i, value)
         return TaskCost(_process_cpu_s() - cpu0, 1, 0.0)
-    return _run_pool(fn, args, done, workers)
+    return _run_pool(fn, args, done, workers, help_while_starting)
 
 
-def _run_pool(fn, args, done, workers: int) -> TaskCost:
+def _run_in_parent(fn, arg, done, i: int) -> None:
+    """Task ``i`` in this process while the pool starts, single-threaded like a worker."""
+    previous = set_prepare_threads(0)
+    try:
+        value = fn(arg)
+    except Exception as exc:  # as in a worker: reported, the others go on
+        done(i, error=_describe(exc))
+    else:
+        done(i, value)
+    finally:
+        set_prepare_threads(previous)
+
+
+def _run_pool(fn, args, done, workers: int, help_while_starting: bool = False) -> TaskCost:
     pending = list(range(len(args)))
     cpu: dict[int, float] = {}  # worker pid: its CPU seconds at its latest finished task
     first_start: dict[int, float] = {}  # worker pid: when it began its first task
     startup = None
+    parent_tasks = 0
     for attempt in range(POOL_RESTARTS + 1):
         created = time.monotonic()
         context = _context()
@@ -250,10 +273,32 @@ def _run_pool(fn, args, done, workers: int) -> TaskCost:
             pool = ProcessPoolExecutor(max_workers=min(workers, len(pending)),
                                        mp_context=context, initializer=_worker_init)
         futures = {}
+        starter = None
         try:
-            # the workers start at the first submits
-            with _single_threaded_children(), _signals_held():
-                futures = {pool.submit(_call, fn, args[i]): i for i in pending}
+            # the workers start at the first submits (the first blocks until the forkserver
+            # has imported the task's module)
+            if help_while_starting and len(pending) > 1:
+                # The head of the list is submitted from a thread (its first submit waits
+                # for the forkserver) while this thread runs tasks from the end of the
+                # list; the rest of the tail is submitted when the workers exist.
+                split = len(pending) - len(pending) // 2
+                head, tail = pending[:split], pending[split:]
+                starter = _Starter(pool, fn, args, head)
+                with _single_threaded_children():
+                    starter.start()
+                    while starter.is_alive() and tail:
+                        i = tail.pop()
+                        _run_in_parent(fn, args[i], done, i)
+                        pending.remove(i)
+                        parent_tasks += 1
+                    starter.join()
+                starter.raise_error()
+                futures = dict(starter.futures)
+                with _single_threaded_children(), _signals_held():
+                    futures.update({pool.submit(_call, fn, args[i]): i for i in tail})
+            else:
+                with _single_threaded_children(), _signals_held():
+                    futures = {pool.submit(_call, fn, args[i]): i for i in pending}
             not_done = set(futures)
             while not_done:
                 finished, not_done = wait(not_done, return_when=FIRST_COMPLETED)
@@ -271,6 +316,9 @@ def _run_pool(fn, args, done, workers: int) -> TaskCost:
                         first_start[pid] = min(first_start.get(pid, began), began)
                         done(i, value)
         except BaseException:  # Ctrl-C, or on_result raised: stop the workers first
+            if starter is not None:
+                with _signals_held():  # every worker started and known before stopping them
+                    starter.join()
             _terminate(pool)
             raise
         pool.shutdown(wait=True)
@@ -283,7 +331,29 @@ def _run_pool(fn, args, done, workers: int) -> TaskCost:
                   f"task(s) again in a new pool", file=sys.stderr)
     for i in list(pending):
         done(i, error=f"a worker process died while running it ({POOL_RESTARTS + 1} attempts)")
-    return TaskCost(sum(cpu.values()), len(cpu), startup)
+    return TaskCost(sum(cpu.values()), len(cpu), startup, parent_tasks)
+
+
+class _Starter(threading.Thread):
+    """Submits ``indices`` to ``pool`` (starting its workers) off the calling thread."""
+
+    def __init__(self, pool, fn, args, indices):
+        super().__init__(name="pool-starter", daemon=True)
+        self._work = (pool, fn, args, indices)
+        self.futures: dict = {}
+        self._error: BaseException | None = None
+
+    def run(self) -> None:
+        pool, fn, args, indices = self._work
+        try:
+            for i in indices:
+                self.futures[pool.submit(_call, fn, args[i])] = i
+        except BaseException as exc:  # given to the caller by raise_error
+            self._error = exc
+
+    def raise_error(self) -> None:
+        if self._error is not None:
+            raise self._error
 
 
 def _terminate(pool: ProcessPoolExecutor) -> None:

@@ -217,6 +217,86 @@ def test_allan_floor_simulated_samples():
     assert model.effects_run == {"bias_instability_floor"}
 
 
+def _independent_sum_autocovariance(dt, lags):
+    """Autocovariance at ``lags`` (samples) of the sum of independent Gauss–Markov processes
+    of the B = 1 floor: Σ_j σ_j² e^(−m·dt/τ_j)."""
+    from gyro_attitude.core.sensor_errors import flicker_floor_components
+
+    sig, taus = flicker_floor_components(1.0)
+    return np.array([np.sum(sig**2 * np.exp(-m * dt / taus)) for m in lags])
+
+
+@pytest.mark.parametrize("dt", [1e-3, 0.01, 1.0, 100.0, 1e4])
+def test_shared_input_floor_bank_has_the_autocovariance_of_the_independent_sum(dt):
+    """The bank on one white input per axis: its sections are correlated, and the sum's
+    autocovariance Σ_ij φ_i^m g_i g_j/(1 − φ_iφ_j) (the double geometric series of the
+    impulse responses) equals the independent sum's Σ σ_j² φ_j^m at every lag, from 1 kHz
+    down to 1e-4 Hz (where the short sections are white and coincide)."""
+    from gyro_attitude.core.sensor_errors import flicker_floor_components, floor_realisation
+
+    real = floor_realisation(dt)
+    taus = flicker_floor_components(1.0)[1]
+    assert np.allclose(real.phi, np.exp(-dt / taus), rtol=1e-15, atol=0)
+    phi, g = real.phi, real.gain
+    # 1 − φ_iφ_j = −expm1(−dt(1/τ_i + 1/τ_j)): 1 − φ_iφ_j in doubles loses 8 digits at 1 kHz
+    rate = 1.0 / taus
+    cross = g[:, None] * g[None, :] / -np.expm1(-dt * (rate[:, None] + rate[None, :]))
+    lags = np.array([0, 1, 3, 10, 100, 10_000, 1_000_000])
+    got = np.array([np.sum(phi[:, None] ** m * cross) for m in lags])
+    want = _independent_sum_autocovariance(dt, lags)
+    assert np.allclose(got, want, rtol=1e-9, atol=1e-12 * want[0])
+    # the stationary start: the square root reproduces the sections' cross-covariance
+    assert np.allclose(real.state_sqrt @ real.state_sqrt.T, cross, rtol=1e-9,
+                       atol=1e-12 * want[0])
+
+
+def test_floor_bank_impulse_response_gives_the_target_autocovariance():
+    """Independent of the geometric-series algebra: the bank's impulse response
+    h_k = Σ_j g_j φ_j^k summed numerically, R(m) = Σ_k h_k h_(k+m) (unit white input), at
+    0.1 Hz (the slowest section, τ = 1e5 s, decays over 10⁴ samples)."""
+    from gyro_attitude.core.sensor_errors import floor_realisation
+
+    dt = 10.0
+    real = floor_realisation(dt)
+    k = np.arange(400_000)
+    h = sum(g * np.exp(k * np.log(p)) if p > 0 else g * (k == 0)
+            for p, g in zip(real.phi, real.gain, strict=True))
+    lags = [0, 1, 5, 100, 10_000]
+    got = [np.dot(h[: h.size - m], h[m:]) for m in lags]
+    assert np.allclose(got, _independent_sum_autocovariance(dt, lags), rtol=1e-9, atol=0)
+
+
+def test_floor_starts_stationary_with_the_sum_variance():
+    from gyro_attitude.core.sensor_errors import flicker_floor_components
+
+    b, dt = 2e-5, 0.01
+    first = np.array([SensorErrorModel(SensorErrorParams(bias_instability_floor=b), dt, seed=s)
+                      .apply(np.zeros((1, 3)))[0] for s in range(300)])
+    var = np.sum(flicker_floor_components(b)[0] ** 2)
+    # 900 draws: the sample std scatters by 1/√(2·900) = 2.4 %; 5σ (a start from the
+    # sections' own variances without their cross terms is 40 % low)
+    assert first.std() == pytest.approx(np.sqrt(var), rel=0.12)
+
+
+def test_allan_floor_simulated_at_a_low_rate():
+    """0.01 Hz: the samples are point values of the processes (not interval averages), so
+    the sections faster than the step are white at it and the Allan deviation lies above
+    0.664 B at short τ (as with independent processes); it must be that of samples of the
+    independent sum, from its autocovariance R: σ²(m) = Var(ȳ_m) − Cov(ȳ_m, next ȳ_m)."""
+    b, dt = 2e-5, 100.0
+    y = SensorErrorModel(SensorErrorParams(bias_instability_floor=b), dt, seed=8).apply(
+        np.zeros((200_000, 3)))
+    for m in (1, 10, 100):
+        lag = np.arange(-(m - 1), m)
+        w = (m - np.abs(lag)) / m**2
+        r = _independent_sum_autocovariance(dt, np.abs(lag)) * b**2
+        r_next = _independent_sum_autocovariance(dt, lag + m) * b**2
+        want = np.sqrt(np.sum(w * r) - np.sum(w * r_next))
+        # 2e5, 2e4 and 2e3 clusters per axis, three axes: within 12 % as above
+        assert _oadev(y, dt, m).mean() == pytest.approx(want, rel=0.12), m
+    assert want == pytest.approx(0.6643 * b, rel=0.05)  # the floor itself at τ = 1e4 s
+
+
 def test_rate_random_walk_allan_slope_and_exact_discretization():
     k, dt = 1e-4, 0.01
     model = SensorErrorModel(SensorErrorParams(rate_random_walk=k), dt, seed=6)

@@ -36,9 +36,11 @@ def test_lab_bench_terms_come_back(lab_bench_2h):
         t = r.gyro[axis].terms
         # Tolerances from the statistics of a 2 h record: N from ~10⁵ clusters (±0.5 %),
         # B from the 10-50 s floor (±5 % rms over seeds), K from the few long clusters
-        # (±12 % rms over seeds, measured on 5 seeds x 3 axes).
+        # (±13 % rms over seeds, largest error 31 %: measured on seeds 1-8 x 3 axes, with
+        # the floor from independent processes and from the shared-input bank alike; the
+        # 20 % asked before failed 3-4 seeds of 8): 3 rms.
         assert t.random_walk == pytest.approx(g.noise_density[i], rel=0.10)
-        assert t.rate_random_walk == pytest.approx(g.rate_random_walk[i], rel=0.20)
+        assert t.rate_random_walk == pytest.approx(g.rate_random_walk[i], rel=0.40)
         assert t.bias_instability == pytest.approx(g.bias_instability_floor[i], rel=0.25)
     a = spec.accel_errors
     for axis, i in zip("xyz", range(3), strict=True):

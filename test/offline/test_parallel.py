@@ -68,6 +68,33 @@ def test_pool_workers_compose_single_threaded_and_their_cpu_is_counted():
     assert cost.startup_s is not None and cost.startup_s > 0
 
 
+def test_the_caller_runs_tasks_from_the_end_while_the_pool_starts(monkeypatch):
+    """help_while_starting: while the workers start (made 0.4 s slower here, so that the
+    caller surely has time) this process runs tasks itself, single-threaded, from the end
+    of the list; every task runs exactly once, and the caller's composition threads are
+    given back."""
+    started = parallel._Starter.run
+
+    def slow_start(self):
+        time.sleep(0.4)
+        started(self)
+
+    monkeypatch.setattr(parallel._Starter, "run", slow_start)
+    out = {}
+    calls = []
+    before = compose._prepare_threads
+    cost = parallel.run_tasks(_burn, [0.05] * 8, lambda i, v: (calls.append(i),
+                                                               out.__setitem__(i, v)),
+                              workers=2, help_while_starting=True)
+    assert sorted(calls) == list(range(8))  # each once
+    mine = sorted(i for i, v in out.items() if v[2] == os.getpid())
+    assert 1 <= cost.parent_tasks == len(mine) <= 4
+    assert mine == list(range(8 - len(mine), 8))  # taken from the end
+    assert {v[1] for v in out.values()} == {0}
+    assert compose._prepare_threads == before
+    assert cost.processes == len({v[2] for v in out.values()} - {os.getpid()})
+
+
 def test_in_process_tasks_keep_the_composition_threads_and_count_this_process():
     out = {}
     before = compose._prepare_threads
