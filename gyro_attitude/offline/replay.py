@@ -74,7 +74,7 @@ OUTPUT_CHUNK_SIZE = 4 * 1024 * 1024
 # Output messages built and written per write_batches call (bounds the write side's memory).
 OUTPUT_BLOCK_MESSAGES = 1 << 17
 # Truth stamps compared per block (bounds the error figures' temporaries: _compare_with_truth).
-TRUTH_BLOCK = 1 << 16
+TRUTH_BLOCK = 1 << 15
 
 
 @dataclass
