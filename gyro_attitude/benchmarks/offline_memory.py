@@ -8,16 +8,27 @@ the estimation's own: peak RSS, the bytes of the input and of the output the est
 return (index, q, variance, verdicts), and what is left -- the working memory, which the chunked
 passes keep bounded (``DEFAULT_CHUNK_SAMPLES``) except for a few per-sample flags, indices and
 the block clock of the verdicts and the rest search.
+
+The replay rows measure the whole ``gyro-attitude replay`` process instead (read, estimate,
+write, truth comparison): a ``handheld_mems`` recording at 1 kHz with its 1 kHz truth is
+simulated to a temporary MCAP per length, replayed with each estimator in a fresh process, and
+its peak RSS taken from the kernel (``os.wait4``'s ``ru_maxrss``); the slope between the
+lengths is the memory replay needs per Imu message.
 """
 
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
+import tempfile
+from pathlib import Path
 
 RATE_HZ = 1000
 SIZES_S = {"10 min": 600, "1 h": 3600, "6 h": 6 * 3600}
+REPLAY_SCENE = "handheld_mems"
+ESTIMATORS = ("causal", "offline")
 
 _CHILD = r"""
 import json, sys, time
@@ -68,6 +79,65 @@ def measure(seconds: int) -> dict:
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
+def _cli(*args, env=None) -> tuple[str, int]:
+    """Run ``gyro-attitude ARGS`` in a fresh process: (its stdout, its peak RSS in bytes).
+    The child is reaped with ``os.wait4`` (its own rusage, not all children's maximum);
+    its output goes through files, so no pipe can fill while it runs."""
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
+        p = subprocess.Popen([sys.executable, "-m", "gyro_attitude.cli", *args], env=env,
+                             stdout=out, stderr=err, text=True)
+        _, status, usage = os.wait4(p.pid, 0)
+        p.returncode = rc = os.waitstatus_to_exitcode(status)  # reaped: Popen must not wait
+        out.seek(0)
+        err.seek(0)
+        if rc != 0:
+            raise RuntimeError(f"gyro-attitude {' '.join(args)} exited {rc}: "
+                               f"{err.read().strip()[-300:]}")
+        return out.read(), usage.ru_maxrss * 1024  # Linux: KiB
+
+
+def replay_rows(sizes: dict[str, int], *, envs: dict | None = None, tmp_dir=None) -> list[dict]:
+    """Peak RSS of whole ``replay`` processes at each length in ``sizes`` and each estimator,
+    then one slope row per estimator (bytes per Imu message between the shortest and the
+    longest length). ``envs`` ``{name: environment}``: the same recordings replayed under
+    each (e.g. another PYTHONPATH for a before/after; default the current code as "this")."""
+    envs = envs or {"this": None}
+    rows = []
+    with tempfile.TemporaryDirectory(dir=tmp_dir) as d:
+        for label, sec in sizes.items():
+            rec = Path(d) / "in.mcap"
+            _cli("simulate", REPLAY_SCENE, "--duration", str(sec), "--rate", str(RATE_HZ),
+                 "--out", str(rec), "--quiet", "--force")
+            for est in ESTIMATORS:
+                for code, env in envs.items():
+                    stdout, peak = _cli("replay", str(rec), "--out", str(Path(d) / "out.mcap"),
+                                        "--estimator", est, "--json", "--no-progress",
+                                        "--force", env=env)
+                    s = json.loads(stdout)
+                    rows.append({"kind": "replay", "code": code, "estimator": est,
+                                 "length": label, "messages": s["messages"],
+                                 "truth_matched": s["truth_matched"], "peak_rss_bytes": peak,
+                                 "wall_seconds": s["wall_seconds"],
+                                 "input_file_bytes": rec.stat().st_size})
+                    print(f"replay {code:7s} {est:8s} {label:8s} {s['messages']:11d} msgs  "
+                          f"peak RSS {peak * 1e-6:7.0f} MB  {s['wall_seconds']:7.1f} s",
+                          flush=True)
+            rec.unlink()
+    for code in envs:
+        for est in ESTIMATORS:
+            mine = [r for r in rows if r["estimator"] == est and r["code"] == code]
+            if len(mine) >= 2:
+                a, b = mine[0], mine[-1]
+                slope = (b["peak_rss_bytes"] - a["peak_rss_bytes"]) / (
+                    b["messages"] - a["messages"])
+                rows.append({"kind": "replay slope", "code": code, "estimator": est,
+                             "between": [a["length"], b["length"]],
+                             "bytes_per_message": slope})
+                print(f"replay {code:7s} {est:8s} {slope:.0f} B/msg between {a['length']} "
+                      f"and {b['length']}")
+    return rows
+
+
 def run(quick: bool = False, out_dir=None) -> list[dict]:
     rows = []
     sizes = {"10 min": 600} if quick else SIZES_S
@@ -92,4 +162,5 @@ def run(quick: bool = False, out_dir=None) -> list[dict]:
         print(f"24 h at {RATE_HZ} Hz ({n24} samples): about {need * 1e-9:.1f} GB "
               "(input + output + working memory per sample of the 6 h run)")
         rows.append({"length": "24 h (extrapolated)", "samples": n24, "needed_bytes": need})
+    rows.extend(replay_rows({"10 min": 600} if quick else SIZES_S))
     return rows

@@ -68,11 +68,14 @@ class _TopicArrays:
             return self
         order = np.argsort(log, kind="stable")
         changes = {}
+        done: dict[int, np.ndarray] = {}  # an array shared by two fields stays shared
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
             if isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == log.size \
                     and v.strides[0] != 0:  # a broadcast constant row stays as it is
-                changes[f.name] = v[order]
+                if id(v) not in done:
+                    done[id(v)] = v[order]
+                changes[f.name] = done[id(v)]
         return dataclasses.replace(self, **changes)
 
 
@@ -81,7 +84,8 @@ class ImuArrays(_TopicArrays):
     """All messages of one ``sensor_msgs/msg/Imu`` topic as arrays, in file order
     (:meth:`in_log_time_order` gives them as a player delivers them).
 
-    ``stamp_ns`` header stamps, ``log_time_ns``/``publish_time_ns`` MCAP times (int64 ns);
+    ``stamp_ns`` header stamps, ``log_time_ns``/``publish_time_ns`` MCAP times (int64 ns;
+    the same array for both when every message's are equal, as recorders write them);
     ``orientation`` (N, 4) x, y, z, w; ``angular_velocity`` (N, 3) rad/s;
     ``linear_acceleration`` (N, 3) m/s²; covariances (N, 9) row-major -- when every
     message carries the same covariance (what IMU drivers publish), a read-only broadcast
@@ -281,6 +285,9 @@ class _Collector:
                 width = self.fields.get(k)
                 out[k] = np.zeros((0,) if width is None else (0, width),
                                   np.int64 if width is None else np.float64)
+        if np.array_equal(out["publish_time_ns"], out["log_time_ns"]):
+            # what recorders usually write: one array for both (8 bytes a message less)
+            out["publish_time_ns"] = out["log_time_ns"]
         cls = _ARRAY_CLASSES[self.type_name]
         return cls(topic=self.topic, frame_id=self.frame_ids[0] if self.frame_ids else "",
                    frame_ids=set(self.frame_ids), fast_messages=self.fast,

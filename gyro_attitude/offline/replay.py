@@ -40,7 +40,11 @@ from gyro_attitude.core.attitude.stream import (
     bias_summary,
     nav_rows,
 )
-from gyro_attitude.core.attitude.truth import initial_attitude_from_truth, truth_at_stamps
+from gyro_attitude.core.attitude.truth import (
+    default_max_interval_ns,
+    initial_attitude_from_truth,
+    truth_at_stamps,
+)
 from gyro_attitude.core.attitude.world_frame import frame_id_of, from_enu
 from gyro_attitude.core.rotation import quat_angle_between
 from gyro_attitude.io.cdr_arrays import (
@@ -69,6 +73,8 @@ TRUTH_TOPIC = "truth/attitude"
 OUTPUT_CHUNK_SIZE = 4 * 1024 * 1024
 # Output messages built and written per write_batches call (bounds the write side's memory).
 OUTPUT_BLOCK_MESSAGES = 1 << 17
+# Truth stamps compared per block (bounds the error figures' temporaries: _compare_with_truth).
+TRUTH_BLOCK = 1 << 15
 
 
 @dataclass
@@ -333,7 +339,7 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                          + (f"; {damage}" if damage else ""))
     # in log-time order, as ros2 bag play and mcap_player deliver them to the node (a file
     # written with receive jitter is not stored in that order)
-    imu = arrays[imu_topic].in_log_time_order()
+    imu = arrays.pop(imu_topic).in_log_time_order()  # the file-order copy is not kept
     if len(imu) == 0:
         raise ValueError(f"{input_path}: topic {imu.topic} has no messages"
                          + (f"; {damage}" if damage else ""))
@@ -347,9 +353,14 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         mag_rows = latest_at(imu.stamp_ns, mag.stamp_ns, mag.magnetic_field,
                              int(round(config.mag_max_age_s * 1e9)))
         mag_offset = field_clock_offset(imu.stamp_ns, imu.angular_velocity, mag_rows)
+        mag_info = (mag.topic, len(mag))
+        del mag  # the field at the Imu stamps is what the estimator takes
     t_read = time.perf_counter()
 
-    truth = arrays.get(truth_topic)
+    truth = arrays.pop(truth_topic, None)
+    if truth is not None:  # its stamps and quaternions are used, its MCAP times never
+        truth = dataclasses.replace(truth, log_time_ns=None, publish_time_ns=None)
+    del arrays
     t_all = imu.stamp_ns
     if odometry_topic:
         if nav is None:
@@ -381,7 +392,7 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                          f"skipped ({reasons})")
     t_int = time.perf_counter()
 
-    keep = res.index + first
+    keep = res.index + first if first else res.index
     every = keep.size == len(imu)
     t = t_all
 
@@ -431,7 +442,7 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     if use_mag and est.aiding is not None:
         aid = est.aiding
         result.magnetometer = {
-            "topic": arrays[mag_topic].topic, "messages": len(arrays[mag_topic]),
+            "topic": mag_info[0], "messages": mag_info[1],
             **{k: res.counts[k] for k in (MAG_MISSING, INVALID_MAG, MAG_DISTURBED)},
             "reference_changes": aid.mag_reference_changes,
             "reference_norm_t": aid.mag_ref_norm,
@@ -450,27 +461,58 @@ def _compare_with_truth(result: ReplayResult, truth, t_ns: np.ndarray, q: np.nda
     slerped there between the two output samples around it (exact at a coinciding stamp;
     none across a gap in the output, as truth_at_stamps decides). The dense series is the
     one interpolated: slerping a 10 Hz truth across a coning motion would measure the
-    interpolation, not the estimate."""
+    interpolation, not the estimate.
+
+    Computed TRUTH_BLOCK truth stamps at a time: the slerp's and the error angle's (M, 4)
+    temporaries are bounded by a block, not by the recording. Every step is row-local (the
+    interval limit is taken once over the whole output), so the figures are those of one
+    whole-recording pass, bit for bit."""
     est_t, est_q = _strictly_increasing(t_ns, q)  # the output may jump back in time
     ts, tq = truth.stamp_ns, truth.quaternion
-    usable = np.isfinite(tq).all(axis=1) & (np.linalg.norm(tq, axis=1) > 1e-9)
-    ts, tq = _strictly_increasing(ts[usable], tq[usable])
+    usable = np.empty(ts.size, bool)
+    for lo in range(0, ts.size, TRUTH_BLOCK):
+        b = tq[lo:lo + TRUTH_BLOCK]
+        usable[lo:lo + TRUTH_BLOCK] = np.isfinite(b).all(axis=1) & (
+            np.linalg.norm(b, axis=1) > 1e-9)
+    if not usable.all():
+        ts, tq = ts[usable], tq[usable]
+    del usable
+    ts, tq = _strictly_increasing(ts, tq)
     if ts.size == 0 or est_t.size == 0:
         return
-    qe, covered = truth_at_stamps(est_t, est_q, ts)
-    if not covered.any():
+    limit = default_max_interval_ns(est_t)  # what truth_at_stamps takes over the whole output
+    covered = np.zeros(ts.size, bool)
+    err = np.empty(ts.size)
+    n = 0
+    for lo in range(0, ts.size, TRUTH_BLOCK):
+        hi = min(lo + TRUTH_BLOCK, ts.size)
+        s = ts[lo:hi]
+        # the output samples around this block's stamps, one more on each side: the
+        # neighbours a slerp needs (and the span's edges) are the ones of the whole output
+        a = max(int(np.searchsorted(est_t, s[0], side="left")) - 1, 0)
+        b = min(int(np.searchsorted(est_t, s[-1], side="right")) + 1, est_t.size)
+        qe, cov = truth_at_stamps(est_t[a:b], est_q[a:b], s, max_interval_ns=limit)
+        covered[lo:hi] = cov
+        m = int(cov.sum())
+        err[n:n + m] = quat_angle_between(qe, tq[lo:hi][cov])
+        n += m
+    if n == 0:
         return
-    err = quat_angle_between(qe, tq[covered])
+    if n < err.size:
+        err = err[:n].copy()
     result.truth_topic = truth.topic
-    result.truth_matched = int(covered.sum())
+    result.truth_matched = n
     result.final_error_rad = float(err[-1])
     result.max_error_rad = float(err.max())
     result.rms_error_rad = float(np.sqrt(np.mean(err**2)))
-    result.error_t_ns, result.error_rad = ts[covered], err
+    result.error_t_ns, result.error_rad = (ts if n == ts.size else ts[covered]), err
 
 
 def _strictly_increasing(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Samples sorted by stamp, the first recorded of a repeated stamp kept."""
+    """Samples sorted by stamp, the first recorded of a repeated stamp kept (``t``, ``q``
+    themselves, no copy, when they already are)."""
+    if t.size < 2 or (t[1:] > t[:-1]).all():
+        return t, q
     order = np.argsort(t, kind="stable")
     t, q = t[order], q[order]
     first = np.r_[True, np.diff(t) > 0] if t.size else np.zeros(0, bool)

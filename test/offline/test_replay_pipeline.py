@@ -8,6 +8,7 @@ import os
 import sys
 
 import numpy as np
+import pytest
 
 from gyro_attitude.core.attitude import integrate_batch
 from gyro_attitude.io.imu_fast import read_imu_arrays, read_quaternion_stamped_arrays
@@ -91,3 +92,44 @@ def test_library_arguments_of_the_wrong_type_are_value_errors(tmp_path):
         AttitudeStream().push(1.5, [0.0, 0.0, 0.0])
     q = AttitudeStream(q0=(1e300, 0.0, 0.0, 1.0)).quaternion  # scaled, not overflowed
     np.testing.assert_allclose(q, [1.0, 0.0, 0.0, 0.0], rtol=0, atol=1e-15)
+
+
+def _turning_about_z(t_ns, rate):
+    """x, y, z, w of a constant-rate turn about z (closed form)."""
+    half = 0.5 * rate * (t_ns - t_ns[0]) * 1e-9
+    return np.stack([0 * half, 0 * half, np.sin(half), np.cos(half)], axis=1)
+
+
+def test_error_figures_hold_a_block_of_temporaries_not_the_recording():
+    """The truth comparison's working memory is per TRUTH_BLOCK, not per message: 200 k
+    truth stamps against 200 k attitudes, the truth tilted 0.01 rad about x from the
+    estimate (the error is 0.01 everywhere, closed form) and stamped half a sample later
+    (every stamp slerped, across block boundaries)."""
+    import tracemalloc
+    from types import SimpleNamespace
+
+    from gyro_attitude.offline import replay as rp
+
+    n = 200_000
+    t = 10**9 + np.arange(n, dtype=np.int64) * 1_000_000
+    q = _turning_about_z(t, 0.7)
+    ts = t[:-1] + 500_000
+    tilt = np.array([np.sin(0.005), 0.0, 0.0, np.cos(0.005)])
+    half = _turning_about_z(np.r_[t[0], ts], 0.7)[1:]
+    from gyro_attitude.core.rotation import _qmul
+    truth = SimpleNamespace(topic="truth/attitude", stamp_ns=ts,
+                            quaternion=_qmul(half, np.broadcast_to(tilt, half.shape)))
+    result = SimpleNamespace(error_t_ns=None, error_rad=None)
+    tracemalloc.start()
+    try:
+        rp._compare_with_truth(result, truth, t, q)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert result.truth_matched == n - 1
+    np.testing.assert_array_equal(result.error_t_ns, ts)
+    np.testing.assert_allclose(result.error_rad, 0.01, rtol=0, atol=1e-9)
+    assert result.max_error_rad == pytest.approx(0.01, abs=1e-9)
+    # kept: the error series (8 B a stamp) and two flags a stamp; the rest is one block's
+    # (whole-recording temporaries were > 250 B a stamp: 50 MB here)
+    assert peak < 10 * n + 500 * rp.TRUTH_BLOCK, f"peak {peak / 1e6:.0f} MB"

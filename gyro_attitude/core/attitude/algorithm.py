@@ -31,6 +31,8 @@ class Algorithm:
     samples_per_update = 1
     sequential = False
     supports_nav = True
+    #: True when :meth:`integrate` takes ``out=`` (writes the attitudes into a given array)
+    integrates_into = False
 
     def __init__(self, name: str, order: int, description: str, cost: str):
         self.name = name
@@ -91,7 +93,9 @@ class RateAlgorithm(Algorithm):
         trusted (the step then is the exponential map's)."""
         return self.body_increment_scalar(ts, ws, k, nodes), False
 
-    def integrate(self, t, w, q0, rate_n, quadrature, singular_tol, fallbacks=None):
+    integrates_into = True
+
+    def integrate(self, t, w, q0, rate_n, quadrature, singular_tol, fallbacks=None, out=None):
         kw = {"fallbacks": fallbacks} if self.checks_rate_fit else {}
 
         def increments(k):
@@ -99,7 +103,7 @@ class RateAlgorithm(Algorithm):
             a = None if rate_n is None else _exp_rotvec(-nav_zeta(t, rate_n, k))
             return b, a
 
-        q = compose_chunked(t.size, q0, 1, increments)
+        q = compose_chunked(t.size, q0, 1, increments, out=out)
         if t.size >= 3 and self.fits_rate_polynomial:
             # Emitted q[1] is causal (linear fit); the chain used the redone interval 1.
             b1 = self.body_increments(t[:2], w[:2], np.array([1]))[0]

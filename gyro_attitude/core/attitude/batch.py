@@ -15,7 +15,7 @@ from gyro_attitude.core.rotation import as_vector_array
 def integrate_batch(t_ns, omega_ib_b, q0=(0.0, 0.0, 0.0, 1.0),
                     algorithm: str = DEFAULT_ALGORITHM, nav: NavFrame | None = None,
                     quadrature: str = "trapezoid", singular_tol: float = 1e-3,
-                    fallbacks: list | None = None) -> np.ndarray:
+                    fallbacks: list | None = None, out: np.ndarray | None = None) -> np.ndarray:
     """Attitudes ``q[k]`` (N, 4) at ``t_ns[k]`` from rate samples ``ω_ib^b`` (N, 3).
 
     ``q[0] = q0``; ``q_ib`` when ``nav`` is None, else ``q_nb`` with the nav-frame rate
@@ -28,6 +28,9 @@ def integrate_batch(t_ns, omega_ib_b, q0=(0.0, 0.0, 0.0, 1.0),
     whose rate fit could not be trusted and whose step fell back to the exponential map
     (algorithms that check their fit: ``rotvec_cubic``, ``magnus6_quintic``;
     :func:`~gyro_attitude.core.attitude.interpolation.untrusted_fits`).
+
+    ``out``: a C-contiguous float64 (N, 4) array the attitudes are written into and which is
+    returned (a caller assembling several runs into one array spares a run-sized copy).
     """
     alg = get_algorithm(algorithm)
     t = check_times(t_ns)
@@ -38,9 +41,19 @@ def integrate_batch(t_ns, omega_ib_b, q0=(0.0, 0.0, 0.0, 1.0),
     if rate_n is not None and not alg.supports_nav:
         raise ValueError(f"{alg.name} integrates q_ib only; nav frames need a quaternion "
                          "algorithm")
+    kw = {}
     if fallbacks is not None and getattr(alg, "checks_rate_fit", False):
-        return alg.integrate(t, w, q0, rate_n, quad, float(singular_tol), fallbacks=fallbacks)
-    return alg.integrate(t, w, q0, rate_n, quad, float(singular_tol))
+        kw["fallbacks"] = fallbacks
+    if out is not None:
+        if not (isinstance(out, np.ndarray) and out.shape == (t.size, 4)
+                and out.dtype == np.float64 and out.flags.c_contiguous and out.flags.writeable):
+            raise ValueError(f"out must be a writeable C-contiguous float64 array of shape "
+                             f"({t.size}, 4)")
+        if not alg.integrates_into:
+            out[:] = alg.integrate(t, w, q0, rate_n, quad, float(singular_tol), **kw)
+            return out
+        kw["out"] = out
+    return alg.integrate(t, w, q0, rate_n, quad, float(singular_tol), **kw)
 
 
 def integrate_increments_batch(t_ns, delta_theta, q0=(0.0, 0.0, 0.0, 1.0),

@@ -104,7 +104,8 @@ def prefix_product_left(a: np.ndarray) -> np.ndarray:
     return prefix_product(a * _CONJ) * _CONJ
 
 
-def compose_chunked(n_samples: int, q0: np.ndarray, n_per_update: int, increments) -> np.ndarray:
+def compose_chunked(n_samples: int, q0: np.ndarray, n_per_update: int, increments,
+                    out: np.ndarray | None = None) -> np.ndarray:
     """Run ``q_k = a'_k ⊗ Q ⊗ b'_k`` over all intervals, chunk by chunk.
 
     ``increments(k)`` returns ``(b', a' or None)`` for the interval indices ``k``; with N
@@ -117,9 +118,10 @@ def compose_chunked(n_samples: int, q0: np.ndarray, n_per_update: int, increment
     multi-core machine two chunks are prepared at once by worker threads (numpy releases
     the GIL in its loops) while this thread carries the attitude through the chunks in
     order.  ``increments`` must therefore be a pure function of ``k``.  The arithmetic is
-    the same in either case.
+    the same in either case.  ``out``: an (n_samples, 4) float64 array to write the
+    attitudes into (and return) instead of a new one.
     """
-    q = np.empty((n_samples, 4))
+    q = np.empty((n_samples, 4)) if out is None else out
     q[0] = q0
     chunks = [(k0, min(k0 + CHUNK, n_samples)) for k0 in range(1, n_samples, CHUNK)]
 

@@ -191,7 +191,6 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
         updates_after = updates[updates > done]
     else:
         updates_after = updates
-    rate = wv - bias
 
     # 5. covariance over the integrated rows
     var_v = known_v = None
@@ -224,7 +223,7 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
                 # the last sample is the integrator's history: the next push() integrates from
                 # it (as after a restart: the fit rebuilds from two samples on)
                 s.integrator.reset(q_out[-1], None)
-                s.integrator.update(int(tv[-1]), rate[-1])
+                s.integrator.update(int(tv[-1]), wv[-1] - bias[-1])  # the last row's rate
     for key in EXTRA_COUNTS:
         st.counts[key] = counts[key]
     for key, text in details.items():
@@ -390,26 +389,36 @@ def _integrate(s, n, valid, tv, bias, rate, actv, track, updates, start, q_start
             held = rate[r0 - 1].copy()
             rate[r0 - 1] = rate[r0]
             fb = []
+            # written in place from row r0-1 on (that row, the previous run's last attitude,
+            # restored after): no run-sized second array
+            into = placed = q is not None and r0 - 1 >= start
+            held_q = q[r0 - 1 - start].copy() if into else None
             try:
                 q_run = integrate_batch(tv[r0 - 1:r1], rate[r0 - 1:r1], q0=q0,
                                         algorithm=s.algorithm,
                                         nav=None if nav_all is None else nav_rows(
                                             nav_all, np.arange(r0 - 1, r1), m),
-                                        fallbacks=fb)[1:]
+                                        fallbacks=fb,
+                                        out=q[r0 - 1 - start:r1 - start] if into else None)[1:]
             finally:
                 rate[r0 - 1] = held
+                if into:
+                    q[r0 - 1 - start] = held_q
             fallbacks.extend((r0 - 1, f) for f in fb)
         else:
             sel = slice(r0, r1)
             fb = []
+            placed = q is not None
             q_run = integrate_batch(tv[sel], rate[sel], q0=q0, algorithm=s.algorithm,
                                     nav=None if nav_all is None else nav_rows(
-                                        nav_all, np.arange(r0, r1), m), fallbacks=fb)
+                                        nav_all, np.arange(r0, r1), m), fallbacks=fb,
+                                    out=None if q is None else q[r0 - start:r1 - start])
             fallbacks.extend((r0, f) for f in fb)
         if not np.isfinite(q_run).all():
             return None
         if len(bounds) == 2:  # one run: its attitudes are the result (no second array)
             return q_run, first_rest
-        q[r0 - start:r1 - start] = q_run
+        if not placed:
+            q[r0 - start:r1 - start] = q_run
     return q, first_rest
 

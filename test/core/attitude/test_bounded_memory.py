@@ -25,3 +25,41 @@ def test_small_chunks_give_the_same_bits(mode, monkeypatch):
     assert np.array_equal(whole.variance, parts.variance)
     assert whole.counts == parts.counts and whole.counts["saturated"] >= 2
     assert np.array_equal(whole.bias.bias, parts.bias.bias)
+
+
+def _peak(fn):
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        got = fn()
+        return got, tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+@pytest.mark.parametrize("algorithm", ["magnus6_quintic", "rotvec_cubic", "coning4"])
+def test_integration_into_a_given_array_is_the_same_bits_and_allocates_no_second_one(algorithm):
+    """integrate_batch(out=) writes the attitudes into the caller's array (the causal array form
+    assembles its runs so): the bits of a fresh result, ``out`` itself returned, and for the
+    rate algorithms without an (N, 4) array of its own (the peak is N x 32 bytes below the
+    fresh result's)."""
+    from gyro_attitude.core.attitude import integrate_batch
+    from gyro_attitude.core.attitude.registry import get_algorithm
+
+    n = 20_000
+    t = 10**9 + np.arange(n, dtype=np.int64) * 1_000_000
+    s = (t - t[0]) * 1e-9
+    w = np.stack([0.3 * np.sin(2 * s), 0.2 * np.cos(0.7 * s), 0.1 + 0 * s], axis=1)
+    q0 = (0.1, -0.2, 0.3, 0.9)
+    fresh, peak_fresh = _peak(lambda: integrate_batch(t, w, q0=q0, algorithm=algorithm))
+    out = np.full((n + 2, 4), np.nan)
+    got, peak_into = _peak(lambda: integrate_batch(t, w, q0=q0, algorithm=algorithm,
+                                                   out=out[1:-1]))
+    assert np.shares_memory(got, out)
+    assert got.tobytes() == fresh.tobytes()
+    assert np.isnan(out[[0, -1]]).all()  # nothing outside the rows given
+    if get_algorithm(algorithm).integrates_into:
+        assert peak_fresh - peak_into > 0.9 * 32 * n, (peak_fresh, peak_into)
+    with pytest.raises(ValueError, match="out must be"):
+        integrate_batch(t, w, algorithm=algorithm, out=np.empty((n, 3)))
