@@ -95,9 +95,9 @@ def field_clock_offset(t_ns, omega, field, max_offset_s: float = 30.0) -> float 
     stamps are τ late, so ``ṁ × m = |m|² ω⊥(t − τ)``, the rate across the field: the
     cross-correlation of ``ṁ × m`` with the gyro's ``ω`` over lags peaks at τ (hard iron adds
     a constant to ``m``, which the derivative drops).  Both are averaged over OFFSET_BLOCK_S
-    blocks first (the field's noise would swamp its change per
-    sample), over the first OFFSET_SPAN_S of the recording, leaving out blocks whose field
-    norm is off the median by more than OFFSET_NORM_TOL (a disturbance changes the field, a
+    blocks first (the field's noise would swamp its change per sample), over the first
+    OFFSET_SPAN_S of the recording (stamps in any order), leaving out blocks whose field norm
+    is off the median by more than OFFSET_NORM_TOL (a disturbance changes the field, a
     turn does not change its norm); the peak is refined by a parabola through its neighbours.
     Absurd values (1e300, inf) leave their blocks out or give None, silently: the filter
     counts them.
@@ -108,15 +108,19 @@ def field_clock_offset(t_ns, omega, field, max_offset_s: float = 30.0) -> float 
 
 def _field_clock_offset(t_ns, omega, field, max_offset_s: float) -> float | None:
     t = np.asarray(t_ns, dtype=np.int64)
-    n = t.shape[0]
-    if n < 3:
+    if t.shape[0] < 3:
         return None
-    rel = (t - t[0]) * 1e-9
-    blocks = np.floor(rel[rel <= OFFSET_SPAN_S] / OFFSET_BLOCK_S).astype(np.int64)
-    nb = int(blocks[-1]) + 1
-    n = blocks.shape[0]
-    m = np.asarray(field[:n], dtype=np.float64)
-    w = np.asarray(omega[:n], dtype=np.float64)
+    # the span from a robust start (the median of the first stamps: a zero or a far-off
+    # stamp among them, which the validator rejects, does not move it); samples out of the
+    # span, backward stamps included, are left out, and the order does not matter
+    t0 = int(np.median(t[:101]))
+    rows = np.flatnonzero((t >= t0) & (t - t0 <= int(OFFSET_SPAN_S * 1e9)))
+    if rows.size < 3:
+        return None
+    blocks = ((t[rows] - t0) // int(round(OFFSET_BLOCK_S * 1e9))).astype(np.int64)
+    nb = int(blocks.max()) + 1
+    m = np.asarray(field, dtype=np.float64)[rows]
+    w = np.asarray(omega, dtype=np.float64)[rows]
     ok = np.isfinite(m).all(axis=1) & np.isfinite(w).all(axis=1)
     count = np.bincount(blocks[ok], minlength=nb)
     if nb < 8 or np.count_nonzero(count) < 8:

@@ -54,6 +54,15 @@ def test_the_delay_of_the_field_is_recovered_from_its_turning(late):
     assert (field_clock_warning(got) is None) == (abs(late) < OFFSET_WARN_S)
 
 
+def test_stamps_the_validator_rejects_do_not_move_or_break_the_estimate():
+    # a zero stamp first and one far back in time (replay takes the stamps as recorded)
+    t, w, m = _motion()
+    rows = _late(t, m, 0.2)
+    t = t.copy()
+    t[0], t[5000] = 0, t[5000] - 10**12
+    assert field_clock_offset(t, w, rows) == pytest.approx(0.2, abs=0.015)
+
+
 def test_a_disturbed_stretch_does_not_move_the_estimate():
     t, w, m = _motion()
     m = m.copy()
