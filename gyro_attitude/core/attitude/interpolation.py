@@ -160,16 +160,12 @@ def _gathered_causal_rates(t_ns, omega, k, fractions, lookahead):
     return out
 
 
-def lagrange_scalar(xs, ys, e):
-    """Plain-float twin of :func:`lagrange_eval` at one point ``e`` (ys: 3-tuples)."""
-    return lagrange_points_scalar(xs, ys, (e,))[0]
-
-
 def lagrange_points_scalar(xs, ys, es):
-    """The polynomial through ``(xs[i], ys[i])`` (ys: 3-tuples) at each point of ``es``: a
-    list of 3-tuples.  The weights' denominators ∏_{j≠i}(x_i − x_j) depend only on the nodes,
-    so they are formed once for all points (the causal cubic is evaluated at two Gauss points
-    per sample); the four-node case, every sample's, is written out."""
+    """Plain-float twin of :func:`lagrange_eval`: the polynomial through ``(xs[i], ys[i])``
+    (ys: 3-tuples) at each point of ``es``, a list of 3-tuples.  The weights' denominators
+    ∏_{j≠i}(x_i − x_j) depend only on the nodes, so they are formed once for all points (the
+    causal cubic is evaluated at two Gauss points per sample); the four-node case, every
+    sample's, is written out."""
     if len(xs) == 4:
         x0, x1, x2, x3 = xs
         d01, d02, d03, d12, d13, d23 = x0 - x1, x0 - x2, x0 - x3, x1 - x2, x1 - x3, x2 - x3
