@@ -30,6 +30,7 @@ from pathlib import Path
 
 from gyro_attitude.core.attitude import causal_algorithms
 from gyro_attitude.core.rotation import quat_angle_between
+from gyro_attitude.io.cdr_arrays import QuaternionStampedCdr
 from gyro_attitude.io.safe_output import OutputPathError, SafeOutput, check_output_path
 from gyro_attitude.io.scene_file import load_scene
 
@@ -38,6 +39,8 @@ DEFAULT_SCENE = "coning"
 
 
 MIN_SAMPLES = 2  # an attitude error needs at least one integrated interval
+SETTLE_QUIET_S = 0.5  # after the sim: no new attitude for this long means the integrator is done
+SETTLE_MAX_S = 15.0  # ... and never longer than this
 
 
 def _gyro_sim_limit(name: str) -> float:
@@ -222,13 +225,13 @@ def run(args: argparse.Namespace) -> int:
           f"{' '.join(node_command('attitude_integrator'))}")
 
     import rclpy
+    import rclpy.executors
     from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import QuaternionStamped
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import Imu
 
     # ROS modules load rclpy: imported only when the demo runs (not for --help)
-    from gyro_attitude.ros import convert
     from gyro_attitude.ros.qos import imu_qos
 
     # node output, for a post-mortem: beside the recording, or a temporary folder (removed
@@ -247,18 +250,17 @@ def run(args: argparse.Namespace) -> int:
         rclpy.init(domain_id=int(env["ROS_DOMAIN_ID"]))
         context = True
         node = rclpy.create_node("gyro_attitude_demo")
+        # One executor for the whole run (rclpy.spin_once(node) adds and removes the node on
+        # every call), and serialized subscriptions whose callbacks only keep the bytes: at
+        # 1 kHz on three topics a deserializing Python monitor falls behind on a loaded
+        # machine, and a reliable keep-last publisher then overwrites what it has not acked.
+        # The bytes are decoded after the run.
+        executor = rclpy.executors.SingleThreadedExecutor()
+        executor.add_node(node)
         qos = QoSProfile(depth=20000, reliability=ReliabilityPolicy.RELIABLE)
-        truth: dict[int, tuple] = {}
-        attitude: dict[int, tuple] = {}
+        truth_raw: list[bytes] = []
+        attitude_raw: list[bytes] = []
         diagnostics: list[dict[str, str]] = []
-
-        def on_truth(m):
-            q = m.quaternion
-            truth[convert.stamp_to_ns(m.header.stamp)] = (q.x, q.y, q.z, q.w)
-
-        def on_att(m):
-            q = m.quaternion
-            attitude[convert.stamp_to_ns(m.header.stamp)] = (q.x, q.y, q.z, q.w)
 
         def on_diag(m):
             for s in m.status:
@@ -270,10 +272,15 @@ def run(args: argparse.Namespace) -> int:
         def on_raw(_m):
             raw_count[0] += 1
 
-        # the sim starts once both the integrator and this monitor listen to imu/data_raw
-        node.create_subscription(Imu, "imu/data_raw", on_raw, imu_qos("best_effort", 20000))
-        node.create_subscription(QuaternionStamped, "truth/attitude", on_truth, qos)
-        att_sub = node.create_subscription(QuaternionStamped, "attitude", on_att, qos)
+        # the sim starts once both the integrator and this monitor listen to imu/data_raw;
+        # the monitor takes the run's reliability, so a reliable run is counted losslessly
+        node.create_subscription(
+            Imu, "imu/data_raw", on_raw,
+            imu_qos("reliable" if args.reliable else "best_effort", 20000), raw=True)
+        node.create_subscription(QuaternionStamped, "truth/attitude", truth_raw.append, qos,
+                                 raw=True)
+        att_sub = node.create_subscription(QuaternionStamped, "attitude", attitude_raw.append,
+                                           qos, raw=True)
         node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 50)
 
         integ_log = open(integ_log_path, "w")
@@ -289,7 +296,7 @@ def run(args: argparse.Namespace) -> int:
         match_deadline = time.monotonic() + 30.0
         while (att_sub.get_publisher_count() < 1 and integ.poll() is None
                and time.monotonic() < match_deadline):
-            rclpy.spin_once(node, timeout_sec=0.05)
+            executor.spin_once(timeout_sec=0.05)
         if integ.poll() is not None:  # e.g. a parameter it refused: no point starting the sim
             integ_log.close()
             return _node_failed("attitude_integrator", integ.returncode, integ_log_path)
@@ -306,12 +313,22 @@ def run(args: argparse.Namespace) -> int:
         procs.append(sim)
         deadline = time.monotonic() + args.duration * 3 + 60
         while sim.poll() is None and time.monotonic() < deadline:
-            rclpy.spin_once(node, timeout_sec=0.05)
+            executor.spin_once(timeout_sec=0.05)
             if integ.poll() is not None:
                 break
-        end = time.monotonic() + 1.0  # the last attitudes and one more diagnostics message
-        while time.monotonic() < end:
-            rclpy.spin_once(node, timeout_sec=0.05)
+        # the last attitudes and one more diagnostics message: at least 1 s, and on a loaded
+        # machine until the integrator has caught up with what the sim published (no new
+        # attitude for SETTLE_QUIET_S), at most SETTLE_MAX_S
+        t_sim_done = last_change = time.monotonic()
+        seen = len(attitude_raw)
+        while True:
+            executor.spin_once(timeout_sec=0.05)
+            now = time.monotonic()
+            if len(attitude_raw) != seen:
+                seen, last_change = len(attitude_raw), now
+            if now - t_sim_done >= SETTLE_MAX_S or (
+                    now - t_sim_done >= 1.0 and now - last_change >= SETTLE_QUIET_S):
+                break
         wall = time.monotonic() - t_wall
         if sim.poll() is None:
             try:
@@ -325,6 +342,7 @@ def run(args: argparse.Namespace) -> int:
         integ_code = _stop(integ)
         integ_log.close()
         sim_log.close()
+        executor.shutdown()
         node.destroy_node()
     except KeyboardInterrupt:
         print("[demo] interrupted", file=sys.stderr)
@@ -341,8 +359,20 @@ def run(args: argparse.Namespace) -> int:
         return _node_failed("attitude_integrator", integ_code, integ_log_path)
     if bag is None:
         shutil.rmtree(log_dir, ignore_errors=True)
+    truth = _quaternions_by_stamp(truth_raw)
+    attitude = _quaternions_by_stamp(attitude_raw)
     return _summarize(spec, rate, args, truth, attitude, diagnostics, bag, plot, wall,
                       sim_code, integ_code, raw_count[0])
+
+
+def _quaternions_by_stamp(messages: list[bytes]) -> dict[int, tuple]:
+    """Serialized QuaternionStamped messages as {header.stamp ns: (x, y, z, w)}."""
+    out = {}
+    for raw in messages:
+        fields = QuaternionStampedCdr.parse(bytes(raw))
+        if fields is not None:
+            out[fields[0]] = fields[1]
+    return out
 
 
 def _node_failed(name: str, code: int, log: Path) -> int:

@@ -488,6 +488,7 @@ _IMU_DOUBLES = _IMU_SLICES["linear_acceleration_covariance"].stop
 _ORIENTATION_DOUBLES = _IMU_SLICES["orientation_covariance"].stop  # orientation + covariance
 _U32 = struct.Struct("<I")
 _STAMP = struct.Struct("<iI")
+_QUATERNION = struct.Struct("<4d")
 _ORIENTATION = struct.Struct(f"<{_ORIENTATION_DOUBLES}d")
 
 
@@ -584,3 +585,16 @@ class QuaternionStampedCdr:
         """The message with header.stamp ``stamp_cdr`` (8 serialized bytes, e.g.
         :attr:`ImuCdr.stamp_cdr`) and quaternion (x, y, z, w)."""
         return CDR_LE_HEADER + stamp_cdr + self._head + self._tail.pack(x, y, z, w)
+
+    @staticmethod
+    def parse(raw: bytes) -> tuple[int, tuple[float, float, float, float]] | None:
+        """(header.stamp in ns, (x, y, z, w)) of one serialized message, or None when it is
+        not the plain CDR_LE layout (any frame_id)."""
+        if len(raw) < 16 + 1 + 32 or raw[:4] != CDR_LE_HEADER:
+            return None
+        (frame_len,) = _U32.unpack_from(raw, 12)
+        body = header_body_offset(frame_len)
+        if frame_len < 1 or body + 32 != len(raw) or raw[15 + frame_len] != 0:
+            return None
+        sec, nanosec = _STAMP.unpack_from(raw, 4)
+        return sec * 1_000_000_000 + nanosec, _QUATERNION.unpack_from(raw, body)

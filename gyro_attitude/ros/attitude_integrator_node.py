@@ -112,6 +112,7 @@ from gyro_attitude.ros.params import (
 from gyro_attitude.ros.qos import imu_qos
 
 NODE_NAME = "attitude_integrator"
+OUTPUT_DEPTH = 1000  # keep-last history of imu/data and attitude
 
 
 def parameter_specs(settings=SETTINGS) -> list[ParamSpec]:
@@ -198,8 +199,10 @@ class AttitudeIntegratorNode(Node):
 
         self._undecodable = 0
         self._att_cdr = QuaternionStampedCdr(self._world_frame)
-        self._pub_imu = self.create_publisher(Imu, "imu/data", 100)
-        self._pub_att = self.create_publisher(QuaternionStamped, "attitude", 100)
+        # keep-last 1000 (1 s at 1 kHz): a reliable subscriber that lags by more than the
+        # history loses what was overwritten before it acknowledged
+        self._pub_imu = self.create_publisher(Imu, "imu/data", OUTPUT_DEPTH)
+        self._pub_att = self.create_publisher(QuaternionStamped, "attitude", OUTPUT_DEPTH)
         self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         # every input takes the one QoS rule: best effort (the default) matches any publisher,
         # reliable ones and the best-effort republishing of a bag without offered profiles

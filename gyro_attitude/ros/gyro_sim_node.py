@@ -39,7 +39,9 @@ import rclpy
 from geometry_msgs.msg import QuaternionStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.qos import ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
@@ -467,6 +469,23 @@ class GyroSimNode(Node):
             self._publish_row(row, self._imu_raw[self._block_pos])
             self._block_pos += 1
 
+    def wait_for_reliable_acks(self, timeout_s: float) -> bool:
+        """Block until every reliable subscriber acknowledged what was published (or
+        ``timeout_s`` passed): the samples still in a reliable writer's history are lost when
+        the process exits, and a slow subscriber on a loaded machine lags by more than the
+        linger above. True when all were acknowledged."""
+        deadline = time.monotonic() + timeout_s
+        acked = True
+        for pub in (self._pub_imu, self._pub_truth, self._pub_mag):
+            if pub is None or pub.qos_profile.reliability != ReliabilityPolicy.RELIABLE:
+                continue
+            left = max(0.0, deadline - time.monotonic())
+            try:
+                acked &= pub.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9)))
+            except Exception:  # context shut down by a signal meanwhile: nothing to wait for
+                return False
+        return acked
+
     def _finish(self) -> None:
         self.finished = True
         self._timer.cancel()
@@ -476,6 +495,9 @@ class GyroSimNode(Node):
         self.get_logger().info(f"published {self.published} samples{sat}; done")
 
 
+ACK_WAIT_S = 5.0  # how long a finished sim waits for its reliable subscribers to acknowledge
+
+
 def _spin_until_done(node: GyroSimNode, executor) -> None:
     executor.spin_until_future_complete(node.done)
     if node.finished:
@@ -483,6 +505,7 @@ def _spin_until_done(node: GyroSimNode, executor) -> None:
         end = time.monotonic() + 0.3
         while rclpy.ok() and time.monotonic() < end:
             executor.spin_once(timeout_sec=0.05)
+        node.wait_for_reliable_acks(ACK_WAIT_S)
 
 
 def main(args=None) -> int:

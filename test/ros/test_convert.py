@@ -130,6 +130,21 @@ def test_serialized_imu_is_read_and_filled_in_as_rclpy_serializes_it(frame_id):
         assert len(enc) == len(ref) and enc[pad] == bytes(len(ref[pad]))
         assert enc[:pad.start] + enc[pad.stop:] == ref[:pad.start] + ref[pad.stop:]
         assert deserialize_message(enc, QuaternionStamped) == att
+        assert QuaternionStampedCdr.parse(ref) == (t_ns, tuple(q))
+
+
+def test_serialized_quaternion_stamped_other_than_plain_little_endian_is_refused():
+    from geometry_msgs.msg import QuaternionStamped
+
+    m = QuaternionStamped()
+    m.header.frame_id = "map"
+    raw = serialize_message(m)
+    assert QuaternionStampedCdr.parse(raw) == (0, (0.0, 0.0, 0.0, 1.0))
+    assert QuaternionStampedCdr.parse(b"\x00\x00" + raw[2:]) is None  # big-endian
+    assert QuaternionStampedCdr.parse(raw[:-1]) is None  # truncated
+    assert QuaternionStampedCdr.parse(raw + b"\x00" * 8) is None
+    assert QuaternionStampedCdr.parse(raw[:12] + (200).to_bytes(4, "little") + raw[16:]) is None
+    assert QuaternionStampedCdr.parse(b"") is None
 
 
 def test_serialized_imu_other_than_plain_little_endian_is_left_to_rclpy():
