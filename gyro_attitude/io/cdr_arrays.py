@@ -500,6 +500,18 @@ def header_body_offset(frame_len: int) -> int:
     return 4 + (12 + frame_len + 7) // 8 * 8
 
 
+def _plain_framing(raw: bytes, doubles: int) -> tuple[int, int] | None:
+    """(frame_id length with its NUL, body offset) of a CDR_LE message made of a Header then
+    exactly ``doubles`` doubles, or None when ``raw`` is not laid out so."""
+    if len(raw) < 16 + 1 + doubles * 8 or raw[:4] != CDR_LE_HEADER:
+        return None
+    (frame_len,) = _U32.unpack_from(raw, 12)
+    body = header_body_offset(frame_len)
+    if frame_len < 1 or body + doubles * 8 != len(raw) or raw[15 + frame_len] != 0:
+        return None
+    return frame_len, body
+
+
 class ImuCdr:
     """One serialized ``sensor_msgs/Imu`` read in place (:meth:`parse`), and the same bytes
     with the orientation filled in (:meth:`with_orientation`)."""
@@ -523,13 +535,10 @@ class ImuCdr:
     @classmethod
     def parse(cls, raw: bytes) -> ImuCdr | None:
         """The fields of ``raw``, or None when it is not the plain CDR_LE layout."""
-        n = len(raw)
-        if n < 16 + 1 + _IMU_DOUBLES * 8 or raw[:4] != CDR_LE_HEADER:
+        framing = _plain_framing(raw, _IMU_DOUBLES)
+        if framing is None:
             return None
-        (frame_len,) = _U32.unpack_from(raw, 12)
-        body = header_body_offset(frame_len)
-        if frame_len < 1 or body + _IMU_DOUBLES * 8 != n or raw[15 + frame_len] != 0:
-            return None
+        frame_len, body = framing
         frame_bytes = raw[16:15 + frame_len]
         cached = cls._last_frame
         if frame_bytes == cached[0]:
@@ -590,11 +599,9 @@ class QuaternionStampedCdr:
     def parse(raw: bytes) -> tuple[int, tuple[float, float, float, float]] | None:
         """(header.stamp in ns, (x, y, z, w)) of one serialized message, or None when it is
         not the plain CDR_LE layout (any frame_id)."""
-        if len(raw) < 16 + 1 + 32 or raw[:4] != CDR_LE_HEADER:
+        framing = _plain_framing(raw, 4)
+        if framing is None:
             return None
-        (frame_len,) = _U32.unpack_from(raw, 12)
-        body = header_body_offset(frame_len)
-        if frame_len < 1 or body + 32 != len(raw) or raw[15 + frame_len] != 0:
-            return None
+        body = framing[1]
         sec, nanosec = _STAMP.unpack_from(raw, 4)
         return sec * 1_000_000_000 + nanosec, _QUATERNION.unpack_from(raw, body)
