@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from gyro_attitude.core.attitude.compose import (
+    LeftPrefix,
     compose_chunked,
     compose_scalar,
     first_interval_output,
@@ -100,8 +101,16 @@ class RateAlgorithm(Algorithm):
 
         def increments(k):
             b = self.body_increments(t, w, k, lookahead=True, **kw)
-            a = None if rate_n is None else _exp_rotvec(-nav_zeta(t, rate_n, k))
-            return b, a
+            if rate_n is None:
+                return b, None
+            if rate_n.ndim == 1:
+                # A constant nav rate turns the frame about one fixed axis: the increments
+                # exp(−ω h_j) commute, and their product from the chunk's first interval is
+                # exp(−ω (t_k − t_k0−1)) in closed form (the span exact in int ns), with no
+                # scan and no rounding accumulated over the products.
+                span = ((t[k] - t[k[0] - 1]) * 1e-9)[:, None]
+                return b, LeftPrefix(_exp_rotvec(-rate_n[None, :] * span))
+            return b, _exp_rotvec(-nav_zeta(t, rate_n, k))
 
         q = compose_chunked(t.size, q0, 1, increments, out=out)
         if t.size >= 3 and self.fits_rate_polynomial:

@@ -108,7 +108,8 @@ def compose_chunked(n_samples: int, q0: np.ndarray, n_per_update: int, increment
                     out: np.ndarray | None = None) -> np.ndarray:
     """Run ``q_k = a'_k ⊗ Q ⊗ b'_k`` over all intervals, chunk by chunk.
 
-    ``increments(k)`` returns ``(b', a' or None)`` for the interval indices ``k``; with N
+    ``increments(k)`` returns ``(b', a' or None)`` for the interval indices ``k`` (with one
+    sample per update ``a'`` may be a :class:`LeftPrefix`, its products already); with N
     samples per update, ``Q`` is the attitude at the last completed N-block and the
     primed increments are the partial ones since that block.  Chunks bound memory and
     keep the scans in cache; the carried attitude is normalized at chunk boundaries.
@@ -168,9 +169,21 @@ class _ChunkLocal(NamedTuple):
     a_blocks: np.ndarray | None = None
 
 
+class LeftPrefix(NamedTuple):
+    """What an ``increments`` function of :func:`compose_chunked` may return in place of the
+    left increments ``a`` (one sample per update only): their products
+    ``A_k = a_k ⊗ … ⊗ a_k0`` from the chunk's first interval on, already known."""
+
+    products: np.ndarray
+
+
 def _chunk_local(k, n_per_update, b, a) -> _ChunkLocal:
     if n_per_update == 1:
+        if isinstance(a, LeftPrefix):
+            return _ChunkLocal(1, prefix_product(b), a.products)
         return _ChunkLocal(1, prefix_product(b), None if a is None else prefix_product_left(a))
+    if isinstance(a, LeftPrefix):
+        raise ValueError("LeftPrefix needs one sample per update")
     nfull = k.size // n_per_update
     major = slice(n_per_update - 1, nfull * n_per_update, n_per_update)
     nblk = -(-k.size // n_per_update)

@@ -50,7 +50,12 @@ def truth_at(truth_t, truth_q, t_ns: int, max_interval_ns: int | None = None) ->
     """Truth quaternion (4,) x, y, z, w at ``t_ns``, or ValueError when the truth does not
     cover it (outside the truth's span or inside a gap longer than ``max_interval_ns``)."""
     t, q = _check(truth_t, truth_q)
-    t_ns = int(t_ns)
+    return _truth_at_checked(t, q, int(t_ns), max_interval_ns)
+
+
+def _truth_at_checked(t: np.ndarray, q: np.ndarray, t_ns: int,
+                      max_interval_ns: int | None) -> np.ndarray:
+    """:func:`truth_at` on a truth that :func:`_check` has checked and normalized."""
     k = int(np.searchsorted(t, t_ns, side="left"))
     if k < t.size and t[k] == t_ns:
         return q[k].copy()
@@ -117,9 +122,10 @@ def initial_attitude_from_truth(imu_t, truth_t, truth_q, max_interval_ns: int | 
     imu = imu.astype(np.int64)
     ok = np.ones(imu.size, dtype=bool) if usable is None else np.asarray(usable, dtype=bool)
     inside = ok & (imu >= t[0]) & (imu <= t[-1])
-    for k in np.flatnonzero(inside).tolist():
+    for k in np.flatnonzero(inside):  # usually the first: no list of every index
+        k = int(k)
         try:
-            return truth_at(t, q, int(imu[k]), max_interval_ns), k, k
+            return _truth_at_checked(t, q, int(imu[k]), max_interval_ns), k, k
         except ValueError:
             continue  # inside a truth gap: try the next Imu sample
     raise ValueError(f"no Imu stamp lies within the truth's span [{t[0]}, {t[-1]}] ns: "
