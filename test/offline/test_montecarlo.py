@@ -243,3 +243,23 @@ def test_nees_of_the_mems_grades_exceeds_its_bounds_by_the_closed_form(grade, ca
     assert not final["within"] and final["mean"] > final["upper"]
     # 400 runs: the mean of a scaled χ²(3) has a relative standard error of 4 %
     assert final["mean"] == pytest.approx(expected, rel=0.10), (final, expected)
+
+
+def test_run_error_sums_equal_scipy_rotation_vectors_across_blocks():
+    """The run's RMS and final body error (summed block by block) against scipy's rotation
+    vectors of truth⁻¹ ⊗ estimate over the whole series (3.5 blocks, one error near π)."""
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(11)
+    m = int(3.5 * mc.ERROR_BLOCK)
+    truth = Rotation.random(m, random_state=rng)
+    small = Rotation.from_rotvec(rng.normal(scale=0.02, size=(m, 3)))
+    est = truth * small
+    flip = m // 2
+    est_q = est.as_quat()
+    est_q[flip] = (truth[flip] * Rotation.from_rotvec([0.0, 0.0, math.pi - 1e-6])).as_quat()
+    est_q[::7] *= -1.0  # q and -q are one attitude
+    sq, last = mc._body_error_sums(truth.as_quat(), est_q)
+    ref = (truth.inv() * Rotation.from_quat(est_q)).as_rotvec()
+    np.testing.assert_allclose(sq, np.sum(ref ** 2, axis=0), rtol=1e-12)
+    np.testing.assert_allclose(last, ref[-1], rtol=1e-12, atol=1e-15)

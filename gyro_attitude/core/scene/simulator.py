@@ -25,7 +25,7 @@ from gyro_attitude.core.angles import wrap_pi
 from gyro_attitude.core.gyro.free_gyro import FreeGyroSimulator
 from gyro_attitude.core.gyro.rate_gyro import RateGyroTriad
 from gyro_attitude.core.instruments.common import InstrumentStepper
-from gyro_attitude.core.motion import Motion, Stationary
+from gyro_attitude.core.motion import Motion, MotionSample, Stationary
 from gyro_attitude.core.rotation import quat_conjugate, quat_rotate
 from gyro_attitude.core.scene.limits import POLE_MARGIN_RAD
 from gyro_attitude.core.scene.magnetometer import measure_field
@@ -238,6 +238,11 @@ def _concatenate(blocks: list[SimBlock]) -> SimBlock:
                                            "magnetic_field_b")}, gimbal=gimbal)
 
 
+
+def _repeat_row(a: np.ndarray | None, n: int) -> np.ndarray | None:
+    """The one row of ``a`` (1, k) as ``n`` rows (a new array), None stays None."""
+    return None if a is None else np.repeat(a, n, axis=0)
+
 class SceneSimulator:
     """Generates a scene's samples at ``rate_hz`` in resumable, vectorized blocks.
 
@@ -394,6 +399,16 @@ class SceneSimulator:
         """Truth at times ``t``; ``llh`` the positions when known (the sample grid)."""
         if isinstance(self.spec.motion, TrajectoryMotion):
             return self._trajectory_truth(t, need_accel)
+        if isinstance(self.spec.motion, Stationary) and t.shape[0] > 1:
+            # At rest the attitude, the position and so the Earth rate in the body are the
+            # same at every time: the first time's truth, repeated (the rows the per-time
+            # arithmetic gives, to the bit: test_simulator checks it against the general path).
+            one = self._truth(t[:1], need_accel, None if llh is None else llh[:1])
+            n = t.shape[0]
+            m = one[0]
+            sample = MotionSample(*(_repeat_row(a, n) for a in (
+                m.q_nb, m.omega_nb_b, m.velocity_enu, m.accel_enu)))
+            return (sample, *(_repeat_row(a, n) for a in one[1:]))
         sample = self.spec.motion.evaluate(t, need_accel=need_accel)
         self.effects_run.add(f"motion.{self.spec.motion.name}")
         if llh is None:
@@ -445,6 +460,13 @@ class SceneSimulator:
         return self._specific_force(sample, llh, w_ie, w_en)
 
     def _specific_force(self, sample, llh, w_ie, w_en) -> np.ndarray:
+        n = sample.q_nb.shape[0]
+        if isinstance(self.spec.motion, Stationary) and n > 1:  # at rest: as in _truth
+            first = MotionSample(*(None if a is None else a[:1] for a in (
+                sample.q_nb, sample.omega_nb_b, sample.velocity_enu, sample.accel_enu)))
+            return _repeat_row(self._specific_force(
+                first, llh[:1], None if w_ie is None else w_ie[:1],
+                None if w_en is None else w_en[:1]), n)
         self.effects_run.add("specific_force")
         if isinstance(sample, TrajectorySample):  # computed with the truth, from the fit
             if self.spec.earth.rotation:

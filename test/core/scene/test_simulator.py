@@ -63,6 +63,28 @@ def test_stationary_gyro_sees_earth_rate_in_body_axes(lat_deg):
     assert sim.effects_run == {"motion.stationary", "earth_rate"}
 
 
+
+def test_stationary_truth_repeated_from_one_time_equals_the_per_time_arithmetic():
+    """At rest the simulator computes the truth and the specific force once and repeats it:
+    the rows must be those the general path gives at every time (here a zero-speed straight
+    line with the same attitude, which the shortcut does not take), to the bit."""
+    from gyro_attitude.core.motion import ConstantVelocity
+
+    att = {"roll_deg": 3.0, "pitch_deg": -7.0, "yaw_deg": 61.0}
+    d = scene(earth={"latitude_deg": -37.5, "height_m": 820.0},
+              motion={"type": "stationary", "attitude": att},
+              accelerometer={"gravity": True})
+    spec = SceneSpec.from_dict(d)
+    general = copy.copy(spec)
+    object.__setattr__(general, "motion", ConstantVelocity(
+        0.0, np.radians([att["roll_deg"], att["pitch_deg"], att["yaw_deg"]])))
+    assert not general.motion.moves
+    a = SceneSimulator(spec, 100.0, seed=4).next_block(700)
+    b = SceneSimulator(general, 100.0, seed=4).next_block(700)
+    for name in ("omega_ib_b", "truth_omega_ib_b", "truth_q_nb", "specific_force_b",
+                 "position_llh", "velocity_enu"):
+        assert getattr(a, name) is not None and np.array_equal(getattr(a, name), getattr(b, name)), name
+
 def test_earth_rotation_off_means_navigation_frame_is_inertial():
     d = scene(earth={"latitude_deg": 45.0, "rotation": False},
               motion={"type": "coning", "half_angle_deg": 2.0, "frequency_hz": 3.0})
