@@ -190,6 +190,51 @@ def _print(rows: list[dict]) -> None:
               f"{'met' if p < TARGET_1000_HOURS_S else 'NOT met'}")
 
 
+def _target_row(workers: int, runs: int, one_worker_runs: int) -> dict:
+    """The issue's case itself: ``runs`` one-hour ``lab_bench`` runs at 100 Hz (``gyro_bias
+    none``, causal) with all workers, the whole set's wall time measured (the pool's start-up
+    in it), against the first ``one_worker_runs`` of the same runs with 1 worker (the same
+    seeds: run i is the same in any set), scaled to ``runs``."""
+    many_setup = _setup(runs, 3600.0, "none", "causal")
+    one_setup = _setup(one_worker_runs, 3600.0, "none", "causal")
+    load0 = os.getloadavg()[0]
+    one = mc.run_montecarlo(one_setup, workers=1)
+    many = mc.run_montecarlo(many_setup, workers=workers)
+    for res in (one, many):
+        failed = [r["error"] for r in res.runs if "error" in r]
+        if failed:
+            raise RuntimeError(f"{len(failed)} run(s) failed, first: {failed[0]}")
+    one_wall_scaled = one.wall_s * runs / one_worker_runs
+    head = mc.MonteCarloResult(many.setup, many.runs[:one_worker_runs], False, 0.0, workers,
+                               None)
+    return {"case": f"target: causal, gyro_bias none, {runs} x 3600 s", "runs": runs,
+            "one_worker_runs": one_worker_runs, "workers": workers,
+            "wall_all_workers_s": many.wall_s, "wall_1_worker_s": one.wall_s,
+            "wall_1_worker_scaled_s": one_wall_scaled,
+            "speedup": one_wall_scaled / many.wall_s,
+            "pool_startup_all_workers_s": many.cost.startup_s,
+            "total_cpu_per_run_all_workers_s": many.total_cpu_s() / runs,
+            "total_cpu_per_run_1_worker_s": one.total_cpu_s() / one_worker_runs,
+            "identical_runs": _same(one, head),
+            "target_s": TARGET_1000_HOURS_S if runs == 1000 else None,
+            "meets_target": (many.wall_s < TARGET_1000_HOURS_S) if runs == 1000 else None,
+            "meets_speedup": one_wall_scaled / many.wall_s >= TARGET_SPEEDUP,
+            "load_average_1min": [load0, os.getloadavg()[0]]}
+
+
+def _print_target(r: dict) -> None:
+    print(f"{r['case']}: {r['workers']} workers {r['wall_all_workers_s']:.1f} s wall "
+          f"(target < {TARGET_1000_HOURS_S:g} s: "
+          f"{'met' if r['meets_target'] else 'NOT met' if r['meets_target'] is not None else 'n/a'})"
+          f"; 1 worker {r['wall_1_worker_s']:.1f} s for the first {r['one_worker_runs']} "
+          f"(x{r['runs'] / r['one_worker_runs']:g}: {r['wall_1_worker_scaled_s']:.0f} s); "
+          f"speed-up {r['speedup']:.2f} (target >= {TARGET_SPEEDUP}: "
+          f"{'met' if r['meets_speedup'] else 'NOT met'}); same runs "
+          f"{r['identical_runs']}; CPU per run {r['total_cpu_per_run_1_worker_s']:.3f} | "
+          f"{r['total_cpu_per_run_all_workers_s']:.3f} s; load "
+          f"{min(r['load_average_1min']):.1f}-{max(r['load_average_1min']):.1f}")
+
+
 def run(quick: bool, out_dir: pathlib.Path) -> list[dict]:
     workers = default_workers()
     if quick:
@@ -204,4 +249,7 @@ def run(quick: bool, out_dir: pathlib.Path) -> list[dict]:
             rows.append(_measure(label, _setup(runs, duration, bias, estimator), workers))
             print(f"  {label}: done (load {os.getloadavg()[0]:.1f})", flush=True)
     _print(rows)
-    return rows
+    # the issue's case as the command runs it (quick: a tenth of it, no 300-s target)
+    target = _target_row(workers, 100 if quick else 1000, 10 if quick else 100)
+    _print_target(target)
+    return rows + [target]
