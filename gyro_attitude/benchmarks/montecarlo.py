@@ -92,11 +92,12 @@ def _phases(setup: mc.MonteCarloSetup, repeats: int = 3) -> dict:
             "run_cpu_s": best["run"]}
 
 
-def _same(a: mc.MonteCarloResult, b: mc.MonteCarloResult) -> bool:
+def _same(a: list[dict], b: list[dict]) -> bool:
+    """Whether two lists of runs hold the same per-run results (times left out), bit for bit."""
     def key(r):
         return ({k: v for k, v in r.items() if k not in ("wall_s", "cpu_s", "_grid")},
                 {k: np.asarray(v).tobytes() for k, v in r["_grid"].items()})
-    return [key(r) for r in a.runs] == [key(r) for r in b.runs]
+    return [key(r) for r in a] == [key(r) for r in b]
 
 
 def _set_figures(res: mc.MonteCarloResult, tag: str) -> dict:
@@ -130,7 +131,7 @@ def _measure(label: str, setup: mc.MonteCarloSetup, workers: int) -> dict:
     # the pool's start-up (the forkserver imports numpy, scipy and the package once per
     # command) is paid once per set: what it is worth against the runs themselves
     row["speedup_without_startup"] = one.wall_s / (many.wall_s - row["pool_startup_all_workers_s"])
-    row["identical_runs"] = _same(one, many)
+    row["identical_runs"] = _same(one.runs, many.runs)
     row["cpu_efficiency"] = (row["total_cpu_per_run_1_worker_s"]
                              / row["total_cpu_per_run_all_workers_s"])
     row["cores_ratio"] = row["cores_used_all_workers"] / row["cores_used_1_worker"]
@@ -205,8 +206,6 @@ def _target_row(workers: int, runs: int, one_worker_runs: int) -> dict:
         if failed:
             raise RuntimeError(f"{len(failed)} run(s) failed, first: {failed[0]}")
     one_wall_scaled = one.wall_s * runs / one_worker_runs
-    head = mc.MonteCarloResult(many.setup, many.runs[:one_worker_runs], False, 0.0, workers,
-                               None)
     return {"case": f"target: causal, gyro_bias none, {runs} x 3600 s", "runs": runs,
             "one_worker_runs": one_worker_runs, "workers": workers,
             "wall_all_workers_s": many.wall_s, "wall_1_worker_s": one.wall_s,
@@ -215,7 +214,7 @@ def _target_row(workers: int, runs: int, one_worker_runs: int) -> dict:
             "pool_startup_all_workers_s": many.cost.startup_s,
             "total_cpu_per_run_all_workers_s": many.total_cpu_s() / runs,
             "total_cpu_per_run_1_worker_s": one.total_cpu_s() / one_worker_runs,
-            "identical_runs": _same(one, head),
+            "identical_runs": _same(one.runs, many.runs[:one_worker_runs]),
             "target_s": TARGET_1000_HOURS_S if runs == 1000 else None,
             "meets_target": (many.wall_s < TARGET_1000_HOURS_S) if runs == 1000 else None,
             "meets_speedup": one_wall_scaled / many.wall_s >= TARGET_SPEEDUP,

@@ -238,10 +238,10 @@ def _concatenate(blocks: list[SimBlock]) -> SimBlock:
                                            "magnetic_field_b")}, gimbal=gimbal)
 
 
-
 def _repeat_row(a: np.ndarray | None, n: int) -> np.ndarray | None:
     """The one row of ``a`` (1, k) as ``n`` rows (a new array), None stays None."""
     return None if a is None else np.repeat(a, n, axis=0)
+
 
 class SceneSimulator:
     """Generates a scene's samples at ``rate_hz`` in resumable, vectorized blocks.

@@ -63,7 +63,6 @@ def test_stationary_gyro_sees_earth_rate_in_body_axes(lat_deg):
     assert sim.effects_run == {"motion.stationary", "earth_rate"}
 
 
-
 def test_stationary_truth_repeated_from_one_time_equals_the_per_time_arithmetic():
     """At rest the simulator computes the truth and the specific force once and repeats it:
     the rows must be those the general path gives at every time (here a zero-speed straight
@@ -83,7 +82,9 @@ def test_stationary_truth_repeated_from_one_time_equals_the_per_time_arithmetic(
     b = SceneSimulator(general, 100.0, seed=4).next_block(700)
     for name in ("omega_ib_b", "truth_omega_ib_b", "truth_q_nb", "specific_force_b",
                  "position_llh", "velocity_enu"):
-        assert getattr(a, name) is not None and np.array_equal(getattr(a, name), getattr(b, name)), name
+        assert getattr(a, name) is not None, name
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+
 
 def test_earth_rotation_off_means_navigation_frame_is_inertial():
     d = scene(earth={"latitude_deg": 45.0, "rotation": False},
