@@ -164,8 +164,16 @@ def _exp_rotvec(v: np.ndarray) -> np.ndarray:
     theta = np.sqrt(theta2)
     small = theta < _SMALL_ANGLE
     # Taylor branch: sin(θ/2)/θ = 1/2 − θ²/48 + θ⁴/3840 − …, exact to < 1e-20 here.
-    safe = np.where(small, 1.0, theta)
-    k = np.where(small, 0.5 - theta2 / 48.0 + theta2 * theta2 / 3840.0, np.sin(0.5 * safe) / safe)
+    # Only the branch that some element takes is evaluated (a sensor's increments are
+    # usually all small, a coarse step all large): the same values as np.where of both.
+    if small.all():
+        k = 0.5 - theta2 / 48.0 + theta2 * theta2 / 3840.0
+    elif not small.any():
+        k = np.sin(0.5 * theta) / theta
+    else:
+        safe = np.where(small, 1.0, theta)
+        k = np.where(small, 0.5 - theta2 / 48.0 + theta2 * theta2 / 3840.0,
+                     np.sin(0.5 * safe) / safe)
     out = np.empty(v.shape[:-1] + (4,))
     out[..., :3] = v * k[..., None]
     out[..., 3] = np.cos(0.5 * theta)
@@ -182,23 +190,31 @@ def quat_from_rotvec(rotvec) -> np.ndarray:
 
 
 def _log_quat(q: np.ndarray) -> np.ndarray:
-    """Logarithm without validation for unit quaternions: rotation vector, |θ| <= π."""
-    # Take the shortest rotation: w >= 0. atan2 keeps full accuracy at both ends,
-    # where acos(w) loses half the digits near θ = 0 and asin(|v|) near θ = π.
-    q = np.where(q[..., 3:4] < 0, -q, q)
+    """Logarithm without validation: rotation vector, |θ| <= π, of a quaternion of any
+    nonzero norm (the angle from atan2 and the axis v/|v| do not depend on it)."""
+    # The shortest rotation: that of ±q with w >= 0 (its sign applied to k at the end, one
+    # 1-D pass instead of flipping q). atan2 keeps full accuracy at both ends, where acos(w)
+    # loses half the digits near θ = 0 and asin(|v|) near θ = π.
     v = q[..., :3]
-    s = np.linalg.norm(v, axis=-1)
     w = q[..., 3]
-    theta = 2.0 * np.arctan2(s, w)
+    s = np.sqrt(np.einsum("...i,...i->...", v, v))
+    theta = 2.0 * np.arctan2(s, np.abs(w))
     small = theta < _SMALL_ANGLE
-    # θ/sin(θ/2) with sin(θ/2) = s/|q|; Taylor branch 2(1 + θ²/24 + 7θ⁴/5760) divided by |q|.
-    norm = np.sqrt(s * s + w * w)
-    safe_s = np.where(small, 1.0, s)
-    k = np.where(
-        small,
-        (2.0 + theta * theta / 12.0 + 7.0 * theta**4 / 2880.0) / np.where(small, norm, 1.0),
-        theta / safe_s,
-    )
+    # θ/sin(θ/2) with sin(θ/2) = s/|q|; Taylor branch 2(1 + θ²/24 + 7θ⁴/5760) divided by |q|
+    # (evaluated only when some element takes it).
+    if small.all():
+        k = (2.0 + theta * theta / 12.0 + 7.0 * theta**4 / 2880.0) / np.sqrt(s * s + w * w)
+    elif small.any():
+        norm = np.sqrt(s * s + w * w)
+        safe_s = np.where(small, 1.0, s)
+        k = np.where(
+            small,
+            (2.0 + theta * theta / 12.0 + 7.0 * theta**4 / 2880.0) / np.where(small, norm, 1.0),
+            theta / safe_s,
+        )
+    else:
+        k = theta / s
+    k = np.where(w < 0, -k, k)
     return v * k[..., None]
 
 

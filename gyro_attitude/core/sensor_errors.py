@@ -346,7 +346,10 @@ class SensorErrorModel:
         # Walk value at the start of each interval (a running sum that continues from the
         # carried state in the same order of additions, so any split into blocks gives the
         # same bits), then the interval average around it.
-        walk = np.cumsum(np.concatenate([self._rrw_state[None], steps]), axis=0)
+        walk = np.empty((n + 1, 3))
+        walk[0] = self._rrw_state
+        walk[1:] = steps
+        np.cumsum(walk, axis=0, out=walk)
         self._rrw_state = walk[-1].copy()
         return walk[:-1] + k_sqrt_dt * (0.5 * z[:, 0] + z[:, 1] / math.sqrt(12.0))
 

@@ -47,19 +47,26 @@ def normalize_rows(q: np.ndarray) -> np.ndarray:
     return q / np.sqrt(np.einsum("...i,...i->...", q, q))[..., None]
 
 
+#: Rows of the blocked scan in :func:`prefix_product` (below 3·this many factors, the
+#: plain loop).
+_SCAN_ROWS = 16
+
+
 def prefix_product(d: np.ndarray) -> np.ndarray:
     """Inclusive right prefix product ``P_k = d_0 ⊗ d_1 ⊗ … ⊗ d_k`` of unit quaternions.
 
     Blocked scan (a hand-written scan because numpy has no associative scan for a
-    non-commutative product): the M factors are laid out as ``L ≈ √M`` rows of ``B``
+    non-commutative product): the M factors are laid out as ``L`` rows of ``B = M/L``
     blocks; one vectorized quaternion product per row scans all blocks at once (L numpy
     calls on length-B arrays), the B block totals are scanned recursively, and each block
     is multiplied by the normalized product of the blocks before it.  Work O(M), numpy
-    calls O(√M).  The result differs from the left-to-right sequential product only by
-    rounding reassociation (~1e-16 per factor, random-walk).
+    calls O(L log_L M).  ``L`` = :data:`_SCAN_ROWS`: few long rows, so that the fixed cost
+    of each ufunc call is spread over M/L elements (with ``L = √M`` it dominated at the
+    chunk size).  The result differs from the left-to-right sequential product only by
+    rounding reassociation (~1e-16 per factor and level, random-walk).
     """
     m = d.shape[0]
-    if m <= 48:
+    if m <= 3 * _SCAN_ROWS:
         out = np.empty_like(d)
         if m == 0:
             return out
@@ -73,7 +80,7 @@ def prefix_product(d: np.ndarray) -> np.ndarray:
                               aw * bw - ax * bx - ay * by - az * bz)
             out[i] = (ax, ay, az, aw)
         return out
-    rows = max(8, int(math.sqrt(m)))
+    rows = _SCAN_ROWS
     nb = -(-m // rows)
     pad = nb * rows - m
     if pad:
@@ -200,13 +207,12 @@ def _chunk_attitudes(local: _ChunkLocal, start, out) -> None:
     ``start`` carried into it."""
     n, b, a = local.n_per_update, local.b, local.a
     if n == 1:
-        if a is None:
-            # start ⊗ B_k is linear in B_k: one (m, 4) x (4, 4) product, the hot path of
-            # every replay without a nav frame.  einsum's own loop, not matmul: OpenBLAS
-            # would start threads that spin on the core the chunk workers need.
-            np.einsum("ij,kj->ik", b, _left_product_matrix(start), out=out)
-        else:
-            out[:] = _qmul(a, _qmul(start, b))
+        # start ⊗ B_k is linear in B_k: one (m, 4) x (4, 4) product, the hot path of every
+        # replay without a nav frame.  einsum's own loop, not matmul: OpenBLAS would start
+        # threads that spin on the core the chunk workers need.
+        np.einsum("ij,kj->ik", b, _left_product_matrix(start), out=out)
+        if a is not None:
+            out[:] = _qmul(a, out)
         out /= np.sqrt(np.einsum("ij,ij->i", out, out))[:, None]
         return
     m = b.shape[0]
