@@ -175,8 +175,9 @@ def _exp_rotvec(v: np.ndarray) -> np.ndarray:
         k = np.where(small, 0.5 - theta2 / 48.0 + theta2 * theta2 / 3840.0,
                      np.sin(0.5 * safe) / safe)
     out = np.empty(v.shape[:-1] + (4,))
-    out[..., :3] = v * k[..., None]
-    out[..., 3] = np.cos(0.5 * theta)
+    # written in place: no (M, 3) temporary
+    np.multiply(v, k[..., None], out=out[..., :3])
+    np.cos(0.5 * theta, out=out[..., 3])
     return out
 
 

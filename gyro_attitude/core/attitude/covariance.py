@@ -27,15 +27,15 @@ sensor whose three axes have equal noise and bias uncertainty (then ``C_nb δb``
 statistics as ``δb``), a per-axis approximation otherwise.  Correlations between axes are not
 carried (a 3×3 diagonal covariance is published).
 
-:func:`propagate_batch` is the same recurrence over arrays for a stretch without zero-rate or
-aiding updates (cumulative sums in the same order as the per-sample adds: identical numbers).
+:meth:`AttitudeCovariance.run` is the same recurrence over arrays (cumulative sums in the same
+order as the per-row adds: identical numbers).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["AttitudeCovariance", "propagate_batch"]
+__all__ = ["AttitudeCovariance"]
 
 
 class AttitudeCovariance:
@@ -126,6 +126,9 @@ class AttitudeCovariance:
         m = dt.shape[0]
         if m == 0:
             return np.zeros((0, 3))
+        if first_rest is None and not (reset is not None and reset.any()) and not (
+                zero_rate is not None and zero_rate.any()):
+            return self._run_without_updates(dt, np.asarray(q, dtype=np.float64))
         none = np.zeros(m, dtype=bool)
         reset = none if reset is None else reset
         zero_rate = none if zero_rate is None else zero_rate
@@ -159,6 +162,22 @@ class AttitudeCovariance:
         tb_before = _before(tb_after, tb_start, tb_base, self.tb)
         incr = (q - (2.0 * d) * tb_before) + (d * d) * bb_before
         tt_after = _restarted_sums(incr, tt_start, tt_base, self.tt)
+        self.tt, self.tb, self.bb = tt_after[-1].copy(), tb_after[-1].copy(), bb_after[-1].copy()
+        self.noise = noise_after[-1].copy()
+        return tt_after
+
+    def _run_without_updates(self, dt: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """:meth:`run` over rows with no reset, zero-rate or first-rest update (a motion, or
+        the whole of a run without bias estimation): one segment, so every quantity is one
+        running sum from the carried state, the general path's additions without its
+        segment bookkeeping (the same numbers)."""
+        d = dt[:, None]
+        bb_after = _running_sum(self.k2 * d * np.ones((1, 3)), self.bb)
+        bb_before = _shifted(bb_after, self.bb)
+        noise_after = _running_sum(q, self.noise)
+        tb_after = _running_sum(-(d * bb_before), self.tb)
+        incr = (q - (2.0 * d) * _shifted(tb_after, self.tb)) + (d * d) * bb_before
+        tt_after = _running_sum(incr, self.tt)
         self.tt, self.tb, self.bb = tt_after[-1].copy(), tb_after[-1].copy(), bb_after[-1].copy()
         self.noise = noise_after[-1].copy()
         return tt_after
@@ -205,6 +224,21 @@ def _restarted_sums(x: np.ndarray, start: np.ndarray, base: np.ndarray, initial)
     return out
 
 
+def _running_sum(x: np.ndarray, initial) -> np.ndarray:
+    """``out[r] = ((initial + x[0]) + x[1]) + … + x[r]`` (a new array; ``x`` is kept)."""
+    out = np.array(x, dtype=np.float64)
+    out[0] = np.asarray(initial, dtype=np.float64) + x[0]
+    return np.cumsum(out, axis=0, out=out)
+
+
+def _shifted(after: np.ndarray, initial) -> np.ndarray:
+    """The value entering each row of one segment: ``initial``, then the rows of ``after``."""
+    out = np.empty_like(after)
+    out[0] = initial
+    out[1:] = after[:-1]
+    return out
+
+
 def _before(after: np.ndarray, start: np.ndarray, base: np.ndarray, initial) -> np.ndarray:
     """The value entering each row: the previous row's ``after``, or ``base`` where a row
     starts anew (``initial`` at row 0 otherwise)."""
@@ -213,37 +247,3 @@ def _before(after: np.ndarray, start: np.ndarray, base: np.ndarray, initial) -> 
     out[1:] = after[:-1]
     out[start] = base[start]
     return out
-
-
-def propagate_batch(dt_s: np.ndarray, q: np.ndarray, reset: np.ndarray, tt0: np.ndarray,
-                    bb0: np.ndarray, k2: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``tt`` (M, 3) after each row of a stretch without zero-rate or aiding updates, and
-    ``tb``, ``bb`` (3,) after the last row.
-
-    ``dt_s`` (M,) interval ending at each row (0 where nothing is integrated: the first row, a
-    restart after a gap, a reset); ``q`` (M, 3) angle-random-walk increments (0 likewise);
-    ``reset`` (M,) bool rows where the attitude is reset to ``tt0`` (row 0 always starts there);
-    ``bb0`` (3,) bias variance at row 0.  Same operations in the same order as
-    :meth:`AttitudeCovariance.propagate`, as sequential cumulative sums.
-    """
-    m = dt_s.shape[0]
-    d = dt_s[:, None]
-    g = np.empty((m, 3))
-    g[0] = bb0
-    g[1:] = k2 * d[1:]
-    bb = np.cumsum(g, axis=0)
-    out = np.empty((m, 3))
-    tb = np.zeros((1, 3))
-    starts = np.flatnonzero(reset)
-    bounds = np.concatenate(([0], starts[starts > 0], [m]))
-    for b0, b1 in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
-        gtb = np.empty((b1 - b0, 3))
-        gtb[0] = 0.0
-        gtb[1:] = -(d[b0 + 1:b1] * bb[b0:b1 - 1])
-        tb = np.cumsum(gtb, axis=0)
-        gtt = np.empty((b1 - b0, 3))
-        gtt[0] = tt0
-        dd = d[b0 + 1:b1]
-        gtt[1:] = (q[b0 + 1:b1] - (2.0 * dd) * tb[:-1]) + (dd * dd) * bb[b0:b1 - 1]
-        out[b0:b1] = np.cumsum(gtt, axis=0)
-    return out, tb[-1].copy(), bb[-1].copy()

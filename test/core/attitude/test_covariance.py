@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from gyro_attitude.core.attitude.covariance import AttitudeCovariance, propagate_batch
+from gyro_attitude.core.attitude.covariance import AttitudeCovariance
 from gyro_attitude.core.attitude.stream import AttitudeStream, StreamConfig
 
 G = 9.80665
@@ -82,28 +82,53 @@ def test_error_within_1_and_3_sigma_over_100_seeds(mode):
     assert within3 >= 0.99
 
 
-def test_batch_recurrence_equals_per_sample():
-    rng = np.random.default_rng(1)
-    m = 500
-    dt = rng.uniform(0.001, 0.02, m)
-    dt[0] = 0.0
-    dt[[100, 300]] = 0.0  # a gap restart and a reset integrate nothing
-    q = rng.uniform(0, 1e-6, (m, 3)) * (dt[:, None] > 0)
-    reset = np.zeros(m, bool)
-    reset[300] = True
-    c = AttitudeCovariance([1e-4, 2e-4, 3e-4], bias_sigma=0.01, bias_rw=1e-3)
+def _per_row(c, dt, q, reset, zero_rate, se):
+    """tt after each row by the per-row updates, in run()'s documented order."""
     rows = []
-    for k in range(m):
+    for k in range(dt.shape[0]):
         if reset[k]:
             c.reset_attitude()
-        elif dt[k] > 0:
-            c.propagate(float(dt[k]), q[k])
+        if zero_rate[k]:
+            c.zero_rate_update(se[k])
+        c.propagate(float(dt[k]), q[k])
         rows.append(c.tt.copy())
-    tt, tb, bb = propagate_batch(dt, q, reset, np.array([1e-4, 2e-4, 3e-4]), np.full(3, 1e-4),
-                                 1e-6)
-    np.testing.assert_allclose(tt, np.array(rows), rtol=1e-13, atol=0)
-    np.testing.assert_allclose(tb, c.tb, rtol=1e-12, atol=0)
-    np.testing.assert_allclose(bb, c.bb, rtol=1e-13, atol=0)
+    return np.array(rows)
+
+
+def _rows(m, seed):
+    rng = np.random.default_rng(seed)
+    dt = rng.uniform(0.001, 0.02, m)
+    dt[0] = 0.0
+    q = rng.uniform(0, 1e-6, (m, 3)) * (dt[:, None] > 0)
+    return dt, q, rng.uniform(1e-4, 1e-3, (m, 3))
+
+
+@pytest.mark.parametrize("events", ["none", "reset", "zero_rate"])
+def test_array_run_equals_the_per_row_updates_across_chunks(events):
+    """run() over two chunks (the state carried between them) gives the per-row updates'
+    numbers, bit for bit, with and without updates inside the chunks."""
+    m = 500
+    dt, q, se = _rows(m, 1)
+    reset = np.zeros(m, bool)
+    zero_rate = np.zeros(m, bool)
+    if events == "reset":
+        dt[[100, 300]] = 0.0  # a gap restart and a reset integrate nothing
+        q[[100, 300]] = 0.0
+        reset[300] = True
+    elif events == "zero_rate":
+        zero_rate[150:170] = True
+    args = ([1e-4, 2e-4, 3e-4],)
+    kw = {"bias_sigma": 0.01, "bias_rw": 1e-3}
+    c = AttitudeCovariance(*args, **kw)
+    c.tt = [5e-4, 6e-4, 7e-4]  # a state that is not the initial one
+    ref = AttitudeCovariance(*args, **kw)
+    ref.tt = c.tt
+    want = _per_row(ref, dt, q, reset, zero_rate, se)
+    got = np.concatenate([c.run(dt[a:b], q[a:b], reset[a:b], zero_rate[a:b], se[a:b])
+                          for a, b in ((0, 230), (230, m))])
+    np.testing.assert_array_equal(got, want)
+    for name in ("tt", "tb", "bb", "noise"):
+        np.testing.assert_array_equal(getattr(c, name), getattr(ref, name))
 
 
 def test_closed_form_bias_and_noise_growth():
