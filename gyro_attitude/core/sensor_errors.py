@@ -388,9 +388,9 @@ class SensorErrorModel:
         if "rate_random_walk" in act:
             y += self._rate_random_walk(n)
         if "white_noise" in act:
-            y += (self.params.noise_density / np.sqrt(self.dt)) * self._noise_rng.standard_normal(
-                (n, 3)
-            )
+            w = self._noise_rng.standard_normal((n, 3))
+            w *= self.params.noise_density / np.sqrt(self.dt)  # in place: no second (n, 3)
+            y += w
         if "quantization" in act:
             y = self._quantize(y)
         self.effects_run.update(act)
