@@ -25,6 +25,11 @@ arrives (in completion order: the caller files it under ``i``).
   (:func:`gyro_attitude.core.attitude.compose.set_prepare_threads` 0, and one BLAS/OpenMP
   thread in the pool): the workers are the parallelism, and threads of their own beside them
   on the same cores only add switching.
+* Every local worker process, and this one when it runs tasks, keeps the memory of freed
+  arrays for the next ones (:func:`gyro_attitude.offline.allocator.keep_freed_memory`): a
+  task's arrays of a chunk's size would otherwise be mapped and faulted in afresh each time,
+  and most of all in a new worker.  Dask's workers are the cluster's processes: left as they
+  are.
 * ``scheduler``: a running ``dask.distributed`` scheduler at that address; Dask is imported only
   then.  The scheduler itself re-runs the tasks of a lost worker (its ``allowed-failures``
   setting, 3 by default); a task that killed too many workers is reported as failed.
@@ -54,6 +59,7 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 
 from gyro_attitude.core.attitude.compose import set_prepare_threads
+from gyro_attitude.offline.allocator import keep_freed_memory
 
 __all__ = ["POOL_RESTARTS", "CONNECT_TIMEOUT_S", "default_workers", "run_tasks",
            "SchedulerUnreachable", "TaskCost"]
@@ -140,10 +146,12 @@ def _dask_call(fn, arg):
 def _worker_init() -> None:
     """A worker ignores Ctrl-C (the command decides) and ends its task on SIGTERM by an
     exception, so that the task's clean-up runs (a half-written output is removed) before
-    the process ends; it composes attitudes single-threaded (the module docstring)."""
+    the process ends; it composes attitudes single-threaded and keeps freed array memory for
+    reuse (the module docstring)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _stop_on_sigterm)
     set_prepare_threads(0)
+    keep_freed_memory()
 
 
 def _context():
@@ -229,6 +237,7 @@ def run_tasks(fn: Callable, args: Sequence, on_result: Callable[[int, object], N
     if scheduler is not None:
         _run_dask(fn, args, done, scheduler, connect_timeout_s)
         return TaskCost(None, 0, None)
+    keep_freed_memory()  # this process runs tasks too (all of them with one worker)
     if workers == 1 or len(args) <= 1:
         cpu0 = _process_cpu_s()
         for i, a in enumerate(args):

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import os
+import platform
 import time
 
 import pytest
 
 from gyro_attitude.core.attitude import compose
-from gyro_attitude.offline import parallel
+from gyro_attitude.offline import allocator, parallel
 
 
 def _square_or_die_once(arg):
@@ -23,12 +24,12 @@ def _square_or_die_once(arg):
 
 def _burn(seconds):
     """Worker task: spends ``seconds`` of its process's CPU; returns what it spent, the
-    composition threads of its process and its pid."""
+    composition threads of its process, its pid and whether its allocator keeps freed memory."""
     c0 = time.process_time()
     x = 0
     while time.process_time() - c0 < seconds:
         x += 1
-    return time.process_time() - c0, compose._prepare_threads, os.getpid()
+    return time.process_time() - c0, compose._prepare_threads, os.getpid(), allocator._applied
 
 
 def _raise_on_two(x):
@@ -61,6 +62,9 @@ def test_pool_workers_compose_single_threaded_and_their_cpu_is_counted():
     cost = parallel.run_tasks(_burn, [0.15] * 4, out.__setitem__, workers=2)
     spent = sum(v[0] for v in out.values())
     assert {v[1] for v in out.values()} == {0}  # no chunk threads beside the workers
+    on_glibc = platform.system() == "Linux" and platform.libc_ver()[0] == "glibc"
+    if "MALLOC_MMAP_THRESHOLD_" not in os.environ and "MALLOC_TRIM_THRESHOLD_" not in os.environ:
+        assert {v[3] for v in out.values()} == {on_glibc}  # freed memory kept for reuse
     assert cost.processes == len({v[2] for v in out.values()}) >= 1
     assert os.getpid() not in {v[2] for v in out.values()}
     # each worker's whole life is counted: at least what the tasks spent, not the parent's
