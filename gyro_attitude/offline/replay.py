@@ -158,6 +158,18 @@ def _check_inputs(frame: str, nav) -> None:
         raise ValueError("frame 'enu' needs a NavFrame (latitude); 'inertial' takes none")
 
 
+def _check_distinct_topics(imu: str, truth: str, odometry: str | None, mag: str | None) -> None:
+    """Each role its own topic: one topic read as two message types would be decoded as
+    the wrong one (the reader keeps one type per topic)."""
+    roles = [("--imu-topic", imu), ("--truth-topic", truth)]
+    roles += [(flag, t) for flag, t in (("--odometry-topic", odometry), ("--mag-topic", mag)) if t]
+    for i, (flag_a, a) in enumerate(roles):
+        for flag_b, b in roles[i + 1:]:
+            if a.lstrip("/") == b.lstrip("/"):  # "imu/x" names "/imu/x" in a root bag
+                raise ValueError(f"{flag_b} {b!r} is also the {flag_a}: each of the Imu, "
+                                 f"truth, odometry and magnetometer needs its own topic")
+
+
 def _alignment_summary(a) -> dict:
     return {"roll_deg": math.degrees(a.roll), "pitch_deg": math.degrees(a.pitch),
             "heading_deg": math.degrees(a.heading), "heading_source": a.heading_source,
@@ -315,6 +327,8 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         raise ValueError(f"config must be a StreamConfig, got {type(config).__name__}")
     estimator = parse_mode(Estimator, estimator, "estimator")
     config = _with_overrides(config or StreamConfig(), frame, initial_attitude)
+    _check_distinct_topics(imu_topic, truth_topic, odometry_topic,
+                           mag_topic if config.aiding is Aiding.MAGNETOMETER else None)
     frame = config.frame.value
     if nav is None:
         nav = config.nav_frame()

@@ -282,6 +282,24 @@ def test_output_paths_are_checked_before_the_work(tmp_path, capsys):
     assert rc == 1 and "does not exist" in _one_line(capsys.readouterr().err)
 
 
+@pytest.mark.parametrize("extra", [
+    ["--truth-topic", "imu/data_raw"],
+    ["--truth-topic", "/imu/data_raw"],
+    ["--odometry-topic", "truth/attitude", "--frame", "enu", "--latitude-deg", "45"],
+    ["--aiding", "magnetometer", "--mag-topic", "imu/data_raw"],
+])
+def test_one_topic_given_two_roles_is_refused_in_one_line(tmp_path, capsys, extra):
+    """The reader keeps one message type per topic: a topic named for the Imu and the truth
+    (or odometry, or the field) would be decoded as the wrong one."""
+    sample = REPO / "bags" / "coning_200hz.mcap"
+    out = tmp_path / "o.mcap"
+    rc = cli_main(["replay", str(sample), "--out", str(out), "--imu-topic", "imu/data_raw",
+                   *extra])
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 1 and "needs its own topic" in line and extra[1] in line
+    assert not out.exists()
+
+
 def test_bad_arguments_one_line_exit_2(tmp_path, capsys):
     sample = REPO / "bags" / "coning_200hz.mcap"
     for extra in (["--latitude-deg", "nan", "--frame", "enu"], ["--compression", "gzip"],
