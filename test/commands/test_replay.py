@@ -588,9 +588,10 @@ def test_odometry_topic_sets_the_transport_rate_as_the_node_does(tmp_path, capsy
         assert cli_main([*common, "--out", str(tmp_path / f"{name}.mcap"), *extra]) == 0
         final[name] = json.loads(capsys.readouterr().out)["final_error_rad"]
     assert final["odom"] < 1e-6 and final["plain"] > 100 * final["odom"], final
-    # the topic must be an Odometry one, and enu is needed
+    # the topic must be an Odometry one, and enu is needed (the truth's topic given as the
+    # odometry, the truth named elsewhere: one role each)
     rc = cli_main([*common, "--out", str(tmp_path / "x.mcap"), "--odometry-topic",
-                   "truth/attitude"])
+                   "truth/attitude", "--truth-topic", "truth/elsewhere"])
     assert rc == 1 and "not nav_msgs/msg/Odometry" in _one_line(capsys.readouterr().err)
 
 
