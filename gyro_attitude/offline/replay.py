@@ -26,6 +26,7 @@ import numpy as np
 
 from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, DEFAULT_OFFLINE_ALGORITHM, NavFrame
 from gyro_attitude.core.attitude import validation as iv
+from gyro_attitude.core.attitude.input_topics import shared_topic, shared_topic_message
 from gyro_attitude.core.attitude.modes import Aiding, Estimator, InitialAttitudeSource, parse_mode
 from gyro_attitude.core.attitude.nav_frame import velocity_series
 from gyro_attitude.core.attitude.offline import estimate_offline
@@ -159,15 +160,12 @@ def _check_inputs(frame: str, nav) -> None:
 
 
 def _check_distinct_topics(imu: str, truth: str, odometry: str | None, mag: str | None) -> None:
-    """Each role its own topic: one topic read as two message types would be decoded as
-    the wrong one (the reader keeps one type per topic)."""
-    roles = [("--imu-topic", imu), ("--truth-topic", truth)]
-    roles += [(flag, t) for flag, t in (("--odometry-topic", odometry), ("--mag-topic", mag)) if t]
-    for i, (flag_a, a) in enumerate(roles):
-        for flag_b, b in roles[i + 1:]:
-            if a.lstrip("/") == b.lstrip("/"):  # "imu/x" names "/imu/x" in a root bag
-                raise ValueError(f"{flag_b} {b!r} is also the {flag_a}: each of the Imu, "
-                                 f"truth, odometry and magnetometer needs its own topic")
+    """One role per topic (:mod:`.input_topics`); "imu/x" names "/imu/x" in a bag."""
+    roles = [("--imu-topic", imu), ("--truth-topic", truth), ("--odometry-topic", odometry),
+             ("--mag-topic", mag)]
+    shared = shared_topic((flag, t.lstrip("/")) for flag, t in roles if t)
+    if shared is not None:
+        raise ValueError(shared_topic_message(*shared))
 
 
 def _alignment_summary(a) -> dict:

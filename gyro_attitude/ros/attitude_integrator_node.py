@@ -79,6 +79,7 @@ from sensor_msgs.msg import Imu, MagneticField
 
 from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, causal_algorithms
 from gyro_attitude.core.attitude import validation as iv
+from gyro_attitude.core.attitude.input_topics import shared_topic, shared_topic_message
 from gyro_attitude.core.attitude.modes import Aiding, InitialAttitudeSource, SettingError
 from gyro_attitude.core.attitude.nav_frame import VelocitySchedule
 from gyro_attitude.core.attitude.sample_alignment import LatestSamples
@@ -207,6 +208,7 @@ class AttitudeIntegratorNode(Node):
         # every input takes the one QoS rule: best effort (the default) matches any publisher,
         # reliable ones and the best-effort republishing of a bag without offered profiles
         qos = imu_qos(p["qos_reliability"], p["qos_depth"])
+        self._check_distinct_topics(p, config)
         # serialized (raw): read in place and republished with the orientation filled in
         # (ImuCdr), instead of a Python message built and serialized per sample
         self._sub_imu = self.create_subscription(Imu, "imu/data_raw", self._on_imu_wakeup, qos,
@@ -235,6 +237,20 @@ class AttitudeIntegratorNode(Node):
         )
 
     # ------------------------------------------------------------------ set-up helpers
+    def _check_distinct_topics(self, p, config) -> None:
+        """One input per topic (:mod:`~gyro_attitude.core.attitude.input_topics`), the names
+        resolved (namespace and remappings applied)."""
+        inputs = [("imu/data_raw", "imu/data_raw")]
+        if self._truth_start is not None:
+            inputs.append(("truth/attitude", "truth/attitude"))
+        if p["odometry_topic"] and self._nav is not None:
+            inputs.append(("parameter 'odometry_topic'", p["odometry_topic"]))
+        if config.aiding is Aiding.MAGNETOMETER:
+            inputs.append(("parameter 'mag_topic'", p["mag_topic"]))
+        shared = shared_topic((role, self.resolve_topic_name(t)) for role, t in inputs)
+        if shared is not None:
+            raise ParameterError(shared_topic_message(*shared))
+
     @staticmethod
     def _stream_config(p) -> StreamConfig:
         return StreamConfig(**{s.name: p[s.name] for s in SETTINGS})

@@ -268,6 +268,11 @@ def test_invalid_parameters_refused_at_start(launch):
         (INTEGRATOR, ["-p", "max_gap_s:=-1.0"], "max_gap_s"),
         (INTEGRATOR, ["-p", "frame:=ecef"], "frame"),
         (INTEGRATOR, ["-p", "initial_attitude:=[0.0, 0.0, 1.0]"], "initial_attitude"),
+        # one topic as two inputs of different types (the resolved names compared)
+        (INTEGRATOR, ["-p", "initial_attitude_source:=truth", "-p", "aiding:=magnetometer",
+                      "-p", "mag_topic:=truth/attitude"], "mag_topic"),
+        (INTEGRATOR, ["-p", "frame:=enu", "-p", "latitude_rad:=0.8", "-p",
+                      "odometry_topic:=imu/data_raw"], "odometry_topic"),
         (SIM, ["-p", "rate_hz:=-5.0"], "rate_hz"),
         (SIM, ["-p", "time_mode:=slow"], "time_mode"),
         (SIM, ["-p", "scene:=no_such_scene_xyz"], "scene"),
