@@ -10,8 +10,6 @@ subcommand's heavy imports (rclpy, matplotlib) are paid only by that subcommand.
 from __future__ import annotations
 
 import argparse
-import ctypes
-import ctypes.util
 import importlib
 import os
 import signal
@@ -20,6 +18,7 @@ import threading
 
 from gyro_attitude import __version__
 from gyro_attitude.io.ament_prefix import ensure_ament_prefix_path
+from gyro_attitude.offline.allocator import keep_freed_memory
 
 # name -> one-line help; the module gyro_attitude.commands.<name> implements it.
 SUBCOMMANDS: dict[str, str] = {
@@ -90,29 +89,6 @@ class _Interrupt:
         if threading.current_thread() is threading.main_thread():
             for sig in _Interrupt.SIGNALS:
                 signal.signal(sig, signal.SIG_IGN)
-
-
-def keep_freed_memory() -> None:
-    """Let this process reuse the memory it frees instead of handing it back to the kernel.
-
-    glibc's malloc returns large freed blocks to the kernel at once (blocks above its mmap
-    threshold, and free space above the trim threshold at the heap's top), so each new
-    recording-sized numpy temporary is page-faulted in again, page by page.  A replay of
-    600 k messages spent 0.4-0.5 s of system time that way; with the thresholds raised,
-    0.1-0.15 s.  Only for the short-lived command process (its peak memory is kept until
-    exit); a no-op where the C library is not glibc.
-    """
-    name = ctypes.util.find_library("c")
-    if not name:
-        return
-    try:
-        mallopt = ctypes.CDLL(name).mallopt
-    except (OSError, AttributeError):
-        return
-    m_trim_threshold, m_top_pad, m_mmap_threshold = -1, -2, -3  # <malloc.h>
-    mallopt(m_mmap_threshold, 32 << 20)  # glibc's largest allowed value (64-bit)
-    mallopt(m_trim_threshold, 1 << 30)
-    mallopt(m_top_pad, 64 << 20)
 
 
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, what a shell reports for a command stopped by Ctrl-C

@@ -340,8 +340,8 @@ def run_one(spec: SceneSpec, setup: MonteCarloSetup, index: int, seed: int, labe
     else:
         q_true = block.truth_q_nb[sample]
     # the body-frame error at every attitude (its RMS); the rest at the grid and the end only.
-    # Kernels without the public functions' finiteness checks: both inputs are unit
-    # quaternions the simulator and the estimator guarantee (the same arithmetic).
+    # Kernels without the public functions' finiteness and norm checks: both inputs are unit
+    # quaternions the simulator and the estimator guarantee.
     body_sq, body_final = _body_error_sums(q_true, res.q)
     grid = setup.grid_indices()
     pos = np.searchsorted(sample, grid, side="right") - 1

@@ -25,11 +25,11 @@ arrives (in completion order: the caller files it under ``i``).
   (:func:`gyro_attitude.core.attitude.compose.set_prepare_threads` 0, and one BLAS/OpenMP
   thread in the pool): the workers are the parallelism, and threads of their own beside them
   on the same cores only add switching.
-* Every local worker process, and this one when it runs tasks, keeps the memory of freed
-  arrays for the next ones (:func:`gyro_attitude.offline.allocator.keep_freed_memory`): a
-  task's arrays of a chunk's size would otherwise be mapped and faulted in afresh each time,
-  and most of all in a new worker.  Dask's workers are the cluster's processes: left as they
-  are.
+* Every local worker process keeps the memory of freed arrays for the next ones
+  (:func:`gyro_attitude.offline.allocator.keep_freed_memory`, as the command-line process
+  does): a task's chunk-sized arrays would otherwise be mapped and faulted in afresh each
+  time, and most of all in a new worker.  The caller's process and Dask's workers are left as
+  they are.
 * ``scheduler``: a running ``dask.distributed`` scheduler at that address; Dask is imported only
   then.  The scheduler itself re-runs the tasks of a lost worker (its ``allowed-failures``
   setting, 3 by default); a task that killed too many workers is reported as failed.
@@ -237,7 +237,6 @@ def run_tasks(fn: Callable, args: Sequence, on_result: Callable[[int, object], N
     if scheduler is not None:
         _run_dask(fn, args, done, scheduler, connect_timeout_s)
         return TaskCost(None, 0, None)
-    keep_freed_memory()  # this process runs tasks too (all of them with one worker)
     if workers == 1 or len(args) <= 1:
         cpu0 = _process_cpu_s()
         for i, a in enumerate(args):

@@ -321,6 +321,8 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                         ("mag_topic", mag_topic)):
         if not isinstance(value, str) or not value:
             raise ValueError(f"{name} must be a topic name, got {value!r}")
+    if odometry_topic is not None and not isinstance(odometry_topic, str):
+        raise ValueError(f"odometry_topic must be a topic name or None, got {odometry_topic!r}")
     if config is not None and not isinstance(config, StreamConfig):
         raise ValueError(f"config must be a StreamConfig, got {type(config).__name__}")
     estimator = parse_mode(Estimator, estimator, "estimator")

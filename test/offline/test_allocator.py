@@ -25,7 +25,8 @@ print(applied, resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0)
 
 
 def _run(call: bool, **env) -> tuple[str, int]:
-    clean = {k: v for k, v in os.environ.items() if not k.startswith("MALLOC_")}
+    clean = {k: v for k, v in os.environ.items()
+             if not k.startswith("MALLOC_") and k != "GLIBC_TUNABLES"}
     out = subprocess.run([sys.executable, "-c", _PATTERN, "1" if call else "0"],
                          env={**clean, **env}, capture_output=True, text=True, timeout=60,
                          check=True).stdout.split()
@@ -42,6 +43,8 @@ def test_freed_arrays_are_reused_instead_of_faulted_in_again():
 
 
 @glibc
-def test_the_users_own_malloc_setting_wins():
-    applied, _ = _run(True, MALLOC_MMAP_THRESHOLD_="131072")
+@pytest.mark.parametrize("env", [{"MALLOC_MMAP_THRESHOLD_": "131072"},
+                                 {"GLIBC_TUNABLES": "glibc.malloc.trim_threshold=131072"}])
+def test_the_users_own_malloc_setting_wins(env):
+    applied, _ = _run(True, **env)
     assert applied == "False"

@@ -47,7 +47,7 @@ def normalize_rows(q: np.ndarray) -> np.ndarray:
     return q / np.sqrt(np.einsum("...i,...i->...", q, q))[..., None]
 
 
-#: Rows of the blocked scan in :func:`prefix_product` (below 3·this many factors, the
+#: Rows of the blocked scan in :func:`prefix_product` (up to 3·this many factors, the
 #: plain loop).
 _SCAN_ROWS = 16
 
@@ -207,9 +207,9 @@ def _chunk_attitudes(local: _ChunkLocal, start, out) -> None:
     ``start`` carried into it."""
     n, b, a = local.n_per_update, local.b, local.a
     if n == 1:
-        # start ⊗ B_k is linear in B_k: one (m, 4) x (4, 4) product, the hot path of every
-        # replay without a nav frame.  einsum's own loop, not matmul: OpenBLAS would start
-        # threads that spin on the core the chunk workers need.
+        # start ⊗ B_k is linear in B_k: one (m, 4) x (4, 4) product (then the nav frame's
+        # A_k on the left, when there is one).  einsum's own loop, not matmul: OpenBLAS
+        # would start threads that spin on the core the chunk workers need.
         np.einsum("ij,kj->ik", b, _left_product_matrix(start), out=out)
         if a is not None:
             out[:] = _qmul(a, out)

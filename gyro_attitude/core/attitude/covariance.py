@@ -119,13 +119,16 @@ class AttitudeCovariance:
         ``zero_rate[r]``, and :meth:`first_rest_update` at ``first_rest = (row, standard
         error, elapsed_s)``.  Returns ``tt`` (R, 3) after each row and leaves the state after
         the last.  Each quantity is a sum restarted where an update sets it (segmented
-        cumulative sums), so the loop runs over nothing: the numbers agree with the per-row
-        updates to rounding (~1e-16 relative).
+        cumulative sums), so the loop runs over nothing: the additions are the per-row updates'
+        in their order, the same numbers (``test_covariance`` checks resets and zero-rate rows bit
+        for bit).
         """
         dt = np.asarray(dt_s, dtype=np.float64)
         m = dt.shape[0]
         if m == 0:
             return np.zeros((0, 3))
+        reset = None if reset is None else np.asarray(reset, dtype=bool)
+        zero_rate = None if zero_rate is None else np.asarray(zero_rate, dtype=bool)
         if first_rest is None and not (reset is not None and reset.any()) and not (
                 zero_rate is not None and zero_rate.any()):
             return self._run_without_updates(dt, np.asarray(q, dtype=np.float64))

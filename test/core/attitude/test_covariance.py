@@ -103,11 +103,12 @@ def _rows(m, seed):
     return dt, q, rng.uniform(1e-4, 1e-3, (m, 3))
 
 
-@pytest.mark.parametrize("events", ["none", "reset", "zero_rate"])
-def test_array_run_equals_the_per_row_updates_across_chunks(events):
+@pytest.mark.parametrize("events, m", [("none", 500), ("reset", 500), ("zero_rate", 500),
+                                       ("none", 12)])
+def test_array_run_equals_the_per_row_updates_across_chunks(events, m):
     """run() over two chunks (the state carried between them) gives the per-row updates'
-    numbers, bit for bit, with and without updates inside the chunks."""
-    m = 500
+    numbers, bit for bit, with and without updates inside the chunks (and chunks shorter than
+    the general path's cumulative-sum threshold)."""
     dt, q, se = _rows(m, 1)
     reset = np.zeros(m, bool)
     zero_rate = np.zeros(m, bool)
@@ -125,7 +126,7 @@ def test_array_run_equals_the_per_row_updates_across_chunks(events):
     ref.tt = c.tt
     want = _per_row(ref, dt, q, reset, zero_rate, se)
     got = np.concatenate([c.run(dt[a:b], q[a:b], reset[a:b], zero_rate[a:b], se[a:b])
-                          for a, b in ((0, 230), (230, m))])
+                          for a, b in ((0, m * 23 // 50), (m * 23 // 50, m))])
     np.testing.assert_array_equal(got, want)
     for name in ("tt", "tb", "bb", "noise"):
         np.testing.assert_array_equal(getattr(c, name), getattr(ref, name))
