@@ -247,9 +247,16 @@ class AttitudeIntegratorNode(Node):
             inputs.append(("parameter 'odometry_topic'", p["odometry_topic"]))
         if config.aiding is Aiding.MAGNETOMETER:
             inputs.append(("parameter 'mag_topic'", p["mag_topic"]))
-        shared = shared_topic((role, self.resolve_topic_name(t)) for role, t in inputs)
+        shared = shared_topic((role, self._resolved(role, t)) for role, t in inputs)
         if shared is not None:
             raise ParameterError(shared_topic_message(*shared))
+
+    def _resolved(self, role: str, topic: str) -> str:
+        try:
+            return self.resolve_topic_name(topic)
+        except Exception as exc:  # rclpy's RCLError: the name cannot be a topic
+            raise ParameterError(f"{role}: {topic!r} is not a valid topic name "
+                                 f"({str(exc).split(',')[0]})") from exc
 
     @staticmethod
     def _stream_config(p) -> StreamConfig:

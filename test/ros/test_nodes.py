@@ -273,6 +273,7 @@ def test_invalid_parameters_refused_at_start(launch):
                       "-p", "mag_topic:=truth/attitude"], "mag_topic"),
         (INTEGRATOR, ["-p", "frame:=enu", "-p", "latitude_rad:=0.8", "-p",
                       "odometry_topic:=imu/data_raw"], "odometry_topic"),
+        (INTEGRATOR, ["-p", "aiding:=magnetometer", "-p", "mag_topic:=a b"], "mag_topic"),
         (SIM, ["-p", "rate_hz:=-5.0"], "rate_hz"),
         (SIM, ["-p", "time_mode:=slow"], "time_mode"),
         (SIM, ["-p", "scene:=no_such_scene_xyz"], "scene"),

@@ -245,8 +245,6 @@ def _shifted(after: np.ndarray, initial) -> np.ndarray:
 def _before(after: np.ndarray, start: np.ndarray, base: np.ndarray, initial) -> np.ndarray:
     """The value entering each row: the previous row's ``after``, or ``base`` where a row
     starts anew (``initial`` at row 0 otherwise)."""
-    out = np.empty_like(after)
-    out[0] = initial
-    out[1:] = after[:-1]
+    out = _shifted(after, initial)
     out[start] = base[start]
     return out
