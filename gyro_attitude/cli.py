@@ -18,6 +18,7 @@ import threading
 
 from gyro_attitude import __version__
 from gyro_attitude.io.ament_prefix import ensure_ament_prefix_path
+from gyro_attitude.io.safe_output import request_stop, stop_handled
 from gyro_attitude.offline.allocator import keep_freed_memory
 
 # name -> one-line help; the module gyro_attitude.commands.<name> implements it.
@@ -56,6 +57,7 @@ class _Interrupt:
         self._previous: dict[int, object] = {}
 
     def _handle(self, _signum, _frame) -> None:
+        request_stop()  # whatever becomes of the exception below, no output is committed
         if not self.received:
             self.received = True
             raise KeyboardInterrupt
@@ -140,6 +142,7 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return EXIT_INTERRUPTED
     finally:
+        stop_handled()  # the stop ends here: a library caller of main() may write again
         if is_process_main:
             _Interrupt.ignore_from_now_on()
     if interrupt.received:

@@ -65,3 +65,30 @@ def test_an_error_without_interrupt_is_not_taken_for_one(monkeypatch):
     monkeypatch.setattr(cli.importlib, "import_module", broken_import)
     with pytest.raises(ImportError, match="real missing"):
         cli.main(["simulate", "coning"])
+
+
+def test_an_interrupt_swallowed_by_an_optional_import_still_writes_nothing(
+        monkeypatch, tmp_path, capsys):
+    """A Ctrl-C that breaks an optional C-extension import comes back as ImportError, which the
+    importing module's ``except ImportError`` swallows (isal → zlib): the command then goes on,
+    yet its output must not appear, and the exit is 130 with one line."""
+    import importlib
+
+    from gyro_attitude import cli
+
+    real_import = importlib.import_module
+
+    def import_swallowing_an_interrupt(name):
+        try:
+            signal.raise_signal(signal.SIGINT)
+        except KeyboardInterrupt:
+            pass  # what `try: from isal import ... except ImportError:` does to it
+        return real_import(name)
+
+    monkeypatch.setattr(cli.importlib, "import_module", import_swallowing_an_interrupt)
+    out = tmp_path / "o.mcap"
+    status = cli.main(["simulate", "coning", "--duration", "0.5", "--out", str(out)])
+    assert status == cli.EXIT_INTERRUPTED
+    err = capsys.readouterr().err
+    assert "interrupted" in err and "Traceback" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == []

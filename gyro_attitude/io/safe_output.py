@@ -20,7 +20,8 @@ from collections.abc import Iterable
 from pathlib import Path
 
 __all__ = ["OutputPathError", "OutputWriteError", "write_error", "is_write_error",
-           "check_output_path", "SafeOutput"]
+           "check_output_path", "SafeOutput", "request_stop", "stop_handled",
+           "raise_if_stop_requested"]
 
 # What writing (not reading) an output fails with: no space, no quota, a file too large.
 _WRITE_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
@@ -103,6 +104,36 @@ def check_output_path(out, *, inputs: Iterable = (), force: bool = False,
     return out
 
 
+# Whether the user asked the process to stop (SIGINT/SIGTERM taken by the command line,
+# :func:`request_stop`) and no code has yet said it handled that (:func:`stop_handled`).  The
+# handler's KeyboardInterrupt can be swallowed before it reaches any clean-up: a C extension
+# whose initialisation it broke re-raises it as ImportError, and an optional import
+# (``try: import isal ... except ImportError``) then carries on as if nothing happened.  While a
+# stop is pending no output is committed, whatever became of the exception
+# (:meth:`SafeOutput.commit`).
+_stop_pending = False
+
+
+def request_stop() -> None:
+    """Record that the user asked the process to stop (called from the signal handler)."""
+    global _stop_pending
+    _stop_pending = True
+
+
+def stop_handled() -> None:
+    """Called by code that caught the stop's KeyboardInterrupt and deliberately writes what
+    finished (Monte Carlo's partial ``--json``): outputs may be committed again."""
+    global _stop_pending
+    _stop_pending = False
+
+
+def raise_if_stop_requested() -> None:
+    """KeyboardInterrupt while a stop is pending: a long writer calls this between blocks, so
+    that it ends soon even when the signal's own exception was swallowed somewhere."""
+    if _stop_pending:
+        raise KeyboardInterrupt
+
+
 @contextlib.contextmanager
 def _signals_held():
     """SIGINT/SIGTERM wait until the block is done: a temporary folder is never created, renamed
@@ -138,7 +169,7 @@ class SafeOutput:
     def open(self) -> Path:
         """Create the hidden folder and return the temporary path to write."""
         if self.temp_path is None:
-            # beside the requested name (not the symlink's target): the rename then stays on
+                # beside the requested name (not the symlink's target): the rename then stays on
             # one file system and replaces the name itself
             directory = Path(os.path.abspath(self.path)).parent
             with _signals_held():
@@ -159,9 +190,13 @@ class SafeOutput:
         return self.temp_path
 
     def commit(self) -> Path:
-        """Move the finished output to its requested name (idempotent); returns that name."""
+        """Move the finished output to its requested name (idempotent); returns that name.
+        While a stop is pending the output is discarded instead (KeyboardInterrupt)."""
         if self.temp_path is None:
             return self.path
+        if _stop_pending:
+            self.discard()
+            raise KeyboardInterrupt
         if self.path.exists() and not (self.path.is_file() or self.path.is_dir()):
             raise OutputPathError(f"output {self.path} is not a regular file (a device, FIFO or "
                                   f"socket); the finished output stays at {self.temp_path}")

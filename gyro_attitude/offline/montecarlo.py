@@ -60,6 +60,7 @@ from gyro_attitude.core.rotation import (
 from gyro_attitude.core.scene import MAX_RATE_HZ, SceneSimulator, SceneSpec
 from gyro_attitude.core.sensor_errors import SensorErrorParams
 from gyro_attitude.core.sim_topics import DEFAULT_FRAME_ID
+from gyro_attitude.io.safe_output import stop_handled
 from gyro_attitude.offline.parallel import CONNECT_TIMEOUT_S, TaskCost, run_tasks
 from gyro_attitude.offline.replay import estimate_recording
 
@@ -623,6 +624,7 @@ def run_montecarlo(setup: MonteCarloSetup, *, workers: int = 1, scheduler: str |
                          connect_timeout_s=connect_timeout_s, help_while_starting=True)
     except KeyboardInterrupt:
         interrupted = True
+        stop_handled()  # the runs that finished are written (``--json`` marked partial)
     finally:
         if bar is not None:
             bar.close()

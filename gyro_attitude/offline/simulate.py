@@ -32,7 +32,7 @@ from gyro_attitude.io.cdr_arrays import (
     quaternion_stamped_batch,
 )
 from gyro_attitude.io.mcap_writer import DEFAULT_COMPRESSION, Rosbag2McapWriter, normalize_topic
-from gyro_attitude.io.safe_output import SafeOutput, check_output_path
+from gyro_attitude.io.safe_output import SafeOutput, check_output_path, raise_if_stop_requested
 from gyro_attitude.io.scene_file import load_scene
 
 __all__ = ["SimulateResult", "simulate", "BLOCK_SAMPLES", "MAX_SAMPLES"]
@@ -159,6 +159,7 @@ def simulate(scene: str | SceneSpec, duration_s: float | None, out, *,
                 writer.add_topic(names[ODOM_TOPIC], TOPICS[ODOM_TOPIC])
             done = 0
             while done < n_total:
+                raise_if_stop_requested()
                 n = min(BLOCK_SAMPLES, n_total - done)
                 f = topics.fields(sim.next_block(n), truth=publish_truth)
                 stamps = f.t_rel_ns + topics.t0_ns
