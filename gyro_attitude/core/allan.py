@@ -22,7 +22,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import nnls
 
 from gyro_attitude.core.sensor_errors import FLICKER_FLOOR_FACTOR
 
@@ -108,6 +107,8 @@ def fit_terms(tau, adev, rel_err) -> AllanTerms:
         raise ValueError("tau must be finite and > 0")
     if not (np.all(np.isfinite(adev)) and np.all(np.isfinite(rel)) and np.all(rel > 0)):
         raise ValueError("adev and rel_err must be finite (rel_err > 0)")
+    from scipy.optimize import nnls  # (imported where used: see sensor_errors)
+
     avar = adev**2
     basis = _basis(tau)
     scale = avar

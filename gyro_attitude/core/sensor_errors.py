@@ -57,7 +57,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import lfilter
 
 __all__ = [
     "SensorErrorParams",
@@ -177,6 +176,11 @@ def _gauss_markov(rng, phi, w_std, state, n: int) -> np.ndarray:
     """``(columns, n)`` samples of independent AR(1) processes β_k = φ β_{k−1} + w_k from
     ``state`` (each column's value one step before the first sample; updated in place)."""
     cols = phi.shape[0]
+    # scipy is imported where it is used, here and in the other core modules: scipy.signal's
+    # imports (scipy.stats with them) take longer than all else a command, a node or a pool
+    # worker loads at start-up, and most scenes never reach this line
+    from scipy.signal import lfilter
+
     out = np.empty((cols, n))
     for lo in range(0, n, _GM_BLOCK):
         m = min(_GM_BLOCK, n - lo)
@@ -197,6 +201,8 @@ def _floor_bank(rng, real: FloorRealisation, scale, state, n: int) -> np.ndarray
     """``(3, n)`` floor samples: the bank ``real`` on one white sequence per axis times
     ``scale`` (B per axis), from ``state`` (3, S) (the sections one step before the first
     sample, in units of B; updated in place)."""
+    from scipy.signal import lfilter
+
     out = np.empty((3, n))
     for lo in range(0, n, _GM_BLOCK):
         m = min(_GM_BLOCK, n - lo)

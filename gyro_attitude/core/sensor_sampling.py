@@ -25,7 +25,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import butter, sosfilt, sosfilt_zi
 
 __all__ = ["SamplingParams", "SensorSampler", "BANDWIDTH_FILTERS", "GAUSS_LEGENDRE_3"]
 
@@ -71,6 +70,8 @@ class SensorSampler:
             if not params.cutoff_hz < nyquist:
                 raise ValueError(f"bandwidth.cutoff_hz {params.cutoff_hz:g} Hz must be below "
                                  f"the Nyquist frequency {nyquist:g} Hz of the output rate")
+            from scipy.signal import butter  # (imported where used: see sensor_errors)
+
             self._sos = butter(params.order, params.cutoff_hz, fs=1.0 / self.dt, output="sos")
 
     @property
@@ -98,6 +99,8 @@ class SensorSampler:
         """Low-pass, turn-on bias and g-sensitivity of ideal samples ``x (n,3)``."""
         p = self.params
         if self._sos is not None and x.shape[0]:
+            from scipy.signal import sosfilt, sosfilt_zi
+
             self.effects_run.add("bandwidth")
             if self._zi is None:  # steady state on the first sample: no start transient
                 self._zi = sosfilt_zi(self._sos)[:, :, None] * x[0][None, None, :]

@@ -34,13 +34,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.interpolate import CubicSpline, PPoly
-from scipy.linalg import solve_banded, solveh_banded
 
 from gyro_attitude.core import earth
 from gyro_attitude.core.motion import Motion, MotionSample
+
+if TYPE_CHECKING:
+    from scipy.interpolate import PPoly
 
 __all__ = [
     "PoseSeries",
@@ -290,6 +292,8 @@ class _Reinsch:
 
     def second_derivatives(self, lam: float) -> np.ndarray:
         """γ (k, n−2): the smoothing spline's second derivatives at the inner knots."""
+        from scipy.linalg import solveh_banded  # (imported where used: see sensor_errors)
+
         ab = _pentadiagonal(self.r_diag, self.r_off, self.qq0, self.qq1, self.qq2, lam)
         return solveh_banded(ab, self.qty.T, check_finite=False).T
 
@@ -333,6 +337,8 @@ class _StackedReinsch:
                                      zip((system.a, system.b, system.c), self.cuts, strict=True))
 
     def rss(self, lam: float) -> float:
+        from scipy.linalg import solveh_banded
+
         ab = _pentadiagonal(self.r_diag, self.r_off, self.qq0, self.qq1, self.qq2, lam)
         g = solveh_banded(ab, self.qty.T, check_finite=False).T.reshape(-1, *self.shape)
         c0, c1, c2 = self.cuts
@@ -432,6 +438,8 @@ def smoothing_spline(t: np.ndarray, y: np.ndarray, rss_target: float) -> PPoly:
     ``rss_target`` is 0, else the cubic smoothing spline whose residual Σ|y_i − g(t_i)|²
     equals ``rss_target`` (λ by root finding on log λ; the whole vector shares one λ).
     A scipy ``PPoly`` of :func:`spline_coefficients`."""
+    from scipy.interpolate import PPoly
+
     y = np.asarray(y, dtype=np.float64).reshape(len(t), -1)
     c = spline_coefficients(np.asarray(t, dtype=np.float64), np.ascontiguousarray(y.T),
                             rss_target)
@@ -471,6 +479,8 @@ def _not_a_knot(t: np.ndarray, y: np.ndarray, out: np.ndarray) -> np.ndarray:
     band[1, -1] = dx[-2]
     band[-1, -2] = d
     b[:, -1] = (dx[-1] ** 2 * slope[:, -2] + (2 * d + dx[-1]) * dx[-2] * slope[:, -1]) / d
+    from scipy.linalg import solve_banded
+
     s = solve_banded((1, 1), band, b.T, overwrite_ab=True, overwrite_b=True,
                      check_finite=False).T
     return _hermite(dx, y, slope, s, out)
@@ -497,6 +507,8 @@ def spline_coefficients(t: np.ndarray, y: np.ndarray, rss_target: float,
     if out is None:
         out = np.empty((y.shape[0], 4, n - 1))
     if n < 4:
+        from scipy.interpolate import CubicSpline
+
         out[...] = CubicSpline(t, y.T, bc_type="natural").c.transpose(2, 0, 1)
         return out
     if rss_target <= 0.0:

@@ -23,6 +23,9 @@ from gyro_attitude.offline.parallel import CONNECT_TIMEOUT_S, run_tasks
 __all__ = ["FleetFile", "fleet_pairs", "replay_fleet"]
 
 _GLOB_CHARS = set("*?[")
+#: what a replay imports where it uses it, preloaded once for a pool's workers: the offline
+#: estimator's zero-phase filter
+TASK_IMPORTS = ("scipy.signal",)
 
 
 @dataclass
@@ -107,7 +110,8 @@ def replay_fleet(pairs, *, workers: int = 1, scheduler: str | None = None,
 
     try:
         run_tasks(_replay_task, tasks, on_result, workers=workers, scheduler=scheduler,
-                  on_error=on_error, connect_timeout_s=connect_timeout_s)
+                  on_error=on_error, connect_timeout_s=connect_timeout_s,
+                  preload=TASK_IMPORTS)
     except KeyboardInterrupt:
         _remove_partial_outputs([f for f in files if f.summary is None and f.error is None])
         return files, True

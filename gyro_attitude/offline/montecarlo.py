@@ -64,6 +64,10 @@ from gyro_attitude.io.safe_output import stop_handled
 from gyro_attitude.offline.parallel import CONNECT_TIMEOUT_S, TaskCost, run_tasks
 from gyro_attitude.offline.replay import estimate_recording
 
+#: what a run imports where it uses it, preloaded once for a pool's workers: the sensor errors'
+#: filters (scipy.signal.lfilter) and the offline estimator's zero-phase filter
+TASK_IMPORTS = ("scipy.signal",)
+
 __all__ = [
     "PERCENTILES",
     "GRID_POINTS",
@@ -621,7 +625,8 @@ def run_montecarlo(setup: MonteCarloSetup, *, workers: int = 1, scheduler: str |
     try:
         cost = run_tasks(_run_chunk, tasks, on_result, workers=workers, scheduler=scheduler,
                          on_error=on_error, progress=advance,
-                         connect_timeout_s=connect_timeout_s, help_while_starting=True)
+                         connect_timeout_s=connect_timeout_s, help_while_starting=True,
+                         preload=TASK_IMPORTS)
     except KeyboardInterrupt:
         interrupted = True
         stop_handled()  # the runs that finished are written (``--json`` marked partial)

@@ -213,9 +213,12 @@ def run_tasks(fn: Callable, args: Sequence, on_result: Callable[[int, object], N
               on_error: Callable[[int, str], None] | None = None,
               progress: Callable[[int], None] | None = None,
               connect_timeout_s: float = CONNECT_TIMEOUT_S,
-              help_while_starting: bool = False) -> TaskCost:
+              help_while_starting: bool = False, preload: Sequence[str] = ()) -> TaskCost:
     """``on_result(i, fn(args[i]))`` for every task (see the module docstring); returns what
     they cost (:class:`TaskCost`; an interrupted run raises instead).
+
+    ``preload``: modules the tasks import where they use them (the package imports scipy
+    lazily), imported once by the forkserver beside ``fn``'s module instead of once per worker.
 
     ``progress(i)`` is called after each task's result or error.  Raises
     :class:`SchedulerUnreachable` when the scheduler does not answer within
@@ -247,7 +250,7 @@ def run_tasks(fn: Callable, args: Sequence, on_result: Callable[[int, object], N
             else:
                 done(i, value)
         return TaskCost(_process_cpu_s() - cpu0, 1, 0.0)
-    return _run_pool(fn, args, done, workers, help_while_starting)
+    return _run_pool(fn, args, done, workers, help_while_starting, tuple(preload))
 
 
 def _run_in_parent(fn, arg, done, i: int) -> None:
@@ -263,7 +266,8 @@ def _run_in_parent(fn, arg, done, i: int) -> None:
         set_prepare_threads(previous)
 
 
-def _run_pool(fn, args, done, workers: int, help_while_starting: bool = False) -> TaskCost:
+def _run_pool(fn, args, done, workers: int, help_while_starting: bool = False,
+              preload: tuple[str, ...] = ()) -> TaskCost:
     pending = list(range(len(args)))
     cpu: dict[int, float] = {}  # worker pid: its CPU seconds at its latest finished task
     first_start: dict[int, float] = {}  # worker pid: when it began its first task
@@ -276,7 +280,7 @@ def _run_pool(fn, args, done, workers: int, help_while_starting: bool = False) -
             if context.get_start_method() == "forkserver":
                 # the server imports the task's module once and forks the workers from it:
                 # they start with numpy and the package loaded (one import, not one each)
-                context.set_forkserver_preload(["__main__", fn.__module__])
+                context.set_forkserver_preload(["__main__", fn.__module__, *preload])
                 multiprocessing.forkserver.ensure_running()
             pool = ProcessPoolExecutor(max_workers=min(workers, len(pending)),
                                        mp_context=context, initializer=_worker_init)

@@ -55,7 +55,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import expm
 
 from gyro_attitude.core.validators import check_finite, check_positive
 
@@ -242,6 +241,8 @@ class RateGyroTriad:
         m[:2, :2] = a * self.dt
         m[:2, 2] = b * self.dt
         m[2, 3] = 1.0
+        from scipy.linalg import expm  # (imported where used: see sensor_errors)
+
         e = expm(m)
         self._phi = e[:2, :2].copy()
         self._gamma0 = e[:2, 2].copy()

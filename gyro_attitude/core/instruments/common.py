@@ -20,7 +20,6 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, fields
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from gyro_attitude.core.angles import wrap_2pi, wrap_pi
 from gyro_attitude.core.earth import (
@@ -160,6 +159,8 @@ def integrate_chunked(rhs: Callable[[float, np.ndarray], np.ndarray], y0, t_grid
     fresh ``solve_ivp`` call started from the previous chunk's last state, so memory stays
     bounded by ``chunk`` samples however long the run.
     """
+    from scipy.integrate import solve_ivp  # (imported where used: see sensor_errors)
+
     chunk = int(chunk)
     if chunk < 1:
         raise ValueError(f"chunk must be >= 1, got {chunk}")
