@@ -79,7 +79,12 @@ from sensor_msgs.msg import Imu, MagneticField
 
 from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, causal_algorithms
 from gyro_attitude.core.attitude import validation as iv
-from gyro_attitude.core.attitude.input_topics import shared_topic, shared_topic_message
+from gyro_attitude.core.attitude.input_topics import (
+    input_on_output,
+    input_on_output_message,
+    shared_topic,
+    shared_topic_message,
+)
 from gyro_attitude.core.attitude.modes import Aiding, InitialAttitudeSource, SettingError
 from gyro_attitude.core.attitude.nav_frame import VelocitySchedule
 from gyro_attitude.core.attitude.sample_alignment import LatestSamples
@@ -114,6 +119,7 @@ from gyro_attitude.ros.qos import imu_qos
 
 NODE_NAME = "attitude_integrator"
 OUTPUT_DEPTH = 1000  # keep-last history of imu/data and attitude
+OUTPUT_TOPICS = ("imu/data", "attitude", "/diagnostics")
 
 
 def parameter_specs(settings=SETTINGS) -> list[ParamSpec]:
@@ -202,9 +208,10 @@ class AttitudeIntegratorNode(Node):
         self._att_cdr = QuaternionStampedCdr(self._world_frame)
         # keep-last 1000 (1 s at 1 kHz): a reliable subscriber that lags by more than the
         # history loses what was overwritten before it acknowledged
-        self._pub_imu = self.create_publisher(Imu, "imu/data", OUTPUT_DEPTH)
-        self._pub_att = self.create_publisher(QuaternionStamped, "attitude", OUTPUT_DEPTH)
-        self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        imu_out, attitude_out, diagnostics_out = OUTPUT_TOPICS
+        self._pub_imu = self.create_publisher(Imu, imu_out, OUTPUT_DEPTH)
+        self._pub_att = self.create_publisher(QuaternionStamped, attitude_out, OUTPUT_DEPTH)
+        self._pub_diag = self.create_publisher(DiagnosticArray, diagnostics_out, 10)
         # every input takes the one QoS rule: best effort (the default) matches any publisher,
         # reliable ones and the best-effort republishing of a bag without offered profiles
         qos = imu_qos(p["qos_reliability"], p["qos_depth"])
@@ -238,8 +245,9 @@ class AttitudeIntegratorNode(Node):
 
     # ------------------------------------------------------------------ set-up helpers
     def _check_distinct_topics(self, p, config) -> None:
-        """One input per topic (:mod:`~gyro_attitude.core.attitude.input_topics`), the names
-        resolved (namespace and remappings applied)."""
+        """One input per topic, none on an output of this node
+        (:mod:`~gyro_attitude.core.attitude.input_topics`), the names resolved (namespace and
+        remappings applied)."""
         inputs = [("imu/data_raw", "imu/data_raw")]
         if self._truth_start is not None:
             inputs.append(("truth/attitude", "truth/attitude"))
@@ -247,7 +255,11 @@ class AttitudeIntegratorNode(Node):
             inputs.append(("parameter 'odometry_topic'", p["odometry_topic"]))
         if config.aiding is Aiding.MAGNETOMETER:
             inputs.append(("parameter 'mag_topic'", p["mag_topic"]))
-        shared = shared_topic((role, self._resolved(role, t)) for role, t in inputs)
+        resolved = [(role, self._resolved(role, t)) for role, t in inputs]
+        looped = input_on_output(resolved, [(t, self._resolved(t, t)) for t in OUTPUT_TOPICS])
+        if looped is not None:
+            raise ParameterError(input_on_output_message(*looped))
+        shared = shared_topic(resolved)
         if shared is not None:
             raise ParameterError(shared_topic_message(*shared))
 

@@ -274,6 +274,9 @@ def test_invalid_parameters_refused_at_start(launch):
         (INTEGRATOR, ["-p", "frame:=enu", "-p", "latitude_rad:=0.8", "-p",
                       "odometry_topic:=imu/data_raw"], "odometry_topic"),
         (INTEGRATOR, ["-p", "aiding:=magnetometer", "-p", "mag_topic:=a b"], "mag_topic"),
+        # an input on the node's own output: it would read back what it publishes
+        (INTEGRATOR, ["-p", "aiding:=magnetometer", "-p", "mag_topic:=imu/data"], "mag_topic"),
+        (INTEGRATOR, ["-r", "imu/data_raw:=attitude"], "attitude"),
         (SIM, ["-p", "rate_hz:=-5.0"], "rate_hz"),
         (SIM, ["-p", "time_mode:=slow"], "time_mode"),
         (SIM, ["-p", "scene:=no_such_scene_xyz"], "scene"),
