@@ -268,6 +268,44 @@ class RestDetector:
 _STATS_CHUNK = 1 << 16  # rows of window statistics computed at a time
 
 
+def _window_stats(t: np.ndarray, x: np.ndarray, oldest: np.ndarray, window_ns: int):
+    """The window statistics of :func:`detect_rest`, a chunk of rows at a time: per chunk
+    ``(r0, r1, full, std, mean)`` for the windows ending at rows r0 … r1−1 (``std`` NaN where
+    the window is not yet full).
+
+    The running sums C[k] = Σ_{j<k} (x_j − x_0) and of their squares are the streaming
+    detector's, added in the same order (``np.cumsum`` adds sequentially; each chunk's sums
+    start from the last sum of the one before), so the statistics are the same numbers; only
+    the sums from the oldest row of the chunk's first window on are held, so the memory is a
+    chunk and a window, not the recording."""
+    size = x.shape[0]
+    ref = x[0]
+    base = 0  # sample index of the first sum held
+    c1 = np.zeros((1, 3))  # C[base …]: starts as C[0] = 0
+    c2 = np.zeros((1, 3))
+    for r0 in range(0, size, _STATS_CHUNK):
+        r1 = min(r0 + _STATS_CHUNK, size)
+        d = x[r0:r1] - ref
+        # C[r0 + 1 … r1], continuing from C[r0] (the last sum held)
+        new1 = np.cumsum(np.concatenate([c1[-1:], d]), axis=0)[1:]
+        np.multiply(d, d, out=d)
+        new2 = np.cumsum(np.concatenate([c2[-1:], d]), axis=0)[1:]
+        del d
+        lo = int(oldest[r0])  # the oldest sum any window of this chunk looks back to
+        c1 = np.concatenate([c1[lo - base:], new1])
+        c2 = np.concatenate([c2[lo - base:], new2])
+        base = lo
+        o = oldest[r0:r1] - base
+        n = (np.arange(r0, r1) + 1 - oldest[r0:r1]).astype(np.float64)[:, None]
+        end = np.arange(r0 + 1, r1 + 1) - base
+        m = (c1[end] - c1[o]) / n
+        v = (c2[end] - c2[o]) / n - m * m
+        std = np.sqrt(np.maximum(v[:, 0] + v[:, 1] + v[:, 2], 0.0))
+        full = t[r0:r1] - t[0] >= window_ns
+        std[~full] = np.nan
+        yield r0, r1, full, std, ref + m
+
+
 def detect_rest(t_ns, gyro, accel=None, window_s: float = RestThresholds.window_s,
                 gyro_std_max: float = RestThresholds.gyro_std_max,
                 gyro_mean_max: float = RestThresholds.gyro_mean_max,
@@ -279,45 +317,28 @@ def detect_rest(t_ns, gyro, accel=None, window_s: float = RestThresholds.window_
                         gravity, gyro_std_min).checked()
     t, g, a = check_samples(t_ns, gyro, accel)
     window_ns = int(round(th.window_s * 1e9))
-    oldest = np.searchsorted(t, t - window_ns, side="left")
-    n = (np.arange(t.size) + 1 - oldest).astype(np.float64)
-    full = t - t[0] >= window_ns
-
-    def window_stats(x: np.ndarray, ref: np.ndarray):
-        size = x.shape[0]
-        # Sequential running sums (np.add.accumulate), as the streaming class adds them; the
-        # window statistics from them chunk by chunk (the same numbers, bounded temporaries).
-        c1 = np.zeros((size + 1, 3))
-        c2 = np.zeros((size + 1, 3))
-        d = x - ref
-        np.cumsum(d, axis=0, out=c1[1:])
-        np.multiply(d, d, out=d)
-        np.cumsum(d, axis=0, out=c2[1:])
-        del d
-        std = np.empty(size)
-        mean = np.empty((size, 3))
-        for r0 in range(0, size, _STATS_CHUNK):
-            r1 = min(r0 + _STATS_CHUNK, size)
-            o, nn = oldest[r0:r1], n[r0:r1, None]
-            m = (c1[r0 + 1:r1 + 1] - c1[o]) / nn
-            v = (c2[r0 + 1:r1 + 1] - c2[o]) / nn - m * m
-            std[r0:r1] = np.sqrt(np.maximum(v[:, 0] + v[:, 1] + v[:, 2], 0.0))
-            mean[r0:r1] = ref + m
-        std[~full] = np.nan
-        return std, mean
-
-    gyro_std, gyro_mean = window_stats(g, g[0])
-    with np.errstate(invalid="ignore"):
-        # the mean rate on every axis (the largest one) within the bound
-        ok = full & (gyro_std >= th.gyro_std_min) & (gyro_std <= th.gyro_std_max) & (
-            np.abs(gyro_mean).max(axis=1) <= th.gyro_mean_max)
-        accel_std = np.full(t.size, np.nan)
-        if a is not None:
-            accel_std, mean = window_stats(a, a[0])
-            accel_norm = np.sqrt(mean[:, 0] * mean[:, 0] + mean[:, 1] * mean[:, 1]
-                                 + mean[:, 2] * mean[:, 2])
-            ok &= (accel_std <= th.accel_std_max) & (np.abs(accel_norm - th.gravity)
-                                                     <= th.accel_norm_tol)
+    size = t.size
+    oldest = np.empty(size, dtype=np.int64)
+    for r0 in range(0, size, _STATS_CHUNK):
+        r1 = min(r0 + _STATS_CHUNK, size)
+        oldest[r0:r1] = np.searchsorted(t, t[r0:r1] - window_ns, side="left")
+    gyro_std = np.empty(size)
+    ok = np.empty(size, dtype=bool)
+    for r0, r1, full, std, mean in _window_stats(t, g, oldest, window_ns):
+        gyro_std[r0:r1] = std
+        with np.errstate(invalid="ignore"):
+            # the mean rate on every axis (the largest one) within the bound
+            ok[r0:r1] = full & (std >= th.gyro_std_min) & (std <= th.gyro_std_max) & (
+                np.abs(mean).max(axis=1) <= th.gyro_mean_max)
+    accel_std = np.full(size, np.nan)
+    if a is not None:
+        for r0, r1, _, std, mean in _window_stats(t, a, oldest, window_ns):
+            accel_std[r0:r1] = std
+            norm = np.sqrt(mean[:, 0] * mean[:, 0] + mean[:, 1] * mean[:, 1]
+                           + mean[:, 2] * mean[:, 2])
+            with np.errstate(invalid="ignore"):
+                ok[r0:r1] &= (std <= th.accel_std_max) & (np.abs(norm - th.gravity)
+                                                          <= th.accel_norm_tol)
     covered = _covered(ok, oldest)
     return RestWindows(ok, oldest, gyro_std, accel_std, covered)
 
@@ -325,7 +346,7 @@ def detect_rest(t_ns, gyro, accel=None, window_s: float = RestThresholds.window_
 def _covered(at_rest: np.ndarray, oldest: np.ndarray) -> np.ndarray:
     """Samples lying in at least one rest window: mark [oldest[k], k] for each rest k."""
     n = at_rest.size
-    diff = np.zeros(n + 1, dtype=np.int64)
+    diff = np.zeros(n + 1, dtype=np.int32)  # windows covering a sample: < 2**31
     k = np.flatnonzero(at_rest)
     np.add.at(diff, oldest[k], 1)
     np.add.at(diff, k + 1, -1)

@@ -5,6 +5,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 from sim_static import rest_motion_rest
 
+from gyro_attitude.core.attitude import rest
 from gyro_attitude.core.attitude.gyro_bias import estimate_gyro_bias
 from gyro_attitude.core.attitude.rest import RestDetector, detect_rest, rest_segments
 
@@ -21,6 +22,24 @@ def test_stream_equals_batch_bitwise():
         oldest.append(det.oldest_index)
     np.testing.assert_array_equal(stream, batch.at_rest)
     np.testing.assert_array_equal(oldest, batch.oldest)
+
+
+@pytest.mark.parametrize("chunk", [5, 37, 1000])  # below, near and above a window's rows
+def test_batch_in_chunks_equals_the_stream_bitwise(monkeypatch, chunk):
+    """The batch statistics run a chunk of rows at a time, each chunk's running sums
+    continuing the last one's: the same numbers as the streaming detector's, sample by
+    sample (window statistics and decisions), whatever the chunk."""
+    monkeypatch.setattr(rest, "_STATS_CHUNK", chunk)
+    t, g, a, _ = rest_motion_rest(seed=5)
+    batch = detect_rest(t, g, a)
+    det = RestDetector()
+    got = np.array([(det.update(t[k], g[k], a[k]), det.oldest_index, det.gyro_std,
+                     det.accel_std) for k in range(t.size)])
+    np.testing.assert_array_equal(got[:, 0].astype(bool), batch.at_rest)
+    np.testing.assert_array_equal(got[:, 1], batch.oldest)
+    np.testing.assert_array_equal(got[:, 2], batch.gyro_std)
+    np.testing.assert_array_equal(got[:, 3], batch.accel_std)
+    assert batch.at_rest.any() and not batch.at_rest.all()
 
 
 @pytest.mark.parametrize("use_accel", [True, False])
