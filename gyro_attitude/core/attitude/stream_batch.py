@@ -174,6 +174,7 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
         q_nb[out_from + 1:] = q[out_from - start:-1]
     else:
         return None
+    del fed, plan, values  # the rest plan's rows (per rest row): not needed from here on
     counts[RATE_FIT_FALLBACK] = sum(int(f[1].size) for f in fallbacks)
     if fallbacks:
         r0, kk = fallbacks[0]
