@@ -57,9 +57,11 @@ class _Interrupt:
         self._previous: dict[int, object] = {}
 
     def _handle(self, _signum, _frame) -> None:
-        request_stop()  # whatever becomes of the exception below, no output is committed
         if not self.received:
             self.received = True
+            # whatever becomes of the exception below, no output is committed (a repeat is
+            # ignored: it must not undo what a command that handled the stop still writes)
+            request_stop()
             raise KeyboardInterrupt
 
     def __enter__(self):

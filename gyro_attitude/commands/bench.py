@@ -20,7 +20,12 @@ import time
 import traceback
 
 from gyro_attitude.benchmarks import machine_description
-from gyro_attitude.io.safe_output import OutputPathError, SafeOutput, check_output_path
+from gyro_attitude.io.safe_output import (
+    OutputPathError,
+    SafeOutput,
+    check_output_path,
+    raise_if_stop_requested,
+)
 
 SUITES: dict[str, str] = {
     "attitude": "gyro_attitude.benchmarks.attitude",
@@ -118,6 +123,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             module = _load_suite(name)
         except Exception:  # the suite exists but one of its imports failed
+            raise_if_stop_requested()  # unless the error is a Ctrl-C swallowed on its way
             traceback.print_exc()
             status[name] = "error"
             continue
@@ -130,6 +136,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             suite_rows = module.run(bool(args.quick), out_dir)
         except Exception:  # one broken suite must not hide the others' figures
+            raise_if_stop_requested()  # unless the error is a Ctrl-C swallowed on its way
             traceback.print_exc()
             status[name] = "error"
             continue

@@ -21,7 +21,7 @@ from pathlib import Path
 
 __all__ = ["OutputPathError", "OutputWriteError", "write_error", "is_write_error",
            "check_output_path", "SafeOutput", "request_stop", "stop_handled",
-           "raise_if_stop_requested"]
+           "stop_requested", "raise_if_stop_requested"]
 
 # What writing (not reading) an output fails with: no space, no quota, a file too large.
 _WRITE_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
@@ -127,9 +127,15 @@ def stop_handled() -> None:
     _stop_pending = False
 
 
+def stop_requested() -> bool:
+    """Whether a stop is pending (:func:`request_stop`, not yet :func:`stop_handled`)."""
+    return _stop_pending
+
+
 def raise_if_stop_requested() -> None:
-    """KeyboardInterrupt while a stop is pending: a long writer calls this between blocks, so
-    that it ends soon even when the signal's own exception was swallowed somewhere."""
+    """KeyboardInterrupt while a stop is pending: a long loop calls this between blocks or
+    tasks, and a handler of ``Exception`` before it reports an error, so that the work ends
+    soon even when the signal's own exception was swallowed somewhere."""
     if _stop_pending:
         raise KeyboardInterrupt
 
@@ -165,11 +171,13 @@ class SafeOutput:
         self.force = bool(force)
         self.temp_path: Path | None = None
         self._temp_dir: Path | None = None
+        self._discarded = False
 
     def open(self) -> Path:
         """Create the hidden folder and return the temporary path to write."""
         if self.temp_path is None:
-                # beside the requested name (not the symlink's target): the rename then stays on
+            self._discarded = False
+            # beside the requested name (not the symlink's target): the rename then stays on
             # one file system and replaces the name itself
             directory = Path(os.path.abspath(self.path)).parent
             with _signals_held():
@@ -191,8 +199,11 @@ class SafeOutput:
 
     def commit(self) -> Path:
         """Move the finished output to its requested name (idempotent); returns that name.
-        While a stop is pending the output is discarded instead (KeyboardInterrupt)."""
+        While a stop is pending the output is discarded instead (KeyboardInterrupt); a
+        discarded output cannot be committed (OutputPathError)."""
         if self.temp_path is None:
+            if self._discarded:
+                raise OutputPathError(f"output {self.path} was discarded: nothing to commit")
             return self.path
         if _stop_pending:
             self.discard()
@@ -217,6 +228,7 @@ class SafeOutput:
         with _signals_held():
             if self._temp_dir is not None:
                 shutil.rmtree(self._temp_dir, ignore_errors=True)
+                self._discarded = True
             self.temp_path = self._temp_dir = None
 
     def __enter__(self) -> Path:

@@ -60,7 +60,7 @@ from gyro_attitude.core.rotation import (
 from gyro_attitude.core.scene import MAX_RATE_HZ, SceneSimulator, SceneSpec
 from gyro_attitude.core.sensor_errors import SensorErrorParams
 from gyro_attitude.core.sim_topics import DEFAULT_FRAME_ID
-from gyro_attitude.io.safe_output import stop_handled
+from gyro_attitude.io.safe_output import raise_if_stop_requested, stop_handled
 from gyro_attitude.offline.parallel import CONNECT_TIMEOUT_S, TaskCost, run_tasks
 from gyro_attitude.offline.replay import estimate_recording
 
@@ -389,9 +389,11 @@ def _run_chunk(task) -> list[dict]:
     grade = setup.grades[g]
     out = []
     for i, s in zip(indices, seeds, strict=True):
+        raise_if_stop_requested()  # (in this process: a stop whose exception was swallowed)
         try:
             out.append(run_one(grade.spec, setup, i, s, grade.label))
         except Exception as exc:  # reported per run: one bad draw must not lose the rest
+            raise_if_stop_requested()  # the error is the stop itself, swallowed on its way
             text = str(exc).strip().splitlines()
             out.append({"index": int(i), "grade": grade.label, "seed": int(s),
                         "error": f"{type(exc).__name__}: {text[0] if text else ''}"})

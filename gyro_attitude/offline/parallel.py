@@ -59,6 +59,7 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 
 from gyro_attitude.core.attitude.compose import set_prepare_threads
+from gyro_attitude.io.safe_output import raise_if_stop_requested
 from gyro_attitude.offline.allocator import keep_freed_memory
 
 __all__ = ["POOL_RESTARTS", "CONNECT_TIMEOUT_S", "default_workers", "run_tasks",
@@ -228,6 +229,10 @@ def run_tasks(fn: Callable, args: Sequence, on_result: Callable[[int, object], N
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
 
     def done(i: int, value=None, error: str | None = None) -> None:
+        if error is not None:
+            # an error while a stop is pending is the stop itself, swallowed on its way (an
+            # interrupted import re-raised as ImportError), not the task's failure
+            raise_if_stop_requested()
         if error is None:
             on_result(i, value)
         elif on_error is not None:
@@ -236,6 +241,9 @@ def run_tasks(fn: Callable, args: Sequence, on_result: Callable[[int, object], N
             raise RuntimeError(f"task {i}: {error}")
         if progress is not None:
             progress(i)
+        # the tasks stop at the next result even when the signal's own exception was
+        # swallowed inside a task of this process (what finished is kept)
+        raise_if_stop_requested()
 
     if scheduler is not None:
         _run_dask(fn, args, done, scheduler, connect_timeout_s)

@@ -82,6 +82,7 @@ from gyro_attitude.core.attitude import validation as iv
 from gyro_attitude.core.attitude.input_topics import (
     input_on_output,
     input_on_output_message,
+    shared_output_message,
     shared_topic,
     shared_topic_message,
 )
@@ -206,6 +207,7 @@ class AttitudeIntegratorNode(Node):
 
         self._undecodable = 0
         self._att_cdr = QuaternionStampedCdr(self._world_frame)
+        self._check_distinct_topics(p, config)  # before any publisher or subscription exists
         # keep-last 1000 (1 s at 1 kHz): a reliable subscriber that lags by more than the
         # history loses what was overwritten before it acknowledged
         imu_out, attitude_out, diagnostics_out = OUTPUT_TOPICS
@@ -215,7 +217,6 @@ class AttitudeIntegratorNode(Node):
         # every input takes the one QoS rule: best effort (the default) matches any publisher,
         # reliable ones and the best-effort republishing of a bag without offered profiles
         qos = imu_qos(p["qos_reliability"], p["qos_depth"])
-        self._check_distinct_topics(p, config)
         # serialized (raw): read in place and republished with the orientation filled in
         # (ImuCdr), instead of a Python message built and serialized per sample
         self._sub_imu = self.create_subscription(Imu, "imu/data_raw", self._on_imu_wakeup, qos,
@@ -256,7 +257,11 @@ class AttitudeIntegratorNode(Node):
         if config.aiding is Aiding.MAGNETOMETER:
             inputs.append(("parameter 'mag_topic'", p["mag_topic"]))
         resolved = [(role, self._resolved(role, t)) for role, t in inputs]
-        looped = input_on_output(resolved, [(t, self._resolved(t, t)) for t in OUTPUT_TOPICS])
+        outputs = [(t, self._resolved(f"output {t}", t)) for t in OUTPUT_TOPICS]
+        shared = shared_topic(outputs)
+        if shared is not None:  # two outputs remapped onto one topic
+            raise ParameterError(shared_output_message(*shared))
+        looped = input_on_output(resolved, outputs)
         if looped is not None:
             raise ParameterError(input_on_output_message(*looped))
         shared = shared_topic(resolved)

@@ -155,3 +155,49 @@ def test_a_symlink_output_is_replaced_beside_the_link_not_at_its_target(tmp_path
         tmp.write_bytes(b"new")
     assert link.read_bytes() == b"new" and not link.is_symlink()
     assert target.read_bytes() == b"target"  # the link's target is left alone
+
+
+@pytest.fixture
+def stop_cleared():
+    from gyro_attitude.io import safe_output
+
+    yield safe_output
+    safe_output.stop_handled()
+
+
+def test_no_output_is_committed_while_a_stop_is_pending(tmp_path, stop_cleared):
+    so = stop_cleared
+    out = tmp_path / "o.bin"
+    so.request_stop()
+    with pytest.raises(KeyboardInterrupt), SafeOutput(out) as tmp:
+        tmp.write_bytes(b"finished, but the user asked to stop")
+    assert list(tmp_path.iterdir()) == []
+    # the stop handled (a partial result written on purpose): outputs are committed again
+    so.stop_handled()
+    with SafeOutput(out) as tmp:
+        tmp.write_bytes(b"partial")
+    assert out.read_bytes() == b"partial"
+
+
+def test_a_discarded_output_cannot_be_committed(tmp_path):
+    safe = SafeOutput(tmp_path / "o.bin")
+    safe.open().write_bytes(b"x")
+    safe.discard()
+    with pytest.raises(OutputPathError, match="discarded"):
+        safe.commit()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_repeated_signal_does_not_undo_a_handled_stop(stop_cleared):
+    """The command line's handler: the first signal requests the stop; a second one, after
+    the command handled it (Monte Carlo writing its finished runs), must not request it
+    again, or the partial output would be thrown away."""
+    from gyro_attitude.cli import _Interrupt
+
+    handler = _Interrupt()
+    with pytest.raises(KeyboardInterrupt):
+        handler._handle(2, None)
+    assert stop_cleared.stop_requested()
+    stop_cleared.stop_handled()
+    handler._handle(2, None)  # ignored
+    assert not stop_cleared.stop_requested()

@@ -263,3 +263,30 @@ def test_run_error_sums_equal_scipy_rotation_vectors_across_blocks():
     ref = (truth.inv() * Rotation.from_quat(est_q)).as_rotvec()
     np.testing.assert_allclose(sq, np.sum(ref ** 2, axis=0), rtol=1e-12)
     np.testing.assert_allclose(last, ref[-1], rtol=1e-12, atol=1e-15)
+
+
+def test_a_stop_swallowed_inside_a_run_ends_the_set_with_the_finished_runs(monkeypatch):
+    """A Ctrl-C that breaks a lazy import inside a run comes back as ImportError: the run
+    is not reported as failed, the set stops there (what finished is kept, marked
+    interrupted) instead of running every remaining run."""
+    from gyro_attitude.io import safe_output
+
+    setup = _setup(_arw_scene(), 6, 1.0, rate=50.0)
+    real_run_one = mc.run_one
+    calls = []
+
+    def run_one(*args, **kwargs):
+        calls.append(args[2])
+        if len(calls) == 3:
+            safe_output.request_stop()  # what the command line's handler does
+            raise ImportError("initialization failed")  # the interrupt, swallowed
+        return real_run_one(*args, **kwargs)
+
+    monkeypatch.setattr(mc, "run_one", run_one)
+    try:
+        res = mc.run_montecarlo(setup, workers=1)
+    finally:
+        safe_output.stop_handled()
+    assert res.interrupted
+    assert len(calls) == 3 and len(res.runs) == 2
+    assert not any("error" in r for r in res.runs)

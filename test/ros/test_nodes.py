@@ -277,6 +277,7 @@ def test_invalid_parameters_refused_at_start(launch):
         # an input on the node's own output: it would read back what it publishes
         (INTEGRATOR, ["-p", "aiding:=magnetometer", "-p", "mag_topic:=imu/data"], "mag_topic"),
         (INTEGRATOR, ["-r", "imu/data_raw:=attitude"], "attitude"),
+        (INTEGRATOR, ["-r", "attitude:=imu/data"], "attitude"),  # two outputs on one topic
         (SIM, ["-p", "rate_hz:=-5.0"], "rate_hz"),
         (SIM, ["-p", "time_mode:=slow"], "time_mode"),
         (SIM, ["-p", "scene:=no_such_scene_xyz"], "scene"),

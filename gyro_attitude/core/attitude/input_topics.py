@@ -13,8 +13,8 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-__all__ = ["input_on_output", "input_on_output_message", "shared_topic",
-           "shared_topic_message"]
+__all__ = ["input_on_output", "input_on_output_message", "shared_output_message",
+           "shared_topic", "shared_topic_message"]
 
 
 def shared_topic(inputs: Iterable[tuple[str, str]]) -> tuple[str, str, str] | None:
@@ -47,3 +47,8 @@ def input_on_output(inputs: Iterable[tuple[str, str]],
 def input_on_output_message(role: str, output: str, topic: str) -> str:
     return (f"{role}: topic {topic!r} is the node's own output {output!r}; it would take "
             f"every message it publishes back as input")
+
+
+def shared_output_message(output: str, earlier: str, topic: str) -> str:
+    return (f"output {output!r}: topic {topic!r} is also the output {earlier!r}; a node's "
+            f"outputs each need their own topic")
