@@ -285,21 +285,26 @@ def _window_stats(t: np.ndarray, x: np.ndarray, oldest: np.ndarray, window_ns: i
     c2 = np.zeros((1, 3))
     for r0 in range(0, size, _STATS_CHUNK):
         r1 = min(r0 + _STATS_CHUNK, size)
-        d = x[r0:r1] - ref
-        # C[r0 + 1 … r1], continuing from C[r0] (the last sum held)
-        new1 = np.cumsum(np.concatenate([c1[-1:], d]), axis=0)[1:]
-        np.multiply(d, d, out=d)
-        new2 = np.cumsum(np.concatenate([c2[-1:], d]), axis=0)[1:]
-        del d
         lo = int(oldest[r0])  # the oldest sum any window of this chunk looks back to
-        c1 = np.concatenate([c1[lo - base:], new1])
-        c2 = np.concatenate([c2[lo - base:], new2])
-        base = lo
+        keep = r0 + 1 - lo  # sums C[lo … r0] carried over
+        d = x[r0:r1] - ref
+        d2 = d * d
+        # C[r0 + 1 … r1] continue from C[r0]: the carry added to the first difference is the
+        # streaming detector's first addition (a + b == b + a exactly), cumsum the rest
+        d[0] += c1[-1]
+        d2[0] += c2[-1]
+        held1 = np.empty((keep + r1 - r0, 3))
+        held2 = np.empty((keep + r1 - r0, 3))
+        held1[:keep] = c1[lo - base:]
+        held2[:keep] = c2[lo - base:]
+        np.cumsum(d, axis=0, out=held1[keep:])
+        np.cumsum(d2, axis=0, out=held2[keep:])
+        del d, d2
+        c1, c2, base = held1, held2, lo
         o = oldest[r0:r1] - base
         n = (np.arange(r0, r1) + 1 - oldest[r0:r1]).astype(np.float64)[:, None]
-        end = np.arange(r0 + 1, r1 + 1) - base
-        m = (c1[end] - c1[o]) / n
-        v = (c2[end] - c2[o]) / n - m * m
+        m = (c1[keep:] - c1[o]) / n
+        v = (c2[keep:] - c2[o]) / n - m * m
         std = np.sqrt(np.maximum(v[:, 0] + v[:, 1] + v[:, 2], 0.0))
         full = t[r0:r1] - t[0] >= window_ns
         std[~full] = np.nan
@@ -346,7 +351,7 @@ def detect_rest(t_ns, gyro, accel=None, window_s: float = RestThresholds.window_
 def _covered(at_rest: np.ndarray, oldest: np.ndarray) -> np.ndarray:
     """Samples lying in at least one rest window: mark [oldest[k], k] for each rest k."""
     n = at_rest.size
-    diff = np.zeros(n + 1, dtype=np.int32)  # windows covering a sample: < 2**31
+    diff = np.zeros(n + 1, dtype=np.int64)
     k = np.flatnonzero(at_rest)
     np.add.at(diff, oldest[k], 1)
     np.add.at(diff, k + 1, -1)
