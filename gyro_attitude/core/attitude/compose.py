@@ -12,6 +12,7 @@ import numpy as np
 
 from gyro_attitude.core.attitude.nav_frame import nav_zeta
 from gyro_attitude.core.rotation import _exp_rotvec, _qmul
+from gyro_attitude.core.jit import kernel
 
 IDENTITY = np.array([0.0, 0.0, 0.0, 1.0])
 CHUNK = 61440  # intervals per batch chunk: a multiple of 1..4 (N-sample blocks align)
@@ -251,8 +252,10 @@ def first_interval_output(q0, b1, t, rate_n):
 
 # --------------------------------------------------------------------------- plain floats
 # The streaming steps work on tuples of floats: numpy's per-call overhead on 3-vectors
-# (~1 µs per operation) would cost ~100 µs per update.
+# (~1 µs per operation) would cost ~100 µs per update.  Kernels (core/jit.py): the compiled
+# per-sample chain calls these same functions.
 
+@kernel
 def exp_scalar(x, y, z):
     """Scalar twin of :func:`gyro_attitude.core.rotation._exp_rotvec` (same series)."""
     th2 = x * x + y * y + z * z
@@ -264,6 +267,7 @@ def exp_scalar(x, y, z):
     return (x * k, y * k, z * k, math.cos(0.5 * th))
 
 
+@kernel
 def qmul_scalar(a, b):
     ax, ay, az, aw = a
     bx, by, bz, bw = b
@@ -273,6 +277,7 @@ def qmul_scalar(a, b):
             aw * bw - ax * bx - ay * by - az * bz)
 
 
+@kernel
 def compose_scalar(q, b, zeta):
     """``normalize(exp(−ζ) ⊗ q ⊗ b)`` in plain floats (``zeta`` None: no nav frame)."""
     out = qmul_scalar(q, b)

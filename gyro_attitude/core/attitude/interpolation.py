@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 
+from gyro_attitude.core.jit import kernel
+
 GAUSS2 = (0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0))  # 2-point Gauss nodes in [0, 1]
 # Nodes of a streaming fit through the last n samples held (n = 2, 3, 4).
 NODES = {n: tuple(range(n)) for n in range(1, 5)}
@@ -160,44 +162,46 @@ def _gathered_causal_rates(t_ns, omega, k, fractions, lookahead):
     return out
 
 
+@kernel
 def lagrange_points_scalar(xs, ys, es):
     """Plain-float twin of :func:`lagrange_eval`: the polynomial through ``(xs[i], ys[i])``
-    (ys: 3-tuples) at each point of ``es``, a list of 3-tuples.  The weights' denominators
-    ∏_{j≠i}(x_i − x_j) depend only on the nodes, so they are formed once for all points (the
-    causal cubic is evaluated at two Gauss points per sample); the four-node case, every
-    sample's, is written out."""
+    (``ys[i]``: 3 values, a tuple or an array row) at each point of ``es``, a list of 3-tuples.
+    The weights' denominators ∏_{j≠i}(x_i − x_j) depend only on the nodes, so they are formed
+    once for all points (the causal cubic is evaluated at two Gauss points per sample); the
+    four-node case, every sample's, is written out.  A kernel (:mod:`gyro_attitude.core.jit`):
+    indexing only, no unpacking of lists."""
+    out = []
     if len(xs) == 4:
-        x0, x1, x2, x3 = xs
+        x0, x1, x2, x3 = xs[0], xs[1], xs[2], xs[3]
         d01, d02, d03, d12, d13, d23 = x0 - x1, x0 - x2, x0 - x3, x1 - x2, x1 - x3, x2 - x3
         i0 = 1.0 / (d01 * d02 * d03)
         i1 = -1.0 / (d01 * d12 * d13)
         i2 = 1.0 / (d02 * d12 * d23)
         i3 = -1.0 / (d03 * d13 * d23)
-        (p0, p1, p2), (q0, q1, q2), (r0, r1, r2), (s0, s1, s2) = ys
-        out = []
+        p, q, r, s = ys[0], ys[1], ys[2], ys[3]
         for e in es:
             a0, a1, a2, a3 = e - x0, e - x1, e - x2, e - x3
             a01, a23 = a0 * a1, a2 * a3
             w0, w1, w2, w3 = a1 * a23 * i0, a0 * a23 * i1, a01 * a3 * i2, a01 * a2 * i3
-            out.append((w0 * p0 + w1 * q0 + w2 * r0 + w3 * s0,
-                        w0 * p1 + w1 * q1 + w2 * r1 + w3 * s1,
-                        w0 * p2 + w1 * q2 + w2 * r2 + w3 * s2))
+            out.append((w0 * p[0] + w1 * q[0] + w2 * r[0] + w3 * s[0],
+                        w0 * p[1] + w1 * q[1] + w2 * r[1] + w3 * s[1],
+                        w0 * p[2] + w1 * q[2] + w2 * r[2] + w3 * s[2]))
         return out
     inv = []
-    for i, xi in enumerate(xs):
+    for i in range(len(xs)):
         d = 1.0
-        for j, xj in enumerate(xs):
+        for j in range(len(xs)):
             if j != i:
-                d *= xi - xj
+                d *= xs[i] - xs[j]
         inv.append(1.0 / d)
-    out = []
     for e in es:
         ox = oy = oz = 0.0
-        for i, y in enumerate(ys):
+        for i in range(len(xs)):
+            y = ys[i]
             wgt = inv[i]
-            for j, xj in enumerate(xs):
+            for j in range(len(xs)):
                 if j != i:
-                    wgt *= e - xj
+                    wgt *= e - xs[j]
             ox += wgt * y[0]
             oy += wgt * y[1]
             oz += wgt * y[2]
@@ -311,18 +315,19 @@ def untrusted_fits(t_ns: np.ndarray, omega: np.ndarray, k: np.ndarray, fitted: n
     return bad
 
 
+@kernel
 def untrusted_fit_scalar(ts, ws, k, nodes, fitted) -> float:
     """Plain-float twin of :func:`untrusted_fits` for one interval ``k`` of the histories
-    ``ts, ws`` fitted on ``nodes`` (``fitted``: the fitted 3-tuples): the weight of the
-    exponential map's step, 0.0 when the fit can be trusted."""
+    ``ts, ws`` (their first ``len(nodes)`` entries: the fit's nodes are the whole history)
+    fitted on ``nodes`` (``fitted``: the fitted 3-tuples): the weight of the exponential map's
+    step, 0.0 when the fit can be trusted.  A kernel (:mod:`gyro_attitude.core.jit`)."""
+    n = len(nodes)
     weight = 0.0
     j = max(k, 2)
-    if j < len(ts):
-        b0, b1, b2 = ws[j]
-        m0, m1, m2 = ws[j - 1]
-        a0, a1, a2 = ws[j - 2]
-        db0, db1, db2 = b0 - m0, b1 - m1, b2 - m2
-        da0, da1, da2 = m0 - a0, m1 - a1, m2 - a2
+    if j < n:
+        b, m, a = ws[j], ws[j - 1], ws[j - 2]
+        db0, db1, db2 = b[0] - m[0], b[1] - m[1], b[2] - m[2]
+        da0, da1, da2 = m[0] - a[0], m[1] - a[1], m[2] - a[2]
         h = (ts[j] - ts[j - 1]) * 1e-9
         nb = db0 * db0 + db1 * db1 + db2 * db2
         if nb * (h * h) >= _CHANGE_MIN2:
@@ -332,10 +337,15 @@ def untrusted_fit_scalar(ts, ws, k, nodes, fitted) -> float:
                 turn = math.acos(max(-1.0, min(1.0, dot / math.sqrt(na * nb))))
                 weight = min(max((turn - FIT_TURN_MAX_RAD) / (math.pi - FIT_TURN_MAX_RAD),
                                  1e-300), 1.0)
-    if len(ts) > 2 and _uneven(ts):
+    if n > 2 and _uneven(ts, n):
         for c in range(3):
-            vals = [ws[i][c] for i in nodes]
-            lo, hi = min(vals), max(vals)
+            lo, hi = math.inf, -math.inf
+            for i in nodes:
+                v = ws[i][c]
+                if v < lo:
+                    lo = v
+                if v > hi:
+                    hi = v
             slack = FIT_OVERSHOOT_MAX * (hi - lo) + 1e-12 * (abs(lo) + abs(hi))
             for f in fitted:
                 if f[c] > hi + slack or f[c] < lo - slack:
@@ -343,11 +353,13 @@ def untrusted_fit_scalar(ts, ws, k, nodes, fitted) -> float:
     return weight
 
 
-def _uneven(ts) -> bool:
-    """Whether the steps of the stamps ``ts`` spread by more than _EVEN_TOL of the shortest."""
+@kernel
+def _uneven(ts, n) -> bool:
+    """Whether the steps of the first ``n`` stamps ``ts`` spread by more than _EVEN_TOL of the
+    shortest."""
     prev = ts[1]
     s_min = s_max = prev - ts[0]
-    for i in range(2, len(ts)):
+    for i in range(2, n):
         step = ts[i] - prev
         prev = ts[i]
         if step < s_min:
@@ -403,9 +415,11 @@ def causal_window(n_samples: int, lookahead: bool):
     return window
 
 
+@kernel
 def causal_fit_scalar_checked(ts, ws, k, nodes, fractions):
     """The causal fit's rates at ``fractions`` of interval ``k`` and whether they can be
-    trusted (:func:`untrusted_fit_scalar`): (rates, h, untrusted)."""
+    trusted (:func:`untrusted_fit_scalar`): (rates, h, untrusted).  A kernel
+    (:mod:`gyro_attitude.core.jit`)."""
     t_prev = ts[k - 1]
     h = (ts[k] - t_prev) * 1e-9
     xs = [(ts[i] - t_prev) * 1e-9 for i in nodes]

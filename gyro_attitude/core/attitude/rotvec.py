@@ -15,6 +15,7 @@ from gyro_attitude.core.attitude.interpolation import (
     causal_window,
     hold_untrusted,
 )
+from gyro_attitude.core.jit import kernel
 from gyro_attitude.core.rotation import _exp_rotvec
 
 _SQRT3_12 = math.sqrt(3.0) / 12.0
@@ -59,19 +60,30 @@ class RotvecCubic(RateAlgorithm):
         return self.body_increment_checked(ts, ws, k, nodes)[0]
 
     def body_increment_checked(self, ts, ws, k, nodes):
-        ((ax, ay, az), (bx, by, bz)), h, held = causal_fit_scalar_checked(ts, ws, k, nodes,
-                                                                        GAUSS2)
-        half, c = 0.5 * h, _SQRT3_12 * (h * h)
-        px = half * (ax + bx) + c * (ay * bz - az * by)
-        py = half * (ay + by) + c * (az * bx - ax * bz)
-        pz = half * (az + bz) + c * (ax * by - ay * bx)
-        if held > 0.0:  # toward the exponential map of the endpoint mean (hold_untrusted)
-            (ux, uy, uz), (vx, vy, vz) = ws[k - 1], ws[k]
-            keep = 1.0 - held
-            px = keep * px + held * (0.5 * (ux + vx) * h)
-            py = keep * py + held * (0.5 * (uy + vy) * h)
-            pz = keep * pz + held * (0.5 * (uz + vz) * h)
-        return exp_scalar(px, py, pz), held > 0.0
+        return cubic_increment(ts, ws, k, nodes)
+
+
+@kernel
+def cubic_increment(ts, ws, k, nodes):
+    """The causal cubic's step over interval ``k`` of the histories ``ts, ws`` fitted on
+    ``nodes``: (increment quaternion, whether the fit was not trusted).  A kernel
+    (:mod:`gyro_attitude.core.jit`): the streaming integrator and the compiled chain step
+    with it."""
+    rates, h, held = causal_fit_scalar_checked(ts, ws, k, nodes, GAUSS2)
+    a, b = rates[0], rates[1]
+    ax, ay, az = a
+    bx, by, bz = b
+    half, c = 0.5 * h, _SQRT3_12 * (h * h)
+    px = half * (ax + bx) + c * (ay * bz - az * by)
+    py = half * (ay + by) + c * (az * bx - ax * bz)
+    pz = half * (az + bz) + c * (ax * by - ay * bx)
+    if held > 0.0:  # toward the exponential map of the endpoint mean (hold_untrusted)
+        u, v = ws[k - 1], ws[k]
+        keep = 1.0 - held
+        px = keep * px + held * (0.5 * (u[0] + v[0]) * h)
+        py = keep * py + held * (0.5 * (u[1] + v[1]) * h)
+        pz = keep * pz + held * (0.5 * (u[2] + v[2]) * h)
+    return exp_scalar(px, py, pz), held > 0.0
 
 
 def _magnus4_scalar(ax, ay, az, bx, by, bz, half, c):

@@ -6,12 +6,112 @@ import math
 
 import numpy as np
 
+from gyro_attitude.core.attitude.compose import compose_scalar
 from gyro_attitude.core.attitude.inputs import check_q0
 from gyro_attitude.core.attitude.nav_frame import NavFrame, nav_zeta_scalar
 from gyro_attitude.core.attitude.quadrature import get_quadrature
 from gyro_attitude.core.attitude.registry import DEFAULT_ALGORITHM, get_algorithm
+from gyro_attitude.core.attitude.rotvec import ROTVEC_CUBIC, cubic_increment
+from gyro_attitude.core.jit import compiled, kernel
 
 _HISTORY = 4  # samples held: the causal cubic's four nodes
+
+# The causal cubic (the default algorithm) steps through one kernel, :func:`cubic_advance`,
+# whose state is arrays (``CubicState``): the compiled chain of the stream (stream_loop.py)
+# steps the same state without the interpreter.  Its integer slots:
+C_N, C_SAMPLES, C_LAST_T, C_HAS_LAST, C_FALLBACKS, C_FIRST_FELL, C_NEED_W0, C_HAS_ZETA_FIRST, \
+    C_HAS_NAV_PREV = range(9)
+# and its float slots: the attitude, the stepper's start, ζ of the first interval, the last
+# nav rate (4 + 4 + 3 + 3)
+F_Q, F_Q_START, F_ZETA_FIRST, F_NAV_PREV = 0, 4, 8, 11
+
+
+@kernel
+def cubic_advance(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
+    """One sample ``t`` (int ns after the last), rate ``(w0, w1, w2)`` and nav rate
+    ``(r0, r1, r2)`` at it (``has_nav``) into the causal cubic's state (``ci`` int slots,
+    ``ts`` (4,) stamps, ``ws`` (4, 3) rates, ``cf`` float slots): the attitude as 4 floats.
+    :meth:`StreamingIntegrator.advance` for the cubic: the history of the last four samples,
+    the first interval redone as the third sample arrives (the quadratic through 0, 1, 2, as
+    the batch), the fit's fallbacks counted."""
+    has_z = False
+    z0 = z1 = z2 = 0.0
+    if has_nav:
+        if ci[C_HAS_LAST] == 1:
+            # ζ of the interval: the trapezoid of the nav rates at its ends (nav_zeta_scalar)
+            h = (t - ci[C_LAST_T]) * 1e-9
+            z0 = 0.5 * (cf[F_NAV_PREV] + r0) * h
+            z1 = 0.5 * (cf[F_NAV_PREV + 1] + r1) * h
+            z2 = 0.5 * (cf[F_NAV_PREV + 2] + r2) * h
+            has_z = True
+        cf[F_NAV_PREV], cf[F_NAV_PREV + 1], cf[F_NAV_PREV + 2] = r0, r1, r2
+        ci[C_HAS_NAV_PREV] = 1
+    ci[C_SAMPLES] += 1
+    if ci[C_HAS_LAST] == 0:
+        ci[C_LAST_T], ci[C_HAS_LAST], ci[C_N], ci[C_NEED_W0] = t, 1, 1, 0
+        ts[0] = t
+        ws[0, 0], ws[0, 1], ws[0, 2] = w0, w1, w2
+        return cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3]
+    if ci[C_NEED_W0] == 1:  # reset(q0, t_ns): the first rate held back to the start time
+        ws[0, 0], ws[0, 1], ws[0, 2] = w0, w1, w2
+        ci[C_NEED_W0] = 0
+    n = ci[C_N]
+    if n == 4:
+        for i in range(3):
+            ts[i] = ts[i + 1]
+            ws[i, 0], ws[i, 1], ws[i, 2] = ws[i + 1, 0], ws[i + 1, 1], ws[i + 1, 2]
+        n = 3
+    ts[n] = t
+    ws[n, 0], ws[n, 1], ws[n, 2] = w0, w1, w2
+    n += 1
+    ci[C_N] = n
+    if ci[C_SAMPLES] == 2:
+        cf[F_ZETA_FIRST], cf[F_ZETA_FIRST + 1], cf[F_ZETA_FIRST + 2] = z0, z1, z2
+        ci[C_HAS_ZETA_FIRST] = 1 if has_z else 0
+    elif ci[C_SAMPLES] == 3:
+        b, fell = cubic_increment(ts, ws, 1, range(3))
+        ci[C_FALLBACKS] += (1 if fell else 0) - ci[C_FIRST_FELL]
+        q_start = (cf[F_Q_START], cf[F_Q_START + 1], cf[F_Q_START + 2], cf[F_Q_START + 3])
+        if ci[C_HAS_ZETA_FIRST] == 1:
+            q = compose_scalar(q_start, b, (cf[F_ZETA_FIRST], cf[F_ZETA_FIRST + 1],
+                                            cf[F_ZETA_FIRST + 2]))
+        else:
+            q = compose_scalar(q_start, b, None)
+        cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3] = q
+    b, fell = cubic_increment(ts, ws, n - 1, range(n))
+    if fell:
+        ci[C_FALLBACKS] += 1
+    if n == 2:
+        ci[C_FIRST_FELL] = 1 if fell else 0
+    q = (cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3])
+    if has_z:
+        q = compose_scalar(q, b, (z0, z1, z2))
+    else:
+        q = compose_scalar(q, b, None)
+    cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3] = q
+    ci[C_LAST_T] = t
+    return q
+
+
+class CubicState:
+    """The causal cubic's streaming state as arrays (see :func:`cubic_advance`)."""
+
+    __slots__ = ("ci", "ts", "ws", "cf")
+
+    def __init__(self, q0: tuple, t_ns: int | None, nav_rate):
+        self.ci = np.zeros(9, dtype=np.int64)
+        self.ts = np.zeros(_HISTORY, dtype=np.int64)
+        self.ws = np.zeros((_HISTORY, 3))
+        self.cf = np.zeros(14)
+        self.cf[F_Q:F_Q + 4] = q0
+        self.cf[F_Q_START:F_Q_START + 4] = q0
+        if t_ns is not None:
+            ci = self.ci
+            ci[C_SAMPLES], ci[C_LAST_T], ci[C_HAS_LAST], ci[C_N], ci[C_NEED_W0] = 1, t_ns, 1, 1, 1
+            self.ts[0] = t_ns
+            if nav_rate is not None:
+                self.cf[F_NAV_PREV:F_NAV_PREV + 3] = nav_rate
+                ci[C_HAS_NAV_PREV] = 1
 
 
 class StreamingIntegrator:
@@ -71,12 +171,13 @@ class StreamingIntegrator:
         self._fallbacks_before = self.fit_fallbacks if hasattr(self, "_stepper") else 0
         self.samples = 0
         self.last_t_ns: int | None = None
-        self._stepper = self.info.stepper(tuple(float(c) for c in self._q), self._quadrature,
-                                          self.singular_tol)
+        q_start = tuple(float(c) for c in self._q)
+        self._stepper = self.info.stepper(q_start, self._quadrature, self.singular_tol)
         self._ts: list[int] = []
         self._ws: list[tuple[float, float, float]] = []
         self._nav_hist: list = []
         self._zeta_first = None
+        t = rate = None
         if t_ns is not None:
             t = self._check_time(t_ns)
             rate = self._nav_rate_at(0)
@@ -84,6 +185,8 @@ class StreamingIntegrator:
             self.last_t_ns = t
             self._ts = [t]
             self._nav_hist = [] if rate is None else [rate.tolist()]
+        # the causal cubic keeps its history in arrays and steps through one kernel
+        self.cubic = CubicState(q_start, t, rate) if self.info is ROTVEC_CUBIC else None
 
     @property
     def quaternion(self) -> np.ndarray:
@@ -93,7 +196,17 @@ class StreamingIntegrator:
     def fit_fallbacks(self) -> int:
         """Intervals integrated so far (since construction, across resets) whose rate fit could
         not be trusted, integrated with the exponential map (the batch's ``fallbacks``)."""
+        if getattr(self, "cubic", None) is not None:
+            return self._fallbacks_before + int(self.cubic.ci[C_FALLBACKS])
         return self._fallbacks_before + getattr(self._stepper, "fit_fallbacks", 0)
+
+    def synced(self) -> None:
+        """Take the attitude, the sample count and the last stamp from the cubic's arrays
+        (after the compiled chain stepped them)."""
+        cs = self.cubic
+        self._q = tuple(cs.cf[F_Q:F_Q + 4].tolist())
+        self.samples = int(cs.ci[C_SAMPLES])
+        self.last_t_ns = int(cs.ci[C_LAST_T]) if cs.ci[C_HAS_LAST] else None
 
     def update_nav(self, nav: NavFrame) -> None:
         """Use the constant navigation frame ``nav`` from the next sample on.
@@ -163,6 +276,19 @@ class StreamingIntegrator:
     def advance(self, t: int, w: tuple[float, float, float]) -> tuple[float, ...]:
         """:meth:`update` on a sample already checked (``t`` an int after ``last_t_ns``, ``w``
         3 finite floats): the attitude as 4 floats (the stream's per-sample path: no arrays)."""
+        cs = self.cubic
+        if cs is not None:
+            rate = self._nav_rate_at(self.samples)
+            if rate is None:
+                q = compiled(cubic_advance)(cs.ci, cs.ts, cs.ws, cs.cf, t, w[0], w[1], w[2], False, 0.0, 0.0,
+                              0.0)
+            else:
+                q = compiled(cubic_advance)(cs.ci, cs.ts, cs.ws, cs.cf, t, w[0], w[1], w[2], True,
+                              float(rate[0]), float(rate[1]), float(rate[2]))
+            self.samples += 1
+            self.last_t_ns = t
+            self._q = q
+            return q
         zeta = None if self.nav is None else self._nav_zeta(t)
         self.samples += 1
         if self.last_t_ns is None:

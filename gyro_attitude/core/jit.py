@@ -1,0 +1,64 @@
+"""One source, two speeds: per-sample steps written once in the subset of Python that numba
+compiles, run compiled where speed matters and as plain Python otherwise.
+
+A function marked :func:`kernel` is ordinary Python: floats, ints, tuples and numpy arrays, no
+objects.  :func:`compiled` gives its compiled form (numba's ``njit``), with every marked
+function it calls compiled too, so that a loop over samples runs without the interpreter.
+Nothing is copied: the compiled form is built from the same code object.
+
+The backend is chosen once (:func:`backend`): ``numba`` when it is installed, ``python`` when it
+is not or when ``GYRO_ATTITUDE_JIT=0`` (then :func:`compiled` returns the function itself: the
+same results, slower).  numba is imported on the first :func:`compiled` call only, so commands
+that never run a per-sample chain do not pay its import.  Compiled code is cached on disk
+(numba's ``cache=True``, beside the source in ``__pycache__``): the first run of a new
+installation compiles (seconds), later ones load.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import types
+
+__all__ = ["backend", "compiled", "kernel"]
+
+_MARK = "__gyro_attitude_kernel__"
+
+
+def kernel(func):
+    """Mark ``func`` as written in numba's nopython subset (see the module docstring)."""
+    setattr(func, _MARK, True)
+    return func
+
+
+@functools.cache
+def backend() -> str:
+    """``"numba"`` or ``"python"`` (chosen once per process)."""
+    if os.environ.get("GYRO_ATTITUDE_JIT", "1").strip() == "0":
+        return "python"
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return "python"
+    return "numba"
+
+
+@functools.cache
+def compiled(func):
+    """The compiled form of the kernel ``func`` (itself with the python backend)."""
+    if not getattr(func, _MARK, False):
+        raise TypeError(f"{func.__qualname__} is not marked as a kernel")
+    if backend() == "python":
+        return func
+    import numba
+
+    # the callees it names, compiled: numba calls compiled functions only
+    names = dict(func.__globals__)
+    for name in func.__code__.co_names:
+        callee = names.get(name)
+        if callee is not func and getattr(callee, _MARK, False):
+            names[name] = compiled(callee)
+    twin = types.FunctionType(func.__code__, names, func.__name__, func.__defaults__,
+                              func.__closure__)
+    twin.__module__, twin.__qualname__ = func.__module__, func.__qualname__
+    return numba.njit(cache=True)(twin)
