@@ -11,6 +11,8 @@ import math
 
 import numpy as np
 
+from gyro_attitude.core.jit import kernel
+
 __all__ = ["wrap_2pi", "wrap_pi", "wrap_pi_closed"]
 
 _TWO_PI = 2.0 * math.pi
@@ -26,8 +28,14 @@ def wrap_2pi(a):
 def wrap_pi(a):
     """Angles wrapped to [−π, π) (differences of headings, longitudes)."""
     if isinstance(a, float | int) and not isinstance(a, bool):
-        return (float(a) + math.pi) % _TWO_PI - math.pi
+        return wrap_pi_float(float(a))
     return np.mod(np.asarray(a) + np.pi, _TWO_PI) - np.pi
+
+
+@kernel
+def wrap_pi_float(a: float) -> float:
+    """:func:`wrap_pi` of one float (a kernel: the compiled filters call it)."""
+    return (a + math.pi) % _TWO_PI - math.pi
 
 
 def wrap_pi_closed(a):

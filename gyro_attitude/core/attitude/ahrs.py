@@ -60,10 +60,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gyro_attitude.core.angles import wrap_pi
+from gyro_attitude.core.angles import wrap_pi_float
 from gyro_attitude.core.attitude.modes import SettingError
 from gyro_attitude.core.attitude.settings import setting
 from gyro_attitude.core.earth import STANDARD_GRAVITY
+from gyro_attitude.core.jit import compiled, kernel
 
 __all__ = ["AhrsFilter", "AhrsParams", "ahrs_attitude", "MAG_ABSURD_T", "MAG_ZERO_T"]
 
@@ -176,6 +177,7 @@ def _check_num(name, v, lo, hi) -> float:
     return float(v)
 
 
+@kernel
 def _butterworth2(tau: float, dt: float) -> tuple[float, float, float, float, float]:
     """(b0, b1, b2, a1, a2) of the second-order Butterworth low-pass by the bilinear transform,
     cutoff ``√2 / (2π τ)`` (so that its step response settles like a first-order filter of
@@ -201,12 +203,37 @@ def _as_floats(v) -> tuple[float, float, float] | None:
     return None
 
 
+# The filter's state as arrays (what the compiled chain steps).  Float slots:
+A_BIAS, A_LP, A_COEF, A_KEY_TAU, A_REST_S, A_REJECT_S, A_RUN_S, A_SINCE_HEADING, A_REF_ACC, \
+    A_CAND, A_HI_SUMS, A_HI_SINCE, A_HARD_IRON, A_REF_NORM, A_REF_DIP = \
+    0, 3, 9, 14, 15, 16, 17, 18, 19, 22, 25, 39, 40, 43, 44
+_A_FLOATS = 45
+# (bias 3; the Butterworth's delay elements s1, s2 in the nav frame 6; its coefficients 5 and
+# the time constant they are for; the rest, rejection, run and heading clocks; Σ norm, Σ dip,
+# Σ seconds while learning the reference; a steady disturbed field's norm, dip, seconds; the
+# 14 sphere-fit sums and the seconds since the last solve; the hard iron; the reference)
+# Int slots:
+I_LAST_T, I_HAS_LAST, I_AIDED, I_REJECTED, I_RECOVERIES, I_MAG_USED, I_MAG_DISTURBED, \
+    I_MAG_INVALID, I_REF_CHANGES, I_AT_REST, I_HEADING_INIT, I_HAS_LP, I_HAS_KEY, I_KEY_DT, \
+    I_HAS_CAND, I_HAS_REF_NORM, I_HAS_REF_DIP, I_HI_ON, I_HI_FITS = range(19)
+_A_INTS = 19
+# Parameters (AhrsParams and what follows from it):
+P_ACCEL_TAU, P_TILT_TAU, P_REST_ACCEL_TAU, P_REST_RATE_MAX, P_REST_ACCEL_TOL, P_REST_MIN_S, \
+    P_GRAVITY, P_ACCEL_NORM_TOL, P_ACCEL_RECOVERY_S, P_BIAS_GAIN, P_MAG_TAU, P_MAG_NORM_TOL, \
+    P_MAG_REF_S, P_HI_WINDOW_S, P_DECL, P_REJECT_COS, P_TILT_RATE, P_SETTLE_S, \
+    P_RECOVERY_RATE, P_DIP_TOL, P_REF_NORM_GIVEN, P_MAG_RECOVERY_S = range(22)
+# a magnetometer sample as the kernel takes it: absent, present but not 3 finite numbers, given
+MAG_ABSENT, MAG_NOT_FLOATS, MAG_GIVEN = 0, 1, 2
+
+
 class AhrsFilter:
     """The causal AHRS aiding stage (see the module docstring).  Counters and state are public
     attributes: ``accel_rejected``, ``accel_recoveries``, ``aided_samples`` (samples whose tilt
     was corrected), ``mag_used``, ``mag_disturbed``, ``mag_invalid``, ``mag_reference_changes``,
     ``at_rest``, ``bias`` (rad/s, subtracted), ``hard_iron`` (tesla), ``mag_ref_norm`` (tesla)
-    and ``mag_ref_dip`` (rad) once known, ``heading_initialized``."""
+    and ``mag_ref_dip`` (rad) once known, ``heading_initialized``.  They read the arrays
+    ``params``, ``af`` (float state) and ``ai`` (int state) that the kernel :func:`ahrs_step`
+    steps."""
 
     def __init__(self, params: AhrsParams | None = None, **kw):
         self.params = p = params if params is not None else AhrsParams(**kw)
@@ -214,54 +241,73 @@ class AhrsFilter:
             raise ValueError("give AhrsParams or keyword settings, not both")
         # the tilt's effective gain for the covariance stage: the low-pass sets the time constant
         self.kp = 1.0 / max(p.accel_tau_s, p.tilt_tau_s)
-        self._decl = math.radians(p.declination_deg)
-        self._reject_cos = math.cos(math.radians(p.accel_reject_deg))
-        self._tilt_rate = math.radians(p.tilt_rate_max_deg_s)
-        self._settle_s = 2.0 * p.accel_tau_s
-        self._recovery_rate = math.radians(p.accel_recovery_rate_deg_s)
-        self._dip_tol = math.radians(p.mag_dip_tol_deg)
+        self.pa = np.array([
+            p.accel_tau_s, p.tilt_tau_s, p.rest_accel_tau_s, p.rest_rate_max, p.rest_accel_tol,
+            p.rest_min_s, p.gravity, p.accel_norm_tol, p.accel_recovery_s, p.bias_gain,
+            p.mag_tau_s, p.mag_norm_tol, p.mag_ref_s, p.hard_iron_window_s,
+            math.radians(p.declination_deg), math.cos(math.radians(p.accel_reject_deg)),
+            math.radians(p.tilt_rate_max_deg_s), 2.0 * p.accel_tau_s,
+            math.radians(p.accel_recovery_rate_deg_s), math.radians(p.mag_dip_tol_deg),
+            0.0 if p.mag_ref_norm_t is None else 1.0, p.mag_recovery_s])
         self.reset()
 
     def reset(self) -> None:
         p = self.params
-        self.last_t_ns: int | None = None
-        self.bias = [0.0, 0.0, 0.0]
-        self.aided_samples = 0
-        self.accel_rejected = 0
-        self.accel_recoveries = 0
-        self.mag_used = 0
-        self.mag_disturbed = 0
-        self.mag_invalid = 0
-        self.mag_reference_changes = 0
-        self.at_rest = False
-        self.heading_initialized = not p.initial_heading_from_mag
-        self.hard_iron = [float(c) for c in p.hard_iron_t]
-        self.mag_ref_norm = p.mag_ref_norm_t
-        self.mag_ref_dip = None if p.mag_ref_dip_deg is None else math.radians(p.mag_ref_dip_deg)
-        self._lp = None  # [s1x, s1y, s1z, s2x, s2y, s2z] of the Butterworth, nav frame
-        self._coef_key = None
-        self._coef = None
-        self._rest_s = 0.0
-        self._reject_s = 0.0
-        self._run_s = 0.0  # seconds since the low-pass started
-        self._since_heading_s = 0.0
-        self._ref_acc = [0.0, 0.0, 0.0]  # Σ norm, Σ dip, Σ seconds while learning the reference
-        self._cand = None  # (norm, dip, seconds) of a steady disturbed field
-        self._hi_sums = [0.0] * 14 if p.estimate_hard_iron else None
-        self._hi_since_s = 0.0
-        self.hard_iron_fits = 0
+        self.af = af = np.zeros(_A_FLOATS)
+        self.ai = ai = np.zeros(_A_INTS, dtype=np.int64)
+        ai[I_HEADING_INIT] = not p.initial_heading_from_mag
+        af[A_HARD_IRON:A_HARD_IRON + 3] = [float(c) for c in p.hard_iron_t]
+        if p.mag_ref_norm_t is not None:
+            af[A_REF_NORM], ai[I_HAS_REF_NORM] = p.mag_ref_norm_t, 1
+        if p.mag_ref_dip_deg is not None:
+            af[A_REF_DIP], ai[I_HAS_REF_DIP] = math.radians(p.mag_ref_dip_deg), 1
+        ai[I_HI_ON] = bool(p.estimate_hard_iron)
+
+    # ------------------------------------------------------------------ the state, read
+    def _count(i):
+        return property(lambda self: int(self.ai[i]))
+
+    aided_samples = _count(I_AIDED)
+    accel_rejected = _count(I_REJECTED)
+    accel_recoveries = _count(I_RECOVERIES)
+    mag_used = _count(I_MAG_USED)
+    mag_disturbed = _count(I_MAG_DISTURBED)
+    mag_invalid = _count(I_MAG_INVALID)
+    mag_reference_changes = _count(I_REF_CHANGES)
+    hard_iron_fits = _count(I_HI_FITS)
+    del _count
+    at_rest = property(lambda self: bool(self.ai[I_AT_REST]))
+    heading_initialized = property(lambda self: bool(self.ai[I_HEADING_INIT]))
+    bias = property(lambda self: self.af[A_BIAS:A_BIAS + 3].tolist())
+    hard_iron = property(lambda self: self.af[A_HARD_IRON:A_HARD_IRON + 3].tolist())
+    mag_ref_norm = property(lambda self: float(self.af[A_REF_NORM]) if self.ai[I_HAS_REF_NORM]
+                            else None)
+    mag_ref_dip = property(lambda self: float(self.af[A_REF_DIP]) if self.ai[I_HAS_REF_DIP]
+                           else None)
+
+    @property
+    def last_t_ns(self) -> int | None:
+        return int(self.ai[I_LAST_T]) if self.ai[I_HAS_LAST] else None
+
+    @last_t_ns.setter
+    def last_t_ns(self, value) -> None:
+        """Only None is set from outside: a new time base (the low-pass starts again)."""
+        if value is not None:
+            raise ValueError("last_t_ns is set by the samples; assign None to restart")
+        self.ai[I_HAS_LAST] = 0
 
     def heading_from_field(self, seconds: float, norm_t: float, dip_rad: float) -> None:
         """The heading was just set from the mean field over ``seconds`` of rest (the static
         alignment, with the levelled attitude): the filter goes on from it as a running average
         that has already seen that much field (no fast first phase, the time constant starts at
         ``seconds``), and that field (norm, dip) is the reference unless one is given."""
-        self.heading_initialized = True
-        self._since_heading_s = HEADING_INIT_S + seconds
-        if self.mag_ref_norm is None:
-            self.mag_ref_norm = norm_t
-        if self.mag_ref_dip is None:
-            self.mag_ref_dip = dip_rad
+        af, ai = self.af, self.ai
+        ai[I_HEADING_INIT] = 1
+        af[A_SINCE_HEADING] = HEADING_INIT_S + seconds
+        if not ai[I_HAS_REF_NORM]:
+            af[A_REF_NORM], ai[I_HAS_REF_NORM] = norm_t, 1
+        if not ai[I_HAS_REF_DIP]:
+            af[A_REF_DIP], ai[I_HAS_REF_DIP] = dip_rad, 1
 
     def restart(self) -> None:
         """A new time base (gap, reset): the low-pass starts again from the next sample; the
@@ -273,292 +319,329 @@ class AhrsFilter:
         w = rate.tolist() if isinstance(rate, np.ndarray) else rate
         x, y, z, s = q_nb.tolist() if isinstance(q_nb, np.ndarray) else q_nb
         t = int(t_ns)
-        last = self.last_t_ns
-        dt = 0.0 if last is None else (t - last) * 1e-9
-        if last is not None and dt <= 0.0:
-            raise ValueError(f"t_ns must increase: {t} after {last}")
-        self.last_t_ns = t
-        b = self.bias
-        ox, oy, oz = w[0] - b[0], w[1] - b[1], w[2] - b[2]
-        if dt == 0.0:
-            self._lp = None  # a new time base: the low-pass starts again
-        # C_nb of the (normalized) attitude: body -> nav
-        k = 2.0 / (x * x + y * y + z * z + s * s)
-        c00 = 1.0 - k * (y * y + z * z)
-        c01 = k * (x * y - z * s)
-        c02 = k * (x * z + y * s)
-        c10 = k * (x * y + z * s)
-        c11 = 1.0 - k * (x * x + z * z)
-        c12 = k * (y * z - x * s)
-        c20 = k * (x * z - y * s)
-        c21 = k * (y * z + x * s)
-        c22 = 1.0 - k * (x * x + y * y)
-        dx = dy = dz = 0.0  # the nav-frame correction (rotation vector) of this sample
-        learn_tilt = learn_heading = False
-        hdt = dt
-        if accel is not None:
+        if self.ai[I_HAS_LAST] and t <= self.ai[I_LAST_T]:
+            raise ValueError(f"t_ns must increase: {t} after {int(self.ai[I_LAST_T])}")
+        has_f = accel is not None
+        fx = fy = fz = 0.0
+        if has_f:
             fx, fy, fz = accel.tolist() if isinstance(accel, np.ndarray) else accel
-            # q_nb is the attitude at the previous sample: the vector seen then is, to first
-            # order, v + (ω dt) × v (half-steps: the mean rate of the interval is not known yet,
-            # the current one over half the step is its midpoint estimate); without this a body
-            # turning at 1 rad/s reads the vertical 0.3° late at 200 Hz
-            fx, fy, fz = (fx + hdt * (oy * fz - oz * fy), fy + hdt * (oz * fx - ox * fz),
-                          fz + hdt * (ox * fy - oy * fx))
-            dx, dy, learn_tilt = self._tilt(dt, ox, oy, oz, fx, fy, fz, c00, c01, c02, c10, c11,
-                                            c12, c20, c21, c22)
-        if dt == 0.0:
-            return ox, oy, oz  # a new time base: no interval to correct over
+        mag_state, mx, my, mz = MAG_ABSENT, 0.0, 0.0, 0.0
         if mag is not None:
-            dz, learn_heading = self._heading(dt, mag, ox * hdt, oy * hdt, oz * hdt, c00, c01,
-                                              c02, c10, c11, c12, c20, c21, c22)
-        if dx == 0.0 and dy == 0.0 and dz == 0.0:
-            return ox, oy, oz
-        lp = self._lp
-        if lp is not None:  # the same rotation applied to the filter's state (almost-inertial)
-            for i in (0, 3):
-                ax, ay, az = lp[i], lp[i + 1], lp[i + 2]
-                lp[i] = ax + dy * az - dz * ay
-                lp[i + 1] = ay + dz * ax - dx * az
-                lp[i + 2] = az + dx * ay - dy * ax
-        # the nav-frame rotation as a body rate over this interval: C_bn δ / dt
-        ex = c00 * dx + c10 * dy + c20 * dz
-        ey = c01 * dx + c11 * dy + c21 * dz
-        ez = c02 * dx + c12 * dy + c22 * dz
-        g = self.params.bias_gain
-        if g > 0.0 and (learn_tilt or learn_heading):
-            # the bias integral learns from the steady corrections only (not from the first
-            # seconds of a low-pass, a recovery or the heading set from the field)
-            lx, ly, lz = (dx, dy, 0.0) if learn_tilt else (0.0, 0.0, 0.0)
-            if learn_heading:
-                lz = dz
-            b[0] -= g * (c00 * lx + c10 * ly + c20 * lz)
-            b[1] -= g * (c01 * lx + c11 * ly + c21 * lz)
-            b[2] -= g * (c02 * lx + c12 * ly + c22 * lz)
-        inv = 1.0 / dt
-        return ox + ex * inv, oy + ey * inv, oz + ez * inv
+            m = _as_floats(mag)
+            if m is None:
+                mag_state = MAG_NOT_FLOATS
+            else:
+                mag_state, (mx, my, mz) = MAG_GIVEN, m
+        return compiled(ahrs_step)(self.pa, self.af, self.ai, t, float(w[0]), float(w[1]),
+                                   float(w[2]), has_f, float(fx), float(fy), float(fz),
+                                   float(x), float(y), float(z), float(s), mag_state, mx, my, mz)
 
     step = update  # the stage's step on checked inputs (the stream's chain): the same step
 
-    def _tilt(self, dt, ox, oy, oz, fx, fy, fz, c00, c01, c02, c10, c11, c12, c20, c21, c22):
-        """The tilt correction (nav x, y rotation) of one accelerometer sample."""
-        p = self.params
-        if not (abs(fx) <= 1e6 and abs(fy) <= 1e6 and abs(fz) <= 1e6):
-            return 0.0, 0.0, False  # not finite or absurd: the stream counts it
-        nx = c00 * fx + c01 * fy + c02 * fz
-        ny = c10 * fx + c11 * fy + c12 * fz
-        nz = c20 * fx + c21 * fy + c22 * fz
-        fn = math.sqrt(fx * fx + fy * fy + fz * fz)
-        g0 = p.gravity
-        if ox * ox + oy * oy + oz * oz < p.rest_rate_max * p.rest_rate_max \
-                and abs(fn - g0) < p.rest_accel_tol:
-            self._rest_s += dt
-        else:
-            self._rest_s = 0.0
-        rest = self.at_rest = self._rest_s >= p.rest_min_s
-        lp = self._lp
-        if lp is None:
-            # steady state at the estimate's vertical, not at this one sample: the low-pass then
-            # moves from what the attitude says to what the accelerometer says over accel_tau_s
-            # (one noisy or moving sample would otherwise set the tilt)
-            c = self._coefficients(p.accel_tau_s, 0.0035)
-            r1 = (c[1] - c[3] + c[2] - c[4]) * fn
-            r2 = (c[2] - c[4]) * fn
-            self._lp = [0.0, 0.0, r1, 0.0, 0.0, r2]
-            self._run_s = 0.0
-            return 0.0, 0.0, False
-        self._run_s += dt
-        b0, b1, b2, a1, a2 = self._coefficients(p.rest_accel_tau_s if rest else p.accel_tau_s,
-                                                dt)
-        gx = b0 * nx + lp[0]
-        gy = b0 * ny + lp[1]
-        gz = b0 * nz + lp[2]
-        lp[0] = b1 * nx - a1 * gx + lp[3]
-        lp[1] = b1 * ny - a1 * gy + lp[4]
-        lp[2] = b1 * nz - a1 * gz + lp[5]
-        lp[3] = b2 * nx - a2 * gx
-        lp[4] = b2 * ny - a2 * gy
-        lp[5] = b2 * nz - a2 * gz
-        gn = math.sqrt(gx * gx + gy * gy + gz * gz)
-        if gn < 1e-9:
-            return 0.0, 0.0, False
-        h = math.sqrt(gx * gx + gy * gy)
-        if h < 1e-12 * gn:
-            return 0.0, 0.0, False
-        # the rotation about the horizontal axis ĝ × e_up taking ĝ to the vertical
-        angle = math.atan2(h, gz)
-        learn = False
-        if self._run_s < self._settle_s:
-            pass  # a new low-pass: the accelerometer is all there is, trusted in full
-        elif gz < self._reject_cos * gn or abs(fn - g0) > p.accel_norm_tol:
-            self._reject_s += dt
-            if self._reject_s < p.accel_recovery_s:
-                self.accel_rejected += 1
-                return 0.0, 0.0, False
-            if self._reject_s - dt < p.accel_recovery_s:
-                self.accel_recoveries += 1
-            # recovering: no faster than a gyro can drift, so that an acceleration that lasts
-            # pulls the tilt by that rate only
-            angle = min(angle, self._recovery_rate * dt)
-        else:
-            self._reject_s = 0.0
-            if p.tilt_tau_s > 0.0 and not rest:
-                angle *= min(1.0, dt / p.tilt_tau_s)
-            angle = min(angle, self._tilt_rate * dt)
-            learn = True
-        self.aided_samples += 1
-        f = angle / h
-        return f * gy, -f * gx, learn
 
-    def _coefficients(self, tau, dt):
-        key = (tau, round(dt * 1e7))  # 0.1 µs steps: a jittery clock reuses coefficients
-        if key != self._coef_key:
-            self._coef_key = key
-            self._coef = _butterworth2(tau, dt)
-        return self._coef
+@kernel
+def ahrs_step(pa, af, ai, t, w0, w1, w2, has_f, fx, fy, fz, x, y, z, s, mag_state, mx, my, mz):
+    """One sample of the filter (module docstring) on its state arrays: ``t`` int ns after the
+    last, ``w`` the gyro rate less the known bias, ``f`` the specific force (``has_f``), ``(x,
+    y, z, s)`` the current attitude q_nb, the field ``m`` (``mag_state``); the rate to
+    integrate for the interval ending here."""
+    dt = 0.0 if ai[I_HAS_LAST] == 0 else (t - ai[I_LAST_T]) * 1e-9
+    ai[I_LAST_T], ai[I_HAS_LAST] = t, 1
+    ox, oy, oz = w0 - af[A_BIAS], w1 - af[A_BIAS + 1], w2 - af[A_BIAS + 2]
+    if dt == 0.0:
+        ai[I_HAS_LP] = 0  # a new time base: the low-pass starts again
+    # C_nb of the (normalized) attitude: body -> nav
+    k = 2.0 / (x * x + y * y + z * z + s * s)
+    c00 = 1.0 - k * (y * y + z * z)
+    c01 = k * (x * y - z * s)
+    c02 = k * (x * z + y * s)
+    c10 = k * (x * y + z * s)
+    c11 = 1.0 - k * (x * x + z * z)
+    c12 = k * (y * z - x * s)
+    c20 = k * (x * z - y * s)
+    c21 = k * (y * z + x * s)
+    c22 = 1.0 - k * (x * x + y * y)
+    dx = dy = dz = 0.0  # the nav-frame correction (rotation vector) of this sample
+    learn_tilt = learn_heading = False
+    hdt = dt
+    if has_f:
+        # q_nb is the attitude at the previous sample: the vector seen then is, to first
+        # order, v + (ω dt) × v (half-steps: the mean rate of the interval is not known yet,
+        # the current one over half the step is its midpoint estimate); without this a body
+        # turning at 1 rad/s reads the vertical 0.3° late at 200 Hz
+        fx, fy, fz = (fx + hdt * (oy * fz - oz * fy), fy + hdt * (oz * fx - ox * fz),
+                      fz + hdt * (ox * fy - oy * fx))
+        dx, dy, learn_tilt = _tilt(pa, af, ai, dt, ox, oy, oz, fx, fy, fz, c00, c01, c02, c10,
+                                   c11, c12, c20, c21, c22)
+    if dt == 0.0:
+        return ox, oy, oz  # a new time base: no interval to correct over
+    if mag_state != MAG_ABSENT:
+        dz, learn_heading = _heading(pa, af, ai, dt, mag_state, mx, my, mz, ox * hdt,
+                                     oy * hdt, oz * hdt, c00, c01, c02, c10, c11, c12, c20,
+                                     c21, c22)
+    if dx == 0.0 and dy == 0.0 and dz == 0.0:
+        return ox, oy, oz
+    if ai[I_HAS_LP] == 1:  # the same rotation applied to the filter's state (almost-inertial)
+        for i in (A_LP, A_LP + 3):
+            ax, ay, az = af[i], af[i + 1], af[i + 2]
+            af[i] = ax + dy * az - dz * ay
+            af[i + 1] = ay + dz * ax - dx * az
+            af[i + 2] = az + dx * ay - dy * ax
+    # the nav-frame rotation as a body rate over this interval: C_bn δ / dt
+    ex = c00 * dx + c10 * dy + c20 * dz
+    ey = c01 * dx + c11 * dy + c21 * dz
+    ez = c02 * dx + c12 * dy + c22 * dz
+    g = pa[P_BIAS_GAIN]
+    if g > 0.0 and (learn_tilt or learn_heading):
+        # the bias integral learns from the steady corrections only (not from the first
+        # seconds of a low-pass, a recovery or the heading set from the field)
+        lx, ly, lz = (dx, dy, 0.0) if learn_tilt else (0.0, 0.0, 0.0)
+        if learn_heading:
+            lz = dz
+        af[A_BIAS] -= g * (c00 * lx + c10 * ly + c20 * lz)
+        af[A_BIAS + 1] -= g * (c01 * lx + c11 * ly + c21 * lz)
+        af[A_BIAS + 2] -= g * (c02 * lx + c12 * ly + c22 * lz)
+    inv = 1.0 / dt
+    return ox + ex * inv, oy + ey * inv, oz + ez * inv
 
-    def _heading(self, dt, mag, hx, hy, hz, c00, c01, c02, c10, c11, c12, c20, c21, c22):
-        """(heading correction (nav z rotation), steady) of one magnetometer sample (tesla);
-        ``h`` the body rotation over half the step (see update)."""
-        p = self.params
-        m = _as_floats(mag)
-        if m is None or not max(abs(m[0]), abs(m[1]), abs(m[2])) <= MAG_ABSURD_T:
-            self.mag_invalid += 1
-            return 0.0, False
-        hi = self.hard_iron
-        mx, my, mz = m[0] - hi[0], m[1] - hi[1], m[2] - hi[2]
-        norm = math.sqrt(mx * mx + my * my + mz * mz)
-        if norm < MAG_ZERO_T or m[0] * m[0] + m[1] * m[1] + m[2] * m[2] < MAG_ZERO_T * MAG_ZERO_T:
-            # a reading of (almost) zero is no reading, whatever the hard iron
-            self.mag_invalid += 1
-            return 0.0, False
-        if self._hi_sums is not None:
-            self._hard_iron_step(dt, m)
-        mx, my, mz = mx + hy * mz - hz * my, my + hz * mx - hx * mz, mz + hx * my - hy * mx
-        ex = c00 * mx + c01 * my + c02 * mz
-        ey = c10 * mx + c11 * my + c12 * mz
-        ez = c20 * mx + c21 * my + c22 * mz
-        horiz = math.sqrt(ex * ex + ey * ey)
-        dip = math.atan2(-ez, horiz)
-        learned = self.mag_ref_norm is not None and self.mag_ref_dip is not None
-        if not self._reference_ok(dt, norm, dip) and (learned or self.heading_initialized):
-            # disturbed, or the reference not learned yet once the heading is set (the first
-            # field sets the heading at once: waiting for the reference would set it in motion)
-            return 0.0, False
-        if horiz < 1e-3 * norm:
-            return 0.0, False  # at a magnetic pole the horizontal field gives no heading
-        err = wrap_pi(math.atan2(ex, ey) - self._decl)
-        self.mag_used += 1
-        if not self.heading_initialized:
-            self.heading_initialized = True
-            self._since_heading_s = 0.0
-        self._since_heading_s += dt
-        # The heading is set from the field by a fast first phase (time constant
-        # HEADING_INIT_TAU_S for HEADING_INIT_S: any initial error falls by e^-6.7), then the
-        # time constant grows with the time since (a running average) up to mag_tau_s.  Not
-        # one jump: a correction is a body rate, and a 90° spike in one interval is not
-        # integrated faithfully by the higher-order integrators.
-        since = self._since_heading_s - HEADING_INIT_S
-        tau = min(p.mag_tau_s, max(HEADING_INIT_TAU_S, since))
-        return err * min(1.0, dt / tau), since >= p.mag_tau_s
 
-    def _reference_ok(self, dt, norm, dip) -> bool:
-        """Whether the field agrees with the reference (learning or replacing it as needed)."""
-        p = self.params
-        ref_n, ref_d = self.mag_ref_norm, self.mag_ref_dip
-        if ref_n is None or ref_d is None:
-            acc = self._ref_acc
-            if acc[2] > 0.0 and (abs(norm - acc[0] / acc[2]) > p.mag_norm_tol * norm
-                                 or abs(dip - acc[1] / acc[2]) > self._dip_tol):
-                self._ref_acc = acc = [0.0, 0.0, 0.0]  # not steady: learn again
-            w = max(dt, 1e-3)
-            acc[0] += norm * w
-            acc[1] += dip * w
-            acc[2] += w
-            if acc[2] >= p.mag_ref_s:
-                if ref_n is None:
-                    self.mag_ref_norm = acc[0] / acc[2]
-                if ref_d is None:
-                    self.mag_ref_dip = acc[1] / acc[2]
-            return False
-        if abs(norm - ref_n) <= p.mag_norm_tol * ref_n and abs(dip - ref_d) <= self._dip_tol:
-            self._cand = None
-            return True
-        self.mag_disturbed += 1
-        cand = self._cand
-        if cand is None or abs(norm - cand[0]) > p.mag_norm_tol * cand[0] \
-                or abs(dip - cand[1]) > self._dip_tol:
-            self._cand = (norm, dip, 0.0)
-        else:
-            self._cand = cand = (cand[0], cand[1], cand[2] + dt)
-            if cand[2] >= p.mag_recovery_s and (cand[1] > 0.0) == (ref_d > 0.0):
-                self.mag_ref_norm, self.mag_ref_dip = cand[0], cand[1]
-                self.mag_reference_changes += 1
-                self._cand = None
+@kernel
+def _tilt(pa, af, ai, dt, ox, oy, oz, fx, fy, fz, c00, c01, c02, c10, c11, c12, c20, c21, c22):
+    """The tilt correction (nav x, y rotation) of one accelerometer sample."""
+    if not (abs(fx) <= 1e6 and abs(fy) <= 1e6 and abs(fz) <= 1e6):
+        return 0.0, 0.0, False  # not finite or absurd: the stream counts it
+    nx = c00 * fx + c01 * fy + c02 * fz
+    ny = c10 * fx + c11 * fy + c12 * fz
+    nz = c20 * fx + c21 * fy + c22 * fz
+    fn = math.sqrt(fx * fx + fy * fy + fz * fz)
+    g0 = pa[P_GRAVITY]
+    if ox * ox + oy * oy + oz * oz < pa[P_REST_RATE_MAX] * pa[P_REST_RATE_MAX] \
+            and abs(fn - g0) < pa[P_REST_ACCEL_TOL]:
+        af[A_REST_S] += dt
+    else:
+        af[A_REST_S] = 0.0
+    rest = af[A_REST_S] >= pa[P_REST_MIN_S]
+    ai[I_AT_REST] = 1 if rest else 0
+    lp = A_LP
+    if ai[I_HAS_LP] == 0:
+        # steady state at the estimate's vertical, not at this one sample: the low-pass then
+        # moves from what the attitude says to what the accelerometer says over accel_tau_s
+        # (one noisy or moving sample would otherwise set the tilt)
+        _, c1, c2, c3, c4 = _coefficients(af, ai, pa[P_ACCEL_TAU], 0.0035)
+        r1 = (c1 - c3 + c2 - c4) * fn
+        r2 = (c2 - c4) * fn
+        af[lp], af[lp + 1], af[lp + 2], af[lp + 3], af[lp + 4], af[lp + 5] = \
+            0.0, 0.0, r1, 0.0, 0.0, r2
+        ai[I_HAS_LP] = 1
+        af[A_RUN_S] = 0.0
+        return 0.0, 0.0, False
+    af[A_RUN_S] += dt
+    b0, b1, b2, a1, a2 = _coefficients(af, ai, pa[P_REST_ACCEL_TAU] if rest
+                                       else pa[P_ACCEL_TAU], dt)
+    gx = b0 * nx + af[lp]
+    gy = b0 * ny + af[lp + 1]
+    gz = b0 * nz + af[lp + 2]
+    af[lp] = b1 * nx - a1 * gx + af[lp + 3]
+    af[lp + 1] = b1 * ny - a1 * gy + af[lp + 4]
+    af[lp + 2] = b1 * nz - a1 * gz + af[lp + 5]
+    af[lp + 3] = b2 * nx - a2 * gx
+    af[lp + 4] = b2 * ny - a2 * gy
+    af[lp + 5] = b2 * nz - a2 * gz
+    gn = math.sqrt(gx * gx + gy * gy + gz * gz)
+    if gn < 1e-9:
+        return 0.0, 0.0, False
+    h = math.sqrt(gx * gx + gy * gy)
+    if h < 1e-12 * gn:
+        return 0.0, 0.0, False
+    # the rotation about the horizontal axis ĝ × e_up taking ĝ to the vertical
+    angle = math.atan2(h, gz)
+    learn = False
+    if af[A_RUN_S] < pa[P_SETTLE_S]:
+        pass  # a new low-pass: the accelerometer is all there is, trusted in full
+    elif gz < pa[P_REJECT_COS] * gn or abs(fn - g0) > pa[P_ACCEL_NORM_TOL]:
+        af[A_REJECT_S] += dt
+        if af[A_REJECT_S] < pa[P_ACCEL_RECOVERY_S]:
+            ai[I_REJECTED] += 1
+            return 0.0, 0.0, False
+        if af[A_REJECT_S] - dt < pa[P_ACCEL_RECOVERY_S]:
+            ai[I_RECOVERIES] += 1
+        # recovering: no faster than a gyro can drift, so that an acceleration that lasts
+        # pulls the tilt by that rate only
+        angle = min(angle, pa[P_RECOVERY_RATE] * dt)
+    else:
+        af[A_REJECT_S] = 0.0
+        if pa[P_TILT_TAU] > 0.0 and not rest:
+            angle *= min(1.0, dt / pa[P_TILT_TAU])
+        angle = min(angle, pa[P_TILT_RATE] * dt)
+        learn = True
+    ai[I_AIDED] += 1
+    f = angle / h
+    return f * gy, -f * gx, learn
+
+
+@kernel
+def _coefficients(af, ai, tau, dt):
+    """The low-pass coefficients for ``tau`` and ``dt``, kept while both stay (0.1 µs steps
+    of dt: a jittery clock reuses them)."""
+    key_dt = round(dt * 1e7)
+    if ai[I_HAS_KEY] == 0 or af[A_KEY_TAU] != tau or ai[I_KEY_DT] != key_dt:
+        ai[I_HAS_KEY], ai[I_KEY_DT], af[A_KEY_TAU] = 1, key_dt, tau
+        (af[A_COEF], af[A_COEF + 1], af[A_COEF + 2], af[A_COEF + 3],
+         af[A_COEF + 4]) = _butterworth2(tau, dt)
+    return af[A_COEF], af[A_COEF + 1], af[A_COEF + 2], af[A_COEF + 3], af[A_COEF + 4]
+
+
+@kernel
+def _heading(pa, af, ai, dt, mag_state, m0, m1, m2, hx, hy, hz, c00, c01, c02, c10, c11, c12,
+             c20, c21, c22):
+    """(heading correction (nav z rotation), steady) of one magnetometer sample (tesla);
+    ``h`` the body rotation over half the step (see update)."""
+    if mag_state != MAG_GIVEN or not max(abs(m0), abs(m1), abs(m2)) <= MAG_ABSURD_T:
+        ai[I_MAG_INVALID] += 1
+        return 0.0, False
+    mx, my, mz = m0 - af[A_HARD_IRON], m1 - af[A_HARD_IRON + 1], m2 - af[A_HARD_IRON + 2]
+    norm = math.sqrt(mx * mx + my * my + mz * mz)
+    if norm < MAG_ZERO_T or m0 * m0 + m1 * m1 + m2 * m2 < MAG_ZERO_T * MAG_ZERO_T:
+        # a reading of (almost) zero is no reading, whatever the hard iron
+        ai[I_MAG_INVALID] += 1
+        return 0.0, False
+    if ai[I_HI_ON] == 1:
+        _hard_iron_step(pa, af, ai, dt, m0, m1, m2)
+    mx, my, mz = mx + hy * mz - hz * my, my + hz * mx - hx * mz, mz + hx * my - hy * mx
+    ex = c00 * mx + c01 * my + c02 * mz
+    ey = c10 * mx + c11 * my + c12 * mz
+    ez = c20 * mx + c21 * my + c22 * mz
+    horiz = math.sqrt(ex * ex + ey * ey)
+    dip = math.atan2(-ez, horiz)
+    learned = ai[I_HAS_REF_NORM] == 1 and ai[I_HAS_REF_DIP] == 1
+    if not _reference_ok(pa, af, ai, dt, norm, dip) and (learned or ai[I_HEADING_INIT] == 1):
+        # disturbed, or the reference not learned yet once the heading is set (the first
+        # field sets the heading at once: waiting for the reference would set it in motion)
+        return 0.0, False
+    if horiz < 1e-3 * norm:
+        return 0.0, False  # at a magnetic pole the horizontal field gives no heading
+    err = wrap_pi_float(math.atan2(ex, ey) - pa[P_DECL])
+    ai[I_MAG_USED] += 1
+    if ai[I_HEADING_INIT] == 0:
+        ai[I_HEADING_INIT] = 1
+        af[A_SINCE_HEADING] = 0.0
+    af[A_SINCE_HEADING] += dt
+    # The heading is set from the field by a fast first phase (time constant
+    # HEADING_INIT_TAU_S for HEADING_INIT_S: any initial error falls by e^-6.7), then the
+    # time constant grows with the time since (a running average) up to mag_tau_s.  Not
+    # one jump: a correction is a body rate, and a 90° spike in one interval is not
+    # integrated faithfully by the higher-order integrators.
+    since = af[A_SINCE_HEADING] - HEADING_INIT_S
+    tau = min(pa[P_MAG_TAU], max(HEADING_INIT_TAU_S, since))
+    return err * min(1.0, dt / tau), since >= pa[P_MAG_TAU]
+
+
+@kernel
+def _reference_ok(pa, af, ai, dt, norm, dip) -> bool:
+    """Whether the field agrees with the reference (learning or replacing it as needed)."""
+    tol = pa[P_MAG_NORM_TOL]
+    dip_tol = pa[P_DIP_TOL]
+    if ai[I_HAS_REF_NORM] == 0 or ai[I_HAS_REF_DIP] == 0:
+        acc = A_REF_ACC
+        if af[acc + 2] > 0.0 and (abs(norm - af[acc] / af[acc + 2]) > tol * norm
+                                  or abs(dip - af[acc + 1] / af[acc + 2]) > dip_tol):
+            af[acc], af[acc + 1], af[acc + 2] = 0.0, 0.0, 0.0  # not steady: learn again
+        w = max(dt, 1e-3)
+        af[acc] += norm * w
+        af[acc + 1] += dip * w
+        af[acc + 2] += w
+        if af[acc + 2] >= pa[P_MAG_REF_S]:
+            if ai[I_HAS_REF_NORM] == 0:
+                af[A_REF_NORM], ai[I_HAS_REF_NORM] = af[acc] / af[acc + 2], 1
+            if ai[I_HAS_REF_DIP] == 0:
+                af[A_REF_DIP], ai[I_HAS_REF_DIP] = af[acc + 1] / af[acc + 2], 1
         return False
+    ref_n, ref_d = af[A_REF_NORM], af[A_REF_DIP]
+    if abs(norm - ref_n) <= tol * ref_n and abs(dip - ref_d) <= dip_tol:
+        ai[I_HAS_CAND] = 0
+        return True
+    ai[I_MAG_DISTURBED] += 1
+    c = A_CAND
+    if ai[I_HAS_CAND] == 0 or abs(norm - af[c]) > tol * af[c] or abs(dip - af[c + 1]) > dip_tol:
+        af[c], af[c + 1], af[c + 2] = norm, dip, 0.0
+        ai[I_HAS_CAND] = 1
+    else:
+        af[c + 2] = af[c + 2] + dt
+        if af[c + 2] >= pa[P_MAG_RECOVERY_S] and (af[c + 1] > 0.0) == (ref_d > 0.0):
+            af[A_REF_NORM], af[A_REF_DIP] = af[c], af[c + 1]
+            ai[I_REF_CHANGES] += 1
+            ai[I_HAS_CAND] = 0
+    return False
 
-    # ------------------------------------------------------------------ hard iron
-    def _hard_iron_step(self, dt, m) -> None:
-        """Accumulate the sphere-fit sums in µT (well scaled) and solve every second."""
-        x, y, z = m[0] * 1e6, m[1] * 1e6, m[2] * 1e6
-        r = x * x + y * y + z * z
-        sm = self._hi_sums
-        sm[0] += x * x
-        sm[1] += x * y
-        sm[2] += x * z
-        sm[3] += y * y
-        sm[4] += y * z
-        sm[5] += z * z
-        sm[6] += x
-        sm[7] += y
-        sm[8] += z
-        sm[9] += 1.0
-        sm[10] += r * x
-        sm[11] += r * y
-        sm[12] += r * z
-        sm[13] += r
-        self._hi_since_s += dt
-        if self._hi_since_s >= HARD_IRON_SOLVE_S:
-            forget = math.exp(-self._hi_since_s / self.params.hard_iron_window_s)
-            self._hi_since_s = 0.0
-            self._solve_hard_iron()
-            for i in range(14):
-                sm[i] *= forget
 
-    def _solve_hard_iron(self) -> None:
-        """Solve ``m·m = 2 b·m + c`` in the least-squares sense from the sums (numpy, once a
-        second): accepted when the field's directions are spread (the smallest eigenvalue of
-        the scatter of m is at least (r/3)², as from rotations of ±40° or more about two axes)
-        and the fit is of Earth-field size."""
-        sm = self._hi_sums
-        n = sm[9]
-        if n < 50:
-            return
-        sxx = np.array([[sm[0], sm[1], sm[2]], [sm[1], sm[3], sm[4]], [sm[2], sm[4], sm[5]]])
-        sx = np.array(sm[6:9])
-        mean = sx / n
-        scatter = sxx / n - np.outer(mean, mean)
-        a = np.empty((4, 4))
-        a[:3, :3] = 4.0 * sxx
-        a[:3, 3] = a[3, :3] = 2.0 * sx
-        a[3, 3] = n
-        rhs = np.array([2.0 * sm[10], 2.0 * sm[11], 2.0 * sm[12], sm[13]])
-        try:
-            sol = np.linalg.solve(a, rhs)
-        except np.linalg.LinAlgError:
-            return
-        bvec = sol[:3]
-        r2 = sol[3] + float(bvec @ bvec)
-        if not np.all(np.isfinite(sol)) or not r2 > 0:
-            return
-        r = math.sqrt(r2)
-        if not 5.0 <= r <= 1000.0:  # µT: an Earth-like field (and a nearby steel structure)
-            return
-        if np.linalg.eigvalsh(scatter)[0] < (r / 3.0) ** 2 / 3.0:
-            return
-        self.hard_iron = [float(c) * 1e-6 for c in bvec]
-        self.hard_iron_fits += 1
-        if self.params.mag_ref_norm_t is None:
-            self.mag_ref_norm = r * 1e-6
+@kernel
+def _hard_iron_step(pa, af, ai, dt, m0, m1, m2):
+    """Accumulate the sphere-fit sums in µT (well scaled) and solve every second."""
+    x, y, z = m0 * 1e6, m1 * 1e6, m2 * 1e6
+    r = x * x + y * y + z * z
+    sm = A_HI_SUMS
+    af[sm] += x * x
+    af[sm + 1] += x * y
+    af[sm + 2] += x * z
+    af[sm + 3] += y * y
+    af[sm + 4] += y * z
+    af[sm + 5] += z * z
+    af[sm + 6] += x
+    af[sm + 7] += y
+    af[sm + 8] += z
+    af[sm + 9] += 1.0
+    af[sm + 10] += r * x
+    af[sm + 11] += r * y
+    af[sm + 12] += r * z
+    af[sm + 13] += r
+    af[A_HI_SINCE] += dt
+    if af[A_HI_SINCE] >= HARD_IRON_SOLVE_S:
+        forget = math.exp(-af[A_HI_SINCE] / pa[P_HI_WINDOW_S])
+        af[A_HI_SINCE] = 0.0
+        _solve_hard_iron(pa, af, ai)
+        for i in range(14):
+            af[sm + i] *= forget
+
+
+@kernel
+def _solve_hard_iron(pa, af, ai):
+    """Solve ``m·m = 2 b·m + c`` in the least-squares sense from the sums (once a second):
+    accepted when the field's directions are spread (the smallest eigenvalue of the scatter of
+    m is at least (r/3)², as from rotations of ±40° or more about two axes) and the fit is of
+    Earth-field size."""
+    sm = A_HI_SUMS
+    n = af[sm + 9]
+    if n < 50:
+        return
+    sxx = np.empty((3, 3))
+    sxx[0, 0], sxx[0, 1], sxx[0, 2] = af[sm], af[sm + 1], af[sm + 2]
+    sxx[1, 0], sxx[1, 1], sxx[1, 2] = af[sm + 1], af[sm + 3], af[sm + 4]
+    sxx[2, 0], sxx[2, 1], sxx[2, 2] = af[sm + 2], af[sm + 4], af[sm + 5]
+    sx = af[sm + 6:sm + 9].copy()
+    mean = sx / n
+    scatter = sxx / n - np.outer(mean, mean)
+    a = np.empty((4, 4))
+    a[:3, :3] = 4.0 * sxx
+    a[:3, 3] = 2.0 * sx
+    a[3, :3] = 2.0 * sx
+    a[3, 3] = n
+    rhs = np.array([2.0 * af[sm + 10], 2.0 * af[sm + 11], 2.0 * af[sm + 12], af[sm + 13]])
+    if not np.all(np.isfinite(a)) or abs(np.linalg.det(a)) == 0.0:
+        return  # singular: no fit (np.linalg.solve would raise)
+    sol = np.linalg.solve(a, rhs)
+    b0, b1, b2 = sol[0], sol[1], sol[2]
+    r2 = sol[3] + (b0 * b0 + b1 * b1 + b2 * b2)
+    if not np.all(np.isfinite(sol)) or not r2 > 0:
+        return
+    r = math.sqrt(r2)
+    if not 5.0 <= r <= 1000.0:  # µT: an Earth-like field (and a nearby steel structure)
+        return
+    if np.linalg.eigvalsh(scatter)[0] < (r / 3.0) ** 2 / 3.0:
+        return
+    af[A_HARD_IRON], af[A_HARD_IRON + 1], af[A_HARD_IRON + 2] = b0 * 1e-6, b1 * 1e-6, b2 * 1e-6
+    ai[I_HI_FITS] += 1
+    if pa[P_REF_NORM_GIVEN] == 0.0:
+        af[A_REF_NORM], ai[I_HAS_REF_NORM] = r * 1e-6, 1
 
 
 def ahrs_attitude(t_ns, gyro, accel, q0, mag=None, *, params: AhrsParams | None = None,

@@ -11,8 +11,8 @@ from typing import NamedTuple
 import numpy as np
 
 from gyro_attitude.core.attitude.nav_frame import nav_zeta
-from gyro_attitude.core.rotation import _exp_rotvec, _qmul
 from gyro_attitude.core.jit import kernel
+from gyro_attitude.core.rotation import _exp_rotvec, _qmul
 
 IDENTITY = np.array([0.0, 0.0, 0.0, 1.0])
 CHUNK = 61440  # intervals per batch chunk: a multiple of 1..4 (N-sample blocks align)

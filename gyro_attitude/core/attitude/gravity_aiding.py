@@ -42,6 +42,7 @@ import numpy as np
 from gyro_attitude.core.attitude.rest import check_sample, check_samples
 from gyro_attitude.core.attitude.streaming import StreamingIntegrator
 from gyro_attitude.core.earth import STANDARD_GRAVITY
+from gyro_attitude.core.jit import compiled, kernel
 from gyro_attitude.core.rotation import as_quat_array
 
 __all__ = ["GravityAiding", "gravity_aided_attitude"]
@@ -57,8 +58,19 @@ def _param(name, v, lo=0.0) -> float:
     return x
 
 
+# The filter's state as arrays (what the compiled chain steps): float slots
+G_BIAS, G_F_NAV = 0, 3  # tilt-axis bias estimate (3), low-passed specific force, nav frame (3)
+# int slots
+G_LAST_T, G_HAS_LAST, G_AIDED, G_HAS_F_NAV = range(4)
+# parameters
+G_KP, G_KI, G_ACCEL_TOL, G_RATE_MAX, G_GRAVITY, G_LOWPASS_S = range(6)
+
+
 class GravityAiding:
-    """Streaming tilt aiding (see the module docstring)."""
+    """Streaming tilt aiding (see the module docstring).  The per-sample step is the kernel
+    :func:`gravity_step` over the arrays ``params``, ``gf`` (float state) and ``gi`` (int
+    state); ``bias``, ``last_t_ns`` and ``aided_samples`` read (and the time base resets)
+    through them."""
 
     def __init__(self, kp: float = 1.0, ki: float = 0.002, accel_tol: float = 2.0,
                  rate_max: float = 1.0, gravity: float = STANDARD_GRAVITY, accel_lowpass_s: float = 0.0):
@@ -68,13 +80,33 @@ class GravityAiding:
         self.accel_tol = _param("accel_tol", accel_tol)
         self.rate_max = _param("rate_max", rate_max)
         self.gravity = _param("gravity", gravity, 1.0)
+        self.params = np.array([self.kp, self.ki, self.accel_tol, self.rate_max, self.gravity,
+                                self.accel_lowpass_s])
         self.reset()
 
     def reset(self) -> None:
-        self.bias = [0.0, 0.0, 0.0]  # tilt-axis bias estimate, rad/s (subtracted)
-        self.last_t_ns: int | None = None
-        self.aided_samples = 0
-        self._f_nav: list[float] | None = None  # low-passed specific force in the nav frame
+        self.gf = np.zeros(6)
+        self.gi = np.zeros(4, dtype=np.int64)
+
+    @property
+    def bias(self) -> list[float]:
+        """Tilt-axis bias estimate, rad/s (subtracted)."""
+        return self.gf[G_BIAS:G_BIAS + 3].tolist()
+
+    @property
+    def aided_samples(self) -> int:
+        return int(self.gi[G_AIDED])
+
+    @property
+    def last_t_ns(self) -> int | None:
+        return int(self.gi[G_LAST_T]) if self.gi[G_HAS_LAST] else None
+
+    @last_t_ns.setter
+    def last_t_ns(self, value) -> None:
+        """Only None is set from outside: a new time base (the low-pass starts again)."""
+        if value is not None:
+            raise ValueError("last_t_ns is set by the samples; assign None to restart")
+        self.gi[G_HAS_LAST] = 0
 
     def update(self, t_ns: int, gyro, accel, q_nb, mag=None) -> np.ndarray:
         """One sample (``mag`` is not used: the aiding-stage signature of ahrs.py)."""
@@ -88,61 +120,70 @@ class GravityAiding:
         """:meth:`update` on inputs already checked (what the stream's chain passes): ``t`` int
         ns, ``w`` 3 finite floats, ``f`` 3 finite floats or None, ``q`` 4 floats; the rate as
         a 3-tuple."""
-        x, y, z, s = q
-        last = self.last_t_ns
-        dt = 0.0 if last is None else (t - last) * 1e-9
-        if last is not None and dt <= 0:
-            raise ValueError(f"t_ns must increase: {t} after {last}")
-        self.last_t_ns = t
-        b = self.bias
-        w0, w1, w2 = w
-        o0, o1, o2 = w0 - b[0], w1 - b[1], w2 - b[2]
+        gi = self.gi
+        if gi[G_HAS_LAST] and t <= gi[G_LAST_T]:
+            raise ValueError(f"t_ns must increase: {t} after {int(gi[G_LAST_T])}")
         if f is None:
-            return o0, o1, o2
-        if dt == 0.0:
-            self._f_nav = None  # a new time base: the low-pass starts again
-        f0, f1, f2 = f
-        fn = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
-        nq = x * x + y * y + z * z + s * s
-        if self.accel_lowpass_s > 0.0:
-            f0, f1, f2 = self._lowpass((f0, f1, f2), x, y, z, s, 2.0 / nq, dt)
-        wn = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
-        if abs(fn - self.gravity) > self.accel_tol or wn > self.rate_max or dt == 0.0:
-            return o0, o1, o2
-        # v = C_bn e_up: the third row of C_nb (unit quaternion, scalar last), normalized.
-        v0, v1, v2 = (2 * (x * z - s * y) / nq, 2 * (y * z + s * x) / nq,
-                      1 - 2 * (x * x + y * y) / nq)
-        fa = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
-        a0, a1, a2 = f0 / fa, f1 / fa, f2 / fa
-        e0, e1, e2 = a1 * v2 - a2 * v1, a2 * v0 - a0 * v2, a0 * v1 - a1 * v0
-        kp, ki = self.kp, self.ki
-        b[0] = b[0] - ki * e0 * dt
-        b[1] = b[1] - ki * e1 * dt
-        b[2] = b[2] - ki * e2 * dt
-        self.aided_samples += 1
-        return o0 + kp * e0, o1 + kp * e1, o2 + kp * e2
+            return compiled(gravity_step)(self.params, self.gf, gi, t, w[0], w[1], w[2], False,
+                                          0.0, 0.0, 0.0, q[0], q[1], q[2], q[3])
+        return compiled(gravity_step)(self.params, self.gf, gi, t, w[0], w[1], w[2], True,
+                                      f[0], f[1], f[2], q[0], q[1], q[2], q[3])
 
-    def _lowpass(self, f, x, y, z, s, k, dt):
-        """The specific force low-passed in the nav frame, seen in the body (see the module
-        docstring): ``f_n = C_nb f`` is averaged with time constant ``accel_lowpass_s``."""
-        c00, c01, c02 = 1 - k * (y * y + z * z), k * (x * y - z * s), k * (x * z + y * s)
-        c10, c11, c12 = k * (x * y + z * s), 1 - k * (x * x + z * z), k * (y * z - x * s)
-        c20, c21, c22 = k * (x * z - y * s), k * (y * z + x * s), 1 - k * (x * x + y * y)
-        f0, f1, f2 = f
-        n0 = c00 * f0 + c01 * f1 + c02 * f2
-        n1 = c10 * f0 + c11 * f1 + c12 * f2
-        n2 = c20 * f0 + c21 * f1 + c22 * f2
-        lp = self._f_nav
-        if lp is None:
-            lp = self._f_nav = [n0, n1, n2]
-        else:
-            alpha = dt / (self.accel_lowpass_s + dt)
-            lp[0] = lp[0] + alpha * (n0 - lp[0])
-            lp[1] = lp[1] + alpha * (n1 - lp[1])
-            lp[2] = lp[2] + alpha * (n2 - lp[2])
-        l0, l1, l2 = lp
-        return (c00 * l0 + c10 * l1 + c20 * l2, c01 * l0 + c11 * l1 + c21 * l2,
-                c02 * l0 + c12 * l1 + c22 * l2)
+
+@kernel
+def gravity_step(p, gf, gi, t, w0, w1, w2, has_f, f0, f1, f2, x, y, z, s):
+    """One sample of the complementary filter (module docstring) on its state arrays: ``t``
+    int ns after the last, ``w`` the gyro rate less the known bias, ``f`` the specific force
+    (``has_f``), ``(x, y, z, s)`` the current attitude; the rate to integrate."""
+    dt = 0.0 if gi[G_HAS_LAST] == 0 else (t - gi[G_LAST_T]) * 1e-9
+    gi[G_LAST_T], gi[G_HAS_LAST] = t, 1
+    o0, o1, o2 = w0 - gf[G_BIAS], w1 - gf[G_BIAS + 1], w2 - gf[G_BIAS + 2]
+    if not has_f:
+        return o0, o1, o2
+    if dt == 0.0:
+        gi[G_HAS_F_NAV] = 0  # a new time base: the low-pass starts again
+    fn = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+    nq = x * x + y * y + z * z + s * s
+    if p[G_LOWPASS_S] > 0.0:
+        f0, f1, f2 = _lowpass(p, gf, gi, f0, f1, f2, x, y, z, s, 2.0 / nq, dt)
+    wn = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+    if abs(fn - p[G_GRAVITY]) > p[G_ACCEL_TOL] or wn > p[G_RATE_MAX] or dt == 0.0:
+        return o0, o1, o2
+    # v = C_bn e_up: the third row of C_nb (unit quaternion, scalar last), normalized.
+    v0, v1, v2 = (2 * (x * z - s * y) / nq, 2 * (y * z + s * x) / nq,
+                  1 - 2 * (x * x + y * y) / nq)
+    fa = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+    a0, a1, a2 = f0 / fa, f1 / fa, f2 / fa
+    e0, e1, e2 = a1 * v2 - a2 * v1, a2 * v0 - a0 * v2, a0 * v1 - a1 * v0
+    kp, ki = p[G_KP], p[G_KI]
+    gf[G_BIAS] = gf[G_BIAS] - ki * e0 * dt
+    gf[G_BIAS + 1] = gf[G_BIAS + 1] - ki * e1 * dt
+    gf[G_BIAS + 2] = gf[G_BIAS + 2] - ki * e2 * dt
+    gi[G_AIDED] += 1
+    return o0 + kp * e0, o1 + kp * e1, o2 + kp * e2
+
+
+@kernel
+def _lowpass(p, gf, gi, f0, f1, f2, x, y, z, s, k, dt):
+    """The specific force low-passed in the nav frame, seen in the body (see the module
+    docstring): ``f_n = C_nb f`` is averaged with time constant ``accel_lowpass_s``."""
+    c00, c01, c02 = 1 - k * (y * y + z * z), k * (x * y - z * s), k * (x * z + y * s)
+    c10, c11, c12 = k * (x * y + z * s), 1 - k * (x * x + z * z), k * (y * z - x * s)
+    c20, c21, c22 = k * (x * z - y * s), k * (y * z + x * s), 1 - k * (x * x + y * y)
+    n0 = c00 * f0 + c01 * f1 + c02 * f2
+    n1 = c10 * f0 + c11 * f1 + c12 * f2
+    n2 = c20 * f0 + c21 * f1 + c22 * f2
+    if gi[G_HAS_F_NAV] == 0:
+        gf[G_F_NAV], gf[G_F_NAV + 1], gf[G_F_NAV + 2] = n0, n1, n2
+        gi[G_HAS_F_NAV] = 1
+    else:
+        alpha = dt / (p[G_LOWPASS_S] + dt)
+        gf[G_F_NAV] = gf[G_F_NAV] + alpha * (n0 - gf[G_F_NAV])
+        gf[G_F_NAV + 1] = gf[G_F_NAV + 1] + alpha * (n1 - gf[G_F_NAV + 1])
+        gf[G_F_NAV + 2] = gf[G_F_NAV + 2] + alpha * (n2 - gf[G_F_NAV + 2])
+    l0, l1, l2 = gf[G_F_NAV], gf[G_F_NAV + 1], gf[G_F_NAV + 2]
+    return (c00 * l0 + c10 * l1 + c20 * l2, c01 * l0 + c11 * l1 + c21 * l2,
+            c02 * l0 + c12 * l1 + c22 * l2)
 
 
 def gravity_aided_attitude(t_ns, gyro, accel, q0, *, kp: float = 1.0, ki: float = 0.002,
