@@ -252,9 +252,14 @@ class AhrsFilter:
         self.reset()
 
     def reset(self) -> None:
+        """Back to the start, in place (the compiled chain holds the arrays)."""
         p = self.params
-        self.af = af = np.zeros(_A_FLOATS)
-        self.ai = ai = np.zeros(_A_INTS, dtype=np.int64)
+        if not hasattr(self, "af"):
+            self.af = np.zeros(_A_FLOATS)
+            self.ai = np.zeros(_A_INTS, dtype=np.int64)
+        af, ai = self.af, self.ai
+        af[:] = 0.0
+        ai[:] = 0
         ai[I_HEADING_INIT] = not p.initial_heading_from_mag
         af[A_HARD_IRON:A_HARD_IRON + 3] = [float(c) for c in p.hard_iron_t]
         if p.mag_ref_norm_t is not None:

@@ -35,69 +35,70 @@ from __future__ import annotations
 
 import numpy as np
 
+from gyro_attitude.core.jit import compiled, kernel
+
 __all__ = ["AttitudeCovariance"]
+
+
+# the state as one array (what the compiled chain steps): tt, tb, bb and Σq per axis
+V_TT, V_TB, V_BB, V_NOISE = 0, 3, 6, 9
 
 
 class AttitudeCovariance:
     """Per-axis 2×2 attitude/bias error covariance (see the module docstring).
 
-    The per-row updates (:meth:`propagate`, :meth:`aid_tilt`, ...) run on plain floats (three
-    axes: numpy's per-call overhead would be most of their cost); ``tt``, ``tb``, ``bb``,
-    ``noise`` and ``initial_tt`` read and set as (3,) arrays."""
+    The state is one array ``c`` (12,) (``tt``, ``tb``, ``bb``, ``noise``: read and set as
+    (3,) arrays); the per-row updates (:meth:`propagate`, :meth:`aid_tilt`) are the kernels
+    :func:`propagate` and :func:`aid_tilt` on it, which the compiled chain calls too."""
 
     def __init__(self, initial_tt, bias_sigma: float = 0.0, bias_rw: float = 0.0):
         self.initial_tt = initial_tt
-        self._tt = list(self._it)
-        self._tb = [0.0, 0.0, 0.0]
-        self._bb = [float(bias_sigma) ** 2] * 3
+        self.c = np.zeros(12)
+        self.c[V_TT:V_TT + 3] = self._it
+        self.c[V_BB:V_BB + 3] = float(bias_sigma) ** 2
         self.k2 = float(bias_rw) ** 2
-        self._noise = [0.0, 0.0, 0.0]  # Σ q since the attitude was last set
 
     @staticmethod
     def _three(x) -> list[float]:
         return np.broadcast_to(np.asarray(x, dtype=np.float64), (3,)).tolist()
 
+    def _slot(i):
+        def get(self):
+            return self.c[i:i + 3].copy()
+
+        def put(self, x):
+            self.c[i:i + 3] = self._three(x)
+        return property(get, put)
+
     initial_tt = property(lambda self: np.array(self._it),
                           lambda self, x: setattr(self, "_it", self._three(x)))
-    tt = property(lambda self: np.array(self._tt),
-                  lambda self, x: setattr(self, "_tt", self._three(x)))
-    tb = property(lambda self: np.array(self._tb),
-                  lambda self, x: setattr(self, "_tb", self._three(x)))
-    bb = property(lambda self: np.array(self._bb),
-                  lambda self, x: setattr(self, "_bb", self._three(x)))
-    noise = property(lambda self: np.array(self._noise),
-                     lambda self, x: setattr(self, "_noise", self._three(x)))
+    tt = _slot(V_TT)
+    tb = _slot(V_TB)
+    bb = _slot(V_BB)
+    noise = _slot(V_NOISE)
+    del _slot
 
     def tt_floats(self) -> tuple[float, float, float]:
-        """``tt`` as three floats (no array made)."""
-        return tuple(self._tt)
+        """``tt`` as three floats."""
+        return tuple(self.c[V_TT:V_TT + 3].tolist())
 
     def first_rest_update(self, standard_error, elapsed_s: float) -> None:
         """The first bias estimate, applied back to the start ``elapsed_s`` ago (still since)."""
-        bb = self._bb = [float(se) ** 2 for se in standard_error]
+        bb = [float(se) ** 2 for se in standard_error]
         e2 = elapsed_s * elapsed_s
-        self._tt = [(self._it[i] + self._noise[i]) + e2 * bb[i] for i in range(3)]
-        self._tb = [-elapsed_s * bb[i] for i in range(3)]
+        nz = self.c[V_NOISE:V_NOISE + 3].tolist()
+        self.c[V_BB:V_BB + 3] = bb
+        self.c[V_TT:V_TT + 3] = [(self._it[i] + nz[i]) + e2 * bb[i] for i in range(3)]
+        self.c[V_TB:V_TB + 3] = [-elapsed_s * bb[i] for i in range(3)]
 
     def propagate(self, dt_s: float, q) -> None:
         """One accepted interval of ``dt_s`` seconds with angle-random-walk increment ``q`` (3,)."""
-        tt, tb, bb, nz = self._tt, self._tb, self._bb, self._noise
-        q0, q1, q2 = q
-        d2 = 2.0 * dt_s
-        dd = dt_s * dt_s
-        k2dt = self.k2 * dt_s
-        b0, b1, b2 = bb
-        t0, t1, t2 = tb
-        self._tt = [tt[0] + ((q0 - d2 * t0) + dd * b0), tt[1] + ((q1 - d2 * t1) + dd * b1),
-                    tt[2] + ((q2 - d2 * t2) + dd * b2)]
-        self._noise = [nz[0] + q0, nz[1] + q1, nz[2] + q2]
-        self._tb = [t0 + -(dt_s * b0), t1 + -(dt_s * b1), t2 + -(dt_s * b2)]
-        self._bb = [b0 + k2dt, b1 + k2dt, b2 + k2dt]
+        compiled(propagate)(self.c, self.k2, dt_s, q[0], q[1], q[2])
 
     def zero_rate_update(self, standard_error) -> None:
         """A new bias estimate from a rest with per-axis standard error (3,) rad/s."""
-        self._bb = [float(se) ** 2 for se in standard_error]
-        self._tb = [0.0, 0.0, 0.0]
+        self.c[V_BB:V_BB + 3] = [float(se) ** 2 for se in standard_error]
+        self.c[V_TB:V_TB + 3] = 0.0
 
     def align(self, tt) -> None:
         """The attitude became known with per-axis variance ``tt`` (also the reset value)."""
@@ -106,9 +107,9 @@ class AttitudeCovariance:
 
     def reset_attitude(self) -> None:
         """Back to the initial attitude (time-jump reset)."""
-        self._tt = list(self._it)
-        self._tb = [0.0, 0.0, 0.0]
-        self._noise = [0.0, 0.0, 0.0]
+        self.c[V_TT:V_TT + 3] = self._it
+        self.c[V_TB:V_TB + 3] = 0.0
+        self.c[V_NOISE:V_NOISE + 3] = 0.0
 
     def run(self, dt_s: np.ndarray, q: np.ndarray, reset: np.ndarray | None = None,
             zero_rate: np.ndarray | None = None, standard_error: np.ndarray | None = None,
@@ -187,12 +188,31 @@ class AttitudeCovariance:
 
     def aid_tilt(self, kp_dt: float, floor_var: float) -> None:
         """Gravity aiding over one interval (loop gain × dt): tilt axes 0 and 1 relax to the floor."""
-        a = 1.0 - min(kp_dt, 1.0)
-        a2 = a * a
-        tt, tb = self._tt, self._tb
-        for i in (0, 1):
-            tt[i] = a2 * tt[i] + (1.0 - a2) * floor_var
-            tb[i] = a * tb[i]
+        compiled(aid_tilt)(self.c, kp_dt, floor_var)
+
+
+@kernel
+def propagate(c, k2, dt_s, q0, q1, q2):
+    """:meth:`AttitudeCovariance.propagate` on the state array ``c`` (bias random walk ``k2``)."""
+    d2 = 2.0 * dt_s
+    dd = dt_s * dt_s
+    k2dt = k2 * dt_s
+    for i, q in ((0, q0), (1, q1), (2, q2)):
+        b, t = c[V_BB + i], c[V_TB + i]
+        c[V_TT + i] = c[V_TT + i] + ((q - d2 * t) + dd * b)
+        c[V_NOISE + i] = c[V_NOISE + i] + q
+        c[V_TB + i] = t + -(dt_s * b)
+        c[V_BB + i] = b + k2dt
+
+
+@kernel
+def aid_tilt(c, kp_dt, floor_var):
+    """:meth:`AttitudeCovariance.aid_tilt` on the state array ``c``."""
+    a = 1.0 - min(kp_dt, 1.0)
+    a2 = a * a
+    for i in range(2):
+        c[V_TT + i] = a2 * c[V_TT + i] + (1.0 - a2) * floor_var
+        c[V_TB + i] = a * c[V_TB + i]
 
 
 _SHORT = 16  # segments up to this long are summed position by position, longer ones by cumsum

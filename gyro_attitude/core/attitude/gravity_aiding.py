@@ -85,8 +85,12 @@ class GravityAiding:
         self.reset()
 
     def reset(self) -> None:
-        self.gf = np.zeros(6)
-        self.gi = np.zeros(4, dtype=np.int64)
+        """Back to the start, in place (the compiled chain holds the arrays)."""
+        if not hasattr(self, "gf"):
+            self.gf = np.zeros(6)
+            self.gi = np.zeros(4, dtype=np.int64)
+        self.gf[:] = 0.0
+        self.gi[:] = 0
 
     @property
     def bias(self) -> list[float]:

@@ -18,7 +18,15 @@ through the per-sample step of :meth:`AttitudeStream.push` itself:
   (``_integrate``, the one sequential step).
 
 So push() and run() share one implementation of every sequential step; the results are the same
-floats in the same operations (tested equal, ≤ 1e-12, in every mode).  When the loop meets an
+floats in the same operations (tested equal, ≤ 1e-12, in every mode).
+
+Rows with nothing to do between them but steps 4.-6. (accepted samples, no rest accumulation, no
+alignment: the whole motion between rests) run through :func:`accept_rows`, compiled
+(:mod:`gyro_attitude.core.jit`): the stages' own kernels (``gravity_step`` / ``ahrs_step``,
+``cubic_advance``, the covariance's ``propagate`` / ``aid_tilt``) on their state arrays, in the
+order of :meth:`AttitudeStream._integrate`, with no interpreter per sample.  That needs the
+causal cubic and a constant nav frame (or none); otherwise, and for every other row, the loop
+takes ``_integrate`` itself.  When the loop meets an
 integrator error (a non-finite attitude, which restarts the validator's time base) it returns
 None and :meth:`AttitudeStream.run` pushes every sample instead.
 """
@@ -30,7 +38,18 @@ import math
 import numpy as np
 
 from gyro_attitude.core.attitude import validation as v
+from gyro_attitude.core.attitude.ahrs import (
+    I_AIDED,
+    I_HAS_LAST,
+    MAG_ABSENT,
+    MAG_GIVEN,
+    MAG_NOT_FLOATS,
+    AhrsFilter,
+    ahrs_step,
+)
 from gyro_attitude.core.attitude.alignment import level_quaternions
+from gyro_attitude.core.attitude.covariance import V_TT, aid_tilt, propagate
+from gyro_attitude.core.attitude.gravity_aiding import G_AIDED, G_HAS_LAST, GravityAiding, gravity_step
 from gyro_attitude.core.attitude.modes import Aiding, GyroBiasMode
 from gyro_attitude.core.attitude.stream import (
     _ACCEPTED,
@@ -38,15 +57,20 @@ from gyro_attitude.core.attitude.stream import (
     EXTRA_COUNTS,
     GYRO_NOISE_UNKNOWN,
     MAG_MISSING,
+    RATE_FIT_FALLBACK,
     RUNNING,
     RunForm,
     StreamResult,
     cannot_align,
     covariance_rows,
+    rate_fit_note,
     rows,
     unknown_noise_note,
 )
 from gyro_attitude.core.attitude.stream_batch import data_stages, rest_plan
+from gyro_attitude.core.attitude.streaming import C_FALLBACKS, C_LAST_T, cubic_advance
+from gyro_attitude.core.earth import STANDARD_GRAVITY
+from gyro_attitude.core.jit import compiled, kernel
 
 __all__ = ["run_loop"]
 
@@ -144,13 +168,24 @@ def run_loop(s, t, w, frame_id, cov, acc, mag) -> StreamResult | None:
     bias_attitude = s._bias_attitude
     published = s._bias_published
     covariance = s.covariance
-    index: list[int] = []
-    qs: list[tuple] = []
-    var_out: list = []
+    has_q = np.zeros(m, dtype=bool)
+    q_out = np.empty((m, 4))
+    tt_out = np.empty((m, 3))
     p = 0
     next_ev = ev_rows[0] if n_ev else -1
     bias = est.bias_floats
-    for r in range(m):
+    fast = _Compiled.for_stream(s, rec, valid, cov, mag, var_rows, restart) if m else None
+    # the rows the compiled loop must stop before: anything but steps 4.-6. happens there
+    stops = np.zeros(m + 1, dtype=bool)
+    stops[m] = True
+    if m:
+        stops[:m] = rec.actv != _ACCEPT
+        stops[np.array(ev_rows, dtype=np.int64)] = True
+        stops[np.array(sorted(need), dtype=np.int64)] = True
+    next_stop = np.flatnonzero(stops).tolist()
+    ns = 0
+    r = 0
+    while r < m:
         t_r = tl[r]
         if st.start_t_ns is None:
             st.start_t_ns = t_r
@@ -166,6 +201,8 @@ def run_loop(s, t, w, frame_id, cov, acc, mag) -> StreamResult | None:
             previous = bias
             est.accumulate(tl[j], g_j, earth_j)
             if est.updated:
+                if st.first_rest_pending and fast is not None:
+                    fast.settle()  # the first estimate may reset the integrator
                 published(previous)
             bias = est.bias_floats
             p += 1
@@ -173,18 +210,33 @@ def run_loop(s, t, w, frame_id, cov, acc, mag) -> StreamResult | None:
         # 3. alignment
         if st.phase is not RUNNING:
             if r == done:
+                if fast is not None:
+                    fast.settle()
                 q = s._aligned(align[2], [(tl[k], wl[k], al[k], var_rows[k], ml[k])
                                           for k in range(first_row, done + 1)], bias)
                 if q is None or st.phase is not RUNNING:
                     return None
-                index.append(r)
-                qs.append(q)
-                var_out.append(covariance.tt_floats() if variance_known[r] else None)
+                has_q[r] = True
+                q_out[r] = q
+                tt_out[r] = covariance.tt_floats()
+            r += 1
+            continue
+        code = actl[r]
+        if fast is not None and code == _ACCEPT:
+            # 4.-6. compiled, up to the next row where anything else happens
+            while next_stop[ns] <= r:
+                ns += 1
+            end = next_stop[ns]
+            if not fast.run(r, end, bias, q_out, tt_out):
+                return None
+            has_q[r:end] = True
+            r = end
             continue
         # 4.-6. aiding, integration, covariance
+        if fast is not None:
+            fast.settle()
         if restart[r] and aid is not None:
             aid.last_t_ns = None
-        code = actl[r]
         verdict = _ACCEPTED if code == _ACCEPT else (
             _STARTED if code == _START else v.Verdict(_VERDICT_OF_CODE[code], None, ""))
         x = wl[r]
@@ -192,11 +244,14 @@ def run_loop(s, t, w, frame_id, cov, acc, mag) -> StreamResult | None:
                          var_rows[r], ml[r])
         if q is None:
             return None  # an integrator error: the per-sample form handles what follows
-        index.append(r)
-        qs.append(q)
-        var_out.append(covariance.tt_floats() if variance_known[r] else None)
+        has_q[r] = True
+        q_out[r] = q
+        tt_out[r] = covariance.tt_floats()
+        r += 1
 
     # the state after the last row, as push() would leave it (the rest windows start again)
+    if fast is not None:
+        fast.settle()
     est.break_window()
     if m:
         st.accel_present = None if rec.a_ok is None else (bool(rec.a_ok[-1]) or None)
@@ -209,11 +264,169 @@ def run_loop(s, t, w, frame_id, cov, acc, mag) -> StreamResult | None:
         st.details.setdefault(key, text)
     if st.phase is not RUNNING:
         raise ValueError(s.alignment_error or cannot_align(cfg))
-    q_arr = np.array(qs, dtype=np.float64).reshape(-1, 4)
+    index = np.flatnonzero(has_q)
+    q_arr = q_out[index]
     variance = known = None
-    if any(x is not None for x in var_out):
-        known = np.array([x is not None for x in var_out])
-        variance = np.array([x if x is not None else (0.0, 0.0, 0.0) for x in var_out])
-    return StreamResult(valid[np.array(index, dtype=np.int64)], q_arr, variance, known,
+    if m and np.asarray(variance_known, dtype=bool)[index].any():
+        known = np.asarray(variance_known, dtype=bool)[index]
+        variance = np.where(known[:, None], tt_out[index], 0.0)
+    return StreamResult(valid[index], q_arr, variance, known,
                         rec.cls.action, s.counts, rec.cls.time_jump_resets, dict(st.details),
                         s.bias_report, s.alignment, RunForm.LOOP)
+
+
+_UNSET = object()
+
+
+class _Compiled:
+    """The arguments of :func:`accept_rows` for one stream and recording: the per-row inputs
+    as arrays and the stages' state arrays (stepped in place)."""
+
+    @classmethod
+    def for_stream(cls, s, rec, valid, cov, mag, var_rows, restart):
+        """The compiled form's arguments, or None when a stage has no kernel here (another
+        algorithm than the causal cubic, a nav frame with time series)."""
+        integ = s.integrator
+        if integ.cubic is None or integ._nav_rates is not None:
+            return None
+        aid = s.aiding
+        if aid is not None and not isinstance(aid, GravityAiding | AhrsFilter):
+            return None
+        return cls(s, rec, valid, mag, var_rows, restart)
+
+    def __init__(self, s, rec, valid, mag, var_rows, restart):
+        m = valid.size
+        self.s = s
+        self.t = rec.tv.astype(np.int64, copy=False)
+        self.w = np.ascontiguousarray(rec.wv, dtype=np.float64)
+        if rec.av is None:
+            self.a, self.a_ok = np.zeros((m, 3)), np.zeros(m, dtype=bool)
+        else:
+            self.a = np.ascontiguousarray(rec.av, dtype=np.float64)
+            self.a_ok = np.ascontiguousarray(rec.a_ok, dtype=bool)
+        self.m = np.zeros((m, 3))
+        self.m_state = np.full(m, MAG_ABSENT, dtype=np.int64)
+        if s.config.aiding is Aiding.MAGNETOMETER and mag is not None:
+            mv = rows(mag, valid)
+            missing = np.isnan(mv).all(axis=1)
+            finite = np.isfinite(mv).all(axis=1)
+            self.m = np.where(finite[:, None], mv, 0.0)
+            self.m_state = np.where(missing, MAG_ABSENT,
+                                    np.where(finite, MAG_GIVEN, MAG_NOT_FLOATS)).astype(np.int64)
+        self.var = np.zeros((m, 3))
+        self.var_ok = np.zeros(m, dtype=bool)
+        for k, x in enumerate(var_rows):
+            if x is not None:
+                self.var[k] = x
+                self.var_ok[k] = True
+        self.restart = np.asarray(restart, dtype=bool)
+        self.dt = np.zeros(m, dtype=np.int64)
+        aid = s.aiding
+        self.kind = 0 if aid is None else (1 if isinstance(aid, GravityAiding) else 2)
+        dummy_f, dummy_i = np.zeros(1), np.zeros(1, dtype=np.int64)
+        g = (aid.params, aid.gf, aid.gi) if self.kind == 1 else (dummy_f, dummy_f, dummy_i)
+        h = (aid.pa, aid.af, aid.ai) if self.kind == 2 else (dummy_f, dummy_f, dummy_i)
+        integ = s.integrator
+        cs, nav = integ.cubic, integ._nav_const
+        # the arguments that stay (arrays stepped in place, settings)
+        self._inputs = (
+            self.a, self.a_ok, self.m, self.m_state, self.var, self.var_ok, self.restart,
+            self.kind, *g, *h, cs.ci, cs.ts, cs.ws, cs.cf, nav is not None,
+            *((0.0, 0.0, 0.0) if nav is None else (float(nav[0]), float(nav[1]),
+                                                  float(nav[2]))),
+            s.covariance.c, s.covariance.k2, s._n2, 0.0 if aid is None else aid.kp)
+        self._floor_for, self._floor = _UNSET, 0.0
+        self._stale: list[tuple[int, int]] = []
+
+    def run(self, r0: int, r1: int, bias, q_out, tt_out) -> bool:
+        """Rows r0..r1-1 (all accepted, nothing else happening there) through steps 4.-6.;
+        False on an integrator error (the per-sample form takes over).  The integrator's and
+        the interval statistics' Python side catch up in :meth:`settle`."""
+        s = self.s
+        st = s.state
+        q = st.q
+        if self._floor_for is not s.alignment:
+            self._floor_for = s.alignment
+            self._floor = (s.alignment.level_error_expected if s.alignment is not None
+                           else s.config.accel_bias_sigma / STANDARD_GRAVITY) ** 2
+        bad, seen, first_fb, n_fb, q0, q1, q2, q3 = compiled(accept_rows)(
+            r0, r1, self.t, self.w, bias[0], bias[1], bias[2], *self._inputs, self._floor,
+            st.aided_seen, q[0], q[1], q[2], q[3], q_out, tt_out, self.dt)
+        self._stale.append((r0, r1))
+        if bad >= 0:
+            return False
+        st.aided_seen = seen
+        st.q = (q0, q1, q2, q3)
+        if n_fb:
+            st.counts[RATE_FIT_FALLBACK] += n_fb
+            st.details.setdefault(RATE_FIT_FALLBACK, rate_fit_note(int(self.t[first_fb])))
+        return True
+
+    def settle(self) -> None:
+        """Bring the integrator's Python attributes and the interval statistics up to the
+        rows run so far (before Python code reads them)."""
+        if not self._stale:
+            return
+        s = self.s
+        s.integrator.synced()
+        window = s.intervals.window
+        dts = np.concatenate([self.dt[a:b] for a, b in self._stale[-window:]])
+        s.intervals.extend(dts[-window:])
+        self._stale = []
+
+
+@kernel
+def accept_rows(r0, r1, t, w, b0, b1, b2, a, a_ok, m, m_state, var, var_ok, restart, kind,
+                gp, gf, gi, pa, af, ai, ci, ts, ws, cf, has_nav, n0, n1, n2, c, k2, noise2, kp,
+                floor_var, aided_seen, x, y, z, u, q_out, tt_out, dt_out):
+    """Steps 4.-6. of :meth:`AttitudeStream._integrate` (an accepted sample: aiding ``kind`` 0
+    none, 1 gravity, 2 AHRS; the causal cubic; the covariance) over rows ``r0..r1-1`` with the
+    bias ``b`` in force, from the attitude ``(x, y, z, u)``; attitudes and ``tt`` into
+    ``q_out``/``tt_out``, interval lengths into ``dt_out``.  Returns (the row of an integrator
+    error or -1, the aiding's sample count, the first row whose fit fell back, how many fell
+    back, the last attitude)."""
+    first_fb = -1
+    n_fb = 0
+    for r in range(r0, r1):
+        tr = t[r]
+        if restart[r] and kind != 0:
+            if kind == 1:
+                gi[G_HAS_LAST] = 0
+            else:
+                ai[I_HAS_LAST] = 0
+        w0, w1, w2 = w[r, 0] - b0, w[r, 1] - b1, w[r, 2] - b2
+        if kind == 1:
+            w0, w1, w2 = gravity_step(gp, gf, gi, tr, w0, w1, w2, a_ok[r], a[r, 0], a[r, 1],
+                                      a[r, 2], x, y, z, u)
+        elif kind == 2:
+            w0, w1, w2 = ahrs_step(pa, af, ai, tr, w0, w1, w2, a_ok[r], a[r, 0], a[r, 1],
+                                   a[r, 2], x, y, z, u, m_state[r], m[r, 0], m[r, 1], m[r, 2])
+        last = ci[C_LAST_T]
+        fell = ci[C_FALLBACKS]
+        qx, qy, qz, qu = cubic_advance(ci, ts, ws, cf, tr, w0, w1, w2, has_nav, n0, n1, n2)
+        if ci[C_FALLBACKS] != fell:
+            n_fb += ci[C_FALLBACKS] - fell
+            if first_fb < 0:
+                first_fb = r
+        if not (math.isfinite(qx) and math.isfinite(qy) and math.isfinite(qz)
+                and math.isfinite(qu)):
+            return r, aided_seen, first_fb, n_fb, x, y, z, u
+        x, y, z, u = qx, qy, qz, qu
+        dt = tr - last
+        dt_out[r] = dt
+        dt_s = dt * 1e-9
+        # angle random walk: σ_ω² dt² per axis from the message, else N² dt (_integrate)
+        if var_ok[r]:
+            d2 = dt_s * dt_s
+            propagate(c, k2, dt_s, var[r, 0] * d2, var[r, 1] * d2, var[r, 2] * d2)
+        else:
+            nd = noise2 * dt_s
+            propagate(c, k2, dt_s, nd, nd, nd)
+        if kind != 0:
+            aided = gi[G_AIDED] if kind == 1 else ai[I_AIDED]
+            if aided != aided_seen:
+                aid_tilt(c, kp * dt_s, floor_var)
+            aided_seen = aided
+        q_out[r, 0], q_out[r, 1], q_out[r, 2], q_out[r, 3] = x, y, z, u
+        tt_out[r, 0], tt_out[r, 1], tt_out[r, 2] = c[V_TT], c[V_TT + 1], c[V_TT + 2]
+    return -1, aided_seen, first_fb, n_fb, x, y, z, u

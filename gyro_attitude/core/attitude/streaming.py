@@ -103,6 +103,15 @@ class CubicState:
         self.ts = np.zeros(_HISTORY, dtype=np.int64)
         self.ws = np.zeros((_HISTORY, 3))
         self.cf = np.zeros(14)
+        self.reset(q0, t_ns, nav_rate)
+
+    def reset(self, q0: tuple, t_ns: int | None, nav_rate) -> None:
+        """Start again from ``q0`` (at ``t_ns``), in place: whoever holds the arrays (the
+        compiled chain) keeps stepping the same state."""
+        self.ci[:] = 0
+        self.ts[:] = 0
+        self.ws[:] = 0.0
+        self.cf[:] = 0.0
         self.cf[F_Q:F_Q + 4] = q0
         self.cf[F_Q_START:F_Q_START + 4] = q0
         if t_ns is not None:
@@ -186,7 +195,12 @@ class StreamingIntegrator:
             self._ts = [t]
             self._nav_hist = [] if rate is None else [rate.tolist()]
         # the causal cubic keeps its history in arrays and steps through one kernel
-        self.cubic = CubicState(q_start, t, rate) if self.info is ROTVEC_CUBIC else None
+        if self.info is not ROTVEC_CUBIC:
+            self.cubic = None
+        elif getattr(self, "cubic", None) is None:
+            self.cubic = CubicState(q_start, t, rate)
+        else:
+            self.cubic.reset(q_start, t, rate)
 
     @property
     def quaternion(self) -> np.ndarray:

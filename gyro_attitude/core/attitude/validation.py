@@ -538,6 +538,14 @@ class IntervalStatistics:
     def add(self, dt_ns: int) -> None:
         self._dt_ns.append(int(dt_ns))
 
+    def extend(self, dt_ns) -> None:
+        """:meth:`add` each of ``dt_ns`` in order (an int array or list)."""
+        self._dt_ns.extend(np.asarray(dt_ns, dtype=np.int64).tolist())
+
+    @property
+    def window(self) -> int:
+        return self._dt_ns.maxlen
+
     def clear(self) -> None:
         self._dt_ns.clear()
 
