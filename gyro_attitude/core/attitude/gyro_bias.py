@@ -46,6 +46,7 @@ from gyro_attitude.core.attitude.rest import (
     detect_rest,
 )
 from gyro_attitude.core.earth import check_latitude, earth_rate_enu
+from gyro_attitude.core.jit import compiled, kernel
 from gyro_attitude.core.rotation import as_quat_array
 
 __all__ = ["BIAS_MODES", "GyroBiasEstimator", "GyroBiasReport", "estimate_gyro_bias"]
@@ -76,69 +77,98 @@ def _check_vector(name: str, v) -> tuple[float, float, float]:
     return x  # type: ignore[return-value]
 
 
-class _Pool:
-    """Pooled rest statistics: completed rests plus the open one (plain floats, O(1))."""
+# The accumulation state as arrays (what the compiled chain steps, stream_loop.py).  Float slots:
+# the published bias and its standard error; the pooled sums of the completed rests (Σ n_i m_i,
+# Σ n_i m_i², Σ within-rest squared deviations); the open rest's reference and running sums
+B_BIAS, B_SE, B_SUM_NM, B_SUM_NM2, B_SSD, B_REF, B_S1, B_S2 = 0, 3, 6, 9, 12, 15, 18, 21
+_B_FLOATS = 24
+# int slots: the published estimate's rests and samples, the completed rests and their samples,
+# whether the last step published, the Earth-rate flags (all rests so far, the published one),
+# the open rest (open, first and last stamp, samples, Earth rate taken out of all of them)
+J_K, J_N, J_POOL_K, J_POOL_N, J_UPDATED, J_EARTH_ALL, J_EARTH_NOW, J_HAS_SEG, J_SEG_T0, \
+    J_SEG_T1, J_SEG_N, J_SEG_EARTH = range(12)
+_B_INTS = 12
 
-    def __init__(self):
-        self.k = 0  # qualifying rests completed
-        self.n = 0  # their samples
-        self.sum_nm = [0.0] * 3  # Σ n_i m_i
-        self.sum_nm2 = [0.0] * 3  # Σ n_i m_i²
-        self.ssd = [0.0] * 3  # Σ within-rest sums of squared deviations
 
-    @staticmethod
-    def seg_stats(n: int, ref, s1, s2):
-        mean = [ref[i] + s1[i] / n for i in range(3)]
-        ssd = [max(s2[i] - s1[i] * s1[i] / n, 0.0) for i in range(3)]
-        return mean, ssd
+@kernel
+def seg_stats(n, bf):
+    """Mean and within-rest squared deviations of the open rest's ``n`` samples."""
+    m0 = bf[B_REF] + bf[B_S1] / n
+    m1 = bf[B_REF + 1] + bf[B_S1 + 1] / n
+    m2 = bf[B_REF + 2] + bf[B_S1 + 2] / n
+    d0 = max(bf[B_S2] - bf[B_S1] * bf[B_S1] / n, 0.0)
+    d1 = max(bf[B_S2 + 1] - bf[B_S1 + 1] * bf[B_S1 + 1] / n, 0.0)
+    d2 = max(bf[B_S2 + 2] - bf[B_S1 + 2] * bf[B_S1 + 2] / n, 0.0)
+    return m0, m1, m2, d0, d1, d2
 
-    def add(self, n, mean, ssd) -> None:
-        self.k += 1
-        self.n += n
-        for i in range(3):
-            self.sum_nm[i] = self.sum_nm[i] + n * mean[i]
-            self.sum_nm2[i] = self.sum_nm2[i] + n * mean[i] * mean[i]
-            self.ssd[i] = self.ssd[i] + ssd[i]
 
-    def estimate_many(self, nc: np.ndarray, mean: np.ndarray, ssd_c: np.ndarray):
-        """:meth:`estimate` for many states of one open rest at once: ``nc`` (M, 1) its sample
-        counts, ``mean`` and ``ssd_c`` (M, 3); returns (bias, standard error) (M, 3) each.
-        The same operations in the same order as :meth:`estimate`: identical numbers."""
-        k = self.k + 1
-        n = self.n + nc
-        snm = np.asarray(self.sum_nm) + nc * mean
-        snm2 = np.asarray(self.sum_nm2) + nc * mean * mean
-        ssd = np.asarray(self.ssd) + ssd_c
+@kernel
+def pool_add(bf, bi, n, m0, m1, m2, d0, d1, d2):
+    """Pool a completed rest of ``n`` samples, mean ``m``, squared deviations ``d``."""
+    bi[J_POOL_K] += 1
+    bi[J_POOL_N] += n
+    for i, m, d in ((0, m0, d0), (1, m1, d1), (2, m2, d2)):
+        bf[B_SUM_NM + i] = bf[B_SUM_NM + i] + n * m
+        bf[B_SUM_NM2 + i] = bf[B_SUM_NM2 + i] + n * m * m
+        bf[B_SSD + i] = bf[B_SSD + i] + d
+
+
+@kernel
+def publish_pooled(bf, bi, n_c, m0, m1, m2, d0, d1, d2):
+    """Publish the pooled estimate of the completed rests and an open one (``n_c`` samples,
+    mean ``m``, squared deviations ``d``): bias, standard error, rests and samples."""
+    k = bi[J_POOL_K] + 1
+    n = bi[J_POOL_N] + n_c
+    for i, m, d in ((0, m0, d0), (1, m1, d1), (2, m2, d2)):
+        snm = bf[B_SUM_NM + i] + n_c * m
+        snm2 = bf[B_SUM_NM2 + i] + n_c * m * m
+        ssd = bf[B_SSD + i] + d
         bias = snm / n
-        white = np.sqrt(ssd / np.maximum(n - k, 1) / n)
+        white = math.sqrt(ssd / max(n - k, 1) / n)
+        between = 0.0
         if k >= 2:
-            between = np.sqrt(np.maximum(snm2 - n * bias * bias, 0.0) / n / (k - 1))
-            return bias, np.maximum(white, between)
-        return bias, white
+            between = math.sqrt(max(snm2 - n * bias * bias, 0.0) / n / (k - 1))
+        bf[B_BIAS + i] = bias
+        bf[B_SE + i] = max(white, between)
+    bi[J_K], bi[J_N] = k, n
 
-    def estimate(self, open_seg=None):
-        """(bias, standard error, rests, samples) including an open qualifying rest."""
-        k, n = self.k, self.n
-        snm, snm2, ssd = list(self.sum_nm), list(self.sum_nm2), list(self.ssd)
-        if open_seg is not None:
-            n_c, mean_c, ssd_c = open_seg
-            k += 1
-            n += n_c
-            for i in range(3):
-                snm[i] = snm[i] + n_c * mean_c[i]
-                snm2[i] = snm2[i] + n_c * mean_c[i] * mean_c[i]
-                ssd[i] = ssd[i] + ssd_c[i]
-        if k == 0:
-            return None
-        bias = [snm[i] / n for i in range(3)]
-        se = []
+
+@kernel
+def accumulate(bf, bi, min_rest_ns, t, v0, v1, v2, earth):
+    """Add the rest sample of time ``t`` with value ``v`` (:meth:`GyroBiasEstimator.value`) to
+    the open rest (opened by the first); publish the pooled estimate once the rest spans
+    ``min_rest_ns`` (``J_UPDATED`` then says so)."""
+    bi[J_UPDATED] = 0
+    if bi[J_HAS_SEG] == 0:
+        bi[J_HAS_SEG], bi[J_SEG_T0], bi[J_SEG_N], bi[J_SEG_EARTH] = 1, t, 0, 1
+        bf[B_REF], bf[B_REF + 1], bf[B_REF + 2] = v0, v1, v2
         for i in range(3):
-            white = math.sqrt(ssd[i] / max(n - k, 1) / n)
-            between = 0.0
-            if k >= 2:
-                between = math.sqrt(max(snm2[i] - n * bias[i] * bias[i], 0.0) / n / (k - 1))
-            se.append(max(white, between))
-        return bias, se, k, n
+            bf[B_S1 + i] = 0.0
+            bf[B_S2 + i] = 0.0
+    bi[J_SEG_T1] = t
+    bi[J_SEG_N] += 1
+    for i, v in ((0, v0), (1, v1), (2, v2)):
+        d = v - bf[B_REF + i]
+        bf[B_S1 + i] = bf[B_S1 + i] + d
+        bf[B_S2 + i] = bf[B_S2 + i] + d * d
+    if not earth:
+        bi[J_SEG_EARTH] = 0
+    if bi[J_SEG_T1] - bi[J_SEG_T0] >= min_rest_ns:
+        m0, m1, m2, d0, d1, d2 = seg_stats(bi[J_SEG_N], bf)
+        publish_pooled(bf, bi, bi[J_SEG_N], m0, m1, m2, d0, d1, d2)
+        bi[J_UPDATED] = 1
+        bi[J_EARTH_NOW] = 1 if (bi[J_EARTH_ALL] == 1 and bi[J_SEG_EARTH] == 1) else 0
+
+
+@kernel
+def close_rest(bf, bi, min_rest_ns):
+    """The open rest ended: pooled when it spans ``min_rest_ns``."""
+    bi[J_HAS_SEG] = 0
+    if bi[J_SEG_T1] - bi[J_SEG_T0] >= min_rest_ns:
+        m0, m1, m2, d0, d1, d2 = seg_stats(bi[J_SEG_N], bf)
+        pool_add(bf, bi, bi[J_SEG_N], m0, m1, m2, d0, d1, d2)
+        if bi[J_SEG_EARTH] == 0:
+            bi[J_EARTH_ALL] = 0
 
 
 def _earth_rate_body(q_nb, w_n) -> tuple[float, float, float]:
@@ -150,6 +180,7 @@ def _earth_rate_body(q_nb, w_n) -> tuple[float, float, float]:
     return _c_bn_times(x, y, z, w, 2.0 / n, w_n)
 
 
+@kernel
 def _c_bn_times(x, y, z, w, s, w_n):
     """``C_bn ω`` with ``s = 2/|q|²``; floats or arrays alike (same operations, same bits)."""
     e0, e1, e2 = float(w_n[0]), float(w_n[1]), float(w_n[2])
@@ -192,7 +223,7 @@ class GyroBiasEstimator:
     def break_window(self) -> None:
         """The stream broke (gap, time jump, unusable accelerometer sample): close the open rest
         and start a fresh window; the rests pooled so far and the estimate are kept."""
-        if self._seg is not None:
+        if self.bi[J_HAS_SEG]:
             self.close_rest()
         self.detector.reset()
         self._pending.clear()
@@ -206,16 +237,43 @@ class GyroBiasEstimator:
     def reset(self) -> None:
         """Forget rests and the window (the fixed/initial bias stays)."""
         self.detector.reset()
-        self._pool = _Pool()
         self._pending: deque = deque()  # (index, t_ns, value to average) for the window
-        self._seg = None  # open rest: [t_first, t_last, n, ref, s1, s2]
         self._last_acc = -1
-        self._earth_all = True
+        # the accumulation state (B_*, J_*), reset in place: the compiled chain holds the arrays
+        if not hasattr(self, "bf"):
+            self.bf = np.zeros(_B_FLOATS)
+            self.bi = np.zeros(_B_INTS, dtype=np.int64)
+        self.bf[:] = 0.0
+        self.bi[:] = 0
+        self.bi[J_EARTH_ALL] = 1
         self._bias = self._fixed if self.mode == "parameter" else (
             self._initial if self.mode == "auto" else (0.0, 0.0, 0.0))
         self._se = (math.nan,) * 3
-        self._k = self._n = 0
-        self.updated = False  # the last update() published a new estimate
+
+    def _floats(i):
+        def get(self):
+            return tuple(self.bf[i:i + 3].tolist())
+
+        def put(self, x):
+            self.bf[i:i + 3] = x
+        return property(get, put)
+
+    def _int(i, kind=int):
+        def get(self):
+            return kind(self.bi[i])
+
+        def put(self, x):
+            self.bi[i] = x
+        return property(get, put)
+
+    _bias = _floats(B_BIAS)
+    _se = _floats(B_SE)
+    _k = _int(J_K)
+    _n = _int(J_N)
+    updated = _int(J_UPDATED, bool)  # the last update() published a new estimate
+    _earth_all = _int(J_EARTH_ALL, bool)
+    _earth_now = _int(J_EARTH_NOW, bool)
+    del _floats, _int
 
     @property
     def bias(self) -> np.ndarray:
@@ -256,7 +314,7 @@ class GyroBiasEstimator:
             if j > self._last_acc:
                 self.accumulate(pend[0][1], pend[0][2], pend[0][3])
                 self._last_acc = j
-        elif self._seg is not None:
+        elif self.bi[J_HAS_SEG]:
             self.close_rest()
         return self._bias
 
@@ -271,46 +329,23 @@ class GyroBiasEstimator:
     def accumulate(self, t: int, v, earth: bool) -> None:
         """Add the rest sample of time ``t`` with value ``v`` (:meth:`value`) to the open rest
         (opened by the first); publish the pooled estimate once the rest spans ``min_rest_s``
-        (``updated`` then says so)."""
-        self.updated = False
-        seg = self._seg
-        if seg is None:
-            seg = self._seg = [t, t, 0, v, [0.0] * 3, [0.0] * 3, True]
-        seg[1] = t
-        seg[2] += 1
-        ref, s1, s2 = seg[3], seg[4], seg[5]
-        for i in range(3):
-            d = v[i] - ref[i]
-            s1[i] = s1[i] + d
-            s2[i] = s2[i] + d * d
-        seg[6] = seg[6] and earth
-        if seg[1] - seg[0] >= self.min_rest_ns:
-            mean, ssd = _Pool.seg_stats(seg[2], ref, s1, s2)
-            self._publish(self._pool.estimate((seg[2], mean, ssd)), seg[6])
+        (``updated`` then says so).  The kernel :func:`accumulate`."""
+        compiled(accumulate)(self.bf, self.bi, self.min_rest_ns, t, float(v[0]), float(v[1]),
+                             float(v[2]), bool(earth))
 
     def close_rest(self) -> None:
         """The open rest ended: pooled when it spans ``min_rest_s``."""
-        seg, self._seg = self._seg, None
-        if seg[1] - seg[0] >= self.min_rest_ns:
-            mean, ssd = _Pool.seg_stats(seg[2], seg[3], seg[4], seg[5])
-            self._pool.add(seg[2], mean, ssd)
-            self._earth_all = self._earth_all and seg[6]
-
-    def _publish(self, est, earth_open: bool) -> None:
-        bias, se, self._k, self._n = est
-        self._bias, self._se = tuple(bias), tuple(se)
-        self.updated = True
-        self._earth_now = self._earth_all and earth_open
+        compiled(close_rest)(self.bf, self.bi, self.min_rest_ns)
 
     @property
     def rests_completed(self) -> int:
         """Qualifying rests closed and pooled so far (the open one not counted)."""
-        return self._pool.k
+        return int(self.bi[J_POOL_K])
 
     @property
     def open_rest_start_ns(self) -> int | None:
         """Time of the first sample of the rest being accumulated, or None."""
-        return None if self._seg is None else self._seg[0]
+        return int(self.bi[J_SEG_T0]) if self.bi[J_HAS_SEG] else None
 
     @property
     def window_ns(self) -> int:
@@ -419,7 +454,7 @@ class GyroBiasEstimator:
             nc = (qual + (r0 + 1)).astype(np.float64)[:, None]
             mean = ref + s1[qual] / nc
             ssd = np.maximum(s2[qual] - s1[qual] * s1[qual] / nc, 0.0)
-            est, se = self._pool.estimate_many(nc, mean, ssd)
+            est, se = self._estimate_many(nc, mean, ssd)
             rows_ = kk[r0 + qual]
             if last is None:  # the rest's first estimate: what it replaces, and the rest's start
                 out["prev"].append(np.asarray(prev_bias, dtype=np.float64)[None])
@@ -431,12 +466,29 @@ class GyroBiasEstimator:
         if last is None:
             return
         self._bias, self._se = tuple(last[0].tolist()), tuple(last[1].tolist())
-        self._k, self._n = self._pool.k + 1, self._pool.n + last[2] + 1
+        self._k, self._n = self.bi[J_POOL_K] + 1, self.bi[J_POOL_N] + last[2] + 1
         self._earth_now = self._earth_all and earth
         mean_all = (ref + c1 / n_all).tolist()
         ssd_all = np.maximum(c2 - c1 * c1 / n_all, 0.0).tolist()
-        self._pool.add(n_all, mean_all, ssd_all)
+        pool_add(self.bf, self.bi, n_all, *mean_all, *ssd_all)
         self._earth_all = self._earth_all and earth
+
+    def _estimate_many(self, nc: np.ndarray, mean: np.ndarray, ssd_c: np.ndarray):
+        """:func:`publish_pooled` for many states of one open rest at once: ``nc`` (M, 1) its
+        sample counts, ``mean`` and ``ssd_c`` (M, 3); returns (bias, standard error) (M, 3)
+        each.  The same operations in the same order: identical numbers."""
+        bf = self.bf
+        k = int(self.bi[J_POOL_K]) + 1
+        n = int(self.bi[J_POOL_N]) + nc
+        snm = bf[B_SUM_NM:B_SUM_NM + 3] + nc * mean
+        snm2 = bf[B_SUM_NM2:B_SUM_NM2 + 3] + nc * mean * mean
+        ssd = bf[B_SSD:B_SSD + 3] + ssd_c
+        bias = snm / n
+        white = np.sqrt(ssd / np.maximum(n - k, 1) / n)
+        if k >= 2:
+            between = np.sqrt(np.maximum(snm2 - n * bias * bias, 0.0) / n / (k - 1))
+            return bias, np.maximum(white, between)
+        return bias, white
 
     def report(self) -> GyroBiasReport:
         if self.mode == "none":
