@@ -33,6 +33,7 @@ None and :meth:`AttitudeStream.run` pushes every sample instead.
 
 from __future__ import annotations
 
+import bisect
 import math
 
 import numpy as np
@@ -48,8 +49,17 @@ from gyro_attitude.core.attitude.ahrs import (
     ahrs_step,
 )
 from gyro_attitude.core.attitude.alignment import level_quaternions
-from gyro_attitude.core.attitude.covariance import V_TT, aid_tilt, propagate
+from gyro_attitude.core.attitude.covariance import V_BB, V_TB, V_TT, aid_tilt, propagate
 from gyro_attitude.core.attitude.gravity_aiding import G_AIDED, G_HAS_LAST, GravityAiding, gravity_step
+from gyro_attitude.core.attitude.gyro_bias import (
+    B_BIAS,
+    B_SE,
+    J_HAS_SEG,
+    J_UPDATED,
+    _c_bn_times,
+    accumulate,
+    close_rest,
+)
 from gyro_attitude.core.attitude.modes import Aiding, GyroBiasMode
 from gyro_attitude.core.attitude.stream import (
     _ACCEPTED,
@@ -145,9 +155,19 @@ def run_loop(s, t, w, frame_id, cov, acc, mag) -> StreamResult | None:
             ev_src += idx[j].tolist()
             ev_first += [True] + [False] * (kk.size - 1)
     earth = auto and s.latitude_rad is not None
-    need = set(ev_src) if earth else set()
-    values: dict[int, tuple] = {}
-    n_ev = len(ev_rows)
+    # per row: the rest sample it accumulates (-1: none), whether that opens a rest, whether
+    # its own value (rate less the Earth rate at the attitude then) is needed later
+    ev_src_row = np.full(m, -1, dtype=np.int64)
+    ev_first_row = np.zeros(m, dtype=bool)
+    need_row = np.zeros(m, dtype=bool)
+    if ev_rows:
+        ev_at = np.array(ev_rows, dtype=np.int64)
+        ev_src_row[ev_at] = ev_src
+        ev_first_row[ev_at] = ev_first
+        if earth:
+            need_row[np.array(ev_src, dtype=np.int64)] = True
+    vals = np.zeros((m, 3))
+    vals_earth = np.zeros(m, dtype=bool)
 
     align = rec.align
     done = align[0] if align is not None else -1
@@ -155,14 +175,14 @@ def run_loop(s, t, w, frame_id, cov, acc, mag) -> StreamResult | None:
     if earth and align is not None:
         # while aligning the bias stage takes the Earth rate out at the attitude levelled from
         # each sample's force (data only: the array form of level_quaternion, as run_arrays)
-        lv = sorted(k for k in need if k <= done)
+        lv = np.flatnonzero(need_row[:done + 1]).tolist()
         if lv:
             q_lv, usable = level_quaternions(np.where(rec.a_ok[lv, None], rec.av[lv], 0.0),
                                              math.radians(cfg.initial_heading_deg))
             usable &= rec.a_ok[lv]
             for k, qk, ok_k in zip(lv, q_lv.tolist(), usable.tolist(), strict=True):
-                values[k] = est.value(wl[k], qk if ok_k else None)
-                need.discard(k)
+                vals[k], vals_earth[k] = est.value(wl[k], qk if ok_k else None)
+            need_row[lv] = False
     aid = s.aiding
     integrate = s._integrate
     bias_attitude = s._bias_attitude
@@ -171,33 +191,47 @@ def run_loop(s, t, w, frame_id, cov, acc, mag) -> StreamResult | None:
     has_q = np.zeros(m, dtype=bool)
     q_out = np.empty((m, 4))
     tt_out = np.empty((m, 3))
-    p = 0
-    next_ev = ev_rows[0] if n_ev else -1
     bias = est.bias_floats
-    fast = _Compiled.for_stream(s, rec, valid, cov, mag, var_rows, restart) if m else None
-    # the rows the compiled loop must stop before: anything but steps 4.-6. happens there
-    stops = np.zeros(m + 1, dtype=bool)
-    stops[m] = True
+    fast = None
     if m:
-        stops[:m] = rec.actv != _ACCEPT
-        stops[np.array(ev_rows, dtype=np.int64)] = True
-        stops[np.array(sorted(need), dtype=np.int64)] = True
-    next_stop = np.flatnonzero(stops).tolist()
+        fast = _Compiled.for_stream(s, rec, valid, cov, mag, var_rows, restart)
+    if fast is not None:
+        fast.rests(earth, need_row, ev_src_row, ev_first_row, vals, vals_earth)
+    # the rows the compiled loop must stop before (Python runs them): rows not accepted; and,
+    # while the first bias estimate may still be applied back to the start, the rest rows
+    stop_rows = np.append(np.flatnonzero(rec.actv != _ACCEPT) if m else [], m).astype(
+        np.int64).tolist()
+    stop_or_ev = np.append(np.flatnonzero((rec.actv != _ACCEPT) | (ev_src_row >= 0))
+                           if m else [], m).astype(np.int64).tolist()
     ns = 0
     r = 0
     while r < m:
         t_r = tl[r]
         if st.start_t_ns is None:
             st.start_t_ns = t_r
+        code = actl[r]
+        if fast is not None and code == _ACCEPT and st.phase is RUNNING and not (
+                st.first_rest_pending and ev_src_row[r] >= 0):
+            # 2. and 4.-6. compiled, up to the next row where Python must act
+            stops = stop_or_ev if st.first_rest_pending else stop_rows
+            ns = bisect.bisect_right(stops, r)
+            end = stops[ns]
+            if not fast.run(r, end, bias, q_out, tt_out):
+                return None
+            bias = est.bias_floats
+            has_q[r:end] = True
+            r = end
+            continue
         # 2. rest -> gyro bias: the value this sample gives a rest, then the accumulation the
         # rest plan puts at this row
-        if r in need:
-            values[r] = est.value(wl[r], bias_attitude(al[r]))
-        if r == next_ev:
-            if ev_first[p] and est.open_rest_start_ns is not None:
+        if need_row[r]:
+            vals[r], vals_earth[r] = est.value(wl[r], bias_attitude(al[r]))
+        j = int(ev_src_row[r])
+        if j >= 0:
+            if ev_first_row[r] and est.open_rest_start_ns is not None:
                 est.close_rest()  # the previous rest ended (push() closed it when it did)
-            j = ev_src[p]
-            g_j, earth_j = values.pop(j) if earth else (wl[j], False)
+            g_j, earth_j = (tuple(vals[j].tolist()), bool(vals_earth[j])) if earth \
+                else (wl[j], False)
             previous = bias
             est.accumulate(tl[j], g_j, earth_j)
             if est.updated:
@@ -205,8 +239,6 @@ def run_loop(s, t, w, frame_id, cov, acc, mag) -> StreamResult | None:
                     fast.settle()  # the first estimate may reset the integrator
                 published(previous)
             bias = est.bias_floats
-            p += 1
-            next_ev = ev_rows[p] if p < n_ev else -1
         # 3. alignment
         if st.phase is not RUNNING:
             if r == done:
@@ -220,17 +252,6 @@ def run_loop(s, t, w, frame_id, cov, acc, mag) -> StreamResult | None:
                 q_out[r] = q
                 tt_out[r] = covariance.tt_floats()
             r += 1
-            continue
-        code = actl[r]
-        if fast is not None and code == _ACCEPT:
-            # 4.-6. compiled, up to the next row where anything else happens
-            while next_stop[ns] <= r:
-                ns += 1
-            end = next_stop[ns]
-            if not fast.run(r, end, bias, q_out, tt_out):
-                return None
-            has_q[r:end] = True
-            r = end
             continue
         # 4.-6. aiding, integration, covariance
         if fast is not None:
@@ -337,6 +358,16 @@ class _Compiled:
             s.covariance.c, s.covariance.k2, s._n2, 0.0 if aid is None else aid.kp)
         self._floor_for, self._floor = _UNSET, 0.0
         self._stale: list[tuple[int, int]] = []
+        self.rests(False, *(np.zeros(m, dtype=bool), np.full(m, -1, dtype=np.int64),
+                            np.zeros(m, dtype=bool), np.zeros((m, 3)), np.zeros(m, dtype=bool)))
+
+    def rests(self, earth, need_row, ev_src_row, ev_first_row, vals, vals_earth) -> None:
+        """The rest plan's per-row arrays (run_loop) for the compiled rows."""
+        est = self.s.bias_estimator
+        earth_n = est._earth_n if earth else np.zeros(3)
+        self._rests = (bool(earth), np.asarray(earth_n, dtype=np.float64), need_row,
+                       ev_src_row, ev_first_row, vals, vals_earth, est.bf, est.bi,
+                       est.min_rest_ns)
 
     def run(self, r0: int, r1: int, bias, q_out, tt_out) -> bool:
         """Rows r0..r1-1 (all accepted, nothing else happening there) through steps 4.-6.;
@@ -351,7 +382,7 @@ class _Compiled:
                            else s.config.accel_bias_sigma / STANDARD_GRAVITY) ** 2
         bad, seen, first_fb, n_fb, q0, q1, q2, q3 = compiled(accept_rows)(
             r0, r1, self.t, self.w, bias[0], bias[1], bias[2], *self._inputs, self._floor,
-            st.aided_seen, q[0], q[1], q[2], q[3], q_out, tt_out, self.dt)
+            st.aided_seen, q[0], q[1], q[2], q[3], q_out, tt_out, self.dt, *self._rests)
         self._stale.append((r0, r1))
         if bad >= 0:
             return False
@@ -378,17 +409,40 @@ class _Compiled:
 @kernel
 def accept_rows(r0, r1, t, w, b0, b1, b2, a, a_ok, m, m_state, var, var_ok, restart, kind,
                 gp, gf, gi, pa, af, ai, ci, ts, ws, cf, has_nav, n0, n1, n2, c, k2, noise2, kp,
-                floor_var, aided_seen, x, y, z, u, q_out, tt_out, dt_out):
-    """Steps 4.-6. of :meth:`AttitudeStream._integrate` (an accepted sample: aiding ``kind`` 0
-    none, 1 gravity, 2 AHRS; the causal cubic; the covariance) over rows ``r0..r1-1`` with the
-    bias ``b`` in force, from the attitude ``(x, y, z, u)``; attitudes and ``tt`` into
-    ``q_out``/``tt_out``, interval lengths into ``dt_out``.  Returns (the row of an integrator
-    error or -1, the aiding's sample count, the first row whose fit fell back, how many fell
-    back, the last attitude)."""
+                floor_var, aided_seen, x, y, z, u, q_out, tt_out, dt_out, earth, earth_n,
+                need_row, ev_src_row, ev_first_row, vals, vals_earth, bf, bi, min_rest_ns):
+    """Step 2. at the rests the plan names (run_loop: ``need_row``, ``ev_src_row``,
+    ``ev_first_row``; the values in ``vals``/``vals_earth``; the bias estimator's state
+    ``bf``/``bi``; a new estimate is a zero-rate update of the covariance) and steps 4.-6. of
+    :meth:`AttitudeStream._integrate` (an accepted sample: aiding ``kind`` 0 none, 1 gravity,
+    2 AHRS; the causal cubic; the covariance) over rows ``r0..r1-1``, from the bias ``b`` and
+    the attitude ``(x, y, z, u)``; attitudes and ``tt`` into ``q_out``/``tt_out``, interval
+    lengths into ``dt_out``.  Returns (the row of an integrator error or -1, the aiding's
+    sample count, the first row whose fit fell back, how many fell back, the last attitude)."""
     first_fb = -1
     n_fb = 0
     for r in range(r0, r1):
         tr = t[r]
+        # 2. the value this sample gives a rest (its rate less the Earth rate seen at the
+        # attitude now), then the accumulation the rest plan puts at this row
+        if need_row[r]:
+            e0, e1, e2 = _c_bn_times(x, y, z, u, 2.0 / (x * x + y * y + z * z + u * u), earth_n)
+            vals[r, 0], vals[r, 1], vals[r, 2] = w[r, 0] - e0, w[r, 1] - e1, w[r, 2] - e2
+            vals_earth[r] = True
+        j = ev_src_row[r]
+        if j >= 0:
+            if ev_first_row[r] and bi[J_HAS_SEG] == 1:
+                close_rest(bf, bi, min_rest_ns)
+            if earth:
+                accumulate(bf, bi, min_rest_ns, t[j], vals[j, 0], vals[j, 1], vals[j, 2],
+                           vals_earth[j])
+            else:
+                accumulate(bf, bi, min_rest_ns, t[j], w[j, 0], w[j, 1], w[j, 2], False)
+            if bi[J_UPDATED] == 1:  # a zero-rate update (AttitudeCovariance.zero_rate_update)
+                for i in range(3):
+                    c[V_BB + i] = bf[B_SE + i] ** 2
+                    c[V_TB + i] = 0.0
+            b0, b1, b2 = bf[B_BIAS], bf[B_BIAS + 1], bf[B_BIAS + 2]
         if restart[r] and kind != 0:
             if kind == 1:
                 gi[G_HAS_LAST] = 0
