@@ -101,40 +101,36 @@ def run_loop(s, t, w, frame_id, cov, acc, mag) -> StreamResult | None:
     for key, text in details.items():
         st.details.setdefault(key, text)
 
-    # per-row inputs of the loop, as plain Python values (a list index is ~20× cheaper than
-    # an array element)
-    tl, wl, actl = tv.tolist(), [tuple(x) for x in wv.tolist()], actv.tolist()
-    al = [None] * m
+    # per-row inputs of the rows Python steps, as the per-sample steps take them (converted
+    # on demand: the compiled rows take the arrays)
+    tl, wl, actl = _RowInts(tv), _RowTuples(wv), _RowInts(actv)
+    al = _RowTuples(None, None)
     if rec.av is not None:
-        ok = rec.a_ok.tolist()
-        al = [tuple(x) if ok_k else None for x, ok_k in zip(rec.av.tolist(), ok, strict=True)]
+        al = _RowTuples(rec.av, rec.a_ok)
     # rows where push() breaks the windows, which restarts the aiding's time base: a gap, a
     # jump, a restart, an unusable accelerometer sample
     restart = rec.breaks.copy()
     if rec.a_ok is not None:
         restart |= ~rec.a_ok
-    restart = restart.tolist()
-    var_rows = [None] * m
+    var_rows = _RowTuples(None, None)
     known_rows = np.zeros(m, dtype=bool)
     if cov is not None:
         var_v, known_v = covariance_rows(cov, valid, counts, details)
         if v.no_estimate(rows(cov, valid)).any():
             st.details.setdefault(GYRO_NOISE_UNKNOWN, unknown_noise_note(cfg))
         known_rows = np.asarray(known_v, dtype=bool)
-        var_rows = [tuple(x) if k else None for x, k in zip(np.asarray(var_v).tolist(),
-                                                             known_rows.tolist(), strict=True)]
+        var_rows = _RowTuples(var_v, known_rows)
     # whether anything gives an orientation variance by each row
-    variance_known = (np.maximum.accumulate(known_rows) | st.variance_known).tolist() if m \
-        else []
-    ml = [None] * m
+    variance_known = np.maximum.accumulate(known_rows) | st.variance_known if m \
+        else np.zeros(0, dtype=bool)
+    ml = _RowTuples(None, None)
     if cfg.aiding is Aiding.MAGNETOMETER:
         if mag is None:
             missing = np.ones(m, dtype=bool)
         else:
             mv = rows(mag, valid)
             missing = np.isnan(mv).all(axis=1)
-            ml = [None if miss else x for x, miss in zip(mv.tolist(), missing.tolist(),
-                                                          strict=True)]
+            ml = _RowTuples(mv, ~missing)
         s._mag_missing = int(np.count_nonzero(missing))
         if s._mag_missing:
             k = int(valid[np.flatnonzero(missing)[0]])
@@ -299,6 +295,34 @@ def run_loop(s, t, w, frame_id, cov, acc, mag) -> StreamResult | None:
 _UNSET = object()
 
 
+class _RowTuples:
+    """``rows[r]``: row ``r`` of an (M, 3) array as 3 floats, None where ``ok`` is False (or
+    for every row without an array), made when asked: only the rows Python steps need one."""
+
+    __slots__ = ("a", "ok")
+
+    def __init__(self, a, ok=None):
+        self.a = a
+        self.ok = None if a is None else (None if ok is None else np.asarray(ok, dtype=bool))
+
+    def __getitem__(self, r):
+        if self.a is None or (self.ok is not None and not self.ok[r]):
+            return None
+        return tuple(self.a[r].tolist())
+
+
+class _RowInts:
+    """``rows[r]``: element ``r`` of an integer array as a Python int."""
+
+    __slots__ = ("a",)
+
+    def __init__(self, a):
+        self.a = a
+
+    def __getitem__(self, r):
+        return int(self.a[r])
+
+
 class _Compiled:
     """The arguments of :func:`accept_rows` for one stream and recording: the per-row inputs
     as arrays and the stages' state arrays (stepped in place)."""
@@ -334,12 +358,9 @@ class _Compiled:
             self.m = np.where(finite[:, None], mv, 0.0)
             self.m_state = np.where(missing, MAG_ABSENT,
                                     np.where(finite, MAG_GIVEN, MAG_NOT_FLOATS)).astype(np.int64)
-        self.var = np.zeros((m, 3))
-        self.var_ok = np.zeros(m, dtype=bool)
-        for k, x in enumerate(var_rows):
-            if x is not None:
-                self.var[k] = x
-                self.var_ok[k] = True
+        self.var_ok = np.zeros(m, dtype=bool) if var_rows.ok is None else var_rows.ok
+        self.var = np.zeros((m, 3)) if var_rows.a is None else np.where(
+            self.var_ok[:, None], var_rows.a, 0.0)
         self.restart = np.asarray(restart, dtype=bool)
         self.dt = np.zeros(m, dtype=np.int64)
         aid = s.aiding
