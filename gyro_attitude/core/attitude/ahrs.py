@@ -612,36 +612,72 @@ def _hard_iron_step(pa, af, ai, dt, m0, m1, m2):
 def _solve_hard_iron(pa, af, ai):
     """Solve ``m·m = 2 b·m + c`` in the least-squares sense from the sums (once a second):
     accepted when the field's directions are spread (the smallest eigenvalue of the scatter of
-    m is at least (r/3)², as from rotations of ±40° or more about two axes) and the fit is of
-    Earth-field size."""
+    m is at least (r/3)²/3, as from rotations of ±40° or more about two axes) and the fit is of
+    Earth-field size.
+
+    Written out rather than through ``np.linalg`` (numba's LAPACK bindings take ~15 s to
+    compile, this ~0.1 s): the normal matrix of the fit is symmetric, so a Cholesky
+    factorisation solves it (and tells a degenerate fit: not positive definite); "the smallest
+    eigenvalue of the scatter is below λ" is "scatter − λI is not positive definite", which
+    Sylvester's criterion decides from three leading minors, with no eigenvalue computed."""
     sm = A_HI_SUMS
     n = af[sm + 9]
     if n < 50:
         return
-    sxx = np.empty((3, 3))
-    sxx[0, 0], sxx[0, 1], sxx[0, 2] = af[sm], af[sm + 1], af[sm + 2]
-    sxx[1, 0], sxx[1, 1], sxx[1, 2] = af[sm + 1], af[sm + 3], af[sm + 4]
-    sxx[2, 0], sxx[2, 1], sxx[2, 2] = af[sm + 2], af[sm + 4], af[sm + 5]
-    sx = af[sm + 6:sm + 9].copy()
-    mean = sx / n
-    scatter = sxx / n - np.outer(mean, mean)
-    a = np.empty((4, 4))
-    a[:3, :3] = 4.0 * sxx
-    a[:3, 3] = 2.0 * sx
-    a[3, :3] = 2.0 * sx
-    a[3, 3] = n
+    s00, s01, s02, s11, s12, s22 = (af[sm], af[sm + 1], af[sm + 2], af[sm + 3], af[sm + 4],
+                                    af[sm + 5])
+    x0, x1, x2 = af[sm + 6], af[sm + 7], af[sm + 8]
+    # the normal equations A [b, c] = rhs, A = [[4 Sxx, 2 Sx], [2 Sxᵀ, n]] (lower triangle)
+    a = np.zeros((4, 4))
+    a[0, 0], a[1, 0], a[1, 1] = 4.0 * s00, 4.0 * s01, 4.0 * s11
+    a[2, 0], a[2, 1], a[2, 2] = 4.0 * s02, 4.0 * s12, 4.0 * s22
+    a[3, 0], a[3, 1], a[3, 2], a[3, 3] = 2.0 * x0, 2.0 * x1, 2.0 * x2, n
     rhs = np.array([2.0 * af[sm + 10], 2.0 * af[sm + 11], 2.0 * af[sm + 12], af[sm + 13]])
-    if not np.all(np.isfinite(a)) or abs(np.linalg.det(a)) == 0.0:
-        return  # singular: no fit (np.linalg.solve would raise)
-    sol = np.linalg.solve(a, rhs)
+    # Cholesky A = L Lᵀ in place (lower triangle), then L y = rhs, Lᵀ sol = y
+    for j in range(4):
+        d = a[j, j]
+        for k in range(j):
+            d -= a[j, k] * a[j, k]
+        if not d > 0.0:
+            return  # not positive definite: the field seen from too few directions
+        a[j, j] = math.sqrt(d)
+        for i in range(j + 1, 4):
+            e = a[i, j]
+            for k in range(j):
+                e -= a[i, k] * a[j, k]
+            a[i, j] = e / a[j, j]
+    sol = np.empty(4)
+    for i in range(4):
+        e = rhs[i]
+        for k in range(i):
+            e -= a[i, k] * sol[k]
+        sol[i] = e / a[i, i]
+    for i in range(3, -1, -1):
+        e = sol[i]
+        for k in range(i + 1, 4):
+            e -= a[k, i] * sol[k]
+        sol[i] = e / a[i, i]
     b0, b1, b2 = sol[0], sol[1], sol[2]
     r2 = sol[3] + (b0 * b0 + b1 * b1 + b2 * b2)
-    if not np.all(np.isfinite(sol)) or not r2 > 0:
+    if not (math.isfinite(b0) and math.isfinite(b1) and math.isfinite(b2)
+            and math.isfinite(sol[3])) or not r2 > 0:
         return
     r = math.sqrt(r2)
     if not 5.0 <= r <= 1000.0:  # µT: an Earth-like field (and a nearby steel structure)
         return
-    if np.linalg.eigvalsh(scatter)[0] < (r / 3.0) ** 2 / 3.0:
+    # scatter − λI positive definite (Sylvester: its leading minors positive)
+    lam = (r / 3.0) ** 2 / 3.0
+    m0, m1, m2 = x0 / n, x1 / n, x2 / n
+    c00 = s00 / n - m0 * m0 - lam
+    c01 = s01 / n - m0 * m1
+    c02 = s02 / n - m0 * m2
+    c11 = s11 / n - m1 * m1 - lam
+    c12 = s12 / n - m1 * m2
+    c22 = s22 / n - m2 * m2 - lam
+    minor2 = c00 * c11 - c01 * c01
+    minor3 = (c00 * (c11 * c22 - c12 * c12) - c01 * (c01 * c22 - c12 * c02)
+              + c02 * (c01 * c12 - c11 * c02))
+    if not (c00 > 0.0 and minor2 > 0.0 and minor3 > 0.0):
         return
     af[A_HARD_IRON], af[A_HARD_IRON + 1], af[A_HARD_IRON + 2] = b0 * 1e-6, b1 * 1e-6, b2 * 1e-6
     ai[I_HI_FITS] += 1

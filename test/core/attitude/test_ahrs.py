@@ -199,6 +199,42 @@ def test_hard_iron_fit_refuses_a_field_seen_from_one_direction_only():
     assert aid.hard_iron_fits == 0 and aid.hard_iron == [0.0, 0.0, 0.0]
 
 
+def _fit_sums(points_ut):
+    """The sphere-fit sums of field samples (µT) as AhrsFilter accumulates them."""
+    x, y, z = points_ut.T
+    r = x * x + y * y + z * z
+    return [np.sum(v) for v in (x * x, x * y, x * z, y * y, y * z, z * z, x, y, z,
+                                np.ones_like(x), r * x, r * y, r * z, r)]
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_hard_iron_solve_agrees_with_numpy_least_squares_and_eigenvalues(seed):
+    # Oracle: numpy's lstsq of the same sphere fit and eigvalsh of the field's scatter.  The
+    # field directions span a cap of random width about a random axis, stretched along a
+    # random direction: some fits are accepted, others refused for too little spread.
+    import gyro_attitude.core.attitude.ahrs as ahrs
+
+    rng = np.random.default_rng(seed)
+    b = rng.uniform(-30.0, 30.0, 3)
+    u = rng.standard_normal((400, 3))
+    u *= rng.uniform(0.05, 1.0, 3)  # less spread along some axes
+    u += rng.uniform(0.0, 2.0) * rng.standard_normal(3)  # toward one direction
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    pts = b + 45.0 * (Rotation.random(random_state=seed).apply(u)) + 0.05 * rng.standard_normal(
+        (400, 3))
+    aid = AhrsFilter(estimate_hard_iron=True)
+    aid.af[ahrs.A_HI_SUMS:ahrs.A_HI_SUMS + 14] = _fit_sums(pts)
+    ahrs._solve_hard_iron(aid.pa, aid.af, aid.ai)
+    design = np.column_stack([2.0 * pts, np.ones(len(pts))])
+    sol = np.linalg.lstsq(design, np.sum(pts * pts, axis=1), rcond=None)[0]
+    r = math.sqrt(sol[3] + sol[:3] @ sol[:3])
+    spread = np.linalg.eigvalsh(np.cov(pts.T, bias=True))[0]
+    expected = 5.0 <= r <= 1000.0 and spread >= (r / 3.0) ** 2 / 3.0
+    assert aid.hard_iron_fits == int(expected)
+    if expected:
+        np.testing.assert_allclose(np.array(aid.hard_iron) * 1e6, sol[:3], rtol=1e-7, atol=1e-7)
+
+
 @pytest.mark.parametrize("name,value,named", [
     ("accel_tau_s", 0.0, "ahrs_accel_tau_s"), ("mag_tau_s", math.nan, "ahrs_mag_tau_s"),
     ("declination_deg", 400.0, "magnetic_declination_deg"),
