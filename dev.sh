@@ -31,6 +31,14 @@ rm -rf build/ros_launchers
 "$venv/bin/python" -m pip install --quiet --disable-pip-version-check \
   --no-deps --no-build-isolation --force-reinstall .
 
+# The per-sample kernels (numba) compiled once into their caches, so that no node or test waits
+# for the compiler: the installed copy (what the commands and nodes run), and for the tests the
+# source tree too (their subprocesses import it).
+warm='from gyro_attitude.core.attitude.stream_loop import compile_kernels; compile_kernels()'
+echo "[dev.sh] compiling the per-sample kernels (cached after the first time)" >&2
+(cd / && "$venv/bin/python" -c "$warm")
+[ "$what" = "test" ] && "$venv/bin/python" -c "$warm"
+
 # The ament index (package lookup of `ros2 run`, message .msg/.json files) lives in the venv.
 export AMENT_PREFIX_PATH="$venv${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
 export PATH="$venv/bin:$PATH"

@@ -104,6 +104,7 @@ from gyro_attitude.core.attitude.stream import (
     SATURATED,
     AttitudeStream,
 )
+from gyro_attitude.core.attitude.stream_loop import compile_kernels
 from gyro_attitude.core.attitude.truth import TruthStart
 from gyro_attitude.core.attitude.world_frame import frame_id_of, from_enu_one
 from gyro_attitude.io.cdr_arrays import ImuCdr, QuaternionStampedCdr
@@ -208,6 +209,13 @@ class AttitudeIntegratorNode(Node):
         self._undecodable = 0
         self._att_cdr = QuaternionStampedCdr(self._world_frame)
         self._check_distinct_topics(p, config)  # before any publisher or subscription exists
+        # the per-sample kernels compiled, or loaded from numba's cache, before any sample
+        # arrives (the first start after an installation compiles, for seconds)
+        started = time.monotonic()
+        compile_kernels(config)
+        if time.monotonic() - started > 5.0:
+            self.get_logger().info(f"compiled the per-sample kernels in "
+                                   f"{time.monotonic() - started:.0f} s (cached from now on)")
         # keep-last 1000 (1 s at 1 kHz): a reliable subscriber that lags by more than the
         # history loses what was overwritten before it acknowledged
         imu_out, attitude_out, diagnostics_out = OUTPUT_TOPICS

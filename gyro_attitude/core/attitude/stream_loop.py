@@ -295,6 +295,42 @@ def run_loop(s, t, w, frame_id, cov, acc, mag) -> StreamResult | None:
 _UNSET = object()
 
 
+def _plain(a, dtype) -> np.ndarray:
+    """``a`` as a C-contiguous, writeable array of ``dtype`` (a copy only when it is not): the
+    compiled loop's argument types stay the same whatever the input (a read-only array of a
+    file's buffer would be another signature, compiled again)."""
+    return np.require(a, dtype, ["C", "W"])
+
+
+def compile_kernels(config=None) -> None:
+    """Compile (or load from numba's cache) what the causal chain runs compiled: a short
+    synthetic recording (rest, turn, rest; accelerometer and field) through :meth:`run` and
+    :meth:`push` of a stream with ``config``, or with every aiding mode.  The node calls it at
+    start-up and dev.sh after installing, so that no sample waits for the compiler."""
+    from gyro_attitude.core.attitude.settings import StreamConfig
+    from gyro_attitude.core.attitude.stream import AttitudeStream
+
+    n = 800
+    t = 1_000_000_000 + np.arange(n, dtype=np.int64) * 5_000_000
+    rng = np.random.default_rng(0)
+    w = 1e-3 * rng.standard_normal((n, 3))
+    w[300:500, 2] += 0.5
+    a = np.array([0.0, 0.0, STANDARD_GRAVITY]) + 0.01 * rng.standard_normal((n, 3))
+    mag = np.array([2e-5, 0.0, -4e-5]) + 1e-8 * rng.standard_normal((n, 3))
+    cov = np.tile(np.diag([1e-6] * 3).reshape(9), (n, 1))
+    configs = [config] if config is not None else [
+        StreamConfig(aiding=aiding, gyro_noise_density=1e-4, mag_hard_iron_estimate=True)
+        for aiding in Aiding]
+    for cfg in configs:
+        try:
+            AttitudeStream(config=cfg).run(t, w, "imu", cov, a, mag)
+        except ValueError:
+            pass  # e.g. a gyrocompass that cannot align on this recording: compiled anyway
+        s = AttitudeStream(config=cfg)
+        for k in range(n):
+            s.push(int(t[k]), w[k], "imu", cov[k], a[k], mag[k])
+
+
 class _RowTuples:
     """``rows[r]``: row ``r`` of an (M, 3) array as 3 floats, None where ``ok`` is False (or
     for every row without an array), made when asked: only the rows Python steps need one."""
@@ -342,13 +378,13 @@ class _Compiled:
     def __init__(self, s, rec, valid, mag, var_rows, restart):
         m = valid.size
         self.s = s
-        self.t = rec.tv.astype(np.int64, copy=False)
-        self.w = np.ascontiguousarray(rec.wv, dtype=np.float64)
+        self.t = _plain(rec.tv, np.int64)
+        self.w = _plain(rec.wv, np.float64)
         if rec.av is None:
             self.a, self.a_ok = np.zeros((m, 3)), np.zeros(m, dtype=bool)
         else:
-            self.a = np.ascontiguousarray(rec.av, dtype=np.float64)
-            self.a_ok = np.ascontiguousarray(rec.a_ok, dtype=bool)
+            self.a = _plain(rec.av, np.float64)
+            self.a_ok = _plain(rec.a_ok, bool)
         self.m = np.zeros((m, 3))
         self.m_state = np.full(m, MAG_ABSENT, dtype=np.int64)
         if s.config.aiding is Aiding.MAGNETOMETER and mag is not None:
@@ -358,10 +394,11 @@ class _Compiled:
             self.m = np.where(finite[:, None], mv, 0.0)
             self.m_state = np.where(missing, MAG_ABSENT,
                                     np.where(finite, MAG_GIVEN, MAG_NOT_FLOATS)).astype(np.int64)
-        self.var_ok = np.zeros(m, dtype=bool) if var_rows.ok is None else var_rows.ok
-        self.var = np.zeros((m, 3)) if var_rows.a is None else np.where(
-            self.var_ok[:, None], var_rows.a, 0.0)
-        self.restart = np.asarray(restart, dtype=bool)
+        self.var_ok = np.zeros(m, dtype=bool) if var_rows.ok is None else _plain(var_rows.ok,
+                                                                                 bool)
+        self.var = np.zeros((m, 3)) if var_rows.a is None else _plain(np.where(
+            self.var_ok[:, None], var_rows.a, 0.0), np.float64)
+        self.restart = _plain(restart, bool)
         self.dt = np.zeros(m, dtype=np.int64)
         aid = s.aiding
         self.kind = 0 if aid is None else (1 if isinstance(aid, GravityAiding) else 2)

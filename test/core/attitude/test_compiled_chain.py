@@ -1,0 +1,127 @@
+"""The causal chain's kernels (core/jit.py): written once, run compiled (numba) or as Python with
+the same numbers; a causal aided replay steps its samples compiled, not through the interpreter;
+the stages' state arrays survive their resets (the compiled loop holds them)."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_stream_real import MODES, hostile_field, hostile_rest_motion_rest
+
+from gyro_attitude.core.attitude import stream_loop
+from gyro_attitude.core.attitude.stream import AttitudeStream
+from gyro_attitude.core.jit import backend, compiled, kernel
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parents[2]
+AIDED = ("gravity", "gravity_enu", "tilt", "level_tilt", "magnetometer",
+         "level_magnetometer_enu")
+
+_RUN = """
+import json, sys
+import numpy as np
+sys.path.insert(0, {here!r})
+from test_stream_real import MODES, hostile_field, hostile_rest_motion_rest
+from gyro_attitude.core.attitude import stream_loop
+from gyro_attitude.core.attitude.stream import AttitudeStream
+from gyro_attitude.core.jit import backend
+t, g, a, cov = hostile_rest_motion_rest()
+out = {{"backend": backend()}}
+for mode in {modes!r}:
+    mag = hostile_field(t.size) if "magnetometer" in mode else None
+    res = AttitudeStream(config=MODES[mode]).run(t, g, "imu", cov, a, mag)
+    s = AttitudeStream(config=MODES[mode])
+    pushed = [s.push(int(t[k]), g[k], "imu", cov[k], a[k], None if mag is None else mag[k])[1]
+              for k in range(t.size)]
+    pushed = np.array([q for q in pushed if q is not None])
+    out[mode] = [res.q.tolist(), res.variance.tolist(), pushed.tolist(), res.counts]
+json.dump(out, sys.stdout)
+"""
+
+
+def _attitudes(jit: str) -> dict:
+    env = dict(os.environ, GYRO_ATTITUDE_JIT=jit,
+               PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    code = _RUN.format(here=str(HERE), modes=AIDED)
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=600, cwd=REPO, env=env)
+    assert done.returncode == 0, done.stderr[-2000:]
+    return json.loads(done.stdout)
+
+
+@pytest.mark.skipif(backend() != "numba", reason="numba is not installed")
+def test_compiled_and_python_kernels_give_the_same_attitudes_bit_for_bit():
+    fast, slow = _attitudes("1"), _attitudes("0")
+    assert (fast.pop("backend"), slow.pop("backend")) == ("numba", "python")
+    for mode in AIDED:
+        q_run, var_run, q_push, counts = fast[mode]
+        assert q_run == slow[mode][0] and q_push == slow[mode][2], mode
+        assert var_run == slow[mode][1] and counts == slow[mode][3], mode
+        assert len(q_run) > 1000
+
+
+def test_a_function_not_written_as_a_kernel_is_refused():
+    def plain(x):
+        return x
+
+    with pytest.raises(TypeError, match="not marked as a kernel"):
+        compiled(plain)
+
+    @kernel
+    def twice(x):
+        return 2.0 * x
+
+    assert compiled(twice)(1.5) == 3.0
+
+
+@pytest.mark.parametrize("mode", ["gravity", "gravity_enu", "tilt", "magnetometer"])
+def test_an_aided_run_steps_its_accepted_samples_compiled(mode, monkeypatch):
+    # The interpreter's per-sample step (_integrate) may take the rows the compiled loop does
+    # not: the samples the validator did not simply accept, and the rests while the first
+    # estimate may still be applied back to the start.  Not the motion, nor the later rests.
+    t, g, a, cov = hostile_rest_motion_rest()
+    mag = hostile_field(t.size) if "magnetometer" in mode else None
+    calls = []
+    original = AttitudeStream._integrate
+
+    def counting(self, *args, **kw):
+        calls.append(args[1])
+        return original(self, *args, **kw)
+
+    runs = []
+    compiled_run = stream_loop._Compiled.run
+
+    def counting_runs(self, r0, r1, *args):
+        runs.append(r1 - r0)
+        return compiled_run(self, r0, r1, *args)
+
+    monkeypatch.setattr(AttitudeStream, "_integrate", counting)
+    monkeypatch.setattr(stream_loop._Compiled, "run", counting_runs)
+    res = AttitudeStream(config=MODES[mode]).run(t, g, "imu", cov, a, mag)
+    first_rest_end = 4.0e9 + t[0]
+    late = [x for x in calls if x > first_rest_end]
+    assert res.index.size > 2000
+    assert len(late) <= 10, f"{len(late)} samples after the first rest through the interpreter"
+    # and in long runs: one call of the compiled loop between two rows Python must take
+    assert len(runs) <= 40 and sum(runs) > 1500, (len(runs), sum(runs))
+
+
+def test_stage_resets_keep_the_state_arrays_the_compiled_loop_holds():
+    s = AttitudeStream(config=MODES["tilt"])
+    arrays = (s.aiding.af, s.aiding.ai, s.integrator.cubic.cf, s.integrator.cubic.ci,
+              s.bias_estimator.bf, s.bias_estimator.bi, s.covariance.c)
+    t, g, a, cov = hostile_rest_motion_rest()
+    for k in range(300):
+        s.push(int(t[k]), g[k], "imu", cov[k], a[k])
+    s.aiding.reset()
+    s.integrator.reset((0.0, 0.0, 0.0, 1.0))
+    s.bias_estimator.reset()
+    after = (s.aiding.af, s.aiding.ai, s.integrator.cubic.cf, s.integrator.cubic.ci,
+             s.bias_estimator.bf, s.bias_estimator.bi, s.covariance.c)
+    assert all(x is y for x, y in zip(arrays, after, strict=True))
+    assert not s.aiding.ai.any() or s.aiding.heading_initialized
+    assert np.array_equal(s.integrator.cubic.cf[:4], [0.0, 0.0, 0.0, 1.0])
