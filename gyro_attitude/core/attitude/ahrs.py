@@ -63,6 +63,7 @@ import numpy as np
 from gyro_attitude.core.angles import wrap_pi_float
 from gyro_attitude.core.attitude.modes import SettingError
 from gyro_attitude.core.attitude.settings import setting
+from gyro_attitude.core.attitude.stage_state import time_base
 from gyro_attitude.core.earth import STANDARD_GRAVITY
 from gyro_attitude.core.jit import compiled, kernel
 
@@ -290,16 +291,7 @@ class AhrsFilter:
     mag_ref_dip = property(lambda self: float(self.af[A_REF_DIP]) if self.ai[I_HAS_REF_DIP]
                            else None)
 
-    @property
-    def last_t_ns(self) -> int | None:
-        return int(self.ai[I_LAST_T]) if self.ai[I_HAS_LAST] else None
-
-    @last_t_ns.setter
-    def last_t_ns(self, value) -> None:
-        """Only None is set from outside: a new time base (the low-pass starts again)."""
-        if value is not None:
-            raise ValueError("last_t_ns is set by the samples; assign None to restart")
-        self.ai[I_HAS_LAST] = 0
+    last_t_ns = time_base("ai", I_LAST_T, I_HAS_LAST)
 
     def heading_from_field(self, seconds: float, norm_t: float, dip_rad: float) -> None:
         """The heading was just set from the mean field over ``seconds`` of rest (the static

@@ -40,6 +40,7 @@ import math
 import numpy as np
 
 from gyro_attitude.core.attitude.rest import check_sample, check_samples
+from gyro_attitude.core.attitude.stage_state import time_base
 from gyro_attitude.core.attitude.streaming import StreamingIntegrator
 from gyro_attitude.core.earth import STANDARD_GRAVITY
 from gyro_attitude.core.jit import compiled, kernel
@@ -101,16 +102,7 @@ class GravityAiding:
     def aided_samples(self) -> int:
         return int(self.gi[G_AIDED])
 
-    @property
-    def last_t_ns(self) -> int | None:
-        return int(self.gi[G_LAST_T]) if self.gi[G_HAS_LAST] else None
-
-    @last_t_ns.setter
-    def last_t_ns(self, value) -> None:
-        """Only None is set from outside: a new time base (the low-pass starts again)."""
-        if value is not None:
-            raise ValueError("last_t_ns is set by the samples; assign None to restart")
-        self.gi[G_HAS_LAST] = 0
+    last_t_ns = time_base("gi", G_LAST_T, G_HAS_LAST)
 
     def update(self, t_ns: int, gyro, accel, q_nb, mag=None) -> np.ndarray:
         """One sample (``mag`` is not used: the aiding-stage signature of ahrs.py)."""
