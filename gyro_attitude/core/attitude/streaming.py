@@ -293,12 +293,14 @@ class StreamingIntegrator:
         cs = self.cubic
         if cs is not None:
             rate = self._nav_rate_at(self.samples)
+            # the first sample of a time base only starts the history: the kernel run as
+            # Python (a run() that ends there, as every array-form run does, needs no compiler)
+            step = compiled(cubic_advance) if cs.ci[C_HAS_LAST] else cubic_advance
             if rate is None:
-                q = compiled(cubic_advance)(cs.ci, cs.ts, cs.ws, cs.cf, t, w[0], w[1], w[2], False, 0.0, 0.0,
-                              0.0)
+                q = step(cs.ci, cs.ts, cs.ws, cs.cf, t, w[0], w[1], w[2], False, 0.0, 0.0, 0.0)
             else:
-                q = compiled(cubic_advance)(cs.ci, cs.ts, cs.ws, cs.cf, t, w[0], w[1], w[2], True,
-                              float(rate[0]), float(rate[1]), float(rate[2]))
+                q = step(cs.ci, cs.ts, cs.ws, cs.cf, t, w[0], w[1], w[2], True, float(rate[0]),
+                         float(rate[1]), float(rate[2]))
             self.samples += 1
             self.last_t_ns = t
             self._q = q

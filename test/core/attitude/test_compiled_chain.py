@@ -125,3 +125,21 @@ def test_stage_resets_keep_the_state_arrays_the_compiled_loop_holds():
     assert all(x is y for x, y in zip(arrays, after, strict=True))
     assert not s.aiding.ai.any() or s.aiding.heading_initialized
     assert np.array_equal(s.integrator.cubic.cf[:4], [0.0, 0.0, 0.0, 1.0])
+
+
+def test_an_array_form_run_does_not_load_the_compiler():
+    # Monte Carlo workers and the default causal replay run the array form: numba's import and
+    # cache loading (~1 s per process) are for the per-sample chain only.
+    code = ("import sys, numpy as np\n"
+            "from gyro_attitude.core.attitude.stream import AttitudeStream, StreamConfig\n"
+            "t = np.arange(1, 3001, dtype=np.int64) * 5_000_000\n"
+            "w = np.full((3000, 3), 0.01); a = np.tile([0.0, 0.0, 9.81], (3000, 1))\n"
+            "for bias in ('none', 'auto'):\n"
+            "    res = AttitudeStream(config=StreamConfig(gyro_bias=bias)).run(t, w, '', None, a)\n"
+            "    assert res.form == 'arrays', res.form\n"
+            "print('numba' in sys.modules)\n")
+    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120, cwd=REPO, env=env)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip() == "False"
