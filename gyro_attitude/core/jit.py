@@ -11,7 +11,9 @@ is not or when ``GYRO_ATTITUDE_JIT=0`` (then :func:`compiled` returns the functi
 same results, slower).  numba is imported on the first :func:`compiled` call only, so commands
 that never run a per-sample chain do not pay its import.  Compiled code is cached on disk
 (numba's ``cache=True``, beside the source in ``__pycache__``): the first run of a new
-installation compiles (seconds), later ones load.
+installation compiles (seconds), later ones load.  Where numba finds no writable place for
+its cache (a read-only installation, no writable home), the kernels are compiled in every
+process, said once as a warning.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from __future__ import annotations
 import functools
 import os
 import types
+import warnings
 
 __all__ = ["backend", "compiled", "kernel"]
 
@@ -61,4 +64,21 @@ def compiled(func):
     twin = types.FunctionType(func.__code__, names, func.__name__, func.__defaults__,
                               func.__closure__)
     twin.__module__, twin.__qualname__ = func.__module__, func.__qualname__
-    return numba.njit(cache=True)(twin)
+    try:
+        return numba.njit(cache=True)(twin)
+    except RuntimeError as exc:  # no writable cache beside the source nor in the user's home
+        _warn_uncached(exc)
+        return numba.njit(cache=False)(twin)
+
+
+_warned: list[str] = []
+
+
+def _warn_uncached(exc: Exception) -> None:
+    """Say once that the kernels are compiled in every process (numba found no place to cache
+    them: a read-only installation and no writable home; NUMBA_CACHE_DIR names one)."""
+    if not _warned:
+        _warned.append(str(exc))
+        warnings.warn(f"gyro_attitude: numba cannot cache the compiled kernels ({exc}); they "
+                      "are compiled again in every process (set NUMBA_CACHE_DIR to a writable "
+                      "directory)", UserWarning, stacklevel=3)

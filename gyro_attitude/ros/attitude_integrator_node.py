@@ -212,7 +212,7 @@ class AttitudeIntegratorNode(Node):
         # the per-sample kernels compiled, or loaded from numba's cache, before any sample
         # arrives (the first start after an installation compiles, for seconds)
         started = time.monotonic()
-        compile_kernels(config)
+        compile_kernels(config, p["algorithm"])
         if time.monotonic() - started > 5.0:
             self.get_logger().info(f"compiled the per-sample kernels in "
                                    f"{time.monotonic() - started:.0f} s (cached from now on)")

@@ -149,6 +149,8 @@ def gravity_step(p, gf, gi, t, w0, w1, w2, has_f, f0, f1, f2, x, y, z, s):
     v0, v1, v2 = (2 * (x * z - s * y) / nq, 2 * (y * z + s * x) / nq,
                   1 - 2 * (x * x + y * y) / nq)
     fa = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+    if fa == 0.0:
+        return o0, o1, o2  # no specific force (a gate wide enough to pass 0): no vertical
     a0, a1, a2 = f0 / fa, f1 / fa, f2 / fa
     e0, e1, e2 = a1 * v2 - a2 * v1, a2 * v0 - a0 * v2, a0 * v1 - a1 * v0
     kp, ki = p[G_KP], p[G_KI]

@@ -302,11 +302,17 @@ def _plain(a, dtype) -> np.ndarray:
     return np.require(a, dtype, ["C", "W"])
 
 
-def compile_kernels(config=None) -> None:
+def compile_kernels(config=None, algorithm: str | None = None) -> None:
     """Compile (or load from numba's cache) what the causal chain runs compiled: a short
     synthetic recording (rest, turn, rest; accelerometer and field) through :meth:`run` and
-    :meth:`push` of a stream with ``config``, or with every aiding mode.  The node calls it at
-    start-up and dev.sh after installing, so that no sample waits for the compiler."""
+    :meth:`push` of a stream with ``config`` (and ``algorithm``), or with every aiding mode.
+    The start is the given attitude whatever ``config`` says (a levelling or gyrocompassing
+    start might never align on it; its kernels are the same).  The node calls it at start-up
+    and dev.sh after installing, so that no sample waits for the compiler."""
+    from dataclasses import replace
+
+    from gyro_attitude.core.attitude import DEFAULT_ALGORITHM
+    from gyro_attitude.core.attitude.modes import HeadingSource, InitialAttitudeSource
     from gyro_attitude.core.attitude.settings import StreamConfig
     from gyro_attitude.core.attitude.stream import AttitudeStream
 
@@ -321,12 +327,12 @@ def compile_kernels(config=None) -> None:
     configs = [config] if config is not None else [
         StreamConfig(aiding=aiding, gyro_noise_density=1e-4, mag_hard_iron_estimate=True)
         for aiding in Aiding]
+    algorithm = algorithm or DEFAULT_ALGORITHM
     for cfg in configs:
-        try:
-            AttitudeStream(config=cfg).run(t, w, "imu", cov, a, mag)
-        except ValueError:
-            pass  # e.g. a gyrocompass that cannot align on this recording: compiled anyway
-        s = AttitudeStream(config=cfg)
+        cfg = replace(cfg, initial_attitude_source=InitialAttitudeSource.PARAMETER,
+                      heading_source=HeadingSource.PARAMETER)
+        AttitudeStream(algorithm, config=cfg).run(t, w, "imu", cov, a, mag)
+        s = AttitudeStream(algorithm, config=cfg)
         for k in range(n):
             s.push(int(t[k]), w[k], "imu", cov[k], a[k], mag[k])
 
@@ -391,9 +397,9 @@ class _Compiled:
             mv = rows(mag, valid)
             missing = np.isnan(mv).all(axis=1)
             finite = np.isfinite(mv).all(axis=1)
-            self.m = np.where(finite[:, None], mv, 0.0)
-            self.m_state = np.where(missing, MAG_ABSENT,
-                                    np.where(finite, MAG_GIVEN, MAG_NOT_FLOATS)).astype(np.int64)
+            self.m = _plain(np.where(finite[:, None], mv, 0.0), np.float64)
+            self.m_state = _plain(np.where(missing, MAG_ABSENT, np.where(
+                finite, MAG_GIVEN, MAG_NOT_FLOATS)), np.int64)
         self.var_ok = np.zeros(m, dtype=bool) if var_rows.ok is None else _plain(var_rows.ok,
                                                                                  bool)
         self.var = np.zeros((m, 3)) if var_rows.a is None else _plain(np.where(

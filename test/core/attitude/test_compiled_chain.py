@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from sim_static import rest_motion_rest
 from test_stream_real import MODES, hostile_field, hostile_rest_motion_rest
 
 from gyro_attitude.core.attitude import stream_loop
@@ -25,6 +26,7 @@ _RUN = """
 import json, sys
 import numpy as np
 sys.path.insert(0, {here!r})
+from sim_static import rest_motion_rest
 from test_stream_real import MODES, hostile_field, hostile_rest_motion_rest
 from gyro_attitude.core.attitude import stream_loop
 from gyro_attitude.core.attitude.stream import AttitudeStream
@@ -143,3 +145,61 @@ def test_an_array_form_run_does_not_load_the_compiler():
                           timeout=120, cwd=REPO, env=env)
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.strip() == "False"
+
+
+@pytest.mark.skipif(backend() != "numba", reason="numba is not installed")
+def test_kernels_compile_where_no_cache_can_be_written(tmp_path):
+    # A read-only installation run by a user without a home: numba finds no cache locator.
+    # The kernels are compiled in the process instead, said once; the numbers are the same.
+    (tmp_path / "toy_kernels.py").write_text(
+        "from gyro_attitude.core.jit import kernel\n\n"
+        "@kernel\ndef half(x):\n    return 0.5 * x\n\n"
+        "@kernel\ndef quarter(x):\n    return half(half(x))\n")
+    (tmp_path / "__pycache__").write_text("not a directory")
+    code = ("from gyro_attitude.core.jit import compiled\nimport toy_kernels\n"
+            "print(compiled(toy_kernels.quarter)(3.0))\n")
+    env = dict(os.environ, HOME="/dev/null", XDG_CACHE_HOME="/dev/null/cache",
+               PYTHONDONTWRITEBYTECODE="1",
+               PYTHONPATH=os.pathsep.join([str(tmp_path), str(REPO)]))
+    env.pop("NUMBA_CACHE_DIR", None)
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=300, cwd=tmp_path, env=env)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip() == "0.75"
+    assert done.stderr.count("numba cannot cache the compiled kernels") == 1
+
+
+@pytest.mark.skipif(backend() != "numba", reason="numba is not installed")
+def test_the_compiled_loop_takes_any_array_layout_without_compiling_again():
+    # read-only (a file's buffer), Fortran-order and strided inputs: one signature, the one
+    # compile_kernels() made, so no replay waits for the compiler a second time
+    stream_loop.compile_kernels(MODES["magnetometer"])
+    t, g, a, _ = rest_motion_rest(rests=(4.0, 3.0, 3.0))  # every sample accepted: views pass
+    mag = np.asfortranarray(np.tile([20e-6, 5e-6, -40e-6], (t.size, 1)))
+    g2 = np.asfortranarray(g)
+    a2 = np.repeat(a, 2, axis=0)[::2]
+    for arr in (g2, a2, mag):
+        arr.flags.writeable = False
+    cov = np.broadcast_to(np.diag([4e-6] * 3).reshape(9), (t.size, 9))
+    res = AttitudeStream(config=MODES["magnetometer"]).run(t, g2, "imu", cov, a2, mag)
+    assert res.index.size > 2000
+    assert len(compiled(stream_loop.accept_rows).signatures) == 1
+
+
+def test_compile_kernels_warms_the_steps_of_a_start_that_cannot_align_on_its_recording():
+    # a gyrocompassing start never aligns on the synthetic recording: the kernels its running
+    # phase needs are compiled all the same (from a given attitude)
+    code = ("from gyro_attitude.core.attitude.stream_loop import compile_kernels, accept_rows\n"
+            "from gyro_attitude.core.attitude.settings import StreamConfig\n"
+            "from gyro_attitude.core.jit import compiled, backend\n"
+            "cfg = StreamConfig(aiding='gravity', initial_attitude_source='level',\n"
+            "                   heading_source='gyrocompass', gyro_bias='parameter',\n"
+            "                   gyro_bias_sigma_rad_s=1e-7, frame='enu', latitude_rad=0.8)\n"
+            "compile_kernels(cfg)\n"
+            "print(backend(), compiled.cache_info().currsize)\n")
+    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=300, cwd=REPO, env=env)
+    assert done.returncode == 0, done.stderr[-2000:]
+    name, n = done.stdout.split()
+    assert name == "python" or int(n) >= 8

@@ -292,3 +292,16 @@ def test_run_counts_negative_absurd_values_like_push():
     assert 50 not in res.index and 60 not in res.index
     assert res.counts["implausible_rate"] == 1 and res.counts["non_finite"] == 1
     assert res.counts[INVALID_ACCEL] == 2
+
+
+def test_a_zero_specific_force_through_a_wide_gate_is_no_vertical():
+    # aiding_accel_tol ≥ g lets |f| = 0 through the norm gate: a sample with no direction to
+    # align to is skipped by the aiding, not divided by (push and run alike, finite)
+    t, g, a, cov = hostile_rest_motion_rest()
+    a = a.copy()
+    a[1500:1510] = 0.0
+    cfg = StreamConfig(aiding="gravity", aiding_accel_tol=20.0, aiding_accel_lowpass_s=0.0)
+    res = AttitudeStream(config=cfg).run(t, g, "imu", cov, a)
+    pushed = push_all(AttitudeStream(config=cfg), t, g, a, cov)
+    assert np.max(np.abs(res.q - np.array([q for _, q, _ in pushed]))) <= 1e-12
+    assert np.all(np.isfinite(res.q))
