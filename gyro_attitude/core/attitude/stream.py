@@ -117,6 +117,25 @@ EXTRA_COUNTS = (INVALID_COVARIANCE, INVALID_ACCEL, INTEGRATOR_ERROR, SATURATED, 
 GYRO_NOISE_UNKNOWN = "gyro_noise_unknown"  # a detail (said once), not a count
 
 
+def _values(x) -> str:
+    """A sample's values as a list of floats in a log line (its repr when they are not
+    numbers): the same text from push() and from run()."""
+    try:
+        return str(np.asarray(x, dtype=np.float64).reshape(-1).tolist())
+    except (TypeError, ValueError):
+        return repr(x)
+
+
+def invalid_accel_note(accel) -> str:
+    return (f"accelerometer sample {_values(accel)} is not 3 finite numbers: not used for "
+            "rests or aiding")
+
+
+def invalid_covariance_note(covariance) -> str:
+    return (f"angular_velocity_covariance {_values(covariance)} has a non-finite, negative or "
+            "absurd diagonal: treated as unknown")
+
+
 def unknown_noise_note(cfg: StreamConfig) -> str:
     """What the covariance assumes for samples whose gyro covariance says "no estimate"."""
     n = cfg.gyro_noise_density
@@ -489,8 +508,7 @@ class AttitudeStream:
                 v.no_estimate(np.asarray(covariance).reshape(-1)):
             st.details[GYRO_NOISE_UNKNOWN] = unknown_noise_note(self.config)
         if invalid:
-            st.count(INVALID_COVARIANCE, "angular_velocity_covariance with a non-finite or "
-                                         "negative diagonal: treated as unknown")
+            st.count(INVALID_COVARIANCE, invalid_covariance_note(covariance))
         if var is None:
             return None
         st.variance_known = True
@@ -541,8 +559,7 @@ class AttitudeStream:
                     max(abs(x), abs(y), abs(z)) <= ACCEL_ABSURD:
                 a = (x, y, z)
             else:
-                st.count(INVALID_ACCEL, f"accelerometer sample {accel!r} is not 3 finite "
-                                        "numbers: not used for rests or aiding")
+                st.count(INVALID_ACCEL, invalid_accel_note(accel))
                 self._break_windows()
                 st.accel_present = None
                 return None
@@ -901,9 +918,7 @@ def covariance_rows(cov: np.ndarray, valid: np.ndarray, counts: dict, details: d
     counts[INVALID_COVARIANCE] = int(np.count_nonzero(inv))
     if counts[INVALID_COVARIANCE]:
         k = int(valid[np.flatnonzero(inv)[0]])
-        details.setdefault(INVALID_COVARIANCE, f"angular_velocity_covariance "
-                           f"{cov[k].tolist()} has a non-finite, negative or absurd "
-                           "diagonal: treated as unknown")
+        details.setdefault(INVALID_COVARIANCE, invalid_covariance_note(cov[k]))
     return rows(var_all, valid), rows(known_all, valid)
 
 

@@ -41,6 +41,7 @@ from gyro_attitude.core.attitude.stream import (
     StreamResult,
     cannot_align,
     covariance_rows,
+    invalid_accel_note,
     nav_rows,
     rate_fit_note,
     rows,
@@ -101,8 +102,7 @@ def data_stages(s, t, w, frame_id, acc, mag=None) -> Recording:
         bad = np.flatnonzero(~a_ok)
         if bad.size:
             counts[INVALID_ACCEL] = int(bad.size)
-            details.setdefault(INVALID_ACCEL, f"accelerometer sample {av[bad[0]].tolist()!r} is "
-                                              "not 3 finite numbers: not used for rests or aiding")
+            details.setdefault(INVALID_ACCEL, invalid_accel_note(av[bad[0]]))
     breaks = actv != _ACCEPT  # a rest never spans a gap, a jump or a restart
     count_saturated(wv, st, counts, details)
     # 3. alignment (it reads the raw rates and the accelerometer only)

@@ -91,6 +91,8 @@ def push_all(stream, t, g, a, cov, mag=None):
 @pytest.mark.parametrize("mode", sorted(MODES))
 def test_run_equals_push_in_every_mode(mode):
     t, g, a, cov = hostile_rest_motion_rest()
+    cov = cov.copy()
+    cov[450, 4] = -5.0  # an invalid covariance: counted, its first detail the same words
     cfg = MODES[mode]
     mag = hostile_field(t.size) if "magnetometer" in mode else None
     s_push = AttitudeStream("rotvec_cubic", config=cfg)
@@ -98,6 +100,9 @@ def test_run_equals_push_in_every_mode(mode):
     s = AttitudeStream("rotvec_cubic", config=cfg)
     res = s.run(t, g, "imu", cov, a, mag)
     assert res.counts == s_push.counts
+    # the first detail of every count in the same words (one note per rule)
+    for key in ("invalid_accel", "invalid_covariance", "non_finite", "implausible_rate"):
+        assert res.details.get(key) == s_push.details.get(key), key
     assert res.index.tolist() == [k for k, _, _ in pushed]
     assert np.max(np.abs(res.q - np.array([q for _, q, _ in pushed]))) <= 1e-12
     np.testing.assert_allclose(res.variance, np.array([v for _, _, v in pushed]), rtol=1e-12,

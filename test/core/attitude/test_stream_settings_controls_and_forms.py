@@ -461,8 +461,9 @@ def test_counted_problems_keep_their_first_detail():
     s = AttitudeStream("exp_map", config=StreamConfig(gyro_bias="none"))
     s.push(MS, [0.0, 0.0, 0.1], "imu", [1.0, 0, 0, 0, -1.0, 0, 0, 0, 1.0])
     s.push(2 * MS, [0.0, 0.0, 0.1], "imu", None, [math.nan, 0.0, 0.0])
-    assert s.details["invalid_covariance"].startswith("angular_velocity_covariance with a "
-                                                      "non-finite or negative diagonal")
+    assert s.details["invalid_covariance"].startswith(
+        "angular_velocity_covariance [1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 1.0] has a "
+        "non-finite, negative or absurd diagonal")
     assert s.details["invalid_accel"].startswith("accelerometer sample [nan, 0.0, 0.0] is not")
 
 
