@@ -45,14 +45,25 @@ json.dump(out, sys.stdout)
 """
 
 
-def _attitudes(jit: str) -> dict:
-    env = dict(os.environ, GYRO_ATTITUDE_JIT=jit,
-               PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    code = _RUN.format(here=str(HERE), modes=AIDED)
+def _python(code: str, timeout: float = 300, cwd=REPO, pythonpath=(), **env) -> str:
+    """Run ``code`` in a fresh interpreter on this source tree: (stdout, stderr); ``env`` set
+    (None: removed)."""
+    environ = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [*map(str, pythonpath), str(REPO), os.environ.get("PYTHONPATH", "")]))
+    for key, value in env.items():
+        if value is None:
+            environ.pop(key, None)
+        else:
+            environ[key] = value
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=600, cwd=REPO, env=env)
+                          timeout=timeout, cwd=cwd, env=environ)
     assert done.returncode == 0, done.stderr[-2000:]
-    return json.loads(done.stdout)
+    return done.stdout, done.stderr
+
+
+def _attitudes(jit: str) -> dict:
+    return json.loads(_python(_RUN.format(here=str(HERE), modes=AIDED), 600,
+                              GYRO_ATTITUDE_JIT=jit)[0])
 
 
 @pytest.mark.skipif(backend() != "numba", reason="numba is not installed")
@@ -140,11 +151,7 @@ def test_an_array_form_run_does_not_load_the_compiler():
             "    res = AttitudeStream(config=StreamConfig(gyro_bias=bias)).run(t, w, '', None, a)\n"
             "    assert res.form == 'arrays', res.form\n"
             "print('numba' in sys.modules)\n")
-    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=120, cwd=REPO, env=env)
-    assert done.returncode == 0, done.stderr[-2000:]
-    assert done.stdout.strip() == "False"
+    assert _python(code, 120)[0].strip() == "False"
 
 
 @pytest.mark.skipif(backend() != "numba", reason="numba is not installed")
@@ -158,15 +165,11 @@ def test_kernels_compile_where_no_cache_can_be_written(tmp_path):
     (tmp_path / "__pycache__").write_text("not a directory")
     code = ("from gyro_attitude.core.jit import compiled\nimport toy_kernels\n"
             "print(compiled(toy_kernels.quarter)(3.0))\n")
-    env = dict(os.environ, HOME="/dev/null", XDG_CACHE_HOME="/dev/null/cache",
-               PYTHONDONTWRITEBYTECODE="1",
-               PYTHONPATH=os.pathsep.join([str(tmp_path), str(REPO)]))
-    env.pop("NUMBA_CACHE_DIR", None)
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=300, cwd=tmp_path, env=env)
-    assert done.returncode == 0, done.stderr[-2000:]
-    assert done.stdout.strip() == "0.75"
-    assert done.stderr.count("numba cannot cache the compiled kernels") == 1
+    out, err = _python(code, cwd=tmp_path, pythonpath=[tmp_path], HOME="/dev/null",
+                       XDG_CACHE_HOME="/dev/null/cache", PYTHONDONTWRITEBYTECODE="1",
+                       NUMBA_CACHE_DIR=None)
+    assert out.strip() == "0.75"
+    assert err.count("numba cannot cache the compiled kernels") == 1
 
 
 @pytest.mark.skipif(backend() != "numba", reason="numba is not installed")
@@ -197,9 +200,5 @@ def test_compile_kernels_warms_the_steps_of_a_start_that_cannot_align_on_its_rec
             "                   gyro_bias_sigma_rad_s=1e-7, frame='enu', latitude_rad=0.8)\n"
             "compile_kernels(cfg)\n"
             "print(backend(), compiled.cache_info().currsize)\n")
-    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=300, cwd=REPO, env=env)
-    assert done.returncode == 0, done.stderr[-2000:]
-    name, n = done.stdout.split()
+    name, n = _python(code)[0].split()
     assert name == "python" or int(n) >= 8
