@@ -20,15 +20,16 @@ through the per-sample step of :meth:`AttitudeStream.push` itself:
 So push() and run() share one implementation of every sequential step; the results are the same
 floats in the same operations (tested equal, ≤ 1e-12, in every mode).
 
-Rows with nothing to do between them but steps 4.-6. (accepted samples, no rest accumulation, no
-alignment: the whole motion between rests) run through :func:`accept_rows`, compiled
-(:mod:`gyro_attitude.core.jit`): the stages' own kernels (``gravity_step`` / ``ahrs_step``,
-``cubic_advance``, the covariance's ``propagate`` / ``aid_tilt``) on their state arrays, in the
-order of :meth:`AttitudeStream._integrate`, with no interpreter per sample.  That needs the
-causal cubic and a constant nav frame (or none); otherwise, and for every other row, the loop
-takes ``_integrate`` itself.  When the loop meets an
-integrator error (a non-finite attitude, which restarts the validator's time base) it returns
-None and :meth:`AttitudeStream.run` pushes every sample instead.
+Runs of accepted rows (the motion, and the rests once the first estimate can no longer be
+applied back to the start) go through :func:`accept_rows`, compiled (:mod:`gyro_attitude.core.jit`):
+the stages' own kernels on their state arrays (the rest value at the attitude then,
+``accumulate`` / ``close_rest`` and the zero-rate update; ``gravity_step`` / ``ahrs_step``,
+``cubic_advance``, the covariance's ``propagate`` / ``aid_tilt``) in the order of
+:meth:`AttitudeStream._integrate`, with no interpreter per sample.  That needs the causal cubic
+and a constant nav frame (or none); otherwise, and for every other row (a sample the validator
+did not simply accept, the alignment, the first rest), the loop takes ``_integrate`` itself.
+When the loop meets an integrator error (a non-finite attitude, which restarts the validator's
+time base) it returns None and :meth:`AttitudeStream.run` pushes every sample instead.
 """
 
 from __future__ import annotations
