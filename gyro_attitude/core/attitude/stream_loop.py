@@ -189,11 +189,8 @@ def run_loop(s, t, w, frame_id, cov, acc, mag) -> StreamResult | None:
     q_out = np.empty((m, 4))
     tt_out = np.empty((m, 3))
     bias = est.bias_floats
-    fast = None
-    if m:
-        fast = _Compiled.for_stream(s, rec, valid, cov, mag, var_rows, restart)
-    if fast is not None:
-        fast.rests(earth, need_row, ev_src_row, ev_first_row, vals, vals_earth)
+    fast = _Compiled.for_stream(s, rec, var_rows, ml, restart, (
+        earth, need_row, ev_src_row, ev_first_row, vals, vals_earth)) if m else None
     # the rows the compiled loop must stop before (Python runs them): rows not accepted; and,
     # while the first bias estimate may still be applied back to the start, the rest rows
     stop_rows = np.append(np.flatnonzero(rec.actv != _ACCEPT) if m else [], m).astype(
@@ -371,19 +368,21 @@ class _Compiled:
     as arrays and the stages' state arrays (stepped in place)."""
 
     @classmethod
-    def for_stream(cls, s, rec, valid, cov, mag, var_rows, restart):
+    def for_stream(cls, s, rec, var_rows, ml, restart, plan):
         """The compiled form's arguments, or None when a stage has no kernel here (another
-        algorithm than the causal cubic, a nav frame with time series)."""
+        algorithm than the causal cubic, a nav frame with time series).  ``var_rows`` and
+        ``ml`` the loop's per-row gyro variances and fields, ``plan`` its rest plan (earth,
+        need_row, ev_src_row, ev_first_row, vals, vals_earth)."""
         integ = s.integrator
         if integ.cubic is None or integ._nav_rates is not None:
             return None
         aid = s.aiding
         if aid is not None and not isinstance(aid, GravityAiding | AhrsFilter):
             return None
-        return cls(s, rec, valid, mag, var_rows, restart)
+        return cls(s, rec, var_rows, ml, restart, plan)
 
-    def __init__(self, s, rec, valid, mag, var_rows, restart):
-        m = valid.size
+    def __init__(self, s, rec, var_rows, ml, restart, plan):
+        m = rec.valid.size
         self.s = s
         self.t = _plain(rec.tv, np.int64)
         self.w = _plain(rec.wv, np.float64)
@@ -394,13 +393,11 @@ class _Compiled:
             self.a_ok = _plain(rec.a_ok, bool)
         self.m = np.zeros((m, 3))
         self.m_state = np.full(m, MAG_ABSENT, dtype=np.int64)
-        if s.config.aiding is Aiding.MAGNETOMETER and mag is not None:
-            mv = rows(mag, valid)
-            missing = np.isnan(mv).all(axis=1)
-            finite = np.isfinite(mv).all(axis=1)
-            self.m = _plain(np.where(finite[:, None], mv, 0.0), np.float64)
-            self.m_state = _plain(np.where(missing, MAG_ABSENT, np.where(
-                finite, MAG_GIVEN, MAG_NOT_FLOATS)), np.int64)
+        if ml.a is not None:  # the fields (aiding magnetometer): absent where not ml.ok
+            finite = np.isfinite(ml.a).all(axis=1)
+            self.m = _plain(np.where(finite[:, None], ml.a, 0.0), np.float64)
+            self.m_state = _plain(np.where(ml.ok, np.where(finite, MAG_GIVEN, MAG_NOT_FLOATS),
+                                           MAG_ABSENT), np.int64)
         self.var_ok = np.zeros(m, dtype=bool) if var_rows.ok is None else _plain(var_rows.ok,
                                                                                  bool)
         self.var = np.zeros((m, 3)) if var_rows.a is None else _plain(np.where(
@@ -423,12 +420,8 @@ class _Compiled:
             s.covariance.c, s.covariance.k2, s._n2, 0.0 if aid is None else aid.kp)
         self._floor_for, self._floor = _UNSET, 0.0
         self._stale: list[tuple[int, int]] = []
-        self.rests(False, *(np.zeros(m, dtype=bool), np.full(m, -1, dtype=np.int64),
-                            np.zeros(m, dtype=bool), np.zeros((m, 3)), np.zeros(m, dtype=bool)))
-
-    def rests(self, earth, need_row, ev_src_row, ev_first_row, vals, vals_earth) -> None:
-        """The rest plan's per-row arrays (run_loop) for the compiled rows."""
-        est = self.s.bias_estimator
+        earth, need_row, ev_src_row, ev_first_row, vals, vals_earth = plan
+        est = s.bias_estimator
         earth_n = est._earth_n if earth else np.zeros(3)
         self._rests = (bool(earth), np.asarray(earth_n, dtype=np.float64), need_row,
                        ev_src_row, ev_first_row, vals, vals_earth, est.bf, est.bi,
