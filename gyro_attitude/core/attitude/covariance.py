@@ -97,8 +97,8 @@ class AttitudeCovariance:
 
     def zero_rate_update(self, standard_error) -> None:
         """A new bias estimate from a rest with per-axis standard error (3,) rad/s."""
-        self.c[V_BB:V_BB + 3] = [float(se) ** 2 for se in standard_error]
-        self.c[V_TB:V_TB + 3] = 0.0
+        se0, se1, se2 = (float(se) for se in standard_error)
+        zero_rate_update(self.c, se0, se1, se2)
 
     def align(self, tt) -> None:
         """The attitude became known with per-axis variance ``tt`` (also the reset value)."""
@@ -203,6 +203,14 @@ def propagate(c, k2, dt_s, q0, q1, q2):
         c[V_NOISE + i] = c[V_NOISE + i] + q
         c[V_TB + i] = t + -(dt_s * b)
         c[V_BB + i] = b + k2dt
+
+
+@kernel
+def zero_rate_update(c, se0, se1, se2):
+    """:meth:`AttitudeCovariance.zero_rate_update` on the state array ``c``."""
+    for i, se in ((0, se0), (1, se1), (2, se2)):
+        c[V_BB + i] = se ** 2
+        c[V_TB + i] = 0.0
 
 
 @kernel

@@ -33,17 +33,21 @@ larger anyway — but a navigation-frame integration then removes the Earth rate
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 
 from gyro_attitude.core.attitude.rest import (
     NOISE_FLOOR_RAD_S,
+    R_AT_REST,
+    R_HEAD,
+    R_OLDEST,
+    RING_FULL,
     RestDetector,
     check_sample,
     check_samples,
     detect_rest,
+    rest_update,
 )
 from gyro_attitude.core.earth import check_latitude, earth_rate_enu
 from gyro_attitude.core.jit import compiled, kernel
@@ -85,9 +89,13 @@ _B_FLOATS = 24
 # int slots: the published estimate's rests and samples, the completed rests and their samples,
 # whether the last step published, the Earth-rate flags (all rests so far, the published one),
 # the open rest (open, first and last stamp, samples, Earth rate taken out of all of them)
+# (the streaming step's own: the window index of the last rest sample accumulated)
 J_K, J_N, J_POOL_K, J_POOL_N, J_UPDATED, J_EARTH_ALL, J_EARTH_NOW, J_HAS_SEG, J_SEG_T0, \
-    J_SEG_T1, J_SEG_N, J_SEG_EARTH = range(12)
-_B_INTS = 12
+    J_SEG_T1, J_SEG_N, J_SEG_EARTH, J_LAST_ACC = range(13)
+_B_INTS = 13
+#: :func:`bias_step`'s code when the attitude to take the Earth rate out at is unusable (the
+#: detector stepped; the caller breaks the window)
+BAD_ATTITUDE = -3
 
 
 @kernel
@@ -171,6 +179,38 @@ def close_rest(bf, bi, min_rest_ns):
             bi[J_EARTH_ALL] = 0
 
 
+@kernel
+def bias_step(bf, bi, min_rest_ns, rf, ri, wt, wx, wc, pv, pe, earth_n, t, g0, g1, g2, has_a,
+              a0, a1, a2, has_q, x, y, z, u):
+    """:meth:`GyroBiasEstimator.step` (mode auto) on the state arrays: the detector's window
+    ending at this sample (:func:`~gyro_attitude.core.attitude.rest.rest_update`), the value
+    this sample gives a rest (less the Earth rate at ``(x, y, z, u)`` when ``has_q``), and the
+    accumulation of the window's oldest sample when at rest (or the open rest closed).  The
+    ring slot, or a refusal code of the detector's (nothing changed) or :data:`BAD_ATTITUDE`."""
+    bi[J_UPDATED] = 0
+    slot = rest_update(rf, ri, wt, wx, wc, t, g0, g1, g2, has_a, a0, a1, a2)
+    if slot < 0:
+        return slot
+    if has_q:
+        n = x * x + y * y + z * z + u * u
+        if not (math.isfinite(n) and n > 1e-18):
+            return BAD_ATTITUDE
+        e0, e1, e2 = _c_bn_times(x, y, z, u, 2.0 / n, earth_n)
+        pv[slot, 0], pv[slot, 1], pv[slot, 2] = g0 - e0, g1 - e1, g2 - e2
+    else:
+        pv[slot, 0], pv[slot, 1], pv[slot, 2] = g0, g1, g2
+    pe[slot] = has_q
+    if ri[R_AT_REST] == 1:
+        j = ri[R_OLDEST]
+        if j > bi[J_LAST_ACC]:
+            h = ri[R_HEAD]
+            accumulate(bf, bi, min_rest_ns, wt[h], pv[h, 0], pv[h, 1], pv[h, 2], pe[h])
+            bi[J_LAST_ACC] = j
+    elif bi[J_HAS_SEG] == 1:
+        close_rest(bf, bi, min_rest_ns)
+    return slot
+
+
 def _earth_rate_body(q_nb, w_n) -> tuple[float, float, float]:
     """``C_bn ω_ie^n`` in plain floats (per sample: numpy's call overhead would dominate)."""
     x, y, z, w = (float(c) for c in q_nb)
@@ -226,8 +266,7 @@ class GyroBiasEstimator:
         if self.bi[J_HAS_SEG]:
             self.close_rest()
         self.detector.reset()
-        self._pending.clear()
-        self._last_acc = -1
+        self.bi[J_LAST_ACC] = -1
 
     @property
     def standard_error(self) -> np.ndarray:
@@ -237,15 +276,20 @@ class GyroBiasEstimator:
     def reset(self) -> None:
         """Forget rests and the window (the fixed/initial bias stays)."""
         self.detector.reset()
-        self._pending: deque = deque()  # (index, t_ns, value to average) for the window
-        self._last_acc = -1
         # the accumulation state (B_*, J_*), reset in place: the compiled chain holds the arrays
         if not hasattr(self, "bf"):
             self.bf = np.zeros(_B_FLOATS)
             self.bi = np.zeros(_B_INTS, dtype=np.int64)
+            # what each sample of the detector's window gives a rest (its value, whether the
+            # Earth rate was taken out), in the detector's ring slots
+            self.pv = np.zeros((self.detector.wt.shape[0], 3))
+            self.pe = np.zeros(self.detector.wt.shape[0], dtype=np.bool_)
+            self.earth_n = np.zeros(3) if self._earth_n is None else np.asarray(
+                self._earth_n, dtype=np.float64)
         self.bf[:] = 0.0
         self.bi[:] = 0
         self.bi[J_EARTH_ALL] = 1
+        self.bi[J_LAST_ACC] = -1
         self._bias = self._fixed if self.mode == "parameter" else (
             self._initial if self.mode == "auto" else (0.0, 0.0, 0.0))
         self._se = (math.nan,) * 3
@@ -303,19 +347,22 @@ class GyroBiasEstimator:
         self.updated = False
         if self.mode != "auto":
             return self._bias
-        at_rest = self.detector.update_checked(t, g, a)
-        index = self.detector.samples - 1
-        self._pending.append((index, t, *self.value(g, q_nb)))
-        j = self.detector.oldest_index
-        pend = self._pending
-        while pend[0][0] < j:
-            pend.popleft()
-        if at_rest:
-            if j > self._last_acc:
-                self.accumulate(pend[0][1], pend[0][2], pend[0][3])
-                self._last_acc = j
-        elif self.bi[J_HAS_SEG]:
-            self.close_rest()
+        has_a = a is not None
+        a0, a1, a2 = a if has_a else (0.0, 0.0, 0.0)
+        has_q = self._earth_n is not None and q_nb is not None
+        x, y, z, u = (float(c) for c in q_nb) if has_q else (0.0, 0.0, 0.0, 1.0)
+        det = self.detector
+        while True:
+            code = compiled(bias_step)(self.bf, self.bi, self.min_rest_ns, det.rf, det.ri, det.wt,
+                                       det.wx, det.wc, self.pv, self.pe, self.earth_n, t, g[0],
+                                       g[1], g[2], has_a, a0, a1, a2, has_q, x, y, z, u)
+            if code != RING_FULL:
+                break
+            self.pv, self.pe = det.grow(self.pv, self.pe)
+        if code == BAD_ATTITUDE:
+            raise ValueError(f"q_nb must be a finite non-zero quaternion, got {q_nb!r}")
+        if code < 0:
+            raise ValueError(det.refusal(code, t))
         return self._bias
 
     def value(self, g, q_nb=None) -> tuple[tuple, bool]:

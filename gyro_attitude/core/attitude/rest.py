@@ -51,12 +51,12 @@ grows like ε·N·max|x − x_first|², i.e. a variance error below 1e-8 (rad/s)
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 
 from gyro_attitude.core.earth import STANDARD_GRAVITY
+from gyro_attitude.core.jit import compiled, kernel
 
 __all__ = ["NOISE_FLOOR_RAD_S", "RestDetector", "RestWindows", "detect_rest", "rest_segments",
            "check_samples"]
@@ -165,8 +165,30 @@ class RestWindows:
     covered: np.ndarray
 
 
+# The streaming detector's state as arrays (what the compiled per-sample chain steps). Float
+# slots: the running sums (gyro x, gyro x², accel x, accel x²; 3 each), the reference samples,
+# the last window's statistics, the thresholds.
+F_C, F_REF_G, F_REF_A, F_GYRO_STD, F_ACCEL_STD, F_GYRO_MEAN, F_ACCEL_MEAN = 0, 12, 15, 18, 19, 20, 23
+F_STD_MIN, F_STD_MAX, F_MEAN_MAX, F_ACCEL_STD_MAX, F_NORM_TOL, F_GRAVITY = 26, 27, 28, 29, 30, 31
+_R_FLOATS = 32
+# int slots: samples taken, whether a last stamp exists and its value, the window's oldest
+# sample index, the decision, the accelerometer (-1 not yet known, 0 absent, 1 present), the
+# first stamp, the window ring (first slot, entries), the window length in ns
+R_SAMPLES, R_HAS_LAST, R_LAST_T, R_OLDEST, R_AT_REST, R_HAS_ACCEL, R_T_FIRST, R_HEAD, R_COUNT, \
+    R_WINDOW_NS = range(10)
+_R_INTS = 10
+#: :func:`rest_update` codes besides a ring slot (≥ 0): the ring is full (nothing changed: grow
+#: it and step again); the stamp does not increase, or the accelerometer came or went
+#: (nothing changed: the caller resets the window)
+RING_FULL, NOT_INCREASING, ACCEL_CHANGED = -2, -1, -4
+_RING_START = 64  # window entries held at first; the ring doubles when a window needs more
+
+
 class RestDetector:
-    """Streaming rest detector (see the module docstring for the contract and defaults)."""
+    """Streaming rest detector (see the module docstring for the contract and defaults).
+
+    The state is in arrays (``rf``, ``ri`` and the window's ring ``wt``/``wx``/``wc``: stamp,
+    sample index and the running sums before each sample), stepped by :func:`rest_update`."""
 
     def __init__(self, window_s: float = RestThresholds.window_s,
                  gyro_std_max: float = RestThresholds.gyro_std_max,
@@ -174,9 +196,17 @@ class RestDetector:
                  accel_std_max: float = RestThresholds.accel_std_max,
                  accel_norm_tol: float = RestThresholds.accel_norm_tol,
                  gravity: float = STANDARD_GRAVITY, gyro_std_min: float = 0.0):
-        self.thresholds = RestThresholds(window_s, gyro_std_max, gyro_mean_max, accel_std_max,
-                                         accel_norm_tol, gravity, gyro_std_min).checked()
-        self._window_ns = int(round(self.thresholds.window_s * 1e9))
+        self.thresholds = th = RestThresholds(window_s, gyro_std_max, gyro_mean_max,
+                                              accel_std_max, accel_norm_tol, gravity,
+                                              gyro_std_min).checked()
+        self._window_ns = int(round(th.window_s * 1e9))
+        self.rf = np.zeros(_R_FLOATS)
+        self.ri = np.zeros(_R_INTS, dtype=np.int64)
+        self.rf[F_STD_MIN:F_GRAVITY + 1] = (th.gyro_std_min, th.gyro_std_max, th.gyro_mean_max,
+                                            th.accel_std_max, th.accel_norm_tol, th.gravity)
+        self.wt = np.zeros(_RING_START, dtype=np.int64)
+        self.wx = np.zeros(_RING_START, dtype=np.int64)
+        self.wc = np.zeros((_RING_START, 12))
         self.reset()
 
     @property
@@ -185,20 +215,24 @@ class RestDetector:
         return self._window_ns
 
     def reset(self) -> None:
-        """Forget all samples (after a gap or a restart the window fills again)."""
-        self.samples = 0
-        self.last_t_ns: int | None = None
-        self.oldest_index = -1
-        self.at_rest = False
-        self.gyro_std = math.nan
-        self.accel_std = math.nan
-        self.gyro_mean = (math.nan,) * 3
-        self.accel_mean = (math.nan,) * 3
-        self._has_accel: bool | None = None
-        self._t_first = 0
-        self._ref_g = self._ref_a = (0.0, 0.0, 0.0)
-        self._c = [0.0] * 12  # running sums: gyro x, gyro x², accel x, accel x² (3 each)
-        self._window: deque = deque()  # (t_ns, index, running sums before this sample)
+        """Forget all samples (after a gap or a restart the window fills again); in place (the
+        compiled chain holds the arrays)."""
+        rf, ri = self.rf, self.ri
+        rf[:F_STD_MIN] = 0.0
+        rf[F_GYRO_STD:F_STD_MIN] = math.nan
+        ri[:] = 0
+        ri[R_OLDEST] = -1
+        ri[R_HAS_ACCEL] = -1
+        ri[R_WINDOW_NS] = self._window_ns
+
+    samples = property(lambda self: int(self.ri[R_SAMPLES]))
+    last_t_ns = property(lambda self: int(self.ri[R_LAST_T]) if self.ri[R_HAS_LAST] else None)
+    oldest_index = property(lambda self: int(self.ri[R_OLDEST]))
+    at_rest = property(lambda self: bool(self.ri[R_AT_REST]))
+    gyro_std = property(lambda self: float(self.rf[F_GYRO_STD]))
+    accel_std = property(lambda self: float(self.rf[F_ACCEL_STD]))
+    gyro_mean = property(lambda self: tuple(self.rf[F_GYRO_MEAN:F_GYRO_MEAN + 3].tolist()))
+    accel_mean = property(lambda self: tuple(self.rf[F_ACCEL_MEAN:F_ACCEL_MEAN + 3].tolist()))
 
     def update(self, t_ns: int, gyro, accel=None) -> bool:
         """Add one sample; return whether the window ending at it is at rest."""
@@ -207,62 +241,121 @@ class RestDetector:
 
     def update_checked(self, t: int, g: tuple, a: tuple | None) -> bool:
         """:meth:`update` for a sample already through :func:`check_sample`."""
-        if self.last_t_ns is not None and t <= self.last_t_ns:
-            raise ValueError(f"t_ns must increase: {t} after {self.last_t_ns}")
-        if self._has_accel is None:
-            self._has_accel = a is not None
-            self._t_first = t
-            self._ref_g = g
-            self._ref_a = a if a is not None else (0.0, 0.0, 0.0)
-        elif (a is not None) != self._has_accel:
-            raise ValueError("accel must be given for every sample or for none "
-                             "(reset the detector when the sensor changes)")
-        c = self._c
-        self._window.append((t, self.samples, tuple(c)))
-        for i in range(3):
-            d = g[i] - self._ref_g[i]
-            c[i] = c[i] + d
-            c[3 + i] = c[3 + i] + d * d
-            if a is not None:
-                e = a[i] - self._ref_a[i]
-                c[6 + i] = c[6 + i] + e
-                c[9 + i] = c[9 + i] + e * e
-        lo = t - self._window_ns
-        win = self._window
-        while win[0][0] < lo:
-            win.popleft()
-        self.samples += 1
-        self.last_t_ns = t
-        _, self.oldest_index, c0 = win[0]
-        n = float(self.samples - self.oldest_index)
-        self.at_rest = self._decide(t, n, c, c0)
-        return self.at_rest
+        has_a = a is not None
+        a0, a1, a2 = a if has_a else (0.0, 0.0, 0.0)
+        while True:
+            slot = compiled(rest_update)(self.rf, self.ri, self.wt, self.wx, self.wc, t, g[0],
+                                         g[1], g[2], has_a, a0, a1, a2)
+            if slot != RING_FULL:
+                break
+            self.grow()
+        if slot < 0:
+            raise ValueError(self.refusal(slot, t))
+        return bool(self.ri[R_AT_REST])
 
-    def _decide(self, t: int, n: float, c: list, c0: tuple) -> bool:
-        # written out per axis (it runs once per live sample); the same operations in the same
-        # order as detect_rest's arrays, so the decisions stay bit-identical
-        th = self.thresholds
-        m0, m1, m2 = (c[0] - c0[0]) / n, (c[1] - c0[1]) / n, (c[2] - c0[2]) / n
-        v0 = (c[3] - c0[3]) / n - m0 * m0
-        v1 = (c[4] - c0[4]) / n - m1 * m1
-        v2 = (c[5] - c0[5]) / n - m2 * m2
-        r0, r1, r2 = self._ref_g
-        self.gyro_mean = gm0, gm1, gm2 = r0 + m0, r1 + m1, r2 + m2
-        full = t - self._t_first >= self._window_ns
-        self.gyro_std = math.sqrt(max(v0 + v1 + v2, 0.0)) if full else math.nan
-        ok = full and th.gyro_std_min <= self.gyro_std <= th.gyro_std_max and max(
-            abs(gm0), abs(gm1), abs(gm2)) <= th.gyro_mean_max
-        if self._has_accel:
-            m0, m1, m2 = (c[6] - c0[6]) / n, (c[7] - c0[7]) / n, (c[8] - c0[8]) / n
-            v0 = (c[9] - c0[9]) / n - m0 * m0
-            v1 = (c[10] - c0[10]) / n - m1 * m1
-            v2 = (c[11] - c0[11]) / n - m2 * m2
-            self.accel_std = math.sqrt(max(v0 + v1 + v2, 0.0)) if full else math.nan
-            r0, r1, r2 = self._ref_a
-            self.accel_mean = f0, f1, f2 = r0 + m0, r1 + m1, r2 + m2
-            norm = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
-            ok = ok and self.accel_std <= th.accel_std_max and abs(norm - th.gravity) <= th.accel_norm_tol
-        return bool(ok)
+    def refusal(self, code: int, t: int) -> str:
+        """The words of a :func:`rest_update` refusal."""
+        if code == NOT_INCREASING:
+            return f"t_ns must increase: {t} after {self.last_t_ns}"
+        return ("accel must be given for every sample or for none "
+                "(reset the detector when the sensor changes)")
+
+    def grow(self, *companions: np.ndarray) -> list[np.ndarray]:
+        """Double the window's ring (its entries kept in order from slot 0); ``companions``
+        (arrays indexed by the same slots, e.g. the bias stage's pending values) grown
+        alike and returned."""
+        ri = self.ri
+        head, count = int(ri[R_HEAD]), int(ri[R_COUNT])
+        order = (head + np.arange(count)) % self.wt.shape[0]
+        grown = []
+        for arr in (self.wt, self.wx, self.wc, *companions):
+            new = np.zeros((2 * arr.shape[0], *arr.shape[1:]), dtype=arr.dtype)
+            new[:count] = arr[order]
+            grown.append(new)
+        self.wt, self.wx, self.wc = grown[:3]
+        ri[R_HEAD] = 0
+        return grown[3:]
+
+
+@kernel
+def rest_update(rf, ri, wt, wx, wc, t, g0, g1, g2, has_a, a0, a1, a2):
+    """:meth:`RestDetector.update_checked` on the state arrays: the ring slot of this sample
+    (the decision in ``ri[R_AT_REST]``), or a refusal code (:data:`RING_FULL`,
+    :data:`NOT_INCREASING`, :data:`ACCEL_CHANGED`) with nothing changed."""
+    cap = wt.shape[0]
+    if ri[R_COUNT] == cap:
+        return RING_FULL
+    if ri[R_HAS_LAST] == 1 and t <= ri[R_LAST_T]:
+        return NOT_INCREASING
+    if ri[R_HAS_ACCEL] < 0:
+        ri[R_HAS_ACCEL] = 1 if has_a else 0
+        ri[R_T_FIRST] = t
+        rf[F_REF_G], rf[F_REF_G + 1], rf[F_REF_G + 2] = g0, g1, g2
+        if has_a:
+            rf[F_REF_A], rf[F_REF_A + 1], rf[F_REF_A + 2] = a0, a1, a2
+        else:
+            rf[F_REF_A], rf[F_REF_A + 1], rf[F_REF_A + 2] = 0.0, 0.0, 0.0
+    elif (ri[R_HAS_ACCEL] == 1) != has_a:
+        return ACCEL_CHANGED
+    slot = (ri[R_HEAD] + ri[R_COUNT]) % cap
+    wt[slot] = t
+    wx[slot] = ri[R_SAMPLES]
+    for i in range(12):
+        wc[slot, i] = rf[F_C + i]
+    ri[R_COUNT] += 1
+    for i, x in ((0, g0), (1, g1), (2, g2)):
+        d = x - rf[F_REF_G + i]
+        rf[F_C + i] = rf[F_C + i] + d
+        rf[F_C + 3 + i] = rf[F_C + 3 + i] + d * d
+    if has_a:
+        for i, x in ((0, a0), (1, a1), (2, a2)):
+            e = x - rf[F_REF_A + i]
+            rf[F_C + 6 + i] = rf[F_C + 6 + i] + e
+            rf[F_C + 9 + i] = rf[F_C + 9 + i] + e * e
+    lo = t - ri[R_WINDOW_NS]
+    while wt[ri[R_HEAD]] < lo:
+        ri[R_HEAD] = (ri[R_HEAD] + 1) % cap
+        ri[R_COUNT] -= 1
+    ri[R_SAMPLES] += 1
+    ri[R_HAS_LAST], ri[R_LAST_T] = 1, t
+    head = ri[R_HEAD]
+    ri[R_OLDEST] = wx[head]
+    n = float(ri[R_SAMPLES] - wx[head])
+    ri[R_AT_REST] = 1 if _decide(rf, ri, t, n, wc, head) else 0
+    return slot
+
+
+@kernel
+def _decide(rf, ri, t, n, wc, head):
+    # written out per axis; the same operations in the same order as detect_rest's arrays,
+    # so the decisions stay bit-identical
+    m0 = (rf[F_C] - wc[head, 0]) / n
+    m1 = (rf[F_C + 1] - wc[head, 1]) / n
+    m2 = (rf[F_C + 2] - wc[head, 2]) / n
+    v0 = (rf[F_C + 3] - wc[head, 3]) / n - m0 * m0
+    v1 = (rf[F_C + 4] - wc[head, 4]) / n - m1 * m1
+    v2 = (rf[F_C + 5] - wc[head, 5]) / n - m2 * m2
+    gm0, gm1, gm2 = rf[F_REF_G] + m0, rf[F_REF_G + 1] + m1, rf[F_REF_G + 2] + m2
+    rf[F_GYRO_MEAN], rf[F_GYRO_MEAN + 1], rf[F_GYRO_MEAN + 2] = gm0, gm1, gm2
+    full = t - ri[R_T_FIRST] >= ri[R_WINDOW_NS]
+    std = math.sqrt(max(v0 + v1 + v2, 0.0)) if full else math.nan
+    rf[F_GYRO_STD] = std
+    ok = full and rf[F_STD_MIN] <= std <= rf[F_STD_MAX] and max(
+        abs(gm0), abs(gm1), abs(gm2)) <= rf[F_MEAN_MAX]
+    if ri[R_HAS_ACCEL] == 1:
+        m0 = (rf[F_C + 6] - wc[head, 6]) / n
+        m1 = (rf[F_C + 7] - wc[head, 7]) / n
+        m2 = (rf[F_C + 8] - wc[head, 8]) / n
+        v0 = (rf[F_C + 9] - wc[head, 9]) / n - m0 * m0
+        v1 = (rf[F_C + 10] - wc[head, 10]) / n - m1 * m1
+        v2 = (rf[F_C + 11] - wc[head, 11]) / n - m2 * m2
+        astd = math.sqrt(max(v0 + v1 + v2, 0.0)) if full else math.nan
+        rf[F_ACCEL_STD] = astd
+        f0, f1, f2 = rf[F_REF_A] + m0, rf[F_REF_A + 1] + m1, rf[F_REF_A + 2] + m2
+        rf[F_ACCEL_MEAN], rf[F_ACCEL_MEAN + 1], rf[F_ACCEL_MEAN + 2] = f0, f1, f2
+        norm = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+        ok = ok and astd <= rf[F_ACCEL_STD_MAX] and abs(norm - rf[F_GRAVITY]) <= rf[F_NORM_TOL]
+    return ok
 
 
 _STATS_CHUNK = 1 << 16  # rows of window statistics computed at a time

@@ -56,7 +56,14 @@ from gyro_attitude.core.attitude import (
     get_algorithm,
 )
 from gyro_attitude.core.attitude import validation as v
-from gyro_attitude.core.attitude.ahrs import AhrsFilter, AhrsParams
+from gyro_attitude.core.attitude.ahrs import (
+    MAG_ABSENT,
+    MAG_GIVEN,
+    MAG_NOT_FLOATS,
+    AhrsFilter,
+    AhrsParams,
+    _as_floats,
+)
 from gyro_attitude.core.attitude.alignment import (
     AlignmentResult,
     StaticAligner,
@@ -74,8 +81,16 @@ from gyro_attitude.core.attitude.modes import (
     Phase,
     SettingError,
 )
+from gyro_attitude.core.attitude.sample_step import (
+    BIAS_REFUSED,
+    DONE,
+    NOT_FINITE,
+    NOT_PLAIN,
+    push_sample,
+)
 from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.core.earth import STANDARD_GRAVITY
+from gyro_attitude.core.jit import compiled, kernel
 from gyro_attitude.core.rotation import (
     quat_from_rotvec,
     quat_multiply,
@@ -115,6 +130,22 @@ SATURATION_MIN_RAD_S = 1.0
 RATE_FIT_FALLBACK = "rate_fit_fallback"
 EXTRA_COUNTS = (INVALID_COVARIANCE, INVALID_ACCEL, INTEGRATOR_ERROR, SATURATED, RATE_FIT_FALLBACK)
 GYRO_NOISE_UNKNOWN = "gyro_noise_unknown"  # a detail (said once), not a count
+
+
+@kernel
+def saturation_step(sat, w0, w1, w2):
+    """The axis (-1: none) on which the accepted sample ``w`` repeats the previous value at the
+    largest magnitude seen (≥ SATURATION_MIN_RAD_S): a clip; ``sat`` (largest |ω| per axis,
+    last ω per axis) updated."""
+    pinned = -1
+    for i, x in ((0, w0), (1, w1), (2, w2)):
+        a = abs(x)
+        if a > sat[i]:
+            sat[i] = a
+        if a == sat[i] and x == sat[3 + i] and a >= SATURATION_MIN_RAD_S:
+            pinned = i
+        sat[3 + i] = x
+    return pinned
 
 
 def _values(x) -> str:
@@ -157,7 +188,11 @@ def gyro_variances(covariance) -> tuple[tuple[float, float, float] | None, bool]
     """
     if covariance is None:
         return None, False
-    c = np.asarray(covariance, dtype=np.float64).reshape(-1).tolist()
+    return row_variances(np.asarray(covariance, dtype=np.float64).reshape(-1).tolist())
+
+
+def row_variances(c: list) -> tuple[tuple[float, float, float] | None, bool]:
+    """:func:`gyro_variances` of a covariance already made a list of floats."""
     if len(c) != 9:
         return None, True
     if v.no_estimate(c):
@@ -258,9 +293,9 @@ class StreamState:
     counts: dict[str, int] = field(default_factory=lambda: dict.fromkeys(EXTRA_COUNTS, 0))
     details: dict[str, str] = field(default_factory=dict)
     aided_seen: int = 0
-    # per axis: the largest |ω| accepted so far and the last accepted ω (saturation check)
-    rate_max: list = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    rate_last: list = field(default_factory=lambda: [math.nan, math.nan, math.nan])
+    # the saturation check's state: per axis the largest |ω| accepted so far (0:3) and the
+    # last accepted ω (3:6)
+    sat: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0] + [math.nan] * 3))
 
     def count(self, key: str, detail: str) -> None:
         self.counts[key] += 1
@@ -347,6 +382,9 @@ class AttitudeStream:
                                 or cfg.levelling))
         self.alignment: AlignmentResult | None = None
         self.alignment_error: str | None = None
+        # push()'s compiled form for the samples nothing special happens to (None where a stage
+        # has no kernel: another integrator, a nav frame with time series, another aiding)
+        self._fast = _PushKernel.for_stream(self)
 
     def _new_aligner(self) -> StaticAligner:
         cfg = self.config
@@ -431,6 +469,7 @@ class AttitudeStream:
                               max_rate_rad_s=config.max_rate_rad_s,
                               max_missing_samples=config.max_missing_samples)
         self.validator.config = self.config.check_config()
+        self._fast = _PushKernel.for_stream(self)
 
     def set_algorithm(self, algorithm: str) -> None:
         """Switch the algorithm, keeping the attitude and the time base (raises ValueError and
@@ -439,11 +478,13 @@ class AttitudeStream:
                                          nav=self.nav, t0_ns=self.integrator.last_t_ns)
         self.integrator = integrator
         self.algorithm = algorithm
+        self._fast = _PushKernel.for_stream(self)
 
     def update_nav(self, nav: NavFrame) -> None:
         """Constant nav frame from the next sample on (see StreamingIntegrator.update_nav)."""
         self.integrator.update_nav(nav)
         self.nav = nav
+        self._fast = _PushKernel.for_stream(self)
 
     def restart(self, q0=None) -> None:
         """Forget the time base (and the locked frame): the next sample starts from ``q0``
@@ -468,6 +509,11 @@ class AttitudeStream:
         if self.integrator is None:
             raise ValueError(f"{self.algorithm} is an offline algorithm: it cannot stream "
                              "(use run() over the whole recording, or a causal algorithm)")
+        fast = self._fast
+        if fast is not None:
+            if st_ok := fast.push(t_ns, omega, frame_id, angular_velocity_covariance, accel, mag):
+                return st_ok
+            fast.args = None  # the Python steps below may change what it holds
         st = self.state
         # 1. validate
         verdict = self.validator.check(t_ns, omega, frame_id)
@@ -527,22 +573,11 @@ class AttitudeStream:
             return None
         return mag
 
-    def _saturation_step(self, w: np.ndarray) -> None:
-        """Count an accepted sample pinned at a repeated extreme: on some axis its value repeats
-        the previous one at the largest magnitude seen (≥ SATURATION_MIN_RAD_S): a clip."""
-        st = self.state
-        mx, last = st.rate_max, st.rate_last
-        pinned = None
-        for i in range(3):
-            x = float(w[i])
-            a = abs(x)
-            if a > mx[i]:
-                mx[i] = a
-            if a == mx[i] and x == last[i] and a >= SATURATION_MIN_RAD_S:
-                pinned = (i, x)
-            last[i] = x
-        if pinned is not None:
-            st.count(SATURATED, saturation_note(*pinned))
+    def _saturation_step(self, w: tuple) -> None:
+        """Count an accepted sample pinned at a repeated extreme (:func:`saturation_step`)."""
+        axis = compiled(saturation_step)(self.state.sat, w[0], w[1], w[2])
+        if axis >= 0:
+            self.state.count(SATURATED, saturation_note(axis, w[axis]))
 
     def _accel(self, accel):
         """The sample's specific force as 3 floats, or None (absent or unusable, counted)."""
@@ -961,3 +996,150 @@ def nav_rows(nav: NavFrame | None, index: np.ndarray, n: int) -> NavFrame | None
         if a.ndim >= 1 and a.shape[0] == n and not (f.name == "velocity_enu" and a.ndim == 1):
             changes[f.name] = a[index]
     return replace(nav, **changes) if changes else nav
+
+
+class _PushKernel:
+    """:meth:`AttitudeStream.push` compiled (:func:`.sample_step.push_sample`) for the samples
+    nothing special happens to; its arguments (the stages' state arrays and settings) are
+    gathered once and again after the Python steps ran (``args = None``)."""
+
+    @classmethod
+    def for_stream(cls, s: AttitudeStream) -> _PushKernel | None:
+        integ = s.integrator
+        if integ is None or integ.cubic is None or integ._nav_rates is not None or not (
+                s.aiding is None or isinstance(s.aiding, GravityAiding | AhrsFilter)):
+            return None
+        return cls(s)
+
+    def __init__(self, s: AttitudeStream):
+        self.s = s
+        self.args = None
+        self._mag_mode = s.config.aiding is Aiding.MAGNETOMETER
+        self._cov_row, self._cov_judged = None, (None, False)
+
+    def _build(self) -> tuple:
+        s = self.s
+        self._kernel = compiled(push_sample)
+        cfg = s.validator.config
+        est, det = s.bias_estimator, s.bias_estimator.detector
+        aid = s.aiding
+        kind = 0 if aid is None else (1 if isinstance(aid, GravityAiding) else 2)
+        dummy_f, dummy_i = np.zeros(1), np.zeros(1, dtype=np.int64)
+        g = (aid.params, aid.gf, aid.gi) if kind == 1 else (dummy_f, dummy_f, dummy_i)
+        h = (aid.pa, aid.af, aid.ai) if kind == 2 else (dummy_f, dummy_f, dummy_i)
+        cs, nav = s.integrator.cubic, s.integrator._nav_const
+        floor = (s.alignment.level_error_expected if s.alignment is not None
+                 else s.config.accel_bias_sigma / STANDARD_GRAVITY) ** 2
+        return (cfg.max_gap_ns, float(cfg.max_rate_rad_s), ACCEL_ABSURD, SATURATION_MIN_RAD_S,
+                s.state.sat, est.mode == GyroBiasMode.AUTO), (
+            est.bf, est.bi, est.min_rest_ns, det.rf, det.ri, det.wt, det.wx, det.wc, est.pv,
+            est.pe, est.earth_n, s.latitude_rad is not None and est.mode == GyroBiasMode.AUTO,
+            s.intervals.ring, s.intervals.fill, kind, *g, *h, cs.ci, cs.ts, cs.ws, cs.cf,
+            nav is not None,
+            *((0.0, 0.0, 0.0) if nav is None else (float(nav[0]), float(nav[1]), float(nav[2]))),
+            s.covariance.c, s.covariance.k2, s._n2, 0.0 if aid is None else aid.kp, floor)
+
+    #: the validator's verdict of a plain accept
+    _ACCEPT = v.Verdict(v.ACCEPT)
+
+    def push(self, t_ns, omega, frame_id, covariance, accel, mag):
+        """``(verdict, attitude)`` of :meth:`AttitudeStream.push` for this sample, or None when
+        the Python steps must take it (nothing changed then)."""
+        s = self.s
+        st = s.state
+        val = s.validator
+        stamps = val._stamps
+        if st.phase is not RUNNING or type(t_ns) is not int or frame_id != val.frame_id \
+                or stamps.period is None:
+            return None
+        try:
+            w0, w1, w2 = omega.tolist() if type(omega) is np.ndarray else omega
+            w0, w1, w2 = float(w0), float(w1), float(w2)
+            if accel is None:
+                has_a, a0, a1, a2 = False, 0.0, 0.0, 0.0
+            else:
+                a0, a1, a2 = accel.tolist() if type(accel) is np.ndarray else accel
+                has_a, a0, a1, a2 = True, float(a0), float(a1), float(a2)
+        except (TypeError, ValueError):
+            return None
+        var, invalid = None, False
+        if covariance is not None:
+            covariance = covariance.tolist() if type(covariance) is np.ndarray and \
+                covariance.dtype == np.float64 and covariance.ndim == 1 else np.asarray(
+                    covariance, dtype=np.float64).reshape(-1).tolist()
+            # a driver sends the same covariance with every message: judged once
+            if covariance == self._cov_row:
+                var, invalid = self._cov_judged
+            else:
+                var, invalid = row_variances(covariance)
+                self._cov_row, self._cov_judged = covariance, (var, invalid)
+        if invalid:
+            return None
+        m_state, m0, m1, m2, missing = MAG_ABSENT, 0.0, 0.0, 0.0, False
+        if self._mag_mode:
+            m = _as_floats(mag)
+            if m is not None:
+                m_state, (m0, m1, m2) = MAG_GIVEN, m
+            elif mag is None or (isinstance(mag, np.ndarray) and mag.shape == (3,)
+                                 and np.isnan(mag).all()):
+                missing = True  # (a row of NaN is no sample: AttitudeStream._mag_sample)
+            else:
+                m_state = MAG_NOT_FLOATS
+        var_ok = var is not None
+        s0, s1, s2 = var if var_ok else (0.0, 0.0, 0.0)
+        if self.args is None:
+            self.args = self._build()
+        head, tail = self.args
+        present = -1 if st.accel_present is None else int(st.accel_present)
+        previous = s.bias_estimator.bias_floats if st.first_rest_pending else None
+        x, y, z, u = st.q
+        code, pinned, n_fb, seen, x, y, z, u = self._kernel(
+            t_ns, w0, w1, w2, has_a, a0, a1, a2, present, m_state, m0, m1, m2, var_ok, s0,
+            s1, s2, stamps.last, stamps.period, *head, st.first_rest_pending, *tail,
+            st.aided_seen, x, y, z, u)
+        if code == NOT_PLAIN:
+            return None
+        # what the Python steps before the bias stage do besides (validator, variances,
+        # accelerometer, field, saturation)
+        stamps.last = t_ns
+        val._skipped = 0
+        val.accepted += 1
+        if var_ok:
+            st.variance_known = True
+        elif covariance is not None and v.no_estimate(covariance) and \
+                GYRO_NOISE_UNKNOWN not in st.details:
+            st.details[GYRO_NOISE_UNKNOWN] = unknown_noise_note(s.config)
+        st.accel_present = has_a
+        if missing:
+            s._mag_missing += 1
+            st.details.setdefault(MAG_MISSING, f"no field sample at stamp {t_ns} "
+                                               "(none within mag_max_age_s)")
+        if pinned >= 0:
+            st.count(SATURATED, saturation_note(pinned, (w0, w1, w2)[pinned]))
+        if n_fb:
+            st.counts[RATE_FIT_FALLBACK] += n_fb
+            st.details.setdefault(RATE_FIT_FALLBACK, rate_fit_note(t_ns))
+        if code == DONE:
+            integ = s.integrator
+            integ.samples += 1
+            integ.last_t_ns = t_ns
+            q = (x, y, z, u)
+            integ._q = q
+            st.aided_seen = seen
+            st.q = q
+            return self._ACCEPT, np.array(q)
+        self.args = None
+        if code == NOT_FINITE:
+            s.integrator.synced()
+            return s._integrator_error(self._ACCEPT, "non-finite attitude: last good one restored")
+        est = s.bias_estimator
+        if code == BIAS_REFUSED:
+            est.break_window()
+        else:  # AFTER_BIAS: a new estimate while the first may still go back to the start
+            s._bias_published(previous)
+        bias = est.bias_floats
+        a = (a0, a1, a2) if has_a else None
+        mag_in = None if m_state == MAG_ABSENT else mag
+        verdict, q = s._integrate(self._ACCEPT, t_ns, (w0 - bias[0], w1 - bias[1], w2 - bias[2]), a,
+                                  var, mag_in)
+        return verdict, None if q is None else np.array(q)

@@ -286,8 +286,8 @@ def _count_saturated(wv, st, counts, details) -> None:
     if wv.shape[0] == 0:
         return
     a = np.abs(wv)
-    run_max = np.maximum.accumulate(np.vstack([np.asarray(st.rate_max)[None], a]), axis=0)[1:]
-    prev = np.vstack([np.asarray(st.rate_last)[None], wv[:-1]])
+    run_max = np.maximum.accumulate(np.vstack([st.sat[None, :3], a]), axis=0)[1:]
+    prev = np.vstack([st.sat[None, 3:], wv[:-1]])
     with np.errstate(invalid="ignore"):
         pinned = (a == run_max) & (wv == prev) & (a >= SATURATION_MIN_RAD_S)
     rows_pinned = np.flatnonzero(pinned.any(axis=1))
@@ -296,8 +296,8 @@ def _count_saturated(wv, st, counts, details) -> None:
         k = int(rows_pinned[0])
         axis = int(np.flatnonzero(pinned[k])[-1])
         details.setdefault(SATURATED, saturation_note(axis, float(wv[k, axis])))
-    st.rate_max = run_max[-1].tolist()
-    st.rate_last = wv[-1].tolist()
+    st.sat[:3] = run_max[-1]
+    st.sat[3:] = wv[-1]
 
 
 def rest_plan(est, rec: Recording):

@@ -41,17 +41,15 @@ import numpy as np
 
 from gyro_attitude.core.attitude import validation as v
 from gyro_attitude.core.attitude.ahrs import (
-    I_AIDED,
     I_HAS_LAST,
     MAG_ABSENT,
     MAG_GIVEN,
     MAG_NOT_FLOATS,
     AhrsFilter,
-    ahrs_step,
 )
 from gyro_attitude.core.attitude.alignment import level_quaternions
-from gyro_attitude.core.attitude.covariance import V_BB, V_TB, V_TT, aid_tilt, propagate
-from gyro_attitude.core.attitude.gravity_aiding import G_AIDED, G_HAS_LAST, GravityAiding, gravity_step
+from gyro_attitude.core.attitude.covariance import V_TT, zero_rate_update
+from gyro_attitude.core.attitude.gravity_aiding import G_HAS_LAST, GravityAiding
 from gyro_attitude.core.attitude.gyro_bias import (
     B_BIAS,
     B_SE,
@@ -62,6 +60,7 @@ from gyro_attitude.core.attitude.gyro_bias import (
     close_rest,
 )
 from gyro_attitude.core.attitude.modes import Aiding, GyroBiasMode
+from gyro_attitude.core.attitude.sample_step import advance_accepted
 from gyro_attitude.core.attitude.stream import (
     _ACCEPTED,
     _STARTED,
@@ -79,7 +78,6 @@ from gyro_attitude.core.attitude.stream import (
     unknown_noise_note,
 )
 from gyro_attitude.core.attitude.stream_batch import data_stages, rest_plan
-from gyro_attitude.core.attitude.streaming import C_FALLBACKS, C_LAST_T, cubic_advance
 from gyro_attitude.core.earth import STANDARD_GRAVITY
 from gyro_attitude.core.jit import compiled, kernel
 
@@ -496,49 +494,27 @@ def accept_rows(r0, r1, t, w, b0, b1, b2, a, a_ok, m, m_state, var, var_ok, rest
                            vals_earth[j])
             else:
                 accumulate(bf, bi, min_rest_ns, t[j], w[j, 0], w[j, 1], w[j, 2], False)
-            if bi[J_UPDATED] == 1:  # a zero-rate update (AttitudeCovariance.zero_rate_update)
-                for i in range(3):
-                    c[V_BB + i] = bf[B_SE + i] ** 2
-                    c[V_TB + i] = 0.0
+            if bi[J_UPDATED] == 1:
+                zero_rate_update(c, bf[B_SE], bf[B_SE + 1], bf[B_SE + 2])
             b0, b1, b2 = bf[B_BIAS], bf[B_BIAS + 1], bf[B_BIAS + 2]
         if restart[r] and kind != 0:
             if kind == 1:
                 gi[G_HAS_LAST] = 0
             else:
                 ai[I_HAS_LAST] = 0
-        w0, w1, w2 = w[r, 0] - b0, w[r, 1] - b1, w[r, 2] - b2
-        if kind == 1:
-            w0, w1, w2 = gravity_step(gp, gf, gi, tr, w0, w1, w2, a_ok[r], a[r, 0], a[r, 1],
-                                      a[r, 2], x, y, z, u)
-        elif kind == 2:
-            w0, w1, w2 = ahrs_step(pa, af, ai, tr, w0, w1, w2, a_ok[r], a[r, 0], a[r, 1],
-                                   a[r, 2], x, y, z, u, m_state[r], m[r, 0], m[r, 1], m[r, 2])
-        last = ci[C_LAST_T]
-        fell = ci[C_FALLBACKS]
-        qx, qy, qz, qu = cubic_advance(ci, ts, ws, cf, tr, w0, w1, w2, has_nav, n0, n1, n2)
-        if ci[C_FALLBACKS] != fell:
-            n_fb += ci[C_FALLBACKS] - fell
+        ok, fb, aided_seen, dt, qx, qy, qz, qu = advance_accepted(
+            kind, gp, gf, gi, pa, af, ai, ci, ts, ws, cf, has_nav, n0, n1, n2, c, k2, noise2, kp,
+            floor_var, aided_seen, tr, w[r, 0] - b0, w[r, 1] - b1, w[r, 2] - b2, a_ok[r],
+            a[r, 0], a[r, 1], a[r, 2], m_state[r], m[r, 0], m[r, 1], m[r, 2], var_ok[r],
+            var[r, 0], var[r, 1], var[r, 2], x, y, z, u)
+        if fb != 0:
+            n_fb += fb
             if first_fb < 0:
                 first_fb = r
-        if not (math.isfinite(qx) and math.isfinite(qy) and math.isfinite(qz)
-                and math.isfinite(qu)):
+        if not ok:
             return r, aided_seen, first_fb, n_fb, x, y, z, u
         x, y, z, u = qx, qy, qz, qu
-        dt = tr - last
         dt_out[r] = dt
-        dt_s = dt * 1e-9
-        # angle random walk: σ_ω² dt² per axis from the message, else N² dt (_integrate)
-        if var_ok[r]:
-            d2 = dt_s * dt_s
-            propagate(c, k2, dt_s, var[r, 0] * d2, var[r, 1] * d2, var[r, 2] * d2)
-        else:
-            nd = noise2 * dt_s
-            propagate(c, k2, dt_s, nd, nd, nd)
-        if kind != 0:
-            aided = gi[G_AIDED] if kind == 1 else ai[I_AIDED]
-            if aided != aided_seen:
-                aid_tilt(c, kp * dt_s, floor_var)
-            aided_seen = aided
         q_out[r, 0], q_out[r, 1], q_out[r, 2], q_out[r, 3] = x, y, z, u
         tt_out[r, 0], tt_out[r, 1], tt_out[r, 2] = c[V_TT], c[V_TT + 1], c[V_TT + 2]
     return -1, aided_seen, first_fb, n_fb, x, y, z, u

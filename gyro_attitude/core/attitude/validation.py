@@ -15,10 +15,11 @@ Times are integer nanoseconds (the ``header.stamp`` of the message).
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
+
+from gyro_attitude.core.jit import kernel
 
 # Verdicts. ACCEPT: integrate over (last, t]. START: first sample (or first after a restart):
 # sets the time base, nothing to integrate yet.
@@ -533,27 +534,46 @@ class IntervalStatistics:
     def __init__(self, window: int = 1000):
         if int(window) < 2:
             raise ValueError(f"window must be >= 2 intervals, got {window}")
-        self._dt_ns: deque[int] = deque(maxlen=int(window))
+        # a ring (what the compiled per-sample chain steps): the intervals, and (held, next slot)
+        self.ring = np.zeros(int(window), dtype=np.int64)
+        self.fill = np.zeros(2, dtype=np.int64)
 
     def add(self, dt_ns: int) -> None:
-        self._dt_ns.append(int(dt_ns))
+        interval_add(self.ring, self.fill, int(dt_ns))
 
     def extend(self, dt_ns) -> None:
         """:meth:`add` each of ``dt_ns`` in order (an int array or list)."""
-        self._dt_ns.extend(np.asarray(dt_ns, dtype=np.int64).tolist())
+        d = np.asarray(dt_ns, dtype=np.int64)[-self.window:]
+        if d.size == 0:
+            return
+        slots = (self.fill[1] + np.arange(d.size)) % self.window
+        self.ring[slots] = d
+        self.fill[0] = min(self.fill[0] + d.size, self.window)
+        self.fill[1] = (self.fill[1] + d.size) % self.window
 
     @property
     def window(self) -> int:
-        return self._dt_ns.maxlen
+        return self.ring.shape[0]
 
     def clear(self) -> None:
-        self._dt_ns.clear()
+        self.fill[:] = 0
 
     def __len__(self) -> int:
-        return len(self._dt_ns)
+        return int(self.fill[0])
 
     def summary(self) -> dict[str, float]:
-        return interval_summary(np.fromiter(self._dt_ns, dtype=np.int64, count=len(self._dt_ns)))
+        held, nxt = int(self.fill[0]), int(self.fill[1])
+        order = (nxt - held + np.arange(held)) % self.window  # oldest first
+        return interval_summary(self.ring[order])
+
+
+@kernel
+def interval_add(ring, fill, dt_ns):
+    """:meth:`IntervalStatistics.add` on its ring."""
+    ring[fill[1]] = dt_ns
+    fill[1] = (fill[1] + 1) % ring.shape[0]
+    if fill[0] < ring.shape[0]:
+        fill[0] += 1
 
 
 def interval_summary(dt_ns: np.ndarray) -> dict[str, float]:
