@@ -14,7 +14,8 @@ from sim_static import rest_motion_rest
 from test_stream_real import MODES, hostile_field, hostile_rest_motion_rest
 
 from gyro_attitude.core.attitude import stream_loop
-from gyro_attitude.core.attitude.stream import AttitudeStream
+from gyro_attitude.core.attitude.stream import RUNNING, AttitudeStream
+from gyro_attitude.core.attitude.validation import NOMINAL_INTERVALS
 from gyro_attitude.core.jit import backend, compiled, kernel
 
 HERE = Path(__file__).resolve().parent
@@ -121,6 +122,47 @@ def test_an_aided_run_steps_its_accepted_samples_compiled(mode, monkeypatch):
     assert len(late) <= 10, f"{len(late)} samples after the first rest through the interpreter"
     # and in long runs: one call of the compiled loop between two rows Python must take
     assert len(runs) <= 40 and sum(runs) > 1500, (len(runs), sum(runs))
+
+
+@pytest.mark.parametrize("mode", ["auto", "auto_enu", "none_rw", "gravity_enu", "tilt",
+                                  "level_magnetometer_enu"])
+def test_pushed_samples_step_compiled_except_where_something_happens(mode, monkeypatch):
+    # push() takes the interpreter's steps (the validator's check among them) only where the
+    # compiled step stops: the first samples of a time base (start, gap, jump: the nominal
+    # period being learnt), a rejected or unusable sample and the one after it (a hole, a
+    # broken window), the first bias estimate; and the alignment, before the attitude runs.
+    t, g, a, cov = hostile_rest_motion_rest()  # 3 time bases, 8 hostile samples
+    mag = hostile_field(t.size) if "magnetometer" in mode else None
+    s = AttitudeStream(config=MODES[mode])
+    python_steps = []
+    check = s.validator.check
+
+    def counting(t_ns, *args):
+        if s.state.phase is RUNNING:
+            python_steps.append(t_ns)
+        return check(t_ns, *args)
+
+    monkeypatch.setattr(s.validator, "check", counting)
+    pushed = sum(s.push(int(t[k]), g[k], "imu", cov[k], a[k],
+                        None if mag is None else mag[k])[1] is not None for k in range(t.size))
+    assert pushed > 1800
+    allowed = 3 * (NOMINAL_INTERVALS + 2) + 8 * 2 + 2
+    assert len(python_steps) <= allowed, f"{len(python_steps)} of {t.size} through Python"
+
+
+def test_the_pushed_input_rate_and_jitter_are_the_stamps():
+    # the interval statistics of the diagnostics, from the compiled step's ring
+    rng = np.random.default_rng(4)
+    t = 1_000_000_000 + np.cumsum(rng.integers(4_900_000, 5_100_000, 3000))
+    s = AttitudeStream(config=MODES["gravity"])
+    for k in range(t.size):
+        s.push(int(t[k]), 1e-3 * rng.standard_normal(3), "imu", None,
+               np.array([0.0, 0.0, 9.81]), None)
+    dt = np.diff(t)[-2000:] * 1e-9
+    got = s.intervals.summary()
+    assert got["rate_hz"] == pytest.approx(1.0 / dt.mean(), rel=1e-12)
+    assert got["jitter_s"] == pytest.approx(dt.std(), rel=1e-9)
+    assert got["max_dt_s"] == dt.max()
 
 
 def test_stage_resets_keep_the_state_arrays_the_compiled_loop_holds():

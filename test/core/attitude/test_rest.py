@@ -24,6 +24,32 @@ def test_stream_equals_batch_bitwise():
     np.testing.assert_array_equal(oldest, batch.oldest)
 
 
+def test_a_window_that_outgrows_its_ring_mid_stream_keeps_its_samples_in_order():
+    """The streaming window is a ring that doubles when a window holds more samples than it
+    has room for.  Here the rate goes up tenfold after 3 s (the window then needs ten times
+    the entries, while its oldest entry sits mid-ring): decisions, window starts and
+    statistics stay the batch detector's, bit for bit."""
+    rng = np.random.default_rng(7)
+    t = np.concatenate([np.arange(150) * 20_000_000,  # 50 Hz for 3 s, then 2 kHz
+                        3_000_000_000 + np.arange(8000) * 500_000]) + 1_000_000_000
+    g = 0.002 * rng.standard_normal((t.size, 3))
+    g[4000:6000, 2] += 0.8  # a turn in the fast part
+    a = np.array([0.0, 0.0, 9.81]) + 0.02 * rng.standard_normal((t.size, 3))
+    batch = detect_rest(t, g, a)
+    det = RestDetector()
+    ring_sizes = set()
+    got = []
+    for k in range(t.size):
+        got.append((det.update(t[k], g[k], a[k]), det.oldest_index, det.gyro_std))
+        ring_sizes.add(det.wt.shape[0])
+    got = np.array(got)
+    assert len(ring_sizes) >= 3  # it grew at least twice
+    np.testing.assert_array_equal(got[:, 0].astype(bool), batch.at_rest)
+    np.testing.assert_array_equal(got[:, 1], batch.oldest)
+    np.testing.assert_array_equal(got[:, 2], batch.gyro_std)
+    assert batch.at_rest.any()
+
+
 @pytest.mark.parametrize("chunk", [5, 37, 1000])  # below, near and above a window's rows
 def test_batch_in_chunks_equals_the_stream_bitwise(monkeypatch, chunk):
     """The batch statistics run a chunk of rows at a time, each chunk's running sums
