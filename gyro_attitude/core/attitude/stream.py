@@ -90,7 +90,7 @@ from gyro_attitude.core.attitude.sample_step import (
 )
 from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.core.earth import STANDARD_GRAVITY
-from gyro_attitude.core.jit import compiled, kernel
+from gyro_attitude.core.jit import compiled, direct, kernel
 from gyro_attitude.core.rotation import (
     quat_from_rotvec,
     quat_multiply,
@@ -1019,7 +1019,7 @@ class _PushKernel:
 
     def _build(self) -> tuple:
         s = self.s
-        self._kernel = compiled(push_sample)
+        self._kernel, self._direct = compiled(push_sample), False
         cfg = s.validator.config
         est, det = s.bias_estimator, s.bias_estimator.detector
         aid = s.aiding
@@ -1030,14 +1030,17 @@ class _PushKernel:
         cs, nav = s.integrator.cubic, s.integrator._nav_const
         floor = (s.alignment.level_error_expected if s.alignment is not None
                  else s.config.accel_bias_sigma / STANDARD_GRAVITY) ** 2
-        return (cfg.max_gap_ns, float(cfg.max_rate_rad_s), ACCEL_ABSURD, SATURATION_MIN_RAD_S,
-                s.state.sat, est.mode == GyroBiasMode.AUTO), (
-            est.bf, est.bi, est.min_rest_ns, det.rf, det.ri, det.wt, det.wx, det.wc, est.pv,
-            est.pe, est.earth_n, s.latitude_rad is not None and est.mode == GyroBiasMode.AUTO,
-            s.intervals.ring, s.intervals.fill, kind, *g, *h, cs.ci, cs.ts, cs.ws, cs.cf,
-            nav is not None,
+        # every scalar of one Python type, always (the kernel is called without numba's
+        # dispatch once it has its one set of argument types: jit.direct)
+        return (int(cfg.max_gap_ns), float(cfg.max_rate_rad_s), float(ACCEL_ABSURD),
+                float(SATURATION_MIN_RAD_S), s.state.sat, est.mode == GyroBiasMode.AUTO), (
+            est.bf, est.bi, int(est.min_rest_ns), det.rf, det.ri, det.wt, det.wx, det.wc,
+            est.pv, est.pe, est.earth_n,
+            s.latitude_rad is not None and est.mode == GyroBiasMode.AUTO, s.intervals.ring,
+            s.intervals.fill, kind, *g, *h, cs.ci, cs.ts, cs.ws, cs.cf, nav is not None,
             *((0.0, 0.0, 0.0) if nav is None else (float(nav[0]), float(nav[1]), float(nav[2]))),
-            s.covariance.c, s.covariance.k2, s._n2, 0.0 if aid is None else aid.kp, floor)
+            s.covariance.c, float(s.covariance.k2), float(s._n2),
+            0.0 if aid is None else float(aid.kp), float(floor))
 
     #: the validator's verdict of a plain accept
     _ACCEPT = v.Verdict(v.ACCEPT)
@@ -1120,6 +1123,8 @@ class _PushKernel:
             st.counts[RATE_FIT_FALLBACK] += n_fb
             st.details.setdefault(RATE_FIT_FALLBACK, rate_fit_note(t_ns))
         if code == DONE:
+            if not self._direct:
+                self._kernel, self._direct = direct(self._kernel), True
             integ = s.integrator
             integ.samples += 1
             integ.last_t_ns = t_ns

@@ -16,7 +16,7 @@ from test_stream_real import MODES, hostile_field, hostile_rest_motion_rest
 from gyro_attitude.core.attitude import stream_loop
 from gyro_attitude.core.attitude.stream import RUNNING, AttitudeStream
 from gyro_attitude.core.attitude.validation import NOMINAL_INTERVALS
-from gyro_attitude.core.jit import backend, compiled, kernel
+from gyro_attitude.core.jit import backend, compiled, direct, kernel
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parents[2]
@@ -76,6 +76,22 @@ def test_compiled_and_python_kernels_give_the_same_attitudes_bit_for_bit():
         assert q_run == slow[mode][0] and q_push == slow[mode][2], mode
         assert var_run == slow[mode][1] and counts == slow[mode][3], mode
         assert len(q_run) > 1000
+
+
+@kernel
+def _scaled(x, k):
+    return x * k
+
+
+@pytest.mark.skipif(backend() != "numba", reason="numba is not installed")
+def test_direct_calls_the_one_compiled_form_and_leaves_the_dispatch_otherwise():
+    form = compiled(_scaled)
+    assert direct(form) is form  # nothing compiled yet
+    assert form(2.0, 3.0) == 6.0
+    fast = direct(form)
+    assert fast is not form and fast(2.0, 4.0) == 8.0  # the machine code of (float, float)
+    assert form(2, 3) == 6  # a second set of types: the dispatch is needed again
+    assert direct(form) is form
 
 
 def test_a_function_not_written_as_a_kernel_is_refused():
