@@ -12,7 +12,9 @@ run as separate processes on loopback, as deployed (best-effort sensor-data QoS 
   ``imu/data_raw`` message with the same header stamp; p50 / p99 / max. Both timestamps
   come from the same system clock (one machine). The probe takes both topics serialized
   (``raw=True``) and reads the stamp from the CDR bytes, so it stays light next to the
-  nodes it measures.
+  nodes it measures;
+* CPU from the first sample on (start-up excluded): the integrator's share of one core and its
+  CPU time per integrated sample (/proc), and the probe's own share.
 
 Peer in the same run: ``drain_queue:=false`` (plain rclpy, one message per executor wakeup)
 at 2 kHz.  ``GYRO_ATTITUDE_NODES_DURATION_S`` shortens (or lengthens) the time per rate.
@@ -47,6 +49,16 @@ def _stamp_of(cdr: bytes) -> int:
     return sec * 1_000_000_000 + nanosec
 
 
+def _cpu_s(pid: int) -> float | None:
+    """CPU time (user + system, s) a running process has used so far, from /proc (None where
+    there is no /proc or the process is gone)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except (OSError, IndexError):
+        return None
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def _env() -> dict[str, str]:
     from gyro_attitude.commands.demo import demo_environment
 
@@ -79,8 +91,13 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
     accepted = [0]
     published_total = [0]
 
+    cpu_at_first = {}  # the integrator's and the probe's CPU time when the first sample came
+
     def on_imu(cdr, info):
         published_at[_stamp_of(cdr)] = info["source_timestamp"]
+        if not cpu_at_first:
+            cpu_at_first.update(integrator=_cpu_s(integ.pid), probe=time.process_time(),
+                                wall=time.monotonic())
 
     def on_att(cdr, info):
         received_at[_stamp_of(cdr)] = info["received_timestamp"]
@@ -117,6 +134,7 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
         env=env, stdout=sim_log, stderr=subprocess.STDOUT, text=True,
         start_new_session=True)
     n_expected = int(round(rate_hz * duration_s))
+    cpu_at_end: dict = {}
     try:
         deadline = time.monotonic() + duration_s * 2 + 60
         while sim.poll() is None and time.monotonic() < deadline:
@@ -124,6 +142,8 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
         end = time.monotonic() + 1.0  # late attitudes and the last diagnostics
         while time.monotonic() < end:
             ex.spin_once(timeout_sec=0.01)
+        cpu_at_end = {"integrator": _cpu_s(integ.pid), "probe": time.process_time(),
+                      "wall": time.monotonic()}
         sim_log.seek(0)
         for line in sim_log.read().splitlines():
             if "published" in line and "samples" in line:
@@ -154,6 +174,15 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
     # sample's due time on the wall clock, so this is the timer's lateness, not drift)
     late = np.array([published_at[s] - s for s in published_at], dtype=np.float64) * 1e-6
     published = published_total[0] or n_expected
+    # CPU shares from the first sample on (start-up excluded): who used the two cores
+    cpu = {}
+    if cpu_at_first and cpu_at_first["integrator"] is not None and \
+            cpu_at_end.get("integrator") is not None:
+        wall = cpu_at_end["wall"] - cpu_at_first["wall"]
+        integ_cpu = cpu_at_end["integrator"] - cpu_at_first["integrator"]
+        cpu = {"integrator_cpu_share": integ_cpu / wall,
+               "integrator_cpu_us_per_sample": integ_cpu / max(accepted[0], 1) * 1e6,
+               "probe_cpu_share": (cpu_at_end["probe"] - cpu_at_first["probe"]) / wall}
     return {
         "suite": "nodes",
         "scene": scene,
@@ -174,6 +203,7 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
         "sim_late_p50_ms": float(np.percentile(late, 50)) if late.size else None,
         "sim_late_p99_ms": float(np.percentile(late, 99)) if late.size else None,
         "cpu_count": os.cpu_count(),
+        **cpu,
         # what the integrator said last, where it integrated nothing (why is then the question)
         "integrator_log_tail": integ_tail if accepted[0] == 0 else [],
     }
@@ -191,17 +221,24 @@ def run(quick: bool, out_dir: Path) -> list[dict]:
     print(f"nodes: gyro_sim -> attitude_integrator, {duration:g} s per rate, "
           f"{os.cpu_count()} cores (shared), ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']}")
     print(f"{'rate Hz':>9} {'published':>10} {'integrated':>10} {'lost':>6} "
-          f"{'p50 ms':>8} {'p99 ms':>8} {'max ms':>8}")
+          f"{'p50 ms':>8} {'p99 ms':>8} {'max ms':>8} {'integ CPU':>9} {'µs/sample':>9} "
+          f"{'probe CPU':>9}")
 
     def fmt(x):
         return f"{x:8.3f}" if x is not None else f"{'-':>8}"
+
+    def cpu(row):
+        if "integrator_cpu_share" not in row:
+            return f"{'-':>9} {'-':>9} {'-':>9}"
+        return (f"{row['integrator_cpu_share']:9.0%} {row['integrator_cpu_us_per_sample']:9.1f} "
+                f"{row['probe_cpu_share']:9.0%}")
 
     for rate in rates:
         row = measure_rate(rate, duration, env)
         rows.append(row)
         print(f"{rate:9.0f} {row['published']:10d} {row['integrated']:10d} {row['lost']:6d} "
               f"{fmt(row['latency_p50_ms'])} {fmt(row['latency_p99_ms'])} "
-              f"{fmt(row['latency_max_ms'])}", flush=True)
+              f"{fmt(row['latency_max_ms'])} {cpu(row)}", flush=True)
     # peer in the same run: the integrator without draining its queue per wakeup (plain
     # rclpy, one message per executor iteration), at the rate where the difference shows
     peer_rate = PEER_RATE_HZ
@@ -214,7 +251,8 @@ def run(quick: bool, out_dir: Path) -> list[dict]:
         rows.append(peer)
         print(f"{rate:9.0f} {peer['published']:10d} {peer['integrated']:10d} "
               f"{peer['lost']:6d} {fmt(peer['latency_p50_ms'])} {fmt(peer['latency_p99_ms'])} "
-              f"{fmt(peer['latency_max_ms'])}   <- peer: {' '.join(params)}", flush=True)
+              f"{fmt(peer['latency_max_ms'])} {cpu(peer)}   <- peer: {' '.join(params)}",
+              flush=True)
     ok = [r["rate_hz"] for r in main_rows if r["lost"] == 0]
     best = max(ok) if ok else None
     fast = [r["rate_hz"] for r in main_rows if r["lost"] == 0
