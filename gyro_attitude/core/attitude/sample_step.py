@@ -35,10 +35,26 @@ from gyro_attitude.core.attitude.validation import interval_add
 from gyro_attitude.core.jit import kernel
 
 __all__ = ["AFTER_BIAS", "BIAS_REFUSED", "DONE", "NOT_FINITE", "NOT_PLAIN",
-           "advance_accepted", "push_sample"]
+           "advance_accepted", "push_sample", "saturation_step"]
 
 #: :func:`push_sample`'s codes
 DONE, NOT_PLAIN, AFTER_BIAS, BIAS_REFUSED, NOT_FINITE = 0, 1, 2, 3, 4
+
+
+@kernel
+def saturation_step(sat, w0, w1, w2, sat_min):
+    """The axis (-1: none) on which the accepted sample ``w`` repeats the previous value at the
+    largest magnitude seen (at least ``sat_min``): a clip.  ``sat`` holds the largest |ω| per
+    axis (0:3) and the last ω (3:6), updated."""
+    pinned = -1
+    for i, x in ((0, w0), (1, w1), (2, w2)):
+        a = abs(x)
+        if a > sat[i]:
+            sat[i] = a
+        if a == sat[i] and x == sat[3 + i] and a >= sat_min:
+            pinned = i
+        sat[3 + i] = x
+    return pinned
 
 
 @kernel
@@ -105,15 +121,7 @@ def push_sample(t, w0, w1, w2, has_a, a0, a1, a2, accel_present, m_state, m0, m1
     if auto and (ri[R_COUNT] == wt.shape[0] or (ri[R_HAS_ACCEL] >= 0
                                                 and has_a != (ri[R_HAS_ACCEL] == 1))):
         return NOT_PLAIN, -1, 0, aided_seen, x, y, z, u
-    # saturation
-    pinned = -1
-    for i, v in ((0, w0), (1, w1), (2, w2)):
-        m = abs(v)
-        if m > sat[i]:
-            sat[i] = m
-        if m == sat[i] and v == sat[3 + i] and m >= sat_min:
-            pinned = i
-        sat[3 + i] = v
+    pinned = saturation_step(sat, w0, w1, w2, sat_min)
     # 2. rest -> gyro bias
     if auto:
         if bias_step(bf, bi, min_rest_ns, rf, ri, wt, wx, wc, pv, pe, earth_n, t, w0, w1, w2,

@@ -87,10 +87,11 @@ from gyro_attitude.core.attitude.sample_step import (
     NOT_FINITE,
     NOT_PLAIN,
     push_sample,
+    saturation_step,
 )
 from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.core.earth import STANDARD_GRAVITY
-from gyro_attitude.core.jit import compiled, direct, kernel
+from gyro_attitude.core.jit import compiled, direct
 from gyro_attitude.core.rotation import (
     quat_from_rotvec,
     quat_multiply,
@@ -132,20 +133,10 @@ EXTRA_COUNTS = (INVALID_COVARIANCE, INVALID_ACCEL, INTEGRATOR_ERROR, SATURATED, 
 GYRO_NOISE_UNKNOWN = "gyro_noise_unknown"  # a detail (said once), not a count
 
 
-@kernel
-def saturation_step(sat, w0, w1, w2):
-    """The axis (-1: none) on which the accepted sample ``w`` repeats the previous value at the
-    largest magnitude seen (≥ SATURATION_MIN_RAD_S): a clip; ``sat`` (largest |ω| per axis,
-    last ω per axis) updated."""
-    pinned = -1
-    for i, x in ((0, w0), (1, w1), (2, w2)):
-        a = abs(x)
-        if a > sat[i]:
-            sat[i] = a
-        if a == sat[i] and x == sat[3 + i] and a >= SATURATION_MIN_RAD_S:
-            pinned = i
-        sat[3 + i] = x
-    return pinned
+def field_absent(mag) -> bool:
+    """Whether a sample has no magnetic field: none given, or a row of NaN."""
+    return mag is None or (isinstance(mag, np.ndarray) and mag.shape == (3,)
+                           and bool(np.isnan(mag).all()))
 
 
 def _values(x) -> str:
@@ -300,6 +291,11 @@ class StreamState:
     def count(self, key: str, detail: str) -> None:
         self.counts[key] += 1
         self.details.setdefault(key, detail)
+
+    def count_fit_fallbacks(self, n: int, t_ns: int) -> None:
+        """``n`` intervals whose rate fit fell back, the first of them ending at ``t_ns``."""
+        self.counts[RATE_FIT_FALLBACK] += n
+        self.details.setdefault(RATE_FIT_FALLBACK, rate_fit_note(t_ns))
 
 
 class RunForm(StrEnum):
@@ -511,8 +507,8 @@ class AttitudeStream:
                              "(use run() over the whole recording, or a causal algorithm)")
         fast = self._fast
         if fast is not None:
-            if st_ok := fast.push(t_ns, omega, frame_id, angular_velocity_covariance, accel, mag):
-                return st_ok
+            if out := fast.push(t_ns, omega, frame_id, angular_velocity_covariance, accel, mag):
+                return out
             fast.args = None  # the Python steps below may change what it holds
         st = self.state
         # 1. validate
@@ -548,34 +544,41 @@ class AttitudeStream:
     def _gyro_variance(self, covariance):
         """The sample's per-axis gyro variances as 3 floats, or None (unknown; an invalid
         covariance counted, "no estimate" said once)."""
-        st = self.state
         var, invalid = gyro_variances(covariance)
-        if var is None and not invalid and GYRO_NOISE_UNKNOWN not in st.details and \
-                v.no_estimate(np.asarray(covariance).reshape(-1)):
-            st.details[GYRO_NOISE_UNKNOWN] = unknown_noise_note(self.config)
         if invalid:
-            st.count(INVALID_COVARIANCE, invalid_covariance_note(covariance))
-        if var is None:
+            self.state.count(INVALID_COVARIANCE, invalid_covariance_note(covariance))
             return None
-        st.variance_known = True
+        self._variance_seen(var, covariance)
         return var
+
+    def _variance_seen(self, var, covariance) -> None:
+        """A sample's gyro variances ``var`` (None: unknown) from a valid ``covariance``: the
+        orientation variance is known from now on, or "no estimate" is said once."""
+        st = self.state
+        if var is not None:
+            st.variance_known = True
+        elif covariance is not None and GYRO_NOISE_UNKNOWN not in st.details and \
+                v.no_estimate(np.asarray(covariance, dtype=np.float64).reshape(-1)):
+            st.details[GYRO_NOISE_UNKNOWN] = unknown_noise_note(self.config)
 
     def _mag_sample(self, mag, t_ns):
         """The sample's field for the aiding (magnetometer mode), counting absent ones (a row
         of NaN is no sample); the filter checks and counts the values."""
         if self.config.aiding is not Aiding.MAGNETOMETER:
             return None
-        if mag is None or (isinstance(mag, np.ndarray) and mag.shape == (3,)
-                           and np.isnan(mag).all()):
-            self._mag_missing += 1
-            self.state.details.setdefault(MAG_MISSING, f"no field sample at stamp {t_ns} "
-                                                       "(none within mag_max_age_s)")
+        if field_absent(mag):
+            self._field_missing(t_ns)
             return None
         return mag
 
+    def _field_missing(self, t_ns: int) -> None:
+        self._mag_missing += 1
+        self.state.details.setdefault(MAG_MISSING, f"no field sample at stamp {t_ns} "
+                                                   "(none within mag_max_age_s)")
+
     def _saturation_step(self, w: tuple) -> None:
         """Count an accepted sample pinned at a repeated extreme (:func:`saturation_step`)."""
-        axis = compiled(saturation_step)(self.state.sat, w[0], w[1], w[2])
+        axis = compiled(saturation_step)(self.state.sat, w[0], w[1], w[2], SATURATION_MIN_RAD_S)
         if axis >= 0:
             self.state.count(SATURATED, saturation_note(axis, w[axis]))
 
@@ -756,8 +759,7 @@ class AttitudeStream:
                 fell_back = integ.fit_fallbacks
                 q = integ.advance(t_ns, rate)
                 if integ.fit_fallbacks != fell_back:
-                    st.counts[RATE_FIT_FALLBACK] += integ.fit_fallbacks - fell_back
-                    st.details.setdefault(RATE_FIT_FALLBACK, rate_fit_note(t_ns))
+                    st.count_fit_fallbacks(integ.fit_fallbacks - fell_back, t_ns)
             else:
                 if action == v.RESET_TIME_JUMP:
                     q0 = st.q_initial
@@ -1083,9 +1085,8 @@ class _PushKernel:
             m = _as_floats(mag)
             if m is not None:
                 m_state, (m0, m1, m2) = MAG_GIVEN, m
-            elif mag is None or (isinstance(mag, np.ndarray) and mag.shape == (3,)
-                                 and np.isnan(mag).all()):
-                missing = True  # (a row of NaN is no sample: AttitudeStream._mag_sample)
+            elif field_absent(mag):
+                missing = True
             else:
                 m_state = MAG_NOT_FLOATS
         var_ok = var is not None
@@ -1107,29 +1108,20 @@ class _PushKernel:
         stamps.last = t_ns
         val._skipped = 0
         val.accepted += 1
-        if var_ok:
-            st.variance_known = True
-        elif covariance is not None and v.no_estimate(covariance) and \
-                GYRO_NOISE_UNKNOWN not in st.details:
-            st.details[GYRO_NOISE_UNKNOWN] = unknown_noise_note(s.config)
+        if var_ok or covariance is not None and covariance[0] == v.NO_ESTIMATE:
+            s._variance_seen(var, covariance)
         st.accel_present = has_a
         if missing:
-            s._mag_missing += 1
-            st.details.setdefault(MAG_MISSING, f"no field sample at stamp {t_ns} "
-                                               "(none within mag_max_age_s)")
+            s._field_missing(t_ns)
         if pinned >= 0:
             st.count(SATURATED, saturation_note(pinned, (w0, w1, w2)[pinned]))
         if n_fb:
-            st.counts[RATE_FIT_FALLBACK] += n_fb
-            st.details.setdefault(RATE_FIT_FALLBACK, rate_fit_note(t_ns))
+            st.count_fit_fallbacks(n_fb, t_ns)
         if code == DONE:
             if not self._direct:
                 self._kernel, self._direct = direct(self._kernel), True
-            integ = s.integrator
-            integ.samples += 1
-            integ.last_t_ns = t_ns
             q = (x, y, z, u)
-            integ._q = q
+            s.integrator.took(t_ns, q)
             st.aided_seen = seen
             st.q = q
             return self._ACCEPT, np.array(q)

@@ -67,13 +67,11 @@ from gyro_attitude.core.attitude.stream import (
     EXTRA_COUNTS,
     GYRO_NOISE_UNKNOWN,
     MAG_MISSING,
-    RATE_FIT_FALLBACK,
     RUNNING,
     RunForm,
     StreamResult,
     cannot_align,
     covariance_rows,
-    rate_fit_note,
     rows,
     unknown_noise_note,
 )
@@ -445,8 +443,7 @@ class _Compiled:
         st.aided_seen = seen
         st.q = (q0, q1, q2, q3)
         if n_fb:
-            st.counts[RATE_FIT_FALLBACK] += n_fb
-            st.details.setdefault(RATE_FIT_FALLBACK, rate_fit_note(int(self.t[first_fb])))
+            st.count_fit_fallbacks(n_fb, int(self.t[first_fb]))
         return True
 
     def settle(self) -> None:

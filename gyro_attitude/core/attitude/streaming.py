@@ -301,9 +301,7 @@ class StreamingIntegrator:
             else:
                 q = step(cs.ci, cs.ts, cs.ws, cs.cf, t, w[0], w[1], w[2], True, float(rate[0]),
                          float(rate[1]), float(rate[2]))
-            self.samples += 1
-            self.last_t_ns = t
-            self._q = q
+            self.took(t, q)
             return q
         zeta = None if self.nav is None else self._nav_zeta(t)
         self.samples += 1
@@ -328,6 +326,13 @@ class StreamingIntegrator:
         self.last_t_ns = t
         self._q = q
         return q
+
+    def took(self, t: int, q: tuple) -> None:
+        """The cubic's kernel took the sample at ``t`` to the attitude ``q`` (4 floats): the
+        Python side's count, last stamp and attitude follow."""
+        self.samples += 1
+        self.last_t_ns = t
+        self._q = q
 
     def update_increment(self, t_ns: int, delta_theta) -> np.ndarray:
         """Consume one angle increment over ``(last_t_ns, t_ns]`` (increment algorithms).
