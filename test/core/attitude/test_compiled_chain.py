@@ -166,6 +166,40 @@ def test_pushed_samples_step_compiled_except_where_something_happens(mode, monke
     assert len(python_steps) <= allowed, f"{len(python_steps)} of {t.size} through Python"
 
 
+@pytest.mark.parametrize("form", ["list", "tuple", "float32", "int_cov", "cov_3x3", "readonly"])
+def test_pushed_inputs_of_any_numeric_form_give_the_attitudes_of_float64_arrays(form):
+    # push() converts what it is given once; the compiled step then always gets one set of
+    # argument types (it is called without numba's dispatch): any numeric form of the same
+    # values gives the same attitudes, variances and counts, to the last bit
+    t, g, a, cov = hostile_rest_motion_rest()
+    mag = hostile_field(t.size)
+    g32 = g.astype(np.float32).astype(np.float64)  # values a float32 array holds exactly
+    if form == "int_cov":  # integers, as a driver may send them (4 (rad/s)² per axis)
+        cov = np.tile(np.diag([4.0, 4.0, 4.0]).reshape(9), (t.size, 1))
+    convert = {
+        "list": lambda x: x.tolist(), "tuple": lambda x: tuple(x.tolist()),
+        "float32": lambda x: x.astype(np.float32), "int_cov": lambda x: x,
+        "cov_3x3": lambda x: x, "readonly": lambda x: np.frombuffer(x.tobytes()),
+    }[form]
+
+    def pushed(as_given):
+        s = AttitudeStream(config=MODES["level_magnetometer_enu"])
+        out = []
+        for k in range(t.size):
+            c = cov[k]
+            if as_given and form == "int_cov":
+                c = c.astype(np.int64)
+            elif as_given and form == "cov_3x3":
+                c = c.reshape(3, 3)
+            w = convert(g32[k].astype(np.float64)) if as_given else g32[k]
+            acc = convert(a[k]) if as_given and form != "float32" else a[k]
+            q = s.push(int(t[k]), w, "imu", c, acc, mag[k])[1]
+            out.append(None if q is None else (q.tolist(), s.variance.tolist()))
+        return out, s.counts
+
+    assert pushed(True) == pushed(False)
+
+
 def test_the_pushed_input_rate_and_jitter_are_the_stamps():
     # the interval statistics of the diagnostics, from the compiled step's ring
     rng = np.random.default_rng(4)
