@@ -276,6 +276,14 @@ def run_node(name: str, make_node: Callable[[], Node], args=None, *,
                     executor.shutdown()
                 except Exception:  # handles of a context a signal shut down
                     pass
+                # An executor whose wait was cut short by the signal leaves its suspended
+                # wait generator in a reference cycle (the exception's traceback) with every
+                # entity's handle still entered; destroy_node then waits, spinning, for the
+                # node's handle to be out of use, forever (seen under load: a node still
+                # running a minute after SIGINT, its stack in destroy_node).  Collecting the
+                # cycle closes the generator and releases the handles first.
+                executor = None
+                gc.collect()
             if node is not None:
                 try:
                     if finish is not None:

@@ -37,6 +37,8 @@ def ros_env(ros_domain_id) -> dict[str, str]:
     env["PYTHONUNBUFFERED"] = "1"
     env["RCUTILS_LOGGING_BUFFERED_STREAM"] = "0"
     env["MPLBACKEND"] = "Agg"
+    # a node that hangs can be made to show where (SIGABRT prints every thread's stack)
+    env["PYTHONFAULTHANDLER"] = "1"
     return env
 
 

@@ -190,7 +190,9 @@ def test_integrator_rejects_bad_input_and_refuses_bad_parameters(launch, ros_nod
         send(t1 + k * dt_ns)
     n_accepted = 10 + 10 + 6 + 4
 
-    assert ros_node.spin_until(lambda: len(att) >= n_accepted, timeout=20), integ.output()
+    # both outputs: imu/data (the covariances read below) may arrive after the attitudes
+    assert ros_node.spin_until(lambda: len(att) >= n_accepted and len(imu_out) >= n_accepted,
+                               timeout=20), integ.output()
 
     def last_values():
         for d in reversed(diag):

@@ -81,8 +81,12 @@ def test_signal_single_and_repeated_exit_zero_without_traceback(sig, launch, tmp
             # tens of seconds; a hang is reported with what the node said, not a bare timeout)
             code = proc.proc.wait(timeout=60)
         except subprocess.TimeoutExpired:
-            proc.proc.kill()
-            proc.proc.wait()
+            proc.proc.send_signal(signal.SIGABRT)  # its threads' stacks into its log
+            try:
+                proc.proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                proc.proc.kill()
+                proc.proc.wait()
             failures.append(f"{what}: still running 60 s after the signal\n{proc.output()}")
             continue
         text = proc.output()
