@@ -16,8 +16,9 @@ run as separate processes on loopback, as deployed (best-effort sensor-data QoS 
 * CPU from the first sample on (start-up excluded): the integrator's share of one core and its
   CPU time per integrated sample (/proc), and the probe's own share.
 
-Peer in the same run: ``drain_queue:=false`` (plain rclpy, one message per executor wakeup)
-at 2 kHz.  ``GYRO_ATTITUDE_NODES_DURATION_S`` shortens (or lengthens) the time per rate.
+Peers in the same run: ``executor:=single_threaded drain_queue:=false`` (plain rclpy, one
+message per executor wakeup) at 2 kHz; in full runs ``executor:=single_threaded`` (rclpy's
+executor, draining the queue per wakeup) at 4 and 8 kHz, against the default input thread.  ``GYRO_ATTITUDE_NODES_DURATION_S`` shortens (or lengthens) the time per rate.
 
 The highest rate with zero loss is the sustained rate. Everything shares the machine's
 cores (sim, integrator, probe, and whatever else runs): quote figures with the conditions.
@@ -41,6 +42,8 @@ QUICK_RATES = (1000.0, 2000.0, 4000.0)
 FULL_RATES = (500.0, 1000.0, 2000.0, 4000.0, 6000.0, 8000.0)
 LATENCY_TARGET_P99_MS = 2.0
 PEER_RATE_HZ = 2000.0  # the drain_queue:=false peer runs at this rate
+# the single-threaded executor (draining) instead of the input thread, full runs only
+SINGLE_THREADED_PEER_RATES_HZ = (4000.0, 8000.0)
 _STAMP = struct.Struct("<iI")  # CDR (little endian): 4-byte encapsulation header, then stamp
 
 
@@ -69,23 +72,31 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
                  reliability: str = "best_effort", scene: str = "coning",
                  integrator_params: tuple[str, ...] = ()) -> dict:
     """Run sim + integrator at ``rate_hz`` for ``duration_s``; return one result row."""
+    import threading
+
     import rclpy
     from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import QuaternionStamped
     from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import Imu
 
     from gyro_attitude.commands.demo import node_command
+    from gyro_attitude.ros.input_thread import InputThread
     from gyro_attitude.ros.qos import imu_qos
 
     ns = f"/bench_nodes_{os.getpid()}_{int(rate_hz)}"
     context = Context()
     rclpy.init(context=context, domain_id=int(env["ROS_DOMAIN_ID"]))
     node = rclpy.create_node("bench_probe", namespace=ns, context=context)
-    ex = SingleThreadedExecutor(context=context)
-    ex.add_node(node)
+    # the probe takes its topics as the integrator does (one thread, its own wait set): an
+    # executor would cost it more CPU per message than the nodes it measures
+    inputs = InputThread(context, threading.Lock(), name="bench probe inputs")
+
+    def subscribe(msg_type, topic, callback, qos, raw=False, with_info=False):
+        sub = node.create_subscription(msg_type, topic, callback, qos, raw=raw,
+                                       callback_group=inputs.group)
+        inputs.add(sub, callback, with_info=with_info)
     published_at: dict[int, int] = {}
     received_at: dict[int, int] = {}
     accepted = [0]
@@ -108,15 +119,16 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
                 if kv.key == "accepted":
                     accepted[0] = int(kv.value)
 
-    node.create_subscription(Imu, f"{ns}/imu/data_raw", on_imu, imu_qos("best_effort", 50000),
-                             raw=True)
-    node.create_subscription(QuaternionStamped, f"{ns}/attitude", on_att,
-                             QoSProfile(depth=50000, reliability=ReliabilityPolicy.RELIABLE),
-                             raw=True)
+    subscribe(Imu, f"{ns}/imu/data_raw", on_imu, imu_qos("best_effort", 50000), raw=True,
+              with_info=True)
+    subscribe(QuaternionStamped, f"{ns}/attitude", on_att,
+              QoSProfile(depth=50000, reliability=ReliabilityPolicy.RELIABLE), raw=True,
+              with_info=True)
     common = ["--ros-args", "-r", f"__ns:={ns}", "-p", f"qos_reliability:={reliability}"]
     integ_args = common + ["-p", "diagnostics_period_s:=0.25",
                            "-r", f"/diagnostics:={ns}/diagnostics"]
-    node.create_subscription(DiagnosticArray, f"{ns}/diagnostics", on_diag, 50)
+    subscribe(DiagnosticArray, f"{ns}/diagnostics", on_diag, 50)
+    inputs.start()
     for assignment in integrator_params:
         integ_args += ["-p", assignment]
     # the nodes' output goes to files, read after: a pipe nobody reads while they run fills
@@ -137,11 +149,9 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
     cpu_at_end: dict = {}
     try:
         deadline = time.monotonic() + duration_s * 2 + 60
-        while sim.poll() is None and time.monotonic() < deadline:
-            ex.spin_once(timeout_sec=0.01)
-        end = time.monotonic() + 1.0  # late attitudes and the last diagnostics
-        while time.monotonic() < end:
-            ex.spin_once(timeout_sec=0.01)
+        while sim.poll() is None and time.monotonic() < deadline and inputs.running:
+            time.sleep(0.01)
+        time.sleep(1.0)  # late attitudes and the last diagnostics
         cpu_at_end = {"integrator": _cpu_s(integ.pid), "probe": time.process_time(),
                       "wall": time.monotonic()}
         sim_log.seek(0)
@@ -157,13 +167,15 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
                 except subprocess.TimeoutExpired:
                     os.killpg(p.pid, signal.SIGKILL)
                     p.wait()
-        ex.shutdown()
+        inputs.stop()
         node.destroy_node()
         rclpy.shutdown(context=context)
         integ_log.seek(0)
         integ_tail = integ_log.read().splitlines()[-5:]
         sim_log.close()
         integ_log.close()
+    if inputs.failure is not None:  # the probe's own failure, not the nodes'
+        raise inputs.failure
 
     pairs = [received_at[s] - published_at[s] for s in received_at if s in published_at]
     # where losses happened (sample index from the first stamp seen by the probe)
@@ -243,7 +255,10 @@ def run(quick: bool, out_dir: Path) -> list[dict]:
     # rclpy, one message per executor iteration), at the rate where the difference shows
     peer_rate = PEER_RATE_HZ
     main_rows = list(rows)
-    peers = [(peer_rate, ("drain_queue:=false",), "drain_queue:=true (default)")]
+    peers = [(peer_rate, ("executor:=single_threaded", "drain_queue:=false"),
+              "executor:=input_thread (default)")]
+    peers += [(rate, ("executor:=single_threaded",), "executor:=input_thread (default)")
+              for rate in (SINGLE_THREADED_PEER_RATES_HZ if not quick else ())]
     for rate, params, of in peers:
         peer = measure_rate(rate, duration, env, integrator_params=params)
         peer["peer_of"] = of

@@ -65,6 +65,7 @@ from __future__ import annotations
 
 import math
 import sys
+import threading
 import time
 from dataclasses import replace
 
@@ -109,7 +110,8 @@ from gyro_attitude.core.attitude.truth import TruthStart
 from gyro_attitude.core.attitude.world_frame import frame_id_of, from_enu_one
 from gyro_attitude.io.cdr_arrays import ImuCdr, QuaternionStampedCdr
 from gyro_attitude.ros import convert
-from gyro_attitude.ros.node_main import EXECUTORS, run_node
+from gyro_attitude.ros.input_thread import InputThread, spin_with_inputs
+from gyro_attitude.ros.node_main import EXECUTORS, INPUT_THREAD, run_node
 from gyro_attitude.ros.params import (
     ParameterError,
     ParamSpec,
@@ -147,16 +149,20 @@ def parameter_specs(settings=SETTINGS) -> list[ParamSpec]:
                   "imu/data_raw subscription reliability", choices=("best_effort", "reliable")),
         ParamSpec("qos_depth", 1000, "imu/data_raw subscription queue depth", low=1,
                   high=100000),
-        ParamSpec("executor", "single_threaded",
-                  "rclpy executor: single_threaded (rclpy's default; drain_queue applies) | "
-                  "events (rclpy.experimental.EventsExecutor: EXPERIMENTAL, with the pinned "
-                  "Jazzy rclpy its spin() holds the GIL while waiting, so timers and other "
-                  "threads starve; falls back to single_threaded where it is missing)",
+        ParamSpec("executor", INPUT_THREAD,
+                  "how inputs are taken: input_thread (a thread of the node waits on the input "
+                  "subscriptions alone and takes every queued message; rclpy's single-threaded "
+                  "executor serves the timers and parameter services) | single_threaded "
+                  "(rclpy's default executor for everything; drain_queue applies) | events "
+                  "(rclpy.experimental.EventsExecutor: EXPERIMENTAL, with the pinned Jazzy "
+                  "rclpy its spin() holds the GIL while waiting, so timers and other threads "
+                  "starve; falls back to single_threaded where it is missing)",
                   choices=EXECUTORS),
         ParamSpec("drain_queue", True,
-                  "single_threaded executor: take all queued Imu messages per wakeup (less "
+                  "executor single_threaded: take all queued Imu messages per wakeup (less "
                   "overhead at high rates); false: one message per wakeup (plain rclpy). The "
-                  "events executor delivers every message itself and never drains"),
+                  "input thread always takes every queued message; the events executor "
+                  "delivers every message itself and never drains"),
         ParamSpec("diagnostics_period_s", 1.0, "period of /diagnostics [s]", low=0.01,
                   high=3600.0),
     ]
@@ -174,7 +180,12 @@ class AttitudeIntegratorNode(Node):
         self.executor_kind = p["executor"]  # read by node_main.run_node
         # taking messages from the subscription's handle behind the events executor's back
         # would leave its per-message events without a message: drain only without it
-        self._drain = p["drain_queue"] and p["executor"] != "events"
+        self._drain = p["drain_queue"] and p["executor"] == "single_threaded"
+        # the stream and the counters: taken by the input thread per batch of messages, by
+        # the executor's callbacks (diagnostics, parameter changes) per call
+        self._lock = threading.RLock()
+        self.inputs = (InputThread(self.context, self._lock, name=f"{NODE_NAME} inputs")
+                       if p["executor"] == INPUT_THREAD else None)
         try:
             config = self._stream_config(p)
             self._nav = config.nav_frame()
@@ -225,25 +236,26 @@ class AttitudeIntegratorNode(Node):
         # every input takes the one QoS rule: best effort (the default) matches any publisher,
         # reliable ones and the best-effort republishing of a bag without offered profiles
         qos = imu_qos(p["qos_reliability"], p["qos_depth"])
-        # serialized (raw): read in place and republished with the orientation filled in
-        # (ImuCdr), instead of a Python message built and serialized per sample
-        self._sub_imu = self.create_subscription(Imu, "imu/data_raw", self._on_imu_wakeup, qos,
-                                                 raw=True)
         if self._truth_start is not None:
-            self.create_subscription(QuaternionStamped, "truth/attitude", self._on_truth, qos)
+            self._subscribe(QuaternionStamped, "truth/attitude", self._on_truth, qos)
         if p["odometry_topic"]:
             if self._nav is None:
                 self.get_logger().warning(
                     f"odometry_topic '{p['odometry_topic']}' is ignored with frame=inertial")
             else:
-                self._sub_odom = self.create_subscription(
+                self._sub_odom = self._subscribe(
                     Odometry, p["odometry_topic"], self._on_odometry,
                     imu_qos(p["qos_reliability"], self._ODOM_QUEUE))
         self._mag = None
         if config.aiding is Aiding.MAGNETOMETER:
             self._mag = LatestSamples(int(round(config.mag_max_age_s * 1e9)))
-            self._sub_mag = self.create_subscription(MagneticField, p["mag_topic"], self._on_mag,
-                                                     qos)
+            self._sub_mag = self._subscribe(MagneticField, p["mag_topic"], self._on_mag, qos)
+        # serialized (raw): read in place and republished with the orientation filled in
+        # (ImuCdr), instead of a Python message built and serialized per sample. Subscribed
+        # last: the input thread takes the other inputs' queued messages before the Imu's.
+        self._sub_imu = self._subscribe(
+            Imu, "imu/data_raw", self._on_imu_raw if self.inputs else self._on_imu_wakeup,
+            qos, raw=True)
         self.create_timer(p["diagnostics_period_s"], self._publish_diagnostics)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.get_logger().info(
@@ -253,6 +265,16 @@ class AttitudeIntegratorNode(Node):
         )
 
     # ------------------------------------------------------------------ set-up helpers
+    def _subscribe(self, msg_type, topic: str, callback, qos, raw: bool = False):
+        """An input subscription: taken by the input thread when there is one, else by the
+        executor."""
+        if self.inputs is None:
+            return self.create_subscription(msg_type, topic, callback, qos, raw=raw)
+        sub = self.create_subscription(msg_type, topic, callback, qos, raw=raw,
+                                       callback_group=self.inputs.group)
+        self.inputs.add(sub, callback)
+        return sub
+
     def _check_distinct_topics(self, p, config) -> None:
         """One input per topic, none on an output of this node
         (:mod:`~gyro_attitude.core.attitude.input_topics`), the names resolved (namespace and
@@ -288,6 +310,10 @@ class AttitudeIntegratorNode(Node):
         return StreamConfig(**{s.name: p[s.name] for s in SETTINGS})
 
     def _on_set_parameters(self, params) -> SetParametersResult:
+        with self._lock:
+            return self._set_parameters(params)
+
+    def _set_parameters(self, params) -> SetParametersResult:
         reason = check_update(self._specs, params)
         if reason is not None:
             return SetParametersResult(successful=False, reason=reason)
@@ -480,8 +506,13 @@ class AttitudeIntegratorNode(Node):
         variance = self._stream.variance
         cov = (convert.UNKNOWN_COVARIANCE if variance is None
                else convert.covariance_from_variances(variance))
-        self._pub_imu.publish(msg.with_orientation(x, y, z, w, cov))
-        self._pub_att.publish(self._att_cdr.encode(msg.stamp_cdr, x, y, z, w))
+        # only to topics somebody subscribes to: a write without a matched reader costs the
+        # middleware as much as one with (history, serialization), and is never seen (the
+        # outputs are volatile: nobody joining later receives earlier samples)
+        if self._pub_imu.get_subscription_count():
+            self._pub_imu.publish(msg.with_orientation(x, y, z, w, cov))
+        if self._pub_att.get_subscription_count():
+            self._pub_att.publish(self._att_cdr.encode(msg.stamp_cdr, x, y, z, w))
         self._published += 1
 
     # ------------------------------------------------------------------ diagnostics
@@ -541,6 +572,10 @@ class AttitudeIntegratorNode(Node):
         return values
 
     def _publish_diagnostics(self) -> None:
+        with self._lock:
+            self._publish_diagnostics_locked()
+
+    def _publish_diagnostics_locked(self) -> None:
         v = self._stream
         values = self.diagnostics_values()
         new_rejected = v.rejected_total - self._last_period_rejected
@@ -588,7 +623,7 @@ def alignment_summary(res) -> str:
 
 def main(args=None) -> int:
     """Spin the node until SIGINT/SIGTERM; exit 0, or 2 on an invalid parameter."""
-    return run_node(NODE_NAME, AttitudeIntegratorNode, args)
+    return run_node(NODE_NAME, AttitudeIntegratorNode, args, spin=spin_with_inputs)
 
 
 

@@ -38,7 +38,7 @@ from gyro_attitude.ros.params import ParameterError
 RCLError = _rclpy.RCLError
 
 __all__ = ["run_node", "InputError", "ShutdownSignals", "EXIT_OK", "EXIT_INPUT",
-           "EXIT_OUTPUT", "EXIT_PARAMETER", "EXECUTORS", "make_executor",
+           "EXIT_OUTPUT", "EXIT_PARAMETER", "EXECUTORS", "INPUT_THREAD", "make_executor",
            "spin_executor"]
 
 EXIT_OK = 0
@@ -131,18 +131,22 @@ def _params_file_problem(args: list[str] | None) -> str | None:
     return None
 
 
-#: ``executor`` parameter values: ``single_threaded`` is rclpy's default SingleThreadedExecutor;
-#: ``events`` is rclpy.experimental.EventsExecutor (Jazzy), which waits on the middleware's
-#: per-entity events instead of rebuilding a wait set for every callback (the tens of µs per
-#: message of the default executor).  Not the default: with the pinned Jazzy wheels
-#: (ros-jazzy-rclpy 7.1.6) its ``spin()`` holds the GIL while it waits: a 10 Hz timer did not
-#: fire once in 2 s, a publishing thread never ran, and ``spin_once`` hung on a queue of
-#: 20 000 messages (checked by hand, 2026-12-01).
-EXECUTORS = ("events", "single_threaded")
+#: ``executor`` parameter values: ``input_thread`` takes a node's input subscriptions on a
+#: thread of its own (:mod:`gyro_attitude.ros.input_thread`) and leaves the rest (timers,
+#: parameter services) to rclpy's SingleThreadedExecutor; ``single_threaded`` is that executor
+#: for everything; ``events`` is rclpy.experimental.EventsExecutor (Jazzy), which waits on the
+#: middleware's per-entity events instead of rebuilding a wait set for every callback.
+#: ``events`` is not the default: with the pinned Jazzy wheels (ros-jazzy-rclpy 7.1.6) its
+#: ``spin()`` holds the GIL while it waits: a 10 Hz timer did not fire once in 2 s, a
+#: publishing thread never ran, and ``spin_once`` hung on a queue of 20 000 messages (checked
+#: by hand, 2026-12-01).
+INPUT_THREAD = "input_thread"
+EXECUTORS = (INPUT_THREAD, "single_threaded", "events")
 
 
 def make_executor(kind: str, say: Callable[[str], None] | None = None):
-    """The executor ``kind`` (one of :data:`EXECUTORS`); ``events`` falls back to the
+    """The executor ``kind`` (one of :data:`EXECUTORS`; ``input_thread``: the single-threaded
+    one, beside the node's input thread); ``events`` falls back to the
     single-threaded one (with a line through ``say``) where this rclpy has no events executor
     or it cannot be built."""
     from rclpy.executors import SingleThreadedExecutor
