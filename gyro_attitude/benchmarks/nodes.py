@@ -18,7 +18,11 @@ run as separate processes on loopback, as deployed (best-effort sensor-data QoS 
 
 Peers in the same run: ``executor:=single_threaded drain_queue:=false`` (plain rclpy, one
 message per executor wakeup) at 2 kHz; in full runs ``executor:=single_threaded`` (rclpy's
-executor, draining the queue per wakeup) at 4 and 8 kHz, against the default input thread.  ``GYRO_ATTITUDE_NODES_DURATION_S`` shortens (or lengthens) the time per rate.
+executor, draining the queue per wakeup) at 4 and 8 kHz, against the default input thread.
+The floor, in full runs at 4 and 8 kHz: ``benchmarks/relay_node.py`` in the integrator's place,
+the same input thread and ``attitude`` output but no estimation: what no Python estimator node
+can beat on the same machine and middleware.  ``GYRO_ATTITUDE_NODES_DURATION_S`` shortens
+(or lengthens) the time per rate.
 
 The highest rate with zero loss is the sustained rate. Everything shares the machine's
 cores (sim, integrator, probe, and whatever else runs): quote figures with the conditions.
@@ -44,6 +48,8 @@ LATENCY_TARGET_P99_MS = 2.0
 PEER_RATE_HZ = 2000.0  # the drain_queue:=false peer runs at this rate
 # the single-threaded executor (draining) instead of the input thread, full runs only
 SINGLE_THREADED_PEER_RATES_HZ = (4000.0, 8000.0)
+# the relay node (the integrator's I/O, no estimation) in its place, full runs only
+FLOOR_RATES_HZ = (4000.0, 8000.0)
 _STAMP = struct.Struct("<iI")  # CDR (little endian): 4-byte encapsulation header, then stamp
 
 
@@ -68,10 +74,15 @@ def _env() -> dict[str, str]:
     return demo_environment()
 
 
+RELAY_COMMAND = (sys.executable, "-m", "gyro_attitude.benchmarks.relay_node")
+
+
 def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
                  reliability: str = "best_effort", scene: str = "coning",
-                 integrator_params: tuple[str, ...] = ()) -> dict:
-    """Run sim + integrator at ``rate_hz`` for ``duration_s``; return one result row."""
+                 integrator_params: tuple[str, ...] = (),
+                 integrator_command: tuple[str, ...] | None = None) -> dict:
+    """Run sim + integrator at ``rate_hz`` for ``duration_s``; return one result row.
+    ``integrator_command``: another node in the integrator's place (the relay floor)."""
     import threading
 
     import rclpy
@@ -135,7 +146,8 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
     # (64 KiB) and then blocks the node that writes to it, which the latency would measure
     integ_log = tempfile.TemporaryFile("w+")
     sim_log = tempfile.TemporaryFile("w+")
-    integ = subprocess.Popen(node_command("attitude_integrator") + integ_args, env=env,
+    command = list(integrator_command or node_command("attitude_integrator"))
+    integ = subprocess.Popen(command + integ_args, env=env,
                              stdout=subprocess.DEVNULL, stderr=integ_log, text=True,
                              start_new_session=True)
     sim = subprocess.Popen(
@@ -202,6 +214,7 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
         "duration_s": duration_s,
         "qos": reliability,
         "integrator_params": list(integrator_params),
+        "node": "relay (I/O only)" if integrator_command else "attitude_integrator",
         "published": published,
         "integrated": accepted[0],
         "lost": published - accepted[0],
@@ -259,14 +272,20 @@ def run(quick: bool, out_dir: Path) -> list[dict]:
               "executor:=input_thread (default)")]
     peers += [(rate, ("executor:=single_threaded",), "executor:=input_thread (default)")
               for rate in (SINGLE_THREADED_PEER_RATES_HZ if not quick else ())]
+    # the floor: a node with the integrator's I/O and no estimation (benchmarks/relay_node.py)
+    floor_rates = () if quick else FLOOR_RATES_HZ
+    peers += [(rate, (), "the floor: I/O only") for rate in floor_rates]
     for rate, params, of in peers:
-        peer = measure_rate(rate, duration, env, integrator_params=params)
+        relay = of.startswith("the floor")
+        peer = measure_rate(rate, duration, env, integrator_params=params,
+                            integrator_command=RELAY_COMMAND if relay else None)
         peer["peer_of"] = of
         peer["integrator_params"] = list(params)
         rows.append(peer)
         print(f"{rate:9.0f} {peer['published']:10d} {peer['integrated']:10d} "
               f"{peer['lost']:6d} {fmt(peer['latency_p50_ms'])} {fmt(peer['latency_p99_ms'])} "
-              f"{fmt(peer['latency_max_ms'])} {cpu(peer)}   <- peer: {' '.join(params)}",
+              f"{fmt(peer['latency_max_ms'])} {cpu(peer)}   <- "
+              + ("floor: relay node, I/O only" if relay else f"peer: {' '.join(params)}"),
               flush=True)
     ok = [r["rate_hz"] for r in main_rows if r["lost"] == 0]
     best = max(ok) if ok else None

@@ -16,11 +16,11 @@ import pytest
 
 pytest.importorskip("rclpy")
 
-from geometry_msgs.msg import QuaternionStamped  # noqa: E402
-from rclpy.event_handler import SubscriptionEventCallbacks  # noqa: E402
-from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
+from geometry_msgs.msg import QuaternionStamped
+from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from gyro_attitude.ros.input_thread import InputThread, spin_with_inputs  # noqa: E402
+from gyro_attitude.ros.input_thread import InputThread, spin_with_inputs
 
 RELIABLE = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 

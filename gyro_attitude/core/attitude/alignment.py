@@ -52,9 +52,11 @@ from gyro_attitude.core.attitude.ahrs import MAG_ABSURD_T, MAG_ZERO_T
 from gyro_attitude.core.attitude.modes import SettingError
 from gyro_attitude.core.attitude.rest import RestDetector, check_sample, check_samples, detect_rest
 from gyro_attitude.core.earth import OMEGA_IE, check_latitude
+from gyro_attitude.core.jit import compiled, kernel
 from gyro_attitude.core.rotation import quat_from_matrix
 
-__all__ = ["AlignmentResult", "StaticAligner", "align", "level_quaternion", "gyrocompass_heading"]
+__all__ = ["AlignmentResult", "StaticAligner", "align", "gyrocompass_heading", "level_q",
+           "level_quaternion"]
 
 
 @dataclass(frozen=True)
@@ -87,24 +89,38 @@ def _c_lb(roll: float, pitch: float) -> np.ndarray:
     return ry @ rx
 
 
-def level_quaternion(f_b, heading: float) -> tuple[np.ndarray, float, float]:
-    """``(q_nb, roll, pitch)`` with body z along the measured up ``f_b`` and the given heading."""
-    fx, fy, fz = (float(c) for c in f_b)
-    if not math.isfinite(fx * fy * fz) or math.hypot(fx, fy, fz) < 1.0:
-        raise ValueError(f"specific force {f_b!r} is not a usable gravity measurement")
+@kernel
+def level_q(fx, fy, fz, heading):
+    """:func:`level_quaternion` in plain floats, for the compiled chain (the per-sample path
+    while aligning takes the Earth rate out at it): ``(usable, x, y, z, w, roll, pitch)``;
+    ``usable`` False (and the identity) when ``f`` is no gravity measurement."""
+    if not (math.isfinite(fx * fy * fz) and fx * fx + fy * fy + fz * fz >= 1.0):
+        return False, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0
     roll = math.atan2(fy, fz)
     pitch = math.atan2(-fx, math.hypot(fy, fz))
     psi = math.pi / 2 - heading
-    # Rz(ψ) Ry(θ) Rx(φ) as the product of the three half-angle quaternions, in plain floats
-    # (the per-sample path while aligning takes it for every sample; a matrix and
+    # Rz(ψ) Ry(θ) Rx(φ) as the product of the three half-angle quaternions (a matrix and
     # quat_from_matrix cost ~30× more)
     cr, sr = math.cos(roll / 2), math.sin(roll / 2)
     cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
     cz, sz = math.cos(psi / 2), math.sin(psi / 2)
-    q = (cz * cp * sr - sz * sp * cr, cz * sp * cr + sz * cp * sr,
-         sz * cp * cr - cz * sp * sr, cz * cp * cr + sz * sp * sr)
-    sign = -1.0 if q[3] < 0 else 1.0  # w >= 0, as quat_from_matrix gives
-    return np.array([sign * q[0], sign * q[1], sign * q[2], sign * q[3]]), roll, pitch
+    x = cz * cp * sr - sz * sp * cr
+    y = cz * sp * cr + sz * cp * sr
+    z = sz * cp * cr - cz * sp * sr
+    w = cz * cp * cr + sz * sp * sr
+    if w < 0:  # w >= 0, as quat_from_matrix gives
+        return True, -x, -y, -z, -w, roll, pitch
+    return True, x, y, z, w, roll, pitch
+
+
+def level_quaternion(f_b, heading: float) -> tuple[np.ndarray, float, float]:
+    """``(q_nb, roll, pitch)`` with body z along the measured up ``f_b`` and the given heading
+    (:func:`level_q`, compiled: the same numbers as the compiled chain's)."""
+    fx, fy, fz = (float(c) for c in f_b)
+    ok, x, y, z, w, roll, pitch = compiled(level_q)(fx, fy, fz, float(heading))
+    if not ok:
+        raise ValueError(f"specific force {f_b!r} is not a usable gravity measurement")
+    return np.array([x, y, z, w]), roll, pitch
 
 
 def level_quaternions(f_b: np.ndarray, heading: float) -> tuple[np.ndarray, np.ndarray]:
@@ -310,8 +326,16 @@ class StaticAligner:
             return True
         if accel is None:
             raise ValueError("alignment needs the accelerometer (accel is None)")
-        at_rest = self.detector.update(t_ns, gyro, accel)
         t, g, a = check_sample(t_ns, gyro, accel)
+        return self.update_checked(t, g, a, mag)
+
+    def update_checked(self, t: int, g: tuple, a: tuple, mag=None) -> bool:
+        """:meth:`update` for a sample already through :func:`.rest.check_sample` (int
+        stamp, 3 finite floats of sane size each for the gyro and the accelerometer), as
+        :class:`AttitudeStream`'s validated samples are."""
+        if self.done:
+            return True
+        at_rest = self.detector.update_checked(t, g, a)
         index = self.detector.samples - 1
         m = usable_field(mag, self._opt.hard_iron) if self._opt.mag_heading else None
         self._pending.append((index, t, g, a, m))

@@ -15,7 +15,10 @@ else happens it stops, and the stream's Python steps take over from that point:
   an unusable or changed accelerometer, the rest window's ring full);
 * :data:`AFTER_BIAS` after the bias stage, when a new estimate may still be applied back to the
   start; :data:`BIAS_REFUSED` when the bias stage refused the sample (the window to break);
-* :data:`NOT_FINITE` after a non-finite attitude (the interval not yet counted).
+* :data:`NOT_FINITE` after a non-finite attitude (the interval not yet counted);
+* :data:`ALIGN` after the bias stage while aligning (the aligner's step is Python's); the
+  bias stage then takes the Earth rate out at the level attitude of the sample's specific force
+  (:func:`.alignment.level_q`), as :meth:`AttitudeStream._bias_attitude` does.
 
 So the node's per-sample path runs the same kernels as :meth:`run` and :meth:`push`'s Python
 form, in one interpreter call.
@@ -26,6 +29,7 @@ from __future__ import annotations
 import math
 
 from gyro_attitude.core.attitude.ahrs import I_AIDED, ahrs_step
+from gyro_attitude.core.attitude.alignment import level_q
 from gyro_attitude.core.attitude.covariance import aid_tilt, propagate, zero_rate_update
 from gyro_attitude.core.attitude.gravity_aiding import G_AIDED, gravity_step
 from gyro_attitude.core.attitude.gyro_bias import B_BIAS, B_SE, J_UPDATED, bias_step
@@ -34,11 +38,11 @@ from gyro_attitude.core.attitude.streaming import C_FALLBACKS, C_LAST_T, cubic_a
 from gyro_attitude.core.attitude.validation import interval_add
 from gyro_attitude.core.jit import kernel
 
-__all__ = ["AFTER_BIAS", "BIAS_REFUSED", "DONE", "NOT_FINITE", "NOT_PLAIN",
+__all__ = ["AFTER_BIAS", "ALIGN", "BIAS_REFUSED", "DONE", "NOT_FINITE", "NOT_PLAIN",
            "advance_accepted", "push_sample", "saturation_step"]
 
 #: :func:`push_sample`'s codes
-DONE, NOT_PLAIN, AFTER_BIAS, BIAS_REFUSED, NOT_FINITE = 0, 1, 2, 3, 4
+DONE, NOT_PLAIN, AFTER_BIAS, BIAS_REFUSED, NOT_FINITE, ALIGN = 0, 1, 2, 3, 4, 5
 
 
 @kernel
@@ -100,14 +104,15 @@ def advance_accepted(kind, gp, gf, gi, pa, af, ai, ci, ts, ws, cf, has_nav, n0, 
 @kernel
 def push_sample(t, w0, w1, w2, has_a, a0, a1, a2, accel_present, m_state, m0, m1, m2, var_ok,
                 s0, s1, s2, last_t, period, max_gap_ns, max_rate, accel_absurd, sat_min, sat,
-                auto, first_rest_pending, bf, bi, min_rest_ns, rf, ri, wt, wx, wc, pv, pe,
+                auto, first_rest_pending, aligning, heading, bf, bi, min_rest_ns, rf, ri, wt, wx, wc, pv, pe,
                 earth_n, earth, ring, fill, kind, gp, gf, gi, pa, af, ai, ci, ts, ws, cf, has_nav,
                 n0, n1, n2, c, k2, noise2, kp, floor_var, aided_seen, x, y, z, u):
     """One sample through the chain (module docstring): (code, the saturated axis or -1,
     fits that fell back, the aiding's sample count, the attitude).  ``accel_present`` the
     accelerometer's presence so far (-1 not known); ``last_t``/``period`` the validator's last
     stamp and nominal period (0 while being learnt); ``earth`` whether the bias stage takes
-    the Earth rate out at the attitude."""
+    the Earth rate out at the attitude (while ``aligning``: at the level attitude with
+    ``heading``, rad)."""
     # 1. the validator's plain accept, and the accelerometer usable as before: or Python
     if not (abs(w0) <= max_rate and abs(w1) <= max_rate and abs(w2) <= max_rate):
         return NOT_PLAIN, -1, 0, aided_seen, x, y, z, u
@@ -118,19 +123,26 @@ def push_sample(t, w0, w1, w2, has_a, a0, a1, a2, accel_present, m_state, m0, m1
         return NOT_PLAIN, -1, 0, aided_seen, x, y, z, u
     if accel_present >= 0 and has_a != (accel_present == 1):
         return NOT_PLAIN, -1, 0, aided_seen, x, y, z, u
+    if aligning and not has_a:  # the alignment needs the accelerometer: Python says so
+        return NOT_PLAIN, -1, 0, aided_seen, x, y, z, u
     if auto and (ri[R_COUNT] == wt.shape[0] or (ri[R_HAS_ACCEL] >= 0
                                                 and has_a != (ri[R_HAS_ACCEL] == 1))):
         return NOT_PLAIN, -1, 0, aided_seen, x, y, z, u
     pinned = saturation_step(sat, w0, w1, w2, sat_min)
     # 2. rest -> gyro bias
     if auto:
+        ex, ey, ez, eu = x, y, z, u
+        if aligning and earth:
+            earth, ex, ey, ez, eu, _, _ = level_q(a0, a1, a2, heading)
         if bias_step(bf, bi, min_rest_ns, rf, ri, wt, wx, wc, pv, pe, earth_n, t, w0, w1, w2,
-                     has_a, a0, a1, a2, earth, x, y, z, u) < 0:
+                     has_a, a0, a1, a2, earth, ex, ey, ez, eu) < 0:
             return BIAS_REFUSED, pinned, 0, aided_seen, x, y, z, u
         if bi[J_UPDATED] == 1:
             if first_rest_pending:
                 return AFTER_BIAS, pinned, 0, aided_seen, x, y, z, u
             zero_rate_update(c, bf[B_SE], bf[B_SE + 1], bf[B_SE + 2])
+    if aligning:
+        return ALIGN, pinned, 0, aided_seen, x, y, z, u
     # 4.-6. aiding, integration, covariance
     ok, n_fb, seen, dt, qx, qy, qz, qu = advance_accepted(
         kind, gp, gf, gi, pa, af, ai, ci, ts, ws, cf, has_nav, n0, n1, n2, c, k2, noise2, kp,

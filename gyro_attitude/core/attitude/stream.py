@@ -82,6 +82,7 @@ from gyro_attitude.core.attitude.modes import (
     SettingError,
 )
 from gyro_attitude.core.attitude.sample_step import (
+    AFTER_BIAS,
     BIAS_REFUSED,
     DONE,
     NOT_FINITE,
@@ -679,7 +680,8 @@ class AttitudeStream:
         self.alignment_error = None
         al = self.aligner
         try:
-            done = al.update(t_ns, w, a, mag)
+            # the validator took t, w and a (finite, |w| ≤ max_rate ≤ 1e6, |a| ≤ 1e6)
+            done = al.update_checked(t_ns, w, a, mag)
         except ValueError:
             self.aligner = self._new_aligner()
             return None
@@ -1017,6 +1019,7 @@ class _PushKernel:
         self.s = s
         self.args = None
         self._mag_mode = s.config.aiding is Aiding.MAGNETOMETER
+        self._heading = math.radians(s.config.initial_heading_deg)  # the aligning Earth rate
         self._cov_row, self._cov_judged = None, (None, False)
 
     def _build(self) -> tuple:
@@ -1054,7 +1057,7 @@ class _PushKernel:
         st = s.state
         val = s.validator
         stamps = val._stamps
-        if st.phase is not RUNNING or type(t_ns) is not int or frame_id != val.frame_id \
+        if st.phase is FAILED or type(t_ns) is not int or frame_id != val.frame_id \
                 or stamps.period is None:
             return None
         try:
@@ -1099,8 +1102,8 @@ class _PushKernel:
         x, y, z, u = st.q
         code, pinned, n_fb, seen, x, y, z, u = self._kernel(
             t_ns, w0, w1, w2, has_a, a0, a1, a2, present, m_state, m0, m1, m2, var_ok, s0,
-            s1, s2, stamps.last, stamps.period, *head, st.first_rest_pending, *tail,
-            st.aided_seen, x, y, z, u)
+            s1, s2, stamps.last, stamps.period, *head, st.first_rest_pending,
+            st.phase is ALIGNING, self._heading, *tail, st.aided_seen, x, y, z, u)
         if code == NOT_PLAIN:
             return None
         # what the Python steps before the bias stage do besides (validator, variances,
@@ -1125,18 +1128,26 @@ class _PushKernel:
             st.aided_seen = seen
             st.q = q
             return self._ACCEPT, np.array(q)
-        self.args = None
         if code == NOT_FINITE:
+            self.args = None
             s.integrator.synced()
             return s._integrator_error(self._ACCEPT, "non-finite attitude: last good one restored")
         est = s.bias_estimator
         if code == BIAS_REFUSED:
+            self.args = None
             est.break_window()
-        else:  # AFTER_BIAS: a new estimate while the first may still go back to the start
+        elif code == AFTER_BIAS:  # a new estimate while the first may still go back to the start
+            self.args = None
             s._bias_published(previous)
         bias = est.bias_floats
         a = (a0, a1, a2) if has_a else None
         mag_in = None if m_state == MAG_ABSENT else mag
+        if st.phase is ALIGNING:  # ALIGN, or the bias stage's Python step while aligning
+            q = s._align_step(t_ns, (w0, w1, w2), a, var, bias, mag_in)
+            if st.phase is not ALIGNING:  # aligned (or failed): the stages started afresh
+                self.args = None
+            return self._ACCEPT, None if q is None else np.array(q)
+        self.args = None
         verdict, q = s._integrate(self._ACCEPT, t_ns, (w0 - bias[0], w1 - bias[1], w2 - bias[2]), a,
                                   var, mag_in)
         return verdict, None if q is None else np.array(q)

@@ -306,6 +306,7 @@ def compile_kernels(config=None, algorithm: str | None = None) -> None:
     from dataclasses import replace
 
     from gyro_attitude.core.attitude import DEFAULT_ALGORITHM
+    from gyro_attitude.core.attitude.alignment import level_quaternion
     from gyro_attitude.core.attitude.modes import HeadingSource, InitialAttitudeSource
     from gyro_attitude.core.attitude.settings import StreamConfig
     from gyro_attitude.core.attitude.stream import AttitudeStream
@@ -322,6 +323,7 @@ def compile_kernels(config=None, algorithm: str | None = None) -> None:
         StreamConfig(aiding=aiding, gyro_noise_density=1e-4, mag_hard_iron_estimate=True)
         for aiding in Aiding]
     algorithm = algorithm or DEFAULT_ALGORITHM
+    level_quaternion((0.0, 0.0, STANDARD_GRAVITY), 0.0)  # levelling's own call (alignment)
     for cfg in configs:
         cfg = replace(cfg, initial_attitude_source=InitialAttitudeSource.PARAMETER,
                       heading_source=HeadingSource.PARAMETER)
