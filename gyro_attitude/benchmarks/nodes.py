@@ -14,7 +14,7 @@ run as separate processes on loopback, as deployed (best-effort sensor-data QoS 
   (``raw=True``) and reads the stamp from the CDR bytes, so it stays light next to the
   nodes it measures;
 * CPU from the first sample on (start-up excluded): the integrator's share of one core and its
-  CPU time per integrated sample (/proc), and the probe's own share.
+  CPU time per integrated sample (/proc), the simulator's share and the probe's own share.
 
 Peers in the same run: ``executor:=single_threaded drain_queue:=false`` (plain rclpy, one
 message per executor wakeup) at 2 kHz; in full runs ``executor:=single_threaded`` (rclpy's
@@ -118,8 +118,8 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
     def on_imu(cdr, info):
         published_at[_stamp_of(cdr)] = info["source_timestamp"]
         if not cpu_at_first:
-            cpu_at_first.update(integrator=_cpu_s(integ.pid), probe=time.process_time(),
-                                wall=time.monotonic())
+            cpu_at_first.update(integrator=_cpu_s(integ.pid), sim=_cpu_s(sim.pid),
+                                probe=time.process_time(), wall=time.monotonic())
 
     def on_att(cdr, info):
         received_at[_stamp_of(cdr)] = info["received_timestamp"]
@@ -164,8 +164,8 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
         while sim.poll() is None and time.monotonic() < deadline and inputs.running:
             time.sleep(0.01)
         time.sleep(1.0)  # late attitudes and the last diagnostics
-        cpu_at_end = {"integrator": _cpu_s(integ.pid), "probe": time.process_time(),
-                      "wall": time.monotonic()}
+        cpu_at_end = {"integrator": _cpu_s(integ.pid), "sim": _cpu_s(sim.pid),
+                      "probe": time.process_time(), "wall": time.monotonic()}
         sim_log.seek(0)
         for line in sim_log.read().splitlines():
             if "published" in line and "samples" in line:
@@ -207,6 +207,8 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
         cpu = {"integrator_cpu_share": integ_cpu / wall,
                "integrator_cpu_us_per_sample": integ_cpu / max(accepted[0], 1) * 1e6,
                "probe_cpu_share": (cpu_at_end["probe"] - cpu_at_first["probe"]) / wall}
+        if cpu_at_first.get("sim") is not None and cpu_at_end.get("sim") is not None:
+            cpu["sim_cpu_share"] = (cpu_at_end["sim"] - cpu_at_first["sim"]) / wall
     return {
         "suite": "nodes",
         "scene": scene,
@@ -247,16 +249,18 @@ def run(quick: bool, out_dir: Path) -> list[dict]:
           f"{os.cpu_count()} cores (shared), ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']}")
     print(f"{'rate Hz':>9} {'published':>10} {'integrated':>10} {'lost':>6} "
           f"{'p50 ms':>8} {'p99 ms':>8} {'max ms':>8} {'integ CPU':>9} {'µs/sample':>9} "
-          f"{'probe CPU':>9}")
+          f"{'probe CPU':>9} {'sim CPU':>9}")
 
     def fmt(x):
         return f"{x:8.3f}" if x is not None else f"{'-':>8}"
 
     def cpu(row):
         if "integrator_cpu_share" not in row:
-            return f"{'-':>9} {'-':>9} {'-':>9}"
+            return f"{'-':>9} {'-':>9} {'-':>9} {'-':>9}"
+        sim = row.get("sim_cpu_share")
         return (f"{row['integrator_cpu_share']:9.0%} {row['integrator_cpu_us_per_sample']:9.1f} "
-                f"{row['probe_cpu_share']:9.0%}")
+                f"{row['probe_cpu_share']:9.0%} " + (f"{sim:9.0%}" if sim is not None
+                                                     else f"{'-':>9}"))
 
     for rate in rates:
         row = measure_rate(rate, duration, env)

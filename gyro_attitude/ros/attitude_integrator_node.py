@@ -503,13 +503,13 @@ class AttitudeIntegratorNode(Node):
 
     def _publish(self, msg: ImuCdr, q: np.ndarray) -> None:
         x, y, z, w = from_enu_one(q.tolist(), self._world)
-        variance = self._stream.variance
-        cov = (convert.UNKNOWN_COVARIANCE if variance is None
-               else convert.covariance_from_variances(variance))
         # only to topics somebody subscribes to: a write without a matched reader costs the
         # middleware as much as one with (history, serialization), and is never seen (the
         # outputs are volatile: nobody joining later receives earlier samples)
         if self._pub_imu.get_subscription_count():
+            variance = self._stream.variance
+            cov = (convert.UNKNOWN_COVARIANCE if variance is None
+                   else convert.covariance_from_variances(variance))
             self._pub_imu.publish(msg.with_orientation(x, y, z, w, cov))
         if self._pub_att.get_subscription_count():
             self._pub_att.publish(self._att_cdr.encode(msg.stamp_cdr, x, y, z, w))
