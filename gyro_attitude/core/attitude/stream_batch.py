@@ -213,6 +213,15 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
 
     # the chain's state after the last row, as push() would leave it
     q_out = q[out_from - start:]
+    # the input rate and jitter push() counts: the interval before each plainly accepted row
+    # it integrated (not a start, a restart after a gap or a jump, nor the first row after
+    # the alignment: the integration starts there), since the last time jump (which clears
+    # them)
+    codes = v.ACTION_CODES
+    jumps = np.flatnonzero(actv[start:] == codes[v.RESET_TIME_JUMP])
+    first = start + (int(jumps[-1]) if jumps.size else 0) + 1
+    plain = first + np.flatnonzero(actv[first:] == codes[v.ACCEPT])
+    s.intervals.extend((tv[plain] - tv[plain - 1])[-s.intervals.window:])
     if m:
         st.start_t_ns = int(tv[0])
         st.accel_present = None if a_ok is None else (bool(a_ok[-1]) or None)
