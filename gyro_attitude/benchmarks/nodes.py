@@ -139,7 +139,6 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
     integ_args = common + ["-p", "diagnostics_period_s:=0.25",
                            "-r", f"/diagnostics:={ns}/diagnostics"]
     subscribe(DiagnosticArray, f"{ns}/diagnostics", on_diag, 50)
-    inputs.start()
     for assignment in integrator_params:
         integ_args += ["-p", assignment]
     # the nodes' output goes to files, read after: a pipe nobody reads while they run fills
@@ -157,6 +156,7 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
             "-p", "wait_timeout_s:=30.0", "-p", "publish_truth:=false"],
         env=env, stdout=sim_log, stderr=subprocess.STDOUT, text=True,
         start_new_session=True)
+    inputs.start()  # after both processes exist (the first Imu reads their CPU time)
     n_expected = int(round(rate_hz * duration_s))
     cpu_at_end: dict = {}
     try:

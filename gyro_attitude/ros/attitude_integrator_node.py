@@ -258,11 +258,20 @@ class AttitudeIntegratorNode(Node):
             qos, raw=True)
         self.create_timer(p["diagnostics_period_s"], self._publish_diagnostics)
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        if self.inputs is not None:
+            # started here, not by the spin: the node takes its inputs however it is spun
+            # (rclpy.spin, any executor, a container); destroy_node stops it
+            self.inputs.start()
         self.get_logger().info(
             f"integrating imu/data_raw with '{p['algorithm']}' in frame '{config.frame}' "
             f"(initial attitude from {config.initial_attitude_source}, "
             f"QoS {p['qos_reliability']}/{p['qos_depth']})"
         )
+
+    def destroy_node(self):
+        if self.inputs is not None:
+            self.inputs.stop()  # joined before the subscriptions it waits on are destroyed
+        return super().destroy_node()
 
     # ------------------------------------------------------------------ set-up helpers
     def _subscribe(self, msg_type, topic: str, callback, qos, raw: bool = False):
@@ -506,14 +515,17 @@ class AttitudeIntegratorNode(Node):
         # only to topics somebody subscribes to: a write without a matched reader costs the
         # middleware as much as one with (history, serialization), and is never seen (the
         # outputs are volatile: nobody joining later receives earlier samples)
+        sent = False
         if self._pub_imu.get_subscription_count():
             variance = self._stream.variance
             cov = (convert.UNKNOWN_COVARIANCE if variance is None
                    else convert.covariance_from_variances(variance))
             self._pub_imu.publish(msg.with_orientation(x, y, z, w, cov))
+            sent = True
         if self._pub_att.get_subscription_count():
             self._pub_att.publish(self._att_cdr.encode(msg.stamp_cdr, x, y, z, w))
-        self._published += 1
+            sent = True
+        self._published += sent  # the samples whose attitude went out on a topic
 
     # ------------------------------------------------------------------ diagnostics
     def diagnostics_values(self) -> dict[str, str]:

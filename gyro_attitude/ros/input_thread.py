@@ -84,6 +84,9 @@ class InputThread:
         return self._thread is not None and self._thread.is_alive()
 
     def start(self) -> None:
+        """Start taking messages (once; later calls do nothing)."""
+        if self._thread is not None:
+            return
         self._wake = GuardCondition(None, None, context=self._context)
         self._thread = threading.Thread(target=self._run, name=self._name, daemon=True)
         self._thread.start()
@@ -136,9 +139,10 @@ class InputThread:
                         if event.is_ready(wait_set):
                             taken = event.take_data()
                             if taken:
-                                event.callback(taken)
+                                with self._lock:
+                                    event.callback(taken)
                     self._take_all()
-        except Exception as exc:
+        except BaseException as exc:  # SystemExit from a handler ends the node too
             if not (self._stop.is_set() or not self._context.ok()):
                 self.failure = exc  # not a shutdown: the owner reports it
 
@@ -172,7 +176,7 @@ def spin_with_inputs(node, executor) -> None:
     if inputs is None:
         executor.spin()
         return
-    inputs.start()
+    inputs.start()  # (a node may have started it already)
     try:
         while node.context.ok() and inputs.running:
             executor.spin_once(timeout_sec=0.2)

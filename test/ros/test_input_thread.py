@@ -111,3 +111,30 @@ def test_a_failing_handler_ends_the_spin_with_its_exception(ros_node):
     with pytest.raises(ZeroDivisionError, match="message 3"):
         spin_with_inputs(owner, ros_node.executor_)
     assert not inputs.running
+
+
+def test_the_integrator_takes_its_inputs_however_it_is_spun(ros_node):
+    """Spun by a plain rclpy executor (not run_node's spin): the node's own thread takes the
+    Imu messages; destroy_node stops and joins it."""
+    from sensor_msgs.msg import Imu
+
+    from gyro_attitude.ros.attitude_integrator_node import AttitudeIntegratorNode
+
+    node = AttitudeIntegratorNode(context=ros_node.context, namespace=ros_node.get_namespace())
+    ros_node.executor_.add_node(node)  # the test's executor spins both nodes
+    try:
+        assert node.inputs is not None and node.inputs.running
+        pub = ros_node.create_publisher(Imu, "imu/data_raw", RELIABLE)
+        assert ros_node.spin_until(lambda: pub.get_subscription_count() >= 1, 30.0)
+        for k in range(1, 201):
+            m = Imu()
+            m.header.stamp.sec, m.header.stamp.nanosec = 1, k * 5_000_000
+            m.header.frame_id = "imu"
+            m.linear_acceleration.z = 9.81
+            pub.publish(m)
+        assert ros_node.spin_until(lambda: node._stream.accepted >= 200, 30.0), \
+            node._stream.accepted
+    finally:
+        ros_node.executor_.remove_node(node)
+        node.destroy_node()
+    assert not node.inputs.running

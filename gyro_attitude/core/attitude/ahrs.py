@@ -64,6 +64,7 @@ from gyro_attitude.core.angles import wrap_pi_float
 from gyro_attitude.core.attitude.modes import SettingError
 from gyro_attitude.core.attitude.settings import setting
 from gyro_attitude.core.attitude.stage_state import time_base
+from gyro_attitude.core.attitude.validation import within
 from gyro_attitude.core.earth import STANDARD_GRAVITY
 from gyro_attitude.core.jit import compiled, kernel
 
@@ -493,7 +494,7 @@ def _heading(pa, af, ai, dt, mag_state, m0, m1, m2, hx, hy, hz, c00, c01, c02, c
              c20, c21, c22):
     """(heading correction (nav z rotation), steady) of one magnetometer sample (tesla);
     ``h`` the body rotation over half the step (see update)."""
-    if mag_state != MAG_GIVEN or not max(abs(m0), abs(m1), abs(m2)) <= MAG_ABSURD_T:
+    if mag_state != MAG_GIVEN or not within(m0, m1, m2, MAG_ABSURD_T):
         ai[I_MAG_INVALID] += 1
         return 0.0, False
     mx, my, mz = m0 - af[A_HARD_IRON], m1 - af[A_HARD_IRON + 1], m2 - af[A_HARD_IRON + 2]

@@ -35,7 +35,7 @@ from gyro_attitude.core.attitude.gravity_aiding import G_AIDED, gravity_step
 from gyro_attitude.core.attitude.gyro_bias import B_BIAS, B_SE, J_UPDATED, bias_step
 from gyro_attitude.core.attitude.rest import R_COUNT, R_HAS_ACCEL
 from gyro_attitude.core.attitude.streaming import C_FALLBACKS, C_LAST_T, cubic_advance
-from gyro_attitude.core.attitude.validation import interval_add
+from gyro_attitude.core.attitude.validation import interval_add, within
 from gyro_attitude.core.jit import kernel
 
 __all__ = ["AFTER_BIAS", "ALIGN", "BIAS_REFUSED", "DONE", "NOT_FINITE", "NOT_PLAIN",
@@ -119,7 +119,7 @@ def push_sample(t, w0, w1, w2, has_a, a0, a1, a2, accel_present, m_state, m0, m1
     dt = t - last_t
     if dt <= 0 or dt > max_gap_ns or period <= 0 or 2 * dt >= 3 * period:
         return NOT_PLAIN, -1, 0, aided_seen, x, y, z, u
-    if has_a and not (max(abs(a0), abs(a1), abs(a2)) <= accel_absurd):  # NaN fails
+    if has_a and not within(a0, a1, a2, accel_absurd):  # NaN, inf or absurd: Python counts it
         return NOT_PLAIN, -1, 0, aided_seen, x, y, z, u
     if accel_present >= 0 and has_a != (accel_present == 1):
         return NOT_PLAIN, -1, 0, aided_seen, x, y, z, u

@@ -568,6 +568,13 @@ class IntervalStatistics:
 
 
 @kernel
+def within(x, y, z, bound):
+    """Each of ``x``, ``y``, ``z`` a number of magnitude at most ``bound`` (NaN is not).  Not
+    ``max(abs(x), abs(y), abs(z)) <= bound``: ``max`` skips a NaN after the first place."""
+    return abs(x) <= bound and abs(y) <= bound and abs(z) <= bound
+
+
+@kernel
 def interval_add(ring, fill, dt_ns):
     """:meth:`IntervalStatistics.add` on its ring."""
     ring[fill[1]] = dt_ns
