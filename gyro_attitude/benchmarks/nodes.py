@@ -161,11 +161,15 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
     cpu_at_end: dict = {}
     try:
         deadline = time.monotonic() + duration_s * 2 + 60
+        sim_seen = None  # (CPU, wall) of the simulator when last seen running: /proc has
+        #                  nothing of it once it has exited and been reaped
         while sim.poll() is None and time.monotonic() < deadline and inputs.running:
-            time.sleep(0.01)
+            if cpu_at_first and (sim_cpu := _cpu_s(sim.pid)) is not None:
+                sim_seen = (sim_cpu, time.monotonic())
+            time.sleep(0.1)
         time.sleep(1.0)  # late attitudes and the last diagnostics
-        cpu_at_end = {"integrator": _cpu_s(integ.pid), "sim": _cpu_s(sim.pid),
-                      "probe": time.process_time(), "wall": time.monotonic()}
+        cpu_at_end = {"integrator": _cpu_s(integ.pid), "probe": time.process_time(),
+                      "wall": time.monotonic(), "sim": sim_seen}
         sim_log.seek(0)
         for line in sim_log.read().splitlines():
             if "published" in line and "samples" in line:
@@ -207,8 +211,10 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
         cpu = {"integrator_cpu_share": integ_cpu / wall,
                "integrator_cpu_us_per_sample": integ_cpu / max(accepted[0], 1) * 1e6,
                "probe_cpu_share": (cpu_at_end["probe"] - cpu_at_first["probe"]) / wall}
-        if cpu_at_first.get("sim") is not None and cpu_at_end.get("sim") is not None:
-            cpu["sim_cpu_share"] = (cpu_at_end["sim"] - cpu_at_first["sim"]) / wall
+        if cpu_at_first.get("sim") is not None and cpu_at_end["sim"] is not None:
+            sim_cpu, sim_wall = cpu_at_end["sim"]
+            cpu["sim_cpu_share"] = ((sim_cpu - cpu_at_first["sim"])
+                                    / max(sim_wall - cpu_at_first["wall"], 1e-9))
     return {
         "suite": "nodes",
         "scene": scene,

@@ -312,12 +312,12 @@ def run_node(name: str, make_node: Callable[[], Node], args=None, *,
                     executor.shutdown()
                 except Exception:  # handles of a context a signal shut down
                     pass
-                # An executor whose wait was cut short by the signal leaves its suspended
+                # An executor whose wait was cut short by the signal can leave its suspended
                 # wait generator in a reference cycle (the exception's traceback) with every
-                # entity's handle still entered; destroy_node then waits, spinning, for the
-                # node's handle to be out of use, forever (seen under load: a node still
-                # running a minute after SIGINT, its stack in destroy_node).  Collecting the
-                # cycle closes the generator and releases the handles first.
+                # entity's handle still entered, which destroy_node would wait for.
+                # Collecting the cycle closes the generator and releases the handles first.
+                # (It was the suspect of a teardown hang seen under load; the hang recurred
+                # with this in place: _exit_if_teardown_hangs bounds it.)
                 executor = None
                 gc.collect()
             if node is not None:

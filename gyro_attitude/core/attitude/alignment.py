@@ -51,6 +51,7 @@ from gyro_attitude.core.angles import wrap_2pi
 from gyro_attitude.core.attitude.ahrs import MAG_ABSURD_T, MAG_ZERO_T
 from gyro_attitude.core.attitude.modes import SettingError
 from gyro_attitude.core.attitude.rest import RestDetector, check_sample, check_samples, detect_rest
+from gyro_attitude.core.attitude.validation import within
 from gyro_attitude.core.earth import OMEGA_IE, check_latitude
 from gyro_attitude.core.jit import compiled, kernel
 from gyro_attitude.core.rotation import quat_from_matrix
@@ -202,9 +203,7 @@ def usable_field(m, hard_iron) -> tuple[float, float, float] | None:
         x, y, z = (float(c) for c in m)
     except (TypeError, ValueError):
         return None
-    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)
-            and max(abs(x), abs(y), abs(z)) <= MAG_ABSURD_T
-            and x * x + y * y + z * z >= MAG_ZERO_T * MAG_ZERO_T):
+    if not (within(x, y, z, MAG_ABSURD_T) and x * x + y * y + z * z >= MAG_ZERO_T * MAG_ZERO_T):
         return None
     return x - hard_iron[0], y - hard_iron[1], z - hard_iron[2]
 

@@ -594,8 +594,7 @@ class AttitudeStream:
                     accel.tolist() if isinstance(accel, np.ndarray) and accel.ndim == 1 else accel))
             except (TypeError, ValueError):
                 x = y = z = math.nan
-            if math.isfinite(x) and math.isfinite(y) and math.isfinite(z) and \
-                    max(abs(x), abs(y), abs(z)) <= ACCEL_ABSURD:
+            if v.within(x, y, z, ACCEL_ABSURD):  # the compiled step's bound
                 a = (x, y, z)
             else:
                 st.count(INVALID_ACCEL, invalid_accel_note(accel))
