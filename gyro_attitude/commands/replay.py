@@ -232,6 +232,9 @@ def run(args) -> int:
     print(f"  wall {out['wall_seconds']:.3f} s ({out['messages_per_second']:.0f} msg/s): "
           f"read {out['read_seconds']:.3f} s, integrate {out['integrate_seconds']:.3f} s, "
           f"write {out['write_seconds']:.3f} s")
+    if out["working_bytes_on_disk"]:
+        print(f"  {out['working_bytes_on_disk'] / 1e6:.0f} MB of working arrays kept on disk "
+              "beside the output (unlinked files, gone when the replay ends)")
     if out["truth_matched"]:
         print(f"  vs {out['truth_topic']} ({out['truth_matched']} stamps): final error "
               f"{np.degrees(out['final_error_rad']):.3e} deg, max "

@@ -59,10 +59,11 @@ class _TopicArrays:
     def __len__(self) -> int:
         return int(self.stamp_ns.shape[0])
 
-    def in_log_time_order(self):
+    def in_log_time_order(self, empty=np.empty):
         """These messages in log-time order, file order among equal log times: the order
         ``ros2 bag play`` and ``mcap_player`` deliver them (the one order rule of replay and
-        player). ``self`` when already in that order (no copy)."""
+        player). ``self`` when already in that order (no copy); else the reordered columns
+        come from ``empty(shape, dtype)`` (e.g. :meth:`.spool.Spool.empty`)."""
         log = self.log_time_ns
         if log.size < 2 or not (log[1:] < log[:-1]).any():
             return self
@@ -74,7 +75,7 @@ class _TopicArrays:
             if isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == log.size \
                     and v.strides[0] != 0:  # a broadcast constant row stays as it is
                 if id(v) not in done:
-                    done[id(v)] = v[order]
+                    done[id(v)] = np.take(v, order, axis=0, out=empty(v.shape, v.dtype))
                 changes[f.name] = done[id(v)]
         return dataclasses.replace(self, **changes)
 
@@ -123,8 +124,9 @@ _ARRAY_CLASSES = {IMU_TYPE: ImuArrays, QUATERNION_STAMPED_TYPE: QuaternionArrays
 
 
 class _Collector:
-    def __init__(self, topic: str, type_name: str, fields=None):
+    def __init__(self, topic: str, type_name: str, fields=None, empty=np.empty):
         self.topic = topic
+        self.empty = empty  # allocator of the recording-length columns
         self.type_name = type_name
         all_fields = _FIELDS[type_name]
         if fields is None:
@@ -156,11 +158,11 @@ class _Collector:
     def preallocate(self, count: int) -> None:
         """Size the output for ``count`` messages (from the file's summary statistics):
         chunks are then copied straight into place, with no final concatenation."""
-        self.out = {k: np.empty(count, np.int64)
+        self.out = {k: self.empty(count, np.int64)
                     for k in ("stamp_ns", "log_time_ns", "publish_time_ns")}
         for name, width in self.fields.items():
             if name not in self.constant:
-                self.out[name] = np.empty((count, width), np.float64)
+                self.out[name] = self.empty((count, width), np.float64)
 
     def _room(self, m: int) -> bool:
         if self.out is not None and self.pos + m > len(self.out["stamp_ns"]):
@@ -193,7 +195,7 @@ class _Collector:
         # views, which result() concatenates).
         del self.constant[name]
         if self.out is not None:
-            full = np.empty((len(self.out["stamp_ns"]), self.fields[name]), np.float64)
+            full = self.empty((len(self.out["stamp_ns"]), self.fields[name]), np.float64)
             full[:self.pos] = row
             self.out[name] = full
         return False
@@ -280,7 +282,7 @@ class _Collector:
             elif self.out is not None:
                 out[k] = self.out[k][:self.pos]
             elif self.parts:
-                out[k] = np.concatenate([p[k] for p in self.parts])
+                out[k] = _concatenated([p[k] for p in self.parts], self.empty)
             else:
                 width = self.fields.get(k)
                 out[k] = np.zeros((0,) if width is None else (0, width),
@@ -292,6 +294,12 @@ class _Collector:
         return cls(topic=self.topic, frame_id=self.frame_ids[0] if self.frame_ids else "",
                    frame_ids=set(self.frame_ids), fast_messages=self.fast,
                    fallback_messages=self.fallback, damage=damage, **out)
+
+
+def _concatenated(parts: list[np.ndarray], empty) -> np.ndarray:
+    """``np.concatenate(parts)`` into an array from ``empty(shape, dtype)``."""
+    shape = (sum(len(p) for p in parts), *parts[0].shape[1:])
+    return np.concatenate(parts, out=empty(shape, parts[0].dtype))
 
 
 def deserialized(data, msg_type, topic: str, type_name: str, log_time: int):
@@ -407,7 +415,8 @@ def _decode_chunk_channel(col: _Collector, records: bytes, offsets: np.ndarray,
 def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
                       validate_crc: bool = True,
                       progress: Callable[[int, int], None] | None = None,
-                      required: bool = True, fields: dict | None = None) -> dict:
+                      required: bool = True, fields: dict | None = None,
+                      empty=np.empty) -> dict:
     """Read several fixed-layout topics in one pass: ``{topic: type_name}`` -> arrays.
 
     ``path`` an MCAP file or a rosbag2 bag directory (a split bag's files are read in the
@@ -418,18 +427,19 @@ def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
     a topic absent from the file raises ValueError when ``required`` (else it is left out).
     ``progress(bytes_done, bytes_total)`` is called after each chunk.  ``fields``
     (``{topic: names}``) limits what is extracted for a topic (others come back None);
-    stamps and times are always read.
+    stamps and times are always read.  ``empty(shape, dtype)`` allocates the columns of a
+    topic's length (default ``np.empty``; :meth:`.spool.Spool.empty` keeps them on disk).
     """
     for t, ty in topics.items():
         if ty not in _FIELDS:
             raise ValueError(f"no array reader for {ty!r} (topic {t}); have {sorted(_FIELDS)}")
     if isinstance(path, bytes | bytearray | memoryview):
         return _read_file_arrays(path, topics, on_damage, validate_crc, progress, required,
-                                 fields)
+                                 fields, empty)
     files = bag_files(path)
     if len(files) == 1:
         return _read_file_arrays(files[0], topics, on_damage, validate_crc, progress,
-                                 required, fields)
+                                 required, fields, empty)
     sizes = [f.stat().st_size for f in files]
     parts: dict[str, list] = {}
     for k, f in enumerate(files):
@@ -439,21 +449,23 @@ def read_topic_arrays(path, topics: dict[str, str], *, on_damage: str = "raise",
             progress(done + n, sum(sizes))
 
         got = _read_file_arrays(f, topics, on_damage, validate_crc,
-                                None if progress is None else part_progress, False, fields)
+                                None if progress is None else part_progress, False, fields,
+                                empty)
         for t, a in got.items():
             parts.setdefault(t, []).append(a)
     missing = [t for t in topics if t not in parts]
     if required and missing:
         raise ValueError(f"{path}: no topic {missing[0]!r} in any of its {len(files)} files")
-    return {t: _joined(p) for t, p in parts.items()}
+    return {t: _joined(p, empty) for t, p in parts.items()}
 
 
-def _joined(parts: list):
+def _joined(parts: list, empty=np.empty):
     """One topic's arrays of several files, in file order."""
     if len(parts) == 1:
         return parts[0]
     first = parts[0]
     changes = {}
+    joined = {}
     for f in dataclasses.fields(first):
         vals = [getattr(p, f.name) for p in parts]
         if not isinstance(vals[0], np.ndarray):
@@ -463,7 +475,10 @@ def _joined(parts: list):
             n = sum(len(v) for v in vals)  # one constant row in every file: keep it so
             changes[f.name] = np.broadcast_to(vals[0][0], (n, vals[0].shape[1]))
         else:
-            changes[f.name] = np.concatenate(vals)
+            key = tuple(id(v) for v in vals)  # log and publish times: one array stays one
+            if key not in joined:
+                joined[key] = _concatenated(vals, empty)
+            changes[f.name] = joined[key]
     return dataclasses.replace(
         first, frame_ids=set().union(*(p.frame_ids for p in parts)),
         fast_messages=sum(p.fast_messages for p in parts),
@@ -471,12 +486,13 @@ def _joined(parts: list):
         damage=next((p.damage for p in parts if p.damage), None), **changes)
 
 
-def _read_file_arrays(path, topics, on_damage, validate_crc, progress, required, fields):
+def _read_file_arrays(path, topics, on_damage, validate_crc, progress, required, fields,
+                      empty=np.empty):
     reader = McapStreamReader(path, validate_crc=validate_crc, on_damage=on_damage,
                               reuse_buffers=True)
     total = reader.size
     fields = fields or {}
-    collectors = {t: _Collector(t, ty, fields.get(t)) for t, ty in topics.items()}
+    collectors = {t: _Collector(t, ty, fields.get(t), empty) for t, ty in topics.items()}
     by_channel: dict[int, _Collector | None] = {}
 
     def collector_for(cid: int) -> _Collector | None:

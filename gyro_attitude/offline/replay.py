@@ -59,6 +59,7 @@ from gyro_attitude.io.imu_fast import read_topic_arrays
 from gyro_attitude.io.mcap_writer import DEFAULT_COMPRESSION, Rosbag2McapWriter
 from gyro_attitude.io.odometry_file import read_odometry_velocities
 from gyro_attitude.io.safe_output import SafeOutput, check_output_path
+from gyro_attitude.io.spool import Spool
 
 __all__ = [
     "DEFAULT_IMU_TOPIC",
@@ -121,6 +122,7 @@ class ReplayResult:
     input_damage: str | None
     estimator_notes: list[str] = field(default_factory=list)
     magnetometer: dict | None = None
+    working_bytes_on_disk: int = 0  # the recording-length arrays kept in unlinked files
     truth_topic: str | None = None
     truth_matched: int = 0
     final_error_rad: float | None = None
@@ -231,14 +233,16 @@ def estimate_recording(t_ns, omega, accel, gyro_covariance, frame_id, *, config:
                        nav: NavFrame | None, algorithm: str | None,
                        estimator: Estimator | str = Estimator.OFFLINE,
                        truth: tuple[np.ndarray, np.ndarray] | None = None,
-                       mag: np.ndarray | None = None) -> Estimate:
+                       mag: np.ndarray | None = None, empty=np.empty) -> Estimate:
     """The one way a recording is estimated (replay, montecarlo, fleet replay): the truth
     start at the first sample the estimator accepts (``initial_attitude_source`` truth: the
     samples before it are left out), then the whole-recording estimator (``offline``) or the
     node's chain (``causal``: the offline default algorithm where its array form runs, the
     node's causal default where the chain runs per sample and no algorithm was named).
     ``nav`` may hold time series over all N samples; ``truth`` is (stamps, quaternions);
-    ``mag`` (N, 3) the magnetic field at the samples (aiding magnetometer) or None."""
+    ``mag`` (N, 3) the magnetic field at the samples (aiding magnetometer) or None;
+    ``empty(shape, dtype)`` allocates the offline estimator's arrays of the recording's
+    length (e.g. :meth:`gyro_attitude.io.spool.Spool.empty`)."""
     estimator = parse_mode(Estimator, estimator, "estimator")
     n = t_ns.shape[0]
     first = 0
@@ -261,7 +265,7 @@ def estimate_recording(t_ns, omega, accel, gyro_covariance, frame_id, *, config:
         algorithm = algorithm or DEFAULT_OFFLINE_ALGORITHM
         res = estimate_offline(t_ns, omega, accel, config=config, q0=q0, nav=nav,
                                frame_id=frame_id, angular_velocity_covariance=gyro_covariance,
-                               algorithm=algorithm, mag=mag)
+                               algorithm=algorithm, mag=mag, empty=empty)
         return Estimate(res, first, algorithm, list(res.notes), res.field_reference,
                         Estimator.OFFLINE)
     notes = []
@@ -342,7 +346,10 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     topics = {imu_topic: IMU_TYPE, truth_topic: QUATERNION_STAMPED_TYPE}
     if use_mag:
         topics[mag_topic] = MAGNETIC_FIELD_TYPE
-    arrays = read_topic_arrays(input_path, topics,
+    # the columns of the recording's length on disk beside the output (io/spool.py): the
+    # process's memory does not grow with the recording
+    spool = Spool(Path(os.path.abspath(output_path)).parent)
+    arrays = read_topic_arrays(input_path, topics, empty=spool.empty,
                                on_damage=on_damage, progress=progress, required=False,
                                fields={imu_topic: ("angular_velocity", "linear_acceleration",
                                                    "angular_velocity_covariance",
@@ -353,7 +360,7 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                          + (f"; {damage}" if damage else ""))
     # in log-time order, as ros2 bag play and mcap_player deliver them to the node (a file
     # written with receive jitter is not stored in that order)
-    imu = arrays.pop(imu_topic).in_log_time_order()  # the file-order copy is not kept
+    imu = arrays.pop(imu_topic).in_log_time_order(spool.empty)  # the file order is not kept
     if len(imu) == 0:
         raise ValueError(f"{input_path}: topic {imu.topic} has no messages"
                          + (f"; {damage}" if damage else ""))
@@ -396,7 +403,8 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         t_all, imu.angular_velocity, imu.linear_acceleration if has_accel else None,
         imu.angular_velocity_covariance, imu.frame_id, config=config, nav=nav,
         algorithm=algorithm, estimator=estimator,
-        truth=None if truth is None else (truth.stamp_ns, truth.quaternion), mag=mag_rows)
+        truth=None if truth is None else (truth.stamp_ns, truth.quaternion), mag=mag_rows,
+        empty=spool.empty)
     res, first, algorithm, notes = est.result, est.first, est.algorithm, est.notes
     estimator = est.estimator
     t = t_all[first:]
@@ -451,7 +459,7 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         wall_seconds=t_end - t_start, read_seconds=t_read - t_start,
         integrate_seconds=t_int - t_read, write_seconds=t_end - t_int,
         messages_per_second=len(imu) / max(t_end - t_start, 1e-12), input_damage=damage,
-        estimator_notes=notes,
+        estimator_notes=notes, working_bytes_on_disk=spool.spooled_bytes,
         index=keep, t_ns=tv, q=q_out, error_t_ns=np.zeros(0, np.int64), error_rad=np.zeros(0))
     if use_mag and est.aiding is not None:
         aid = est.aiding

@@ -615,3 +615,39 @@ def test_a_bad_offline_time_constant_flag_is_one_line_and_exit_2(value, tmp_path
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert "offline_mag_tau_s must be a" in err and "Traceback" not in err
     assert ("must be a number, got 'abc'" in err) if value == "abc" else "[0.01, 10000]" in err
+
+
+@pytest.mark.parametrize("estimator", ["offline", "causal"])
+def test_replay_with_its_working_arrays_on_disk_gives_the_same_file_and_leaves_no_file(
+        tmp_path, monkeypatch, estimator):
+    """A long recording's columns go to unlinked files beside the output (io/spool.py): with
+    every array spooled (threshold 0) the replay writes the same messages and figures as in
+    memory -- messages stored out of log-time order, a NaN sample, an accelerometer and truth
+    included -- says how much it kept on disk, and leaves nothing but its output."""
+    import gyro_attitude.io.spool as spool
+
+    n = 3000
+    t, w = _tumbling(n, seed=4)
+    w[700] = np.nan
+    rng = np.random.default_rng(7)
+    a = np.array([0.0, 0.0, 9.81]) + 0.02 * rng.normal(size=(n, 3))
+    truth = np.tile(Rotation.from_rotvec([0.1, 0.2, 0.3]).as_quat(), (n, 1))
+    order = np.arange(n)
+    order[100:110] = order[100:110][::-1]  # stamps out of order within a stretch
+    _record(tmp_path / "in.mcap", t, w, a, truth=truth, shuffle=order)
+    mem_dir, disk_dir = tmp_path / "mem", tmp_path / "disk"
+    mem_dir.mkdir()
+    disk_dir.mkdir()
+    kw = {"estimator": estimator}
+    r_mem = replay_file(tmp_path / "in.mcap", mem_dir / "out.mcap", **kw)
+    monkeypatch.setattr(spool, "SPOOL_MIN_BYTES", 0)
+    r_disk = replay_file(tmp_path / "in.mcap", disk_dir / "out.mcap", **kw)
+    assert r_mem.working_bytes_on_disk == 0 and r_disk.working_bytes_on_disk > 24 * n
+    assert r_disk.skipped == r_mem.skipped and r_disk.skipped.get("non_finite") == 1
+    np.testing.assert_array_equal(r_disk.index, r_mem.index)
+    np.testing.assert_array_equal(r_disk.q, r_mem.q)
+    assert r_disk.rms_error_rad == r_mem.rms_error_rad and r_mem.truth_matched > 0
+    got = [read_imu_arrays(d / "out.mcap", "imu/data") for d in (mem_dir, disk_dir)]
+    np.testing.assert_array_equal(got[0].orientation, got[1].orientation)
+    np.testing.assert_array_equal(got[0].linear_acceleration, got[1].linear_acceleration)
+    assert sorted(os.listdir(disk_dir)) == ["out.mcap"]

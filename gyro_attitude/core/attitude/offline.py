@@ -192,7 +192,8 @@ def _mean_var(x: np.ndarray, lo: int, hi: int, size: int) -> tuple[np.ndarray, n
 
 
 def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, lo: int, hi: int,
-               params: dict, window_ns: int, size: int, out: np.ndarray) -> None:
+               params: dict, window_ns: int, size: int, out: np.ndarray,
+               zeros=np.zeros) -> None:
     """Mark in ``out`` the rows of ``[lo, hi)`` (one gap-free run) that are the oldest sample
     of a rest window: the windows, and their 'full' test, of a detector started at ``lo``.
 
@@ -200,23 +201,32 @@ def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, lo: int, hi: 
     ``<= gyro_std_max``, so the mean of ``|ω|²`` over it is at most ``3 gyro_mean_max² +
     gyro_std_max²``: windows above that (motion) are
     skipped with one cumulative sum, and :func:`.rest.detect_rest` runs, in chunks carrying one
-    window of history, only over the stretches that may hold a rest."""
-    oldest = np.searchsorted(t[lo:hi], t[lo:hi] - window_ns, side="left")
+    window of history, only over the stretches that may hold a rest.  ``zeros(n, dtype)``
+    allocates the run-long flags."""
+    n = hi - lo
+    tr = t[lo:hi]
     if "gyro_mean_max" in params and "gyro_std_max" in params:
-        ww = np.einsum("ij,ij->i", w[lo:hi], w[lo:hi])
-        cs = np.concatenate(([0.0], np.cumsum(ww)))
-        k = np.arange(hi - lo)
         # the mean bound holds on every axis (rest.py): |mean|² <= 3 gyro_mean_max²
         bound = (3.0 * params["gyro_mean_max"] ** 2 + params["gyro_std_max"] ** 2) \
             * (1 + 1e-9) + 1e-300
-        cand = (cs[k + 1] - cs[oldest]) <= bound * (k + 1 - oldest)
-        del ww, cs, k
+        cand = zeros(n, bool)
+        for c0, c1 in _chunks(0, n, size):
+            # the windows ending in this chunk, from a cumulative sum started at the oldest
+            # sample they reach (temporaries of a chunk, not of the run)
+            oldest = np.searchsorted(tr, tr[c0:c1] - window_ns, side="left")
+            p = int(oldest[0])
+            ww = np.einsum("ij,ij->i", w[lo + p:lo + c1], w[lo + p:lo + c1])
+            cs = np.concatenate(([0.0], np.cumsum(ww)))
+            k = np.arange(c0, c1)
+            cand[c0:c1] = (cs[k + 1 - p] - cs[oldest - p]) <= bound * (k + 1 - oldest)
     else:  # a rest test without these two bounds: every window is a candidate
-        cand = np.ones(hi - lo, dtype=bool)
-    newest = np.zeros(hi - lo, dtype=bool)  # the window ending here is at rest
-    oldest_of = np.zeros(hi - lo, dtype=bool)  # oldest sample of a rest window
+        cand = zeros(n, bool)
+        cand.fill(True)
+    newest = zeros(n, bool)  # the window ending here is at rest
+    oldest_of = zeros(n, bool)  # oldest sample of a rest window
     for e0, e1 in _segments(cand):  # window ends that may be at rest
-        s0, s1 = lo + int(oldest[e0]), lo + e1
+        s0 = lo + int(np.searchsorted(tr, tr[e0] - window_ns, side="left"))
+        s1 = lo + e1
         for c0, c1 in _chunks(s0, s1, size):
             p = lo if c0 == lo else max(lo, int(np.searchsorted(t[lo:c0], t[c0] - window_ns))
                                         + lo - 1)
@@ -233,8 +243,25 @@ def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, lo: int, hi: 
     out[lo:hi] |= newest & oldest_of
 
 
+def _accepted_rows(action: np.ndarray, reject: int, size: int, empty) -> np.ndarray:
+    """``np.flatnonzero(action != reject)`` into an array from ``empty``, ``size`` rows at a
+    time (no temporary of the recording's length)."""
+    n = action.shape[0]
+    count = sum(int(np.count_nonzero(action[c0:c1] != reject)) for c0, c1 in _chunks(0, n, size))
+    out = empty(count, np.int64)
+    k = 0
+    for c0, c1 in _chunks(0, n, size):
+        got = np.flatnonzero(action[c0:c1] != reject)
+        got += c0
+        out[k:k + got.size] = got
+        k += got.size
+    return out
+
+
 def _segments(mask: np.ndarray) -> list[tuple[int, int]]:
-    edges = np.diff(np.concatenate(([0], mask.view(np.int8), [0])))
+    """The runs of True in ``mask``: (start, stop) pairs (one byte a row of temporaries)."""
+    pad = np.zeros(1, np.int8)
+    edges = np.diff(np.concatenate((pad, mask.view(np.int8), pad)))
     return list(zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist(),
                     strict=True))
 
@@ -289,7 +316,7 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
                      q0=(0.0, 0.0, 0.0, 1.0), nav: NavFrame | None = None, mag=None,
                      frame_id: str | list[str] | None = "", angular_velocity_covariance=None,
                      algorithm: str = DEFAULT_ALGORITHM,
-                     chunk_samples: int = DEFAULT_CHUNK_SAMPLES) -> StreamResult:
+                     chunk_samples: int = DEFAULT_CHUNK_SAMPLES, empty=np.empty) -> StreamResult:
     """Attitudes of a whole recording, non-causally (see the module docstring).
 
     ``t_ns`` (N,) int stamps; ``omega`` (N, 3) rad/s; ``accel`` (N, 3) m/s² specific force or
@@ -298,8 +325,10 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
     ``q0`` the initial attitude (``level``: its heading is ``initial_heading_deg``); ``nav`` a
     constant :class:`NavFrame` for q_nb or None for q_ib; ``mag`` (N, 3) the magnetic field in
     tesla at the samples (rows of NaN: none there), used with ``aiding="magnetometer"`` (step 6);
-    ``angular_velocity_covariance`` (N, 9) or None.  Raises ValueError on malformed input and
-    when ``initial_attitude="level"`` finds no rest to level on.
+    ``angular_velocity_covariance`` (N, 9) or None.  ``empty(shape, dtype)`` allocates the
+    result's arrays of the recording's length (default ``np.empty``; a caller may give
+    file-backed ones).  Raises ValueError on malformed input and when
+    ``initial_attitude="level"`` finds no rest to level on.
     """
     cfg = config if config is not None else StreamConfig()
     if not isinstance(cfg, StreamConfig):
@@ -323,15 +352,15 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
     cov, acc = recording_arrays(n, angular_velocity_covariance, accel)
     codes = v.ACTION_CODES
     act = cls.action
-    valid = np.flatnonzero(act != codes[v.REJECT])
+    valid = _accepted_rows(act, codes[v.REJECT], chunk_samples, empty)
     counts = {**cls.counts, v.MISSING_SAMPLES: cls.missing_samples, INVALID_COVARIANCE: 0,
               INVALID_ACCEL: 0, INTEGRATOR_ERROR: 0, SATURATED: 0,
               RATE_FIT_FALLBACK: 0}
     details = dict(cls.details)
     m = valid.size
-    tv = rows(t, valid)
-    wv = rows(w, valid)
-    av = None if acc is None else rows(acc, valid)
+    tv = rows(t, valid, empty)
+    wv = rows(w, valid, empty)
+    av = None if acc is None else rows(acc, valid, empty)
     usable = None
     if av is not None:
         usable = usable_accel(av)
@@ -351,7 +380,7 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
             mag = np.asarray(mag, dtype=np.float64)
             if mag.shape != (n, 3):
                 raise ValueError(f"mag must have shape ({n}, 3), got {mag.shape}")
-            mv = rows(mag, valid)
+            mv = rows(mag, valid, empty)
     sig2 = None  # per-row gyro variance (M, 3) from the messages, where known
     if cov is not None:
         var_v, known_v = covariance_rows(cov, valid, counts, details)
@@ -365,7 +394,7 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
     # saturated samples: counted as the causal path counts them (its array form, fresh state)
     count_saturated(wv, StreamState(q_init, q_init), counts, details)
     est = _Estimator(cfg, q_init, nav, algorithm, chunk_samples, tv, wv, av, usable, sig2,
-                     rows(act, valid), mv)
+                     rows(act, valid), mv, empty)
     q_out, var_out, known_out = est.run()
     fell_back = np.concatenate(est.fit_fallbacks) if est.fit_fallbacks else np.zeros(0, int)
     counts[RATE_FIT_FALLBACK] = int(fell_back.size)
@@ -394,7 +423,9 @@ class _Estimator:
     """The passes of :func:`estimate_offline` over the accepted rows (visible state: the rests
     found, the notes, the alignment)."""
 
-    def __init__(self, cfg, q_init, nav, algorithm, size, t, w, a, usable, sig2, act, mag=None):
+    def __init__(self, cfg, q_init, nav, algorithm, size, t, w, a, usable, sig2, act, mag=None,
+                 empty=np.empty):
+        self.empty = empty  # allocator of the outputs
         self.cfg, self.q_init, self.nav, self.algorithm, self.size = cfg, q_init, nav, algorithm, size
         self.t, self.w, self.a, self.usable, self.sig2, self.act = t, w, a, usable, sig2, act
         self.mag = mag
@@ -414,8 +445,9 @@ class _Estimator:
     # ------------------------------------------------------------------ the chain
     def run(self):
         m = self.t.size
-        q_out = np.empty((m, 4))
-        var_out = np.zeros((m, 3))
+        q_out = self.empty((m, 4), np.float64)
+        var_out = self.empty((m, 3), np.float64)
+        var_out.fill(0.0)
         codes = v.ACTION_CODES
         resets = np.flatnonzero(self.act == codes[v.RESET_TIME_JUMP])
         bounds = [0, *resets.tolist(), m]
@@ -430,7 +462,11 @@ class _Estimator:
         known = self._var_known()
         if not known:
             var_out = None
-        return q_out, var_out, (None if var_out is None else np.ones(m, dtype=bool))
+        if var_out is None:
+            return q_out, None, None
+        known = self.empty(m, bool)
+        known.fill(True)
+        return q_out, var_out, known
 
     def _var_known(self) -> bool:
         cfg = self.cfg
@@ -441,7 +477,7 @@ class _Estimator:
     def _block(self, b0, b1, runs, q_out, var_out):
         cfg = self.cfg
         tau = self._clock(b0, b1, runs)
-        rest = np.zeros(b1 - b0, dtype=bool)
+        rest = self._zeros(b1 - b0, bool)
         if cfg.gyro_bias is GyroBiasMode.AUTO or cfg.levelling or cfg.aiding is not Aiding.NONE:
             self._find_rests(b0, runs, rest)
         rests = self._rest_stats(b0, b1, rest, tau)
@@ -493,9 +529,18 @@ class _Estimator:
             else:
                 self._heading_from_field(b0, b1, q_out, var_out)
 
+    def _zeros(self, shape, dtype) -> np.ndarray:
+        """A zeroed array from the allocator (the flags and clocks of a block's length)."""
+        a = self.empty(shape, dtype)
+        a.fill(0)
+        return a
+
     def _clock(self, b0, b1, runs) -> np.ndarray:
         """Seconds since the block's first row, gaps counted (the bias walks across them)."""
-        return (self.t[b0:b1] - self.t[b0]) * 1e-9
+        tau = self.empty(b1 - b0, np.float64)
+        for c0, c1 in _chunks(b0, b1, self.size):
+            tau[c0 - b0:c1 - b0] = (self.t[c0:c1] - self.t[b0]) * 1e-9
+        return tau
 
     # ------------------------------------------------------------------ 1. rests
     def _find_rests(self, b0, runs, rest):
@@ -508,9 +553,9 @@ class _Estimator:
             for p0, p1 in pieces:
                 if p1 - p0 < 2:
                     continue
-                mark = np.zeros(p1 - p0, dtype=bool)
+                mark = self._zeros(p1 - p0, bool)
                 _rest_mask(t[p0:p1], w[p0:p1], None if a is None else a[p0:p1], 0, p1 - p0,
-                           params, self.window_ns, self.size, mark)
+                           params, self.window_ns, self.size, mark, self._zeros)
                 rest[p0 - b0:p1 - b0] |= mark
 
     def _rest_stats(self, b0, b1, rest, tau) -> list[OfflineRest]:

@@ -960,12 +960,15 @@ def covariance_rows(cov: np.ndarray, valid: np.ndarray, counts: dict, details: d
     return rows(var_all, valid), rows(known_all, valid)
 
 
-def rows(a: np.ndarray, index: np.ndarray) -> np.ndarray:
+def rows(a: np.ndarray, index: np.ndarray, empty=None) -> np.ndarray:
     """``a[index]`` for sorted row indices; a view when they are consecutive (the usual
-    case: a recording without bad samples), sparing a copy of the whole recording."""
+    case: a recording without bad samples), sparing a copy of the whole recording.  A copy
+    goes into ``empty(shape, dtype)`` when given."""
     if index.size and int(index[-1]) - int(index[0]) == index.size - 1:
         return a[int(index[0]):int(index[-1]) + 1]
-    return a[index]
+    if empty is None or a.strides[0] == 0:
+        return a[index]
+    return np.take(a, index, axis=0, out=empty((index.size, *a.shape[1:]), a.dtype))
 
 
 def usable_accel(a: np.ndarray) -> np.ndarray:

@@ -221,6 +221,26 @@ def holes_from(dt: np.ndarray) -> bool:
     return bool(np.any(2 * dt[NOMINAL_INTERVALS:] >= 3 * p))
 
 
+def _regular_stamps(t: np.ndarray, max_gap_ns: int, size: int = 1 << 16) -> bool:
+    """Whether stamps ``t`` rise strictly, with no interval beyond ``max_gap_ns`` and none
+    that :func:`holes_from` takes for missing samples: the stream the validator accepts
+    whole.  ``size`` intervals at a time (no temporary of the recording's length)."""
+    if t.size < 2:
+        return True
+    if t.size <= NOMINAL_INTERVALS + 1:
+        dt = np.diff(t)
+        return bool(dt.min() > 0 and dt.max() <= max_gap_ns)
+    p = int(np.sort(np.diff(t[:NOMINAL_INTERVALS + 1]))[NOMINAL_INTERVALS // 2])
+    for c0 in range(0, t.size - 1, size):
+        dt = np.diff(t[c0:c0 + size + 1])
+        if dt.min() <= 0 or dt.max() > max_gap_ns:
+            return False
+        lo = max(NOMINAL_INTERVALS - c0, 0)  # holes_from looks from the 17th interval on
+        if lo < dt.size and np.any(2 * dt[lo:] >= 3 * p):
+            return False
+    return True
+
+
 def sample_problem(t_ns, omega, max_rate_rad_s: float) -> tuple[str, str] | None:
     """(reason, detail) when a sample is unusable on its own (its values, a stamp that is not
     positive), else None: the checks that need no earlier sample."""
@@ -430,62 +450,74 @@ def classify(t_ns, omega, frame_id: str | list[str] | None = "",
     details: dict[str, str] = {}
 
     # Sample-local checks, in the validator's order: values, then stamp, then frame.
-    if all_within(w, cfg.max_rate_rad_s):  # the usual recording: no per-row checks
-        finite = plausible = np.ones(n, dtype=bool)
-    else:
-        with np.errstate(invalid="ignore"):
-            finite = np.isfinite(w).all(axis=1)
-            plausible = (np.abs(w) <= cfg.max_rate_rad_s).all(axis=1)
-    bad_value = ~finite
-    rate_bad = finite & ~plausible
-    zero = (t <= 0) & finite & plausible
-    ok = finite & plausible & (t > 0)
-    reason[bad_value] = _REASON_CODES[NON_FINITE]
-    reason[rate_bad] = _REASON_CODES[IMPLAUSIBLE_RATE]
-    reason[zero] = _REASON_CODES[ZERO_STAMP]
-    for name, mask in ((NON_FINITE, bad_value), (IMPLAUSIBLE_RATE, rate_bad),
-                       (ZERO_STAMP, zero)):
-        if mask.any():
-            k = int(np.flatnonzero(mask)[0])
-            details[name] = {NON_FINITE: f"non-finite value(s) {w[k].tolist()}",
-                             IMPLAUSIBLE_RATE: f"rate {w[k].tolist()} rad/s beyond "
-                                               f"max_rate_rad_s = {cfg.max_rate_rad_s:g}",
-                             ZERO_STAMP: f"stamp {int(t[k])} ns is not positive (0: unset)"}[name]
-    locked = None
-    if ok.any():
-        # the first sample that passes the local checks is always accepted (START): its
-        # frame is the one locked in
-        first = int(np.flatnonzero(ok)[0])
-        locked = 0 if codes is None else int(codes[first])
-        if codes is not None:
-            changed = ok & (codes != locked)
-            if changed.any():
-                reason[changed] = _REASON_CODES[FRAME_CHANGED]
-                ok &= ~changed
-                k = int(np.flatnonzero(changed)[0])
-                details[FRAME_CHANGED] = (f"frame_id {names[int(codes[k])]!r} differs from "
-                                          f"{names[locked]!r}")
+    # The usual recording passes them all: one frame, rates within bounds, stamps positive
+    # (then no per-row mask is made: ok None stands for all rows).
+    ok = None
+    locked = 0
+    if not (n and codes is None and all_within(w, cfg.max_rate_rad_s) and int(t.min()) > 0):
+        if all_within(w, cfg.max_rate_rad_s):  # the rates pass: no per-row value checks
+            finite = plausible = np.ones(n, dtype=bool)
+        else:
+            with np.errstate(invalid="ignore"):
+                finite = np.isfinite(w).all(axis=1)
+                plausible = (np.abs(w) <= cfg.max_rate_rad_s).all(axis=1)
+        bad_value = ~finite
+        rate_bad = finite & ~plausible
+        zero = (t <= 0) & finite & plausible
+        ok = finite & plausible & (t > 0)
+        reason[bad_value] = _REASON_CODES[NON_FINITE]
+        reason[rate_bad] = _REASON_CODES[IMPLAUSIBLE_RATE]
+        reason[zero] = _REASON_CODES[ZERO_STAMP]
+        for name, mask in ((NON_FINITE, bad_value), (IMPLAUSIBLE_RATE, rate_bad),
+                           (ZERO_STAMP, zero)):
+            if mask.any():
+                k = int(np.flatnonzero(mask)[0])
+                details[name] = {
+                    NON_FINITE: f"non-finite value(s) {w[k].tolist()}",
+                    IMPLAUSIBLE_RATE: f"rate {w[k].tolist()} rad/s beyond "
+                                      f"max_rate_rad_s = {cfg.max_rate_rad_s:g}",
+                    ZERO_STAMP: f"stamp {int(t[k])} ns is not positive (0: unset)"}[name]
+        locked = None
+        if ok.any():
+            # the first sample that passes the local checks is always accepted (START): its
+            # frame is the one locked in
+            first = int(np.flatnonzero(ok)[0])
+            locked = 0 if codes is None else int(codes[first])
+            if codes is not None:
+                changed = ok & (codes != locked)
+                if changed.any():
+                    reason[changed] = _REASON_CODES[FRAME_CHANGED]
+                    ok &= ~changed
+                    k = int(np.flatnonzero(changed)[0])
+                    details[FRAME_CHANGED] = (f"frame_id {names[int(codes[k])]!r} differs from "
+                                              f"{names[locked]!r}")
 
     # Stamp checks depend on the last accepted stamp. A regular stream (strictly increasing,
     # no gap) is settled array-wide; anything else walks the candidate stamps in Python ints.
-    idx = np.flatnonzero(ok)
+    every = ok is None or bool(ok.all())  # then no row index, no copy of the stamps
+    idx = None if every else np.flatnonzero(ok)
+    m = n if every else idx.size
     resets = 0
     rule = StampRule(cfg)
-    if idx.size:
-        tc = t[idx]
-        dt = np.diff(tc)
-        if dt.size == 0 or (dt.min() > 0 and dt.max() <= cfg.max_gap_ns and not holes_from(dt)):
-            action[idx] = ACTION_CODES[ACCEPT]
-            action[idx[0]] = ACTION_CODES[START]
+    if m:
+        tc = t if every else t[idx]
+        if _regular_stamps(tc, cfg.max_gap_ns):
+            where = slice(None) if every else idx
+            action[where] = ACTION_CODES[ACCEPT]
+            action[0 if every else idx[0]] = ACTION_CODES[START]
             rule.last = int(tc[-1])
-            if dt.size >= NOMINAL_INTERVALS:
-                rule.period = int(np.sort(dt[:NOMINAL_INTERVALS])[NOMINAL_INTERVALS // 2])
+            head = np.diff(tc[:NOMINAL_INTERVALS + 1])
+            if head.size >= NOMINAL_INTERVALS:
+                rule.period = int(np.sort(head)[NOMINAL_INTERVALS // 2])
             else:
-                rule._learn = dt.tolist()
+                rule._learn = head.tolist()
         else:
-            resets = _walk_stamps(tc.tolist(), idx, action, reason, details, rule)
-    skipped_end = int(t.size - 1 - idx[np.flatnonzero(action[idx])[-1]]) if idx.size and \
-        action[idx].any() else int(t.size)
+            resets = _walk_stamps(tc.tolist(), np.arange(n) if every else idx, action, reason,
+                                  details, rule)
+        del tc
+    got = action != ACTION_CODES[REJECT]
+    skipped_end = int(np.argmax(got[::-1])) if got.any() else int(t.size)
+    del got
     counts = {r: int(np.count_nonzero(reason == _REASON_CODES[r])) for r in REJECT_REASONS}
     accepted = int(np.count_nonzero(action != ACTION_CODES[REJECT]))
     return Classification(action, reason, counts, details, resets, accepted,

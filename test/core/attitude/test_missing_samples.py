@@ -97,3 +97,24 @@ def test_a_gyro_pinned_at_its_range_is_counted_as_saturated():
     for k in range(n):
         s.push(int(t[k]), w[k], "imu")
     assert s.counts["saturated"] == 108
+
+
+def test_the_regular_stream_check_finds_a_hole_or_a_step_back_in_any_chunk():
+    """classify settles a regular stream array-wide with _regular_stamps, a chunk of
+    intervals at a time (no temporary of the recording's length): whatever chunk a missing
+    sample, a repeated stamp or a gap falls in, it answers as the whole-array rule
+    (holes_from over all intervals: the oracle)."""
+    from gyro_attitude.core.attitude.validation import _regular_stamps, holes_from
+
+    t = 10**9 + np.arange(120, dtype=np.int64) * 5_000_000
+    gap = 100_000_000
+    assert _regular_stamps(t, gap, size=7)
+    for k in range(1, 119):
+        tk = np.delete(t, k)  # interval k-1 doubles: a hole from the 17th interval on
+        assert _regular_stamps(tk, gap, size=7) == (not holes_from(np.diff(tk))), k
+        back = t.copy()
+        back[k] = back[k - 1]  # a repeated stamp
+        assert not _regular_stamps(back, gap, size=7), k
+        far = t.copy()
+        far[k:] += gap  # an interval beyond max_gap
+        assert not _regular_stamps(far, gap, size=7), k
