@@ -114,9 +114,17 @@ class Spool:
         try:
             import shutil
 
-            free = f"{shutil.disk_usage(self.directory).free / 1e6:.0f} MB free"
+            free = f"{_size(shutil.disk_usage(self.directory).free)} free"
         except OSError:
             free = "free space unknown"
-        return (f"{self.directory}: {exc.strerror} for a working array of "
-                f"{nbytes / 1e6:.0f} MB ({free}); a recording this long needs that much "
-                "room beside the output")
+        return (f"{self.directory}: {exc.strerror} for a working array of {_size(nbytes)} "
+                f"({free}); a recording this long needs {_size(self.spooled_bytes + nbytes)}"
+                " or more beside the output")
+
+
+def _size(n: float) -> str:
+    for unit in ("B", "kB", "MB"):
+        if n < 1000:
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1000
+    return f"{n:.1f} GB"

@@ -14,12 +14,13 @@ truth at its own stamps (the attitude slerped there).  Samples are never re-sort
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 import os
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +41,7 @@ from gyro_attitude.core.attitude.stream import (
     StreamConfig,
     bias_summary,
     nav_rows,
+    rows,
 )
 from gyro_attitude.core.attitude.truth import (
     default_max_interval_ns,
@@ -137,7 +139,9 @@ class ReplayResult:
     _ARRAYS = ("index", "t_ns", "q", "error_t_ns", "error_rad")
 
     def summary(self) -> dict:
-        return {k: v for k, v in asdict(self).items() if k not in self._ARRAYS}
+        # field by field: asdict() would deep-copy the arrays too (64 bytes a message)
+        return {f.name: copy.deepcopy(getattr(self, f.name)) for f in dataclasses.fields(self)
+                if f.name not in self._ARRAYS}
 
 
 def _with_overrides(config: StreamConfig, frame, initial_attitude) -> StreamConfig:
@@ -473,11 +477,12 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
             "hard_iron_t": list(aid.hard_iron), "accel_rejected": aid.accel_rejected,
             "clock_offset_s": mag_offset}
     if truth is not None and len(truth):
-        _compare_with_truth(result, truth, tv, qv)
+        _compare_with_truth(result, truth, tv, qv, spool.empty)
     return result
 
 
-def _compare_with_truth(result: ReplayResult, truth, t_ns: np.ndarray, q: np.ndarray) -> None:
+def _compare_with_truth(result: ReplayResult, truth, t_ns: np.ndarray, q: np.ndarray,
+                        empty=np.empty) -> None:
     """Error figures at every truth stamp inside the output's span: the truth runs on its
     own clock (a tracker at 120 Hz beside a 200 Hz Imu shares no stamp), so the attitude is
     slerped there between the two output samples around it (exact at a coinciding stamp;
@@ -488,10 +493,11 @@ def _compare_with_truth(result: ReplayResult, truth, t_ns: np.ndarray, q: np.nda
     Computed TRUTH_BLOCK truth stamps at a time: the slerp's and the error angle's (M, 4)
     temporaries are bounded by a block, not by the recording. Every step is row-local (the
     interval limit is taken once over the whole output), so the figures are those of one
-    whole-recording pass, bit for bit."""
+    whole-recording pass, bit for bit.  The per-stamp arrays come from ``empty`` (replay's
+    spool: the error series is an output of the recording's length)."""
     est_t, est_q = _strictly_increasing(t_ns, q)  # the output may jump back in time
     ts, tq = truth.stamp_ns, truth.quaternion
-    usable = np.empty(ts.size, bool)
+    usable = empty(ts.size, bool)
     for lo in range(0, ts.size, TRUTH_BLOCK):
         b = tq[lo:lo + TRUTH_BLOCK]
         usable[lo:lo + TRUTH_BLOCK] = np.isfinite(b).all(axis=1) & (
@@ -503,8 +509,8 @@ def _compare_with_truth(result: ReplayResult, truth, t_ns: np.ndarray, q: np.nda
     if ts.size == 0 or est_t.size == 0:
         return
     limit = default_max_interval_ns(est_t)  # what truth_at_stamps takes over the whole output
-    covered = np.zeros(ts.size, bool)
-    err = np.empty(ts.size)
+    covered = empty(ts.size, bool)
+    err = empty(ts.size, np.float64)
     n = 0
     for lo in range(0, ts.size, TRUTH_BLOCK):
         hi = min(lo + TRUTH_BLOCK, ts.size)
@@ -520,20 +526,22 @@ def _compare_with_truth(result: ReplayResult, truth, t_ns: np.ndarray, q: np.nda
         n += m
     if n == 0:
         return
-    if n < err.size:
-        err = err[:n].copy()
+    err = err[:n]  # a view: no copy of the recording's length
     result.truth_topic = truth.topic
     result.truth_matched = n
     result.final_error_rad = float(err[-1])
     result.max_error_rad = float(err.max())
-    result.rms_error_rad = float(np.sqrt(np.mean(err**2)))
-    result.error_t_ns, result.error_rad = (ts if n == ts.size else ts[covered]), err
+    result.rms_error_rad = float(np.sqrt(np.dot(err, err) / n))  # no (N,) square temporary
+    result.error_t_ns = ts if n == ts.size else rows(ts, np.flatnonzero(covered), empty)
+    result.error_rad = err
 
 
 def _strictly_increasing(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Samples sorted by stamp, the first recorded of a repeated stamp kept (``t``, ``q``
     themselves, no copy, when they already are)."""
-    if t.size < 2 or (t[1:] > t[:-1]).all():
+    last = t.size - 1  # intervals, TRUTH_BLOCK at a time
+    if all(bool((t[c0 + 1:min(c0 + TRUTH_BLOCK, last) + 1]
+                 > t[c0:min(c0 + TRUTH_BLOCK, last)]).all()) for c0 in range(0, last, TRUTH_BLOCK)):
         return t, q
     order = np.argsort(t, kind="stable")
     t, q = t[order], q[order]

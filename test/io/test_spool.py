@@ -44,7 +44,7 @@ def test_a_full_disk_is_one_line_at_allocation_not_a_crash_while_writing(tmp_pat
     with pytest.raises(SpoolSpaceError) as got:
         spool.empty((1_000_000, 3))
     text = str(got.value)
-    assert "\n" not in text and str(tmp_path) in text and "24 MB" in text and "free" in text
+    assert "\n" not in text and str(tmp_path) in text and "24.0 MB" in text and "free" in text
     assert got.value.errno == errno.ENOSPC and isinstance(got.value, OSError)
     assert os.listdir(tmp_path) == []
 

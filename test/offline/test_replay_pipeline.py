@@ -133,3 +133,22 @@ def test_error_figures_hold_a_block_of_temporaries_not_the_recording():
     # kept: the error series (8 B a stamp) and two flags a stamp; the rest is one block's
     # (whole-recording temporaries were > 250 B a stamp: 50 MB here)
     assert peak < 10 * n + 500 * rp.TRUTH_BLOCK, f"peak {peak / 1e6:.0f} MB"
+
+
+def test_a_step_back_in_any_block_of_stamps_is_sorted_out(monkeypatch):
+    """_strictly_increasing checks the stamps TRUTH_BLOCK intervals at a time (no temporary of
+    the recording's length): a repeated or earlier stamp in any block, its last interval
+    included, is found and sorted as the whole-array rule sorts it."""
+    import gyro_attitude.offline.replay as rp
+
+    monkeypatch.setattr(rp, "TRUTH_BLOCK", 7)
+    t = np.arange(50, dtype=np.int64) * 10
+    q = np.arange(200.0).reshape(50, 4)
+    same_t, same_q = rp._strictly_increasing(t, q)
+    assert same_t is t and same_q is q
+    for k in range(1, 50):
+        tk = t.copy()
+        tk[k] = tk[k - 1]  # a repeated stamp: the first recorded is kept
+        got_t, got_q = rp._strictly_increasing(tk, q)
+        assert got_t.size == 49 and (np.diff(got_t) > 0).all(), k
+        np.testing.assert_array_equal(got_q, np.delete(q, k, axis=0))

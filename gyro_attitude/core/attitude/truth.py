@@ -37,13 +37,21 @@ def _check(truth_t, truth_q) -> tuple[np.ndarray, np.ndarray]:
     return t, q / norm[:, None]
 
 
+#: Intervals the median of :func:`default_max_interval_ns` is taken over at most.
+MEDIAN_INTERVALS = 1 << 22
+
+
 def default_max_interval_ns(truth_t) -> int:
     """Longest truth interval to interpolate across: 1.5 × the median (a dropped sample or
-    two of jitter pass, a tracking gap does not)."""
+    two of jitter pass, a tracking gap does not).  Over more than :data:`MEDIAN_INTERVALS`
+    intervals, the median of an evenly strided sample of that many (a 24 h recording's
+    intervals would be 0.7 GB of temporaries; a threshold needs no more)."""
     t = np.asarray(truth_t, dtype=np.int64)
     if t.size < 2:
         return 0
-    return int(1.5 * float(np.median(np.diff(t))))
+    step = -(-(t.size - 1) // MEDIAN_INTERVALS)
+    dt = np.diff(t) if step == 1 else t[1::step] - t[0:-1:step]
+    return int(1.5 * float(np.median(dt)))
 
 
 def truth_at(truth_t, truth_q, t_ns: int, max_interval_ns: int | None = None) -> np.ndarray:

@@ -21,3 +21,23 @@ def test_truth_at_stamps_equals_scipy_slerp_and_refuses_what_it_does_not_cover()
     for k in np.flatnonzero(covered)[::37]:  # the one-stamp function agrees bit for bit
         np.testing.assert_array_equal(truth_at(t, q, int(s[k])),
                                       got[np.flatnonzero(covered).tolist().index(k)])
+
+
+def test_the_interval_limit_of_a_long_truth_comes_from_a_strided_sample_of_its_intervals(
+        monkeypatch):
+    """Past MEDIAN_INTERVALS intervals the median is taken over an evenly strided sample (no
+    temporary of the recording's length): on a jittered 100 Hz truth with tracking gaps it
+    stays 1.5 x a nominal interval, as the whole-array median does, and the gaps stay out."""
+    import gyro_attitude.core.attitude.truth as tr
+
+    rng = np.random.default_rng(4)
+    t = np.cumsum(10_000_000 + rng.integers(-1_000_000, 1_000_001, 20_000)).astype(np.int64)
+    t[5000:] += 2_000_000_000  # three tracking gaps of 2 s
+    t[9000:] += 2_000_000_000
+    t[15000:] += 2_000_000_000
+    whole = int(1.5 * float(np.median(np.diff(t))))
+    monkeypatch.setattr(tr, "MEDIAN_INTERVALS", 64)
+    strided = tr.default_max_interval_ns(t)
+    assert 1.5 * 9_000_000 <= strided <= 1.5 * 11_000_000
+    assert abs(strided - whole) <= 1.5 * 1_000_000
+    assert strided < 2_000_000_000
