@@ -245,8 +245,8 @@ def estimate_recording(t_ns, omega, accel, gyro_covariance, frame_id, *, config:
     node's causal default where the chain runs per sample and no algorithm was named).
     ``nav`` may hold time series over all N samples; ``truth`` is (stamps, quaternions);
     ``mag`` (N, 3) the magnetic field at the samples (aiding magnetometer) or None;
-    ``empty(shape, dtype)`` allocates the offline estimator's arrays of the recording's
-    length (e.g. :meth:`gyro_attitude.io.spool.Spool.empty`)."""
+    ``empty(shape, dtype)`` allocates the estimators' arrays of the recording's length
+    (e.g. :meth:`gyro_attitude.io.spool.Spool.empty`; the per-sample form ignores it)."""
     estimator = parse_mode(Estimator, estimator, "estimator")
     n = t_ns.shape[0]
     first = 0
@@ -276,7 +276,7 @@ def estimate_recording(t_ns, omega, accel, gyro_covariance, frame_id, *, config:
     stream = AttitudeStream(algorithm or DEFAULT_OFFLINE_ALGORITHM, q0=q0, nav=nav,
                             config=config)
     try:
-        res = stream.run(t_ns, omega, frame_id, gyro_covariance, accel, mag)
+        res = stream.run(t_ns, omega, frame_id, gyro_covariance, accel, mag, empty=empty)
     except PerSamplePathNeeded:
         if algorithm is not None:
             raise

@@ -435,16 +435,17 @@ class GyroBiasEstimator:
         return plan
 
     def run(self, t, g, a=None, breaks=None, earth_removed=False, values=None,
-            plan=None) -> BiasTrack:
+            plan=None, empty=np.empty) -> BiasTrack:
         """Array form of :meth:`update` over a run of samples (arguments of :meth:`rests`, or
         its ``plan``), from a broken window on (as after :meth:`break_window`): rests found on
         the rates ``g``, averages of ``values`` (default ``g``; the rates less the Earth rate
         on the rows where ``earth_removed``: a bool, or (N,) bools).  Same decisions and the
         same sums as the per-sample form, vectorized per rest (the loop runs over rests, not
         samples).  Leaves the estimator as after :meth:`break_window` (the last rest pooled).
+        ``empty(shape, dtype)`` allocates the bias of every row and the rests' rows.
         """
         n = t.shape[0]
-        bias = np.empty((n, 3))
+        bias = empty((n, 3), np.float64)
         bias[:] = self._bias
         if self.mode != "auto" or n == 0:
             return BiasTrack(bias, np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)),
@@ -459,7 +460,7 @@ class GyroBiasEstimator:
             self._accumulate_rest(t, values, kk, j, out, bool(earth_rows[j].all()), bias)
         if out["rows"]:
             # (each list freed as it is joined: one copy of the rests' rows at a time)
-            upd, se, prev, t0 = (np.concatenate(out.pop(k)) for k in ("rows", "se", "prev", "t0"))
+            upd, se, prev, t0 = (_joined(out.pop(k), empty) for k in ("rows", "se", "prev", "t0"))
             # each estimate (written at its row) holds until the next one: the runs of rows
             # between two updates (a loop over those runs: at a rest every row is an update)
             nxt = np.append(upd[1:], n)
@@ -553,6 +554,12 @@ class GyroBiasEstimator:
                 "Earth rate absorbed into the bias (latitude or attitude unknown)")
         return GyroBiasReport("auto", np.array(self._bias), self._k, self._n, np.array(self._se),
                               earth, note)
+
+
+def _joined(parts: list[np.ndarray], empty) -> np.ndarray:
+    """``np.concatenate(parts)`` into an array from ``empty(shape, dtype)``."""
+    shape = (sum(len(p) for p in parts), *parts[0].shape[1:])
+    return np.concatenate(parts, out=empty(shape, parts[0].dtype))
 
 
 @dataclass

@@ -243,21 +243,6 @@ def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, lo: int, hi: 
     out[lo:hi] |= newest & oldest_of
 
 
-def _accepted_rows(action: np.ndarray, reject: int, size: int, empty) -> np.ndarray:
-    """``np.flatnonzero(action != reject)`` into an array from ``empty``, ``size`` rows at a
-    time (no temporary of the recording's length)."""
-    n = action.shape[0]
-    count = sum(int(np.count_nonzero(action[c0:c1] != reject)) for c0, c1 in _chunks(0, n, size))
-    out = empty(count, np.int64)
-    k = 0
-    for c0, c1 in _chunks(0, n, size):
-        got = np.flatnonzero(action[c0:c1] != reject)
-        got += c0
-        out[k:k + got.size] = got
-        k += got.size
-    return out
-
-
 def _segments(mask: np.ndarray) -> list[tuple[int, int]]:
     """The runs of True in ``mask``: (start, stop) pairs (one byte a row of temporaries)."""
     pad = np.zeros(1, np.int8)
@@ -350,9 +335,8 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
     n = w.shape[0]
     t = t.astype(np.int64, copy=False)
     cov, acc = recording_arrays(n, angular_velocity_covariance, accel)
-    codes = v.ACTION_CODES
     act = cls.action
-    valid = _accepted_rows(act, codes[v.REJECT], chunk_samples, empty)
+    valid = v.accepted_rows(act, empty, chunk_samples)
     counts = {**cls.counts, v.MISSING_SAMPLES: cls.missing_samples, INVALID_COVARIANCE: 0,
               INVALID_ACCEL: 0, INTEGRATOR_ERROR: 0, SATURATED: 0,
               RATE_FIT_FALLBACK: 0}

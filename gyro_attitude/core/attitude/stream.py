@@ -820,7 +820,8 @@ class AttitudeStream:
 
     # ------------------------------------------------------------------ a whole recording
     def run(self, t_ns, omega, frame_id: str | list[str] | None = "",
-            angular_velocity_covariance=None, accel=None, mag=None) -> StreamResult:
+            angular_velocity_covariance=None, accel=None, mag=None,
+            empty=np.empty) -> StreamResult:
         """All samples of a recording, in file order, on a fresh stream: what :meth:`push`
         would give sample by sample, in the form :func:`run_form` chooses.  The stream is left
         in the state after the last sample, except that the rest windows start again (as after
@@ -829,6 +830,8 @@ class AttitudeStream:
 
         ``t_ns`` (N,) int stamps; ``omega`` (N, 3) rad/s; ``frame_id`` one for all or one per
         sample; ``angular_velocity_covariance`` (N, 9) or None; ``accel`` (N, 3) m/s² or None.
+        ``empty(shape, dtype)`` allocates the array form's arrays of the recording's length
+        (default ``np.empty``; replay gives file-backed ones).
         Raises ValueError when levelling cannot align on the recording.
         """
         from gyro_attitude.core.attitude.stream_batch import run_arrays
@@ -851,7 +854,8 @@ class AttitudeStream:
                              f"have shape (N, 3); got {t.dtype} {t.shape} and shape {w.shape}")
         form, why = self.run_form()
         if form is RunForm.ARRAYS:
-            result = run_arrays(self, t.astype(np.int64, copy=False), w, frame_id, cov, acc)
+            result = run_arrays(self, t.astype(np.int64, copy=False), w, frame_id, cov, acc,
+                                empty)
             if result is not None:
                 return result
             why = "the array form met a non-finite attitude"

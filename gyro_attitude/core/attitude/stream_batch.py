@@ -83,18 +83,19 @@ class Recording:
     align: tuple | None
 
 
-def data_stages(s, t, w, frame_id, acc, mag=None) -> Recording:
+def data_stages(s, t, w, frame_id, acc, mag=None, empty=np.empty) -> Recording:
     """Validation, the accelerometer's usability, saturation and alignment over a recording on
     the fresh stream ``s`` (their array forms, leaving each stage as its per-sample step
-    would); ``mag`` (N, 3) the field for a heading from it at the alignment, or None."""
+    would); ``mag`` (N, 3) the field for a heading from it at the alignment, or None;
+    ``empty(shape, dtype)`` allocates the accepted rows' index and copies."""
     cfg, st = s.config, s.state
     cls = s.validator.run(t, w, frame_id)  # 1. validate
     act = cls.action
-    valid = np.flatnonzero(act != _REJECT)
+    valid = v.accepted_rows(act, empty)
     m = valid.size
     details = dict(cls.details)
     counts = dict.fromkeys(EXTRA_COUNTS, 0)
-    tv, wv, actv = rows(t, valid), rows(w, valid), act[valid]
+    tv, wv, actv = rows(t, valid, empty), rows(w, valid, empty), rows(act, valid)
     av = a_ok = None
     if acc is not None and m:
         av = rows(acc, valid)
@@ -121,11 +122,13 @@ def data_stages(s, t, w, frame_id, acc, mag=None) -> Recording:
     return Recording(cls, valid, tv, wv, actv, av, a_ok, breaks, counts, details, align)
 
 
-def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
+def run_arrays(s, t, w, frame_id, cov, acc, empty=np.empty) -> StreamResult | None:
     """The chain's array form over a recording on the fresh stream ``s`` (see the module
-    docstring); None when an integration met a non-finite attitude."""
+    docstring); None when an integration met a non-finite attitude.  ``empty(shape, dtype)``
+    allocates the arrays of the recording's length: the accepted rows, the bias, the
+    bias-corrected rates and the attitudes."""
     cfg, st = s.config, s.state
-    rec = data_stages(s, t, w, frame_id, acc)
+    rec = data_stages(s, t, w, frame_id, acc, empty=empty)
     cls, valid, tv, wv, actv = rec.cls, rec.valid, rec.tv, rec.wv, rec.actv
     av, a_ok, counts, details, align = rec.av, rec.a_ok, rec.counts, rec.details, rec.align
     act = cls.action
@@ -156,14 +159,15 @@ def run_arrays(s, t, w, frame_id, cov, acc) -> StreamResult | None:
     for _ in range(_EARTH_PASSES if earth else 1):
         values = est.values_without_earth(wv, q_nb, known) if earth else wv
         bias, track, updates = _bias_track(est, tv, wv, values, fed, known if earth else False,
-                                           plan)
+                                           plan, empty)
         if align is not None:
             if not bias.flags.writeable:
                 bias = bias.copy()
             bias[align[1]:align[0]] = bias[align[0]]  # buffered samples: the bias at the end
         fallbacks = []
-        got = _integrate(s, t.shape[0], valid, tv, bias, wv - bias, actv, track, updates,
-                         start, q_start, fallbacks)
+        got = _integrate(s, t.shape[0], valid, tv, bias,
+                         np.subtract(wv, bias, out=empty(wv.shape, np.float64)), actv, track,
+                         updates, start, q_start, fallbacks, empty)
         if got is None:
             return None
         q, first_rest = got
@@ -344,27 +348,28 @@ def _bias_inputs(est, tv, av, a_ok, breaks):
     return idx, cut[idx]
 
 
-def _bias_track(est, tv, wv, values, fed, earth, plan):
+def _bias_track(est, tv, wv, values, fed, earth, plan, empty=np.empty):
     """Step 2 on the accepted rows: (bias (M, 3), the BiasTrack or None, update rows (U,))."""
     m = tv.shape[0]
     if est.mode is not GyroBiasMode.AUTO or m == 0:
         return np.broadcast_to(np.asarray(est.bias, dtype=np.float64), (m, 3)), None, \
             np.zeros(0, np.int64)
-    bias = np.empty((m, 3))
-    bias[:] = est.bias
     est.reset()
     idx, _ = fed
     earth_fed = rows(earth, idx) if isinstance(earth, np.ndarray) else earth
     track = est.run(rows(tv, idx), rows(wv, idx), earth_removed=earth_fed,
-                    values=rows(values, idx), plan=plan)
+                    values=rows(values, idx), plan=plan, empty=empty)
     if idx.size == m:  # every row fed: the track's bias is the rows' bias
         return track.bias, track, idx[track.updates]
+    bias = empty((m, 3), np.float64)
+    bias[:] = est.bias
     pos = np.searchsorted(idx, np.arange(m), side="right") - 1
     bias[pos >= 0] = track.bias[pos[pos >= 0]]
     return bias, track, idx[track.updates]
 
 
-def _integrate(s, n, valid, tv, bias, rate, actv, track, updates, start, q_start, fallbacks):
+def _integrate(s, n, valid, tv, bias, rate, actv, track, updates, start, q_start, fallbacks,
+               empty=np.empty):
     """Step 4: (attitudes of the rows from ``start`` on, the first-rest correction or None),
     or None on a non-finite attitude.  ``fallbacks`` collects (first row of the run, its
     intervals whose rate fit fell back)."""
@@ -378,7 +383,7 @@ def _integrate(s, n, valid, tv, bias, rate, actv, track, updates, start, q_start
                           (int(tv[u0 - 1]) - int(tv[0])) * 1e-9, track.previous[0])
     ev = np.flatnonzero(actv[start:] != _ACCEPT) + start
     bounds = sorted({start, *ev.tolist(), *([first_rest[0]] if first_rest else []), m})
-    q = np.empty((m - start, 4)) if len(bounds) != 2 else None
+    q = empty((m - start, 4), np.float64)
     nav_all = nav_rows(s.nav, valid, n)
     for r0, r1 in zip(bounds[:-1], bounds[1:], strict=True):
         a0 = actv[r0]
@@ -401,7 +406,7 @@ def _integrate(s, n, valid, tv, bias, rate, actv, track, updates, start, q_start
             fb = []
             # written in place from row r0-1 on (that row, the previous run's last attitude,
             # restored after): no run-sized second array
-            into = placed = q is not None and r0 - 1 >= start
+            into = placed = r0 - 1 >= start
             held_q = q[r0 - 1 - start].copy() if into else None
             try:
                 q_run = integrate_batch(tv[r0 - 1:r1], rate[r0 - 1:r1], q0=q0,
@@ -418,16 +423,14 @@ def _integrate(s, n, valid, tv, bias, rate, actv, track, updates, start, q_start
         else:
             sel = slice(r0, r1)
             fb = []
-            placed = q is not None
+            placed = True
             q_run = integrate_batch(tv[sel], rate[sel], q0=q0, algorithm=s.algorithm,
                                     nav=None if nav_all is None else nav_rows(
                                         nav_all, np.arange(r0, r1), m), fallbacks=fb,
-                                    out=None if q is None else q[r0 - start:r1 - start])
+                                    out=q[r0 - start:r1 - start])
             fallbacks.extend((r0, f) for f in fb)
         if not np.isfinite(q_run).all():
             return None
-        if len(bounds) == 2:  # one run: its attitudes are the result (no second array)
-            return q_run, first_rest
         if not placed:
             q[r0 - start:r1 - start] = q_run
     return q, first_rest

@@ -241,6 +241,24 @@ def _regular_stamps(t: np.ndarray, max_gap_ns: int, size: int = 1 << 16) -> bool
     return True
 
 
+def accepted_rows(action: np.ndarray, empty=np.empty, size: int = 1 << 16) -> np.ndarray:
+    """The rows of ``action`` (:attr:`Classification.action`) that are not rejected, as
+    ``np.flatnonzero`` gives them, into an array from ``empty(shape, dtype)``; ``size`` rows
+    at a time (no temporary of the recording's length)."""
+    reject = ACTION_CODES[REJECT]
+    n = action.shape[0]
+    count = sum(int(np.count_nonzero(action[c0:c0 + size] != reject))
+                for c0 in range(0, n, size))
+    out = empty(count, np.int64)
+    k = 0
+    for c0 in range(0, n, size):
+        got = np.flatnonzero(action[c0:c0 + size] != reject)
+        got += c0
+        out[k:k + got.size] = got
+        k += got.size
+    return out
+
+
 def sample_problem(t_ns, omega, max_rate_rad_s: float) -> tuple[str, str] | None:
     """(reason, detail) when a sample is unusable on its own (its values, a stamp that is not
     positive), else None: the checks that need no earlier sample."""
