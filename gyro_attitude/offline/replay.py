@@ -463,7 +463,10 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         wall_seconds=t_end - t_start, read_seconds=t_read - t_start,
         integrate_seconds=t_int - t_read, write_seconds=t_end - t_int,
         messages_per_second=len(imu) / max(t_end - t_start, 1e-12), input_damage=damage,
-        estimator_notes=notes, working_bytes_on_disk=spool.spooled_bytes,
+        estimator_notes=notes + ([
+            f"{spool.fallbacks} working array(s) of the recording's length kept in memory: the "
+            "output's file system cannot reserve space for them"] if spool.fallbacks else []),
+        working_bytes_on_disk=spool.spooled_bytes,
         index=keep, t_ns=tv, q=q_out, error_t_ns=np.zeros(0, np.int64), error_rad=np.zeros(0))
     if use_mag and est.aiding is not None:
         aid = est.aiding
