@@ -200,8 +200,10 @@ def replay_rows(sizes: dict[str, int], *, envs: dict | None = None, tmp_dir=None
                        "anon_bytes_per_message": anon,
                        "disk_working_bytes_per_message": disk}
                 if anon is not None:
-                    # 24 h at 1 kHz from the longest run and the slope
-                    row["anon_bytes_24h"] = b["peak_rss_anon_bytes"] + anon * (n24 - b["messages"])
+                    # 24 h at 1 kHz from the longest run and the slope (a flat or falling
+                    # slope -- the peak no longer grows -- extrapolates to the longest run's)
+                    row["anon_bytes_24h"] = b["peak_rss_anon_bytes"] + max(anon, 0.0) * (
+                        n24 - b["messages"])
                     row["disk_working_bytes_24h"] = disk * n24
                     row["output_file_bytes_24h"] = b["output_file_bytes"] / b["messages"] * n24
                 rows.append(row)
