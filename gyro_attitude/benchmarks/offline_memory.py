@@ -58,17 +58,8 @@ def sample():
         anon_peak[0] = max(anon_peak[0], status("RssAnon:"))
 
 
-rng = np.random.default_rng(0)
-t = 10**9 + (np.arange(n, dtype=np.int64) * 10**9) // int(rate)
-w = rng.normal(scale=2e-3, size=(n, 3))
-w += (0.004, -0.003, 0.005)
-k0, k1 = n // 10, n - n // 10
-s = np.arange(k1 - k0) / rate
-w[k0:k1, 0] += 0.3 * np.sin(0.5 * s)
-w[k0:k1, 2] += 0.2 * np.cos(0.3 * s)
-a = rng.normal(scale=0.03, size=(n, 3))
-a[:, 2] += 9.81
-a[k0:k1] += rng.normal(scale=0.5, size=(k1 - k0, 3))
+from gyro_attitude.benchmarks.offline_memory import rest_tumble_rest
+t, w, a = rest_tumble_rest(n, rate)
 inputs = t.nbytes + w.nbytes + a.nbytes
 import gc
 gc.collect()
@@ -94,6 +85,25 @@ print(json.dumps({"samples": n, "peak_rss_bytes": peak, "rss_before_bytes": befo
                   "spooled_bytes": spool.spooled_bytes,
                   "input_bytes": inputs, "output_bytes": out, "seconds": sec}))
 """
+
+
+def rest_tumble_rest(n: int, rate: float = RATE_HZ, seed: int = 0):
+    """(t_ns, gyro, accel) of a noisy MEMS recording: rest, a slow tumble with accelerations,
+    rest (a tenth of the samples each)."""
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    t = 10**9 + (np.arange(n, dtype=np.int64) * 10**9) // int(rate)
+    w = rng.normal(scale=2e-3, size=(n, 3))
+    w += (0.004, -0.003, 0.005)
+    k0, k1 = n // 10, n - n // 10
+    s = np.arange(k1 - k0) / rate
+    w[k0:k1, 0] += 0.3 * np.sin(0.5 * s)
+    w[k0:k1, 2] += 0.2 * np.cos(0.3 * s)
+    a = rng.normal(scale=0.03, size=(n, 3))
+    a[:, 2] += 9.81
+    a[k0:k1] += rng.normal(scale=0.5, size=(k1 - k0, 3))
+    return t, w, a
 
 
 def measure(seconds: int) -> dict:

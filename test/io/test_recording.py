@@ -67,15 +67,19 @@ def test_simulate_onto_a_full_disk_names_the_file(small_disk, capsys):
     assert list(small_disk.iterdir()) == []
 
 
-def test_replay_onto_a_full_disk_names_the_file(small_disk, tmp_path, capsys):
+def _imu_recording(path, n: int = 20_000):
+    """An MCAP of ``n`` Imu messages at 1 kHz (random rates)."""
     from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
 
-    n = 20_000
-    src = tmp_path / "in.mcap"
-    with Rosbag2McapWriter(src) as wr:
+    with Rosbag2McapWriter(path) as wr:
         wr.add_topic("imu/data_raw", "sensor_msgs/msg/Imu")
         wr.write_imu_array("imu/data_raw", 10**9 + np.arange(n, dtype=np.int64) * 10**6,
                            np.random.default_rng(2).normal(size=(n, 3)))
+    return path
+
+
+def test_replay_onto_a_full_disk_names_the_file(small_disk, tmp_path, capsys):
+    src = _imu_recording(tmp_path / "in.mcap")
     out = small_disk / "out.mcap"
     assert cli_main(["replay", str(src), "--out", str(out), "--compression", "none",
                      "--no-progress"]) == 1
@@ -91,15 +95,9 @@ def test_replay_whose_working_arrays_do_not_fit_beside_the_output_says_so(small_
     space reserved up front: no room is one line naming the directory and the sizes, exit 1,
     nothing left on the disk (never a SIGBUS from a sparse file filling up)."""
     import gyro_attitude.io.spool as spool
-    from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
 
     monkeypatch.setattr(spool, "SPOOL_MIN_BYTES", 0)
-    n = 20_000
-    src = tmp_path / "in.mcap"
-    with Rosbag2McapWriter(src) as wr:
-        wr.add_topic("imu/data_raw", "sensor_msgs/msg/Imu")
-        wr.write_imu_array("imu/data_raw", 10**9 + np.arange(n, dtype=np.int64) * 10**6,
-                           np.random.default_rng(2).normal(size=(n, 3)))
+    src = _imu_recording(tmp_path / "in.mcap")
     out = small_disk / "out.mcap"
     assert cli_main(["replay", str(src), "--out", str(out), "--no-progress"]) == 1
     err = capsys.readouterr().err

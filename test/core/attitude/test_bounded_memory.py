@@ -77,19 +77,6 @@ def _untraced_empty(shape, dtype=np.float64):
     return np.frombuffer(buf, dtype=dtype, count=count).reshape(shape)
 
 
-def _rest_tumble_rest(n, rate=1000):
-    rng = np.random.default_rng(3)
-    t = 10**9 + (np.arange(n, dtype=np.int64) * 10**9) // rate
-    w = rng.normal(scale=2e-3, size=(n, 3)) + (0.004, -0.003, 0.005)
-    k0, k1 = n // 10, n - n // 10
-    s = np.arange(k1 - k0) / rate
-    w[k0:k1, 0] += 0.3 * np.sin(0.5 * s)
-    w[k0:k1, 2] += 0.2 * np.cos(0.3 * s)
-    a = rng.normal(scale=0.03, size=(n, 3))
-    a[:, 2] += 9.81
-    return t, w, a
-
-
 def test_the_offline_estimator_keeps_what_grows_with_the_recording_in_the_callers_allocator(
         monkeypatch):
     """estimate_offline(empty=) takes every array of the recording's length from the caller's
@@ -98,6 +85,7 @@ def test_the_offline_estimator_keeps_what_grows_with_the_recording_in_the_caller
     codes and the accelerometer flags), where one (N, 4) output of its own would be 32.
     The blocks are taken as long ones (a short block keeps its forward low-pass, up to
     _KEEP_FORWARD samples: bounded, but it would grow between these two lengths)."""
+    from gyro_attitude.benchmarks.offline_memory import rest_tumble_rest
     from gyro_attitude.core.attitude import offline
     from gyro_attitude.core.attitude.offline import estimate_offline
     from gyro_attitude.core.attitude.settings import StreamConfig
@@ -106,7 +94,7 @@ def test_the_offline_estimator_keeps_what_grows_with_the_recording_in_the_caller
     cfg = StreamConfig(aiding="gravity")
     peaks = {}
     for n in (150_000, 450_000):  # both above every working chunk (65,536 rows)
-        t, w, a = _rest_tumble_rest(n)
+        t, w, a = rest_tumble_rest(n)
         ref = estimate_offline(t, w, a, config=cfg, chunk_samples=4096)
         got, peaks[n] = _peak(lambda t=t, w=w, a=a: estimate_offline(
             t, w, a, config=cfg, chunk_samples=4096, empty=_untraced_empty))
