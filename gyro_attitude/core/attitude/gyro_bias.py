@@ -408,7 +408,8 @@ class GyroBiasEstimator:
         e = _c_bn_times(x, y, z, w, 2.0 / (x * x + y * y + z * z + w * w), self._earth_n)
         return np.where(known[:, None], g - np.column_stack(e), g)
 
-    def rests(self, t, g, a=None, breaks=None) -> list[tuple[np.ndarray, np.ndarray]]:
+    def rests(self, t, g, a=None, breaks=None,
+              empty=np.empty) -> list[tuple[np.ndarray, np.ndarray]]:
         """The rests the detector finds in a run of samples (``t`` (N,) int64 increasing, ``g``
         (N, 3) the rates, ``a`` (N, 3) or None), from a fresh window, the windows broken again
         before every row where ``breaks`` (N,) is True: per rest in order, ``(rows, oldest)``
@@ -421,16 +422,17 @@ class GyroBiasEstimator:
             if r1 - r0 < 2:
                 continue
             r = detect_rest(t[r0:r1], g[r0:r1], None if a is None else a[r0:r1],
-                            **self._rest_params)
+                            **self._rest_params, empty=empty)
             # accumulation events: a window at rest whose oldest sample is new
             ev = np.flatnonzero(r.at_rest)
             if ev.size == 0:
                 continue
             ev = ev[np.concatenate([[True], r.oldest[ev][1:] > r.oldest[ev][:-1]])]
-            # a rest is a run of consecutive at-rest windows
-            run_id = np.cumsum(np.diff(np.concatenate([[False], r.at_rest]).astype(np.int8))
-                               == 1)
-            for kk in np.split(ev, np.flatnonzero(np.diff(run_id[ev])) + 1):
+            # a rest is a run of consecutive at-rest windows: the run of each event is the
+            # number of run starts at or before it (byte-wide temporaries only)
+            rise = np.flatnonzero(np.diff(r.at_rest.view(np.int8), prepend=np.int8(0)) == 1)
+            run_of = np.searchsorted(rise, ev, side="right")
+            for kk in np.split(ev, np.flatnonzero(np.diff(run_of)) + 1):
                 plan.append((kk + r0, r.oldest[kk] + r0))
         return plan
 

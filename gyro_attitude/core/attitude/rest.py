@@ -85,10 +85,14 @@ def check_samples(t_ns, gyro, accel=None) -> tuple[np.ndarray, np.ndarray, np.nd
         raise ValueError(f"t_ns must be a non-empty 1-D array, got shape {t.shape}")
     if not np.issubdtype(t.dtype, np.integer):
         raise ValueError(f"t_ns must hold integer nanoseconds, got dtype {t.dtype}")
-    t = t.astype(np.int64)
-    if t.size > 1 and np.any(np.diff(t) <= 0):
-        k = int(np.argmax(np.diff(t) <= 0)) + 1
-        raise ValueError(f"t_ns must be strictly increasing (sample {k}: {t[k]} after {t[k - 1]})")
+    t = t.astype(np.int64, copy=False)
+    # chunk by chunk: no temporary of the recording's length
+    for c0 in range(0, t.size - 1, _STATS_CHUNK):
+        bad = np.diff(t[c0:c0 + _STATS_CHUNK + 1]) <= 0
+        if bad.any():
+            k = c0 + int(np.argmax(bad)) + 1
+            raise ValueError(f"t_ns must be strictly increasing (sample {k}: {t[k]} after "
+                             f"{t[k - 1]})")
     out = []
     for name, arr in (("gyro", gyro), ("accel", accel)):
         if arr is None:
@@ -100,7 +104,9 @@ def check_samples(t_ns, gyro, accel=None) -> tuple[np.ndarray, np.ndarray, np.nd
             raise ValueError(f"{name} must be a numeric (N, 3) array") from None
         if a.shape != (t.size, 3):
             raise ValueError(f"{name} must have shape ({t.size}, 3), got {a.shape}")
-        if not np.all(np.isfinite(a)) or np.any(np.abs(a) > 1e6):
+        with np.errstate(invalid="ignore"):  # a NaN fails both bounds (reductions: no copy)
+            sane = bool(np.max(a) <= 1e6 and np.min(a) >= -1e6)
+        if not sane:
             k = int(np.argmax(~np.isfinite(a).all(axis=1) | (np.abs(a) > 1e6).any(axis=1)))
             raise ValueError(f"{name} sample {k} is not finite or absurdly large: {a[k]}")
         out.append(a)
@@ -409,26 +415,29 @@ def detect_rest(t_ns, gyro, accel=None, window_s: float = RestThresholds.window_
                 gyro_mean_max: float = RestThresholds.gyro_mean_max,
                 accel_std_max: float = RestThresholds.accel_std_max,
                 accel_norm_tol: float = RestThresholds.accel_norm_tol,
-                gravity: float = STANDARD_GRAVITY, gyro_std_min: float = 0.0) -> RestWindows:
-    """Batch :class:`RestDetector` over arrays (bit-identical decisions, vectorized)."""
+                gravity: float = STANDARD_GRAVITY, gyro_std_min: float = 0.0,
+                empty=np.empty) -> RestWindows:
+    """Batch :class:`RestDetector` over arrays (bit-identical decisions, vectorized); the
+    per-sample results come from ``empty(shape, dtype)`` (default ``np.empty``)."""
     th = RestThresholds(window_s, gyro_std_max, gyro_mean_max, accel_std_max, accel_norm_tol,
                         gravity, gyro_std_min).checked()
     t, g, a = check_samples(t_ns, gyro, accel)
     window_ns = int(round(th.window_s * 1e9))
     size = t.size
-    oldest = np.empty(size, dtype=np.int64)
+    oldest = empty(size, np.int64)
     for r0 in range(0, size, _STATS_CHUNK):
         r1 = min(r0 + _STATS_CHUNK, size)
         oldest[r0:r1] = np.searchsorted(t, t[r0:r1] - window_ns, side="left")
-    gyro_std = np.empty(size)
-    ok = np.empty(size, dtype=bool)
+    gyro_std = empty(size, np.float64)
+    ok = empty(size, bool)
     for r0, r1, full, std, mean in _window_stats(t, g, oldest, window_ns):
         gyro_std[r0:r1] = std
         with np.errstate(invalid="ignore"):
             # the mean rate on every axis (the largest one) within the bound
             ok[r0:r1] = full & (std >= th.gyro_std_min) & (std <= th.gyro_std_max) & (
                 np.abs(mean).max(axis=1) <= th.gyro_mean_max)
-    accel_std = np.full(size, np.nan)
+    accel_std = empty(size, np.float64)
+    accel_std.fill(np.nan)
     if a is not None:
         for r0, r1, _, std, mean in _window_stats(t, a, oldest, window_ns):
             accel_std[r0:r1] = std
@@ -437,18 +446,23 @@ def detect_rest(t_ns, gyro, accel=None, window_s: float = RestThresholds.window_
             with np.errstate(invalid="ignore"):
                 ok[r0:r1] &= (std <= th.accel_std_max) & (np.abs(norm - th.gravity)
                                                           <= th.accel_norm_tol)
-    covered = _covered(ok, oldest)
+    covered = _covered(ok, oldest, empty)
     return RestWindows(ok, oldest, gyro_std, accel_std, covered)
 
 
-def _covered(at_rest: np.ndarray, oldest: np.ndarray) -> np.ndarray:
+def _covered(at_rest: np.ndarray, oldest: np.ndarray, empty=np.empty) -> np.ndarray:
     """Samples lying in at least one rest window: mark [oldest[k], k] for each rest k."""
     n = at_rest.size
-    diff = np.zeros(n + 1, dtype=np.int64)
-    k = np.flatnonzero(at_rest)
-    np.add.at(diff, oldest[k], 1)
-    np.add.at(diff, k + 1, -1)
-    return np.cumsum(diff[:n]) > 0
+    diff = empty(n + 1, np.int64)
+    diff.fill(0)
+    for c0 in range(0, n, _STATS_CHUNK):  # the rest rows chunk by chunk
+        k = np.flatnonzero(at_rest[c0:c0 + _STATS_CHUNK]) + c0
+        np.add.at(diff, oldest[k], 1)
+        np.add.at(diff, k + 1, -1)
+    np.cumsum(diff[:n], out=diff[:n])  # in place: the count of windows over each sample
+    covered = empty(n, bool)
+    np.greater(diff[:n], 0, out=covered)
+    return covered
 
 
 def rest_segments(covered: np.ndarray) -> list[tuple[int, int]]:

@@ -154,7 +154,7 @@ def run_arrays(s, t, w, frame_id, cov, acc, empty=np.empty) -> StreamResult | No
                                      math.radians(cfg.initial_heading_deg))
         q_nb[:align[0] + 1] = q_lv
         known[:align[0] + 1] = ok & a_ok[:align[0] + 1]
-    fed, plan = rest_plan(est, rec)
+    fed, plan = rest_plan(est, rec, empty)
     q_prev = None
     for _ in range(_EARTH_PASSES if earth else 1):
         values = est.values_without_earth(wv, q_nb, known) if earth else wv
@@ -207,7 +207,7 @@ def run_arrays(s, t, w, frame_id, cov, acc, empty=np.empty) -> StreamResult | No
     known_any = known_v is not None and bool(known_v[out_from:].any())
     if known_any or st.variance_known:
         tt = _covariance_chunked(s, tv, actv, start, var_v, known_v, track, updates,
-                                 updates_after, first_rest)
+                                 updates_after, first_rest, empty)
         variance = tt[out_from - start:]
         kv = np.zeros(m - out_from, dtype=bool) if known_v is None else known_v[out_from:]
         variance_known = np.maximum.accumulate(kv) | st.variance_known
@@ -224,8 +224,8 @@ def run_arrays(s, t, w, frame_id, cov, acc, empty=np.empty) -> StreamResult | No
     codes = v.ACTION_CODES
     jumps = np.flatnonzero(actv[start:] == codes[v.RESET_TIME_JUMP])
     first = start + (int(jumps[-1]) if jumps.size else 0) + 1
-    plain = first + np.flatnonzero(actv[first:] == codes[v.ACCEPT])
-    s.intervals.extend((tv[plain] - tv[plain - 1])[-s.intervals.window:])
+    plain = _last_rows(actv, codes[v.ACCEPT], first, s.intervals.window)
+    s.intervals.extend(tv[plain] - tv[plain - 1])
     if m:
         st.start_t_ns = int(tv[0])
         st.accel_present = None if a_ok is None else (bool(a_ok[-1]) or None)
@@ -249,6 +249,21 @@ def run_arrays(s, t, w, frame_id, cov, acc, empty=np.empty) -> StreamResult | No
                         s.alignment, RunForm.ARRAYS)
 
 
+def _last_rows(actv: np.ndarray, code: int, first: int, count: int) -> np.ndarray:
+    """The last ``count`` rows from ``first`` on whose verdict is ``code``, in order, found from
+    the end a chunk at a time (the interval statistics keep only that many)."""
+    parts: list[np.ndarray] = []
+    found = 0
+    hi = actv.shape[0]
+    while hi > first and found < count:
+        lo = max(first, hi - COVARIANCE_CHUNK)
+        got = lo + np.flatnonzero(actv[lo:hi] == code)
+        parts.insert(0, got)
+        found += got.size
+        hi = lo
+    return np.concatenate(parts)[-count:] if parts else np.zeros(0, np.int64)
+
+
 #: rows per covariance chunk: its per-row inputs (dt, noise, zero-rate rows, standard errors)
 #: and the cumulative sums' temporaries are built a chunk at a time (the covariance carries
 #: its state from one chunk to the next, as from one sample to the next: the same bits)
@@ -256,10 +271,10 @@ COVARIANCE_CHUNK = 1 << 16
 
 
 def _covariance_chunked(s, tv, actv, start, var_v, known_v, track, updates, updates_after,
-                        first_rest) -> np.ndarray:
+                        first_rest, empty=np.empty) -> np.ndarray:
     """Step 5 over rows ``start`` … of the accepted rows, chunk by chunk: ``tt`` (rows, 3)."""
     m = tv.shape[0]
-    tt = np.empty((m - start, 3))
+    tt = empty((m - start, 3), np.float64)
     upd_rows = updates_after - start
     upd_k = None if track is None else np.searchsorted(updates, updates_after)
     for c0 in range(0, m - start, COVARIANCE_CHUNK):
@@ -313,7 +328,7 @@ def _count_saturated(wv, st, counts, details) -> None:
     st.sat[3:] = wv[-1]
 
 
-def rest_plan(est, rec: Recording):
+def rest_plan(est, rec: Recording, empty=np.empty):
     """The rows the bias stage's detector takes (:func:`_bias_inputs`) and the rests it finds
     there (:meth:`.gyro_bias.GyroBiasEstimator.rests`, on the rates: found once), or None
     without an ``auto`` bias."""
@@ -325,7 +340,7 @@ def rest_plan(est, rec: Recording):
         # of the recording)
         a_fed = None if rec.av is None else (rows(rec.av, idx) if rec.a_ok.all() else
                                              np.where(rec.a_ok[idx, None], rec.av[idx], 0.0))
-        plan = est.rests(rows(rec.tv, idx), rows(rec.wv, idx), a_fed, cut)
+        plan = est.rests(rows(rec.tv, idx), rows(rec.wv, idx), a_fed, cut, empty)
     return fed, plan
 
 

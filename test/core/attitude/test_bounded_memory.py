@@ -102,3 +102,16 @@ def test_the_offline_estimator_keeps_what_grows_with_the_recording_in_the_caller
         assert np.array_equal(ref.variance, got.variance) and ref.counts == got.counts
     per_sample = (peaks[450_000] - peaks[150_000]) / 300_000
     assert per_sample < 4.0, f"{per_sample:.1f} bytes a sample outside the allocator"
+
+
+def test_the_interval_statistics_take_the_last_plain_rows_whatever_the_chunk(monkeypatch):
+    """run() feeds the interval statistics the last `window` plainly accepted rows, found from
+    the end a chunk at a time: the rows the whole-array search gives (the oracle), for any
+    chunk size, count and first row."""
+    monkeypatch.setattr(sb, "COVARIANCE_CHUNK", 7)
+    rng = np.random.default_rng(5)
+    actv = rng.choice(np.array([1, 2, 2, 2, 3, 4], dtype=np.int8), size=300)
+    for first in (0, 1, 57, 299, 300):
+        for count in (1, 5, 60, 1000):
+            oracle = (first + np.flatnonzero(actv[first:] == 2))[-count:]
+            np.testing.assert_array_equal(sb._last_rows(actv, 2, first, count), oracle)
