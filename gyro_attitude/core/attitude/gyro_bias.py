@@ -418,6 +418,10 @@ class GyroBiasEstimator:
         n = t.shape[0]
         starts = [0] if breaks is None else [0, *np.flatnonzero(breaks[1:]) + 1]
         plan = []
+        # every rest's rows and oldest samples, views into two arrays of at most one event per
+        # row from ``empty`` (a file-backed allocator touches only what is written)
+        ev_rows, ev_oldest = empty(n, np.int64), empty(n, np.int64)
+        pos = 0
         for r0, r1 in zip(starts, [*starts[1:], n], strict=True):
             if r1 - r0 < 2:
                 continue
@@ -433,7 +437,11 @@ class GyroBiasEstimator:
             rise = np.flatnonzero(np.diff(r.at_rest.view(np.int8), prepend=np.int8(0)) == 1)
             run_of = np.searchsorted(rise, ev, side="right")
             for kk in np.split(ev, np.flatnonzero(np.diff(run_of)) + 1):
-                plan.append((kk + r0, r.oldest[kk] + r0))
+                rows_, oldest_ = ev_rows[pos:pos + kk.size], ev_oldest[pos:pos + kk.size]
+                np.add(kk, r0, out=rows_)
+                np.add(r.oldest[kk], r0, out=oldest_)
+                plan.append((rows_, oldest_))
+                pos += kk.size
         return plan
 
     def run(self, t, g, a=None, breaks=None, earth_removed=False, values=None,
@@ -457,12 +465,15 @@ class GyroBiasEstimator:
             plan = self.rests(t, g, a, breaks)
         values = g if values is None else values
         earth_rows = np.broadcast_to(np.asarray(earth_removed, dtype=bool), (n,))
-        out: dict[str, list] = {"rows": [], "se": [], "prev": [], "t0": []}
+        # the rows and standard errors of every estimate (at most one per row), written in
+        # order into arrays from ``empty``; the bias before each rest and its start in lists
+        out: dict = {"rows": empty(n, np.int64), "se": empty((n, 3), np.float64), "count": 0,
+                     "prev": [], "t0": []}
         for kk, j in plan:
             self._accumulate_rest(t, values, kk, j, out, bool(earth_rows[j].all()), bias)
-        if out["rows"]:
-            # (each list freed as it is joined: one copy of the rests' rows at a time)
-            upd, se, prev, t0 = (_joined(out.pop(k), empty) for k in ("rows", "se", "prev", "t0"))
+        if out["count"]:
+            upd, se = out["rows"][:out["count"]], out["se"][:out["count"]]
+            prev, t0 = np.concatenate(out["prev"]), np.concatenate(out["t0"])
             # each estimate (written at its row) holds until the next one: the runs of rows
             # between two updates (a loop over those runs: at a rest every row is an update)
             nxt = np.append(upd[1:], n)
@@ -475,7 +486,7 @@ class GyroBiasEstimator:
 
     def _accumulate_rest(self, t, values, kk, j, out: dict, earth: bool, bias) -> None:
         """One rest of :meth:`run`: its estimates (written into ``bias`` at their rows; the
-        rows and standard errors appended to ``out``, the bias before the rest and its start
+        rows and standard errors written into ``out``, the bias before the rest and its start
         once), then pooled.  Chunk
         by chunk of the rest's rows (the running sums carried into each chunk's first row:
         the same additions in the same order, so identical numbers), so a long rest costs
@@ -510,8 +521,10 @@ class GyroBiasEstimator:
                 out["prev"].append(np.asarray(prev_bias, dtype=np.float64)[None])
                 out["t0"].append(np.array([t_first], np.int64))
             bias[rows_] = est
-            out["rows"].append(rows_)
-            out["se"].append(se)
+            c = out["count"]
+            out["rows"][c:c + rows_.size] = rows_
+            out["se"][c:c + rows_.size] = se
+            out["count"] = c + rows_.size
             last = (est[-1], se[-1], int(qual[-1]) + r0)
         if last is None:
             return
@@ -556,12 +569,6 @@ class GyroBiasEstimator:
                 "Earth rate absorbed into the bias (latitude or attitude unknown)")
         return GyroBiasReport("auto", np.array(self._bias), self._k, self._n, np.array(self._se),
                               earth, note)
-
-
-def _joined(parts: list[np.ndarray], empty) -> np.ndarray:
-    """``np.concatenate(parts)`` into an array from ``empty(shape, dtype)``."""
-    shape = (sum(len(p) for p in parts), *parts[0].shape[1:])
-    return np.concatenate(parts, out=empty(shape, parts[0].dtype))
 
 
 @dataclass
