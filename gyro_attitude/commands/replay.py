@@ -233,14 +233,15 @@ def run(args) -> int:
           f"read {out['read_seconds']:.3f} s, integrate {out['integrate_seconds']:.3f} s, "
           f"write {out['write_seconds']:.3f} s")
     if out["working_bytes_on_disk"]:
-        print(f"  {out['working_bytes_on_disk'] / 1e6:.0f} MB of working arrays kept on disk "
-              "beside the output (unlinked files, gone when the replay ends)")
+        print(f"  {out['working_bytes_on_disk'] / 1e6:.0f} MB of working arrays kept "
+              "in files beside the output (unlinked, gone when the replay ends)")
     if out["truth_matched"]:
         print(f"  vs {out['truth_topic']} ({out['truth_matched']} stamps): final error "
               f"{np.degrees(out['final_error_rad']):.3e} deg, max "
               f"{np.degrees(out['max_error_rad']):.3e} deg")
     else:
-        print("  no truth topic in the input: no error figures")
+        print("  no error figures: no truth topic in the input, or no truth stamp inside "
+              "the span of two attitudes")
     print(f"  wrote {out['output']} (attitude, imu/data; compression "
           f"{out['compression'] or 'none'})" + (f", plot {args.plot}" if args.plot else ""))
     return 0

@@ -12,8 +12,11 @@ unlinked file leaves nothing behind however the process ends, ``kill -9`` includ
 
 Arrays below ``min_bytes`` stay ordinary memory (a short recording runs exactly as before);
 where the file system cannot reserve space, arrays fall back to memory too
-(:attr:`Spool.fallbacks` counts them).  The arrays are ordinary writable ``ndarray`` s: code
-that takes them knows nothing of files.
+(:attr:`Spool.fallbacks` counts them), and with ``when_full="memory"`` so do arrays that find
+no room (:attr:`Spool.full_fallbacks`: the work then needs the memory it needed before).
+``keep_free`` bytes of the file system are left to others (replay: room for its output):
+an array that would eat into them counts as finding no room.  The arrays are ordinary
+writable ``ndarray`` s: code that takes them knows nothing of files.
 """
 
 from __future__ import annotations
@@ -53,7 +56,15 @@ class Spool:
     in memory because the file system cannot reserve space.
     """
 
-    def __init__(self, directory, *, min_bytes: int | None = None):
+    def __init__(self, directory, *, min_bytes: int | None = None, when_full: str = "raise",
+                 keep_free: int = 0):
+        if when_full not in ("raise", "memory"):
+            raise ValueError(f"when_full must be 'raise' or 'memory', got {when_full!r}")
+        if isinstance(keep_free, bool) or not isinstance(keep_free, int) or keep_free < 0:
+            raise ValueError(f"keep_free must be an int >= 0, got {keep_free!r}")
+        self.keep_free = keep_free
+        self.when_full = when_full
+        self.full_fallbacks = 0
         if min_bytes is None:
             min_bytes = SPOOL_MIN_BYTES
         if isinstance(min_bytes, bool) or not isinstance(min_bytes, int) or min_bytes < 0:
@@ -70,7 +81,13 @@ class Spool:
         nbytes = math.prod(shape) * dtype.itemsize
         if nbytes < max(self.min_bytes, 1):
             return np.empty(shape, dtype)
-        buf = self._mapped(nbytes)
+        try:
+            buf = self._mapped(nbytes)
+        except SpoolSpaceError:
+            if self.when_full == "raise":
+                raise
+            self.full_fallbacks += 1
+            return np.empty(shape, dtype)
         if buf is None:
             self.fallbacks += 1
             return np.empty(shape, dtype)
@@ -84,6 +101,12 @@ class Spool:
         return a
 
     def _mapped(self, nbytes: int) -> mmap.mmap | None:
+        if self.keep_free:
+            import shutil
+
+            if shutil.disk_usage(self.directory).free - nbytes < self.keep_free:
+                raise SpoolSpaceError(errno.ENOSPC, self._no_room(nbytes, OSError(
+                    errno.ENOSPC, f"keeping {_size(self.keep_free)} free for others")))
         fd, path = tempfile.mkstemp(prefix=".gyro_attitude-spool-", dir=self.directory)
         try:
             try:
@@ -118,8 +141,8 @@ class Spool:
         except OSError:
             free = "free space unknown"
         return (f"{self.directory}: {exc.strerror} for a working array of {_size(nbytes)} "
-                f"({free}); a recording this long needs {_size(self.spooled_bytes + nbytes)}"
-                " or more beside the output")
+                f"({free}; {_size(self.spooled_bytes)} of working arrays reserved there so "
+                "far)")
 
 
 def _size(n: float) -> str:

@@ -58,6 +58,7 @@ from gyro_attitude.io.cdr_arrays import (
     quaternion_stamped_batch,
 )
 from gyro_attitude.io.imu_fast import read_topic_arrays
+from gyro_attitude.io.mcap_reader import bag_files
 from gyro_attitude.io.mcap_writer import DEFAULT_COMPRESSION, Rosbag2McapWriter
 from gyro_attitude.io.odometry_file import read_odometry_velocities
 from gyro_attitude.io.safe_output import SafeOutput, check_output_path
@@ -77,7 +78,10 @@ TRUTH_TOPIC = "truth/attitude"
 OUTPUT_CHUNK_SIZE = 4 * 1024 * 1024
 # Output messages built and written per write_batches call (bounds the write side's memory).
 OUTPUT_BLOCK_MESSAGES = 1 << 17
-# Truth stamps compared per block (bounds the error figures' temporaries: _compare_with_truth).
+# Room the working files leave beside the output for it: this plus 4x the input's size (the
+# output holds two messages per Imu message, and compresses unlike the input)
+OUTPUT_ROOM_BYTES = 64 << 20
+# Truth stamps compared per block (bounds the error figures' temporaries: _truth_figures).
 TRUTH_BLOCK = 1 << 15
 
 
@@ -181,6 +185,14 @@ def _alignment_summary(a) -> dict:
             "heading_error_expected_deg": (None if math.isnan(a.heading_error_expected)
                                            else math.degrees(a.heading_error_expected)),
             "rest_s": (a.rest_end_ns - a.rest_start_ns) * 1e-9}
+
+
+def _input_bytes(path) -> int:
+    """The size of a recording (a bag directory: its .mcap files), 0 when it cannot be had."""
+    try:
+        return sum(f.stat().st_size for f in bag_files(path))
+    except (OSError, ValueError):
+        return 0
 
 
 def _block(a: np.ndarray | None, lo: int, hi: int) -> np.ndarray | None:
@@ -350,9 +362,11 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     topics = {imu_topic: IMU_TYPE, truth_topic: QUATERNION_STAMPED_TYPE}
     if use_mag:
         topics[mag_topic] = MAGNETIC_FIELD_TYPE
-    # the columns of the recording's length on disk beside the output (io/spool.py): the
-    # process's memory does not grow with the recording
-    spool = Spool(Path(os.path.abspath(output_path)).parent)
+    # the columns of the recording's length in files beside the output (io/spool.py): the
+    # process's memory does not grow with the recording (where there is no room, they stay
+    # in memory as before, and the notes say so)
+    spool = Spool(Path(os.path.abspath(output_path)).parent, when_full="memory",
+                  keep_free=OUTPUT_ROOM_BYTES + 4 * _input_bytes(input_path))
     arrays = read_topic_arrays(input_path, topics, empty=spool.empty,
                                on_damage=on_damage, progress=progress, required=False,
                                fields={imu_topic: ("angular_velocity", "linear_acceleration",
@@ -429,6 +443,10 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     tv, qv = kept(t), res.q
     q_out = from_enu(qv, config.world_frame)  # the published frame (errors: in ENU, as truth)
     out_frame = frame_id_of(config.frame, config.world_frame)
+    # the error figures before the output is written: nothing they need (working arrays, an
+    # interrupt) can fail after the output is in place
+    figures = _truth_figures(truth, tv, qv, spool.empty) if truth is not None and len(truth) \
+        else None
     with SafeOutput(output_path, force=force) as tmp:
         with Rosbag2McapWriter(tmp, compression=compression, chunk_size=chunk_size) as w:
             w.add_topic("attitude", QUATERNION_STAMPED_TYPE)
@@ -465,7 +483,9 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         messages_per_second=len(imu) / max(t_end - t_start, 1e-12), input_damage=damage,
         estimator_notes=notes + ([
             f"{spool.fallbacks} working array(s) of the recording's length kept in memory: the "
-            "output's file system cannot reserve space for them"] if spool.fallbacks else []),
+            "output's file system cannot reserve space for them"] if spool.fallbacks else [])
+        + ([f"{spool.full_fallbacks} working array(s) of the recording's length kept in memory: "
+            "no room for them beside the output"] if spool.full_fallbacks else []),
         working_bytes_on_disk=spool.spooled_bytes,
         index=keep, t_ns=tv, q=q_out, error_t_ns=np.zeros(0, np.int64), error_rad=np.zeros(0))
     if use_mag and est.aiding is not None:
@@ -479,13 +499,13 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                 aid.mag_ref_dip),
             "hard_iron_t": list(aid.hard_iron), "accel_rejected": aid.accel_rejected,
             "clock_offset_s": mag_offset}
-    if truth is not None and len(truth):
-        _compare_with_truth(result, truth, tv, qv, spool.empty)
+    if figures is not None:
+        for name, value in figures.items():
+            setattr(result, name, value)
     return result
 
 
-def _compare_with_truth(result: ReplayResult, truth, t_ns: np.ndarray, q: np.ndarray,
-                        empty=np.empty) -> None:
+def _truth_figures(truth, t_ns: np.ndarray, q: np.ndarray, empty=np.empty) -> dict | None:
     """Error figures at every truth stamp inside the output's span: the truth runs on its
     own clock (a tracker at 120 Hz beside a 200 Hz Imu shares no stamp), so the attitude is
     slerped there between the two output samples around it (exact at a coinciding stamp;
@@ -499,6 +519,8 @@ def _compare_with_truth(result: ReplayResult, truth, t_ns: np.ndarray, q: np.nda
     whole-recording pass, bit for bit.  The per-stamp arrays come from ``empty`` (replay's
     spool: the error series is an output of the recording's length)."""
     est_t, est_q = _strictly_increasing(t_ns, q)  # the output may jump back in time
+    if est_t.size < 2:  # one attitude: nothing to slerp between
+        return None
     ts, tq = truth.stamp_ns, truth.quaternion
     usable = empty(ts.size, bool)
     for lo in range(0, ts.size, TRUTH_BLOCK):
@@ -509,8 +531,8 @@ def _compare_with_truth(result: ReplayResult, truth, t_ns: np.ndarray, q: np.nda
         ts, tq = ts[usable], tq[usable]
     del usable
     ts, tq = _strictly_increasing(ts, tq)
-    if ts.size == 0 or est_t.size == 0:
-        return
+    if ts.size == 0:
+        return None
     limit = default_max_interval_ns(est_t)  # what truth_at_stamps takes over the whole output
     covered = empty(ts.size, bool)
     err = empty(ts.size, np.float64)
@@ -528,15 +550,15 @@ def _compare_with_truth(result: ReplayResult, truth, t_ns: np.ndarray, q: np.nda
         err[n:n + m] = quat_angle_between(qe, tq[lo:hi][cov])
         n += m
     if n == 0:
-        return
+        return None
     err = err[:n]  # a view: no copy of the recording's length
-    result.truth_topic = truth.topic
-    result.truth_matched = n
-    result.final_error_rad = float(err[-1])
-    result.max_error_rad = float(err.max())
-    result.rms_error_rad = float(np.sqrt(np.dot(err, err) / n))  # no (N,) square temporary
-    result.error_t_ns = ts if n == ts.size else rows(ts, np.flatnonzero(covered), empty)
-    result.error_rad = err
+    square = empty(n, np.float64)  # (the squares where the error series is: from ``empty``)
+    np.multiply(err, err, out=square)
+    return {"truth_topic": truth.topic, "truth_matched": n, "final_error_rad": float(err[-1]),
+            "max_error_rad": float(err.max()),
+            "rms_error_rad": float(np.sqrt(np.mean(square))),
+            "error_t_ns": ts if n == ts.size else rows(ts, np.flatnonzero(covered), empty),
+            "error_rad": err}
 
 
 def _strictly_increasing(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -651,3 +651,16 @@ def test_replay_with_its_working_arrays_on_disk_gives_the_same_file_and_leaves_n
     np.testing.assert_array_equal(got[0].orientation, got[1].orientation)
     np.testing.assert_array_equal(got[0].linear_acceleration, got[1].linear_acceleration)
     assert sorted(os.listdir(disk_dir)) == ["out.mcap"]
+
+
+def test_one_imu_message_with_truth_gives_its_attitude_and_no_error_figures(tmp_path, capsys):
+    """One attitude has nothing to slerp the truth between: no error figures, said in one
+    line, exit 0 -- not an IndexError after the output was written."""
+    t = np.array([2 * 10**9], dtype=np.int64)
+    _record(tmp_path / "in.mcap", t, np.zeros((1, 3)), truth=np.array([[0.0, 0.0, 0.0, 1.0]]))
+    assert cli_main(["replay", str(tmp_path / "in.mcap"), "--out", str(tmp_path / "o.mcap"),
+                     "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "no error figures" in out and "Traceback" not in out
+    assert read_quaternion_stamped_arrays(tmp_path / "o.mcap", "attitude").stamp_ns.tolist() \
+        == t.tolist()

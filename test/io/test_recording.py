@@ -67,14 +67,15 @@ def test_simulate_onto_a_full_disk_names_the_file(small_disk, capsys):
     assert list(small_disk.iterdir()) == []
 
 
-def _imu_recording(path, n: int = 20_000):
-    """An MCAP of ``n`` Imu messages at 1 kHz (random rates)."""
+def _imu_recording(path, n: int = 20_000, rates=None):
+    """An MCAP of ``n`` Imu messages at 1 kHz (random rates unless given)."""
     from gyro_attitude.io.mcap_writer import Rosbag2McapWriter
 
     with Rosbag2McapWriter(path) as wr:
         wr.add_topic("imu/data_raw", "sensor_msgs/msg/Imu")
         wr.write_imu_array("imu/data_raw", 10**9 + np.arange(n, dtype=np.int64) * 10**6,
-                           np.random.default_rng(2).normal(size=(n, 3)))
+                           np.random.default_rng(2).normal(size=(n, 3)) if rates is None
+                           else rates)
     return path
 
 
@@ -89,19 +90,23 @@ def test_replay_onto_a_full_disk_names_the_file(small_disk, tmp_path, capsys):
     assert list(small_disk.iterdir()) == []
 
 
-def test_replay_whose_working_arrays_do_not_fit_beside_the_output_says_so(small_disk, tmp_path,
-                                                                        capsys, monkeypatch):
+def test_replay_whose_working_arrays_do_not_fit_beside_the_output_keeps_them_in_memory(
+        small_disk, tmp_path, capsys, monkeypatch):
     """A long recording's columns go to unlinked files beside the output (io/spool.py), their
-    space reserved up front: no room is one line naming the directory and the sizes, exit 1,
-    nothing left on the disk (never a SIGBUS from a sparse file filling up)."""
+    space reserved up front (never a SIGBUS from a sparse file filling up). Where there is no
+    room for them the replay keeps them in memory, as before the spool, and says so: a replay
+    whose output fits still succeeds, and nothing but the output is left on the disk."""
+    import json
+
     import gyro_attitude.io.spool as spool
 
     monkeypatch.setattr(spool, "SPOOL_MIN_BYTES", 0)
-    src = _imu_recording(tmp_path / "in.mcap")
+    n = 2000  # a steady turn: the output (~130 kB) fits, the working arrays do not
+    src = _imu_recording(tmp_path / "in.mcap", n=n, rates=np.tile([0.0, 0.0, 0.1], (n, 1)))
     out = small_disk / "out.mcap"
-    assert cli_main(["replay", str(src), "--out", str(out), "--no-progress"]) == 1
-    err = capsys.readouterr().err
-    assert len(err.splitlines()) == 1, err
-    assert f"{small_disk}: No space left on device for a working array of " in err
-    assert "free)" in err and "beside the output" in err
-    assert list(small_disk.iterdir()) == []
+    assert cli_main(["replay", str(src), "--out", str(out), "--no-progress", "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    notes = " ".join(got["estimator_notes"])
+    assert "kept in memory: no room for them beside the output" in notes
+    assert got["attitude_messages"] == n and got["working_bytes_on_disk"] < n * 200
+    assert [p.name for p in small_disk.iterdir()] == ["out.mcap"]

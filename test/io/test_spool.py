@@ -45,8 +45,14 @@ def test_a_full_disk_is_one_line_at_allocation_not_a_crash_while_writing(tmp_pat
         spool.empty((1_000_000, 3))
     text = str(got.value)
     assert "\n" not in text and str(tmp_path) in text and "24.0 MB" in text and "free" in text
+    assert "reserved there so far" in text
     assert got.value.errno == errno.ENOSPC and isinstance(got.value, OSError)
     assert os.listdir(tmp_path) == []
+    # replay's choice: no room keeps the array in memory (counted), as before the spool
+    keep = Spool(tmp_path, min_bytes=0, when_full="memory")
+    a = keep.empty((1000, 3))
+    assert not isinstance(_mapped_base(a), mmap.mmap) and keep.full_fallbacks == 1
+    assert keep.spooled_bytes == 0 and os.listdir(tmp_path) == []
 
 
 def test_a_file_system_that_cannot_reserve_space_keeps_the_array_in_memory(tmp_path,
@@ -65,6 +71,8 @@ def test_a_file_system_that_cannot_reserve_space_keeps_the_array_in_memory(tmp_p
 def test_a_threshold_that_is_not_a_byte_count_is_refused(tmp_path, bad):
     with pytest.raises(ValueError, match="min_bytes"):
         Spool(tmp_path, min_bytes=bad)
+    with pytest.raises(ValueError, match="when_full"):
+        Spool(tmp_path, when_full="ignore")
 
 
 def test_a_topic_reordered_into_log_time_order_on_disk_equals_the_one_in_memory(tmp_path):
@@ -114,3 +122,18 @@ def test_a_declared_count_without_room_is_read_as_the_chunks_come(tmp_path):
     np.testing.assert_array_equal(got.stamp_ns, plain.stamp_ns)
     np.testing.assert_array_equal(got.angular_velocity, plain.angular_velocity)
     np.testing.assert_array_equal(got.angular_velocity, w)
+
+
+def test_room_kept_free_for_others_is_not_taken(tmp_path):
+    """keep_free: an array that would leave less than that on the file system finds no room
+    (replay keeps room for its output so)."""
+    import shutil
+
+    free = shutil.disk_usage(tmp_path).free
+    keep = Spool(tmp_path, min_bytes=0, when_full="memory", keep_free=free)
+    a = keep.empty((1000, 3))
+    assert not isinstance(_mapped_base(a), mmap.mmap) and keep.full_fallbacks == 1
+    with pytest.raises(SpoolSpaceError, match="free for others"):
+        Spool(tmp_path, min_bytes=0, keep_free=free).empty((1000, 3))
+    roomy = Spool(tmp_path, min_bytes=0, keep_free=1 << 20)
+    assert isinstance(_mapped_base(roomy.empty((1000, 3))), mmap.mmap)
