@@ -95,11 +95,6 @@ class Spool:
         self.spooled_arrays += 1
         return np.frombuffer(buf, dtype=dtype, count=math.prod(shape)).reshape(shape)
 
-    def zeros(self, shape, dtype=np.float64) -> np.ndarray:
-        a = self.empty(shape, dtype)
-        a.fill(0)
-        return a
-
     def _mapped(self, nbytes: int) -> mmap.mmap | None:
         if self.keep_free:
             import shutil

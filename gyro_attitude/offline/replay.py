@@ -28,6 +28,7 @@ import numpy as np
 from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, DEFAULT_OFFLINE_ALGORITHM, NavFrame
 from gyro_attitude.core.attitude import validation as iv
 from gyro_attitude.core.attitude.input_topics import shared_topic, shared_topic_message
+from gyro_attitude.core.attitude.inputs import first_step_back
 from gyro_attitude.core.attitude.modes import Aiding, Estimator, InitialAttitudeSource, parse_mode
 from gyro_attitude.core.attitude.nav_frame import velocity_series
 from gyro_attitude.core.attitude.offline import estimate_offline
@@ -185,6 +186,14 @@ def _alignment_summary(a) -> dict:
             "heading_error_expected_deg": (None if math.isnan(a.heading_error_expected)
                                            else math.degrees(a.heading_error_expected)),
             "rest_s": (a.rest_end_ns - a.rest_start_ns) * 1e-9}
+
+
+def _spool_notes(spool: Spool) -> list[str]:
+    """What the summary says of working arrays that stayed in memory, and why."""
+    return [f"{n} working array(s) of the recording's length kept in memory: {why}"
+            for n, why in ((spool.fallbacks, "the output's file system cannot reserve space "
+                                              "for them"),
+                           (spool.full_fallbacks, "no room for them beside the output")) if n]
 
 
 def _input_bytes(path) -> int:
@@ -481,11 +490,7 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         wall_seconds=t_end - t_start, read_seconds=t_read - t_start,
         integrate_seconds=t_int - t_read, write_seconds=t_end - t_int,
         messages_per_second=len(imu) / max(t_end - t_start, 1e-12), input_damage=damage,
-        estimator_notes=notes + ([
-            f"{spool.fallbacks} working array(s) of the recording's length kept in memory: the "
-            "output's file system cannot reserve space for them"] if spool.fallbacks else [])
-        + ([f"{spool.full_fallbacks} working array(s) of the recording's length kept in memory: "
-            "no room for them beside the output"] if spool.full_fallbacks else []),
+        estimator_notes=notes + _spool_notes(spool),
         working_bytes_on_disk=spool.spooled_bytes,
         index=keep, t_ns=tv, q=q_out, error_t_ns=np.zeros(0, np.int64), error_rad=np.zeros(0))
     if use_mag and est.aiding is not None:
@@ -564,9 +569,7 @@ def _truth_figures(truth, t_ns: np.ndarray, q: np.ndarray, empty=np.empty) -> di
 def _strictly_increasing(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Samples sorted by stamp, the first recorded of a repeated stamp kept (``t``, ``q``
     themselves, no copy, when they already are)."""
-    last = t.size - 1  # intervals, TRUTH_BLOCK at a time
-    if all(bool((t[c0 + 1:min(c0 + TRUTH_BLOCK, last) + 1]
-                 > t[c0:min(c0 + TRUTH_BLOCK, last)]).all()) for c0 in range(0, last, TRUTH_BLOCK)):
+    if first_step_back(t, TRUTH_BLOCK) is None:
         return t, q
     order = np.argsort(t, kind="stable")
     t, q = t[order], q[order]

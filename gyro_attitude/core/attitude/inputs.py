@@ -7,6 +7,17 @@ import numpy as np
 from gyro_attitude.core.rotation import as_quat_array, as_vector_array
 
 
+def first_step_back(t: np.ndarray, size: int = 1 << 16) -> int | None:
+    """Index of the first stamp of ``t`` (1-D ints) not after the one before it, or None when
+    they rise strictly; ``size`` intervals at a time (no temporary of the recording's
+    length)."""
+    for c0 in range(0, t.size - 1, size):
+        bad = np.diff(t[c0:c0 + size + 1]) <= 0
+        if bad.any():
+            return c0 + int(np.argmax(bad)) + 1
+    return None
+
+
 def check_times(t_ns) -> np.ndarray:
     """1-D strictly increasing int64 nanoseconds, at least one sample (``ValueError`` else)."""
     t = np.asarray(t_ns)
@@ -17,12 +28,10 @@ def check_times(t_ns) -> np.ndarray:
     t = t.astype(np.int64, copy=False)
     if t.size < 1:
         raise ValueError("t_ns is empty: at least one sample is needed")
-    dt = np.diff(t)
-    bad = np.flatnonzero(dt <= 0)
-    if bad.size:
-        k = int(bad[0]) + 1
-        raise ValueError(f"time step t_ns[{k}] - t_ns[{k - 1}] = {int(dt[k - 1])} ns is not "
-                         "positive: samples must be strictly increasing in time")
+    k = first_step_back(t)
+    if k is not None:
+        raise ValueError(f"time step t_ns[{k}] - t_ns[{k - 1}] = {int(t[k] - t[k - 1])} ns is "
+                         "not positive: samples must be strictly increasing in time")
     return t
 
 

@@ -55,6 +55,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gyro_attitude.core.attitude.inputs import first_step_back
 from gyro_attitude.core.earth import STANDARD_GRAVITY
 from gyro_attitude.core.jit import compiled, kernel
 
@@ -86,13 +87,10 @@ def check_samples(t_ns, gyro, accel=None) -> tuple[np.ndarray, np.ndarray, np.nd
     if not np.issubdtype(t.dtype, np.integer):
         raise ValueError(f"t_ns must hold integer nanoseconds, got dtype {t.dtype}")
     t = t.astype(np.int64, copy=False)
-    # chunk by chunk: no temporary of the recording's length
-    for c0 in range(0, t.size - 1, _STATS_CHUNK):
-        bad = np.diff(t[c0:c0 + _STATS_CHUNK + 1]) <= 0
-        if bad.any():
-            k = c0 + int(np.argmax(bad)) + 1
-            raise ValueError(f"t_ns must be strictly increasing (sample {k}: {t[k]} after "
-                             f"{t[k - 1]})")
+    k = first_step_back(t)
+    if k is not None:
+        raise ValueError(f"t_ns must be strictly increasing (sample {k}: {t[k]} after "
+                         f"{t[k - 1]})")
     out = []
     for name, arr in (("gyro", gyro), ("accel", accel)):
         if arr is None:

@@ -212,19 +212,11 @@ class StampRule:
                                          f"the previous at a nominal period of {p / 1e6:.3f} ms")
 
 
-def holes_from(dt: np.ndarray) -> bool:
-    """Whether a regular run of intervals ``dt`` (one time base, all within the gap limit)
-    holds an interval that :class:`StampRule` takes for missing samples."""
-    if dt.size <= NOMINAL_INTERVALS:
-        return False
-    p = int(np.sort(dt[:NOMINAL_INTERVALS])[NOMINAL_INTERVALS // 2])
-    return bool(np.any(2 * dt[NOMINAL_INTERVALS:] >= 3 * p))
-
-
 def _regular_stamps(t: np.ndarray, max_gap_ns: int, size: int = 1 << 16) -> bool:
     """Whether stamps ``t`` rise strictly, with no interval beyond ``max_gap_ns`` and none
-    that :func:`holes_from` takes for missing samples: the stream the validator accepts
-    whole.  ``size`` intervals at a time (no temporary of the recording's length)."""
+    that :class:`StampRule` takes for missing samples (from the 17th interval on, 1.5 times
+    the median of the first 16): the stream the validator accepts whole.  ``size`` intervals
+    at a time (no temporary of the recording's length)."""
     if t.size < 2:
         return True
     if t.size <= NOMINAL_INTERVALS + 1:
@@ -235,7 +227,7 @@ def _regular_stamps(t: np.ndarray, max_gap_ns: int, size: int = 1 << 16) -> bool
         dt = np.diff(t[c0:c0 + size + 1])
         if dt.min() <= 0 or dt.max() > max_gap_ns:
             return False
-        lo = max(NOMINAL_INTERVALS - c0, 0)  # holes_from looks from the 17th interval on
+        lo = max(NOMINAL_INTERVALS - c0, 0)  # holes count from the 17th interval on
         if lo < dt.size and np.any(2 * dt[lo:] >= 3 * p):
             return False
     return True
@@ -472,8 +464,9 @@ def classify(t_ns, omega, frame_id: str | list[str] | None = "",
     # (then no per-row mask is made: ok None stands for all rows).
     ok = None
     locked = 0
-    if not (n and codes is None and all_within(w, cfg.max_rate_rad_s) and int(t.min()) > 0):
-        if all_within(w, cfg.max_rate_rad_s):  # the rates pass: no per-row value checks
+    rates_within = all_within(w, cfg.max_rate_rad_s)
+    if not (n and codes is None and rates_within and int(t.min()) > 0):
+        if rates_within:  # the rates pass: no per-row value checks
             finite = plausible = np.ones(n, dtype=bool)
         else:
             with np.errstate(invalid="ignore"):

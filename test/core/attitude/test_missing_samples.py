@@ -103,8 +103,14 @@ def test_the_regular_stream_check_finds_a_hole_or_a_step_back_in_any_chunk():
     """classify settles a regular stream array-wide with _regular_stamps, a chunk of
     intervals at a time (no temporary of the recording's length): whatever chunk a missing
     sample, a repeated stamp or a gap falls in, it answers as the whole-array rule
-    (holes_from over all intervals: the oracle)."""
-    from gyro_attitude.core.attitude.validation import _regular_stamps, holes_from
+    (the rule over all intervals at once: the oracle)."""
+    from gyro_attitude.core.attitude.validation import NOMINAL_INTERVALS, _regular_stamps
+
+    def holes_from(dt):  # an interval from the 17th on of 1.5 x the first 16's median or more
+        if dt.size <= NOMINAL_INTERVALS:
+            return False
+        p = int(np.sort(dt[:NOMINAL_INTERVALS])[NOMINAL_INTERVALS // 2])
+        return bool(np.any(2 * dt[NOMINAL_INTERVALS:] >= 3 * p))
 
     t = 10**9 + np.arange(120, dtype=np.int64) * 5_000_000
     gap = 100_000_000
