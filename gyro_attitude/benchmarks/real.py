@@ -267,7 +267,6 @@ def evaluate(name: str, directory=None, modes=MODES, peers=True,
         has[index[0]:] = True
         row(mode, q, seconds, valid=has[idx])
         rows[-1]["bias_note"] = stream.bias_report.note
-        rows[-1]["form"] = "push" if mode.endswith("/push") else str(stream.run_form()[0])
     for mode in offline_modes:
         cfg = stream_config(mode.split("/", 1)[1], heading)
         res, seconds = _best_of(lambda cfg=cfg, mode=mode: estimate_offline(
@@ -495,7 +494,7 @@ def _offline_ratios(rows: list[dict]) -> list[dict]:
 
 
 def run(quick: bool = False, out_dir=None) -> list[dict]:
-    from gyro_attitude.core.attitude.stream_loop import compile_kernels
+    from gyro_attitude.core.attitude.stream import compile_kernels
 
     directory = real_dir()
     names = RECORDINGS[:1] if quick else RECORDINGS

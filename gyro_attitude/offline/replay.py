@@ -38,7 +38,6 @@ from gyro_attitude.core.attitude.stream import (
     MAG_DISTURBED,
     MAG_MISSING,
     AttitudeStream,
-    PerSamplePathNeeded,
     StreamConfig,
     bias_summary,
     nav_rows,
@@ -294,17 +293,8 @@ def estimate_recording(t_ns, omega, accel, gyro_covariance, frame_id, *, config:
         return Estimate(res, first, algorithm, list(res.notes), res.field_reference,
                         Estimator.OFFLINE)
     notes = []
-    stream = AttitudeStream(algorithm or DEFAULT_OFFLINE_ALGORITHM, q0=q0, nav=nav,
-                            config=config)
-    try:
-        res = stream.run(t_ns, omega, frame_id, gyro_covariance, accel, mag, empty=empty)
-    except PerSamplePathNeeded:
-        if algorithm is not None:
-            raise
-        # the chain runs per sample on this recording (aiding): the offline algorithm cannot,
-        # the node's default can
-        stream = AttitudeStream(DEFAULT_ALGORITHM, q0=q0, nav=nav, config=config)
-        res = stream.run(t_ns, omega, frame_id, gyro_covariance, accel, mag)
+    stream = AttitudeStream(algorithm or DEFAULT_ALGORITHM, q0=q0, nav=nav, config=config)
+    res = stream.run(t_ns, omega, frame_id, gyro_covariance, accel, mag, empty=empty)
     return Estimate(res, first, stream.algorithm, notes, stream.aiding, Estimator.CAUSAL)
 
 

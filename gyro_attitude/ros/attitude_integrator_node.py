@@ -104,8 +104,8 @@ from gyro_attitude.core.attitude.stream import (
     RUNNING,
     SATURATED,
     AttitudeStream,
+    compile_kernels,
 )
-from gyro_attitude.core.attitude.stream_loop import compile_kernels
 from gyro_attitude.core.attitude.truth import TruthStart
 from gyro_attitude.core.attitude.world_frame import frame_id_of, from_enu_one
 from gyro_attitude.io.cdr_arrays import ImuCdr, QuaternionStampedCdr

@@ -50,11 +50,10 @@ import numpy as np
 from gyro_attitude.core.angles import wrap_2pi
 from gyro_attitude.core.attitude.ahrs import MAG_ABSURD_T, MAG_ZERO_T
 from gyro_attitude.core.attitude.modes import SettingError
-from gyro_attitude.core.attitude.rest import RestDetector, check_sample, check_samples, detect_rest
+from gyro_attitude.core.attitude.rest import RestDetector, check_sample, check_samples
 from gyro_attitude.core.attitude.validation import within
 from gyro_attitude.core.earth import OMEGA_IE, check_latitude
 from gyro_attitude.core.jit import compiled, kernel
-from gyro_attitude.core.rotation import quat_from_matrix
 
 __all__ = ["AlignmentResult", "StaticAligner", "align", "gyrocompass_heading", "level_q",
            "level_quaternion"]
@@ -123,27 +122,6 @@ def level_quaternion(f_b, heading: float) -> tuple[np.ndarray, float, float]:
         raise ValueError(f"specific force {f_b!r} is not a usable gravity measurement")
     return np.array([x, y, z, w]), roll, pitch
 
-
-def level_quaternions(f_b: np.ndarray, heading: float) -> tuple[np.ndarray, np.ndarray]:
-    """Array form of :func:`level_quaternion` for (N, 3) specific forces: ``(q_nb (N, 4),
-    usable (N,))`` (rows that are no gravity measurement get the identity, not usable)."""
-    f = np.asarray(f_b, dtype=np.float64)
-    with np.errstate(invalid="ignore"):
-        usable = np.isfinite(f).all(axis=1) & (np.linalg.norm(f, axis=1) >= 1.0)
-    fx, fy, fz = (np.where(usable, f[:, i], (0.0, 0.0, 1.0)[i]) for i in range(3))
-    roll = np.arctan2(fy, fz)
-    pitch = np.arctan2(-fx, np.hypot(fy, fz))
-    psi = math.pi / 2 - heading
-    cz, sz = math.cos(psi), math.sin(psi)
-    cr, sr, cp, sp = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch)
-    # Rz(ψ) Ry(θ) Rx(φ), written out
-    c = np.empty((f.shape[0], 3, 3))
-    c[:, 0, 0], c[:, 0, 1], c[:, 0, 2] = cz * cp, cz * sp * sr - sz * cr, cz * sp * cr + sz * sr
-    c[:, 1, 0], c[:, 1, 1], c[:, 1, 2] = sz * cp, sz * sp * sr + cz * cr, sz * sp * cr - cz * sr
-    c[:, 2, 0], c[:, 2, 1], c[:, 2, 2] = -sp, cp * sr, cp * cr
-    q = quat_from_matrix(c)
-    q[~usable] = (0.0, 0.0, 0.0, 1.0)
-    return q, usable
 
 
 def gyrocompass_heading(w_b, roll: float, pitch: float) -> float:
@@ -376,62 +354,6 @@ class StaticAligner:
             s[7][i] = s[7][i] + e
             s[8][i] = s[8][i] + e * e
 
-    def run(self, t, g, a, breaks=None, mag=None) -> tuple[int, int, AlignmentResult] | None:
-        """Array form of :meth:`update` over a recording (a fresh aligner; the windows broken
-        before every row where ``breaks`` (N,) is True, which discards an open rest as the
-        stream does): ``(done_row, first_row, result)`` — the row at which the first qualifying
-        rest ended, the row of its last rest sample (from which the attitude is integrated),
-        and the alignment — or None when no rest qualifies.  ``result`` raises as
-        :meth:`result` does (gyrocompass refused) through :func:`_result`.  ``mag`` (N, 3)
-        the field (tesla; rows of NaN: none) for ``mag_heading``."""
-        n = t.shape[0]
-        starts = [0] if breaks is None else [0, *np.flatnonzero(breaks[1:]) + 1]
-        for r0, r1 in zip(starts, [*starts[1:], n], strict=True):
-            if r1 - r0 < 2:
-                continue
-            tt, gg, aa = t[r0:r1], g[r0:r1], a[r0:r1]
-            r = detect_rest(tt, gg, aa, **self._opt.rest)
-            ev = np.flatnonzero(r.at_rest)
-            if ev.size == 0:
-                continue
-            ev = ev[np.concatenate([[True], r.oldest[ev][1:] > r.oldest[ev][:-1]])]
-            run_id = np.cumsum(np.diff(np.concatenate([[False], r.at_rest]).astype(np.int8)) == 1)
-            for kk in np.split(ev, np.flatnonzero(np.diff(run_id[ev])) + 1):
-                # the rest ends at the first window after its last at-rest window that is
-                # not at rest; a rest still open at a break is discarded
-                end = kk[-1] + 1
-                while end < r1 - r0 and r.at_rest[end]:
-                    end += 1
-                if end >= r1 - r0:
-                    break
-                j = r.oldest[kk]
-                if tt[j[-1]] - tt[j[0]] < self._opt.min_rest_ns:
-                    continue
-                df, dw = aa[j] - aa[j[0]], gg[j] - gg[j[0]]
-                sums = [np.cumsum(x, axis=0)[-1].tolist() for x in (df, df * df, dw, dw * dw)]
-                self.done = True
-                res = _result(self._opt, j.size, int(tt[j[0]]), int(tt[j[-1]]),
-                              aa[j[0]].tolist(), sums[0], sums[1], gg[j[0]].tolist(), sums[2],
-                              sums[3], self._field_sums(mag, r0 + j))
-                return r0 + int(end), r0 + int(j[-1]), res
-        return None
-
-    def _field_sums(self, mag, j):
-        """The field's sums over the rest samples ``j`` (the array form of :meth:`_add`)."""
-        if not self._opt.mag_heading or mag is None:
-            return None
-        hi = self._opt.hard_iron
-        mm = np.asarray(mag, dtype=np.float64)[j]
-        with np.errstate(invalid="ignore", over="ignore"):
-            ok = (np.abs(mm).max(axis=1) <= MAG_ABSURD_T) & (
-                (mm * mm).sum(axis=1) >= MAG_ZERO_T * MAG_ZERO_T)
-        mm = mm[ok]
-        if not mm.shape[0]:
-            return None
-        mm = np.column_stack([mm[:, i] - hi[i] for i in range(3)])
-        d = mm - mm[0]
-        return (mm.shape[0], mm[0].tolist(), np.cumsum(d, axis=0)[-1].tolist(),
-                np.cumsum(d * d, axis=0)[-1].tolist())
 
     def result(self) -> AlignmentResult:
         s = self._seg
@@ -447,25 +369,17 @@ def align(t_ns, gyro, accel, initial_heading_deg: float = 0.0, *, gyrocompass: b
           gyro_bias_sigma: float | None = None, accel_bias_sigma: float = 0.05,
           heading_error_limit_deg: float = 5.0, min_rest_s: float = 1.0,
           rest: dict | None = None) -> AlignmentResult:
-    """Batch :class:`StaticAligner` over arrays: alignment over the first qualifying rest."""
-    opt = _Options(initial_heading_deg, gyrocompass, latitude_rad, gyro_bias, gyro_bias_sigma,
-                   accel_bias_sigma, heading_error_limit_deg, min_rest_s, rest)
+    """:class:`StaticAligner` over arrays: alignment over the first qualifying rest (one that
+    lasts to the end of the data counts too)."""
     if accel is None:
         raise ValueError("alignment needs the accelerometer (accel is None)")
+    al = StaticAligner(initial_heading_deg, gyrocompass=gyrocompass, latitude_rad=latitude_rad,
+                       gyro_bias=gyro_bias, gyro_bias_sigma=gyro_bias_sigma,
+                       accel_bias_sigma=accel_bias_sigma,
+                       heading_error_limit_deg=heading_error_limit_deg, min_rest_s=min_rest_s,
+                       rest=rest)
     t, g, a = check_samples(t_ns, gyro, accel)
-    r = detect_rest(t, g, a, **opt.rest)
-    ev = np.flatnonzero(r.at_rest)
-    if ev.size:
-        ev = ev[np.concatenate([[True], r.oldest[ev][1:] > r.oldest[ev][:-1]])]
-    run_id = np.cumsum(np.diff(np.concatenate([[False], r.at_rest]).astype(np.int8)) == 1)
-    for rid in np.unique(run_id[ev]):
-        j = r.oldest[ev[run_id[ev] == rid]]
-        if t[j[-1]] - t[j[0]] < opt.min_rest_ns:
-            continue
-        df, dw = a[j] - a[j[0]], g[j] - g[j[0]]
-        # Sequential sums (np.cumsum) as the stream adds them: bit-identical results.
-        sums = [np.cumsum(x, axis=0)[-1].tolist() for x in (df, df * df, dw, dw * dw)]
-        return _result(opt, j.size, int(t[j[0]]), int(t[j[-1]]), a[j[0]].tolist(), sums[0],
-                       sums[1], g[j[0]].tolist(), sums[2], sums[3])
-    raise ValueError(f"cannot align: no rest of at least {opt.min_rest_ns / 1e9:g} s in the data "
-                     "(alignment needs the IMU still)")
+    for tk, gk, ak in zip(t.tolist(), g.tolist(), a.tolist(), strict=True):
+        if al.update_checked(tk, gk, ak):
+            break
+    return al.result()

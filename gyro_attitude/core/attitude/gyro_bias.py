@@ -46,7 +46,6 @@ from gyro_attitude.core.attitude.rest import (
     RestDetector,
     check_sample,
     check_samples,
-    detect_rest,
     rest_update,
 )
 from gyro_attitude.core.earth import check_latitude, earth_rate_enu
@@ -232,8 +231,6 @@ def _c_bn_times(x, y, z, w, s, w_n):
             c02 * e0 + c12 * e1 + c22 * e2)
 
 
-_REST_CHUNK = 1 << 16  # rows of one rest summed at a time (run)
-
 
 class GyroBiasEstimator:
     """Streaming gyro bias (see the module docstring for modes and the contract)."""
@@ -398,160 +395,6 @@ class GyroBiasEstimator:
     def window_ns(self) -> int:
         return self.detector.window_ns
 
-    def values_without_earth(self, g: np.ndarray, q_nb: np.ndarray, known: np.ndarray):
-        """``g − C_bn ω_ie^n`` per row (N, 3) where ``known`` (N,) says the row's attitude
-        ``q_nb`` (N, 4) is known (the array form of what :meth:`update` averages), ``g``
-        elsewhere; ``g`` unchanged without a latitude."""
-        if self._earth_n is None:
-            return g
-        x, y, z, w = (q_nb[:, i] for i in range(4))
-        e = _c_bn_times(x, y, z, w, 2.0 / (x * x + y * y + z * z + w * w), self._earth_n)
-        return np.where(known[:, None], g - np.column_stack(e), g)
-
-    def rests(self, t, g, a=None, breaks=None,
-              empty=np.empty) -> list[tuple[np.ndarray, np.ndarray]]:
-        """The rests the detector finds in a run of samples (``t`` (N,) int64 increasing, ``g``
-        (N, 3) the rates, ``a`` (N, 3) or None), from a fresh window, the windows broken again
-        before every row where ``breaks`` (N,) is True: per rest in order, ``(rows, oldest)``
-        — the rows whose window is at rest with a new oldest sample, and those oldest samples
-        (what :meth:`update` accumulates there)."""
-        n = t.shape[0]
-        starts = [0] if breaks is None else [0, *np.flatnonzero(breaks[1:]) + 1]
-        plan = []
-        # every rest's rows and oldest samples, views into two arrays of at most one event per
-        # row from ``empty`` (a file-backed allocator touches only what is written)
-        ev_rows, ev_oldest = empty(n, np.int64), empty(n, np.int64)
-        pos = 0
-        for r0, r1 in zip(starts, [*starts[1:], n], strict=True):
-            if r1 - r0 < 2:
-                continue
-            r = detect_rest(t[r0:r1], g[r0:r1], None if a is None else a[r0:r1],
-                            **self._rest_params, empty=empty)
-            # accumulation events: a window at rest whose oldest sample is new
-            ev = np.flatnonzero(r.at_rest)
-            if ev.size == 0:
-                continue
-            ev = ev[np.concatenate([[True], r.oldest[ev][1:] > r.oldest[ev][:-1]])]
-            # a rest is a run of consecutive at-rest windows: the run of each event is the
-            # number of run starts at or before it (byte-wide temporaries only)
-            rise = np.flatnonzero(np.diff(r.at_rest.view(np.int8), prepend=np.int8(0)) == 1)
-            run_of = np.searchsorted(rise, ev, side="right")
-            for kk in np.split(ev, np.flatnonzero(np.diff(run_of)) + 1):
-                rows_, oldest_ = ev_rows[pos:pos + kk.size], ev_oldest[pos:pos + kk.size]
-                np.add(kk, r0, out=rows_)
-                np.add(r.oldest[kk], r0, out=oldest_)
-                plan.append((rows_, oldest_))
-                pos += kk.size
-        return plan
-
-    def run(self, t, g, a=None, breaks=None, earth_removed=False, values=None,
-            plan=None, empty=np.empty) -> BiasTrack:
-        """Array form of :meth:`update` over a run of samples (arguments of :meth:`rests`, or
-        its ``plan``), from a broken window on (as after :meth:`break_window`): rests found on
-        the rates ``g``, averages of ``values`` (default ``g``; the rates less the Earth rate
-        on the rows where ``earth_removed``: a bool, or (N,) bools).  Same decisions and the
-        same sums as the per-sample form, vectorized per rest (the loop runs over rests, not
-        samples).  Leaves the estimator as after :meth:`break_window` (the last rest pooled).
-        ``empty(shape, dtype)`` allocates the bias of every row and the rests' rows.
-        """
-        n = t.shape[0]
-        bias = empty((n, 3), np.float64)
-        bias[:] = self._bias
-        if self.mode != "auto" or n == 0:
-            return BiasTrack(bias, np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)),
-                             np.zeros(0, np.int64))
-        self.break_window()
-        if plan is None:
-            plan = self.rests(t, g, a, breaks)
-        values = g if values is None else values
-        earth_rows = np.broadcast_to(np.asarray(earth_removed, dtype=bool), (n,))
-        # the rows and standard errors of every estimate (at most one per row), written in
-        # order into arrays from ``empty``; the bias before each rest and its start in lists
-        out: dict = {"rows": empty(n, np.int64), "se": empty((n, 3), np.float64), "count": 0,
-                     "prev": [], "t0": []}
-        for kk, j in plan:
-            self._accumulate_rest(t, values, kk, j, out, bool(earth_rows[j].all()), bias)
-        if out["count"]:
-            upd, se = out["rows"][:out["count"]], out["se"][:out["count"]]
-            prev, t0 = np.concatenate(out["prev"]), np.concatenate(out["t0"])
-            # each estimate (written at its row) holds until the next one: the runs of rows
-            # between two updates (a loop over those runs: at a rest every row is an update)
-            nxt = np.append(upd[1:], n)
-            for i in np.flatnonzero(nxt - upd > 1).tolist():
-                bias[upd[i] + 1:nxt[i]] = bias[upd[i]]
-        else:
-            upd, se, prev, t0 = (np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)),
-                                 np.zeros(0, np.int64))
-        return BiasTrack(bias, upd, se, prev, t0)
-
-    def _accumulate_rest(self, t, values, kk, j, out: dict, earth: bool, bias) -> None:
-        """One rest of :meth:`run`: its estimates (written into ``bias`` at their rows; the
-        rows and standard errors written into ``out``, the bias before the rest and its start
-        once), then pooled.  Chunk
-        by chunk of the rest's rows (the running sums carried into each chunk's first row:
-        the same additions in the same order, so identical numbers), so a long rest costs
-        bounded temporaries."""
-        ref = values[j[0]].copy()
-        t_first = int(t[j[0]])
-        n_all = j.size
-        c1 = c2 = None  # the running sums through the chunk before
-        prev_bias = self._bias
-        last = None
-        for r0 in range(0, n_all, _REST_CHUNK):
-            jj = j[r0:r0 + _REST_CHUNK]
-            d = values[jj] - ref
-            d2 = d * d
-            if c1 is not None:
-                d[0] += c1
-                d2[0] += c2
-            # sequential running sums (np.cumsum), as update() adds them: identical numbers
-            s1 = np.cumsum(d, axis=0)
-            s2 = np.cumsum(d2, axis=0)
-            del d, d2
-            c1, c2 = s1[-1].copy(), s2[-1].copy()
-            qual = np.flatnonzero(t[jj] - t_first >= self.min_rest_ns)
-            if not qual.size:
-                continue
-            nc = (qual + (r0 + 1)).astype(np.float64)[:, None]
-            mean = ref + s1[qual] / nc
-            ssd = np.maximum(s2[qual] - s1[qual] * s1[qual] / nc, 0.0)
-            est, se = self._estimate_many(nc, mean, ssd)
-            rows_ = kk[r0 + qual]
-            if last is None:  # the rest's first estimate: what it replaces, and the rest's start
-                out["prev"].append(np.asarray(prev_bias, dtype=np.float64)[None])
-                out["t0"].append(np.array([t_first], np.int64))
-            bias[rows_] = est
-            c = out["count"]
-            out["rows"][c:c + rows_.size] = rows_
-            out["se"][c:c + rows_.size] = se
-            out["count"] = c + rows_.size
-            last = (est[-1], se[-1], int(qual[-1]) + r0)
-        if last is None:
-            return
-        self._bias, self._se = tuple(last[0].tolist()), tuple(last[1].tolist())
-        self._k, self._n = self.bi[J_POOL_K] + 1, self.bi[J_POOL_N] + last[2] + 1
-        self._earth_now = self._earth_all and earth
-        mean_all = (ref + c1 / n_all).tolist()
-        ssd_all = np.maximum(c2 - c1 * c1 / n_all, 0.0).tolist()
-        pool_add(self.bf, self.bi, n_all, *mean_all, *ssd_all)
-        self._earth_all = self._earth_all and earth
-
-    def _estimate_many(self, nc: np.ndarray, mean: np.ndarray, ssd_c: np.ndarray):
-        """:func:`publish_pooled` for many states of one open rest at once: ``nc`` (M, 1) its
-        sample counts, ``mean`` and ``ssd_c`` (M, 3); returns (bias, standard error) (M, 3)
-        each.  The same operations in the same order: identical numbers."""
-        bf = self.bf
-        k = int(self.bi[J_POOL_K]) + 1
-        n = int(self.bi[J_POOL_N]) + nc
-        snm = bf[B_SUM_NM:B_SUM_NM + 3] + nc * mean
-        snm2 = bf[B_SUM_NM2:B_SUM_NM2 + 3] + nc * mean * mean
-        ssd = bf[B_SSD:B_SSD + 3] + ssd_c
-        bias = snm / n
-        white = np.sqrt(ssd / np.maximum(n - k, 1) / n)
-        if k >= 2:
-            between = np.sqrt(np.maximum(snm2 - n * bias * bias, 0.0) / n / (k - 1))
-            return bias, np.maximum(white, between)
-        return bias, white
 
     def report(self) -> GyroBiasReport:
         if self.mode == "none":
@@ -571,50 +414,26 @@ class GyroBiasEstimator:
                               earth, note)
 
 
-@dataclass
-class BiasTrack:
-    """What the ``auto`` estimator did over a run of samples (:meth:`GyroBiasEstimator.run`).
-
-    ``bias`` (N, 3) the bias subtracted from each sample; ``updates`` (U,) the rows where a new
-    estimate was published (a zero-rate update: every sample of a qualifying rest),
-    ``standard_error`` (U, 3) its standard error; per rest that gave an estimate (R,):
-    ``previous`` (R, 3) the bias before its first estimate and ``rest_start_ns`` (R,) its first
-    sample time (per rest, not per update: a long rest costs 32 B per row, not 88).
-    """
-
-    bias: np.ndarray
-    updates: np.ndarray
-    standard_error: np.ndarray
-    previous: np.ndarray
-    rest_start_ns: np.ndarray
-
 
 def estimate_gyro_bias(t_ns, gyro, accel=None, q_nb=None, *, mode: str = "auto", bias=None,
                        min_rest_s: float = 1.0, latitude_rad: float | None = None, initial=None,
                        rest: dict | None = None) -> tuple[np.ndarray, GyroBiasReport]:
     """Batch :class:`GyroBiasEstimator`: the bias for every sample (N, 3) and the final report.
 
-    Rest detection is vectorized (:func:`~gyro_attitude.core.attitude.rest.detect_rest`); the
-    running sums of each rest use ``np.cumsum`` (sequential, as the stream adds them) and the
-    loop runs over rests, not samples.  ``q_nb`` (N, 4), with ``latitude_rad``, removes the
-    Earth rate as in the stream.
+    The streaming estimator over the samples (one code path); ``q_nb`` (N, 4), with
+    ``latitude_rad``, removes the Earth rate as in the stream.
     """
     est = GyroBiasEstimator(mode, bias, min_rest_s=min_rest_s, latitude_rad=latitude_rad,
                             initial=initial, rest=rest)
     t, g, a = check_samples(t_ns, gyro, accel)
-    out = np.empty((t.size, 3))
-    out[:] = est.bias
-    if mode != "auto":
-        return out, est.report()
-    value = g
+    q = None
     if latitude_rad is not None and q_nb is not None:
         q = as_quat_array(q_nb, "q_nb")
         if q.shape != (t.size, 4):
             raise ValueError(f"q_nb must have shape ({t.size}, 4), got {q.shape}")
-        x, y, z, w = (q[:, i] for i in range(4))
-        e = _c_bn_times(x, y, z, w, 2.0 / (x * x + y * y + z * z + w * w), est._earth_n)
-        value = g - np.column_stack(e)
-    earth = latitude_rad is not None and q_nb is not None
-    # the array form of the estimator itself (rests found on the rates, averages of the values)
-    track = est.run(t, g, a, earth_removed=earth, values=value)
-    return track.bias, est.report()
+        q = q.tolist()
+    out = np.empty((t.size, 3))
+    for k, (tk, gk) in enumerate(zip(t.tolist(), g.tolist(), strict=True)):
+        out[k] = est.step(tk, gk, None if a is None else a[k].tolist(),
+                          None if q is None else q[k])
+    return out, est.report()

@@ -98,17 +98,17 @@ from gyro_attitude.core.attitude.stream import (
     MAG_MISSING,
     RATE_FIT_FALLBACK,
     SATURATED,
+    SATURATION_MIN_RAD_S,
     StreamResult,
-    StreamState,
     _unit_quat,
     covariance_rows,
     nav_rows,
     rate_fit_note,
     recording_arrays,
     rows,
+    saturation_note,
     usable_accel,
 )
-from gyro_attitude.core.attitude.stream_batch import count_saturated
 from gyro_attitude.core.earth import OMEGA_IE, STANDARD_GRAVITY
 from gyro_attitude.core.rotation import (
     _qmul,
@@ -375,8 +375,8 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
             raise ValueError(f"nav time series must have one row per sample ({n}), got "
                              f"{nav.series_length()}")
         nav = nav_rows(nav, valid, n)  # (a velocity schedule: one row per accepted sample)
-    # saturated samples: counted as the causal path counts them (its array form, fresh state)
-    count_saturated(wv, StreamState(q_init, q_init), counts, details)
+    # saturated samples: counted as the causal path counts them
+    count_saturated(wv, counts, details, chunk_samples)
     est = _Estimator(cfg, q_init, nav, algorithm, chunk_samples, tv, wv, av, usable, sig2,
                      rows(act, valid), mv, empty)
     q_out, var_out, known_out = est.run()
@@ -1034,3 +1034,26 @@ class _Estimator:
                               "in time between rests, the value shown is their mean; "
                               + ("vertical Earth rate removed at each rest" if earth else
                                  "Earth rate absorbed into the bias (latitude unknown)"))
+
+
+def count_saturated(wv: np.ndarray, counts: dict, details: dict, chunk: int) -> None:
+    """Accepted rows ``wv`` pinned at a repeated extreme, counted as the causal chain counts
+    them (its running maximum and repeats), ``chunk`` rows at a time (the running maximum and
+    the last row carried, as from one sample to the next)."""
+    counts[SATURATED] = 0
+    sat = np.array([0.0, 0.0, 0.0] + [math.nan] * 3)
+    for c0 in range(0, wv.shape[0], chunk):
+        part = wv[c0:c0 + chunk]
+        a = np.abs(part)
+        run_max = np.maximum.accumulate(np.vstack([sat[None, :3], a]), axis=0)[1:]
+        prev = np.vstack([sat[None, 3:], part[:-1]])
+        with np.errstate(invalid="ignore"):
+            pinned = (a == run_max) & (part == prev) & (a >= SATURATION_MIN_RAD_S)
+        rows_pinned = np.flatnonzero(pinned.any(axis=1))
+        counts[SATURATED] += int(rows_pinned.size)
+        if rows_pinned.size:
+            k = int(rows_pinned[0])
+            axis = int(np.flatnonzero(pinned[k])[-1])
+            details.setdefault(SATURATED, saturation_note(axis, float(part[k, axis])))
+        sat[:3] = run_max[-1]
+        sat[3:] = part[-1]

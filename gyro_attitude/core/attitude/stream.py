@@ -29,15 +29,8 @@ Every Imu sample passes the stages in one order (the numbered steps of :meth:`At
 
 Each stage keeps its own state (the validator, the bias estimator, the aligner, the aiding
 filter, the integrator, the covariance); what the chain itself carries between samples is one
-visible :class:`StreamState`.  Two forms run the same chain: :meth:`AttitudeStream.push`, one
-sample through every stage's per-sample step (the node), and :meth:`AttitudeStream.run`, a whole
-recording through the stages' array forms (:mod:`.stream_batch`: classification, rests and bias
-per rest, alignment, batch integration between bias updates, covariance as restarted cumulative
-sums).  :func:`run_form` alone decides which form ``run`` takes: the array forms hold for every
-setting except those whose step feeds back through the attitude sample by sample (gravity
-aiding; an ``auto`` bias with the Earth rate taken out at the current attitude on a recording
-with a rest), where ``run`` pushes every sample.  Both forms give the same attitudes to
-rounding (≤ 1e-12, tested in every mode).
+visible :class:`StreamState`.  :meth:`AttitudeStream.push` takes one sample through the chain
+(the node); :meth:`AttitudeStream.run` is push() over a whole recording (replay).
 """
 
 from __future__ import annotations
@@ -45,7 +38,6 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, field, fields, replace
-from enum import StrEnum
 
 import numpy as np
 
@@ -78,6 +70,7 @@ from gyro_attitude.core.attitude.modes import (
     Frame,
     GyroBiasMode,
     HeadingSource,
+    InitialAttitudeSource,
     Phase,
     SettingError,
 )
@@ -100,13 +93,8 @@ from gyro_attitude.core.rotation import (
     quat_rotate,
 )
 
-__all__ = ["AttitudeStream", "PerSamplePathNeeded", "RunForm", "StreamConfig", "StreamResult",
-           "StreamState", "bias_summary", "gyro_variances", "gyro_variances_array", "run_form"]
-
-
-class PerSamplePathNeeded(ValueError):
-    """:meth:`AttitudeStream.run` with an offline algorithm on a recording that only the
-    per-sample form can estimate (:func:`run_form`)."""
+__all__ = ["AttitudeStream", "StreamConfig", "StreamResult", "StreamState", "bias_summary",
+           "compile_kernels", "gyro_variances"]
 
 
 INVALID_COVARIANCE = "invalid_covariance"
@@ -237,8 +225,7 @@ class StreamResult:
     (:data:`.validation.ACTION_CODES`); ``counts`` per reason (rejections, ``gap``,
     ``invalid_covariance``, ``invalid_accel``, ``integrator_error``); ``time_jump_resets``;
     ``details`` the first log line per reason; ``bias`` the final :class:`GyroBiasReport`;
-    ``alignment`` the :class:`AlignmentResult` (``level``) or None; ``form`` the
-    :class:`RunForm` that ran.
+    ``alignment`` the :class:`AlignmentResult` (``level``) or None.
     """
 
     index: np.ndarray
@@ -251,7 +238,6 @@ class StreamResult:
     details: dict[str, str] = field(default_factory=dict)
     bias: GyroBiasReport | None = None
     alignment: AlignmentResult | None = None
-    form: RunForm | None = None
     notes: list[str] = field(default_factory=list)  # what the estimator did, in words
 
     @property
@@ -299,28 +285,6 @@ class StreamState:
         self.details.setdefault(RATE_FIT_FALLBACK, rate_fit_note(t_ns))
 
 
-class RunForm(StrEnum):
-    """Which form of the chain :meth:`AttitudeStream.run` takes (:func:`run_form`)."""
-
-    ARRAYS = "arrays"
-    LOOP = "arrays+loop"  # the data-only stages as arrays, the feedback in one loop
-    PER_SAMPLE = "per-sample"
-
-
-def run_form(config: StreamConfig) -> tuple[RunForm, str]:
-    """The one decision of the form :meth:`AttitudeStream.run` takes, and why: where a stage
-    feeds back through the attitude sample by sample (aiding: its correction depends on the
-    attitude it corrects), the data-only stages as arrays and one loop over the samples for
-    the rest (:mod:`.stream_loop`); arrays end to end otherwise.  (The Earth rate taken out of
-    the rest averages at the current attitude couples the bias to the attitude too, but only
-    through the slow Earth rate: the array form iterates it to the fixed point.)  The
-    per-sample form (every sample pushed) is the fallback of both when an integrator error
-    needs it."""
-    if config.aiding is not Aiding.NONE:
-        return RunForm.LOOP, "aiding is a feedback loop through the attitude"
-    return RunForm.ARRAYS, "every stage has an array form for these settings"
-
-
 class AttitudeStream:
     """Imu samples in, attitude out, through the chain of the module docstring.
 
@@ -366,8 +330,11 @@ class AttitudeStream:
                                         accel_lowpass_s=cfg.aiding_accel_lowpass_s)
         elif cfg.aiding in (Aiding.TILT, Aiding.MAGNETOMETER):
             self.aiding = AhrsFilter(AhrsParams.from_config(cfg))
-        self.integrator = (StreamingIntegrator(algorithm=algorithm, q0=q_initial, nav=nav)
-                           if get_algorithm(algorithm).causal else None)
+        if not get_algorithm(algorithm).causal:
+            raise ValueError(f"{algorithm} is an offline algorithm (it needs the samples after "
+                             "each interval): the causal estimator takes a causal one (or use "
+                             "the offline estimator)")
+        self.integrator = StreamingIntegrator(algorithm=algorithm, q0=q_initial, nav=nav)
         self.covariance = AttitudeCovariance(cfg.initial_attitude_variance,
                                              cfg.gyro_bias_sigma_rad_s, cfg.gyro_bias_rw)
         self._n2 = cfg.gyro_noise_density * cfg.gyro_noise_density
@@ -453,10 +420,6 @@ class AttitudeStream:
     def bias_report(self) -> GyroBiasReport:
         return self.bias_estimator.report()
 
-    def run_form(self) -> tuple[RunForm, str]:
-        """The form :meth:`run` takes, and why (:func:`run_form`)."""
-        return run_form(self.config)
-
     # ------------------------------------------------------------------ settings
     def set_config(self, config: StreamConfig) -> None:
         """New validation thresholds from the next sample on (state kept; the bias, alignment
@@ -503,9 +466,6 @@ class AttitudeStream:
         the magnetic field (3,) tesla time-aligned to ``t_ns`` or None (aiding magnetometer:
         counted ``mag_missing``, heading gyro-only; a field that is not finite, absurd or zero
         is counted ``invalid_mag``, one that disagrees with the reference ``mag_disturbed``)."""
-        if self.integrator is None:
-            raise ValueError(f"{self.algorithm} is an offline algorithm: it cannot stream "
-                             "(use run() over the whole recording, or a causal algorithm)")
         fast = self._fast
         if fast is not None:
             if out := fast.push(t_ns, omega, frame_id, angular_velocity_covariance, accel, mag):
@@ -822,85 +782,64 @@ class AttitudeStream:
     def run(self, t_ns, omega, frame_id: str | list[str] | None = "",
             angular_velocity_covariance=None, accel=None, mag=None,
             empty=np.empty) -> StreamResult:
-        """All samples of a recording, in file order, on a fresh stream: what :meth:`push`
-        would give sample by sample, in the form :func:`run_form` chooses.  The stream is left
-        in the state after the last sample, except that the rest windows start again (as after
-        a gap) and the integrator holds the last sample only (the rate fit of a later push()
-        rebuilds from two samples on, as after a restart).
+        """All samples of a recording, in file order, on a fresh stream: :meth:`push` sample by
+        sample (the one chain), the attitudes gathered into arrays.
 
         ``t_ns`` (N,) int stamps; ``omega`` (N, 3) rad/s; ``frame_id`` one for all or one per
-        sample; ``angular_velocity_covariance`` (N, 9) or None; ``accel`` (N, 3) m/s² or None.
-        ``empty(shape, dtype)`` allocates the array form's arrays of the recording's length
-        (default ``np.empty``; replay gives file-backed ones).
+        sample; ``angular_velocity_covariance`` (N, 9) or None; ``accel`` (N, 3) m/s² or None;
+        ``mag`` (N, 3) tesla or None.  ``empty(shape, dtype)`` allocates the arrays of the
+        recording's length (default ``np.empty``; replay gives file-backed ones).
         Raises ValueError when levelling cannot align on the recording.
         """
-        from gyro_attitude.core.attitude.stream_batch import run_arrays
-        from gyro_attitude.core.attitude.stream_loop import run_loop
-
         if self.validator.last_t_ns is not None or self.validator.accepted:
             raise ValueError("run() needs a fresh AttitudeStream (it replays a whole recording)")
         t = np.asarray(t_ns)
         w = np.asarray(omega, dtype=np.float64)
         n = w.shape[0]
+        if t.ndim != 1 or not (np.issubdtype(t.dtype, np.integer) or t.size == 0) or \
+                w.shape != (t.shape[0], 3):
+            raise ValueError(f"t_ns must be a 1-D integer array of nanoseconds and omega must "
+                             f"have shape (N, 3); got {t.dtype} {t.shape} and shape {w.shape}")
         cov, acc = recording_arrays(n, angular_velocity_covariance, accel)
         mg = None
         if mag is not None:
             mg = np.asarray(mag, dtype=np.float64)
             if mg.shape != (n, 3):
                 raise ValueError(f"mag must have shape ({n}, 3), got {mg.shape}")
-        if t.ndim != 1 or not (np.issubdtype(t.dtype, np.integer) or t.size == 0) or \
-                w.shape != (t.shape[0], 3):
-            raise ValueError(f"t_ns must be a 1-D integer array of nanoseconds and omega must "
-                             f"have shape (N, 3); got {t.dtype} {t.shape} and shape {w.shape}")
-        form, why = self.run_form()
-        if form is RunForm.ARRAYS:
-            result = run_arrays(self, t.astype(np.int64, copy=False), w, frame_id, cov, acc,
-                                empty)
-            if result is not None:
-                return result
-            why = "the array form met a non-finite attitude"
-            self.__init__(*self._init_args)  # the per-sample form starts from scratch
-        elif self.integrator is not None:
-            result = run_loop(self, t.astype(np.int64, copy=False), w, frame_id, cov, acc, mg)
-            if result is not None:
-                return result
-            self.__init__(*self._init_args)  # an integrator error: every sample pushed
-        if self.integrator is None:
-            raise PerSamplePathNeeded(
-                f"{self.algorithm} is an offline algorithm and runs on arrays only, but this "
-                f"recording needs the per-sample form ({why}): use a causal algorithm")
-        return self._run_pushing(t, w, frame_id, cov, acc, mg)
-
-    def _run_pushing(self, t, w, frame_id, covariance, accel, mag=None) -> StreamResult:
-        """The per-sample form over the whole recording."""
-        n = w.shape[0]
+        v._frame_codes(frame_id, n)  # one string for all, or one per sample: ValueError else
         frames = [frame_id] * n if frame_id is None or isinstance(frame_id, str) else frame_id
-        index, qs, variances = [], [], []
-        action = np.zeros(n, np.int8)
+        # a nav time series has one row per input sample: each row's rate goes to the
+        # integrator before its sample (a skipped sample's row is never used)
+        nav_rates = None
+        if self.nav is not None and self.nav.series_length() is not None:
+            if self.nav.series_length() != n:
+                raise ValueError(f"nav time series must have one row per sample ({n}), got "
+                                 f"{self.nav.series_length()}")
+            nav_rates = self.nav.rate_enu(n)
+        index, qs = empty(n, np.int64), empty((n, 4), np.float64)
+        var, known = empty((n, 3), np.float64), empty(n, np.bool_)
+        action = empty(n, np.int8)
         codes = v.ACTION_CODES
-        push = self.push
-        st = self.state
-        for k in range(n):
-            cov_k = None if covariance is None else covariance[k]
-            acc_k = None if accel is None else accel[k]
-            verdict, q = push(int(t[k]), w[k], frames[k] or "", cov_k, acc_k,
-                              None if mag is None else mag[k])
+        push, st, m = self.push, self.state, 0
+        for k, tk in enumerate(t.tolist()):
+            if nav_rates is not None:
+                self.integrator.set_nav_rate(nav_rates[k])
+            verdict, q = push(tk, w[k], frames[k] or "", None if cov is None else cov[k],
+                              None if acc is None else acc[k], None if mg is None else mg[k])
             action[k] = codes[verdict.action]
             if q is None:
                 continue
-            index.append(k)
-            qs.append(q)
-            variances.append(self.covariance.tt.copy() if st.variance_known else None)
+            index[m], qs[m] = k, q
+            known[m] = st.variance_known
+            var[m] = self.covariance.tt if st.variance_known else 0.0
+            m += 1
         if st.phase is not RUNNING:
             raise ValueError(self.alignment_error or cannot_align(self.config))
-        q_arr = np.array(qs).reshape(-1, 4)
-        var_rows = known = None
-        if any(x is not None for x in variances):
-            known = np.array([x is not None for x in variances])
-            var_rows = np.array([x if x is not None else np.zeros(3) for x in variances])
-        return StreamResult(np.array(index, dtype=np.int64), q_arr, var_rows, known, action,
-                            self.counts, self.time_jump_resets, dict(st.details),
-                            self.bias_report, self.alignment, RunForm.PER_SAMPLE)
+        any_known = bool(known[:m].any())
+        return StreamResult(index[:m], qs[:m], var[:m] if any_known else None,
+                            known[:m] if any_known else None, action, self.counts,
+                            self.time_jump_resets, dict(st.details), self.bias_report,
+                            self.alignment)
 
 
 def alignment_variance(res: AlignmentResult, given_heading_variance: float) -> list[float]:
@@ -1157,3 +1096,28 @@ class _PushKernel:
         verdict, q = s._integrate(self._ACCEPT, t_ns, (w0 - bias[0], w1 - bias[1], w2 - bias[2]), a,
                                   var, mag_in)
         return verdict, None if q is None else np.array(q)
+
+
+def compile_kernels(config: StreamConfig | None = None, algorithm: str | None = None) -> None:
+    """Compile (or load from numba's cache) what the chain runs compiled: a short synthetic
+    recording (rest, turn, rest; accelerometer and field) pushed through a stream with
+    ``config`` (and ``algorithm``), or with every aiding mode.  The start is the given attitude
+    whatever ``config`` says (a levelling or gyrocompassing start might never align on it; its
+    kernels are the same).  The node calls it at start-up and dev.sh after installing, so that
+    no sample waits for the compiler."""
+    n = 800
+    t = 1_000_000_000 + np.arange(n, dtype=np.int64) * 5_000_000
+    rng = np.random.default_rng(0)
+    w = 1e-3 * rng.standard_normal((n, 3))
+    w[300:500, 2] += 0.5
+    a = np.array([0.0, 0.0, STANDARD_GRAVITY]) + 0.01 * rng.standard_normal((n, 3))
+    mag = np.array([2e-5, 0.0, -4e-5]) + 1e-8 * rng.standard_normal((n, 3))
+    cov = np.tile(np.diag([1e-6] * 3).reshape(9), (n, 1))
+    configs = [config] if config is not None else [
+        StreamConfig(aiding=aiding, gyro_noise_density=1e-4, mag_hard_iron_estimate=True)
+        for aiding in Aiding]
+    level_quaternion((0.0, 0.0, STANDARD_GRAVITY), 0.0)  # levelling's own call (alignment)
+    for cfg in configs:
+        cfg = replace(cfg, initial_attitude_source=InitialAttitudeSource.PARAMETER,
+                      heading_source=HeadingSource.PARAMETER)
+        AttitudeStream(algorithm or DEFAULT_ALGORITHM, config=cfg).run(t, w, "imu", cov, a, mag)

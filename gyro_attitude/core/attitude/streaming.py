@@ -248,6 +248,12 @@ class StreamingIntegrator:
         self._nav_const = rate
         self._nav_rates = None
 
+    def set_nav_rate(self, rate: np.ndarray) -> None:
+        """The nav rate ``ω_in^n`` (3,) at the next sample (as :meth:`update_nav` sets it from
+        a constant frame): a recording's time series fed row by row."""
+        self._nav_const = rate
+        self._nav_rates = None
+
     def _nav_rate_at(self, index: int) -> np.ndarray | None:
         if self.nav is None:
             return None

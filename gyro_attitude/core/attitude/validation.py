@@ -584,15 +584,6 @@ class IntervalStatistics:
     def add(self, dt_ns: int) -> None:
         interval_add(self.ring, self.fill, int(dt_ns))
 
-    def extend(self, dt_ns) -> None:
-        """:meth:`add` each of ``dt_ns`` in order (an int array or list)."""
-        d = np.asarray(dt_ns, dtype=np.int64)[-self.window:]
-        if d.size == 0:
-            return
-        slots = (self.fill[1] + np.arange(d.size)) % self.window
-        self.ring[slots] = d
-        self.fill[0] = min(self.fill[0] + d.size, self.window)
-        self.fill[1] = (self.fill[1] + d.size) % self.window
 
     @property
     def window(self) -> int:

@@ -4,27 +4,6 @@ bit, because each chunk carries its state into the next as one sample carries it
 
 import numpy as np
 import pytest
-from test_stream_real import MODES, hostile_rest_motion_rest
-
-import gyro_attitude.core.attitude.gyro_bias as gb
-import gyro_attitude.core.attitude.rest as rest
-import gyro_attitude.core.attitude.stream_batch as sb
-from gyro_attitude.core.attitude.stream import AttitudeStream
-
-
-@pytest.mark.parametrize("mode", ["auto_noise", "level", "auto_enu", "parameter"])
-def test_small_chunks_give_the_same_bits(mode, monkeypatch):
-    t, g, a, cov = hostile_rest_motion_rest()
-    g = g.copy()
-    g[300:303, 2] = 40.0  # a pinned (saturated) stretch across a chunk boundary
-    whole = AttitudeStream("rotvec_cubic", config=MODES[mode]).run(t, g, "imu", cov, a)
-    for module, name in ((sb, "COVARIANCE_CHUNK"), (gb, "_REST_CHUNK"), (rest, "_STATS_CHUNK")):
-        monkeypatch.setattr(module, name, 97)  # a prime: boundaries inside rests and motion
-    parts = AttitudeStream("rotvec_cubic", config=MODES[mode]).run(t, g, "imu", cov, a)
-    assert np.array_equal(whole.q, parts.q) and np.array_equal(whole.index, parts.index)
-    assert np.array_equal(whole.variance, parts.variance)
-    assert whole.counts == parts.counts and whole.counts["saturated"] >= 2
-    assert np.array_equal(whole.bias.bias, parts.bias.bias)
 
 
 def _peak(fn):
@@ -104,14 +83,3 @@ def test_the_offline_estimator_keeps_what_grows_with_the_recording_in_the_caller
     assert per_sample < 4.0, f"{per_sample:.1f} bytes a sample outside the allocator"
 
 
-def test_the_interval_statistics_take_the_last_plain_rows_whatever_the_chunk(monkeypatch):
-    """run() feeds the interval statistics the last `window` plainly accepted rows, found from
-    the end a chunk at a time: the rows the whole-array search gives (the oracle), for any
-    chunk size, count and first row."""
-    monkeypatch.setattr(sb, "COVARIANCE_CHUNK", 7)
-    rng = np.random.default_rng(5)
-    actv = rng.choice(np.array([1, 2, 2, 2, 3, 4], dtype=np.int8), size=300)
-    for first in (0, 1, 57, 299, 300):
-        for count in (1, 5, 60, 1000):
-            oracle = (first + np.flatnonzero(actv[first:] == 2))[-count:]
-            np.testing.assert_array_equal(sb._last_rows(actv, 2, first, count), oracle)

@@ -10,10 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from sim_static import rest_motion_rest
 from test_stream_real import MODES, hostile_field, hostile_rest_motion_rest
 
-from gyro_attitude.core.attitude import stream_loop
 from gyro_attitude.core.attitude.stream import RUNNING, AttitudeStream
 from gyro_attitude.core.attitude.validation import NOMINAL_INTERVALS
 from gyro_attitude.core.jit import backend, compiled, direct, kernel
@@ -29,7 +27,6 @@ import numpy as np
 sys.path.insert(0, {here!r})
 from sim_static import rest_motion_rest
 from test_stream_real import MODES, hostile_field, hostile_rest_motion_rest
-from gyro_attitude.core.attitude import stream_loop
 from gyro_attitude.core.attitude.stream import AttitudeStream
 from gyro_attitude.core.jit import backend
 t, g, a, cov = hostile_rest_motion_rest()
@@ -107,37 +104,6 @@ def test_a_function_not_written_as_a_kernel_is_refused():
 
     assert compiled(twice)(1.5) == 3.0
 
-
-@pytest.mark.parametrize("mode", ["gravity", "gravity_enu", "tilt", "magnetometer"])
-def test_an_aided_run_steps_its_accepted_samples_compiled(mode, monkeypatch):
-    # The interpreter's per-sample step (_integrate) may take the rows the compiled loop does
-    # not: the samples the validator did not simply accept, and the rests while the first
-    # estimate may still be applied back to the start.  Not the motion, nor the later rests.
-    t, g, a, cov = hostile_rest_motion_rest()
-    mag = hostile_field(t.size) if "magnetometer" in mode else None
-    calls = []
-    original = AttitudeStream._integrate
-
-    def counting(self, *args, **kw):
-        calls.append(args[1])
-        return original(self, *args, **kw)
-
-    runs = []
-    compiled_run = stream_loop._Compiled.run
-
-    def counting_runs(self, r0, r1, *args):
-        runs.append(r1 - r0)
-        return compiled_run(self, r0, r1, *args)
-
-    monkeypatch.setattr(AttitudeStream, "_integrate", counting)
-    monkeypatch.setattr(stream_loop._Compiled, "run", counting_runs)
-    res = AttitudeStream(config=MODES[mode]).run(t, g, "imu", cov, a, mag)
-    first_rest_end = 4.0e9 + t[0]
-    late = [x for x in calls if x > first_rest_end]
-    assert res.index.size > 2000
-    assert len(late) <= 10, f"{len(late)} samples after the first rest through the interpreter"
-    # and in long runs: one call of the compiled loop between two rows Python must take
-    assert len(runs) <= 40 and sum(runs) > 1500, (len(runs), sum(runs))
 
 
 @pytest.mark.parametrize("mode", ["auto", "auto_enu", "none_rw", "gravity_enu", "tilt",
@@ -240,19 +206,6 @@ def test_stage_resets_keep_the_state_arrays_the_compiled_loop_holds():
         assert np.array_equal(ours, new, equal_nan=True)
 
 
-def test_an_array_form_run_does_not_load_the_compiler():
-    # Monte Carlo workers and the default causal replay run the array form: numba's import and
-    # cache loading (~1 s per process) are for the per-sample chain only.
-    code = ("import sys, numpy as np\n"
-            "from gyro_attitude.core.attitude.stream import AttitudeStream, StreamConfig\n"
-            "t = np.arange(1, 3001, dtype=np.int64) * 5_000_000\n"
-            "w = np.full((3000, 3), 0.01); a = np.tile([0.0, 0.0, 9.81], (3000, 1))\n"
-            "for bias in ('none', 'auto'):\n"
-            "    res = AttitudeStream(config=StreamConfig(gyro_bias=bias)).run(t, w, '', None, a)\n"
-            "    assert res.form == 'arrays', res.form\n"
-            "print('numba' in sys.modules)\n")
-    assert _python(code, 120)[0].strip() == "False"
-
 
 @pytest.mark.skipif(backend() != "numba", reason="numba is not installed")
 def test_kernels_compile_where_no_cache_can_be_written(tmp_path):
@@ -272,27 +225,11 @@ def test_kernels_compile_where_no_cache_can_be_written(tmp_path):
     assert err.count("numba cannot cache the compiled kernels") == 1
 
 
-@pytest.mark.skipif(backend() != "numba", reason="numba is not installed")
-def test_the_compiled_loop_takes_any_array_layout_without_compiling_again():
-    # read-only (a file's buffer), Fortran-order and strided inputs: one signature, the one
-    # compile_kernels() made, so no replay waits for the compiler a second time
-    stream_loop.compile_kernels(MODES["magnetometer"])
-    t, g, a, _ = rest_motion_rest(rests=(4.0, 3.0, 3.0))  # every sample accepted: views pass
-    mag = np.asfortranarray(np.tile([20e-6, 5e-6, -40e-6], (t.size, 1)))
-    g2 = np.asfortranarray(g)
-    a2 = np.repeat(a, 2, axis=0)[::2]
-    for arr in (g2, a2, mag):
-        arr.flags.writeable = False
-    cov = np.broadcast_to(np.diag([4e-6] * 3).reshape(9), (t.size, 9))
-    res = AttitudeStream(config=MODES["magnetometer"]).run(t, g2, "imu", cov, a2, mag)
-    assert res.index.size > 2000
-    assert len(compiled(stream_loop.accept_rows).signatures) == 1
-
 
 def test_compile_kernels_warms_the_steps_of_a_start_that_cannot_align_on_its_recording():
     # a gyrocompassing start never aligns on the synthetic recording: the kernels its running
     # phase needs are compiled all the same (from a given attitude)
-    code = ("from gyro_attitude.core.attitude.stream_loop import compile_kernels, accept_rows\n"
+    code = ("from gyro_attitude.core.attitude.stream import compile_kernels\n"
             "from gyro_attitude.core.attitude.settings import StreamConfig\n"
             "from gyro_attitude.core.jit import compiled, backend\n"
             "cfg = StreamConfig(aiding='gravity', initial_attitude_source='level',\n"

@@ -103,34 +103,6 @@ def _rows(m, seed):
     return dt, q, rng.uniform(1e-4, 1e-3, (m, 3))
 
 
-@pytest.mark.parametrize("events, m", [("none", 500), ("reset", 500), ("zero_rate", 500),
-                                       ("none", 12)])
-def test_array_run_equals_the_per_row_updates_across_chunks(events, m):
-    """run() over two chunks (the state carried between them) gives the per-row updates'
-    numbers, bit for bit, with and without updates inside the chunks (and chunks shorter than
-    the general path's cumulative-sum threshold)."""
-    dt, q, se = _rows(m, 1)
-    reset = np.zeros(m, bool)
-    zero_rate = np.zeros(m, bool)
-    if events == "reset":
-        dt[[100, 300]] = 0.0  # a gap restart and a reset integrate nothing
-        q[[100, 300]] = 0.0
-        reset[300] = True
-    elif events == "zero_rate":
-        zero_rate[150:170] = True
-    args = ([1e-4, 2e-4, 3e-4],)
-    kw = {"bias_sigma": 0.01, "bias_rw": 1e-3}
-    c = AttitudeCovariance(*args, **kw)
-    c.tt = [5e-4, 6e-4, 7e-4]  # a state that is not the initial one
-    ref = AttitudeCovariance(*args, **kw)
-    ref.tt = c.tt
-    want = _per_row(ref, dt, q, reset, zero_rate, se)
-    got = np.concatenate([c.run(dt[a:b], q[a:b], reset[a:b], zero_rate[a:b], se[a:b])
-                          for a, b in ((0, m * 23 // 50), (m * 23 // 50, m))])
-    np.testing.assert_array_equal(got, want)
-    for name in ("tt", "tb", "bb", "noise"):
-        np.testing.assert_array_equal(getattr(c, name), getattr(ref, name))
-
 
 def test_closed_form_bias_and_noise_growth():
     """Constant dt, no resets: tt(T) = tt0 + N² T + σ_b² T² (+ K² T³/3 from the walk)."""

@@ -15,7 +15,6 @@ from gyro_attitude.core.attitude.stream import (
     INVALID_ACCEL,
     RUNNING,
     AttitudeStream,
-    RunForm,
     StreamConfig,
 )
 from gyro_attitude.core.attitude.truth import initial_attitude_from_truth, truth_at
@@ -115,12 +114,6 @@ def test_run_equals_push_in_every_mode(mode):
     if cfg.levelling:
         assert res.alignment is not None and res.index[0] > 600  # no attitude while aligning
 
-
-def test_array_form_taken_for_every_mode_and_the_loop_for_aiding():
-    for mode in ("parameter", "none_rw", "auto", "auto_noise", "level", "auto_enu", "level_enu"):
-        assert AttitudeStream(config=MODES[mode]).run_form()[0] is RunForm.ARRAYS
-    for mode in ("gravity", "level_gravity", "tilt", "magnetometer", "gravity_enu"):
-        assert AttitudeStream(config=MODES[mode]).run_form()[0] is RunForm.LOOP
 
 
 def test_auto_bias_removed_and_first_rest_applied_back():

@@ -20,7 +20,6 @@ from gyro_attitude.core.attitude.stream import (
     INTEGRATOR_ERROR,
     RUNNING,
     AttitudeStream,
-    RunForm,
     StreamConfig,
     bias_summary,
     gyro_variances,
@@ -257,7 +256,6 @@ def test_per_sample_run_result_fields():
     cov = np.tile(np.diag([1e-6, 1e-6, 1e-6]).reshape(9), (t.size, 1))
     cov[:5] = 0.0  # no estimate on the first rows
     s = AttitudeStream("exp_map", config=StreamConfig(min_rest_s=0.05, rest_window_s=0.02))
-    assert s.run_form()[0] is RunForm.ARRAYS
     res = s.run(t, w, frames, cov)
     assert res.index.dtype == np.int64 and res.q.shape == (res.index.size, 4)
     assert {k: res.counts[k] for k in HOSTILE_COUNTS} == HOSTILE_COUNTS
@@ -392,15 +390,6 @@ def test_update_nav_takes_the_new_nav_rate():
     # vertical part v tan L/R) turns the body ≈ 5e-6 rad
     assert final[False] > 3e-6
 
-
-def test_run_form_is_arrays_for_every_setting_but_aiding():
-    for cfg in (StreamConfig(), StreamConfig(initial_attitude_source="level"),
-                StreamConfig(gyro_bias="none"), StreamConfig(frame="enu", latitude_rad=0.8),
-                StreamConfig(frame="enu", latitude_rad=0.8, initial_attitude_source="level")):
-        assert AttitudeStream(config=cfg).run_form()[0] is RunForm.ARRAYS
-    # aiding feeds back through the attitude, sample by sample
-    form, why = AttitudeStream(config=StreamConfig(aiding="gravity")).run_form()
-    assert form is RunForm.LOOP and "aiding" in why
 
 
 def test_bias_summary_line():
