@@ -299,13 +299,7 @@ class AhrsFilter:
         alignment, with the levelled attitude): the filter goes on from it as a running average
         that has already seen that much field (no fast first phase, the time constant starts at
         ``seconds``), and that field (norm, dip) is the reference unless one is given."""
-        af, ai = self.af, self.ai
-        ai[I_HEADING_INIT] = 1
-        af[A_SINCE_HEADING] = HEADING_INIT_S + seconds
-        if not ai[I_HAS_REF_NORM]:
-            af[A_REF_NORM], ai[I_HAS_REF_NORM] = norm_t, 1
-        if not ai[I_HAS_REF_DIP]:
-            af[A_REF_DIP], ai[I_HAS_REF_DIP] = dip_rad, 1
+        heading_from_field(self.af, self.ai, float(seconds), float(norm_t), float(dip_rad))
 
     def restart(self) -> None:
         """A new time base (gap, reset): the low-pass starts again from the next sample; the
@@ -335,6 +329,17 @@ class AhrsFilter:
                                    float(x), float(y), float(z), float(s), mag_state, mx, my, mz)
 
     step = update  # the stage's step on checked inputs (the stream's chain): the same step
+
+
+@kernel
+def heading_from_field(af, ai, seconds, norm_t, dip_rad):
+    """:meth:`AhrsFilter.heading_from_field` on the state arrays."""
+    ai[I_HEADING_INIT] = 1
+    af[A_SINCE_HEADING] = HEADING_INIT_S + seconds
+    if ai[I_HAS_REF_NORM] == 0:
+        af[A_REF_NORM], ai[I_HAS_REF_NORM] = norm_t, 1
+    if ai[I_HAS_REF_DIP] == 0:
+        af[A_REF_DIP], ai[I_HAS_REF_DIP] = dip_rad, 1
 
 
 @kernel

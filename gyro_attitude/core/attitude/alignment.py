@@ -50,7 +50,16 @@ import numpy as np
 from gyro_attitude.core.angles import wrap_2pi
 from gyro_attitude.core.attitude.ahrs import MAG_ABSURD_T, MAG_ZERO_T
 from gyro_attitude.core.attitude.modes import SettingError
-from gyro_attitude.core.attitude.rest import RestDetector, check_sample, check_samples
+from gyro_attitude.core.attitude.rest import (
+    R_AT_REST,
+    R_HEAD,
+    R_OLDEST,
+    RestDetector,
+    check_sample,
+    check_samples,
+    rest_reset,
+    rest_update,
+)
 from gyro_attitude.core.attitude.validation import within
 from gyro_attitude.core.earth import OMEGA_IE, check_latitude
 from gyro_attitude.core.jit import compiled, kernel
@@ -383,3 +392,189 @@ def align(t_ns, gyro, accel, initial_heading_deg: float = 0.0, *, gyrocompass: b
         if al.update_checked(tk, gk, ak):
             break
     return al.result()
+
+
+# ---------------------------------------------------------------------------- the step's form
+#: :func:`aligner_result` failures: the gyrocompass refused (its expected heading error beyond
+#: the limit), the mean specific force no gravity measurement
+ALIGN_FAILED_GYROCOMPASS, ALIGN_FAILED_GRAVITY = 1, 2
+#: heading sources of :data:`ALIGNER_DTYPE` (AlignmentResult.heading_source)
+HEADING_SOURCES = ("given", "gyrocompass", "magnetometer")
+
+#: the aligner's rest window: the detector's ring (stamp, index, running sums) and each
+#: sample's rate, specific force and usable field (less the hard iron)
+ALIGN_RING_DTYPE = np.dtype([("t", np.int64), ("x", np.int64), ("c", np.float64, (12,)),
+                             ("g", np.float64, (3,)), ("a", np.float64, (3,)),
+                             ("m", np.float64, (3,)), ("hm", np.bool_)])
+
+#: :class:`StaticAligner` as one record: its options, its rest detector, the open rest's sums
+#: and, once done, the alignment
+ALIGNER_DTYPE = np.dtype([
+    # options (_Options)
+    ("heading", np.float64), ("gyrocompass", np.bool_), ("lat", np.float64),
+    ("bias", np.float64, (3,)), ("bias_sigma", np.float64), ("accel_bias_sigma", np.float64),
+    ("limit", np.float64), ("min_rest_ns", np.int64), ("mag_heading", np.bool_),
+    ("decl", np.float64), ("hard_iron", np.float64, (3,)), ("given_heading_var", np.float64),
+    # the detector and the open rest
+    ("rest_f", np.float64, (32,)), ("rest_i", np.int64, (10,)), ("last_acc", np.int64),
+    ("has_seg", np.bool_), ("t0", np.int64), ("t1", np.int64), ("n", np.int64),
+    ("ref_f", np.float64, (3,)), ("s1f", np.float64, (3,)), ("s2f", np.float64, (3,)),
+    ("ref_w", np.float64, (3,)), ("s1w", np.float64, (3,)), ("s2w", np.float64, (3,)),
+    ("n_m", np.int64), ("ref_m", np.float64, (3,)), ("s1m", np.float64, (3,)),
+    ("s2m", np.float64, (3,)), ("done", np.bool_),
+    # the alignment (AlignmentResult) and its per-axis variance
+    ("aligned", np.bool_), ("q", np.float64, (4,)), ("roll", np.float64),
+    ("pitch", np.float64), ("heading_out", np.float64), ("source", np.int64),
+    ("level_err", np.float64), ("heading_err", np.float64), ("mean_f", np.float64, (3,)),
+    ("mean_w", np.float64, (3,)), ("mean_m", np.float64, (3,)), ("has_mean_m", np.bool_),
+    ("variance", np.float64, (3,)), ("level_var", np.float64), ("fail_horizontal", np.float64),
+])
+
+
+@kernel
+def aligner_break(al):
+    """:meth:`StaticAligner.break_window`: an open rest is discarded, the window starts
+    afresh."""
+    rest_reset(al.rest_f, al.rest_i)
+    al.has_seg = False
+    al.last_acc = -1
+
+
+@kernel
+def _aligner_add(al, t, g, a, hm, m):
+    """:meth:`StaticAligner._add`: a rest sample into the open rest's sums."""
+    if not al.has_seg:
+        al.has_seg, al.t0, al.n, al.n_m = True, t, 0, 0
+        for i in range(3):
+            al.ref_f[i], al.ref_w[i] = a[i], g[i]
+            al.s1f[i] = al.s2f[i] = al.s1w[i] = al.s2w[i] = al.s1m[i] = al.s2m[i] = 0.0
+    if hm:  # the field's sums: n, reference, Σ d, Σ d² (d = m − reference)
+        if al.n_m == 0:
+            for i in range(3):
+                al.ref_m[i] = m[i]
+        al.n_m += 1
+        for i in range(3):
+            d = m[i] - al.ref_m[i]
+            al.s1m[i] = al.s1m[i] + d
+            al.s2m[i] = al.s2m[i] + d * d
+    al.t1 = t
+    al.n += 1
+    for i in range(3):
+        d = a[i] - al.ref_f[i]
+        al.s1f[i] = al.s1f[i] + d
+        al.s2f[i] = al.s2f[i] + d * d
+        e = g[i] - al.ref_w[i]
+        al.s1w[i] = al.s1w[i] + e
+        al.s2w[i] = al.s2w[i] + e * e
+
+
+@kernel
+def aligner_update(al, ring, t, g0, g1, g2, a0, a1, a2, has_m, m0, m1, m2):
+    """:meth:`StaticAligner.update_checked` on the record: (the detector's code, <0 a
+    refusal with nothing changed; whether the first qualifying rest has ended)."""
+    if al.done:
+        return 0, True
+    slot = rest_update(al.rest_f, al.rest_i, ring.t, ring.x, ring.c, t, g0, g1, g2, True, a0,
+                       a1, a2)
+    if slot < 0:
+        return slot, False
+    e = ring[slot]
+    e.g[0], e.g[1], e.g[2] = g0, g1, g2
+    e.a[0], e.a[1], e.a[2] = a0, a1, a2
+    e.hm = al.mag_heading and has_m and within(m0, m1, m2, MAG_ABSURD_T) and \
+        m0 * m0 + m1 * m1 + m2 * m2 >= MAG_ZERO_T * MAG_ZERO_T
+    if e.hm:
+        e.m[0], e.m[1], e.m[2] = m0 - al.hard_iron[0], m1 - al.hard_iron[1], m2 - al.hard_iron[2]
+    j = al.rest_i[R_OLDEST]
+    if al.rest_i[R_AT_REST] == 1:
+        if j > al.last_acc:
+            al.last_acc = j
+            h = ring[al.rest_i[R_HEAD]]
+            _aligner_add(al, h.t, h.g, h.a, h.hm, h.m)
+    elif al.has_seg:
+        if al.t1 - al.t0 >= al.min_rest_ns:
+            al.done = True
+        else:
+            al.has_seg = False  # too short: wait for a longer rest
+    return 0, al.done
+
+
+@kernel
+def _level_frame(roll, pitch, x, y, z):
+    """``C_lb v``: body → level frame (yaw 0), Ry(pitch) Rx(roll) (:func:`_c_lb`)."""
+    cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
+    return (cp * x + sp * sr * y + sp * cr * z, cr * y - sr * z,
+            -sp * x + cp * sr * y + cp * cr * z)
+
+
+@kernel
+def _var(s1, s2, n, i):
+    return max(s2[i] - s1[i] * s1[i] / n, 0.0) / max(n - 1, 1)
+
+
+@kernel
+def aligner_result(al):
+    """The alignment over the rest (:func:`_result`) into the record's result fields: 0, or
+    why it failed (:data:`ALIGN_FAILED_GYROCOMPASS`, :data:`ALIGN_FAILED_GRAVITY`)."""
+    n = al.n
+    for i in range(3):
+        al.mean_f[i] = al.ref_f[i] + al.s1f[i] / n
+        al.mean_w[i] = al.ref_w[i] + al.s1w[i] / n
+    f0, f1, f2 = al.mean_f[0], al.mean_f[1], al.mean_f[2]
+    g = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+    heading = al.heading
+    ok, x, y, z, w, roll, pitch = level_q(f0, f1, f2, heading)
+    if not ok:
+        return ALIGN_FAILED_GRAVITY
+    var_f = 0.5 * (_var(al.s1f, al.s2f, n, 0) + _var(al.s1f, al.s2f, n, 1))
+    sigma_level = math.sqrt(al.accel_bias_sigma ** 2 + var_f / n) / g
+    source = 0
+    sigma_heading = math.nan
+    if al.gyrocompass:
+        horizontal = OMEGA_IE * math.cos(al.lat)
+        var_w = 0.5 * (_var(al.s1w, al.s2w, n, 0) + _var(al.s1w, al.s2w, n, 1))
+        sigma_heading = math.sqrt((al.bias_sigma ** 2 + var_w / n) / max(horizontal, 1e-300) ** 2
+                                  + (sigma_level * math.tan(al.lat)) ** 2)
+        if not sigma_heading <= al.limit:
+            al.heading_err, al.fail_horizontal = sigma_heading, horizontal
+            return ALIGN_FAILED_GYROCOMPASS
+        # heading from the bias-free mean rate at rest: in the levelled frame the horizontal
+        # Earth rate is ω_ie cos L · [sin ψ, cos ψ], so ψ = atan2(ω_x, ω_y)
+        wl0, wl1, _ = _level_frame(roll, pitch, al.mean_w[0] - al.bias[0],
+                                   al.mean_w[1] - al.bias[1], al.mean_w[2] - al.bias[2])
+        heading = (math.pi / 2 - math.atan2(wl0, wl1)) % (2.0 * math.pi)
+        ok, x, y, z, w, roll, pitch = level_q(f0, f1, f2, heading)
+        source = 1
+    al.has_mean_m = False
+    if al.mag_heading and al.n_m > 0:
+        nm = al.n_m
+        for i in range(3):
+            al.mean_m[i] = al.ref_m[i] + al.s1m[i] / nm
+        al.has_mean_m = True
+        mm0, mm1, mm2 = al.mean_m[0], al.mean_m[1], al.mean_m[2]
+        ml0, ml1, ml2 = _level_frame(roll, pitch, mm0, mm1, mm2)
+        horizontal = math.hypot(ml0, ml1)
+        if horizontal >= 1e-3 * math.sqrt(mm0 * mm0 + mm1 * mm1 + mm2 * mm2):  # not at a pole
+            # in the yaw-0 level frame the horizontal field lies atan2(−m_y, m_x) clockwise of
+            # the body x axis; the x axis is at heading h, the field at the declination
+            heading = (al.decl - math.atan2(-ml1, ml0)) % (2.0 * math.pi)
+            ok, x, y, z, w, roll, pitch = level_q(f0, f1, f2, heading)
+            source = 2
+            tan_dip = abs(ml2) / horizontal
+            var_m = (_var(al.s1m, al.s2m, nm, 0) + _var(al.s1m, al.s2m, nm, 1)
+                     + _var(al.s1m, al.s2m, nm, 2)) / 3.0
+            sigma_heading = math.sqrt(var_m / nm / horizontal ** 2
+                                      + (tan_dip * sigma_level) ** 2)
+    al.q[0], al.q[1], al.q[2], al.q[3] = x, y, z, w
+    al.roll, al.pitch, al.heading_out, al.source = roll, pitch, heading, source
+    al.level_err, al.heading_err = sigma_level, sigma_heading
+    # per-axis variance of the levelled attitude: levelling on the tilt axes, the heading's
+    # (given or measured) on the vertical one; q_nb = Rz(ψ) Ry(θ) Rx(φ): a roll error δφ is a
+    # rotation about Rz Ry(θ) e_x, whose vertical component −sin θ·δφ turns the heading too
+    lv = sigma_level * sigma_level
+    heading_var = al.given_heading_var if source == 0 else sigma_heading * sigma_heading
+    s_p = math.sin(pitch)
+    al.variance[0], al.variance[1], al.variance[2] = lv, lv, heading_var + s_p * s_p * lv
+    al.level_var = lv
+    al.aligned = True
+    return 0

@@ -152,3 +152,24 @@ def aid_tilt(c, kp_dt, floor_var):
 _SHORT = 16  # segments up to this long are summed position by position, longer ones by cumsum
 
 
+
+
+@kernel
+def first_rest_update(c, it, se0, se1, se2, elapsed_s):
+    """:meth:`AttitudeCovariance.first_rest_update` on the state array ``c`` (``it`` the
+    initial attitude variance (3,))."""
+    e2 = elapsed_s * elapsed_s
+    for i, se in ((0, se0), (1, se1), (2, se2)):
+        bb = se ** 2
+        c[V_BB + i] = bb
+        c[V_TT + i] = (it[i] + c[V_NOISE + i]) + e2 * bb
+        c[V_TB + i] = -elapsed_s * bb
+
+
+@kernel
+def reset_attitude(c, it):
+    """:meth:`AttitudeCovariance.reset_attitude` on the state array ``c``."""
+    for i in range(3):
+        c[V_TT + i] = it[i]
+        c[V_TB + i] = 0.0
+        c[V_NOISE + i] = 0.0

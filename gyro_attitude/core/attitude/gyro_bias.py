@@ -46,6 +46,7 @@ from gyro_attitude.core.attitude.rest import (
     RestDetector,
     check_sample,
     check_samples,
+    rest_reset,
     rest_update,
 )
 from gyro_attitude.core.earth import check_latitude, earth_rate_enu
@@ -437,3 +438,13 @@ def estimate_gyro_bias(t_ns, gyro, accel=None, q_nb=None, *, mode: str = "auto",
         out[k] = est.step(tk, gk, None if a is None else a[k].tolist(),
                           None if q is None else q[k])
     return out, est.report()
+
+
+@kernel
+def bias_break(bf, bi, rf, ri, min_rest_ns):
+    """:meth:`GyroBiasEstimator.break_window` on the state arrays: the open rest closed (pooled
+    when long enough), a fresh window; the estimate and the rests pooled so far kept."""
+    if bi[J_HAS_SEG] == 1:
+        close_rest(bf, bi, min_rest_ns)
+    rest_reset(rf, ri)
+    bi[J_LAST_ACC] = -1

@@ -470,3 +470,19 @@ def rest_segments(covered: np.ndarray) -> list[tuple[int, int]]:
     starts = np.flatnonzero(edges == 1)
     ends = np.flatnonzero(edges == -1) - 1
     return list(zip(starts.tolist(), ends.tolist(), strict=True))
+
+
+@kernel
+def rest_reset(rf, ri):
+    """:meth:`RestDetector.reset` on the state arrays: all samples forgotten (the thresholds
+    and the window length kept)."""
+    window_ns = ri[R_WINDOW_NS]
+    for i in range(F_STD_MIN):
+        rf[i] = 0.0
+    for i in range(F_GYRO_STD, F_STD_MIN):
+        rf[i] = math.nan
+    for i in range(_R_INTS):
+        ri[i] = 0
+    ri[R_OLDEST] = -1
+    ri[R_HAS_ACCEL] = -1
+    ri[R_WINDOW_NS] = window_ns

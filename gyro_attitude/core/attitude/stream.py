@@ -36,7 +36,6 @@ visible :class:`StreamState`.  :meth:`AttitudeStream.push` takes one sample thro
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
@@ -44,7 +43,7 @@ import numpy as np
 from gyro_attitude.core.attitude import (
     DEFAULT_ALGORITHM,
     NavFrame,
-    StreamingIntegrator,
+    chain,
     get_algorithm,
 )
 from gyro_attitude.core.attitude import validation as v
@@ -57,12 +56,15 @@ from gyro_attitude.core.attitude.ahrs import (
     _as_floats,
 )
 from gyro_attitude.core.attitude.alignment import (
+    ALIGN_FAILED_GYROCOMPASS,
+    ALIGN_RING_DTYPE,
+    HEADING_SOURCES,
     AlignmentResult,
     StaticAligner,
     check_gyrocompass_feasible,
     level_quaternion,
 )
-from gyro_attitude.core.attitude.covariance import AttitudeCovariance
+from gyro_attitude.core.attitude.covariance import V_TT, AttitudeCovariance
 from gyro_attitude.core.attitude.gravity_aiding import GravityAiding
 from gyro_attitude.core.attitude.gyro_bias import GyroBiasEstimator, GyroBiasReport
 from gyro_attitude.core.attitude.modes import (
@@ -74,27 +76,15 @@ from gyro_attitude.core.attitude.modes import (
     Phase,
     SettingError,
 )
-from gyro_attitude.core.attitude.sample_step import (
-    AFTER_BIAS,
-    BIAS_REFUSED,
-    DONE,
-    NOT_FINITE,
-    NOT_PLAIN,
-    push_sample,
-    saturation_step,
-)
+from gyro_attitude.core.attitude.rest import R_COUNT, R_HEAD
 from gyro_attitude.core.attitude.settings import StreamConfig
-from gyro_attitude.core.earth import STANDARD_GRAVITY
+from gyro_attitude.core.attitude.streaming import C_HAS_LAST, C_LAST_T
+from gyro_attitude.core.earth import STANDARD_GRAVITY, check_latitude, earth_rate_enu
 from gyro_attitude.core.jit import compiled, direct
-from gyro_attitude.core.rotation import (
-    quat_from_rotvec,
-    quat_multiply,
-    quat_normalize,
-    quat_rotate,
-)
+from gyro_attitude.core.rotation import quat_normalize
 
-__all__ = ["AttitudeStream", "StreamConfig", "StreamResult", "StreamState", "bias_summary",
-           "compile_kernels", "gyro_variances"]
+__all__ = ["AttitudeStream", "StreamConfig", "StreamResult", "bias_summary", "compile_kernels",
+           "gyro_variances"]
 
 
 INVALID_COVARIANCE = "invalid_covariance"
@@ -245,66 +235,42 @@ class StreamResult:
         return int(self.action.shape[0] - self.index.shape[0])
 
 
-@dataclass
-class StreamState:
-    """What the chain carries between samples (each stage keeps its own state besides).
 
-    ``q`` the last attitude handed out, 4 floats (the initial one before any: the per-sample
-    stages take plain floats); ``q_initial`` the attitude
-    a time-jump reset goes back to; ``resume_q`` the attitude to go on from after an integrator
-    error; ``phase``; ``start_t_ns`` the first accepted stamp; ``accel_present`` whether the
-    last usable sample had an accelerometer (None after an unusable one); ``first_rest_pending``
-    whether the first bias estimate may still be applied back to the start;
-    ``variance_known`` whether anything gives an orientation variance yet; ``counts`` and
-    ``details`` of the stages' own events (:data:`EXTRA_COUNTS`); ``aided_seen`` the aiding
-    filter's sample count at the last covariance update.
-    """
-
-    q: tuple[float, float, float, float]
-    q_initial: np.ndarray
-    phase: Phase = RUNNING
-    resume_q: tuple | None = None
-    start_t_ns: int | None = None
-    accel_present: bool | None = None
-    first_rest_pending: bool = False
-    variance_known: bool = False
-    counts: dict[str, int] = field(default_factory=lambda: dict.fromkeys(EXTRA_COUNTS, 0))
-    details: dict[str, str] = field(default_factory=dict)
-    aided_seen: int = 0
-    # the saturation check's state: per axis the largest |ω| accepted so far (0:3) and the
-    # last accepted ω (3:6)
-    sat: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0] + [math.nan] * 3))
-
-    def count(self, key: str, detail: str) -> None:
-        self.counts[key] += 1
-        self.details.setdefault(key, detail)
-
-    def count_fit_fallbacks(self, n: int, t_ns: int) -> None:
-        """``n`` intervals whose rate fit fell back, the first of them ending at ``t_ns``."""
-        self.counts[RATE_FIT_FALLBACK] += n
-        self.details.setdefault(RATE_FIT_FALLBACK, rate_fit_note(t_ns))
+#: the algorithms compiled into the chain's step (the integration library has the others:
+#: integrate_batch, bench)
+STEP_ALGORITHMS = {"rotvec_cubic": chain.ALG_CUBIC, "exp_map": chain.ALG_EXP_MAP}
+_ACTIONS = (v.REJECT, v.START, v.ACCEPT, v.RESTART_AFTER_GAP, v.RESET_TIME_JUMP)
+#: the step's reason codes as the validator's words (1 + index in REJECT_REASONS, then these)
+_REASONS = (None, *v.REJECT_REASONS, "time_jump", v.MISSING_SAMPLES, INTEGRATOR_ERROR)
+_RING_START = 64  # rest-window entries held at first; a ring doubles when a window needs more
+_ALIGN_ERRORS = {1: "alignment needs the accelerometer: no usable linear_acceleration"}
 
 
 class AttitudeStream:
     """Imu samples in, attitude out, through the chain of the module docstring.
 
-    ``algorithm`` a name from the registry (an offline one serves the array form of :meth:`run`
-    only: it needs samples after each interval, so :meth:`push` refuses it); ``q0`` the initial
-    attitude (also the one a time jump resets to; levelling replaces it); ``nav`` a
-    :class:`NavFrame` for q_nb (Earth and transport rate removed; default: the one of
-    ``config`` with frame enu) or None for q_ib; ``config`` the settings.  The latitude is
-    known with a nav frame or for gyrocompassing; then the Earth rate is taken out of the bias
-    estimate at the current attitude.
+    ``algorithm`` one of :data:`STEP_ALGORITHMS`; ``q0`` the initial attitude (also the one a
+    time jump resets to; levelling replaces it); ``nav`` a :class:`NavFrame` for q_nb (Earth
+    and transport rate removed; default: the one of ``config`` with frame enu) or None for
+    q_ib; ``config`` the settings.  The latitude is known with a nav frame or for
+    gyrocompassing; then the Earth rate is taken out of the bias estimate at the current
+    attitude.
+
+    The whole state is :attr:`state` (one record of :data:`.chain.STATE_DTYPE`) and three
+    rings; the settings are :attr:`coef` (:data:`.chain.COEF_DTYPE`), computed once.
+    :attr:`aiding`, :attr:`intervals` and :attr:`bias_report` read the record.
     """
 
     def __init__(self, algorithm: str = DEFAULT_ALGORITHM, q0=(0.0, 0.0, 0.0, 1.0),
                  nav: NavFrame | None = None, config: StreamConfig | None = None):
-        self._init_args = (algorithm, q0, nav, config)
         self.config = cfg = config if config is not None else StreamConfig()
         q_initial = _unit_quat(q0)
         if nav is None and cfg.frame is Frame.ENU:
             nav = cfg.nav_frame()
+        if nav is not None and not isinstance(nav, NavFrame):
+            raise ValueError(f"nav must be a NavFrame or None, got {type(nav).__name__}")
         self.nav = nav
+        self._check_algorithm(algorithm)
         self.algorithm = algorithm
         lat = nav.latitude_rad if nav is not None else (
             cfg.latitude_rad if cfg.latitude_known else None)
@@ -312,48 +278,105 @@ class AttitudeStream:
         if cfg.heading_source is HeadingSource.GYROCOMPASS:
             check_gyrocompass_feasible(cfg.gyro_bias_sigma_rad_s, self.latitude_rad,
                                        cfg.heading_error_limit_deg)
-        # -- the stages, in chain order
-        self.validator = v.ImuStreamValidator(cfg.check_config())
-        self.intervals = v.IntervalStatistics(window=2000)
+        self.coef = np.zeros(1, chain.COEF_DTYPE).view(np.recarray)
+        self.state = np.zeros(1, chain.STATE_DTYPE).view(np.recarray)
+        self.bias_ring = np.zeros(_RING_START, chain.BIAS_RING_DTYPE).view(np.recarray)
+        self.align_ring = np.zeros(_RING_START, ALIGN_RING_DTYPE).view(np.recarray)
+        self.align_buffer = np.zeros(_RING_START, chain.ALIGN_BUFFER_DTYPE).view(np.recarray)
+        self._set_coefficients(cfg)
+        self._init_state(cfg, q_initial)
+        self._frames: dict[str, int] = {}
+        self._locked = -1
+        self._details: dict[str, str] = {}
+        self._max_rate = float(self.coef.max_rate[0])
+        self.alignment_error: str | None = None
+        self._step = compiled(chain.step)
+        self._direct = False
+
+    @staticmethod
+    def _check_algorithm(algorithm) -> None:
+        info = get_algorithm(algorithm)  # ValueError naming the choices for an unknown one
+        if not info.causal:
+            raise ValueError(f"{algorithm} is an offline algorithm (it needs the samples after "
+                             "each interval): the causal estimator takes a causal one (or use "
+                             "the offline estimator)")
+        if algorithm not in STEP_ALGORITHMS:
+            raise ValueError(f"the causal estimator integrates with {sorted(STEP_ALGORITHMS)} "
+                             f"(compiled into its step), not {algorithm}; the integration "
+                             "library (integrate_batch, gyro-attitude bench) has every "
+                             "algorithm")
+
+    def _set_coefficients(self, cfg: StreamConfig) -> None:
+        """The coefficients of ``cfg``: the settings as the step reads them."""
+        c = self.coef[0]
+        chk = cfg.check_config()
+        c.max_gap_ns, c.time_jump_ns = chk.max_gap_ns, chk.time_jump_ns
+        c.max_rate, c.max_missing = chk.max_rate_rad_s, chk.max_missing_samples
+        c.bias_mode = {GyroBiasMode.NONE: chain.BIAS_NONE,
+                       GyroBiasMode.PARAMETER: chain.BIAS_PARAMETER,
+                       GyroBiasMode.AUTO: chain.BIAS_AUTO}[cfg.gyro_bias]
+        c.earth = self.latitude_rad is not None
+        if c.earth:
+            c.earth_n = earth_rate_enu(check_latitude(self.latitude_rad, "latitude_rad"))
+        c.min_rest_ns = int(round(cfg.min_rest_s * 1e9))
+        c.heading = math.radians(cfg.initial_heading_deg)
+        c.levelling = cfg.levelling
+        c.mag_mode = cfg.aiding is Aiding.MAGNETOMETER
+        c.algorithm = STEP_ALGORITHMS[self.algorithm]
+        c.n2 = cfg.gyro_noise_density * cfg.gyro_noise_density
+        c.k2 = float(cfg.gyro_bias_rw) ** 2
+        c.accel_floor_var = (cfg.accel_bias_sigma / STANDARD_GRAVITY) ** 2
+        c.aiding = chain.AID_NONE
+        if cfg.aiding is Aiding.GRAVITY:
+            aid = GravityAiding(cfg.aiding_kp, cfg.aiding_ki, cfg.aiding_accel_tol,
+                                cfg.aiding_rate_max, accel_lowpass_s=cfg.aiding_accel_lowpass_s)
+            c.aiding, c.gravity, c.kp = chain.AID_GRAVITY, aid.params, aid.kp
+        elif cfg.aiding in (Aiding.TILT, Aiding.MAGNETOMETER):
+            aid = AhrsFilter(AhrsParams.from_config(cfg))
+            c.aiding, c.ahrs, c.kp = chain.AID_AHRS, aid.pa, aid.kp
+
+    def _init_state(self, cfg: StreamConfig, q_initial: np.ndarray) -> None:
+        """The state at the start: each stage's own start, the chain's attitude and phase."""
+        s = self.state[0]
+        s.q = s.q_initial = q_initial
+        s.phase = chain.ALIGNING if cfg.levelling else chain.RUNNING
+        s.accel_present = -1
+        s.first_rest_pending = cfg.gyro_bias is GyroBiasMode.AUTO and not cfg.levelling
+        s.variance_known = bool(cfg.gyro_noise_density > 0 or cfg.gyro_bias_sigma_rad_s > 0
+                                or cfg.levelling)
+        s.sat = [0.0, 0.0, 0.0, math.nan, math.nan, math.nan]
         fixed = cfg.gyro_bias_rad_s if cfg.gyro_bias is GyroBiasMode.PARAMETER else None
-        self.bias_estimator = GyroBiasEstimator(
-            cfg.gyro_bias, fixed, min_rest_s=cfg.min_rest_s, latitude_rad=self.latitude_rad,
-            rest=cfg.rest_params())
-        self.aligner: StaticAligner | None = self._new_aligner() if cfg.levelling else None
-        self._align_buffer: deque = deque()
+        est = GyroBiasEstimator(cfg.gyro_bias, fixed, min_rest_s=cfg.min_rest_s,
+                                latitude_rad=self.latitude_rad, rest=cfg.rest_params())
+        s.rest_f, s.rest_i = est.detector.rf, est.detector.ri
+        s.bias_f, s.bias_i = est.bf, est.bi
+        est.bf, est.bi = self.state.bias_f[0], self.state.bias_i[0]  # the report reads these
+        self._bias = est
+        if cfg.levelling:
+            self._init_aligner(cfg)
         self.aiding = None
-        self._mag = None  # the current sample's magnetic field (aiding magnetometer)
-        self._mag_missing = 0
         if cfg.aiding is Aiding.GRAVITY:
             self.aiding = GravityAiding(cfg.aiding_kp, cfg.aiding_ki, cfg.aiding_accel_tol,
                                         cfg.aiding_rate_max,
                                         accel_lowpass_s=cfg.aiding_accel_lowpass_s)
+            s.gravity_f, s.gravity_i = self.aiding.gf, self.aiding.gi
+            self.aiding.gf, self.aiding.gi = self.state.gravity_f[0], self.state.gravity_i[0]
         elif cfg.aiding in (Aiding.TILT, Aiding.MAGNETOMETER):
             self.aiding = AhrsFilter(AhrsParams.from_config(cfg))
-        if not get_algorithm(algorithm).causal:
-            raise ValueError(f"{algorithm} is an offline algorithm (it needs the samples after "
-                             "each interval): the causal estimator takes a causal one (or use "
-                             "the offline estimator)")
-        self.integrator = StreamingIntegrator(algorithm=algorithm, q0=q_initial, nav=nav)
-        self.covariance = AttitudeCovariance(cfg.initial_attitude_variance,
-                                             cfg.gyro_bias_sigma_rad_s, cfg.gyro_bias_rw)
-        self._n2 = cfg.gyro_noise_density * cfg.gyro_noise_density
-        # -- the chain's own state
-        self.state = StreamState(
-            q=tuple(q_initial.tolist()), q_initial=q_initial, phase=ALIGNING if cfg.levelling else RUNNING,
-            first_rest_pending=cfg.gyro_bias is GyroBiasMode.AUTO and not cfg.levelling,
-            variance_known=bool(cfg.gyro_noise_density > 0 or cfg.gyro_bias_sigma_rad_s > 0
-                                or cfg.levelling))
-        self.alignment: AlignmentResult | None = None
-        self.alignment_error: str | None = None
-        # push()'s compiled form for the samples nothing special happens to (None where a stage
-        # has no kernel: another integrator, a nav frame with time series, another aiding)
-        self._fast = _PushKernel.for_stream(self)
+            s.ahrs_f, s.ahrs_i = self.aiding.af, self.aiding.ai
+            self.aiding.af, self.aiding.ai = self.state.ahrs_f[0], self.state.ahrs_i[0]
+        self._set_nav(self.nav)
+        compiled(chain.integrator_reset)(self.coef[0], s, *q_initial.tolist(), False, 0)
+        cov = AttitudeCovariance(cfg.initial_attitude_variance, cfg.gyro_bias_sigma_rad_s,
+                                 cfg.gyro_bias_rw)
+        s.cov, s.initial_tt = cov.c, cov.initial_tt
+        self.intervals = v.IntervalStatistics(window=v.RING)
+        self.intervals.ring, self.intervals.fill = (self.state.intervals[0],
+                                                    self.state.interval_fill[0])
 
-    def _new_aligner(self) -> StaticAligner:
-        cfg = self.config
+    def _init_aligner(self, cfg: StreamConfig) -> None:
         gc = cfg.heading_source is HeadingSource.GYROCOMPASS
-        return StaticAligner(
+        al = StaticAligner(
             cfg.initial_heading_deg, gyrocompass=gc, latitude_rad=self.latitude_rad if gc else None,
             gyro_bias=(cfg.gyro_bias_rad_s if cfg.gyro_bias is GyroBiasMode.PARAMETER
                        else (0.0, 0.0, 0.0)),
@@ -362,63 +385,100 @@ class AttitudeStream:
             heading_error_limit_deg=cfg.heading_error_limit_deg, min_rest_s=cfg.min_rest_s,
             rest=cfg.rest_params(), mag_heading=cfg.aiding is Aiding.MAGNETOMETER,
             declination_deg=cfg.magnetic_declination_deg, hard_iron_t=cfg.mag_hard_iron_t)
+        opt = al._opt
+        r = self.state.aligner[0]
+        r.heading, r.gyrocompass, r.lat = opt.heading, opt.gyrocompass, opt.lat or 0.0
+        r.bias, r.bias_sigma = opt.bias, opt.bias_sigma or 0.0
+        r.accel_bias_sigma, r.limit, r.min_rest_ns = (opt.accel_bias_sigma, opt.limit,
+                                                      opt.min_rest_ns)
+        r.mag_heading, r.decl, r.hard_iron = opt.mag_heading, opt.declination, opt.hard_iron
+        r.given_heading_var = np.broadcast_to(cfg.initial_attitude_variance, (3,))[2]
+        r.rest_f, r.rest_i = al.detector.rf, al.detector.ri
+        r.last_acc = -1
+
+    def _set_nav(self, nav) -> None:
+        """The nav rate ω_in^n of a constant frame (a series is fed row by row: run())."""
+        s = self.state[0]
+        s.has_nav = nav is not None
+        if nav is not None and nav.series_length() is None:
+            s.nav_rate = nav.rate_enu(None)
 
     # ------------------------------------------------------------------ queries
     @property
     def phase(self) -> Phase:
-        return self.state.phase
+        return (Phase.RUNNING, Phase.ALIGNING, Phase.FAILED)[int(self.state.phase[0])]
 
     @property
     def q_initial(self) -> np.ndarray:
-        return self.state.q_initial
+        return np.array(self.state.q_initial[0])
 
     @property
     def details(self) -> dict[str, str]:
-        return self.state.details
+        return self._details
 
     @property
     def counts(self) -> dict[str, int]:
-        out = {**self.validator.counts, **self.state.counts,
-               v.MISSING_SAMPLES: self.validator.missing_samples}
+        s = self.state[0]
+        st = s.stamps
+        out = {r: int(st.counts[i + 1]) for i, r in enumerate(v.REJECT_REASONS)}
+        out.update({INVALID_COVARIANCE: int(s.invalid_covariance),
+                    INVALID_ACCEL: int(s.invalid_accel),
+                    INTEGRATOR_ERROR: int(s.integrator_error), SATURATED: int(s.saturated),
+                    RATE_FIT_FALLBACK: int(s.rate_fit_fallback),
+                    v.MISSING_SAMPLES: int(st.missing)})
         if self.config.aiding is Aiding.MAGNETOMETER:
-            out[MAG_MISSING] = self._mag_missing
+            out[MAG_MISSING] = int(s.mag_missing)
             out[INVALID_MAG] = self.aiding.mag_invalid
             out[MAG_DISTURBED] = self.aiding.mag_disturbed
             for key, text in ((INVALID_MAG, "a magnetic field sample not finite, beyond 10 mT "
                                             "or below 0.1 µT"),
                               (MAG_DISTURBED, "a field whose norm or dip is off the reference")):
                 if out[key]:
-                    self.state.details.setdefault(key, text)
+                    self._details.setdefault(key, text)
         return out
 
     @property
     def rejected_total(self) -> int:
-        return self.validator.rejected_total
+        c = self.state.stamps[0].counts
+        return int(sum(c[i + 1] for i, r in enumerate(v.REJECT_REASONS) if r != v.GAP))
 
     @property
     def accepted(self) -> int:
-        return self.validator.accepted
+        return int(self.state.stamps[0].accepted)
 
     @property
     def time_jump_resets(self) -> int:
-        return self.validator.time_jump_resets
+        return int(self.state.stamps[0].jump_resets)
 
     @property
     def last_t_ns(self) -> int | None:
-        return self.validator.last_t_ns
+        st = self.state.stamps[0]
+        return int(st.last) if st.has_last else None
 
     @property
     def quaternion(self) -> np.ndarray:
-        return np.array(self.state.q, dtype=np.float64)
+        return np.array(self.state.q[0], dtype=np.float64)
 
     @property
     def variance(self) -> np.ndarray | None:
         """Per-axis orientation variance [rad²]; None while nothing gives an estimate."""
-        return self.covariance.tt.copy() if self.state.variance_known else None
+        s = self.state[0]
+        return np.array(s.cov[V_TT:V_TT + 3]) if s.variance_known else None
 
     @property
     def bias_report(self) -> GyroBiasReport:
-        return self.bias_estimator.report()
+        return self._bias.report()
+
+    @property
+    def alignment(self) -> AlignmentResult | None:
+        r = self.state.aligner[0]
+        if not r.aligned:
+            return None
+        return AlignmentResult(
+            np.array(r.q), float(r.roll), float(r.pitch), float(r.heading_out),
+            HEADING_SOURCES[int(r.source)], float(r.level_err), float(r.heading_err),
+            int(r.t0), int(r.t1), int(r.n), np.array(r.mean_f), np.array(r.mean_w),
+            np.array(r.mean_m) if r.has_mean_m else None, int(r.n_m) if r.has_mean_m else 0)
 
     # ------------------------------------------------------------------ settings
     def set_config(self, config: StreamConfig) -> None:
@@ -428,35 +488,51 @@ class AttitudeStream:
                               time_jump_threshold_s=config.time_jump_threshold_s,
                               max_rate_rad_s=config.max_rate_rad_s,
                               max_missing_samples=config.max_missing_samples)
-        self.validator.config = self.config.check_config()
-        self._fast = _PushKernel.for_stream(self)
+        chk = self.config.check_config()
+        c = self.coef[0]
+        c.max_gap_ns, c.time_jump_ns = chk.max_gap_ns, chk.time_jump_ns
+        c.max_rate, c.max_missing = chk.max_rate_rad_s, chk.max_missing_samples
+        self._max_rate = float(chk.max_rate_rad_s)
 
     def set_algorithm(self, algorithm: str) -> None:
         """Switch the algorithm, keeping the attitude and the time base (raises ValueError and
         changes nothing for an unknown or unsuitable algorithm)."""
-        integrator = StreamingIntegrator(algorithm=algorithm, q0=self.integrator.quaternion,
-                                         nav=self.nav, t0_ns=self.integrator.last_t_ns)
-        self.integrator = integrator
+        self._check_algorithm(algorithm)
+        s = self.state[0]
+        ci = s.cubic_i
+        has_t = bool(ci[C_HAS_LAST])
+        q = s.cubic_f[:4].tolist()
         self.algorithm = algorithm
-        self._fast = _PushKernel.for_stream(self)
+        self.coef.algorithm[0] = STEP_ALGORITHMS[algorithm]
+        compiled(chain.integrator_reset)(self.coef[0], s, *q, has_t,
+                                         int(ci[C_LAST_T]) if has_t else 0)
 
     def update_nav(self, nav: NavFrame) -> None:
-        """Constant nav frame from the next sample on (see StreamingIntegrator.update_nav)."""
-        self.integrator.update_nav(nav)
+        """Constant nav frame from the next sample on: its rate ``ω_in^n`` is evaluated here,
+        once, and is the nav rate at the next sample (see StreamingIntegrator.update_nav)."""
+        if self.nav is None:
+            raise ValueError("update_nav needs an integrator built with a NavFrame (q_nb); "
+                             "this one integrates q_ib")
+        if not isinstance(nav, NavFrame):
+            raise ValueError(f"nav must be a NavFrame, got {type(nav).__name__}")
+        rate = nav.rate_enu(None)  # raises on series and on invalid values
+        if rate.shape != (3,):
+            raise ValueError(f"update_nav needs a constant NavFrame, got rate shape {rate.shape}")
         self.nav = nav
-        self._fast = _PushKernel.for_stream(self)
+        self.state.nav_rate[0] = rate
 
     def restart(self, q0=None) -> None:
         """Forget the time base (and the locked frame): the next sample starts from ``q0``
         (which also becomes the initial attitude), or from the initial attitude."""
-        st = self.state
+        s = self.state[0]
         if q0 is not None:
-            st.q_initial = _unit_quat(q0)
-            st.q = tuple(st.q_initial.tolist())
-        st.resume_q = None
-        self.validator.reset()
-        self.intervals.clear()
-        self._break_windows()
+            s.q_initial = _unit_quat(q0)
+            s.q = s.q_initial
+        s.has_resume = False
+        compiled(v.stamps_reset)(s.stamps)
+        self._locked = -1
+        s.interval_fill = 0
+        compiled(chain.break_windows)(self.coef[0], s)
 
     # ------------------------------------------------------------------ one sample
     def push(self, t_ns: int, omega, frame_id: str = "", angular_velocity_covariance=None,
@@ -466,332 +542,75 @@ class AttitudeStream:
         the magnetic field (3,) tesla time-aligned to ``t_ns`` or None (aiding magnetometer:
         counted ``mag_missing``, heading gyro-only; a field that is not finite, absurd or zero
         is counted ``invalid_mag``, one that disagrees with the reference ``mag_disturbed``)."""
-        fast = self._fast
-        if fast is not None:
-            if out := fast.push(t_ns, omega, frame_id, angular_velocity_covariance, accel, mag):
-                return out
-            fast.args = None  # the Python steps below may change what it holds
-        st = self.state
-        # 1. validate
-        verdict = self.validator.check(t_ns, omega, frame_id)
-        if verdict.rejected:
-            st.details.setdefault(verdict.reason, verdict.detail)
-            return verdict, None
-        t_ns = int(t_ns)
-        var = None
+        w = _floats(omega)
+        if w is None or not (abs(w[0]) <= self._max_rate and abs(w[1]) <= self._max_rate
+                             and abs(w[2]) <= self._max_rate):
+            t = 0  # a bad value is refused before the stamp is looked at
+        elif isinstance(t_ns, bool) or not isinstance(t_ns, int | np.integer):
+            raise ValueError(f"t_ns must be an integer number of nanoseconds, got {t_ns!r}")
+        else:
+            t = int(t_ns)
+        w0, w1, w2 = w if w is not None else (math.nan, math.nan, math.nan)
+        frame = self._frames.setdefault(frame_id, len(self._frames))
+        frame_ok = self._locked < 0 or frame == self._locked
+        a = None if accel is None else _floats(accel) or (math.nan, math.nan, math.nan)
+        a0, a1, a2 = a if a is not None else (0.0, 0.0, 0.0)
+        cv = _ZERO9
         if angular_velocity_covariance is not None:
-            var = self._gyro_variance(angular_velocity_covariance)
-        if verdict.reason is not None:  # a time jump, a gap, missing samples
-            st.details.setdefault(verdict.reason, verdict.detail)
-        a = self._accel(accel)
-        mag = self._mag_sample(mag, t_ns)
-        if st.start_t_ns is None:
-            st.start_t_ns = t_ns
-        if verdict.action != v.ACCEPT:
-            self._break_windows()  # a rest never spans a gap, a jump or a restart
-        # the validator took 3 finite numbers: plain floats from here on
-        w = tuple(omega.tolist() if isinstance(omega, np.ndarray) else (float(c) for c in omega))
-        self._saturation_step(w)
-        # 2. rest -> gyro bias
-        bias = self._bias_step(t_ns, w, a)
-        # 3. alignment
-        if st.phase is not RUNNING:
-            q = self._align_step(t_ns, w, a, var, bias, mag)
-        else:  # 4.-6. aiding, integration, covariance
-            verdict, q = self._integrate(verdict, t_ns, (w[0] - bias[0], w[1] - bias[1],
-                                                         w[2] - bias[2]), a, var, mag)
-        return verdict, None if q is None else np.array(q)
-
-    def _gyro_variance(self, covariance):
-        """The sample's per-axis gyro variances as 3 floats, or None (unknown; an invalid
-        covariance counted, "no estimate" said once)."""
-        var, invalid = gyro_variances(covariance)
-        if invalid:
-            self.state.count(INVALID_COVARIANCE, invalid_covariance_note(covariance))
-            return None
-        self._variance_seen(var, covariance)
-        return var
-
-    def _variance_seen(self, var, covariance) -> None:
-        """A sample's gyro variances ``var`` (None: unknown) from a valid ``covariance``: the
-        orientation variance is known from now on, or "no estimate" is said once."""
-        st = self.state
-        if var is not None:
-            st.variance_known = True
-        elif covariance is not None and GYRO_NOISE_UNKNOWN not in st.details and \
-                v.no_estimate(np.asarray(covariance, dtype=np.float64).reshape(-1)):
-            st.details[GYRO_NOISE_UNKNOWN] = unknown_noise_note(self.config)
-
-    def _mag_sample(self, mag, t_ns):
-        """The sample's field for the aiding (magnetometer mode), counting absent ones (a row
-        of NaN is no sample); the filter checks and counts the values."""
-        if self.config.aiding is not Aiding.MAGNETOMETER:
-            return None
-        if field_absent(mag):
-            self._field_missing(t_ns)
-            return None
-        return mag
-
-    def _field_missing(self, t_ns: int) -> None:
-        self._mag_missing += 1
-        self.state.details.setdefault(MAG_MISSING, f"no field sample at stamp {t_ns} "
-                                                   "(none within mag_max_age_s)")
-
-    def _saturation_step(self, w: tuple) -> None:
-        """Count an accepted sample pinned at a repeated extreme (:func:`saturation_step`)."""
-        axis = compiled(saturation_step)(self.state.sat, w[0], w[1], w[2], SATURATION_MIN_RAD_S)
-        if axis >= 0:
-            self.state.count(SATURATED, saturation_note(axis, w[axis]))
-
-    def _accel(self, accel):
-        """The sample's specific force as 3 floats, or None (absent or unusable, counted)."""
-        st = self.state
-        if accel is None:
-            a = None
+            cv = _covariance_row(angular_velocity_covariance)
+        ms, m = _field(mag) if self.config.aiding is Aiding.MAGNETOMETER else (MAG_ABSENT, None)
+        m0, m1, m2 = m if m is not None else (0.0, 0.0, 0.0)
+        while True:
+            code, reason, got, ev, x, y, z, u = self._step(
+                self.coef, self.state, self.bias_ring, self.align_ring, self.align_buffer, t,
+                w0, w1, w2, frame_ok, a is not None, a0, a1, a2,
+                angular_velocity_covariance is not None, cv, ms, m0, m1, m2)
+            if code >= 0:
+                break
+            self._grow(code)
+        if not self._direct:
+            self._step, self._direct = direct(self._step), True
+        if code == v.A_START and self._locked < 0:
+            self._locked = frame
+        if reason == 0 and ev == 0:
+            verdict = _PLAIN[code]
         else:
-            try:
-                x, y, z = (float(c) for c in (
-                    accel.tolist() if isinstance(accel, np.ndarray) and accel.ndim == 1 else accel))
-            except (TypeError, ValueError):
-                x = y = z = math.nan
-            if v.within(x, y, z, ACCEL_ABSURD):  # the compiled step's bound
-                a = (x, y, z)
-            else:
-                st.count(INVALID_ACCEL, invalid_accel_note(accel))
-                self._break_windows()
-                st.accel_present = None
-                return None
-        if st.accel_present is not None and (a is not None) != st.accel_present:
-            self._break_windows()  # the rest detectors need the accelerometer for all or none
-        st.accel_present = a is not None
-        return a
+            words = _Words(self, t_ns, omega, frame_id, accel, angular_velocity_covariance, w)
+            detail = words.after_step(reason, ev)
+            verdict = _PLAIN[code] if reason == 0 else v.Verdict(
+                _ACTIONS[code], _REASONS[reason], detail)
+        return verdict, np.array((x, y, z, u)) if got else None
 
-    def _break_windows(self) -> None:
-        self.bias_estimator.break_window()
-        if self.state.phase is ALIGNING:
-            self.aligner.break_window()  # alignment needs one unbroken rest
-            self._align_buffer.clear()
-        if self.aiding is not None:
-            self.aiding.last_t_ns = None
-
-    def _bias_step(self, t_ns: int, w: tuple, a) -> tuple:
-        """Step 2: the bias (3 floats) to subtract from this sample."""
-        est = self.bias_estimator
-        if est.mode is not GyroBiasMode.AUTO:
-            return est.step(t_ns, w, a)
-        previous = est.bias_floats
-        try:
-            bias = est.step(t_ns, w, a, self._bias_attitude(a))
-        except ValueError:  # a value the rest statistics refuse (e.g. > 1e6): no rest here
-            est.break_window()
-            return est.bias_floats
-        if est.updated:
-            self._bias_published(previous)
-        return bias
-
-    def _bias_attitude(self, a):
-        """The attitude the bias stage takes the Earth rate out at (None: it is absorbed): the
-        current one, or while aligning levelled from this sample with the given heading."""
-        if self.latitude_rad is None:
-            return None
-        if self.state.phase is RUNNING:
-            return self.state.q
-        if a is None:
-            return None
-        try:
-            return level_quaternion(a, math.radians(self.config.initial_heading_deg))[0]
-        except ValueError:
-            return None
-
-    def _bias_published(self, previous: tuple) -> None:
-        """The bias stage published a new estimate (a zero-rate update at a rest); with the
-        stream still since its start, the first one is applied back to the start."""
-        est, st = self.bias_estimator, self.state
-        t_prev = self.integrator.last_t_ns
-        rest_start = est.open_rest_start_ns
-        if st.first_rest_pending and st.phase is RUNNING and rest_start is not None \
-                and rest_start - st.start_t_ns <= est.window_ns and t_prev is not None \
-                and est.rests_completed == 0:
-            # (a full window is needed before the first decision, so the first rest sample
-            # is at best the second sample of the stream)
-            # Still since the start: the samples so far were integrated with the previous
-            # bias; the body did not turn, so the attitude error is the bias change times
-            # the elapsed time, a body-frame rotation taken back here.
-            bias = est.bias_floats
-            elapsed = (t_prev - st.start_t_ns) * 1e-9
-            q_fix = quat_multiply(self.integrator.quaternion, quat_from_rotvec(
-                -(np.array(bias) - np.array(previous)) * elapsed))
-            self.integrator.reset(q_fix, t_prev)
-            st.q = tuple(q_fix.tolist())
-            self.covariance.first_rest_update(est.standard_error_floats, elapsed)
+    def _grow(self, code: int) -> None:
+        """Double the ring the step found full (its entries kept in order from slot 0)."""
+        s = self.state[0]
+        if code == chain.BIAS_RING_FULL:
+            self.bias_ring = _grown(self.bias_ring, s.rest_i)
         else:
-            self.covariance.zero_rate_update(est.standard_error_floats)
-        st.first_rest_pending = False
-
-    def _align_step(self, t_ns, w, a, var, bias, mag):
-        st = self.state
-        if st.phase is FAILED:
-            return None
-        if a is None:
-            self.alignment_error = ("alignment needs the accelerometer: no usable "
-                                    "linear_acceleration")
-            return None
-        self.alignment_error = None
-        al = self.aligner
-        try:
-            # the validator took t, w and a (finite, |w| ≤ max_rate ≤ 1e6, |a| ≤ 1e6)
-            done = al.update_checked(t_ns, w, a, mag)
-        except ValueError:
-            self.aligner = self._new_aligner()
-            return None
-        buf = self._align_buffer
-        buf.append((t_ns, w, a, var, mag))
-        if not al.rest_open:
-            while len(buf) > 1:
-                buf.popleft()
-        else:  # keep the samples from the last rest sample on: integrated once aligned
-            last = al.last_rest_ns
-            while buf[0][0] < last:
-                buf.popleft()
-        if not done:
-            return None
-        try:
-            res = al.result()
-        except ValueError as exc:
-            st.phase = FAILED
-            self.alignment_error = str(exc)
-            return None
-        entries = list(buf)
-        buf.clear()
-        return self._aligned(res, entries, bias)
-
-    def _aligned(self, res: AlignmentResult, entries, bias):
-        """The alignment is done: start from it and integrate the samples since the last rest
-        sample (``entries`` of (t, w, a, var, mag)) with the bias in force now; the attitude
-        at the last one."""
-        self._start_aligned(res)
-        b0, b1, b2 = bias
-        q = None
-        verdict = _STARTED
-        fresh = True
-        for tk, wk, ak, vk, mk in entries:
-            _, q = self._integrate(verdict, tk, (wk[0] - b0, wk[1] - b1, wk[2] - b2), ak, vk,
-                                   mk, fresh)
-            verdict, fresh = _ACCEPTED, False
-        return q
-
-    def _start_aligned(self, res: AlignmentResult) -> None:
-        """The alignment is done: the attitude, its covariance and the integrator start."""
-        st = self.state
-        self.alignment = res
-        self.alignment_error = None
-        st.phase = RUNNING
-        st.q_initial = res.q_nb
-        st.q = tuple(res.q_nb.tolist())
-        st.resume_q = None
-        self.covariance.align(alignment_variance(res, self.config.initial_attitude_variance))
-        if self.integrator is not None:
-            self.integrator.reset(res.q_nb, None)
-        if self.aiding is not None:
-            self.aiding.last_t_ns = None
-            if res.heading_source == "magnetometer":
-                # the heading is the mean field's over the rest: the filter goes on from it
-                m_n = quat_rotate(res.q_nb, res.mean_magnetic_field)
-                self.aiding.heading_from_field((res.rest_end_ns - res.rest_start_ns) * 1e-9,
-                                               float(np.linalg.norm(m_n)),
-                                               math.atan2(-float(m_n[2]),
-                                                          math.hypot(m_n[0], m_n[1])))
-
-    def _integrate(self, verdict: v.Verdict, t_ns: int, rate: tuple, a, var, mag=None,
-                   fresh: bool = False):
-        """Steps 4.-6. of one sample: aiding, integration, covariance; ``(verdict, attitude as
-        4 floats)``, or ``(rejection, None)`` on an integrator error.  The one sequential step
-        of the chain: :meth:`push` and the loop of :meth:`run` (:mod:`.stream_loop`) both
-        take it."""
-        st = self.state
-        integ = self.integrator
-        action = verdict.action
-        last_t = integ.last_t_ns
-        aid = self.aiding
-        try:
-            if action == v.ACCEPT:
-                if aid is not None:
-                    rate = aid.step(t_ns, rate, a, st.q, mag)
-                fell_back = integ.fit_fallbacks
-                q = integ.advance(t_ns, rate)
-                if integ.fit_fallbacks != fell_back:
-                    st.count_fit_fallbacks(integ.fit_fallbacks - fell_back, t_ns)
-            else:
-                if action == v.RESET_TIME_JUMP:
-                    q0 = st.q_initial
-                    self.covariance.reset_attitude()
-                    self.intervals.clear()
-                elif action == v.RESTART_AFTER_GAP:
-                    st.details.setdefault(v.GAP, verdict.detail)
-                    q0 = st.q
-                elif fresh:
-                    q0 = st.q_initial
-                else:  # START
-                    q0 = st.q_initial if st.resume_q is None else st.resume_q
-                    st.resume_q = None
-                integ.reset(q0, None)
-                if aid is not None:
-                    aid.last_t_ns = None
-                    rate = aid.step(t_ns, rate, a, tuple(float(c) for c in q0), mag)
-                q = integ.advance(t_ns, rate)
-        except ValueError as exc:  # defensive: the validator should have caught it
-            return self._integrator_error(verdict, f"integrator refused a sample: {exc}")
-        x, y, z, w = q
-        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z) and math.isfinite(w)):
-            return self._integrator_error(verdict, "non-finite attitude: last good one restored")
-        if action == v.ACCEPT:
-            dt = t_ns - last_t
-            self.intervals.add(dt)
-            dt_s = dt * 1e-9
-            # angle random walk: each interval adds an independent angle error of variance
-            # σ_ω² dt² per axis (σ_ω² per sample), i.e. N² dt with the noise density N.
-            if var is not None:
-                d2 = dt_s * dt_s
-                qv = (var[0] * d2, var[1] * d2, var[2] * d2)
-            else:
-                n = self._n2 * dt_s
-                qv = (n, n, n)
-            cov = self.covariance
-            cov.propagate(dt_s, qv)
-            if aid is not None and aid.aided_samples != st.aided_seen:
-                cov.aid_tilt(aid.kp * dt_s, (self.alignment.level_error_expected
-                                             if self.alignment is not None
-                                             else self.config.accel_bias_sigma
-                                             / STANDARD_GRAVITY) ** 2)
-        if aid is not None:
-            st.aided_seen = aid.aided_samples
-        st.q = q
-        return verdict, q
-
-    def _integrator_error(self, verdict: v.Verdict, detail: str):
-        st = self.state
-        st.count(INTEGRATOR_ERROR, detail)
-        st.resume_q = st.q
-        self.integrator.reset(st.q, None)
-        self.validator.last_t_ns = None  # next sample starts a fresh time base
-        if self.aiding is not None:
-            self.aiding.last_t_ns = None
-        return v.Verdict(v.REJECT, INTEGRATOR_ERROR, detail), None
+            al = s.aligner
+            if al.rest_i[R_COUNT] == self.align_ring.shape[0]:
+                self.align_ring = _grown(self.align_ring, al.rest_i)
+            if s.align_count == self.align_buffer.shape[0]:
+                head, count = int(s.align_head), int(s.align_count)
+                order = (head + np.arange(count)) % count
+                new = np.zeros(2 * count, self.align_buffer.dtype).view(np.recarray)
+                new[:count] = self.align_buffer[order]
+                self.align_buffer, s.align_head = new, 0
 
     # ------------------------------------------------------------------ a whole recording
     def run(self, t_ns, omega, frame_id: str | list[str] | None = "",
             angular_velocity_covariance=None, accel=None, mag=None,
             empty=np.empty) -> StreamResult:
-        """All samples of a recording, in file order, on a fresh stream: :meth:`push` sample by
-        sample (the one chain), the attitudes gathered into arrays.
+        """All samples of a recording, in file order, on a fresh stream: the step of
+        :meth:`push` in a compiled loop over the rows (the same code, the same numbers).
 
         ``t_ns`` (N,) int stamps; ``omega`` (N, 3) rad/s; ``frame_id`` one for all or one per
         sample; ``angular_velocity_covariance`` (N, 9) or None; ``accel`` (N, 3) m/s² or None;
-        ``mag`` (N, 3) tesla or None.  ``empty(shape, dtype)`` allocates the arrays of the
-        recording's length (default ``np.empty``; replay gives file-backed ones).
-        Raises ValueError when levelling cannot align on the recording.
+        ``mag`` (N, 3) tesla or None (rows of NaN: no field).  ``empty(shape, dtype)``
+        allocates the arrays of the recording's length (default ``np.empty``; replay gives
+        file-backed ones).  Raises ValueError when levelling cannot align on the recording.
         """
-        if self.validator.last_t_ns is not None or self.validator.accepted:
+        if self.last_t_ns is not None or self.accepted:
             raise ValueError("run() needs a fresh AttitudeStream (it replays a whole recording)")
         t = np.asarray(t_ns)
         w = np.asarray(omega, dtype=np.float64)
@@ -800,58 +619,245 @@ class AttitudeStream:
                 w.shape != (t.shape[0], 3):
             raise ValueError(f"t_ns must be a 1-D integer array of nanoseconds and omega must "
                              f"have shape (N, 3); got {t.dtype} {t.shape} and shape {w.shape}")
+        t = t.astype(np.int64, copy=False)
         cov, acc = recording_arrays(n, angular_velocity_covariance, accel)
-        mg = None
-        if mag is not None:
-            mg = np.asarray(mag, dtype=np.float64)
-            if mg.shape != (n, 3):
-                raise ValueError(f"mag must have shape ({n}, 3), got {mg.shape}")
-        v._frame_codes(frame_id, n)  # one string for all, or one per sample: ValueError else
-        frames = [frame_id] * n if frame_id is None or isinstance(frame_id, str) else frame_id
-        # a nav time series has one row per input sample: each row's rate goes to the
-        # integrator before its sample (a skipped sample's row is never used)
+        ms, mg = _field_rows(mag, n, self.config.aiding is Aiding.MAGNETOMETER)
+        codes, names = v._frame_codes(frame_id, n)
+        frames = np.zeros(n, np.int64) if codes is None else codes
         nav_rates = None
         if self.nav is not None and self.nav.series_length() is not None:
             if self.nav.series_length() != n:
                 raise ValueError(f"nav time series must have one row per sample ({n}), got "
                                  f"{self.nav.series_length()}")
             nav_rates = self.nav.rate_enu(n)
-        index, qs = empty(n, np.int64), empty((n, 4), np.float64)
-        var, known = empty((n, 3), np.float64), empty(n, np.bool_)
         action = empty(n, np.int8)
-        codes = v.ACTION_CODES
-        push, st, m = self.push, self.state, 0
-        for k, tk in enumerate(t.tolist()):
+        got, q = empty(n, np.int64), empty((n, 4), np.float64)
+        var, known = empty((n, 3), np.float64), empty(n, np.bool_)
+        first_row = np.full(chain.N_EVENTS, -1, np.int64)
+        first_fig = np.zeros((chain.N_EVENTS, 5), np.int64)
+        loop = compiled(chain.run_rows)
+        rest = (acc is not None, _ZERO3x1 if acc is None else acc, cov is not None,
+                _ZERO9x1 if cov is None else cov, mg is not None, ms,
+                _ZERO3x1 if mg is None else mg, action, got, q, var, known, first_row,
+                first_fig)
+        k = m = 0
+        locked = -1
+        step_rows = n if nav_rates is None else 1
+        while k < n:
             if nav_rates is not None:
-                self.integrator.set_nav_rate(nav_rates[k])
-            verdict, q = push(tk, w[k], frames[k] or "", None if cov is None else cov[k],
-                              None if acc is None else acc[k], None if mg is None else mg[k])
-            action[k] = codes[verdict.action]
-            if q is None:
-                continue
-            index[m], qs[m] = k, q
-            known[m] = st.variance_known
-            var[m] = self.covariance.tt if st.variance_known else 0.0
-            m += 1
-        if st.phase is not RUNNING:
+                self.state.nav_rate[0] = nav_rates[k]
+            stop = min(k + step_rows, n)
+            r, m, locked = loop(self.coef, self.state, self.bias_ring, self.align_ring,
+                                self.align_buffer, k, t[:stop], w, frames, locked, *rest, m)
+            if r < stop:
+                self._grow(chain.BIAS_RING_FULL if self.state.rest_i[0][R_COUNT]
+                           == self.bias_ring.shape[0] else chain.ALIGN_RING_FULL)
+            k = r
+        self._locked = locked
+        self._frames = {name: i for i, name in enumerate(names)}
+        _Words.after_run(self, t, w, names, frames, first_row, first_fig, cov,
+                         angular_velocity_covariance, accel, acc)
+        if self.state.phase[0] != chain.RUNNING:
             raise ValueError(self.alignment_error or cannot_align(self.config))
         any_known = bool(known[:m].any())
-        return StreamResult(index[:m], qs[:m], var[:m] if any_known else None,
+        return StreamResult(got[:m], q[:m], var[:m] if any_known else None,
                             known[:m] if any_known else None, action, self.counts,
-                            self.time_jump_resets, dict(st.details), self.bias_report,
+                            self.time_jump_resets, dict(self._details), self.bias_report,
                             self.alignment)
 
 
-def alignment_variance(res: AlignmentResult, given_heading_variance: float) -> list[float]:
-    """Per-axis variance of a levelled attitude: levelling on the tilt axes, the heading's
-    (given or gyrocompassed) on the vertical one."""
-    heading_var = (given_heading_variance if res.heading_source == "given"
-                   else res.heading_error_expected ** 2)
-    lv = res.level_error_expected ** 2
-    # q_nb = Rz(ψ) Ry(θ) Rx(φ): a roll error δφ is a rotation about Rz Ry(θ) e_x, whose
-    # vertical component −sin θ·δφ turns the heading too when the body is pitched.
-    s_p = math.sin(res.pitch)
-    return [lv, lv, heading_var + s_p * s_p * lv]
+def _grown(ring, ri):
+    """``ring`` doubled, the entries of the window (from slot ``ri[R_HEAD]``, ``ri[R_COUNT]``
+    of them) moved to slot 0 on (the detector's head set to 0)."""
+    head, count = int(ri[R_HEAD]), int(ri[R_COUNT])
+    order = (head + np.arange(count)) % ring.shape[0]
+    new = np.zeros(2 * ring.shape[0], ring.dtype).view(np.recarray)
+    new[:count] = ring[order]
+    ri[R_HEAD] = 0
+    return new
+
+
+_ZERO9 = np.zeros(9)
+_ZERO9x1 = np.zeros((1, 9))
+_ZERO3x1 = np.zeros((1, 3))
+_PLAIN = {v.A_START: v.Verdict(v.START), v.A_ACCEPT: v.Verdict(v.ACCEPT),
+          v.A_RESTART_AFTER_GAP: v.Verdict(v.RESTART_AFTER_GAP),
+          v.A_RESET_TIME_JUMP: v.Verdict(v.RESET_TIME_JUMP)}
+
+
+def _floats(x) -> tuple[float, float, float] | None:
+    """3 floats of a sample (NaN stays NaN), or None when it is not 3 numbers."""
+    try:
+        a, b, c = x.tolist() if isinstance(x, np.ndarray) and x.ndim == 1 else x
+        return float(a), float(b), float(c)
+    except (TypeError, ValueError):
+        return None
+
+
+def _covariance_row(covariance) -> np.ndarray:
+    """A covariance as 9 floats (NaN where it is not 9 numbers: judged invalid)."""
+    try:
+        c = np.asarray(covariance, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        return np.full(9, np.nan)
+    return c if c.shape == (9,) else np.full(9, np.nan)
+
+
+def _field(mag) -> tuple[int, tuple | None]:
+    """(state, 3 floats) of a magnetometer sample: absent (None or a row of NaN), not 3 finite
+    numbers, or given."""
+    if field_absent(mag):
+        return MAG_ABSENT, None
+    m = _as_floats(mag)
+    return (MAG_NOT_FLOATS, None) if m is None else (MAG_GIVEN, m)
+
+
+def _field_rows(mag, n: int, use: bool):
+    """Per-row field states (N,) and the field (N, 3) of a recording (:func:`_field`)."""
+    ms = np.full(n, MAG_ABSENT, np.int64)
+    if mag is None or not use:
+        if mag is not None:
+            _check_mag_shape(mag, n)
+        return ms, None
+    mg = _check_mag_shape(mag, n)
+    nan = np.isnan(mg)
+    finite = np.isfinite(mg).all(axis=1)
+    ms[finite] = MAG_GIVEN
+    ms[~finite & ~nan.all(axis=1)] = MAG_NOT_FLOATS
+    return ms, mg
+
+
+def _check_mag_shape(mag, n: int) -> np.ndarray:
+    mg = np.asarray(mag, dtype=np.float64)
+    if mg.shape != (n, 3):
+        raise ValueError(f"mag must have shape ({n}, 3), got {mg.shape}")
+    return mg
+
+
+class _Words:
+    """The words of what the step did (texts are made here, at the edge, from its codes): the
+    first detail per reason into the stream's ``details``."""
+
+    def __init__(self, stream, t_ns, omega, frame_id, accel, covariance, w):
+        self.stream, self.t_ns, self.omega, self.frame_id = stream, t_ns, omega, frame_id
+        self.accel, self.covariance, self.w = accel, covariance, w
+
+    def after_step(self, reason: int, ev: int) -> str:
+        """The words of one step's ``reason`` and events ``ev`` (:data:`.chain.E_*`)."""
+        st = self.stream
+        s = st.state[0]
+        detail = ""
+        if reason:
+            stamps = s.stamps
+            detail = self.reason_text(reason, int(stamps.ev_dt), int(stamps.ev_hole),
+                                      int(stamps.ev_missing), int(stamps.ev_skipped),
+                                      int(stamps.ev_period))
+            st._details.setdefault(_REASONS[reason], detail)
+        if ev & chain.E_INVALID_COV:
+            st._details.setdefault(INVALID_COVARIANCE, invalid_covariance_note(self.covariance))
+        if ev & chain.E_INVALID_ACCEL:
+            st._details.setdefault(INVALID_ACCEL, invalid_accel_note(self.accel))
+        if ev & chain.E_SATURATED:
+            axis = int(s.ev_sat_axis)
+            st._details.setdefault(SATURATED, saturation_note(axis, self.w[axis]))
+        if ev & chain.E_FALLBACK:
+            st._details.setdefault(RATE_FIT_FALLBACK, rate_fit_note(int(self.t_ns)))
+        if ev & chain.E_MAG_MISSING:
+            st._details.setdefault(MAG_MISSING, mag_missing_note(int(self.t_ns)))
+        if ev & chain.E_NOISE_UNKNOWN:
+            st._details.setdefault(GYRO_NOISE_UNKNOWN, unknown_noise_note(st.config))
+        if ev & chain.E_ALIGN:
+            _align_words(st)
+        return detail
+
+    def reason_text(self, reason, dt, hole, missing, skipped, p) -> str:
+        """The validator's words for ``reason`` (its figures from the step)."""
+        t_ns, w = self.t_ns, self.w
+        name = _REASONS[reason]
+        if name == v.NON_FINITE:
+            return f"not numbers: {self.omega!r}" if w is None else \
+                f"non-finite value(s) {list(w)}"
+        if name == v.IMPLAUSIBLE_RATE:
+            return (f"rate {list(w)} rad/s beyond max_rate_rad_s = "
+                    f"{self.stream.config.max_rate_rad_s:g}")
+        if name == v.ZERO_STAMP:
+            return f"stamp {int(t_ns)} ns is not positive (0: unset)"
+        if name == v.FRAME_CHANGED:
+            locked = next(k for k, i in self.stream._frames.items() if i == self.stream._locked)
+            return f"frame_id {self.frame_id!r} differs from {locked!r}"
+        if name == v.DUPLICATE_STAMP:
+            return f"stamp {t_ns} ns repeats the previous one"
+        if name == v.OUT_OF_ORDER:
+            return f"stamp {t_ns} ns is {-dt / 1e6:.3f} ms before the previous"
+        if name == "time_jump":
+            return f"time jumped back by {-dt / 1e9:.3f} s"
+        if name == v.GAP:
+            if dt > self.stream.coef.max_gap_ns[0]:
+                return f"gap of {dt / 1e6:.3f} ms"
+            return (f"hole of {hole} sample(s) ({missing} missing, {skipped} rejected): "
+                    f"{dt / 1e6:.3f} ms after the previous at a nominal period of "
+                    f"{p / 1e6:.3f} ms (> max_missing_samples)")
+        if name == v.MISSING_SAMPLES:
+            return (f"{missing} missing sample(s): {dt / 1e6:.3f} ms after the previous at a "
+                    f"nominal period of {p / 1e6:.3f} ms")
+        return "non-finite attitude: last good one restored"
+
+    @classmethod
+    def after_run(cls, st, t, w, names, frames, first_row, first_fig, cov, cov_in, accel_in,
+                  acc) -> None:
+        """The details of a whole run, from the first row of each event."""
+        for reason in range(1, len(_REASONS)):
+            k = int(first_row[reason])
+            if k < 0:
+                continue
+            words = cls(st, int(t[k]), w[k], names[int(frames[k])], None, None,
+                        tuple(w[k].tolist()))
+            st._details.setdefault(_REASONS[reason], words.reason_text(
+                reason, *(int(x) for x in first_fig[reason])))
+        k = int(first_row[chain.EV_INVALID_COV])
+        if k >= 0:
+            st._details.setdefault(INVALID_COVARIANCE, invalid_covariance_note(cov[k]))
+        k = int(first_row[chain.EV_INVALID_ACCEL])
+        if k >= 0:
+            st._details.setdefault(INVALID_ACCEL, invalid_accel_note(acc[k]))
+        k = int(first_row[chain.EV_SATURATED])
+        if k >= 0:
+            axis = int(first_fig[chain.EV_SATURATED, 0])
+            st._details.setdefault(SATURATED, saturation_note(axis, float(w[k, axis])))
+        k = int(first_row[chain.EV_FALLBACK])
+        if k >= 0:
+            st._details.setdefault(RATE_FIT_FALLBACK, rate_fit_note(int(t[k])))
+        k = int(first_row[chain.EV_MAG_MISSING])
+        if k >= 0:
+            st._details.setdefault(MAG_MISSING, mag_missing_note(int(t[k])))
+        if first_row[chain.EV_NOISE_UNKNOWN] >= 0:
+            st._details.setdefault(GYRO_NOISE_UNKNOWN, unknown_noise_note(st.config))
+        _align_words(st)
+
+
+def _align_words(st) -> None:
+    """The stream's ``alignment_error`` from the step's code."""
+    s = st.state[0]
+    code = int(s.align_error)
+    if code == 0:
+        st.alignment_error = None
+    elif code == 1:
+        st.alignment_error = _ALIGN_ERRORS[1]
+    elif code == 1 + ALIGN_FAILED_GYROCOMPASS:
+        r = s.aligner
+        st.alignment_error = (
+            f"gyrocompass refused: expected heading error {math.degrees(r.heading_err):.3g}° "
+            f"exceeds the limit {math.degrees(r.limit):.3g}° (gyro bias uncertainty "
+            f"{math.degrees(r.bias_sigma) * 3600:.3g} °/h against a horizontal Earth rate of "
+            f"{math.degrees(r.fail_horizontal) * 3600:.3g} °/h at this latitude); give the "
+            "heading")
+    else:
+        st.alignment_error = (f"specific force {np.array(s.aligner.mean_f)!r} is not a usable "
+                              "gravity measurement")
+
+
+def mag_missing_note(t_ns: int) -> str:
+    return f"no field sample at stamp {t_ns} (none within mag_max_age_s)"
 
 
 def saturation_note(axis: int, value: float) -> str:
@@ -945,157 +951,6 @@ def nav_rows(nav: NavFrame | None, index: np.ndarray, n: int) -> NavFrame | None
         if a.ndim >= 1 and a.shape[0] == n and not (f.name == "velocity_enu" and a.ndim == 1):
             changes[f.name] = a[index]
     return replace(nav, **changes) if changes else nav
-
-
-class _PushKernel:
-    """:meth:`AttitudeStream.push` compiled (:func:`.sample_step.push_sample`) for the samples
-    nothing special happens to; its arguments (the stages' state arrays and settings) are
-    gathered once and again after the Python steps ran (``args = None``)."""
-
-    @classmethod
-    def for_stream(cls, s: AttitudeStream) -> _PushKernel | None:
-        integ = s.integrator
-        if integ is None or integ.cubic is None or integ._nav_rates is not None or not (
-                s.aiding is None or isinstance(s.aiding, GravityAiding | AhrsFilter)):
-            return None
-        return cls(s)
-
-    def __init__(self, s: AttitudeStream):
-        self.s = s
-        self.args = None
-        self._mag_mode = s.config.aiding is Aiding.MAGNETOMETER
-        self._heading = math.radians(s.config.initial_heading_deg)  # the aligning Earth rate
-        self._cov_row, self._cov_judged = None, (None, False)
-
-    def _build(self) -> tuple:
-        s = self.s
-        self._kernel, self._direct = compiled(push_sample), False
-        cfg = s.validator.config
-        est, det = s.bias_estimator, s.bias_estimator.detector
-        aid = s.aiding
-        kind = 0 if aid is None else (1 if isinstance(aid, GravityAiding) else 2)
-        dummy_f, dummy_i = np.zeros(1), np.zeros(1, dtype=np.int64)
-        g = (aid.params, aid.gf, aid.gi) if kind == 1 else (dummy_f, dummy_f, dummy_i)
-        h = (aid.pa, aid.af, aid.ai) if kind == 2 else (dummy_f, dummy_f, dummy_i)
-        cs, nav = s.integrator.cubic, s.integrator._nav_const
-        floor = (s.alignment.level_error_expected if s.alignment is not None
-                 else s.config.accel_bias_sigma / STANDARD_GRAVITY) ** 2
-        # every scalar of one Python type, always (the kernel is called without numba's
-        # dispatch once it has its one set of argument types: jit.direct)
-        return (int(cfg.max_gap_ns), float(cfg.max_rate_rad_s), float(ACCEL_ABSURD),
-                float(SATURATION_MIN_RAD_S), s.state.sat, est.mode == GyroBiasMode.AUTO), (
-            est.bf, est.bi, int(est.min_rest_ns), det.rf, det.ri, det.wt, det.wx, det.wc,
-            est.pv, est.pe, est.earth_n,
-            s.latitude_rad is not None and est.mode == GyroBiasMode.AUTO, s.intervals.ring,
-            s.intervals.fill, kind, *g, *h, cs.ci, cs.ts, cs.ws, cs.cf, nav is not None,
-            *((0.0, 0.0, 0.0) if nav is None else (float(nav[0]), float(nav[1]), float(nav[2]))),
-            s.covariance.c, float(s.covariance.k2), float(s._n2),
-            0.0 if aid is None else float(aid.kp), float(floor))
-
-    #: the validator's verdict of a plain accept
-    _ACCEPT = v.Verdict(v.ACCEPT)
-
-    def push(self, t_ns, omega, frame_id, covariance, accel, mag):
-        """``(verdict, attitude)`` of :meth:`AttitudeStream.push` for this sample, or None when
-        the Python steps must take it (nothing changed then)."""
-        s = self.s
-        st = s.state
-        val = s.validator
-        stamps = val._stamps
-        if st.phase is FAILED or type(t_ns) is not int or frame_id != val.frame_id \
-                or stamps.period is None:
-            return None
-        try:
-            w0, w1, w2 = omega.tolist() if type(omega) is np.ndarray else omega
-            w0, w1, w2 = float(w0), float(w1), float(w2)
-            if accel is None:
-                has_a, a0, a1, a2 = False, 0.0, 0.0, 0.0
-            else:
-                a0, a1, a2 = accel.tolist() if type(accel) is np.ndarray else accel
-                has_a, a0, a1, a2 = True, float(a0), float(a1), float(a2)
-        except (TypeError, ValueError):
-            return None
-        var, invalid = None, False
-        if covariance is not None:
-            covariance = covariance.tolist() if type(covariance) is np.ndarray and \
-                covariance.dtype == np.float64 and covariance.ndim == 1 else np.asarray(
-                    covariance, dtype=np.float64).reshape(-1).tolist()
-            # a driver sends the same covariance with every message: judged once
-            if covariance == self._cov_row:
-                var, invalid = self._cov_judged
-            else:
-                var, invalid = row_variances(covariance)
-                self._cov_row, self._cov_judged = covariance, (var, invalid)
-        if invalid:
-            return None
-        m_state, m0, m1, m2, missing = MAG_ABSENT, 0.0, 0.0, 0.0, False
-        if self._mag_mode:
-            m = _as_floats(mag)
-            if m is not None:
-                m_state, (m0, m1, m2) = MAG_GIVEN, m
-            elif field_absent(mag):
-                missing = True
-            else:
-                m_state = MAG_NOT_FLOATS
-        var_ok = var is not None
-        s0, s1, s2 = var if var_ok else (0.0, 0.0, 0.0)
-        if self.args is None:
-            self.args = self._build()
-        head, tail = self.args
-        present = -1 if st.accel_present is None else int(st.accel_present)
-        previous = s.bias_estimator.bias_floats if st.first_rest_pending else None
-        x, y, z, u = st.q
-        code, pinned, n_fb, seen, x, y, z, u = self._kernel(
-            t_ns, w0, w1, w2, has_a, a0, a1, a2, present, m_state, m0, m1, m2, var_ok, s0,
-            s1, s2, stamps.last, stamps.period, *head, st.first_rest_pending,
-            st.phase is ALIGNING, self._heading, *tail, st.aided_seen, x, y, z, u)
-        if code == NOT_PLAIN:
-            return None
-        # what the Python steps before the bias stage do besides (validator, variances,
-        # accelerometer, field, saturation)
-        stamps.last = t_ns
-        val._skipped = 0
-        val.accepted += 1
-        if var_ok or covariance is not None and covariance[0] == v.NO_ESTIMATE:
-            s._variance_seen(var, covariance)
-        st.accel_present = has_a
-        if missing:
-            s._field_missing(t_ns)
-        if pinned >= 0:
-            st.count(SATURATED, saturation_note(pinned, (w0, w1, w2)[pinned]))
-        if n_fb:
-            st.count_fit_fallbacks(n_fb, t_ns)
-        if code == DONE:
-            if not self._direct:
-                self._kernel, self._direct = direct(self._kernel), True
-            q = (x, y, z, u)
-            s.integrator.took(t_ns, q)
-            st.aided_seen = seen
-            st.q = q
-            return self._ACCEPT, np.array(q)
-        if code == NOT_FINITE:
-            self.args = None
-            s.integrator.synced()
-            return s._integrator_error(self._ACCEPT, "non-finite attitude: last good one restored")
-        est = s.bias_estimator
-        if code == BIAS_REFUSED:
-            self.args = None
-            est.break_window()
-        elif code == AFTER_BIAS:  # a new estimate while the first may still go back to the start
-            self.args = None
-            s._bias_published(previous)
-        bias = est.bias_floats
-        a = (a0, a1, a2) if has_a else None
-        mag_in = None if m_state == MAG_ABSENT else mag
-        if st.phase is ALIGNING:  # ALIGN, or the bias stage's Python step while aligning
-            q = s._align_step(t_ns, (w0, w1, w2), a, var, bias, mag_in)
-            if st.phase is not ALIGNING:  # aligned (or failed): the stages started afresh
-                self.args = None
-            return self._ACCEPT, None if q is None else np.array(q)
-        self.args = None
-        verdict, q = s._integrate(self._ACCEPT, t_ns, (w0 - bias[0], w1 - bias[1], w2 - bias[2]), a,
-                                  var, mag_in)
-        return verdict, None if q is None else np.array(q)
 
 
 def compile_kernels(config: StreamConfig | None = None, algorithm: str | None = None) -> None:

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from gyro_attitude.core.attitude.compose import compose_scalar
+from gyro_attitude.core.attitude.compose import compose_scalar, exp_scalar
 from gyro_attitude.core.attitude.inputs import check_q0
 from gyro_attitude.core.attitude.nav_frame import NavFrame, nav_zeta_scalar
 from gyro_attitude.core.attitude.quadrature import get_quadrature
@@ -365,3 +365,63 @@ class StreamingIntegrator:
         self.samples += 1
         self._q = q
         return np.array(q)
+
+
+@kernel
+def cubic_reset(ci, ts, ws, cf, qx, qy, qz, qw, has_t, t, has_nav, r0, r1, r2):
+    """:meth:`CubicState.reset` from the attitude ``q`` (normalized here, as
+    :meth:`StreamingIntegrator.reset` takes it; at ``t`` when ``has_t``, with the nav rate
+    ``r`` there when ``has_nav``)."""
+    n = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
+    qx, qy, qz, qw = qx / n, qy / n, qz / n, qw / n
+    ci[:] = 0
+    ts[:] = 0
+    ws[:] = 0.0
+    cf[:] = 0.0
+    cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3] = qx, qy, qz, qw
+    cf[F_Q_START], cf[F_Q_START + 1], cf[F_Q_START + 2], cf[F_Q_START + 3] = qx, qy, qz, qw
+    if has_t:
+        ci[C_SAMPLES], ci[C_LAST_T], ci[C_HAS_LAST], ci[C_N], ci[C_NEED_W0] = 1, t, 1, 1, 1
+        ts[0] = t
+        if has_nav:
+            cf[F_NAV_PREV], cf[F_NAV_PREV + 1], cf[F_NAV_PREV + 2] = r0, r1, r2
+            ci[C_HAS_NAV_PREV] = 1
+
+
+@kernel
+def exp_advance(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
+    """:meth:`StreamingIntegrator.advance` for ``exp_map`` on the cubic's arrays (the last
+    sample in ``ts[0]``, ``ws[0]``): the exponential map of the trapezoid increment."""
+    has_z = False
+    z0 = z1 = z2 = 0.0
+    if has_nav:
+        if ci[C_HAS_LAST] == 1:
+            h = (t - ci[C_LAST_T]) * 1e-9
+            z0 = 0.5 * (cf[F_NAV_PREV] + r0) * h
+            z1 = 0.5 * (cf[F_NAV_PREV + 1] + r1) * h
+            z2 = 0.5 * (cf[F_NAV_PREV + 2] + r2) * h
+            has_z = True
+        cf[F_NAV_PREV], cf[F_NAV_PREV + 1], cf[F_NAV_PREV + 2] = r0, r1, r2
+    ci[C_SAMPLES] += 1
+    if ci[C_HAS_LAST] == 0 or ci[C_NEED_W0] == 1:
+        if ci[C_HAS_LAST] == 0:
+            ci[C_LAST_T], ci[C_HAS_LAST] = t, 1
+            ts[0] = t
+            ws[0, 0], ws[0, 1], ws[0, 2] = w0, w1, w2
+            return cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3]
+        # reset(q0, t_ns): the first rate held back to the start time
+        ws[0, 0], ws[0, 1], ws[0, 2] = w0, w1, w2
+        ci[C_NEED_W0] = 0
+    h = (t - ts[0]) * 1e-9
+    b = exp_scalar(0.5 * (ws[0, 0] + w0) * h, 0.5 * (ws[0, 1] + w1) * h,
+                   0.5 * (ws[0, 2] + w2) * h)
+    q = (cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3])
+    if has_z:
+        q = compose_scalar(q, b, (z0, z1, z2))
+    else:
+        q = compose_scalar(q, b, None)
+    cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3] = q
+    ts[0] = t
+    ws[0, 0], ws[0, 1], ws[0, 2] = w0, w1, w2
+    ci[C_LAST_T] = t
+    return q

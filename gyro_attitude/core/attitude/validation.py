@@ -630,3 +630,119 @@ def interval_summary(dt_ns: np.ndarray) -> dict[str, float]:
         "jitter_s": float(dt.std()),
         "max_dt_s": float(dt.max()),
     }
+
+
+# ---------------------------------------------------------------------------- the step's form
+#: the intervals the statistics hold (the stream's input rate and jitter)
+RING = 2000
+#: verdict codes of the step (the values of ACTION_CODES)
+A_REJECT, A_START, A_ACCEPT, A_RESTART_AFTER_GAP, A_RESET_TIME_JUMP = 0, 1, 2, 3, 4
+#: reason codes of the step: 1 + the index in REJECT_REASONS, then these
+R_TIME_JUMP, R_MISSING, R_INTEGRATOR = len(REJECT_REASONS) + 1, len(REJECT_REASONS) + 2, \
+    len(REJECT_REASONS) + 3
+R_NON_FINITE, R_IMPLAUSIBLE, R_ZERO, R_DUPLICATE, R_OUT_OF_ORDER, R_FRAME, R_GAP = range(1, 8)
+
+#: the validator's state (the stamp rule's time base, counts): see :class:`StampRule`
+STAMPS_DTYPE = np.dtype([
+    ("last", np.int64), ("has_last", np.bool_), ("period", np.int64),
+    ("learn", np.int64, (NOMINAL_INTERVALS,)), ("n_learn", np.int64), ("missing", np.int64),
+    ("skipped", np.int64), ("accepted", np.int64), ("jump_resets", np.int64),
+    ("counts", np.int64, (len(REJECT_REASONS) + 1,)),
+    # the last verdict's figures, for its words: the interval, the hole, the samples
+    # missing and rejected, the nominal period
+    ("ev_dt", np.int64), ("ev_hole", np.int64), ("ev_missing", np.int64),
+    ("ev_skipped", np.int64), ("ev_period", np.int64),
+])
+
+
+@kernel
+def stamps_reset(v):
+    """A new time base: no last stamp, the nominal period learnt again."""
+    v.has_last = False
+    v.period = 0
+    v.n_learn = 0
+
+
+@kernel
+def _round_half_even(x):
+    """Python's ``round(x)`` of a float (halves to even)."""
+    r = math.floor(x)
+    d = x - r
+    if d > 0.5 or (d == 0.5 and r % 2 == 1):
+        r += 1
+    return int(r)
+
+
+@kernel
+def stamp_step(v, max_gap_ns, time_jump_ns, max_missing, t):
+    """:class:`StampRule`'s step on the record ``v``: (action code, reason code); the
+    figures of a gap, a hole or missing samples in ``v.ev_*``."""
+    skipped = v.skipped
+    if not v.has_last:
+        v.last, v.has_last = t, True
+        return A_START, 0
+    dt = t - v.last
+    v.ev_dt = dt
+    if dt <= 0:
+        if dt == 0:
+            return A_REJECT, R_DUPLICATE
+        if -dt > time_jump_ns:
+            v.last = t
+            v.period = 0
+            v.n_learn = 0
+            return A_RESET_TIME_JUMP, R_TIME_JUMP
+        return A_REJECT, R_OUT_OF_ORDER
+    v.last = t
+    if dt > max_gap_ns:
+        v.period = 0
+        v.n_learn = 0
+        return A_RESTART_AFTER_GAP, R_GAP
+    p = v.period
+    if p == 0:
+        v.learn[v.n_learn] = dt
+        v.n_learn += 1
+        if v.n_learn == NOMINAL_INTERVALS:
+            v.period = np.sort(v.learn)[NOMINAL_INTERVALS // 2]
+        return A_ACCEPT, 0
+    if 2 * dt < 3 * p:
+        return A_ACCEPT, 0
+    hole = _round_half_even(dt / p) - 1
+    missing = max(hole - skipped, 0)
+    v.ev_hole, v.ev_missing, v.ev_skipped, v.ev_period = hole, missing, skipped, p
+    if hole > max_missing:
+        v.period = 0
+        v.n_learn = 0
+        return A_RESTART_AFTER_GAP, R_GAP
+    if missing == 0:
+        return A_ACCEPT, 0
+    v.missing += missing
+    return A_ACCEPT, R_MISSING
+
+
+@kernel
+def validate(v, max_rate, max_gap_ns, time_jump_ns, max_missing, t, w0, w1, w2, frame_ok):
+    """:meth:`ImuStreamValidator.check` on the record ``v``: the sample's values (finite,
+    within ``max_rate``), its stamp (positive), its frame (``frame_ok``: the locked one, or
+    none locked yet), then the stamp rule; a rejection is counted and leaves the time base
+    alone.  (action code, reason code)."""
+    if not (math.isfinite(w0) and math.isfinite(w1) and math.isfinite(w2)):
+        reason = R_NON_FINITE
+    elif not within(w0, w1, w2, max_rate):
+        reason = R_IMPLAUSIBLE
+    elif t <= 0:
+        reason = R_ZERO
+    elif not frame_ok:
+        reason = R_FRAME
+    else:
+        action, reason = stamp_step(v, max_gap_ns, time_jump_ns, max_missing, t)
+        if action != A_REJECT:
+            v.skipped = 0
+            v.accepted += 1
+            if action == A_RESET_TIME_JUMP:
+                v.jump_resets += 1
+            elif reason == R_GAP:
+                v.counts[R_GAP] += 1
+            return action, reason
+    v.counts[reason] += 1
+    v.skipped += 1
+    return A_REJECT, reason
