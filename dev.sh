@@ -34,7 +34,7 @@ rm -rf build/ros_launchers
 # The per-sample kernels (numba) compiled once into their caches, so that no node or test waits
 # for the compiler: the installed copy (what the commands and nodes run), and for the tests the
 # source tree too (their subprocesses import it).
-warm='from gyro_attitude.core.attitude.stream_loop import compile_kernels; compile_kernels()'
+warm='from gyro_attitude.core.attitude.stream import compile_kernels; compile_kernels()'
 echo "[dev.sh] compiling the per-sample kernels (cached after the first time)" >&2
 (cd / && "$venv/bin/python" -c "$warm")
 [ "$what" = "test" ] && "$venv/bin/python" -c "$warm"

@@ -106,31 +106,6 @@ def test_a_function_not_written_as_a_kernel_is_refused():
 
 
 
-@pytest.mark.parametrize("mode", ["auto", "auto_enu", "none_rw", "gravity_enu", "tilt",
-                                  "level_magnetometer_enu"])
-def test_pushed_samples_step_compiled_except_where_something_happens(mode, monkeypatch):
-    # push() takes the interpreter's steps (the validator's check among them) only where the
-    # compiled step stops: the first samples of a time base (start, gap, jump: the nominal
-    # period being learnt), a rejected or unusable sample and the one after it (a hole, a
-    # broken window), the first bias estimate. While aligning too: only the aligner's own
-    # step is Python's there.
-    t, g, a, cov = hostile_rest_motion_rest()  # 3 time bases, 8 hostile samples
-    mag = hostile_field(t.size) if "magnetometer" in mode else None
-    s = AttitudeStream(config=MODES[mode])
-    python_steps = []
-    check = s.validator.check
-
-    def counting(t_ns, *args):
-        python_steps.append(t_ns)
-        return check(t_ns, *args)
-
-    monkeypatch.setattr(s.validator, "check", counting)
-    pushed = sum(s.push(int(t[k]), g[k], "imu", cov[k], a[k],
-                        None if mag is None else mag[k])[1] is not None for k in range(t.size))
-    assert pushed > 1800
-    allowed = 3 * (NOMINAL_INTERVALS + 2) + 8 * 2 + 2
-    assert len(python_steps) <= allowed, f"{len(python_steps)} of {t.size} through Python"
-
 
 @pytest.mark.parametrize("form", ["list", "tuple", "float32", "int_cov", "cov_3x3", "readonly"])
 def test_pushed_inputs_of_any_numeric_form_give_the_attitudes_of_float64_arrays(form):
@@ -180,30 +155,6 @@ def test_the_pushed_input_rate_and_jitter_are_the_stamps():
     assert got["rate_hz"] == pytest.approx(1.0 / dt.mean(), rel=1e-12)
     assert got["jitter_s"] == pytest.approx(dt.std(), rel=1e-9)
     assert got["max_dt_s"] == dt.max()
-
-
-def test_stage_resets_keep_the_state_arrays_the_compiled_loop_holds():
-    s = AttitudeStream(config=MODES["tilt"])
-    arrays = (s.aiding.af, s.aiding.ai, s.integrator.cubic.cf, s.integrator.cubic.ci,
-              s.bias_estimator.bf, s.bias_estimator.bi, s.covariance.c)
-    t, g, a, cov = hostile_rest_motion_rest()
-    for k in range(300):
-        s.push(int(t[k]), g[k], "imu", cov[k], a[k])
-    s.aiding.reset()
-    s.integrator.reset((0.0, 0.0, 0.0, 1.0))
-    s.bias_estimator.reset()
-    after = (s.aiding.af, s.aiding.ai, s.integrator.cubic.cf, s.integrator.cubic.ci,
-             s.bias_estimator.bf, s.bias_estimator.bi, s.covariance.c)
-    assert all(x is y for x, y in zip(arrays, after, strict=True))
-    # and the state in them is a fresh stream's (nothing of the 300 samples left)
-    fresh = AttitudeStream(config=MODES["tilt"])
-    fresh.integrator.reset((0.0, 0.0, 0.0, 1.0))
-    for ours, new in ((s.aiding.af, fresh.aiding.af), (s.aiding.ai, fresh.aiding.ai),
-                      (s.integrator.cubic.cf, fresh.integrator.cubic.cf),
-                      (s.integrator.cubic.ci, fresh.integrator.cubic.ci),
-                      (s.bias_estimator.bf, fresh.bias_estimator.bf),
-                      (s.bias_estimator.bi, fresh.bias_estimator.bi)):
-        assert np.array_equal(ours, new, equal_nan=True)
 
 
 
