@@ -63,7 +63,6 @@ import numpy as np
 from gyro_attitude.core.angles import wrap_pi_float
 from gyro_attitude.core.attitude.modes import SettingError
 from gyro_attitude.core.attitude.settings import setting
-from gyro_attitude.core.attitude.stage_state import time_base
 from gyro_attitude.core.attitude.validation import within
 from gyro_attitude.core.earth import STANDARD_GRAVITY
 from gyro_attitude.core.jit import compiled, kernel
@@ -292,7 +291,10 @@ class AhrsFilter:
     mag_ref_dip = property(lambda self: float(self.af[A_REF_DIP]) if self.ai[I_HAS_REF_DIP]
                            else None)
 
-    last_t_ns = time_base("ai", I_LAST_T, I_HAS_LAST)
+    @property
+    def last_t_ns(self) -> int | None:
+        """The last sample's stamp (ns), None for a new time base."""
+        return int(self.ai[I_LAST_T]) if self.ai[I_HAS_LAST] else None
 
     def heading_from_field(self, seconds: float, norm_t: float, dip_rad: float) -> None:
         """The heading was just set from the mean field over ``seconds`` of rest (the static
@@ -304,7 +306,7 @@ class AhrsFilter:
     def restart(self) -> None:
         """A new time base (gap, reset): the low-pass starts again from the next sample; the
         references, the bias and the hard iron are kept."""
-        self.last_t_ns = None
+        self.ai[I_HAS_LAST] = 0
 
     # ------------------------------------------------------------------ one sample
     def update(self, t_ns: int, rate, accel, q_nb, mag=None):

@@ -42,7 +42,6 @@ Expected errors (1σ, reported):
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,9 +53,11 @@ from gyro_attitude.core.attitude.rest import (
     R_AT_REST,
     R_HEAD,
     R_OLDEST,
+    RING_FULL,
     RestDetector,
     check_sample,
     check_samples,
+    grown_ring,
     rest_reset,
     rest_update,
 )
@@ -181,20 +182,6 @@ def _check_nonneg(name, v) -> float:
     return x
 
 
-def usable_field(m, hard_iron) -> tuple[float, float, float] | None:
-    """A magnetometer sample as 3 floats less the hard iron, or None when it is no reading
-    (absent, not 3 finite numbers, beyond MAG_ABSURD_T or below MAG_ZERO_T: the AHRS's rule)."""
-    if m is None:
-        return None
-    try:
-        x, y, z = (float(c) for c in m)
-    except (TypeError, ValueError):
-        return None
-    if not (within(x, y, z, MAG_ABSURD_T) and x * x + y * y + z * z >= MAG_ZERO_T * MAG_ZERO_T):
-        return None
-    return x - hard_iron[0], y - hard_iron[1], z - hard_iron[2]
-
-
 class _Options:
     def __init__(self, initial_heading_deg, gyrocompass, latitude_rad, gyro_bias, gyro_bias_sigma,
                  accel_bias_sigma, heading_error_limit_deg, min_rest_s, rest, mag_heading=False,
@@ -226,84 +213,53 @@ class _Options:
                              "1σ uncertainty of the gyro_bias subtracted, rad/s)")
 
 
-def _result(opt: _Options, n: int, t0: int, t1: int, ref_f, s1f, s2f, ref_w, s1w, s2w,
-            mag=None):
-    f = np.array([ref_f[i] + s1f[i] / n for i in range(3)])
-    w = np.array([ref_w[i] + s1w[i] / n for i in range(3)])
-    var_f = np.array([max(s2f[i] - s1f[i] * s1f[i] / n, 0.0) / max(n - 1, 1) for i in range(3)])
-    var_w = np.array([max(s2w[i] - s1w[i] * s1w[i] / n, 0.0) / max(n - 1, 1) for i in range(3)])
-    g = float(np.linalg.norm(f))
-    q, roll, pitch = level_quaternion(f, opt.heading)
-    sigma_level = math.sqrt(opt.accel_bias_sigma ** 2 + float(np.mean(var_f[:2])) / n) / g
-    heading, source, sigma_heading = opt.heading, "given", math.nan
-    if opt.gyrocompass:
-        horizontal = OMEGA_IE * math.cos(opt.lat)
-        sigma_heading = math.sqrt(
-            (opt.bias_sigma ** 2 + float(np.mean(var_w[:2])) / n) / max(horizontal, 1e-300) ** 2
-            + (sigma_level * math.tan(opt.lat)) ** 2)
-        if not sigma_heading <= opt.limit:
-            raise ValueError(
-                f"gyrocompass refused: expected heading error {math.degrees(sigma_heading):.3g}° "
-                f"exceeds the limit {math.degrees(opt.limit):.3g}° (gyro bias uncertainty "
-                f"{math.degrees(opt.bias_sigma) * 3600:.3g} °/h against a horizontal Earth rate of "
-                f"{math.degrees(horizontal) * 3600:.3g} °/h at this latitude); give the heading")
-        heading = gyrocompass_heading(w - opt.bias, roll, pitch)
-        q, roll, pitch = level_quaternion(f, heading)
-        source = "gyrocompass"
-    m_mean, n_m = None, 0
-    if opt.mag_heading and mag is not None and mag[0] > 0:
-        n_m, ref_m, s1m, s2m = mag
-        m_mean = np.array([ref_m[i] + s1m[i] / n_m for i in range(3)])
-        var_m = [max(s2m[i] - s1m[i] * s1m[i] / n_m, 0.0) / max(n_m - 1, 1) for i in range(3)]
-        m_l = _c_lb(roll, pitch) @ m_mean
-        horizontal = math.hypot(float(m_l[0]), float(m_l[1]))
-        if horizontal >= 1e-3 * float(np.linalg.norm(m_mean)):  # not at a magnetic pole
-            heading = magnetic_heading(m_mean, roll, pitch, opt.declination)
-            q, roll, pitch = level_quaternion(f, heading)
-            source = "magnetometer"
-            tan_dip = abs(float(m_l[2])) / horizontal
-            sigma_heading = math.sqrt(float(np.mean(var_m)) / n_m / horizontal ** 2
-                                      + (tan_dip * sigma_level) ** 2)
-    return AlignmentResult(q, roll, pitch, heading, source, sigma_level, sigma_heading, t0, t1, n,
-                           f, w, m_mean, n_m)
-
-
 class StaticAligner:
-    """Streaming static alignment over the first rest (see the module docstring)."""
+    """Streaming static alignment over the first rest (see the module docstring): a face on one
+    record of :data:`ALIGNER_DTYPE` and its rest window's ring, stepped by the kernels
+    :func:`aligner_update` and :func:`aligner_result` (the causal estimator's step runs the
+    same kernels on the same record inside its state)."""
 
     def __init__(self, initial_heading_deg: float = 0.0, *, gyrocompass: bool = False,
                  latitude_rad: float | None = None, gyro_bias=(0.0, 0.0, 0.0),
                  gyro_bias_sigma: float | None = None, accel_bias_sigma: float = 0.05,
                  heading_error_limit_deg: float = 5.0, min_rest_s: float = 1.0,
                  rest: dict | None = None, mag_heading: bool = False,
-                 declination_deg: float = 0.0, hard_iron_t=(0.0, 0.0, 0.0)):
-        self._opt = _Options(initial_heading_deg, gyrocompass, latitude_rad, gyro_bias,
-                             gyro_bias_sigma, accel_bias_sigma, heading_error_limit_deg,
-                             min_rest_s, rest, mag_heading, declination_deg, hard_iron_t)
-        self.detector = RestDetector(**self._opt.rest)
-        self._pending: deque = deque()
-        self._seg = None  # [t0, t1, n, ref_f, s1f, s2f, ref_w, s1w, s2w]
-        self._last_acc = -1
-        self.done = False
+                 declination_deg: float = 0.0, hard_iron_t=(0.0, 0.0, 0.0),
+                 given_heading_variance: float = 0.0):
+        opt = _Options(initial_heading_deg, gyrocompass, latitude_rad, gyro_bias,
+                       gyro_bias_sigma, accel_bias_sigma, heading_error_limit_deg, min_rest_s,
+                       rest, mag_heading, declination_deg, hard_iron_t)
+        self.record = np.zeros(1, ALIGNER_DTYPE).view(np.recarray)
+        r = self.record[0]
+        r.heading, r.gyrocompass, r.lat = opt.heading, opt.gyrocompass, opt.lat or 0.0
+        r.bias, r.bias_sigma = opt.bias, opt.bias_sigma or 0.0
+        r.accel_bias_sigma, r.limit, r.min_rest_ns = (opt.accel_bias_sigma, opt.limit,
+                                                      opt.min_rest_ns)
+        r.mag_heading, r.decl, r.hard_iron = opt.mag_heading, opt.declination, opt.hard_iron
+        r.given_heading_var = given_heading_variance
+        detector = RestDetector(**opt.rest)
+        r.rest_f, r.rest_i = detector.rf, detector.ri
+        r.last_acc = -1
+        self.ring = np.zeros(64, ALIGN_RING_DTYPE).view(np.recarray)
 
     def break_window(self) -> None:
         """The stream broke (gap, time jump, unusable accelerometer sample): the alignment needs
-        one unbroken rest, so an open rest is discarded and the window starts afresh (with the
-        samples waiting for it: their detector indices belong to the old window)."""
-        self.detector.reset()
-        self._pending.clear()
-        self._seg = None
-        self._last_acc = -1
+        one unbroken rest, so an open rest is discarded and the window starts afresh."""
+        compiled(aligner_break)(self.record[0])
+
+    @property
+    def done(self) -> bool:
+        return bool(self.record.done[0])
 
     @property
     def rest_open(self) -> bool:
         """A rest is being accumulated."""
-        return self._seg is not None
+        return bool(self.record.has_seg[0])
 
     @property
     def last_rest_ns(self) -> int | None:
         """Time of the last sample accumulated into the open rest (None without one)."""
-        return None if self._seg is None else self._seg[1]
+        return int(self.record.t1[0]) if self.rest_open else None
 
     def update(self, t_ns: int, gyro, accel, mag=None) -> bool:
         """Consume one sample (``mag`` the field, tesla, or None; used with ``mag_heading``);
@@ -313,64 +269,59 @@ class StaticAligner:
         if accel is None:
             raise ValueError("alignment needs the accelerometer (accel is None)")
         t, g, a = check_sample(t_ns, gyro, accel)
-        return self.update_checked(t, g, a, mag)
+        m = None
+        if mag is not None:
+            try:
+                m = tuple(float(c) for c in mag)
+            except (TypeError, ValueError):
+                m = None
+        return self.update_checked(t, g, a, m)
 
-    def update_checked(self, t: int, g: tuple, a: tuple, mag=None) -> bool:
-        """:meth:`update` for a sample already through :func:`.rest.check_sample` (int
-        stamp, 3 finite floats of sane size each for the gyro and the accelerometer), as
-        :class:`AttitudeStream`'s validated samples are."""
-        if self.done:
-            return True
-        at_rest = self.detector.update_checked(t, g, a)
-        index = self.detector.samples - 1
-        m = usable_field(mag, self._opt.hard_iron) if self._opt.mag_heading else None
-        self._pending.append((index, t, g, a, m))
-        j = self.detector.oldest_index
-        while self._pending[0][0] < j:
-            self._pending.popleft()
-        if at_rest:
-            if j > self._last_acc:
-                self._last_acc = j
-                _, tj, gj, aj, mj = self._pending[0]
-                self._add(tj, gj, aj, mj)
-        elif self._seg is not None:
-            if self._seg[1] - self._seg[0] >= self._opt.min_rest_ns:
-                self.done = True
-            else:
-                self._seg = None  # too short: wait for a longer rest
-        return self.done
-
-    def _add(self, t, g, a, m=None) -> None:
-        s = self._seg
-        if s is None:
-            s = self._seg = [t, t, 0, a, [0.0] * 3, [0.0] * 3, g, [0.0] * 3, [0.0] * 3,
-                             0, None, [0.0] * 3, [0.0] * 3]
-        if m is not None:  # the field's sums: n, reference, Σ d, Σ d² (d = m − reference)
-            if s[10] is None:
-                s[10] = m
-            s[9] += 1
-            for i in range(3):
-                d = m[i] - s[10][i]
-                s[11][i] = s[11][i] + d
-                s[12][i] = s[12][i] + d * d
-        s[1] = t
-        s[2] += 1
-        for i in range(3):
-            d = a[i] - s[3][i]
-            s[4][i] = s[4][i] + d
-            s[5][i] = s[5][i] + d * d
-            e = g[i] - s[6][i]
-            s[7][i] = s[7][i] + e
-            s[8][i] = s[8][i] + e * e
-
+    def update_checked(self, t: int, g: tuple, a: tuple, m=None) -> bool:
+        """:meth:`update` for a sample already through :func:`.rest.check_sample` (int stamp,
+        3 finite floats of sane size each for the gyro and the accelerometer)."""
+        has_m = m is not None and len(m) == 3
+        m0, m1, m2 = m if has_m else (0.0, 0.0, 0.0)
+        r = self.record[0]
+        while True:
+            code, done = compiled(aligner_update)(r, self.ring, t, g[0], g[1], g[2], a[0], a[1],
+                                                  a[2], has_m, m0, m1, m2)
+            if code != RING_FULL:
+                break
+            self.ring = grown_ring(self.ring, r.rest_i)
+        if code < 0:
+            raise ValueError(RestDetector.refusal_words(code, t, r.rest_i))
+        return bool(done)
 
     def result(self) -> AlignmentResult:
-        s = self._seg
-        if s is None or s[1] - s[0] < self._opt.min_rest_ns:
-            raise ValueError(f"cannot align: no rest of at least {self._opt.min_rest_ns / 1e9:g} s "
+        r = self.record[0]
+        if not r.has_seg or r.t1 - r.t0 < r.min_rest_ns:
+            raise ValueError(f"cannot align: no rest of at least {r.min_rest_ns / 1e9:g} s "
                              "seen yet (alignment needs the IMU still)")
-        mag = (s[9], s[10], s[11], s[12]) if s[9] else None
-        return _result(self._opt, s[2], s[0], s[1], s[3], s[4], s[5], s[6], s[7], s[8], mag)
+        failed = compiled(aligner_result)(r)
+        if failed:
+            raise ValueError(failure_words(r, failed))
+        return alignment_result(r)
+
+
+def alignment_result(r) -> AlignmentResult:
+    """The :class:`AlignmentResult` of an aligner record that aligned."""
+    return AlignmentResult(
+        np.array(r.q), float(r.roll), float(r.pitch), float(r.heading_out),
+        HEADING_SOURCES[int(r.source)], float(r.level_err), float(r.heading_err), int(r.t0),
+        int(r.t1), int(r.n), np.array(r.mean_f), np.array(r.mean_w),
+        np.array(r.mean_m) if r.has_mean_m else None, int(r.n_m) if r.has_mean_m else 0)
+
+
+def failure_words(r, failed: int) -> str:
+    """Why the aligner record's alignment failed (:func:`aligner_result`'s code), in words."""
+    if failed == ALIGN_FAILED_GYROCOMPASS:
+        return (f"gyrocompass refused: expected heading error {math.degrees(r.heading_err):.3g}° "
+                f"exceeds the limit {math.degrees(r.limit):.3g}° (gyro bias uncertainty "
+                f"{math.degrees(r.bias_sigma) * 3600:.3g} °/h against a horizontal Earth rate of "
+                f"{math.degrees(r.fail_horizontal) * 3600:.3g} °/h at this latitude); give the "
+                "heading")
+    return (f"specific force {np.array(r.mean_f)!r} is not a usable gravity measurement")
 
 
 def align(t_ns, gyro, accel, initial_heading_deg: float = 0.0, *, gyrocompass: bool = False,

@@ -84,12 +84,8 @@ class AttitudeCovariance:
 
     def first_rest_update(self, standard_error, elapsed_s: float) -> None:
         """The first bias estimate, applied back to the start ``elapsed_s`` ago (still since)."""
-        bb = [float(se) ** 2 for se in standard_error]
-        e2 = elapsed_s * elapsed_s
-        nz = self.c[V_NOISE:V_NOISE + 3].tolist()
-        self.c[V_BB:V_BB + 3] = bb
-        self.c[V_TT:V_TT + 3] = [(self._it[i] + nz[i]) + e2 * bb[i] for i in range(3)]
-        self.c[V_TB:V_TB + 3] = [-elapsed_s * bb[i] for i in range(3)]
+        se0, se1, se2 = (float(se) for se in standard_error)
+        compiled(first_rest_update)(self.c, np.array(self._it), se0, se1, se2, float(elapsed_s))
 
     def propagate(self, dt_s: float, q) -> None:
         """One accepted interval of ``dt_s`` seconds with angle-random-walk increment ``q`` (3,)."""
@@ -107,9 +103,7 @@ class AttitudeCovariance:
 
     def reset_attitude(self) -> None:
         """Back to the initial attitude (time-jump reset)."""
-        self.c[V_TT:V_TT + 3] = self._it
-        self.c[V_TB:V_TB + 3] = 0.0
-        self.c[V_NOISE:V_NOISE + 3] = 0.0
+        compiled(reset_attitude)(self.c, np.array(self._it))
 
 
     def aid_tilt(self, kp_dt: float, floor_var: float) -> None:

@@ -40,7 +40,6 @@ import math
 import numpy as np
 
 from gyro_attitude.core.attitude.rest import check_sample, check_samples
-from gyro_attitude.core.attitude.stage_state import time_base
 from gyro_attitude.core.attitude.streaming import StreamingIntegrator
 from gyro_attitude.core.earth import STANDARD_GRAVITY
 from gyro_attitude.core.jit import compiled, kernel
@@ -102,7 +101,10 @@ class GravityAiding:
     def aided_samples(self) -> int:
         return int(self.gi[G_AIDED])
 
-    last_t_ns = time_base("gi", G_LAST_T, G_HAS_LAST)
+    @property
+    def last_t_ns(self) -> int | None:
+        """The last sample's stamp (ns), None for a new time base."""
+        return int(self.gi[G_LAST_T]) if self.gi[G_HAS_LAST] else None
 
     def update(self, t_ns: int, gyro, accel, q_nb, mag=None) -> np.ndarray:
         """One sample (``mag`` is not used: the aiding-stage signature of ahrs.py)."""

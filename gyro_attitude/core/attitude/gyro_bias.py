@@ -261,10 +261,8 @@ class GyroBiasEstimator:
     def break_window(self) -> None:
         """The stream broke (gap, time jump, unusable accelerometer sample): close the open rest
         and start a fresh window; the rests pooled so far and the estimate are kept."""
-        if self.bi[J_HAS_SEG]:
-            self.close_rest()
-        self.detector.reset()
-        self.bi[J_LAST_ACC] = -1
+        compiled(bias_break)(self.bf, self.bi, self.detector.rf, self.detector.ri,
+                             self.min_rest_ns)
 
     @property
     def standard_error(self) -> np.ndarray:

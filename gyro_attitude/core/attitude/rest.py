@@ -221,13 +221,8 @@ class RestDetector:
     def reset(self) -> None:
         """Forget all samples (after a gap or a restart the window fills again); in place (the
         compiled chain holds the arrays)."""
-        rf, ri = self.rf, self.ri
-        rf[:F_STD_MIN] = 0.0
-        rf[F_GYRO_STD:F_STD_MIN] = math.nan
-        ri[:] = 0
-        ri[R_OLDEST] = -1
-        ri[R_HAS_ACCEL] = -1
-        ri[R_WINDOW_NS] = self._window_ns
+        self.ri[R_WINDOW_NS] = self._window_ns
+        compiled(rest_reset)(self.rf, self.ri)
 
     samples = property(lambda self: int(self.ri[R_SAMPLES]))
     last_t_ns = property(lambda self: int(self.ri[R_LAST_T]) if self.ri[R_HAS_LAST] else None)
@@ -259,8 +254,14 @@ class RestDetector:
 
     def refusal(self, code: int, t: int) -> str:
         """The words of a :func:`rest_update` refusal."""
+        return self.refusal_words(code, t, self.ri)
+
+    @staticmethod
+    def refusal_words(code: int, t: int, ri) -> str:
+        """The words of a :func:`rest_update` refusal of the sample at ``t`` (``ri`` the
+        detector's int state)."""
         if code == NOT_INCREASING:
-            return f"t_ns must increase: {t} after {self.last_t_ns}"
+            return f"t_ns must increase: {t} after {int(ri[R_LAST_T])}"
         return ("accel must be given for every sample or for none "
                 "(reset the detector when the sensor changes)")
 
@@ -486,3 +487,15 @@ def rest_reset(rf, ri):
     ri[R_OLDEST] = -1
     ri[R_HAS_ACCEL] = -1
     ri[R_WINDOW_NS] = window_ns
+
+
+def grown_ring(ring, ri):
+    """A rest window's ``ring`` (a record array indexed by the detector's slots) doubled, the
+    window's entries (from slot ``ri[R_HEAD]``, ``ri[R_COUNT]`` of them) moved to slot 0 on
+    and the detector's head set to 0."""
+    head, count = int(ri[R_HEAD]), int(ri[R_COUNT])
+    order = (head + np.arange(count)) % ring.shape[0]
+    new = np.zeros(2 * ring.shape[0], ring.dtype).view(np.recarray)
+    new[:count] = ring[order]
+    ri[R_HEAD] = 0
+    return new

@@ -56,12 +56,12 @@ from gyro_attitude.core.attitude.ahrs import (
     _as_floats,
 )
 from gyro_attitude.core.attitude.alignment import (
-    ALIGN_FAILED_GYROCOMPASS,
     ALIGN_RING_DTYPE,
-    HEADING_SOURCES,
     AlignmentResult,
     StaticAligner,
+    alignment_result,
     check_gyrocompass_feasible,
+    failure_words,
     level_quaternion,
 )
 from gyro_attitude.core.attitude.covariance import V_TT, AttitudeCovariance
@@ -76,7 +76,7 @@ from gyro_attitude.core.attitude.modes import (
     Phase,
     SettingError,
 )
-from gyro_attitude.core.attitude.rest import R_COUNT, R_HEAD
+from gyro_attitude.core.attitude.rest import R_COUNT, grown_ring
 from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.core.attitude.streaming import C_HAS_LAST, C_LAST_T
 from gyro_attitude.core.earth import STANDARD_GRAVITY, check_latitude, earth_rate_enu
@@ -384,17 +384,9 @@ class AttitudeStream:
             accel_bias_sigma=cfg.accel_bias_sigma,
             heading_error_limit_deg=cfg.heading_error_limit_deg, min_rest_s=cfg.min_rest_s,
             rest=cfg.rest_params(), mag_heading=cfg.aiding is Aiding.MAGNETOMETER,
-            declination_deg=cfg.magnetic_declination_deg, hard_iron_t=cfg.mag_hard_iron_t)
-        opt = al._opt
-        r = self.state.aligner[0]
-        r.heading, r.gyrocompass, r.lat = opt.heading, opt.gyrocompass, opt.lat or 0.0
-        r.bias, r.bias_sigma = opt.bias, opt.bias_sigma or 0.0
-        r.accel_bias_sigma, r.limit, r.min_rest_ns = (opt.accel_bias_sigma, opt.limit,
-                                                      opt.min_rest_ns)
-        r.mag_heading, r.decl, r.hard_iron = opt.mag_heading, opt.declination, opt.hard_iron
-        r.given_heading_var = np.broadcast_to(cfg.initial_attitude_variance, (3,))[2]
-        r.rest_f, r.rest_i = al.detector.rf, al.detector.ri
-        r.last_acc = -1
+            declination_deg=cfg.magnetic_declination_deg, hard_iron_t=cfg.mag_hard_iron_t,
+            given_heading_variance=float(np.broadcast_to(cfg.initial_attitude_variance, (3,))[2]))
+        self.state.aligner[0] = al.record[0]
 
     def _set_nav(self, nav) -> None:
         """The nav rate ω_in^n of a constant frame (a series is fed row by row: run())."""
@@ -472,13 +464,7 @@ class AttitudeStream:
     @property
     def alignment(self) -> AlignmentResult | None:
         r = self.state.aligner[0]
-        if not r.aligned:
-            return None
-        return AlignmentResult(
-            np.array(r.q), float(r.roll), float(r.pitch), float(r.heading_out),
-            HEADING_SOURCES[int(r.source)], float(r.level_err), float(r.heading_err),
-            int(r.t0), int(r.t1), int(r.n), np.array(r.mean_f), np.array(r.mean_w),
-            np.array(r.mean_m) if r.has_mean_m else None, int(r.n_m) if r.has_mean_m else 0)
+        return alignment_result(r) if r.aligned else None
 
     # ------------------------------------------------------------------ settings
     def set_config(self, config: StreamConfig) -> None:
@@ -585,14 +571,14 @@ class AttitudeStream:
         """Double the ring the step found full (its entries kept in order from slot 0)."""
         s = self.state[0]
         if code == chain.BIAS_RING_FULL:
-            self.bias_ring = _grown(self.bias_ring, s.rest_i)
+            self.bias_ring = grown_ring(self.bias_ring, s.rest_i)
         else:
             al = s.aligner
             if al.rest_i[R_COUNT] == self.align_ring.shape[0]:
-                self.align_ring = _grown(self.align_ring, al.rest_i)
+                self.align_ring = grown_ring(self.align_ring, al.rest_i)
             if s.align_count == self.align_buffer.shape[0]:
                 head, count = int(s.align_head), int(s.align_count)
-                order = (head + np.arange(count)) % count
+                order = (head + np.arange(count)) % self.align_buffer.shape[0]
                 new = np.zeros(2 * count, self.align_buffer.dtype).view(np.recarray)
                 new[:count] = self.align_buffer[order]
                 self.align_buffer, s.align_head = new, 0
@@ -664,17 +650,6 @@ class AttitudeStream:
                             known[:m] if any_known else None, action, self.counts,
                             self.time_jump_resets, dict(self._details), self.bias_report,
                             self.alignment)
-
-
-def _grown(ring, ri):
-    """``ring`` doubled, the entries of the window (from slot ``ri[R_HEAD]``, ``ri[R_COUNT]``
-    of them) moved to slot 0 on (the detector's head set to 0)."""
-    head, count = int(ri[R_HEAD]), int(ri[R_COUNT])
-    order = (head + np.arange(count)) % ring.shape[0]
-    new = np.zeros(2 * ring.shape[0], ring.dtype).view(np.recarray)
-    new[:count] = ring[order]
-    ri[R_HEAD] = 0
-    return new
 
 
 _ZERO9 = np.zeros(9)
@@ -843,17 +818,8 @@ def _align_words(st) -> None:
         st.alignment_error = None
     elif code == 1:
         st.alignment_error = _ALIGN_ERRORS[1]
-    elif code == 1 + ALIGN_FAILED_GYROCOMPASS:
-        r = s.aligner
-        st.alignment_error = (
-            f"gyrocompass refused: expected heading error {math.degrees(r.heading_err):.3g}° "
-            f"exceeds the limit {math.degrees(r.limit):.3g}° (gyro bias uncertainty "
-            f"{math.degrees(r.bias_sigma) * 3600:.3g} °/h against a horizontal Earth rate of "
-            f"{math.degrees(r.fail_horizontal) * 3600:.3g} °/h at this latitude); give the "
-            "heading")
     else:
-        st.alignment_error = (f"specific force {np.array(s.aligner.mean_f)!r} is not a usable "
-                              "gravity measurement")
+        st.alignment_error = failure_words(s.aligner, code - 1)
 
 
 def mag_missing_note(t_ns: int) -> str:
