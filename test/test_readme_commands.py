@@ -83,6 +83,15 @@ def test_the_readme_has_the_commands_of_every_quick_start():
     assert len(README.read_text().splitlines()) <= 300
 
 
+def test_the_readme_links_resolve_and_it_tells_no_release_history():
+    text = README.read_text()
+    for target in re.findall(r"\]\(([^)\s#]+)(?:#[^)]*)?\)", text):
+        if not target.startswith(("http://", "https://")):
+            assert (REPO / target).exists(), target
+    assert not re.search(r"(?im)^#+ .*(change|release|history)", text)
+    assert "CHANGELOG.md" in text
+
+
 def test_every_readme_command_is_of_a_kind_this_test_checks():
     unknown = [shlex.join(a) for a in COMMANDS if kind(a) == "unknown"]
     assert not unknown, f"README commands this test does not check: {unknown}"
