@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # One entry point for a fresh machine (only Python 3.11 and the OS needed):
 #   bash dev.sh demo   create/reuse .venv, install pinned Jazzy wheels + package, run the demo
-#   bash dev.sh test   same set-up, then lint and the full test suite
+#   bash dev.sh test   same set-up, then lint (ruff, import-linter) and the full test suite
 # Any other arguments after the subcommand are passed on (gyro-attitude / pytest).
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
@@ -51,6 +51,8 @@ case "$what" in
     exec "$venv/bin/gyro-attitude" demo "$@" ;;
   test)
     "$venv/bin/ruff" check gyro_attitude test setup.py
+    # the layering (core < io < ros | offline < commands), no import circles: .importlinter
+    "$venv/bin/lint-imports" --no-cache --no-logo
     # pytest exits 5 when it collected no test: that is a failure here, as any nonzero.
     exec "$venv/bin/pytest" "$@" ;;
   *)

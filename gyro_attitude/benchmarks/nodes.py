@@ -69,9 +69,9 @@ def _cpu_s(pid: int) -> float | None:
 
 
 def _env() -> dict[str, str]:
-    from gyro_attitude.commands.demo import demo_environment
+    from gyro_attitude.io.ament_prefix import node_environment
 
-    return demo_environment()
+    return node_environment()
 
 
 RELAY_COMMAND = (sys.executable, "-m", "gyro_attitude.benchmarks.relay_node")
@@ -92,7 +92,7 @@ def measure_rate(rate_hz: float, duration_s: float, env: dict[str, str],
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import Imu
 
-    from gyro_attitude.commands.demo import node_command
+    from gyro_attitude.io.ament_prefix import node_command
     from gyro_attitude.ros.input_thread import InputThread
     from gyro_attitude.ros.qos import imu_qos
 

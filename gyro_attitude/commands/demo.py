@@ -18,7 +18,6 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import random
 import shutil
 import signal
 import subprocess
@@ -30,6 +29,7 @@ from pathlib import Path
 
 from gyro_attitude.core.attitude import causal_algorithms
 from gyro_attitude.core.rotation import quat_angle_between
+from gyro_attitude.io.ament_prefix import node_command, node_environment
 from gyro_attitude.io.cdr_arrays import QuaternionStampedCdr
 from gyro_attitude.io.safe_output import OutputPathError, SafeOutput, check_output_path
 from gyro_attitude.io.scene_file import load_scene
@@ -93,36 +93,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--reliable", action="store_true",
                         help="reliable QoS on imu/data_raw (default: best effort, sensor data)")
     parser.add_argument("--no-record", action="store_true", help="do not record MCAP")
-
-
-def node_command(exe: str) -> list[str]:
-    """The command ``ros2 run gyro_attitude <exe>`` would run, or ``python -m`` fallback."""
-    try:
-        from ament_index_python.packages import PackageNotFoundError, get_package_prefix
-
-        try:
-            path = Path(get_package_prefix(PACKAGE)) / "lib" / PACKAGE / exe
-            if path.is_file() and os.access(path, os.X_OK):
-                return [str(path)]
-        except PackageNotFoundError:
-            pass
-    except ImportError:
-        pass
-    return [sys.executable, "-m", f"{PACKAGE}.ros.{exe}_node"]
-
-
-def demo_environment() -> dict[str, str]:
-    """Loopback DDS and a domain of its own unless the user chose; the ament index of this
-    interpreter's prefix when none is set (so `ros2 run`-style lookup finds the package)."""
-    env = dict(os.environ)
-    env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    env.setdefault("ROS_DOMAIN_ID", str(random.Random(os.getpid()).randint(40, 99)))
-    env.setdefault("AMENT_PREFIX_PATH", sys.prefix)
-    env.setdefault("PYTHONUNBUFFERED", "1")
-    # a `python -m` fallback must import this very package
-    here = str(Path(__file__).resolve().parents[2])
-    env["PYTHONPATH"] = here + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-    return env
 
 
 def _integrator_params(spec, algorithm: str | None, reliable: bool) -> list[str]:
@@ -213,7 +183,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"[demo] {prepared}", file=sys.stderr)
         return 1
     bag, plot = prepared
-    env = demo_environment()
+    env = node_environment()
     # this process joins the same graph: set before rclpy.init
     for key in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_DOMAIN_ID", "AMENT_PREFIX_PATH"):
         os.environ[key] = env[key]

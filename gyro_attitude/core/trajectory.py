@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from gyro_attitude.core import earth
+from gyro_attitude.core import earth, limits
 from gyro_attitude.core.motion import Motion, MotionSample
 
 if TYPE_CHECKING:
@@ -140,7 +140,7 @@ def check_poses(poses: PoseSeries, max_gap_s: float = DEFAULT_MAX_GAP_S) -> Pose
     # pose to pose faster than any carrier: a glitch (squared lengths: a 1e300 m step
     # overflows to inf, which is refused too; hypot for the message)
     dx, dy, dz = np.diff(p, axis=0).T
-    reach = _limits().MAX_SPEED_MPS * (dt / 1e9)
+    reach = limits.MAX_SPEED_MPS * (dt / 1e9)
     with np.errstate(over="ignore"):
         bad = dx * dx + dy * dy + dz * dz > reach * reach
     if bad.any():
@@ -153,7 +153,7 @@ def check_poses(poses: PoseSeries, max_gap_s: float = DEFAULT_MAX_GAP_S) -> Pose
     qx, qy, qz, qw = q.T
     turn = _turn_angle(np.abs(qx[1:] * qx[:-1] + qy[1:] * qy[:-1] + qz[1:] * qz[:-1]
                               + qw[1:] * qw[:-1]))
-    bad = turn > _limits().MAX_BODY_RATE_RAD_S * (dt / 1e9)
+    bad = turn > limits.MAX_BODY_RATE_RAD_S * (dt / 1e9)
     if bad.any():
         i = int(np.argmax(bad)) + 1
         raise ValueError(f"{src}: {lab[i]}: {_too_quick_turn(turn[i - 1], dt[i - 1] / 1e9)}")
@@ -168,31 +168,23 @@ def _turn_angle(dot):
 
 def _too_quick_turn(angle: float, dt: float) -> str:
     return (f"turned {math.degrees(angle):.6g}° in {dt:.6g} s ({angle / dt:.6g} rad/s) since "
-            f"the previous pose, faster than {_limits().MAX_BODY_RATE_RAD_S:.6g} rad/s (the "
+            f"the previous pose, faster than {limits.MAX_BODY_RATE_RAD_S:.6g} rad/s (the "
             "fastest rotation of a scene): a glitch or a repeated pose?")
-
-
-def _limits():
-    """The scene bounds module (imported late: core.scene imports this module)."""
-    from gyro_attitude.core.scene import limits
-
-    return limits
 
 
 def _too_fast(step: float, dt: float) -> str:
     return (f"moved {step:.6g} m in {dt:.6g} s ({step / dt:.6g} m/s) since the previous pose, "
-            f"faster than {_limits().MAX_SPEED_MPS:g} m/s (a scene's fastest carrier): a "
+            f"faster than {limits.MAX_SPEED_MPS:g} m/s (a scene's fastest carrier): a "
             "glitch in the poses?")
 
 
 def _position_refusal(p, lat: float, h: float) -> str | None:
     """Why a position (ENU ``p``, geodetic ``lat``, ``h``) is refused, or None."""
-    lim = _limits()
-    if not lim.MIN_HEIGHT_M <= h <= lim.MAX_HEIGHT_M:
+    if not limits.MIN_HEIGHT_M <= h <= limits.MAX_HEIGHT_M:
         return (f"position {list(map(float, p))} m has a height of {h:.6g} m, outside the "
-                f"scene's {lim.MIN_HEIGHT_M:g} … {lim.MAX_HEIGHT_M:g} m (positions are ENU "
+                f"scene's {limits.MIN_HEIGHT_M:g} … {limits.MAX_HEIGHT_M:g} m (positions are ENU "
                 "at the scene's earth origin)")
-    if abs(lat) >= 0.5 * np.pi - lim.POLE_MARGIN_RAD:
+    if abs(lat) >= 0.5 * np.pi - limits.POLE_MARGIN_RAD:
         return (f"the trajectory reaches the {'North' if lat > 0 else 'South'} pole (latitude "
                 f"{math.degrees(lat):.6f}°): the local-level frame has no East or North "
                 "there, so a scene cannot pass over one")
@@ -204,7 +196,6 @@ def check_positions(poses: PoseSeries, origin_llh) -> None:
     outside a scene's heights or within ``POLE_MARGIN_RAD`` of a pole, as built-in motions
     are refused: the normal-gravity model holds near the Earth only, and the local-level
     truth frame has no East or North at a pole."""
-    lim = _limits()
     origin = np.asarray(origin_llh, dtype=np.float64)
     r0 = earth.ecef_from_llh(origin)
     c_et = earth.enu_to_ecef_matrix(origin[0], origin[1])
@@ -213,8 +204,8 @@ def check_positions(poses: PoseSeries, origin_llh) -> None:
         with np.errstate(over="ignore"):
             x, y, z = _ecef(r0, c_et, pt[:, lo:lo + EVAL_CHUNK])
         lat, h = _latitude_height(x, y, z)
-        bad = ~((h >= lim.MIN_HEIGHT_M) & (h <= lim.MAX_HEIGHT_M)
-                & (np.abs(lat) < 0.5 * np.pi - lim.POLE_MARGIN_RAD))
+        bad = ~((h >= limits.MIN_HEIGHT_M) & (h <= limits.MAX_HEIGHT_M)
+                & (np.abs(lat) < 0.5 * np.pi - limits.POLE_MARGIN_RAD))
         if bad.any():
             i = int(np.argmax(bad))
             raise ValueError(f"{poses.source}: {poses.labels[lo + i]}: "
@@ -930,7 +921,7 @@ class LiveTrajectory(TrajectoryMotion):
         # the file's checks, on this pose and the one before: speed, height, poles
         if self._t:
             step, dt = math.dist(p, self._p[-1]), (t_ns - self._t[-1]) / 1e9
-            if step / dt > _limits().MAX_SPEED_MPS:
+            if step / dt > limits.MAX_SPEED_MPS:
                 return _too_fast(step, dt)
         x, y, z = self._r0 + self._c_et @ p
         lat, h = _latitude_height(x, y, z)
@@ -940,7 +931,7 @@ class LiveTrajectory(TrajectoryMotion):
         q = q / norm
         if self._t:
             turn = float(_turn_angle(abs(float(np.dot(q, self._q[-1])))))
-            if turn > _limits().MAX_BODY_RATE_RAD_S * dt:
+            if turn > limits.MAX_BODY_RATE_RAD_S * dt:
                 return _too_quick_turn(turn, dt)
         if self._q and float(np.dot(q, self._q[-1])) < 0.0:
             q = -q  # sign-continuous, as the file fit does

@@ -1,7 +1,7 @@
 """The files written from the estimator's settings table: the settings block of
-``config/attitude_integrator.yaml`` and the table in README.md, each between a BEGIN and an END
-marker line.  ``python -m gyro_attitude.io.settings_docs [REPO]`` rewrites both;
-``test/core/attitude/test_settings.py`` fails when they drift from the table.
+``config/attitude_integrator.yaml`` and the table in docs/settings.md, each between a BEGIN and an
+END marker line.  ``python -m gyro_attitude.io.settings_docs [REPO]`` rewrites both;
+``test/ros/test_settings_table.py`` fails when they drift from the table.
 """
 
 from __future__ import annotations
@@ -12,13 +12,13 @@ from pathlib import Path
 from gyro_attitude.core.attitude.settings import markdown_table, yaml_lines
 
 YAML_FILE = "config/attitude_integrator.yaml"
-README_FILE = "README.md"
+TABLE_FILE = "docs/settings.md"
 YAML_BEGIN = "    # BEGIN estimator settings (from gyro_attitude/core/attitude/settings.py; " \
              "python -m gyro_attitude.io.settings_docs)"
 YAML_END = "    # END estimator settings"
-README_BEGIN = "<!-- BEGIN estimator settings (from gyro_attitude/core/attitude/settings.py; " \
+TABLE_BEGIN = "<!-- BEGIN estimator settings (from gyro_attitude/core/attitude/settings.py; " \
                "python -m gyro_attitude.io.settings_docs) -->"
-README_END = "<!-- END estimator settings -->"
+TABLE_END = "<!-- END estimator settings -->"
 
 
 def replace_block(text: str, begin: str, end: str, lines: list[str]) -> str:
@@ -35,11 +35,11 @@ def replace_block(text: str, begin: str, end: str, lines: list[str]) -> str:
 
 def rendered(repo: Path) -> dict[Path, str]:
     """{file: the text it should have} for the two generated blocks."""
-    yaml_path, readme_path = repo / YAML_FILE, repo / README_FILE
+    yaml_path, table_path = repo / YAML_FILE, repo / TABLE_FILE
     return {
         yaml_path: replace_block(yaml_path.read_text(), YAML_BEGIN, YAML_END, yaml_lines()),
-        readme_path: replace_block(readme_path.read_text(), README_BEGIN, README_END,
-                                   markdown_table()),
+        table_path: replace_block(table_path.read_text(), TABLE_BEGIN, TABLE_END,
+                                  markdown_table()),
     }
 
 
@@ -47,7 +47,7 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) > 1 or (argv and argv[0].startswith("-")):
         print("usage: python -m gyro_attitude.io.settings_docs [REPO]  (rewrites the settings "
-              "blocks of config/attitude_integrator.yaml and README.md)", file=sys.stderr)
+              "blocks of config/attitude_integrator.yaml and docs/settings.md)", file=sys.stderr)
         return 0 if argv and argv[0] in ("-h", "--help") else 2
     repo = Path(argv[0] if argv else ".")
     try:

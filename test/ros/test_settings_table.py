@@ -1,5 +1,5 @@
 """The estimator settings are declared once (core/attitude/settings.py): the node's parameters,
-replay's flags, the YAML file and the README table all come from that one table."""
+replay's flags, the YAML file and the table of docs/settings.md all come from that one table."""
 
 from __future__ import annotations
 
@@ -48,7 +48,7 @@ def test_a_setting_added_in_one_place_is_a_parameter_a_flag_and_a_yaml_line():
                for line in yaml_lines(settings=table))
 
 
-def test_yaml_and_readme_blocks_are_the_table():
+def test_yaml_and_settings_doc_blocks_are_the_table():
     for path, text in settings_docs.rendered(REPO).items():
         assert path.read_text() == text, (
             f"{path} drifted from core/attitude/settings.py: run "

@@ -27,6 +27,17 @@ from gyro_attitude.core.instruments.vertical_gyro import (
     VerticalGyro,
     VerticalGyroParams,
 )
+from gyro_attitude.core.limits import (
+    MAX_ACCEL_MPS2,
+    MAX_DURATION_S,
+    MAX_HEAVE_M,
+    MAX_PERIOD_S,
+    MAX_ROTATION_HZ,
+    MAX_SPEED_MPS,
+    MAX_TILT_AMPLITUDE_DEG,
+    MAX_YAW_AMPLITUDE_DEG,
+    MIN_PERIOD_S,
+)
 from gyro_attitude.core.motion import (
     ClassicalConing,
     ConstantVelocity,
@@ -46,17 +57,6 @@ from gyro_attitude.core.scene.fields import (
     degrees,
     keys_of,
     read_fields,
-)
-from gyro_attitude.core.scene.limits import (
-    MAX_ACCEL_MPS2,
-    MAX_DURATION_S,
-    MAX_HEAVE_M,
-    MAX_PERIOD_S,
-    MAX_ROTATION_HZ,
-    MAX_SPEED_MPS,
-    MAX_TILT_AMPLITUDE_DEG,
-    MAX_YAW_AMPLITUDE_DEG,
-    MIN_PERIOD_S,
 )
 from gyro_attitude.core.trajectory import (
     DEFAULT_MAX_GAP_S,

@@ -70,7 +70,7 @@ Motion keys per type (``attitude: {roll_deg, pitch_deg, yaw_deg}`` is ROS roll/p
                          child_frame_id, position_sigma_m, attitude_sigma_rad, max_gap_s
                          (core.trajectory; the file is read by io.scene_file.load_scene)
 
-Every number is bounded at validation (:mod:`gyro_attitude.core.scene.limits`, the choice of
+Every number is bounded at validation (:mod:`gyro_attitude.core.limits`, the choice of
 each limit stated there); the motion and instrument keys are declared in
 :mod:`gyro_attitude.core.scene.registry`.
 
@@ -107,9 +107,7 @@ import numpy as np
 
 from gyro_attitude.core.gyro.free_gyro import FreeGyroParams, HarmonicTorque, ImpactTorque
 from gyro_attitude.core.gyro.rate_gyro import IntegratingGyroParams, RateGyroParams
-from gyro_attitude.core.motion import Motion
-from gyro_attitude.core.scene.fields import MAX_LIST_ITEMS, Fields, is_number, list_items
-from gyro_attitude.core.scene.limits import (
+from gyro_attitude.core.limits import (
     ACCEL_ERROR_LIMITS,
     GYRO_ERROR_LIMITS,
     MAX_DESCRIPTION_CHARS,
@@ -120,6 +118,8 @@ from gyro_attitude.core.scene.limits import (
     MIN_HEIGHT_M,
     PARAM_LIMITS,
 )
+from gyro_attitude.core.motion import Motion
+from gyro_attitude.core.scene.fields import MAX_LIST_ITEMS, Fields, is_number, list_items
 from gyro_attitude.core.scene.magnetometer import (
     MAGNETOMETER_KEYS,
     MagnetometerSpec,

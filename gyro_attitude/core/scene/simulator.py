@@ -25,9 +25,9 @@ from gyro_attitude.core.angles import wrap_pi
 from gyro_attitude.core.gyro.free_gyro import FreeGyroSimulator
 from gyro_attitude.core.gyro.rate_gyro import RateGyroTriad
 from gyro_attitude.core.instruments.common import InstrumentStepper
+from gyro_attitude.core.limits import POLE_MARGIN_RAD
 from gyro_attitude.core.motion import Motion, MotionSample, Stationary
 from gyro_attitude.core.rotation import quat_conjugate, quat_rotate
-from gyro_attitude.core.scene.limits import POLE_MARGIN_RAD
 from gyro_attitude.core.scene.magnetometer import measure_field
 from gyro_attitude.core.scene.schema import MAX_RATE_HZ, SceneSpec
 from gyro_attitude.core.sensor_errors import SensorErrorModel

@@ -10,13 +10,13 @@ from gyro_attitude.cli import main as cli_main
 from gyro_attitude.core import earth
 from gyro_attitude.core.gyro.free_gyro import FreeGyroParams, HarmonicTorque, ImpactTorque
 from gyro_attitude.core.gyro.rate_gyro import IntegratingGyroParams, RateGyroParams
-from gyro_attitude.core.scene import SceneSimulator, SceneSpec
-from gyro_attitude.core.scene.fields import Kind
-from gyro_attitude.core.scene.limits import (
+from gyro_attitude.core.limits import (
     ACCEL_ERROR_LIMITS,
     GYRO_ERROR_LIMITS,
     PARAM_LIMITS,
 )
+from gyro_attitude.core.scene import SceneSimulator, SceneSpec
+from gyro_attitude.core.scene.fields import Kind
 from gyro_attitude.core.scene.registry import INSTRUMENTS, MOTIONS
 from gyro_attitude.core.scene.schema import (
     _ACCEL_DATASHEET_KEYS,

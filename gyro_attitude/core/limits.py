@@ -1,4 +1,5 @@
-"""Physically plausible limits of every scene value (one home; the schema and registry read them).
+"""Physically plausible limits of every scene value (one home; the scene schema and registry and
+the pose checks of ``core.trajectory`` read them).
 
 A value outside these is refused at validation with the key's path, before anything is
 simulated, so that no valid scene writes a file of implausible rates. The limits are set
