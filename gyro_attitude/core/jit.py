@@ -65,10 +65,10 @@ def compiled(func):
                               func.__closure__)
     twin.__module__, twin.__qualname__ = func.__module__, func.__qualname__
     try:
-        return numba.njit(cache=True)(twin)
+        return numba.njit(cache=True, error_model="numpy")(twin)
     except RuntimeError as exc:  # no writable cache beside the source nor in the user's home
         _warn_uncached(exc)
-        return numba.njit(cache=False)(twin)
+        return numba.njit(cache=False, error_model="numpy")(twin)
 
 
 def direct(kernel_form):

@@ -48,7 +48,6 @@ import numpy as np
 
 from gyro_attitude.core.angles import wrap_2pi
 from gyro_attitude.core.attitude.ahrs import MAG_ABSURD_T, MAG_ZERO_T
-from gyro_attitude.core.attitude.modes import SettingError
 from gyro_attitude.core.attitude.rest import (
     R_AT_REST,
     R_HEAD,
@@ -151,25 +150,6 @@ def magnetic_heading(m_b, roll: float, pitch: float, declination: float = 0.0) -
     # horizontal field lies atan2(−m_y, m_x) clockwise of the body x axis; the x axis is at
     # heading h, the field at the declination: h + that angle = declination
     return wrap_2pi(declination - math.atan2(-float(m_l[1]), float(m_l[0])))
-
-
-def check_gyrocompass_feasible(gyro_bias_sigma_rad_s: float, latitude_rad: float | None,
-                               heading_error_limit_deg: float) -> None:
-    """Refuse gyrocompassing whose heading error from the bias uncertainty alone,
-    ``σ_b / (ω_ie cos L)``, already exceeds the limit (:class:`StaticAligner` checks the full
-    figure with the measured noise at the end of the rest)."""
-    if latitude_rad is None:
-        raise SettingError("heading_source", "gyrocompass needs the latitude (frame enu or "
-                           "latitude_rad)")
-    horizontal = OMEGA_IE * math.cos(latitude_rad)
-    sigma = gyro_bias_sigma_rad_s / max(horizontal, 1e-300)
-    if not math.degrees(sigma) <= heading_error_limit_deg:
-        raise SettingError(
-            "heading_source", "gyrocompass refused: gyro bias uncertainty "
-            f"{math.degrees(gyro_bias_sigma_rad_s) * 3600:.3g}"
-            f" °/h against a horizontal Earth rate of {math.degrees(horizontal) * 3600:.3g} °/h "
-            f"gives a heading error of {min(math.degrees(sigma), 1e9):.3g}° > the limit "
-            f"{heading_error_limit_deg:g}°; give initial_heading_deg instead")
 
 
 def _check_nonneg(name, v) -> float:

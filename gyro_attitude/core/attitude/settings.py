@@ -34,6 +34,7 @@ from gyro_attitude.core.attitude.modes import (
     parse_mode,
 )
 from gyro_attitude.core.attitude.rest import RestThresholds
+from gyro_attitude.core.earth import OMEGA_IE
 
 __all__ = ["SETTINGS", "Setting", "SettingError", "StreamConfig", "markdown_table", "setting",
            "yaml_lines"]
@@ -321,8 +322,6 @@ class _StreamConfigMethods:
                 raise SettingError("heading_source", "gyrocompass needs gyro_bias 'parameter' with its 1σ "
                                  "gyro_bias_sigma_rad_s > 0 (a bias estimated at rest has "
                                  "absorbed the Earth rate and cannot find north)")
-            from gyro_attitude.core.attitude.alignment import check_gyrocompass_feasible
-
             check_gyrocompass_feasible(self.gyro_bias_sigma_rad_s, self.latitude_rad,
                                        self.heading_error_limit_deg)
 
@@ -428,3 +427,22 @@ def markdown_table(settings=SETTINGS) -> list[str]:
         out.append(f"| `{s.name}` `{s.flag}` | `{default}` | {s.unit} | {text}{allowed}"
                    f"{runtime} |")
     return out
+
+
+def check_gyrocompass_feasible(gyro_bias_sigma_rad_s: float, latitude_rad: float | None,
+                               heading_error_limit_deg: float) -> None:
+    """Refuse gyrocompassing whose heading error from the bias uncertainty alone,
+    ``σ_b / (ω_ie cos L)``, already exceeds the limit (:class:`StaticAligner` checks the full
+    figure with the measured noise at the end of the rest)."""
+    if latitude_rad is None:
+        raise SettingError("heading_source", "gyrocompass needs the latitude (frame enu or "
+                           "latitude_rad)")
+    horizontal = OMEGA_IE * math.cos(latitude_rad)
+    sigma = gyro_bias_sigma_rad_s / max(horizontal, 1e-300)
+    if not math.degrees(sigma) <= heading_error_limit_deg:
+        raise SettingError(
+            "heading_source", "gyrocompass refused: gyro bias uncertainty "
+            f"{math.degrees(gyro_bias_sigma_rad_s) * 3600:.3g}"
+            f" °/h against a horizontal Earth rate of {math.degrees(horizontal) * 3600:.3g} °/h "
+            f"gives a heading error of {min(math.degrees(sigma), 1e9):.3g}° > the limit "
+            f"{heading_error_limit_deg:g}°; give initial_heading_deg instead")

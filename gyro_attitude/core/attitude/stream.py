@@ -60,7 +60,6 @@ from gyro_attitude.core.attitude.alignment import (
     AlignmentResult,
     StaticAligner,
     alignment_result,
-    check_gyrocompass_feasible,
     failure_words,
     level_quaternion,
 )
@@ -77,7 +76,7 @@ from gyro_attitude.core.attitude.modes import (
     SettingError,
 )
 from gyro_attitude.core.attitude.rest import R_COUNT, grown_ring
-from gyro_attitude.core.attitude.settings import StreamConfig
+from gyro_attitude.core.attitude.settings import StreamConfig, check_gyrocompass_feasible
 from gyro_attitude.core.attitude.streaming import C_HAS_LAST, C_LAST_T
 from gyro_attitude.core.earth import STANDARD_GRAVITY, check_latitude, earth_rate_enu
 from gyro_attitude.core.jit import compiled, direct

@@ -13,7 +13,6 @@ import pytest
 from test_stream_real import MODES, hostile_field, hostile_rest_motion_rest
 
 from gyro_attitude.core.attitude.stream import RUNNING, AttitudeStream
-from gyro_attitude.core.attitude.validation import NOMINAL_INTERVALS
 from gyro_attitude.core.jit import backend, compiled, direct, kernel
 
 HERE = Path(__file__).resolve().parent

@@ -11,13 +11,11 @@ import pytest
 from attitude_truth import nav_rate_written_out
 from scipy.spatial.transform import Rotation
 
-from gyro_attitude.core.attitude import NavFrame, integrate_batch
+from gyro_attitude.core.attitude import NavFrame, chain, integrate_batch
 from gyro_attitude.core.attitude import validation as iv
-from gyro_attitude.core.attitude.alignment import check_gyrocompass_feasible
-from gyro_attitude.core.attitude import chain
+from gyro_attitude.core.attitude.settings import check_gyrocompass_feasible
 from gyro_attitude.core.attitude.stream import (
     ALIGNING,
-    FAILED,
     INTEGRATOR_ERROR,
     RUNNING,
     AttitudeStream,
