@@ -1,0 +1,106 @@
+"""TF: publish_tf of attitude_integrator and gyro_sim, received in another process; refused
+in one line where tf2_msgs is not installed, everything else running."""
+
+from __future__ import annotations
+
+import os
+import signal
+from pathlib import Path
+
+import numpy as np
+import pytest
+from geometry_msgs.msg import QuaternionStamped
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+from gyro_attitude.ros import convert
+
+pytestmark = [pytest.mark.ros, pytest.mark.timeout(150)]
+
+REPO = Path(__file__).resolve().parents[2]
+SIM = "gyro_attitude.ros.gyro_sim_node"
+INTEGRATOR = "gyro_attitude.ros.attitude_integrator_node"
+RELIABLE = QoSProfile(depth=20000, reliability=ReliabilityPolicy.RELIABLE)
+# Jazzy's tf2_msgs/msg/TFMessage (its share/tf2_msgs/msg/TFMessage.json in a ROS install)
+JAZZY_TF_HASH = "RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087"
+
+tf2_msgs = pytest.importorskip("tf2_msgs.msg", reason="tf2_msgs not built (dev.sh builds it)")
+
+
+def _collect(node, msg_type, topic):
+    box: list = []
+    node.create_subscription(msg_type, topic, box.append, RELIABLE)
+    return box
+
+
+def _stamp(m) -> int:
+    return convert.stamp_to_ns(m.header.stamp)
+
+
+def test_integrator_and_sim_publish_tf_equal_to_their_attitude_topics(launch, ros_node):
+    rate, duration = 200.0, 1.0
+    n = int(rate * duration)
+    tf = _collect(ros_node, tf2_msgs.TFMessage, "/tf")
+    att = _collect(ros_node, QuaternionStamped, "attitude")
+    truth = _collect(ros_node, QuaternionStamped, "truth/attitude")
+    config = REPO / "config"
+    integ = launch(INTEGRATOR, "--params-file", str(config / "attitude_integrator.yaml"),
+                   "-p", "initial_attitude_source:=truth", "-p", "qos_reliability:=reliable",
+                   "-p", "publish_tf:=true")
+    assert ros_node.wait_for_publishers("attitude"), integ.output()
+    assert ros_node.wait_for_publishers("/tf"), integ.output()
+    sim = launch(SIM, "--params-file", str(config / "gyro_sim.yaml"), "-p", "scene:=coning",
+                 "-p", f"rate_hz:={rate}", "-p", f"duration_s:={duration}",
+                 "-p", "wait_for_subscribers:=1", "-p", "qos_reliability:=reliable",
+                 "-p", "publish_tf:=true")
+    assert ros_node.spin_until(lambda: len(att) >= n and len(tf) >= 2 * n, timeout=60), (
+        f"{len(att)} attitudes, {len(tf)} TF messages of {n}\n{integ.output()}\n"
+        f"{sim.output()}")
+    assert sim.wait(timeout=15) == 0, sim.output()
+    assert integ.stop(signal.SIGTERM) == 0, integ.output()
+
+    # the type is Jazzy's: a system ROS's tf2 tools read it
+    hashes = {str(i.topic_type_hash) for i in ros_node.get_publishers_info_by_topic("/tf")}
+    assert hashes <= {JAZZY_TF_HASH}, hashes
+    transforms = [t for m in tf for t in m.transforms]
+    assert len(transforms) == len(tf)  # one transform per message
+    by_child: dict[str, list] = {}
+    for t in transforms:
+        by_child.setdefault(t.child_frame_id, []).append(t)
+    assert sorted(by_child) == ["imu_link", "imu_link_truth"]
+    for child, topic, parent in (("imu_link", att, "inertial"),
+                                 ("imu_link_truth", truth, "enu")):
+        ts = by_child[child]
+        assert len(ts) == len(topic) == n, (child, len(ts), len(topic))
+        assert {t.header.frame_id for t in ts} == {parent}
+        assert {m.header.frame_id for m in topic} == {parent}
+        assert [_stamp(t) for t in ts] == [_stamp(m) for m in topic]
+        rot = np.array([convert.quat_from_msg(t.transform.rotation) for t in ts])
+        q = np.array([convert.quat_from_msg(m.quaternion) for m in topic])
+        np.testing.assert_array_equal(rot, q)
+        assert not np.any([convert.vector3_from_msg(t.transform.translation) for t in ts])
+
+
+def test_publish_tf_refused_in_one_line_without_tf2_msgs_and_the_rest_runs(
+        launch, ros_node, ros_env, tmp_path):
+    # tf2_msgs hidden from the node processes: a package of that name that fails to import
+    hide = tmp_path / "hide" / "tf2_msgs"
+    hide.mkdir(parents=True)
+    (hide / "__init__.py").write_text("raise ImportError('tf2_msgs hidden by the test')\n")
+    ros_env["PYTHONPATH"] = f"{hide.parent}{os.pathsep}{ros_env['PYTHONPATH']}"
+    refused = [launch(INTEGRATOR, "-p", "publish_tf:=true"),
+               launch(SIM, "-p", "publish_tf:=true")]
+    att = _collect(ros_node, QuaternionStamped, "attitude")
+    integ = launch(INTEGRATOR, "-p", "qos_reliability:=reliable")
+    for proc in refused:
+        assert proc.wait(timeout=60) == 2, proc.output()
+        out = proc.output()
+        lines = [ln for ln in out.splitlines() if "tf2_msgs" in ln]
+        assert len(lines) == 1 and "publish_tf" in lines[0] and "dev.sh" in lines[0], out
+        assert "Traceback" not in out, out
+    assert ros_node.wait_for_publishers("attitude"), integ.output()
+    sim = launch(SIM, "-p", "scene:=coning", "-p", "rate_hz:=100.0", "-p", "duration_s:=0.5",
+                 "-p", "wait_for_subscribers:=1", "-p", "qos_reliability:=reliable")
+    assert ros_node.spin_until(lambda: len(att) >= 50, timeout=60), (
+        f"{len(att)}\n{integ.output()}\n{sim.output()}")
+    assert sim.wait(timeout=15) == 0, sim.output()
+    assert integ.stop(signal.SIGTERM) == 0, integ.output()
