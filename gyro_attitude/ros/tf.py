@@ -18,16 +18,15 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from gyro_attitude.io.cdr_arrays import TransformCdr
 from gyro_attitude.ros.params import ParameterError
 
-__all__ = ["TF_TOPIC", "TF_STATIC_TOPIC", "TF_TYPE", "TF2_MSGS_MISSING", "tf_message_class",
+__all__ = ["TF_TOPIC", "TF_STATIC_TOPIC", "TF_TYPE", "TF2_MSGS_HOW", "TF2_MSGS_MISSING", "tf_message_class",
            "tf_qos", "tf_static_qos", "TfBroadcaster"]
 
 TF_TOPIC = "/tf"
 TF_STATIC_TOPIC = "/tf_static"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
-TF2_MSGS_MISSING = (
-    "parameter 'publish_tf': the ROS package tf2_msgs is not installed: source a ROS 2 "
-    "install, or run `bash dev.sh` (builds it into the venv; needs a C/C++ compiler, CMake "
-    "and the Python headers)")
+TF2_MSGS_HOW = ("source a ROS 2 install, or run `bash dev.sh` (builds it into the venv; needs "
+                "a C/C++ compiler, CMake and the Python headers)")
+TF2_MSGS_MISSING = f"parameter 'publish_tf': the ROS package tf2_msgs is not installed: {TF2_MSGS_HOW}"
 
 
 def tf_message_class():

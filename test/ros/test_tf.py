@@ -48,6 +48,8 @@ def test_integrator_and_sim_publish_tf_equal_to_their_attitude_topics(launch, ro
                    "-p", "publish_tf:=true")
     assert ros_node.wait_for_publishers("attitude"), integ.output()
     assert ros_node.wait_for_publishers("/tf"), integ.output()
+    # discovery is two-sided: the node's /tf writer must have matched this reader too
+    ros_node.spin_until(lambda: False, 1.5)
     sim = launch(SIM, "--params-file", str(config / "gyro_sim.yaml"), "-p", "scene:=coning",
                  "-p", f"rate_hz:={rate}", "-p", f"duration_s:={duration}",
                  "-p", "wait_for_subscribers:=1", "-p", "qos_reliability:=reliable",
