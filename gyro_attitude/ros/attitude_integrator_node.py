@@ -226,7 +226,8 @@ class AttitudeIntegratorNode(Node):
         self._undecodable = 0
         self._att_cdr = QuaternionStampedCdr(self._world_frame)
         self._check_distinct_topics(p, config)  # before any publisher or subscription exists
-        self._tf = TfBroadcaster(self, self._world_frame) if p["publish_tf"] else None
+        self._tf = (TfBroadcaster(self, self._world_frame, p["tf_child_frame_id"] or None)
+                    if p["publish_tf"] else None)
         # the per-sample kernels compiled, or loaded from numba's cache, before any sample
         # arrives (the first start after an installation compiles, for seconds)
         started = time.monotonic()
@@ -534,10 +535,11 @@ class AttitudeIntegratorNode(Node):
             sent = True
         if self._tf is not None:
             child = self._p["tf_child_frame_id"] or msg.frame_id
-            if child:
+            if child and child != self._world_frame:
                 sent |= self._tf.send(msg.stamp_cdr, child, x, y, z, w)
-            else:
-                self._warn("tf", "no TF sent: the Imu has no frame_id (set tf_child_frame_id)")
+            else:  # tf2 refuses an empty frame and a transform from a frame to itself
+                self._warn("tf", f"no TF sent: child frame {child!r} is empty or the parent "
+                           "frame (set tf_child_frame_id)")
         self._published += sent  # the samples whose attitude went out on a topic
 
     # ------------------------------------------------------------------ diagnostics

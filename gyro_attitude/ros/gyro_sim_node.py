@@ -182,8 +182,8 @@ class GyroSimNode(Node):
                                   if t != MAG_TOPIC or self._pub_mag is not None}
         self._tf = None
         if p["publish_tf"]:
-            self._tf = TfBroadcaster(self, self._world)
             self._tf_child = p["truth_frame_id"] or f"{self._frame_id}_truth"
+            self._tf = TfBroadcaster(self, self._world, self._tf_child)
             self._topics_published[TF_TOPIC] = TF_TYPE
         self._odom_wall: float | None = None  # monotonic time of the last odometry
         self._created_at = time.monotonic()

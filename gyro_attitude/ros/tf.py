@@ -57,15 +57,18 @@ class TfBroadcaster:
     """Sends rotations from ``parent`` to a child frame on ``/tf``, serialized in place
     (:class:`~gyro_attitude.io.cdr_arrays.TransformCdr`) rather than built as Python messages
     at the sample rate. Raises :class:`ParameterError` (:data:`TF2_MSGS_MISSING`) when
-    tf2_msgs is not installed."""
+    tf2_msgs is not installed, or naming the frame that cannot be one (``child``, when
+    known at start: not the parent)."""
 
-    def __init__(self, node, parent: str):
+    def __init__(self, node, parent: str, child: str | None = None):
         cls = tf_message_class()
         if cls is None:
             raise ParameterError(TF2_MSGS_MISSING)
         if not parent:
-            raise ParameterError("parameter 'publish_tf': the TF parent frame (world frame "
-                                 "id) is empty")
+            raise ParameterError("parameter 'world_frame_id': empty, the TF parent frame")
+        if child is not None and child == parent:  # tf2 refuses a frame's transform to itself
+            raise ParameterError(f"parameter 'publish_tf': the child frame {child!r} is the "
+                                 "parent frame (world_frame_id)")
         self._cdr = TransformCdr(parent)
         self._pub = node.create_publisher(cls, TF_TOPIC, tf_qos())
 

@@ -200,3 +200,15 @@ def test_gyro_sim_records_its_tf_with_the_other_topics(launch, namespace, tmp_pa
             b.ros_msg.header.stamp.sec, b.ros_msg.header.stamp.nanosec)
         r, q = t.transform.rotation, b.ros_msg.quaternion
         assert (r.x, r.y, r.z, r.w) == (q.x, q.y, q.z, q.w)
+
+
+@needs_tf2_msgs
+def test_a_transform_from_a_frame_to_itself_is_refused_at_start(launch):
+    procs = [launch(INTEGRATOR, "-p", "publish_tf:=true", "-p", "tf_child_frame_id:=inertial"),
+             launch(SIM, "-p", "publish_tf:=true", "-p", "world_frame_id:=w",
+                    "-p", "truth_frame_id:=w")]
+    for proc in procs:
+        assert proc.wait(timeout=60) == 2, proc.output()
+        out = proc.output()
+        assert "'publish_tf'" in out and "is the parent frame" in out, out
+        assert "Traceback" not in out, out
