@@ -14,6 +14,8 @@ Publishes
   zeros = unknown when the input carries no covariance);
 * ``attitude``: geometry_msgs/QuaternionStamped, same quaternion, header frame =
   ``world_frame_id``;
+* ``/tf`` with ``publish_tf``: the same rotation as ``world_frame_id`` -> the Imu's frame
+  (ros/tf.py, docs/tf.md);
 * ``/diagnostics``: diagnostic_msgs/DiagnosticArray about every ``diagnostics_period_s``:
   input rate, dt jitter, accepted samples and rejected samples by reason, the phase
   (``aligning`` | ``running`` | ``failed``), the gyro bias estimate, its standard error, the

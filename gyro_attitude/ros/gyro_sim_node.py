@@ -16,6 +16,7 @@ Publishes (relative names, so a namespace applies):
 * ``imu/mag`` (sensor_msgs/MagneticField, tesla, frame ``frame_id``) when the scene has a
   ``magnetometer:`` section; covariance σ² on the diagonal (all zeros for a noise-free one:
   unknown, REP-145).
+* ``/tf`` with ``publish_tf``: the true q_nb as ``world_frame_id`` -> ``<frame_id>_truth``.
 * ``/clock`` (rosgraph_msgs/Clock) in ``time_mode: fast``.
 
 Timing. Stamps are on the sample grid: ``start + t_k`` with ``t_k`` the scene's own int-ns

@@ -7,7 +7,8 @@ it), read by the package's one
 MCAP reader (:class:`gyro_attitude.io.mcap_reader.McapStreamReader`): streamed chunk by chunk
 when the summary says where chunks start, else (a recorder killed with ``kill -9``) every
 readable message sorted in memory.  Publishers get the
-recorded offered QoS (reliable / transient-local only if every recorded publisher was).
+recorded offered QoS (reliable / transient-local only if every recorded publisher was);
+``/tf_static`` is always reliable and transient local, as tf2's listeners take it.
 
 Parameters: :func:`parameter_specs` (``config/mcap_player.yaml`` lists them all). An input
 that cannot be read (empty, not MCAP, damaged beyond what the reader recovers) ends the node
