@@ -6,12 +6,14 @@ from __future__ import annotations
 import os
 import signal
 import struct
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
 import pytest
 from geometry_msgs.msg import QuaternionStamped, TransformStamped
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import Imu
 
 from gyro_attitude.ros import convert
 
@@ -50,6 +52,9 @@ def test_integrator_and_sim_publish_tf_equal_to_their_attitude_topics(launch, ro
     tf = _collect(ros_node, tf2_msgs.TFMessage, "/tf")
     att = _collect(ros_node, QuaternionStamped, "attitude")
     truth = _collect(ros_node, QuaternionStamped, "truth/attitude")
+    # the simulator starts once this probe and the integrator take imu/data_raw: its
+    # participant then knows this probe's, and its truth and /tf writers match quickly
+    raw = _collect(ros_node, Imu, "imu/data_raw")
     config = REPO / "config"
     integ = launch(INTEGRATOR, "--params-file", str(config / "attitude_integrator.yaml"),
                    "-p", "initial_attitude_source:=truth", "-p", "qos_reliability:=reliable",
@@ -60,11 +65,12 @@ def test_integrator_and_sim_publish_tf_equal_to_their_attitude_topics(launch, ro
     ros_node.spin_until(lambda: False, 1.5)
     sim = launch(SIM, "--params-file", str(config / "gyro_sim.yaml"), "-p", "scene:=coning",
                  "-p", f"rate_hz:={rate}", "-p", f"duration_s:={duration}",
-                 "-p", "wait_for_subscribers:=1", "-p", "qos_reliability:=reliable",
+                 "-p", "wait_for_subscribers:=2", "-p", "qos_reliability:=reliable",
                  "-p", "publish_tf:=true")
     assert ros_node.spin_until(lambda: len(att) >= n and len(tf) >= 2 * n, timeout=60), (
-        f"{len(att)} attitudes, {len(tf)} TF messages of {n}\n{integ.output()}\n"
-        f"{sim.output()}")
+        f"{len(raw)} Imu, {len(truth)} truth, {len(att)} attitudes, TF messages of {n}: "
+        f"{Counter(t.child_frame_id for m in tf for t in m.transforms)}\n"
+        f"{integ.output()}\n{sim.output()}")
     assert sim.wait(timeout=15) == 0, sim.output()
     assert integ.stop(signal.SIGTERM) == 0, integ.output()
 
