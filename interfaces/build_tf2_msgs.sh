@@ -2,7 +2,8 @@
 # Build tf2_msgs (TFMessage only, interfaces/tf2_msgs) into a pip-only virtual environment
 # whose ROS wheels do not ship it, so that the nodes can publish TF (publish_tf).
 #   bash interfaces/build_tf2_msgs.sh VENV
-# Skipped when VENV's Python already imports tf2_msgs (a system ROS, an earlier build).
+# Skipped when VENV's Python imports a tf2_msgs not built here (a system ROS); built again
+# when the interface files, this script or requirements.txt change.
 # Never fails the set-up: what is missing (a compiler, CMake, Python headers) or a failed
 # build is said in one line, and everything but publish_tf works without it.
 set -uo pipefail
@@ -13,11 +14,13 @@ py="$venv/bin/python"
 say() { echo "[dev.sh] $*" >&2; }
 off="TF (publish_tf) stays off; everything else works"
 
+# built again when the interface, this script or the pinned wheels (requirements.txt) change
 stamp="$venv/.tf2_msgs-$(cat "$src/package.xml" "$src/CMakeLists.txt" "$src/msg/TFMessage.msg" \
-  "$0" | sha256sum | cut -c1-16)"
+  "$0" "$here/../requirements.txt" | sha256sum | cut -c1-16)"
 [ -e "$stamp" ] && exit 0
-if (cd / && "$py" -c 'import tf2_msgs.msg' 2>/dev/null); then
-  touch "$stamp"  # provided already (a system ROS on the path, or built before)
+built_before="$(ls "$venv"/.tf2_msgs-built-* 2>/dev/null | head -1)"
+if [ -z "$built_before" ] && (cd / && "$py" -c 'import tf2_msgs.msg' 2>/dev/null); then
+  touch "$stamp"  # provided by a system ROS on the path: nothing to build
   exit 0
 fi
 
@@ -51,7 +54,8 @@ if "$cmake_bin" -S "$src" -B "$build" -DCMAKE_INSTALL_PREFIX="$venv" -DBUILD_TES
     && "$cmake_bin" --build "$build" -j "$(nproc 2>/dev/null || echo 2)" >>"$log" 2>&1 \
     && "$cmake_bin" --install "$build" >>"$log" 2>&1 \
     && (cd / && "$py" -c 'import tf2_msgs.msg') >>"$log" 2>&1; then
-  touch "$stamp"
+  rm -f "$venv"/.tf2_msgs-built-* "$venv"/.tf2_msgs-????????????????  # earlier stamps
+  touch "$stamp" "$venv/.tf2_msgs-built-${stamp##*-}"
 else
   say "tf2_msgs build failed (see $log); $off"
 fi
