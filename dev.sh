@@ -26,6 +26,9 @@ if [ ! -e "$stamp" ]; then
   "$venv/bin/python" -m pip install --quiet --disable-pip-version-check -r "$req"
   touch "$stamp"
 fi
+# tf2_msgs (TF) from its interface definition, once, where nothing provides it; a machine
+# without a compiler gets one line saying so, and everything but publish_tf still works
+bash interfaces/build_tf2_msgs.sh "$venv"
 echo "[dev.sh] installing gyro_attitude into $venv" >&2
 rm -rf build/ros_launchers
 "$venv/bin/python" -m pip install --quiet --disable-pip-version-check \

@@ -49,6 +49,7 @@ __all__ = [
     "CdrLayout",
     "ImuCdr",
     "QuaternionStampedCdr",
+    "TransformCdr",
     "header_body_offset",
     "CDR_LE_HEADER",
     "MESSAGE_RECORD_PREFIX",
@@ -605,3 +606,42 @@ class QuaternionStampedCdr:
         body = framing[1]
         sec, nanosec = _STAMP.unpack_from(raw, 4)
         return sec * 1_000_000_000 + nanosec, _QUATERNION.unpack_from(raw, body)
+
+
+class TransformCdr:
+    """Serialized ``tf2_msgs/TFMessage`` with one ``geometry_msgs/TransformStamped``: a
+    rotation (translation zero) from the frame ``parent`` to a child frame, as a tf2
+    ``TransformBroadcaster`` sends it on ``/tf`` (the bytes rclpy writes for it)."""
+
+    __slots__ = ("_parent", "_child", "_middle", "_tail")
+
+    def __init__(self, parent: str):
+        self._parent = _frame_bytes(parent)
+        self._child: str | None = None
+        self._middle = b""
+        self._tail = struct.Struct("<7d")
+
+    def _middle_for(self, child: str) -> bytes:
+        # XCDR1 alignment counts from the byte after the 4-byte encapsulation header: the
+        # body starts with the array's length (4) and the stamp (8), so frame_id's own
+        # length sits at 12
+        child_b = _frame_bytes(child)
+        out = _U32.pack(len(self._parent)) + self._parent
+        pos = 16 + len(self._parent)
+        out += b"\x00" * (-pos % 4)
+        pos += -pos % 4 + 4 + len(child_b)
+        out += _U32.pack(len(child_b)) + child_b
+        return out + b"\x00" * (-pos % 8)  # the translation's float64s are 8-aligned
+
+    def encode(self, stamp_cdr: bytes, child: str, x: float, y: float, z: float,
+               w: float) -> bytes:
+        """The message stamped ``stamp_cdr`` (8 serialized bytes, e.g.
+        :attr:`ImuCdr.stamp_cdr`), child frame ``child``, rotation (x, y, z, w)."""
+        if child != self._child:
+            self._middle = self._middle_for(child)
+            self._child = child
+        return (CDR_LE_HEADER + _ONE + stamp_cdr + self._middle
+                + self._tail.pack(0.0, 0.0, 0.0, x, y, z, w))
+
+
+_ONE = _U32.pack(1)

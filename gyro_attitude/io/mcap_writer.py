@@ -51,6 +51,7 @@ from gyro_attitude.io.mcap_records import (
     header_record,
     message_index_record,
     metadata_index_record,
+    schema_record,
     statistics_record,
     summary_offset_record,
 )
@@ -362,12 +363,15 @@ class Rosbag2McapWriter:
         return False
 
     # ----------------------------------------------------------------- topics
-    def add_topic(self, topic: str, type_name: str, qos_profiles_yaml: str | None = None) -> int:
+    def add_topic(self, topic: str, type_name: str, qos_profiles_yaml: str | None = None, *,
+                  recorded_schema: tuple[str, bytes, str] | None = None) -> int:
         """Declare ``topic`` of ``type_name`` (``pkg/msg/Type``); returns its channel id.
 
         Adding the same topic again with the same type returns the existing id.
         ``qos_profiles_yaml`` is the publishers' offered QoS (rosbag2 YAML, see
         :mod:`gyro_attitude.io.qos`); default: one reliable, volatile, keep-last-10 profile.
+        ``recorded_schema`` ``(encoding, data, type_hash)``: a topic copied from a recording
+        keeps its recorded schema and type hash (the message package need not be installed).
         """
         self._check_open()
         topic = normalize_topic(topic)
@@ -379,10 +383,15 @@ class Rosbag2McapWriter:
             return ch.id
         schema_id = (self._schemas[type_name][0] if type_name in self._schemas
                      else len(self._schemas) + 1)
-        ch = Rosbag2Topic.create(len(self._channels) + 1, topic, type_name, schema_id,
-                                 qos_profiles_yaml)
+        if recorded_schema is None:
+            ch = Rosbag2Topic.create(len(self._channels) + 1, topic, type_name, schema_id,
+                                     qos_profiles_yaml)
+        else:
+            ch = Rosbag2Topic.recorded(len(self._channels) + 1, topic, type_name, schema_id,
+                                       qos_profiles_yaml, recorded_schema[2])
         if type_name not in self._schemas:
-            rec = ros2_schema_record(schema_id, type_name)
+            rec = (ros2_schema_record(schema_id, type_name) if recorded_schema is None
+                   else schema_record(schema_id, type_name, *recorded_schema[:2]))
             self._schemas[type_name] = (schema_id, rec)
             self._emit(rec)
         rec = ch.channel_record()

@@ -72,6 +72,18 @@ class Rosbag2Topic:
         parse_qos_profiles(qos)  # validate before anything reaches the file
         return cls(channel_id, topic, type_name, schema_id, qos, type_hash(type_name))
 
+    @classmethod
+    def recorded(cls, channel_id: int, topic: str, type_name: str, schema_id: int,
+                 qos_profiles_yaml: str | None, type_hash_: str) -> Rosbag2Topic:
+        """A topic copied from a recording: its recorded QoS (the default profile when
+        there is none or it does not parse) and type hash, no installed package looked up."""
+        qos = qos_profiles_yaml or DEFAULT_QOS_YAML
+        try:
+            parse_qos_profiles(qos)
+        except ValueError:
+            qos = DEFAULT_QOS_YAML
+        return cls(channel_id, topic, type_name, schema_id, qos, type_hash_)
+
     def channel_record(self) -> bytes:
         return channel_record(self.id, self.schema_id, self.topic, MESSAGE_ENCODING,
                               {"offered_qos_profiles": self.qos_yaml,

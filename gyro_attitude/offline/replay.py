@@ -57,6 +57,7 @@ from gyro_attitude.io.cdr_arrays import (
     imu_batch,
     quaternion_stamped_batch,
 )
+from gyro_attitude.io.copy_topics import TopicCopy
 from gyro_attitude.io.imu_fast import read_topic_arrays
 from gyro_attitude.io.mcap_reader import bag_files
 from gyro_attitude.io.mcap_writer import DEFAULT_COMPRESSION, Rosbag2McapWriter
@@ -446,6 +447,7 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     # interrupt) can fail after the output is in place
     figures = _truth_figures(truth, tv, qv, spool.empty) if truth is not None and len(truth) \
         else None
+    passed = TopicCopy(input_path, on_damage=on_damage)  # /tf, /tf_static as recorded
     with SafeOutput(output_path, force=force) as tmp:
         with Rosbag2McapWriter(tmp, compression=compression, chunk_size=chunk_size) as w:
             w.add_topic("attitude", QUATERNION_STAMPED_TYPE)
@@ -456,9 +458,11 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
             for lo in range(0, keep.size, OUTPUT_BLOCK_MESSAGES):
                 hi = min(lo + OUTPUT_BLOCK_MESSAGES, keep.size)
                 rows = slice(keep[lo], keep[hi - 1] + 1) if every else keep[lo:hi]
+                passed.write_until(w, int(imu.log_time_ns[keep[hi - 1]]))
                 w.write_batches(_output_batches(imu, rows, tv[lo:hi], q_out[lo:hi],
                                                 _block(res.variance, lo, hi),
                                                 _block(res.variance_known, lo, hi), out_frame))
+            passed.write_rest(w)
     t_end = time.perf_counter()
 
     result = ReplayResult(

@@ -14,6 +14,8 @@ Publishes
   zeros = unknown when the input carries no covariance);
 * ``attitude``: geometry_msgs/QuaternionStamped, same quaternion, header frame =
   ``world_frame_id``;
+* ``/tf`` with ``publish_tf``: the same rotation as ``world_frame_id`` -> the Imu's frame
+  (ros/tf.py, docs/tf.md);
 * ``/diagnostics``: diagnostic_msgs/DiagnosticArray about every ``diagnostics_period_s``:
   input rate, dt jitter, accepted samples and rejected samples by reason, the phase
   (``aligning`` | ``running`` | ``failed``), the gyro bias estimate, its standard error, the
@@ -120,6 +122,7 @@ from gyro_attitude.ros.params import (
     spec_from_setting,
 )
 from gyro_attitude.ros.qos import imu_qos
+from gyro_attitude.ros.tf import TfBroadcaster
 
 NODE_NAME = "attitude_integrator"
 OUTPUT_DEPTH = 1000  # keep-last history of imu/data and attitude
@@ -145,6 +148,11 @@ def parameter_specs(settings=SETTINGS) -> list[ParamSpec]:
         ParamSpec("world_frame_id", "",
                   "header.frame_id of the attitude output ('' = the world_frame's name, or "
                   "'inertial' with frame inertial)"),
+        ParamSpec("publish_tf", False,
+                  "also publish the attitude on /tf (tf2_msgs/TFMessage) as world_frame_id -> "
+                  "tf_child_frame_id, stamped as the attitude (needs tf2_msgs)"),
+        ParamSpec("tf_child_frame_id", "",
+                  "publish_tf: the child frame ('' = the Imu's header.frame_id)"),
         ParamSpec("qos_reliability", "best_effort",
                   "imu/data_raw subscription reliability", choices=("best_effort", "reliable")),
         ParamSpec("qos_depth", 1000, "imu/data_raw subscription queue depth", low=1,
@@ -220,6 +228,8 @@ class AttitudeIntegratorNode(Node):
         self._undecodable = 0
         self._att_cdr = QuaternionStampedCdr(self._world_frame)
         self._check_distinct_topics(p, config)  # before any publisher or subscription exists
+        self._tf = (TfBroadcaster(self, self._world_frame, p["tf_child_frame_id"] or None)
+                    if p["publish_tf"] else None)
         # the per-sample kernels compiled, or loaded from numba's cache, before any sample
         # arrives (the first start after an installation compiles, for seconds)
         started = time.monotonic()
@@ -525,6 +535,13 @@ class AttitudeIntegratorNode(Node):
         if self._pub_att.get_subscription_count():
             self._pub_att.publish(self._att_cdr.encode(msg.stamp_cdr, x, y, z, w))
             sent = True
+        if self._tf is not None:
+            child = self._p["tf_child_frame_id"] or msg.frame_id
+            if child and child != self._world_frame:
+                sent |= self._tf.send(msg.stamp_cdr, child, x, y, z, w)
+            else:  # tf2 refuses an empty frame and a transform from a frame to itself
+                self._warn("tf", f"no TF sent: child frame {child!r} is empty or the parent "
+                           "frame (set tf_child_frame_id)")
         self._published += sent  # the samples whose attitude went out on a topic
 
     # ------------------------------------------------------------------ diagnostics

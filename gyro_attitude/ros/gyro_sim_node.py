@@ -16,6 +16,7 @@ Publishes (relative names, so a namespace applies):
 * ``imu/mag`` (sensor_msgs/MagneticField, tesla, frame ``frame_id``) when the scene has a
   ``magnetometer:`` section; covariance σ² on the diagonal (all zeros for a noise-free one:
   unknown, REP-145).
+* ``/tf`` with ``publish_tf``: the true q_nb as ``world_frame_id`` -> ``<frame_id>_truth``.
 * ``/clock`` (rosgraph_msgs/Clock) in ``time_mode: fast``.
 
 Timing. Stamps are on the sample grid: ``start + t_k`` with ``t_k`` the scene's own int-ns
@@ -31,6 +32,7 @@ in-process to a rosbag2-compatible MCAP file.
 from __future__ import annotations
 
 import dataclasses
+import struct
 import sys
 import time
 
@@ -67,10 +69,12 @@ from gyro_attitude.ros import convert
 from gyro_attitude.ros.node_main import run_node
 from gyro_attitude.ros.params import ParameterError, ParamSpec, check_update, declare_all
 from gyro_attitude.ros.qos import imu_qos
+from gyro_attitude.ros.tf import TF_TOPIC, TF_TYPE, TfBroadcaster
 
 NODE_NAME = "gyro_sim"
 _GRID_MARGIN_NS = 50_000  # realtime: a sample is due this long before the timer tick
 DEFAULT_SCENE = "coning"
+_STAMP = struct.Struct("<iI")  # builtin_interfaces/Time serialized (sec, nanosec)
 
 
 
@@ -94,6 +98,10 @@ def parameter_specs() -> list[ParamSpec]:
         ParamSpec("publish_period_s", 0.001, "realtime publishing timer period [s]", low=1e-4,
                   high=1.0),
         ParamSpec("publish_truth", True, "publish truth/attitude and truth/odom"),
+        ParamSpec("publish_tf", False,
+                  "also publish the true attitude on /tf (tf2_msgs/TFMessage) as "
+                  "world_frame_id -> truth_frame_id (needs tf2_msgs)"),
+        ParamSpec("truth_frame_id", "", "publish_tf: the child frame ('' = <frame_id>_truth)"),
         ParamSpec("wait_for_subscribers", 0,
                   "wait until imu/data_raw has this many subscribers before starting",
                   low=0, high=1000),
@@ -173,6 +181,11 @@ class GyroSimNode(Node):
                 MagneticField, MAG_TOPIC, imu_qos(p["qos_reliability"], p["qos_depth"]))
         self._topics_published = {t: ty for t, ty in TOPICS.items()
                                   if t != MAG_TOPIC or self._pub_mag is not None}
+        self._tf = None
+        if p["publish_tf"]:
+            self._tf_child = p["truth_frame_id"] or f"{self._frame_id}_truth"
+            self._tf = TfBroadcaster(self, self._world, self._tf_child)
+            self._topics_published[TF_TOPIC] = TF_TYPE
         self._odom_wall: float | None = None  # monotonic time of the last odometry
         self._created_at = time.monotonic()
         self._odom_intervals: list[int] = []
@@ -314,6 +327,10 @@ class GyroSimNode(Node):
             odom = convert.odometry_msg(t_ns, self._world, self._frame_id, pos, q, v_b, w_nb)
             self._pub_odom.publish(odom)
             msgs += [("truth/attitude", att), ("truth/odom", odom)]
+        if self._tf is not None:
+            raw = self._tf.encode(_STAMP.pack(*divmod(t_ns, 1_000_000_000)), self._tf_child, *q)
+            self._tf.publish(raw)
+            msgs.append((TF_TOPIC, raw))
         if self._pub_clock is not None:
             self._pub_clock.publish(Clock(clock=convert.ns_to_stamp(t_ns)))
         if self._recording is not None and not self._recording.closed:
@@ -358,7 +375,7 @@ class GyroSimNode(Node):
         self._generated = 0
         self._block, self._block_pos = [], 0
         self._imu_raw = []
-        self._resolve_cache = {t: self._resolve(t) for t in TOPICS}
+        self._resolve_cache = {t: self._resolve(t) for t in {**TOPICS, **self._topics_published}}
 
     def _on_odometry(self, msg: Odometry) -> None:
         t_ns = convert.stamp_to_ns(msg.header.stamp)

@@ -7,7 +7,8 @@ it), read by the package's one
 MCAP reader (:class:`gyro_attitude.io.mcap_reader.McapStreamReader`): streamed chunk by chunk
 when the summary says where chunks start, else (a recorder killed with ``kill -9``) every
 readable message sorted in memory.  Publishers get the
-recorded offered QoS (reliable / transient-local only if every recorded publisher was).
+recorded offered QoS (reliable / transient-local only if every recorded publisher was);
+``/tf_static`` is always reliable and transient local, as tf2's listeners take it.
 
 Parameters: :func:`parameter_specs` (``config/mcap_player.yaml`` lists them all). An input
 that cannot be read (empty, not MCAP, damaged beyond what the reader recovers) ends the node
@@ -41,6 +42,7 @@ from gyro_attitude.ros.mcap_recorder_node import message_class
 from gyro_attitude.ros.node_main import InputError, run_node
 from gyro_attitude.ros.params import ParameterError, ParamSpec, check_update, declare_all
 from gyro_attitude.ros.qos import adapted_qos
+from gyro_attitude.ros.tf import TF2_MSGS_HOW, TF_STATIC_TOPIC, TF_TYPE, tf_static_qos
 
 NODE_NAME = "mcap_player"
 PLAYBACK_QUEUE_DEPTH = 1000
@@ -180,7 +182,8 @@ class McapPlayerNode(Node):
             try:
                 cls = message_class(type_name)
             except ValueError as exc:
-                self.get_logger().warning(f"not playing {topic}: {exc}")
+                how = f" ({TF2_MSGS_HOW})" if type_name == TF_TYPE else ""
+                self.get_logger().warning(f"not playing {topic}: {exc}{how}")
                 self._pubs[topic] = None
                 return None
             self._classes[topic] = cls
@@ -188,8 +191,11 @@ class McapPlayerNode(Node):
                 profiles = parse_qos_profiles(qos_yaml)
             except ValueError:
                 profiles = []  # unreadable offered QoS: the rule's safe default
-            self._pubs[topic] = self.create_publisher(
-                cls, name, adapted_qos(profiles, PLAYBACK_QUEUE_DEPTH))
+            # /tf_static as tf2 has it whatever the recording says (transient local: a
+            # listener started later still gets the static transforms); /tf as recorded
+            qos = (tf_static_qos(PLAYBACK_QUEUE_DEPTH) if topic == TF_STATIC_TOPIC
+                   else adapted_qos(profiles, PLAYBACK_QUEUE_DEPTH))
+            self._pubs[topic] = self.create_publisher(cls, name, qos)
         return self._pubs[topic]
 
     def _decodes(self, topic: str, type_name: str, log_time: int, data) -> bool:
