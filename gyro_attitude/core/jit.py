@@ -28,10 +28,15 @@ __all__ = ["backend", "compiled", "direct", "kernel"]
 _MARK = "__gyro_attitude_kernel__"
 
 
-def kernel(func):
-    """Mark ``func`` as written in numba's nopython subset (see the module docstring)."""
-    setattr(func, _MARK, True)
-    return func
+def kernel(func=None, *, inline: bool = False):
+    """Mark ``func`` as written in numba's nopython subset (see the module docstring).
+    ``@kernel(inline=True)``: a small leaf step whose compiled form is inlined into its
+    callers (a call that passes arrays costs their reference counts; the whole chain inlined
+    would take minutes to compile)."""
+    def mark(f):
+        setattr(f, _MARK, "inline" if inline else True)
+        return f
+    return mark if func is None else mark(func)
 
 
 @functools.cache
@@ -64,11 +69,15 @@ def compiled(func):
     twin = types.FunctionType(func.__code__, names, func.__name__, func.__defaults__,
                               func.__closure__)
     twin.__module__, twin.__qualname__ = func.__module__, func.__qualname__
+    # numpy's error model: no zero-division check per division (the steps guard their
+    # divisions themselves; the numbers are the same)
+    options = {"error_model": "numpy",
+               "inline": "always" if getattr(func, _MARK) == "inline" else "never"}
     try:
-        return numba.njit(cache=True, error_model="numpy")(twin)
+        return numba.njit(cache=True, **options)(twin)
     except RuntimeError as exc:  # no writable cache beside the source nor in the user's home
         _warn_uncached(exc)
-        return numba.njit(cache=False, error_model="numpy")(twin)
+        return numba.njit(cache=False, **options)(twin)
 
 
 def direct(kernel_form):

@@ -178,7 +178,7 @@ def _check_num(name, v, lo, hi) -> float:
     return float(v)
 
 
-@kernel
+@kernel(inline=True)
 def _butterworth2(tau: float, dt: float) -> tuple[float, float, float, float, float]:
     """(b0, b1, b2, a1, a2) of the second-order Butterworth low-pass by the bilinear transform,
     cutoff ``√2 / (2π τ)`` (so that its step response settles like a first-order filter of
@@ -484,7 +484,7 @@ def _tilt(pa, af, ai, dt, ox, oy, oz, fx, fy, fz, c00, c01, c02, c10, c11, c12, 
     return f * gy, -f * gx, learn
 
 
-@kernel
+@kernel(inline=True)
 def _coefficients(af, ai, tau, dt):
     """The low-pass coefficients for ``tau`` and ``dt``, kept while both stay (0.1 µs steps
     of dt: a jittery clock reuses them)."""

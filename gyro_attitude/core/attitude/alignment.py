@@ -430,7 +430,7 @@ def aligner_update(al, ring, t, g0, g1, g2, a0, a1, a2, has_m, m0, m1, m2):
     return 0, al.done
 
 
-@kernel
+@kernel(inline=True)
 def _level_frame(roll, pitch, x, y, z):
     """``C_lb v``: body → level frame (yaw 0), Ry(pitch) Rx(roll) (:func:`_c_lb`)."""
     cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
@@ -438,7 +438,7 @@ def _level_frame(roll, pitch, x, y, z):
             -sp * x + cp * sr * y + cp * cr * z)
 
 
-@kernel
+@kernel(inline=True)
 def _var(s1, s2, n, i):
     return max(s2[i] - s1[i] * s1[i] / n, 0.0) / max(n - 1, 1)
 

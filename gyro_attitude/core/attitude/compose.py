@@ -255,7 +255,7 @@ def first_interval_output(q0, b1, t, rate_n):
 # (~1 µs per operation) would cost ~100 µs per update.  Kernels (core/jit.py): the compiled
 # per-sample chain calls these same functions.
 
-@kernel
+@kernel(inline=True)
 def exp_scalar(x, y, z):
     """Scalar twin of :func:`gyro_attitude.core.rotation._exp_rotvec` (same series)."""
     th2 = x * x + y * y + z * z
@@ -267,7 +267,7 @@ def exp_scalar(x, y, z):
     return (x * k, y * k, z * k, math.cos(0.5 * th))
 
 
-@kernel
+@kernel(inline=True)
 def qmul_scalar(a, b):
     ax, ay, az, aw = a
     bx, by, bz, bw = b
@@ -277,7 +277,7 @@ def qmul_scalar(a, b):
             aw * bw - ax * bx - ay * by - az * bz)
 
 
-@kernel
+@kernel(inline=True)
 def compose_scalar(q, b, zeta):
     """``normalize(exp(−ζ) ⊗ q ⊗ b)`` in plain floats (``zeta`` None: no nav frame)."""
     out = qmul_scalar(q, b)

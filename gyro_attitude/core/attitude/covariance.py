@@ -111,7 +111,7 @@ class AttitudeCovariance:
         compiled(aid_tilt)(self.c, kp_dt, floor_var)
 
 
-@kernel
+@kernel(inline=True)
 def propagate(c, k2, dt_s, q0, q1, q2):
     """:meth:`AttitudeCovariance.propagate` on the state array ``c`` (bias random walk ``k2``)."""
     d2 = 2.0 * dt_s
@@ -125,7 +125,7 @@ def propagate(c, k2, dt_s, q0, q1, q2):
         c[V_BB + i] = b + k2dt
 
 
-@kernel
+@kernel(inline=True)
 def zero_rate_update(c, se0, se1, se2):
     """:meth:`AttitudeCovariance.zero_rate_update` on the state array ``c``."""
     for i, se in ((0, se0), (1, se1), (2, se2)):
@@ -133,7 +133,7 @@ def zero_rate_update(c, se0, se1, se2):
         c[V_TB + i] = 0.0
 
 
-@kernel
+@kernel(inline=True)
 def aid_tilt(c, kp_dt, floor_var):
     """:meth:`AttitudeCovariance.aid_tilt` on the state array ``c``."""
     a = 1.0 - min(kp_dt, 1.0)

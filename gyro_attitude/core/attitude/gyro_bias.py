@@ -98,7 +98,7 @@ _B_INTS = 13
 BAD_ATTITUDE = -3
 
 
-@kernel
+@kernel(inline=True)
 def seg_stats(n, bf):
     """Mean and within-rest squared deviations of the open rest's ``n`` samples."""
     m0 = bf[B_REF] + bf[B_S1] / n
@@ -220,7 +220,7 @@ def _earth_rate_body(q_nb, w_n) -> tuple[float, float, float]:
     return _c_bn_times(x, y, z, w, 2.0 / n, w_n)
 
 
-@kernel
+@kernel(inline=True)
 def _c_bn_times(x, y, z, w, s, w_n):
     """``C_bn ω`` with ``s = 2/|q|²``; floats or arrays alike (same operations, same bits)."""
     e0, e1, e2 = float(w_n[0]), float(w_n[1]), float(w_n[2])

@@ -315,13 +315,12 @@ def untrusted_fits(t_ns: np.ndarray, omega: np.ndarray, k: np.ndarray, fitted: n
     return bad
 
 
-@kernel
-def untrusted_fit_scalar(ts, ws, k, nodes, fitted) -> float:
+@kernel(inline=True)
+def untrusted_fit_scalar(ts, ws, k, n, f0, f1) -> float:
     """Plain-float twin of :func:`untrusted_fits` for one interval ``k`` of the histories
-    ``ts, ws`` (their first ``len(nodes)`` entries: the fit's nodes are the whole history)
-    fitted on ``nodes`` (``fitted``: the fitted 3-tuples): the weight of the exponential map's
-    step, 0.0 when the fit can be trusted.  A kernel (:mod:`gyro_attitude.core.jit`)."""
-    n = len(nodes)
+    ``ts, ws`` (their first ``n`` entries, the fit's nodes) fitted at two points (the rates
+    ``f0``, ``f1``): the weight of the exponential map's step, 0.0 when the fit can be trusted.
+    A kernel (:mod:`gyro_attitude.core.jit`): indexing only, nothing allocated."""
     weight = 0.0
     j = max(k, 2)
     if j < n:
@@ -340,20 +339,20 @@ def untrusted_fit_scalar(ts, ws, k, nodes, fitted) -> float:
     if n > 2 and _uneven(ts, n):
         for c in range(3):
             lo, hi = math.inf, -math.inf
-            for i in nodes:
+            for i in range(n):
                 v = ws[i][c]
                 if v < lo:
                     lo = v
                 if v > hi:
                     hi = v
             slack = FIT_OVERSHOOT_MAX * (hi - lo) + 1e-12 * (abs(lo) + abs(hi))
-            for f in fitted:
-                if f[c] > hi + slack or f[c] < lo - slack:
-                    return 1.0
+            if f0[c] > hi + slack or f0[c] < lo - slack or f1[c] > hi + slack \
+                    or f1[c] < lo - slack:
+                return 1.0
     return weight
 
 
-@kernel
+@kernel(inline=True)
 def _uneven(ts, n) -> bool:
     """Whether the steps of the first ``n`` stamps ``ts`` spread by more than _EVEN_TOL of the
     shortest."""
@@ -415,14 +414,51 @@ def causal_window(n_samples: int, lookahead: bool):
     return window
 
 
-@kernel
-def causal_fit_scalar_checked(ts, ws, k, nodes, fractions):
-    """The causal fit's rates at ``fractions`` of interval ``k`` and whether they can be
-    trusted (:func:`untrusted_fit_scalar`): (rates, h, untrusted).  A kernel
-    (:mod:`gyro_attitude.core.jit`)."""
+@kernel(inline=True)
+def _lagrange_at(n, x0, x1, x2, x3, y0, y1, y2, y3, e):
+    """The polynomial through the first ``n`` (2, 3 or 4) of the nodes ``(x_i, y_i)`` at
+    ``e``: :func:`lagrange_points_scalar` written out per node count, the same operations in
+    the same order (so the same numbers), nothing allocated."""
+    if n == 4:
+        d01, d02, d03, d12, d13, d23 = x0 - x1, x0 - x2, x0 - x3, x1 - x2, x1 - x3, x2 - x3
+        i0 = 1.0 / (d01 * d02 * d03)
+        i1 = -1.0 / (d01 * d12 * d13)
+        i2 = 1.0 / (d02 * d12 * d23)
+        i3 = -1.0 / (d03 * d13 * d23)
+        a0, a1, a2, a3 = e - x0, e - x1, e - x2, e - x3
+        a01, a23 = a0 * a1, a2 * a3
+        w0, w1, w2, w3 = a1 * a23 * i0, a0 * a23 * i1, a01 * a3 * i2, a01 * a2 * i3
+        return (w0 * y0[0] + w1 * y1[0] + w2 * y2[0] + w3 * y3[0],
+                w0 * y0[1] + w1 * y1[1] + w2 * y2[1] + w3 * y3[1],
+                w0 * y0[2] + w1 * y1[2] + w2 * y2[2] + w3 * y3[2])
+    if n == 3:
+        w0 = 1.0 / (1.0 * (x0 - x1) * (x0 - x2)) * (e - x1) * (e - x2)
+        w1 = 1.0 / (1.0 * (x1 - x0) * (x1 - x2)) * (e - x0) * (e - x2)
+        w2 = 1.0 / (1.0 * (x2 - x0) * (x2 - x1)) * (e - x0) * (e - x1)
+        return (0.0 + w0 * y0[0] + w1 * y1[0] + w2 * y2[0],
+                0.0 + w0 * y0[1] + w1 * y1[1] + w2 * y2[1],
+                0.0 + w0 * y0[2] + w1 * y1[2] + w2 * y2[2])
+    w0 = 1.0 / (1.0 * (x0 - x1)) * (e - x1)
+    w1 = 1.0 / (1.0 * (x1 - x0)) * (e - x0)
+    return (0.0 + w0 * y0[0] + w1 * y1[0], 0.0 + w0 * y0[1] + w1 * y1[1],
+            0.0 + w0 * y0[2] + w1 * y1[2])
+
+
+@kernel(inline=True)
+def causal_fit_two(ts, ws, k, n, fa, fb):
+    """The causal fit through the first ``n`` samples of the histories at the fractions
+    ``fa`` and ``fb`` of interval ``k``, and whether it can be trusted
+    (:func:`untrusted_fit_scalar`): (rate at the first point, at the second, h, the
+    exponential map's weight)."""
     t_prev = ts[k - 1]
     h = (ts[k] - t_prev) * 1e-9
-    xs = [(ts[i] - t_prev) * 1e-9 for i in nodes]
-    ys = [ws[i] for i in nodes]
-    rates = lagrange_points_scalar(xs, ys, [h * f for f in fractions])
-    return rates, h, untrusted_fit_scalar(ts, ws, k, nodes, rates)
+    x0 = (ts[0] - t_prev) * 1e-9
+    x1 = (ts[1] - t_prev) * 1e-9
+    x2 = (ts[2] - t_prev) * 1e-9 if n > 2 else 0.0
+    x3 = (ts[3] - t_prev) * 1e-9 if n > 3 else 0.0
+    y0, y1 = ws[0], ws[1]
+    y2 = ws[2] if n > 2 else ws[0]
+    y3 = ws[3] if n > 3 else ws[0]
+    f0 = _lagrange_at(n, x0, x1, x2, x3, y0, y1, y2, y3, h * fa)
+    f1 = _lagrange_at(n, x0, x1, x2, x3, y0, y1, y2, y3, h * fb)
+    return f0, f1, h, untrusted_fit_scalar(ts, ws, k, n, f0, f1)

@@ -330,7 +330,7 @@ def rest_update(rf, ri, wt, wx, wc, t, g0, g1, g2, has_a, a0, a1, a2):
     return slot
 
 
-@kernel
+@kernel(inline=True)
 def _decide(rf, ri, t, n, wc, head):
     # written out per axis; the same operations in the same order as detect_rest's arrays,
     # so the decisions stay bit-identical

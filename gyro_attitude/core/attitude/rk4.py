@@ -9,7 +9,7 @@ import numpy as np
 from gyro_attitude.core.attitude.algorithm import RateAlgorithm
 from gyro_attitude.core.attitude.compose import normalize_rows, qmul_scalar
 from gyro_attitude.core.attitude.interpolation import (
-    causal_fit_scalar_checked,
+    causal_fit_two,
     causal_rates_at,
     causal_window,
     hold_untrusted_rates,
@@ -52,7 +52,7 @@ class QuatRK4(RateAlgorithm):
         return self.body_increment_checked(ts, ws, k, nodes)[0]
 
     def body_increment_checked(self, ts, ws, k, nodes):
-        (wm,), h, held = causal_fit_scalar_checked(ts, ws, k, nodes, (0.5,))
+        wm, _, h, held = causal_fit_two(ts, ws, k, len(nodes), 0.5, 0.5)
         w0, w1 = ws[k - 1], ws[k]
         if held > 0.0:  # toward one constant rate, the endpoint mean (hold_untrusted_rates)
             keep = 1.0 - held

@@ -10,7 +10,7 @@ from gyro_attitude.core.attitude.algorithm import RateAlgorithm
 from gyro_attitude.core.attitude.compose import exp_scalar
 from gyro_attitude.core.attitude.interpolation import (
     GAUSS2,
-    causal_fit_scalar_checked,
+    causal_fit_two,
     causal_rates_at,
     causal_window,
     hold_untrusted,
@@ -63,14 +63,13 @@ class RotvecCubic(RateAlgorithm):
         return cubic_increment(ts, ws, k, nodes)
 
 
-@kernel
+@kernel(inline=True)
 def cubic_increment(ts, ws, k, nodes):
     """The causal cubic's step over interval ``k`` of the histories ``ts, ws`` fitted on
     ``nodes``: (increment quaternion, whether the fit was not trusted).  A kernel
     (:mod:`gyro_attitude.core.jit`): the streaming integrator and the compiled chain step
     with it."""
-    rates, h, held = causal_fit_scalar_checked(ts, ws, k, nodes, GAUSS2)
-    a, b = rates[0], rates[1]
+    a, b, h, held = causal_fit_two(ts, ws, k, len(nodes), _GA, _GB)
     ax, ay, az = a
     bx, by, bz = b
     half, c = 0.5 * h, _SQRT3_12 * (h * h)

@@ -601,14 +601,14 @@ class IntervalStatistics:
         return interval_summary(self.ring[order])
 
 
-@kernel
+@kernel(inline=True)
 def within(x, y, z, bound):
     """Each of ``x``, ``y``, ``z`` a number of magnitude at most ``bound`` (NaN is not).  Not
     ``max(abs(x), abs(y), abs(z)) <= bound``: ``max`` skips a NaN after the first place."""
     return abs(x) <= bound and abs(y) <= bound and abs(z) <= bound
 
 
-@kernel
+@kernel(inline=True)
 def interval_add(ring, fill, dt_ns):
     """:meth:`IntervalStatistics.add` on its ring."""
     ring[fill[1]] = dt_ns
@@ -663,7 +663,7 @@ def stamps_reset(v):
     v.n_learn = 0
 
 
-@kernel
+@kernel(inline=True)
 def _round_half_even(x):
     """Python's ``round(x)`` of a float (halves to even)."""
     r = math.floor(x)
