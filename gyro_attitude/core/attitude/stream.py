@@ -528,15 +528,11 @@ class AttitudeStream:
         counted ``mag_missing``, heading gyro-only; a field that is not finite, absurd or zero
         is counted ``invalid_mag``, one that disagrees with the reference ``mag_disturbed``)."""
         w = _floats(omega)
-        if w is None or not (abs(w[0]) <= self._max_rate and abs(w[1]) <= self._max_rate
-                             and abs(w[2]) <= self._max_rate):
-            t = 0  # a bad value is refused before the stamp is looked at
-        elif isinstance(t_ns, bool) or not isinstance(t_ns, int | np.integer):
-            raise ValueError(f"t_ns must be an integer number of nanoseconds, got {t_ns!r}")
-        else:
-            t = int(t_ns)
+        t = t_ns if type(t_ns) is int else self._stamp(t_ns, w)
         w0, w1, w2 = w if w is not None else (math.nan, math.nan, math.nan)
-        frame = self._frames.setdefault(frame_id, len(self._frames))
+        frame = self._frames.get(frame_id)
+        if frame is None:
+            frame = self._frames.setdefault(frame_id, len(self._frames))
         frame_ok = self._locked < 0 or frame == self._locked
         a = None if accel is None else _floats(accel) or (math.nan, math.nan, math.nan)
         a0, a1, a2 = a if a is not None else (0.0, 0.0, 0.0)
@@ -565,6 +561,16 @@ class AttitudeStream:
             verdict = _PLAIN[code] if reason == 0 else v.Verdict(
                 _ACTIONS[code], _REASONS[reason], detail)
         return verdict, np.array((x, y, z, u)) if got else None
+
+    def _stamp(self, t_ns, w) -> int:
+        """``t_ns`` as an int; a stamp that is not an integer is refused (ValueError) unless
+        the sample's values are refused first (they are checked before the stamp)."""
+        if w is None or not (abs(w[0]) <= self._max_rate and abs(w[1]) <= self._max_rate
+                             and abs(w[2]) <= self._max_rate):
+            return 0
+        if isinstance(t_ns, bool) or not isinstance(t_ns, int | np.integer):
+            raise ValueError(f"t_ns must be an integer number of nanoseconds, got {t_ns!r}")
+        return int(t_ns)
 
     def _grow(self, code: int) -> None:
         """Double the ring the step found full (its entries kept in order from slot 0)."""
@@ -662,16 +668,22 @@ _PLAIN = {v.A_START: v.Verdict(v.START), v.A_ACCEPT: v.Verdict(v.ACCEPT),
 def _floats(x) -> tuple[float, float, float] | None:
     """3 floats of a sample (NaN stays NaN), or None when it is not 3 numbers."""
     try:
-        a, b, c = x.tolist() if isinstance(x, np.ndarray) and x.ndim == 1 else x
+        a, b, c = x.tolist() if type(x) is np.ndarray and x.ndim == 1 else x
         return float(a), float(b), float(c)
     except (TypeError, ValueError):
         return None
 
 
 def _covariance_row(covariance) -> np.ndarray:
-    """A covariance as 9 floats (NaN where it is not 9 numbers: judged invalid)."""
+    """A covariance as a writable contiguous float64 array of 9 (what the compiled step was
+    compiled for; a message's array is taken as is), NaN where it is not 9 numbers (judged
+    invalid)."""
+    c = covariance
+    if type(c) is np.ndarray and c.dtype == np.float64 and c.shape == (9,) and \
+            c.flags.c_contiguous and c.flags.writeable:
+        return c
     try:
-        c = np.asarray(covariance, dtype=np.float64).reshape(-1)
+        c = np.array(covariance, dtype=np.float64).reshape(-1)
     except (TypeError, ValueError):
         return np.full(9, np.nan)
     return c if c.shape == (9,) else np.full(9, np.nan)
@@ -941,3 +953,6 @@ def compile_kernels(config: StreamConfig | None = None, algorithm: str | None = 
         cfg = replace(cfg, initial_attitude_source=InitialAttitudeSource.PARAMETER,
                       heading_source=HeadingSource.PARAMETER)
         AttitudeStream(algorithm or DEFAULT_ALGORITHM, config=cfg).run(t, w, "imu", cov, a, mag)
+        s = AttitudeStream(algorithm or DEFAULT_ALGORITHM, config=cfg)
+        for k in range(3):  # push(): the step called from Python (the node's path)
+            s.push(int(t[k]), w[k], "imu", cov[k], a[k], mag[k])
