@@ -238,9 +238,6 @@ class StreamResult:
 #: the algorithms compiled into the chain's step (the integration library has the others:
 #: integrate_batch, bench)
 STEP_ALGORITHMS = {"rotvec_cubic": chain.ALG_CUBIC, "exp_map": chain.ALG_EXP_MAP}
-_ACTIONS = (v.REJECT, v.START, v.ACCEPT, v.RESTART_AFTER_GAP, v.RESET_TIME_JUMP)
-#: the step's reason codes as the validator's words (1 + index in REJECT_REASONS, then these)
-_REASONS = (None, *v.REJECT_REASONS, "time_jump", v.MISSING_SAMPLES, INTEGRATOR_ERROR)
 _RING_START = 64  # rest-window entries held at first; a ring doubles when a window needs more
 _ALIGN_ERRORS = {1: "alignment needs the accelerometer: no usable linear_acceleration"}
 
@@ -554,12 +551,12 @@ class AttitudeStream:
         if code == v.A_START and self._locked < 0:
             self._locked = frame
         if reason == 0 and ev == 0:
-            verdict = _PLAIN[code]
+            verdict = v.PLAIN_VERDICTS[code]
         else:
             words = _Words(self, t_ns, omega, frame_id, accel, angular_velocity_covariance, w)
             detail = words.after_step(reason, ev)
-            verdict = _PLAIN[code] if reason == 0 else v.Verdict(
-                _ACTIONS[code], _REASONS[reason], detail)
+            verdict = v.PLAIN_VERDICTS[code] if reason == 0 else v.Verdict(
+                v.ACTIONS[code], v.REASON_NAMES[reason], detail)
         return verdict, np.array((x, y, z, u)) if got else None
 
     def _stamp(self, t_ns, w) -> int:
@@ -660,11 +657,6 @@ class AttitudeStream:
 _ZERO9 = np.zeros(9)
 _ZERO9x1 = np.zeros((1, 9))
 _ZERO3x1 = np.zeros((1, 3))
-_PLAIN = {v.A_START: v.Verdict(v.START), v.A_ACCEPT: v.Verdict(v.ACCEPT),
-          v.A_RESTART_AFTER_GAP: v.Verdict(v.RESTART_AFTER_GAP),
-          v.A_RESET_TIME_JUMP: v.Verdict(v.RESET_TIME_JUMP)}
-
-
 def _floats(x) -> tuple[float, float, float] | None:
     """3 floats of a sample (NaN stays NaN), or None when it is not 3 numbers."""
     try:
@@ -734,11 +726,8 @@ class _Words:
         s = st.state[0]
         detail = ""
         if reason:
-            stamps = s.stamps
-            detail = self.reason_text(reason, int(stamps.ev_dt), int(stamps.ev_hole),
-                                      int(stamps.ev_missing), int(stamps.ev_skipped),
-                                      int(stamps.ev_period))
-            st._details.setdefault(_REASONS[reason], detail)
+            detail = self.reason_text(reason, s.stamps)
+            st._details.setdefault(v.REASON_NAMES[reason], detail)
         if ev & chain.E_INVALID_COV:
             st._details.setdefault(INVALID_COVARIANCE, invalid_covariance_note(self.covariance))
         if ev & chain.E_INVALID_ACCEL:
@@ -756,50 +745,28 @@ class _Words:
             _align_words(st)
         return detail
 
-    def reason_text(self, reason, dt, hole, missing, skipped, p) -> str:
+    def reason_text(self, reason, figures) -> str:
         """The validator's words for ``reason`` (its figures from the step)."""
-        t_ns, w = self.t_ns, self.w
-        name = _REASONS[reason]
-        if name == v.NON_FINITE:
-            return f"not numbers: {self.omega!r}" if w is None else \
-                f"non-finite value(s) {list(w)}"
-        if name == v.IMPLAUSIBLE_RATE:
-            return (f"rate {list(w)} rad/s beyond max_rate_rad_s = "
-                    f"{self.stream.config.max_rate_rad_s:g}")
-        if name == v.ZERO_STAMP:
-            return f"stamp {int(t_ns)} ns is not positive (0: unset)"
-        if name == v.FRAME_CHANGED:
-            locked = next(k for k, i in self.stream._frames.items() if i == self.stream._locked)
-            return f"frame_id {self.frame_id!r} differs from {locked!r}"
-        if name == v.DUPLICATE_STAMP:
-            return f"stamp {t_ns} ns repeats the previous one"
-        if name == v.OUT_OF_ORDER:
-            return f"stamp {t_ns} ns is {-dt / 1e6:.3f} ms before the previous"
-        if name == "time_jump":
-            return f"time jumped back by {-dt / 1e9:.3f} s"
-        if name == v.GAP:
-            if dt > self.stream.coef.max_gap_ns[0]:
-                return f"gap of {dt / 1e6:.3f} ms"
-            return (f"hole of {hole} sample(s) ({missing} missing, {skipped} rejected): "
-                    f"{dt / 1e6:.3f} ms after the previous at a nominal period of "
-                    f"{p / 1e6:.3f} ms (> max_missing_samples)")
-        if name == v.MISSING_SAMPLES:
-            return (f"{missing} missing sample(s): {dt / 1e6:.3f} ms after the previous at a "
-                    f"nominal period of {p / 1e6:.3f} ms")
-        return "non-finite attitude: last good one restored"
+        name = v.REASON_NAMES[reason]
+        st = self.stream
+        if name == v.NON_FINITE and self.w is None:
+            return f"not numbers: {self.omega!r}"
+        locked = next((k for k, i in st._frames.items() if i == st._locked), None)
+        return v.reason_words(name, self.t_ns, self.w, self.frame_id, locked, figures,
+                              st.config.check_config())
 
     @classmethod
     def after_run(cls, st, t, w, names, frames, first_row, first_fig, cov, cov_in, accel_in,
                   acc) -> None:
         """The details of a whole run, from the first row of each event."""
-        for reason in range(1, len(_REASONS)):
+        for reason in range(1, len(v.REASON_NAMES)):
             k = int(first_row[reason])
             if k < 0:
                 continue
             words = cls(st, int(t[k]), w[k], names[int(frames[k])], None, None,
                         tuple(w[k].tolist()))
-            st._details.setdefault(_REASONS[reason], words.reason_text(
-                reason, *(int(x) for x in first_fig[reason])))
+            st._details.setdefault(v.REASON_NAMES[reason],
+                                   words.reason_text(reason, first_fig[reason]))
         k = int(first_row[chain.EV_INVALID_COV])
         if k >= 0:
             st._details.setdefault(INVALID_COVARIANCE, invalid_covariance_note(cov[k]))

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gyro_attitude.core.jit import kernel
+from gyro_attitude.core.jit import compiled, kernel
 
 # Verdicts. ACCEPT: integrate over (last, t]. START: first sample (or first after a restart):
 # sets the time base, nothing to integrate yet.
@@ -146,72 +146,6 @@ def value_problem(omega, max_rate_rad_s: float) -> tuple[str, str] | None:
     return None
 
 
-class StampRule:
-    """The stamp rules, in one place for the per-sample validator and :func:`classify`: each
-    stamp against the last accepted one and the stream's nominal period (see
-    :class:`ImuCheckConfig`).  ``step(t)`` gives ``(action, reason, detail)`` and advances the
-    state (the last accepted stamp, the nominal period being learnt)."""
-
-    __slots__ = ("cfg", "last", "period", "_learn", "missing")
-
-    def __init__(self, cfg: ImuCheckConfig):
-        self.cfg = cfg
-        self.last: int | None = None
-        self.missing = 0  # samples missing in accepted intervals, counted over the stream
-        self._new_base()
-
-    def _new_base(self) -> None:
-        self.period: int | None = None
-        self._learn: list[int] = []
-
-    def reset(self) -> None:
-        self.last = None
-        self._new_base()
-
-    def step(self, t: int, skipped: int = 0) -> tuple[str, str | None, str]:
-        """The verdict of stamp ``t``; ``skipped`` samples were rejected since the last
-        accepted one (a hole they make is a gap alike, but they are not counted missing)."""
-        last = self.last
-        if last is None:
-            self.last = t
-            return START, None, ""
-        dt = t - last
-        if dt <= 0:
-            if dt == 0:
-                return REJECT, DUPLICATE_STAMP, f"stamp {t} ns repeats the previous one"
-            if -dt > self.cfg.time_jump_ns:
-                self.last = t
-                self._new_base()
-                return RESET_TIME_JUMP, "time_jump", f"time jumped back by {-dt / 1e9:.3f} s"
-            return REJECT, OUT_OF_ORDER, f"stamp {t} ns is {-dt / 1e6:.3f} ms before the previous"
-        self.last = t
-        if dt > self.cfg.max_gap_ns:
-            self._new_base()
-            return RESTART_AFTER_GAP, GAP, f"gap of {dt / 1e6:.3f} ms"
-        p = self.period
-        if p is None:
-            learn = self._learn
-            learn.append(dt)
-            if len(learn) == NOMINAL_INTERVALS:
-                self.period = sorted(learn)[NOMINAL_INTERVALS // 2]
-            return ACCEPT, None, ""
-        if 2 * dt < 3 * p:
-            return ACCEPT, None, ""
-        hole = round(dt / p) - 1
-        missing = max(hole - skipped, 0)
-        if hole > self.cfg.max_missing_samples:
-            self._new_base()
-            return RESTART_AFTER_GAP, GAP, (
-                f"hole of {hole} sample(s) ({missing} missing, {skipped} rejected): "
-                f"{dt / 1e6:.3f} ms after the previous at a nominal period of {p / 1e6:.3f} ms "
-                "(> max_missing_samples)")
-        if missing == 0:
-            return ACCEPT, None, ""
-        self.missing += missing
-        return ACCEPT, MISSING_SAMPLES, (f"{missing} missing sample(s): {dt / 1e6:.3f} ms after "
-                                         f"the previous at a nominal period of {p / 1e6:.3f} ms")
-
-
 def _regular_stamps(t: np.ndarray, max_gap_ns: int, size: int = 1 << 16) -> bool:
     """Whether stamps ``t`` rise strictly, with no interval beyond ``max_gap_ns`` and none
     that :class:`StampRule` takes for missing samples (from the 17th interval on, 1.5 times
@@ -274,7 +208,9 @@ def usable_samples(t_ns: np.ndarray, omega: np.ndarray, max_rate_rad_s: float) -
 
 
 class ImuStreamValidator:
-    """Classify each Imu sample of a stream; count rejections by reason.
+    """Classify each Imu sample of a stream; count rejections by reason: a face on one record
+    of :data:`STAMPS_DTYPE` stepped by the kernel :func:`validate` (the causal estimator's step
+    runs the same kernel on the same record inside its state).
 
     The frame of the first accepted sample is locked in; ``reset()`` forgets it and the
     time base. A rejected sample leaves the state (last stamp, frame) untouched, so one
@@ -283,99 +219,100 @@ class ImuStreamValidator:
 
     def __init__(self, config: ImuCheckConfig | None = None):
         self.config = config if config is not None else ImuCheckConfig()
-        self.counts: dict[str, int] = {reason: 0 for reason in REJECT_REASONS}
-        self.accepted = 0
-        self.time_jump_resets = 0
+        self.record = np.zeros(1, STAMPS_DTYPE).view(np.recarray)
         self.frame_id: str | None = None
-        self._stamps = StampRule(self.config)
-        self._skipped = 0  # samples rejected since the last accepted one
 
     @property
-    def config(self) -> ImuCheckConfig:
-        return self._config
+    def counts(self) -> dict[str, int]:
+        c = self.record.counts[0]
+        return {r: int(c[i + 1]) for i, r in enumerate(REJECT_REASONS)}
 
-    @config.setter
-    def config(self, config: ImuCheckConfig) -> None:
-        self._config = config
-        if hasattr(self, "_stamps"):
-            self._stamps.cfg = config
+    accepted = property(lambda self: int(self.record.accepted[0]))
+    time_jump_resets = property(lambda self: int(self.record.jump_resets[0]))
 
     @property
     def missing_samples(self) -> int:
         """Samples missing inside accepted intervals (holes up to max_missing_samples)."""
-        return self._stamps.missing
+        return int(self.record.missing[0])
 
     @property
     def last_t_ns(self) -> int | None:
         """The last accepted stamp (None before the first, after a reset)."""
-        return self._stamps.last
-
-    @last_t_ns.setter
-    def last_t_ns(self, value: int | None) -> None:
-        if value is None:
-            self._stamps.reset()
-        else:
-            self._stamps.last = int(value)
+        r = self.record[0]
+        return int(r.last) if r.has_last else None
 
     @property
     def rejected_total(self) -> int:
-        return sum(self.counts[r] for r in REJECT_REASONS if r != GAP)
+        return sum(n for r, n in self.counts.items() if r != GAP)
 
     def reset(self) -> None:
         """Forget the time base and the locked frame (counts are kept)."""
-        self._stamps.reset()
+        compiled(stamps_reset)(self.record[0])
         self.frame_id = None
-
-    def run(self, t_ns, omega, frame_id: str | list[str] | None = "") -> Classification:
-        """Array form of :meth:`check` over a whole recording (a fresh validator): the
-        verdicts of :func:`classify`, with this validator left as :meth:`check` would leave it
-        after the last sample (counts, time base, locked frame)."""
-        if self.last_t_ns is not None or self.accepted:
-            raise ValueError("run() needs a fresh validator (it classifies a whole recording)")
-        cls = classify(t_ns, omega, frame_id, self.config)
-        for r in REJECT_REASONS:
-            self.counts[r] = cls.counts[r]
-        self.accepted = cls.accepted
-        self.time_jump_resets = cls.time_jump_resets
-        if cls.stamps.last is not None:
-            self._stamps = cls.stamps
-            self._stamps.cfg = self.config
-            self.frame_id = cls.frame_id
-        self._skipped = cls.skipped_at_end
-        return cls
-
-    def _reject(self, reason: str, detail: str) -> Verdict:
-        self.counts[reason] += 1
-        self._skipped += 1
-        return Verdict(REJECT, reason, detail)
 
     def check(self, t_ns: int, omega, frame_id: str = "") -> Verdict:
         """Classify one sample and update the state.
 
         t_ns: header stamp in ns; omega: angular rate (3,) [rad/s]; frame_id: header.frame_id.
         """
-        problem = sample_problem(t_ns, omega, self.config.max_rate_rad_s)
-        if problem is not None:
-            return self._reject(*problem)
-        t_ns = int(t_ns)
-        if self.frame_id is not None and frame_id != self.frame_id:
-            return self._reject(
-                FRAME_CHANGED, f"frame_id {frame_id!r} differs from {self.frame_id!r}"
-            )
-        action, reason, detail = self._stamps.step(t_ns, self._skipped)
-        if action == REJECT:
-            return self._reject(reason, detail)
-        self._skipped = 0
-        if action == START:
+        problem = value_problem(omega, self.config.max_rate_rad_s)
+        if problem is None and (isinstance(t_ns, bool) or not isinstance(t_ns, int | np.integer)):
+            raise ValueError(f"t_ns must be an integer number of nanoseconds, got {t_ns!r}")
+        w = (math.nan,) * 3 if problem is not None and problem[0] == NON_FINITE else tuple(
+            float(c) for c in (omega.tolist() if isinstance(omega, np.ndarray) else omega))
+        cfg = self.config
+        r = self.record[0]
+        action, reason = compiled(validate)(
+            r, float(cfg.max_rate_rad_s), int(cfg.max_gap_ns), int(cfg.time_jump_ns),
+            int(cfg.max_missing_samples), 0 if problem is not None else int(t_ns), w[0], w[1],
+            w[2], self.frame_id is None or frame_id == self.frame_id)
+        if action == A_START:
             self.frame_id = frame_id
-            self.accepted += 1
-            return _STARTED
-        self.accepted += 1
-        if action == RESET_TIME_JUMP:
-            self.time_jump_resets += 1
-        elif reason == GAP:
-            self.counts[GAP] += 1
-        return _ACCEPTED if reason is None else Verdict(action, reason, detail)
+        if reason == 0:
+            return PLAIN_VERDICTS[action]
+        name = REASON_NAMES[reason]
+        if problem is not None and name == problem[0]:
+            detail = problem[1]
+        else:
+            detail = reason_words(name, int(t_ns), None, frame_id, self.frame_id, r, cfg)
+        return Verdict(ACTIONS[action], name, detail)
+
+
+def reason_words(name: str, t_ns: int, values, frame_id, locked, figures, cfg) -> str:
+    """The words of a verdict's reason ``name`` for the sample at ``t_ns`` (``values`` its
+    rates as floats, for the value rules; ``frame_id`` and the ``locked`` one; ``figures``
+    the validator's ``ev_*`` figures: a record or an array (dt, hole, missing, skipped,
+    period); ``cfg`` the :class:`ImuCheckConfig`)."""
+    if hasattr(figures, "ev_dt"):
+        dt, hole, missing, skipped, p = (int(figures.ev_dt), int(figures.ev_hole),
+                                         int(figures.ev_missing), int(figures.ev_skipped),
+                                         int(figures.ev_period))
+    else:
+        dt, hole, missing, skipped, p = (int(x) for x in figures)
+    if name == NON_FINITE:
+        return f"non-finite value(s) {list(values)}"
+    if name == IMPLAUSIBLE_RATE:
+        return f"rate {list(values)} rad/s beyond max_rate_rad_s = {cfg.max_rate_rad_s:g}"
+    if name == ZERO_STAMP:
+        return f"stamp {int(t_ns)} ns is not positive (0: unset)"
+    if name == FRAME_CHANGED:
+        return f"frame_id {frame_id!r} differs from {locked!r}"
+    if name == DUPLICATE_STAMP:
+        return f"stamp {t_ns} ns repeats the previous one"
+    if name == OUT_OF_ORDER:
+        return f"stamp {t_ns} ns is {-dt / 1e6:.3f} ms before the previous"
+    if name == TIME_JUMP:
+        return f"time jumped back by {-dt / 1e9:.3f} s"
+    if name == GAP:
+        if dt > cfg.max_gap_ns:
+            return f"gap of {dt / 1e6:.3f} ms"
+        return (f"hole of {hole} sample(s) ({missing} missing, {skipped} rejected): "
+                f"{dt / 1e6:.3f} ms after the previous at a nominal period of {p / 1e6:.3f} ms "
+                "(> max_missing_samples)")
+    if name == MISSING_SAMPLES:
+        return (f"{missing} missing sample(s): {dt / 1e6:.3f} ms after the previous at a "
+                f"nominal period of {p / 1e6:.3f} ms")
+    return "non-finite attitude: last good one restored"
 
 
 @dataclass
@@ -385,8 +322,7 @@ class Classification:
     ``action`` (N,) int8 codes of :data:`ACTION_CODES`; ``reason`` (N,) int8, 0 = none, else
     1 + the index in :data:`REJECT_REASONS` (rejections and gaps); ``counts`` per reason;
     ``details`` the first detail line per reason; ``time_jump_resets``; ``accepted``;
-    ``frame_id`` the locked frame; ``missing_samples`` counted in accepted intervals;
-    ``stamps`` the :class:`StampRule` state after the last sample.
+    ``frame_id`` the locked frame; ``missing_samples`` counted in accepted intervals.
     """
 
     action: np.ndarray
@@ -397,8 +333,6 @@ class Classification:
     accepted: int
     frame_id: str | None
     missing_samples: int = 0
-    stamps: StampRule | None = None
-    skipped_at_end: int = 0
 
 
 def _frame_codes(frame_id, n: int) -> tuple[np.ndarray | None, list[str]]:
@@ -509,62 +443,70 @@ def classify(t_ns, omega, frame_id: str | list[str] | None = "",
     idx = None if every else np.flatnonzero(ok)
     m = n if every else idx.size
     resets = 0
-    rule = StampRule(cfg)
+    record = np.zeros(1, STAMPS_DTYPE).view(np.recarray)
     if m:
         tc = t if every else t[idx]
         if _regular_stamps(tc, cfg.max_gap_ns):
             where = slice(None) if every else idx
             action[where] = ACTION_CODES[ACCEPT]
             action[0 if every else idx[0]] = ACTION_CODES[START]
-            rule.last = int(tc[-1])
-            head = np.diff(tc[:NOMINAL_INTERVALS + 1])
-            if head.size >= NOMINAL_INTERVALS:
-                rule.period = int(np.sort(head)[NOMINAL_INTERVALS // 2])
-            else:
-                rule._learn = head.tolist()
         else:
-            resets = _walk_stamps(tc.tolist(), np.arange(n) if every else idx, action, reason,
-                                  details, rule)
+            resets = _walk(tc, np.arange(n) if every else idx, action, reason, details, cfg,
+                           record)
         del tc
-    got = action != ACTION_CODES[REJECT]
-    skipped_end = int(np.argmax(got[::-1])) if got.any() else int(t.size)
-    del got
     counts = {r: int(np.count_nonzero(reason == _REASON_CODES[r])) for r in REJECT_REASONS}
     accepted = int(np.count_nonzero(action != ACTION_CODES[REJECT]))
     return Classification(action, reason, counts, details, resets, accepted,
-                          None if locked is None else names[locked], rule.missing, rule,
-                          skipped_end)
+                          None if locked is None else names[locked], int(record.missing[0]))
 
 
-def _walk_stamps(stamps: list[int], idx: np.ndarray, action: np.ndarray, reason: np.ndarray,
-                 details: dict[str, str], rule: StampRule) -> int:
-    """The stamp rule over candidate samples (plain ints); the time-jump resets."""
-    codes_a = ACTION_CODES
-    out_a = [0] * len(stamps)
-    out_r = [0] * len(stamps)
-    resets = 0
-    step = rule.step
-    rows = idx.tolist()
-    last_row = rows[0] - 1 if rows else -1  # START: what came before it does not matter
-    for i, s in enumerate(stamps):
-        act, why, detail = step(s, rows[i] - last_row - 1)
-        out_a[i] = codes_a[act]
-        if act != REJECT:
+@kernel
+def walk_stamps(v, max_gap_ns, time_jump_ns, max_missing, t, rows, action, reason, first_row,
+                first_fig):
+    """The stamp rule (:func:`stamp_step`) over the candidate samples ``t`` at input ``rows``:
+    their action and reason codes, and per reason the first row and the validator's figures
+    there (for the words)."""
+    last_row = rows[0] - 1 if rows.shape[0] else -1  # START: what came before does not matter
+    for i in range(t.shape[0]):
+        v.skipped = rows[i] - last_row - 1
+        act, why = stamp_step(v, max_gap_ns, time_jump_ns, max_missing, t[i])
+        action[i] = act
+        if act != A_REJECT:
             last_row = rows[i]
-        if why is None:
+            if act == A_RESET_TIME_JUMP:
+                v.jump_resets += 1
+        if why == 0:
             continue
-        if why == "time_jump":
-            resets += 1
-            details.setdefault("time_jump", detail)
-            continue
-        if why == MISSING_SAMPLES:
-            details.setdefault(MISSING_SAMPLES, detail)
-            continue
-        out_r[i] = _REASON_CODES[why]
-        details.setdefault(why, detail)
+        if why != R_TIME_JUMP and why != R_MISSING:
+            reason[i] = why
+        if first_row[why] < 0:
+            first_row[why] = rows[i]
+            first_fig[why, 0], first_fig[why, 1], first_fig[why, 2] = v.ev_dt, v.ev_hole, \
+                v.ev_missing
+            first_fig[why, 3], first_fig[why, 4] = v.ev_skipped, v.ev_period
+
+
+def _walk(tc: np.ndarray, idx: np.ndarray, action: np.ndarray, reason: np.ndarray,
+          details: dict[str, str], cfg: ImuCheckConfig, record) -> int:
+    """:func:`walk_stamps` over the candidate stamps ``tc`` at rows ``idx``; the first detail
+    per reason into ``details``; the time-jump resets."""
+    n = tc.shape[0]
+    out_a, out_r = np.zeros(n, np.int8), np.zeros(n, np.int8)
+    first_row = np.full(R_INTEGRATOR + 1, -1, np.int64)
+    first_fig = np.zeros((R_INTEGRATOR + 1, 5), np.int64)
+    r = record[0]
+    compiled(walk_stamps)(r, int(cfg.max_gap_ns), int(cfg.time_jump_ns),
+                          int(cfg.max_missing_samples), tc, idx.astype(np.int64), out_a, out_r,
+                          first_row, first_fig)
+    for why in range(1, R_INTEGRATOR):
+        k = int(first_row[why])
+        if k >= 0:
+            name = REASON_NAMES[why]
+            details.setdefault(name, reason_words(name, int(tc[np.searchsorted(idx, k)]), None,
+                                                  None, None, first_fig[why], cfg))
     action[idx] = out_a
     reason[idx] = out_r
-    return resets
+    return int(r.jump_resets)
 
 
 class IntervalStatistics:
@@ -642,7 +584,15 @@ R_TIME_JUMP, R_MISSING, R_INTEGRATOR = len(REJECT_REASONS) + 1, len(REJECT_REASO
     len(REJECT_REASONS) + 3
 R_NON_FINITE, R_IMPLAUSIBLE, R_ZERO, R_DUPLICATE, R_OUT_OF_ORDER, R_FRAME, R_GAP = range(1, 8)
 
-#: the validator's state (the stamp rule's time base, counts): see :class:`StampRule`
+#: a backward jump's reason (reset, not a rejection)
+TIME_JUMP = "time_jump"
+#: the action of each code, the reason of each code (None: none)
+ACTIONS = (REJECT, START, ACCEPT, RESTART_AFTER_GAP, RESET_TIME_JUMP)
+REASON_NAMES = (None, *REJECT_REASONS, TIME_JUMP, MISSING_SAMPLES, "integrator_error")
+PLAIN_VERDICTS = tuple(Verdict(a) for a in ACTIONS)
+
+#: the validator's state: the stamp rule's time base (the last accepted stamp, the nominal
+#: period learnt from the first NOMINAL_INTERVALS intervals of each time base), the counts
 STAMPS_DTYPE = np.dtype([
     ("last", np.int64), ("has_last", np.bool_), ("period", np.int64),
     ("learn", np.int64, (NOMINAL_INTERVALS,)), ("n_learn", np.int64), ("missing", np.int64),
