@@ -125,6 +125,41 @@ _EVENT_WORDS = {
 }
 
 
+def truth_lines(out: dict) -> list[str]:
+    """The summary's lines on the error against the truth: the angle, the tilt and the
+    heading apart, the heading less the start's offset when the start was not the truth's,
+    and the span compared when truth and output only partly overlap."""
+    if not out["truth_matched"]:
+        if (out["truth_overlap"] or {}).get("note"):
+            return ["  no error figures: the truth does not overlap the output (see the "
+                    "warning)"]
+        return ["  no error figures: no truth topic in the input, or no truth stamp inside "
+                "the span of two attitudes"]
+    d = np.degrees
+    lines = [f"  vs {out['truth_topic']} ({out['truth_matched']} stamps): final error "
+             f"{d(out['final_error_rad']):.3g}° (tilt {d(out['final_tilt_error_rad']):.3g}°, "
+             f"heading {d(out['final_heading_error_rad']):+.3g}°), max "
+             f"{d(out['max_error_rad']):.3g}°, RMS {d(out['rms_error_rad']):.3g}°; tilt RMS "
+             f"{d(out['rms_tilt_error_rad']):.3g}°, max {d(out['max_tilt_error_rad']):.3g}°"]
+    if out["final_heading_error_from_start_rad"] is not None:
+        lines.append(
+            f"  the start was not taken from the truth: heading error at the first truth "
+            f"stamp {d(out['initial_heading_error_rad']):+.3g}°, tilt "
+            f"{d(out['initial_tilt_error_rad']):.3g}°; final heading error less that offset "
+            f"{d(out['final_heading_error_from_start_rad']):+.3g}°"
+            + (" (a wrong start: --initial-attitude level or truth)"
+               if out["initial_tilt_error_rad"] > np.radians(10.0) else ""))
+    ov = out["truth_overlap"]
+    out_s = ov["output_span_s"][1] - ov["output_span_s"][0]
+    truth_s = ov["truth_span_s"][1] - ov["truth_span_s"][0]
+    if ov["overlap_s"] < 0.99 * out_s or ov["overlap_s"] < 0.99 * truth_s:
+        lines.append(f"  compared over the {ov['overlap_s']:.3f} s where truth and output "
+                     f"overlap: {100 * ov['overlap_s'] / max(out_s, 1e-9):.0f} % of the "
+                     f"output's {out_s:.3f} s, {100 * ov['overlap_s'] / max(truth_s, 1e-9):.0f} "
+                     f"% of the truth's {truth_s:.3f} s")
+    return lines
+
+
 def _stream_config(args) -> StreamConfig:
     given = given_settings(args)
     if given.get("frame") is Frame.ENU and "latitude_rad" not in given:
@@ -193,6 +228,9 @@ def run(args) -> int:
     offset_warning = field_clock_warning((out["magnetometer"] or {}).get("clock_offset_s"))
     if offset_warning:
         print(f"warning: {offset_warning}", file=sys.stderr)
+    note = (out["truth_overlap"] or {}).get("note")
+    if note:
+        print(f"warning: {note}", file=sys.stderr)
     if "gyro_noise_unknown" in out["details"]:
         print(f"note: {out['details']['gyro_noise_unknown']}", file=sys.stderr)
     if len(out["frame_ids"]) > 1:
@@ -235,13 +273,8 @@ def run(args) -> int:
     if out["working_bytes_on_disk"]:
         print(f"  {out['working_bytes_on_disk'] / 1e6:.0f} MB of working arrays kept "
               "in files beside the output (unlinked, gone when the replay ends)")
-    if out["truth_matched"]:
-        print(f"  vs {out['truth_topic']} ({out['truth_matched']} stamps): final error "
-              f"{np.degrees(out['final_error_rad']):.3e} deg, max "
-              f"{np.degrees(out['max_error_rad']):.3e} deg")
-    else:
-        print("  no error figures: no truth topic in the input, or no truth stamp inside "
-              "the span of two attitudes")
+    for line in truth_lines(out):
+        print(line)
     print(f"  wrote {out['output']} (attitude, imu/data; compression "
           f"{out['compression'] or 'none'})" + (f", plot {args.plot}" if args.plot else ""))
     return 0

@@ -35,8 +35,12 @@ def add_fleet_flags(parser: argparse.ArgumentParser) -> None:
 def _line(f) -> str:
     s = f.summary
     err = s.get("final_error_rad")
+    note = (s.get("truth_overlap") or {}).get("note")
     return (f"ok     {f.input}: {s['messages']} msgs, {s['duration_s']:.1f} s, {s['algorithm']}"
-            + (f", final error {math.degrees(err):.3g} deg" if err is not None else "")
+            + (f", final error {math.degrees(err):.3g}° (tilt "
+               f"{math.degrees(s['final_tilt_error_rad']):.3g}°, heading "
+               f"{math.degrees(s['final_heading_error_rad']):+.3g}°)" if err is not None else "")
+            + (f"; {note}" if note else "")
             + f" -> {f.output}")
 
 

@@ -47,6 +47,8 @@ from gyro_attitude.core.attitude.stream import (
 from gyro_attitude.core.attitude.truth import (
     default_max_interval_ns,
     initial_attitude_from_truth,
+    span_words,
+    tilt_and_heading_error,
     truth_at_stamps,
 )
 from gyro_attitude.core.attitude.world_frame import frame_id_of, from_enu
@@ -135,6 +137,17 @@ class ReplayResult:
     final_error_rad: float | None = None
     max_error_rad: float | None = None
     rms_error_rad: float | None = None
+    # the error apart (rad): tilt (final, max, RMS, at the first compared stamp), signed
+    # heading (final, first) and, when the start was not taken from the truth, the final
+    # heading error less the first (the start's heading offset removed)
+    final_tilt_error_rad: float | None = None
+    max_tilt_error_rad: float | None = None
+    rms_tilt_error_rad: float | None = None
+    initial_tilt_error_rad: float | None = None
+    final_heading_error_rad: float | None = None
+    initial_heading_error_rad: float | None = None
+    final_heading_error_from_start_rad: float | None = None
+    truth_overlap: dict | None = None  # spans (s) of truth, output and their overlap; a note
     index: np.ndarray = field(default=None, repr=False)
     t_ns: np.ndarray = field(default=None, repr=False)
     q: np.ndarray = field(default=None, repr=False)
@@ -454,8 +467,10 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     out_frame = frame_id_of(config.frame, config.world_frame)
     # the error figures before the output is written: nothing they need (working arrays, an
     # interrupt) can fail after the output is in place
-    figures = _truth_figures(truth, tv, qv, spool.empty) if truth is not None and len(truth) \
-        else None
+    figures = _truth_figures(
+        truth, tv, qv, spool.empty,
+        start_from_truth=config.initial_attitude_source is InitialAttitudeSource.TRUTH) \
+        if truth is not None and len(truth) else None
     with SafeOutput(output_path, force=force) as tmp:
         with Rosbag2McapWriter(tmp, compression=compression, chunk_size=chunk_size) as w:
             w.add_topic("attitude", QUATERNION_STAMPED_TYPE)
@@ -510,13 +525,21 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     return result
 
 
-def _truth_figures(truth, t_ns: np.ndarray, q: np.ndarray, empty=np.empty) -> dict | None:
+def _truth_figures(truth, t_ns: np.ndarray, q: np.ndarray, empty=np.empty,
+                   start_from_truth: bool = False) -> dict | None:
     """Error figures at every truth stamp inside the output's span: the truth runs on its
     own clock (a tracker at 120 Hz beside a 200 Hz Imu shares no stamp), so the attitude is
     slerped there between the two output samples around it (exact at a coinciding stamp;
     none across a gap in the output, as truth_at_stamps decides). The dense series is the
     one interpolated: slerping a 10 Hz truth across a coning motion would measure the
     interpolation, not the estimate.
+
+    Truth and output are compared where they overlap (``truth_overlap`` says over which
+    span, and what each covers); truth that does not overlap the output at all gives no
+    figures and a ``note`` naming both spans.  Besides the error angle: the tilt error and the
+    signed heading error (about up) apart, and, unless the start was taken from the truth
+    (``start_from_truth``), the heading error less its value at the first compared stamp
+    (the start's heading offset removed: an identity start facing another way is no drift).
 
     Computed TRUTH_BLOCK truth stamps at a time: the slerp's and the error angle's (M, 4)
     temporaries are bounded by a block, not by the recording. Every step is row-local (the
@@ -538,10 +561,29 @@ def _truth_figures(truth, t_ns: np.ndarray, q: np.ndarray, empty=np.empty) -> di
     ts, tq = _strictly_increasing(ts, tq)
     if ts.size == 0:
         return None
+    # where the truth and the output overlap: the truth stamps outside the output's span have
+    # no attitude around them (a block of them gave truth_at_stamps one output sample)
+    t0, t1 = int(est_t[0]), int(est_t[-1])
+    s0, s1 = int(ts[0]), int(ts[-1])
+    i0, i1 = int(np.searchsorted(ts, t0, side="left")), int(np.searchsorted(ts, t1,
+                                                                              side="right"))
+    spans = {"truth_span_s": [s0 * 1e-9, s1 * 1e-9], "output_span_s": [t0 * 1e-9, t1 * 1e-9],
+             "overlap_s": max(min(s1, t1) - max(s0, t0), 0) * 1e-9}
+    if i1 <= i0:
+        return {"truth_topic": truth.topic, "truth_overlap": {
+            **spans, "note": (
+                f"the truth {truth.topic} {span_words(s0, s1)} does not "
+                f"overlap the Imu output {span_words(t0, t1)} (another clock?): no error "
+                "figures")}}
+    if i0 or i1 < ts.size:
+        ts, tq = ts[i0:i1], tq[i0:i1]
     limit = default_max_interval_ns(est_t)  # what truth_at_stamps takes over the whole output
     covered = empty(ts.size, bool)
     err = empty(ts.size, np.float64)
     n = 0
+    tilt_sq = 0.0
+    tilt_max = 0.0
+    first = last = None  # (tilt, heading) at the first and last compared stamps
     for lo in range(0, ts.size, TRUTH_BLOCK):
         hi = min(lo + TRUTH_BLOCK, ts.size)
         s = ts[lo:hi]
@@ -552,7 +594,16 @@ def _truth_figures(truth, t_ns: np.ndarray, q: np.ndarray, empty=np.empty) -> di
         qe, cov = truth_at_stamps(est_t[a:b], est_q[a:b], s, max_interval_ns=limit)
         covered[lo:hi] = cov
         m = int(cov.sum())
-        err[n:n + m] = quat_angle_between(qe, tq[lo:hi][cov])
+        if m == 0:
+            continue
+        qt = tq[lo:hi][cov]
+        err[n:n + m] = quat_angle_between(qe, qt)
+        tilt, heading = tilt_and_heading_error(qe, qt)
+        tilt_sq += float(np.dot(tilt, tilt))
+        tilt_max = max(tilt_max, float(tilt.max()))
+        if first is None:
+            first = (float(tilt[0]), float(heading[0]))
+        last = (float(tilt[-1]), float(heading[-1]))
         n += m
     if n == 0:
         return None
@@ -562,6 +613,13 @@ def _truth_figures(truth, t_ns: np.ndarray, q: np.ndarray, empty=np.empty) -> di
     return {"truth_topic": truth.topic, "truth_matched": n, "final_error_rad": float(err[-1]),
             "max_error_rad": float(err.max()),
             "rms_error_rad": float(np.sqrt(np.mean(square))),
+            "final_tilt_error_rad": last[0], "max_tilt_error_rad": tilt_max,
+            "rms_tilt_error_rad": math.sqrt(tilt_sq / n),
+            "initial_tilt_error_rad": first[0],
+            "final_heading_error_rad": last[1], "initial_heading_error_rad": first[1],
+            "final_heading_error_from_start_rad": None if start_from_truth else float(
+                (last[1] - first[1] + math.pi) % (2 * math.pi) - math.pi),
+            "truth_overlap": spans,
             "error_t_ns": ts if n == ts.size else rows(ts, np.flatnonzero(covered), empty),
             "error_rad": err}
 
