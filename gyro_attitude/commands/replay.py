@@ -228,6 +228,8 @@ def run(args) -> int:
     offset_warning = field_clock_warning((out["magnetometer"] or {}).get("clock_offset_s"))
     if offset_warning:
         print(f"warning: {offset_warning}", file=sys.stderr)
+    if out["accel_problem"]:
+        print(f"warning: {out['accel_problem']}", file=sys.stderr)
     note = (out["truth_overlap"] or {}).get("note")
     if note:
         print(f"warning: {note}", file=sys.stderr)
@@ -237,7 +239,7 @@ def run(args) -> int:
         print(f"warning: frame_id changes inside {out['imu_topic']} ({out['frame_ids']}): "
               "integrated as one frame", file=sys.stderr)
     for note in out["estimator_notes"]:
-        if note.startswith("no accelerometer"):
+        if note.startswith("no accelerometer") and not out["accel_problem"]:
             print(f"note: {note}", file=sys.stderr)
     if args.json:
         print(json.dumps(out, indent=2))

@@ -41,6 +41,7 @@ def _line(f) -> str:
                f"{math.degrees(s['final_tilt_error_rad']):.3g}°, heading "
                f"{math.degrees(s['final_heading_error_rad']):+.3g}°)" if err is not None else "")
             + (f"; {note}" if note else "")
+            + ("; accelerometer not in m/s²: not used" if s.get("accel_problem") else "")
             + f" -> {f.output}")
 
 

@@ -27,6 +27,7 @@ import numpy as np
 
 from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, DEFAULT_OFFLINE_ALGORITHM, NavFrame
 from gyro_attitude.core.attitude import validation as iv
+from gyro_attitude.core.attitude.accel_units import check_accel_scale
 from gyro_attitude.core.attitude.input_topics import shared_topic, shared_topic_message
 from gyro_attitude.core.attitude.inputs import first_step_back
 from gyro_attitude.core.attitude.modes import Aiding, Estimator, InitialAttitudeSource, parse_mode
@@ -148,6 +149,7 @@ class ReplayResult:
     initial_heading_error_rad: float | None = None
     final_heading_error_from_start_rad: float | None = None
     truth_overlap: dict | None = None  # spans (s) of truth, output and their overlap; a note
+    accel_problem: str | None = None  # why the accelerometer was not used (not in m/s²)
     index: np.ndarray = field(default=None, repr=False)
     t_ns: np.ndarray = field(default=None, repr=False)
     q: np.ndarray = field(default=None, repr=False)
@@ -437,6 +439,18 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     # (every message must carry one, REP-145: one that says it has none makes the
     # accelerometer unknown for the recording)
     has_accel = bool(len(imu)) and not iv.no_estimate(imu.linear_acceleration_covariance).any()
+    accel_problem = None
+    if has_accel:
+        # a field in g, mg, cm/s² or all zero is no specific force in m/s²: taken as one it
+        # finds no rest or false ones and aids the tilt toward garbage (core/attitude/accel_units)
+        scale = check_accel_scale(imu.linear_acceleration, imu.angular_velocity)
+        if not scale.ok:
+            if config.levelling:
+                raise ValueError(f"{input_path}: {scale.problem}: initial attitude 'level' "
+                                 "needs the accelerometer in m/s²")
+            has_accel = False
+            accel_problem = (f"{scale.problem}: the accelerometer is not used (no rests from "
+                             "it, no levelling, no aiding)")
     # One frame per decoded message is not kept by the array reader: the first frame stands
     # for all (the node would also reject samples whose frame_id changes: see frame_ids).
     est = estimate_recording(
@@ -505,7 +519,7 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         wall_seconds=t_end - t_start, read_seconds=t_read - t_start,
         integrate_seconds=t_int - t_read, write_seconds=t_end - t_int,
         messages_per_second=len(imu) / max(t_end - t_start, 1e-12), input_damage=damage,
-        estimator_notes=notes + _spool_notes(spool),
+        estimator_notes=notes + _spool_notes(spool), accel_problem=accel_problem,
         working_bytes_on_disk=spool.spooled_bytes,
         index=keep, t_ns=tv, q=q_out, error_t_ns=np.zeros(0, np.int64), error_rad=np.zeros(0))
     if use_mag and est.aiding is not None:
