@@ -81,7 +81,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "transport rate (--frame enu), time-aligned to the Imu stamps as the "
                         "node's odometry_topic")
     parser.add_argument("--truth-topic", default=TRUTH_TOPIC,
-                        help=f"QuaternionStamped truth to compare with (default {TRUTH_TOPIC})")
+                        help="truth to compare with: geometry_msgs/QuaternionStamped, or the "
+                        "orientation of a PoseStamped, Odometry or TFMessage topic (a "
+                        f"motion-capture system's) (default {TRUTH_TOPIC})")
+    parser.add_argument("--truth-child-frame", default=None, metavar="FRAME",
+                        help="with a TFMessage truth topic: the child frame of the transforms "
+                        "that are the IMU's pose")
     parser.add_argument("--compression", choices=COMPRESSIONS, default=DEFAULT_COMPRESSION,
                         type=lambda s: "" if s == "none" else s, metavar="{zstd,lz4,none}",
                         help=f"chunk compression of OUT (default {DEFAULT_COMPRESSION})")
@@ -193,7 +198,7 @@ def run(args) -> int:
             truth_topic=args.truth_topic, odometry_topic=args.odometry_topic,
             compression=args.compression, force=args.force,
             progress=update, config=config, estimator=args.estimator,
-            mag_topic=args.mag_topic)
+            mag_topic=args.mag_topic, truth_child_frame=args.truth_child_frame)
         if bar is not None:
             bar.close()
             bar = None

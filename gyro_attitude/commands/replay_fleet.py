@@ -76,7 +76,8 @@ def run_fleet(args, config) -> int:
             connect_timeout_s=args.connect_timeout, on_file=report, imu_topic=args.imu_topic,
             algorithm=args.algorithm, truth_topic=args.truth_topic,
             compression=args.compression, force=args.force, config=config,
-            estimator=args.estimator)
+            estimator=args.estimator, mag_topic=args.mag_topic,
+            odometry_topic=args.odometry_topic, truth_child_frame=args.truth_child_frame)
     except (ValueError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1

@@ -61,12 +61,13 @@ from gyro_attitude.io.cdr_arrays import (
     imu_batch,
     quaternion_stamped_batch,
 )
-from gyro_attitude.io.imu_fast import read_topic_arrays
-from gyro_attitude.io.mcap_reader import bag_files
+from gyro_attitude.io.imu_fast import QuaternionArrays, read_topic_arrays
+from gyro_attitude.io.mcap_reader import bag_files, match_topic, recorded_topics
 from gyro_attitude.io.mcap_writer import DEFAULT_COMPRESSION, Rosbag2McapWriter
 from gyro_attitude.io.odometry_file import read_odometry_velocities
 from gyro_attitude.io.safe_output import SafeOutput, check_output_path
 from gyro_attitude.io.spool import Spool
+from gyro_attitude.io.trajectory_file import POSE_TYPES, read_pose_topic
 
 __all__ = [
     "DEFAULT_IMU_TOPIC",
@@ -332,7 +333,8 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                 on_damage: str = "warn", config: StreamConfig | None = None,
                 odometry_topic: str | None = None,
                 estimator: Estimator | str = Estimator.OFFLINE,
-                mag_topic: str = DEFAULT_MAG_TOPIC) -> ReplayResult:
+                mag_topic: str = DEFAULT_MAG_TOPIC,
+                truth_child_frame: str | None = None) -> ReplayResult:
     """Integrate every Imu message of ``input_path`` and write ``output_path``.
 
     ``estimator`` ``offline``: the whole-recording estimator
@@ -355,6 +357,9 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     With ``aiding`` magnetometer the ``sensor_msgs/MagneticField`` topic ``mag_topic`` is read
     and matched to the Imu stamps as the node matches it (the latest field sample at or before
     each stamp, at most ``mag_max_age_s`` old: :mod:`.sample_alignment`).
+    The truth ``truth_topic`` is a ``geometry_msgs/QuaternionStamped`` or the orientation of
+    a pose topic as motion-capture systems publish it (``PoseStamped``, ``Odometry``, or the
+    transforms of a ``TFMessage`` whose child frame is ``truth_child_frame``).
     ``progress(bytes_done, bytes_total)`` is called while reading.  Raises ValueError (bad
     arguments, unusable input, nothing to write) and OSError.
     """
@@ -365,6 +370,10 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                         ("mag_topic", mag_topic)):
         if not isinstance(value, str) or not value:
             raise ValueError(f"{name} must be a topic name, got {value!r}")
+    if truth_child_frame is not None and (not isinstance(truth_child_frame, str)
+                                          or not truth_child_frame):
+        raise ValueError(f"truth_child_frame must be a frame name or None, got "
+                         f"{truth_child_frame!r}")
     if odometry_topic is not None and not isinstance(odometry_topic, str):
         raise ValueError(f"odometry_topic must be a topic name or None, got {odometry_topic!r}")
     if config is not None and not isinstance(config, StreamConfig):
@@ -383,7 +392,18 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     check_output_path(output_path, inputs=[input_path], force=force)
     t_start = time.perf_counter()
     use_mag = config.aiding is Aiding.MAGNETOMETER
-    topics = {imu_topic: IMU_TYPE, truth_topic: QUATERNION_STAMPED_TYPE}
+    # the truth as a QuaternionStamped (read with the Imu) or as the poses of a motion-capture
+    # topic (PoseStamped, Odometry, TFMessage: the trajectory input's reader)
+    known = recorded_topics(input_path)  # None: the files have no summary to say
+    truth_name = None if known is None else match_topic(list(known), truth_topic)
+    truth_type = QUATERNION_STAMPED_TYPE if truth_name is None else known[truth_name]
+    topics = {imu_topic: IMU_TYPE}
+    if truth_type == QUATERNION_STAMPED_TYPE:
+        topics[truth_topic] = QUATERNION_STAMPED_TYPE
+    elif truth_type not in POSE_TYPES:
+        raise ValueError(f"{input_path}: truth topic {truth_name} holds {truth_type or '?'}; "
+                         f"truth is read from {QUATERNION_STAMPED_TYPE}, "
+                         f"{', '.join(POSE_TYPES)} (--truth-topic)")
     if use_mag:
         topics[mag_topic] = MAGNETIC_FIELD_TYPE
     # the columns of the recording's length in files beside the output (io/spool.py): the
@@ -398,7 +418,10 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                                                    "linear_acceleration_covariance")})
     damage = next((a.damage for a in arrays.values() if a.damage), None)
     if imu_topic not in arrays:
-        raise ValueError(f"{input_path}: no Imu topic {imu_topic!r} (use --imu-topic)"
+        known = recorded_topics(input_path, scan=True) if known is None else known
+        have = sorted(t for t, ty in known.items() if ty == IMU_TYPE)
+        raise ValueError(f"{input_path}: no Imu topic {imu_topic!r}; its Imu topics: "
+                         f"{', '.join(have) or 'none'} (use --imu-topic)"
                          + (f"; {damage}" if damage else ""))
     # in log-time order, as ros2 bag play and mcap_player deliver them to the node (a file
     # written with receive jitter is not stored in that order)
@@ -423,6 +446,8 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     truth = arrays.pop(truth_topic, None)
     if truth is not None:  # its stamps and quaternions are used, its MCAP times never
         truth = dataclasses.replace(truth, log_time_ns=None, publish_time_ns=None)
+    elif truth_type in POSE_TYPES:
+        truth = _pose_truth(input_path, truth_name, truth_type, truth_child_frame)
     del arrays
     t_all = imu.stamp_ns
     if odometry_topic:
@@ -537,6 +562,18 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         for name, value in figures.items():
             setattr(result, name, value)
     return result
+
+
+def _pose_truth(path, topic: str, type_name: str, child_frame: str | None) -> QuaternionArrays:
+    """The orientations of a pose topic as truth (the trajectory input's reader)."""
+    if type_name == POSE_TYPES[2] and not child_frame:
+        raise ValueError(f"{path}: truth topic {topic} is a TFMessage: say which transform is "
+                         "the IMU's (--truth-child-frame)")
+    poses = read_pose_topic(path, topic, child_frame)
+    return QuaternionArrays(topic=topic, stamp_ns=poses.t_ns, log_time_ns=None,
+                            publish_time_ns=None, frame_id="", frame_ids=set(),
+                            fast_messages=0, fallback_messages=len(poses.t_ns), damage=None,
+                            quaternion=poses.q)
 
 
 def _truth_figures(truth, t_ns: np.ndarray, q: np.ndarray, empty=np.empty,
