@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gyro_attitude.commands import error_line
 from gyro_attitude.commands.estimator_flags import (
     add_estimator_flags,
     config_from_args,
@@ -26,7 +27,7 @@ from gyro_attitude.core.attitude.modes import Estimator, Frame
 from gyro_attitude.core.attitude.sample_alignment import field_clock_warning
 from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.io.mcap_writer import COMPRESSIONS, DEFAULT_COMPRESSION
-from gyro_attitude.io.safe_output import check_output_path
+from gyro_attitude.io.safe_output import check_output_path, plot_format
 from gyro_attitude.offline.replay import (
     DEFAULT_IMU_TOPIC,
     DEFAULT_MAG_TOPIC,
@@ -40,14 +41,7 @@ __all__ = ["configure", "run", "replay_file"]
 _PROGRESS_MIN_BYTES = 50 * 1024 * 1024  # show a progress bar from this file size on
 
 
-def _one_line_error(parser: argparse.ArgumentParser):
-    def error(message: str):
-        parser.exit(2, f"{parser.prog}: error: {message}\n")
-    return error
-
-
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.error = _one_line_error(parser)  # one line, not usage + error
     parser.add_argument("input", metavar="IN.mcap", nargs="+",
                         help="recording (file or bag directory); several, or a glob, with "
                         "--out-dir (fleet replay)")
@@ -91,7 +85,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         type=lambda s: "" if s == "none" else s, metavar="{zstd,lz4,none}",
                         help=f"chunk compression of OUT (default {DEFAULT_COMPRESSION})")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
-    parser.add_argument("--plot", metavar="PNG", default=None, help="write an error plot")
+    parser.add_argument("--plot", metavar="IMAGE", default=None,
+                        help="write an error plot (.png, .pdf, .svg or .jpg, by its suffix)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -176,13 +171,12 @@ def run(args) -> int:
     try:
         config = _stream_config(args)
     except ValueError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        error_line("replay", exc)
         return 2
     if args.out_dir is not None or len(args.input) > 1:
         return run_fleet(args, config)
     if args.out is None:
-        print("error: give --out OUT.mcap (or --out-dir DIR for several inputs)",
-              file=sys.stderr)
+        error_line("replay", "give --out OUT.mcap (or --out-dir DIR for several inputs)")
         return 2
     args.input = args.input[0]
     bar = None
@@ -192,6 +186,7 @@ def run(args) -> int:
         if args.plot:
             check_output_path(args.plot, inputs=[args.input, args.out], force=args.force,
                               what="plot")
+            plot_format(args.plot)
         bar, update = _progress_bar(args)
         result = replay_file(
             args.input, args.out, imu_topic=args.imu_topic, algorithm=args.algorithm,
@@ -205,7 +200,7 @@ def run(args) -> int:
         if args.plot:
             write_error_plot(result, args.plot, force=True)  # checked above
     except (ValueError, OSError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        error_line("replay", exc)
         return 1
     except KeyboardInterrupt:
         print("interrupted: no output written", file=sys.stderr)

@@ -14,6 +14,7 @@ import os
 import sys
 import time
 
+from gyro_attitude.commands import error_line
 from gyro_attitude.offline.parallel import CONNECT_TIMEOUT_S, default_workers
 
 __all__ = ["add_fleet_flags", "run_fleet"]
@@ -49,20 +50,19 @@ def run_fleet(args, config) -> int:
     from gyro_attitude.offline.fleet import fleet_pairs, replay_fleet
 
     if args.out is not None or args.plot:
-        print("error: with several inputs give --out-dir DIR (not --out or --plot)",
-              file=sys.stderr)
+        error_line("replay", "with several inputs give --out-dir DIR (not --out or --plot)")
         return 2
     if args.out_dir is None:
-        print("error: several inputs need --out-dir DIR", file=sys.stderr)
+        error_line("replay", "several inputs need --out-dir DIR")
         return 2
     workers = args.workers or default_workers()
     if workers < 1 or not math.isfinite(args.connect_timeout) or args.connect_timeout <= 0:
-        print("error: --workers must be >= 1 and --connect-timeout > 0", file=sys.stderr)
+        error_line("replay", "--workers must be >= 1 and --connect-timeout > 0")
         return 2
     try:
         pairs = fleet_pairs(args.input, args.out_dir, force=args.force)
     except (ValueError, OSError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        error_line("replay", exc)
         return 1
 
     def report(f):
@@ -79,7 +79,7 @@ def run_fleet(args, config) -> int:
             estimator=args.estimator, mag_topic=args.mag_topic,
             odometry_topic=args.odometry_topic, truth_child_frame=args.truth_child_frame)
     except (ValueError, OSError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        error_line("replay", exc)
         return 1
     wall = time.perf_counter() - t0
     ok = [f for f in files if f.summary is not None]

@@ -65,7 +65,7 @@ from gyro_attitude.io.imu_fast import QuaternionArrays, read_topic_arrays
 from gyro_attitude.io.mcap_reader import bag_files, match_topic, recorded_topics
 from gyro_attitude.io.mcap_writer import DEFAULT_COMPRESSION, Rosbag2McapWriter
 from gyro_attitude.io.odometry_file import read_odometry_velocities
-from gyro_attitude.io.safe_output import SafeOutput, check_output_path
+from gyro_attitude.io.safe_output import SafeOutput, check_output_path, plot_format
 from gyro_attitude.io.spool import Spool
 from gyro_attitude.io.trajectory_file import POSE_TYPES, read_pose_topic
 
@@ -687,8 +687,9 @@ def _strictly_increasing(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.n
 
 
 def write_error_plot(result: ReplayResult, png, *, force: bool = True) -> None:
-    """PNG of the error against truth over time (or, without truth, the rotation from the
-    initial attitude), written through a temporary file renamed into place."""
+    """A plot (its format from the suffix) of the error against truth over time (or,
+    without truth, the rotation from the initial attitude), written through a temporary
+    file renamed into place."""
     # matplotlib is imported here: it costs ~0.5 s of start-up that a replay without
     # --plot does not need.
     import matplotlib
@@ -715,6 +716,6 @@ def write_error_plot(result: ReplayResult, png, *, force: bool = True) -> None:
     ax.grid(True, which="both", alpha=0.3)
     try:
         with SafeOutput(png, force=force) as tmp:
-            fig.savefig(tmp, dpi=110, format="png")
+            fig.savefig(tmp, dpi=110, format=plot_format(png))
     finally:
         plt.close(fig)

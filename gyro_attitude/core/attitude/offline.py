@@ -503,6 +503,7 @@ class _Estimator:
                            / (r0.stop - r0.start)) / g
             tilt_var0 = sl * sl
             if self.alignment is None:
+                self._align_row = b0 + r0.start
                 self.alignment = AlignmentResult(
                     q_start, roll, pitch, wrap_2pi(math.radians(cfg.initial_heading_deg)),
                     "given", sl, math.nan, int(self.t[b0 + r0.start]),
@@ -525,6 +526,7 @@ class _Estimator:
                 self.notes.append("aiding magnetometer without a field: heading gyro-only")
             else:
                 self._heading_from_field(b0, b1, q_out, var_out)
+                self._aligned_heading_from_field(b0, b1, q_out)
 
     def _zeros(self, shape, dtype) -> np.ndarray:
         """A zeroed array from the allocator (the flags and clocks of a block's length)."""
@@ -876,6 +878,18 @@ class _Estimator:
                           f"{math.degrees(ref_d):.1f}° ("
                           + ("learned: medians over the recording" if ref.learned else "given")
                           + ")")
+
+    def _aligned_heading_from_field(self, b0, b1, q_out):
+        """The alignment's heading is the field's once the heading pass has run over the
+        levelling rest (not the ``initial_heading_deg`` the start was levelled with)."""
+        row = getattr(self, "_align_row", None)
+        a = self.alignment
+        if row is None or a is None or not b0 <= row < b1 or a.heading_source != "given":
+            return
+        c = quat_as_matrix(q_out[row])
+        heading = wrap_2pi(math.pi / 2 - math.atan2(float(c[1, 0]), float(c[0, 0])))
+        self.alignment = replace(a, q_nb=q_out[row].copy(), heading=heading,
+                                 heading_source="magnetometer")
 
     def _level_at_rests(self, b0, b1, rests, tau, q_out, var_out):
         """Levelling at every rest, the correction interpolated in time between rests."""
