@@ -448,6 +448,15 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         truth = dataclasses.replace(truth, log_time_ns=None, publish_time_ns=None)
     elif truth_type in POSE_TYPES:
         truth = _pose_truth(input_path, truth_name, truth_type, truth_child_frame)
+    truth_notes = []
+    if truth is not None and len(truth):
+        # one truth for the start and the figures: a repeated stamp or a NaN quaternion (a
+        # tracker that lost the markers) is left out of both, and said
+        ts, tq = _usable_truth(truth.stamp_ns, truth.quaternion, spool.empty)
+        if ts.size < len(truth):
+            truth_notes.append(f"truth: {len(truth) - ts.size} of {len(truth)} samples left out "
+                               "(not finite, zero, or a stamp not after the one before)")
+            truth = dataclasses.replace(truth, stamp_ns=ts, quaternion=tq)
     del arrays
     t_all = imu.stamp_ns
     if odometry_topic:
@@ -544,7 +553,7 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         wall_seconds=t_end - t_start, read_seconds=t_read - t_start,
         integrate_seconds=t_int - t_read, write_seconds=t_end - t_int,
         messages_per_second=len(imu) / max(t_end - t_start, 1e-12), input_damage=damage,
-        estimator_notes=notes + _spool_notes(spool), accel_problem=accel_problem,
+        estimator_notes=notes + truth_notes + _spool_notes(spool), accel_problem=accel_problem,
         working_bytes_on_disk=spool.spooled_bytes,
         index=keep, t_ns=tv, q=q_out, error_t_ns=np.zeros(0, np.int64), error_rad=np.zeros(0))
     if use_mag and est.aiding is not None:
@@ -600,16 +609,7 @@ def _truth_figures(truth, t_ns: np.ndarray, q: np.ndarray, empty=np.empty,
     est_t, est_q = _strictly_increasing(t_ns, q)  # the output may jump back in time
     if est_t.size < 2:  # one attitude: nothing to slerp between
         return None
-    ts, tq = truth.stamp_ns, truth.quaternion
-    usable = empty(ts.size, bool)
-    for lo in range(0, ts.size, TRUTH_BLOCK):
-        b = tq[lo:lo + TRUTH_BLOCK]
-        usable[lo:lo + TRUTH_BLOCK] = np.isfinite(b).all(axis=1) & (
-            np.linalg.norm(b, axis=1) > 1e-9)
-    if not usable.all():
-        ts, tq = ts[usable], tq[usable]
-    del usable
-    ts, tq = _strictly_increasing(ts, tq)
+    ts, tq = _usable_truth(truth.stamp_ns, truth.quaternion, empty)
     if ts.size == 0:
         return None
     # where the truth and the output overlap: the truth stamps outside the output's span have
@@ -673,6 +673,21 @@ def _truth_figures(truth, t_ns: np.ndarray, q: np.ndarray, empty=np.empty,
             "truth_overlap": spans,
             "error_t_ns": ts if n == ts.size else rows(ts, np.flatnonzero(covered), empty),
             "error_rad": err}
+
+
+def _usable_truth(ts: np.ndarray, tq: np.ndarray, empty=np.empty) -> tuple[np.ndarray,
+                                                                           np.ndarray]:
+    """The truth samples that can be compared with: finite non-zero quaternions, sorted by
+    stamp, the first of a repeated stamp (``ts``, ``tq`` themselves when all are)."""
+    usable = empty(ts.size, bool)
+    for lo in range(0, ts.size, TRUTH_BLOCK):
+        b = tq[lo:lo + TRUTH_BLOCK]
+        usable[lo:lo + TRUTH_BLOCK] = np.isfinite(b).all(axis=1) & (
+            np.linalg.norm(b, axis=1) > 1e-9)
+    if not usable.all():
+        ts, tq = ts[usable], tq[usable]
+    del usable
+    return _strictly_increasing(ts, tq)
 
 
 def _strictly_increasing(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -141,3 +141,23 @@ def test_an_upside_down_mounting_replayed_from_identity_names_the_wrong_start(tm
                           str(tmp_path / "o.mcap")], capsys)
     assert code == 0
     assert "tilt 180°" in out and "a wrong start: --initial-attitude level or truth" in out
+
+
+def test_a_repeated_truth_stamp_or_a_lost_marker_is_left_out_of_the_start_and_the_figures(
+        tmp_path):
+    # a tracker repeats a stamp and loses the markers once (NaN): the truth start took the
+    # whole truth for broken ("truth stamps must be strictly increasing")
+    t = stamps(100, 10, 200)
+    w = np.tile([0.0, 0.0, RATE], (t.size, 1))
+    q = rz(RATE * (t - t[0]) * 1e-9)
+    tt = t.copy()
+    tt[50] = tt[49]
+    q[80] = np.nan
+    with Rosbag2McapWriter(tmp_path / "in.mcap") as wr:
+        wr.add_topic("imu/data_raw", IMU)
+        wr.write_imu_array("imu/data_raw", t, w)
+        wr.add_topic("truth/attitude", QS)
+        wr.write_quaternion_stamped_array("truth/attitude", tt, q, frame_id="enu")
+    r = replay_file(tmp_path / "in.mcap", tmp_path / "o.mcap", initial_attitude="truth")
+    assert r.truth_matched == t.size - 2 and r.final_error_rad < 1e-8
+    assert any("2 of 2000 samples left out" in n for n in r.estimator_notes)
