@@ -228,7 +228,7 @@ class MonteCarloSetup:
             raise ValueError(f"duration {self.duration_s:g} s at {self.rate_hz:g} Hz gives "
                              f"{n} sample(s); at least 2 are needed")
         if n > MAX_SAMPLES_PER_RUN:
-            raise ValueError(f"duration {self.duration_s:g} s at {self.rate_hz:g} Hz is {n} "
+            raise ValueError(f"duration {self.duration_s:g} s at {self.rate_hz:g} Hz is {n:.3g} "
                              f"samples per run; the limit is {MAX_SAMPLES_PER_RUN}")
 
     @property
