@@ -6,6 +6,7 @@ and an unknown suffix is refused before the work."""
 from __future__ import annotations
 
 import os
+import re
 import sys
 
 import numpy as np
@@ -53,7 +54,7 @@ def test_argument_errors_of_every_command_are_one_line_of_one_form(capsys, argv)
 ])
 def test_runtime_errors_of_every_command_are_one_line_of_one_form(capsys, tmp_path, argv, code):
     line = one_error_line(capsys, [a.replace("{tmp}", str(tmp_path)) for a in argv], code)
-    assert len(line) < 300  # a count of 1e302 samples is not printed digit by digit
+    assert not re.search(r"\d{30}", line)  # a count of 1e302 samples is not printed in full
 
 
 def _bag(path):
