@@ -130,11 +130,13 @@ def truth_lines(out: dict) -> list[str]:
     heading apart, the heading less the start's offset when the start was not the truth's,
     and the span compared when truth and output only partly overlap."""
     if not out["truth_matched"]:
+        if not out["truth_found"]:
+            return [f"  no error figures: no truth topic {out['truth_topic']!r} with messages "
+                    "in the input (--truth-topic)"]
         if (out["truth_overlap"] or {}).get("note"):
             return ["  no error figures: the truth does not overlap the output (see the "
                     "warning)"]
-        return ["  no error figures: no truth topic in the input, or no truth stamp inside "
-                "the span of two attitudes"]
+        return ["  no error figures: no truth stamp inside the span of two attitudes"]
     d = np.degrees
     lines = [f"  vs {out['truth_topic']} ({out['truth_matched']} stamps): final error "
              f"{d(out['final_error_rad']):.3g}° (tilt {d(out['final_tilt_error_rad']):.3g}°, "

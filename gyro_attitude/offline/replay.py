@@ -151,6 +151,7 @@ class ReplayResult:
     final_heading_error_from_start_rad: float | None = None
     truth_overlap: dict | None = None  # spans (s) of truth, output and their overlap; a note
     accel_problem: str | None = None  # why the accelerometer was not used (not in m/s²)
+    truth_found: bool = False  # the truth topic is in the input, with messages
     index: np.ndarray = field(default=None, repr=False)
     t_ns: np.ndarray = field(default=None, repr=False)
     q: np.ndarray = field(default=None, repr=False)
@@ -570,6 +571,9 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     if figures is not None:
         for name, value in figures.items():
             setattr(result, name, value)
+    result.truth_found = truth is not None and len(truth) > 0
+    if not result.truth_found:
+        result.truth_topic = truth_topic  # asked for, not in the input (the summary says so)
     return result
 
 

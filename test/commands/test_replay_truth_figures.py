@@ -161,3 +161,11 @@ def test_a_repeated_truth_stamp_or_a_lost_marker_is_left_out_of_the_start_and_th
     r = replay_file(tmp_path / "in.mcap", tmp_path / "o.mcap", initial_attitude="truth")
     assert r.truth_matched == t.size - 2 and r.final_error_rad < 1e-8
     assert any("2 of 2000 samples left out" in n for n in r.estimator_notes)
+
+
+def test_a_truth_topic_not_in_the_input_is_named(tmp_path, capsys):
+    t = stamps(100, 5, 200)
+    record(tmp_path / "in.mcap", t, t)
+    code, out, err = run(["replay", str(tmp_path / "in.mcap"), "--out", str(tmp_path / "o.mcap"),
+                          "--truth-topic", "/mocap/typo"], capsys)
+    assert code == 0 and "no truth topic '/mocap/typo' with messages in the input" in out
