@@ -230,8 +230,9 @@ def run(args) -> int:
     offset_warning = field_clock_warning((out["magnetometer"] or {}).get("clock_offset_s"))
     if offset_warning:
         print(f"warning: {offset_warning}", file=sys.stderr)
-    if out["accel_problem"]:
-        print(f"warning: {out['accel_problem']}", file=sys.stderr)
+    for key in ("accel_problem", "accel_note"):
+        if out[key]:
+            print(f"warning: {out[key]}", file=sys.stderr)
     note = (out["truth_overlap"] or {}).get("note")
     if note:
         print(f"warning: {note}", file=sys.stderr)

@@ -53,6 +53,7 @@ from gyro_attitude.core.attitude.truth import (
     truth_at_stamps,
 )
 from gyro_attitude.core.attitude.world_frame import frame_id_of, from_enu
+from gyro_attitude.core.earth import STANDARD_GRAVITY
 from gyro_attitude.core.rotation import quat_angle_between
 from gyro_attitude.io.cdr_arrays import (
     IMU_TYPE,
@@ -152,6 +153,7 @@ class ReplayResult:
     truth_overlap: dict | None = None  # spans (s) of truth, output and their overlap; a note
     accel_problem: str | None = None  # why the accelerometer was not used (not in m/s²)
     truth_found: bool = False  # the truth topic is in the input, with messages
+    accel_note: str | None = None  # an accelerometer in m/s² too far off g for the rest test
     index: np.ndarray = field(default=None, repr=False)
     t_ns: np.ndarray = field(default=None, repr=False)
     q: np.ndarray = field(default=None, repr=False)
@@ -474,7 +476,7 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     # (every message must carry one, REP-145: one that says it has none makes the
     # accelerometer unknown for the recording)
     has_accel = bool(len(imu)) and not iv.no_estimate(imu.linear_acceleration_covariance).any()
-    accel_problem = None
+    accel_problem = accel_note = None
     if has_accel:
         # a field in g, mg, cm/s² or all zero is no specific force in m/s²: taken as one it
         # finds no rest or false ones and aids the tilt toward garbage (core/attitude/accel_units)
@@ -486,6 +488,14 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
             has_accel = False
             accel_problem = (f"{scale.problem}: the accelerometer is not used (no rests from "
                              "it, no levelling, no aiding)")
+        elif scale.basis.startswith("still") and abs(
+                scale.median_norm - STANDARD_GRAVITY) > config.rest_accel_norm_tol:
+            # in m/s², but too far off g for the rest test's norm tolerance: no window passes
+            accel_note = (f"the accelerometer reads |f| {scale.median_norm:.3f} m/s² when "
+                          f"still, {abs(scale.median_norm - STANDARD_GRAVITY):.2f} m/s² from g: "
+                          f"beyond rest_accel_norm_tol ({config.rest_accel_norm_tol:g} m/s²), "
+                          "no rest passes the accelerometer test (calibrate its scale, or "
+                          "raise --rest-accel-norm-tol)")
     # One frame per decoded message is not kept by the array reader: the first frame stands
     # for all (the node would also reject samples whose frame_id changes: see frame_ids).
     est = estimate_recording(
@@ -555,6 +565,7 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         integrate_seconds=t_int - t_read, write_seconds=t_end - t_int,
         messages_per_second=len(imu) / max(t_end - t_start, 1e-12), input_damage=damage,
         estimator_notes=notes + truth_notes + _spool_notes(spool), accel_problem=accel_problem,
+        accel_note=accel_note,
         working_bytes_on_disk=spool.spooled_bytes,
         index=keep, t_ns=tv, q=q_out, error_t_ns=np.zeros(0, np.int64), error_rad=np.zeros(0))
     if use_mag and est.aiding is not None:
