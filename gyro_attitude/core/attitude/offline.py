@@ -247,10 +247,15 @@ def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, lo: int, hi: 
     # once, and the one skipped is still followed by a window of rest (marking only the
     # windows' oldest samples left holes there, and no rest reached min_ns).
     followed = zeros(n, bool)
-    for e0, e1 in _segments(newest):
-        o0, o1 = np.searchsorted(tr, tr[[e0, e1 - 1]] - window_ns, side="left").tolist()
-        if tr[o1] - tr[o0] >= min_ns:  # the causal stage's span of the same rest
-            followed[o0:o1 + 1] = True
+    pad = np.zeros(1, np.int8)
+    edges = np.diff(np.concatenate((pad, newest.view(np.int8), pad)))
+    e0, e1 = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    del edges
+    o0 = np.searchsorted(tr, tr[e0] - window_ns, side="left")
+    o1 = np.searchsorted(tr, tr[e1 - 1] - window_ns, side="left")
+    keep = tr[o1] - tr[o0] >= min_ns  # the causal stage's span of the same rest
+    for a, b in zip(o0[keep].tolist(), o1[keep].tolist(), strict=True):
+        followed[a:b + 1] = True
     # at rest: followed by a full window of rest (the gentle start of a motion is out) and
     # preceded by one (so is the tail of a motion, which a window starting there can pass)
     out[lo:hi] |= newest & followed
