@@ -17,6 +17,7 @@ import sys
 import threading
 
 from gyro_attitude import __version__
+from gyro_attitude.commands import one_line_parser_errors
 from gyro_attitude.io.ament_prefix import ensure_ament_prefix_path
 from gyro_attitude.io.safe_output import request_stop, stop_handled
 from gyro_attitude.offline.allocator import keep_freed_memory
@@ -122,6 +123,7 @@ def main(argv: list[str] | None = None) -> int:
             module = importlib.import_module(f"gyro_attitude.commands.{name}")
             sub = argparse.ArgumentParser(prog=f"gyro-attitude {name}",
                                           description=SUBCOMMANDS[name])
+            one_line_parser_errors(sub)  # one line, not usage + error, for every command
             module.configure(sub)
             args = sub.parse_args(argv[1:])
             status = int(module.run(args) or 0)

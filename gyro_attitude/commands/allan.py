@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
+from gyro_attitude.commands import error_line
 from gyro_attitude.core.units import format_si
-from gyro_attitude.io.safe_output import SafeOutput, check_output_path
+from gyro_attitude.io.safe_output import SafeOutput, check_output_path, plot_format
 from gyro_attitude.io.strict_yaml import dump_yaml
 from gyro_attitude.offline.allan import AXES, analyse_mcap, plot
 
@@ -101,9 +101,11 @@ def run(args: argparse.Namespace) -> int:
         for i, (p, what) in enumerate(outs):
             check_output_path(p, inputs=[args.input, *(q for q, _ in outs[:i])],
                               force=args.force, what=f"{what} output")
+        if args.plot:
+            plot_format(args.plot)
         result = analyse_mcap(args.input, args.imu_topic)
     except (ValueError, OSError) as exc:
-        print(f"allan: error: {exc}", file=sys.stderr)
+        error_line("allan", exc)
         return 1
     print(f"[allan] {args.input} {result.topic}: {result.samples} samples every "
           f"{result.dt_s * 1e3:g} ms, τ from {result.tau_s[0]:g} s to {result.tau_s[-1]:g} s")
@@ -137,6 +139,6 @@ def run(args: argparse.Namespace) -> int:
                 plot(result, tmp, title=f"{Path(args.input).name} {result.topic}")
             print(f"[allan] plot -> {args.plot}")
     except (ValueError, OSError) as exc:
-        print(f"allan: error: cannot write output: {exc}", file=sys.stderr)
+        error_line("allan", f"cannot write output: {exc}")
         return 1
     return 0

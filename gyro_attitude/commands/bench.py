@@ -15,11 +15,11 @@ import json
 import math
 import os
 import pathlib
-import sys
 import time
 import traceback
 
 from gyro_attitude.benchmarks import machine_description
+from gyro_attitude.commands import error_line
 from gyro_attitude.io.safe_output import (
     OutputPathError,
     SafeOutput,
@@ -34,6 +34,7 @@ SUITES: dict[str, str] = {
     "nodes": "gyro_attitude.benchmarks.nodes",
     "scenes": "gyro_attitude.benchmarks.scenes",
     "real": "gyro_attitude.benchmarks.real",
+    "jitter": "gyro_attitude.benchmarks.jitter",
     "offline-memory": "gyro_attitude.benchmarks.offline_memory",
     "nyquist": "gyro_attitude.benchmarks.nyquist",
     "instruments": "gyro_attitude.benchmarks.instruments",
@@ -114,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
     suites = list(dict.fromkeys(args.suite or ["attitude"]))
     problem = _prepare_outputs(args)
     if problem is not None:
-        print(f"gyro-attitude bench: {problem}", file=sys.stderr)
+        error_line("bench", problem)
         return 2
     out_dir = pathlib.Path(args.out_dir)
     rows: list[dict] = []
@@ -156,7 +157,7 @@ def run(args: argparse.Namespace) -> int:
             with SafeOutput(path, force=args.force) as tmp:
                 tmp.write_text(json.dumps(_clean({"meta": meta, "rows": rows}), indent=1))
         except (OutputPathError, OSError) as exc:
-            print(f"gyro-attitude bench: --json {path}: {exc}", file=sys.stderr)
+            error_line("bench", f"--json {path}: {exc}")
             return 1
         print(f"wrote {len(rows)} rows to {path}")
     return 1 if "error" in status.values() else 0

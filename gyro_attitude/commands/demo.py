@@ -27,6 +27,7 @@ import time
 from datetime import UTC, datetime
 from pathlib import Path
 
+from gyro_attitude.commands import error_line
 from gyro_attitude.core.attitude import causal_algorithms
 from gyro_attitude.core.rotation import quat_angle_between
 from gyro_attitude.io.ament_prefix import node_command, node_environment
@@ -168,19 +169,19 @@ def run(args: argparse.Namespace) -> int:
     try:
         spec = load_scene(args.scene)
     except (ValueError, OSError) as exc:
-        print(f"--scene {args.scene!r}: {exc}", file=sys.stderr)
+        error_line("demo", f"--scene {args.scene!r}: {exc}")
         return 2
     rate = args.rate if args.rate is not None else float(spec.rate_hz)
     n_samples = int(round(args.duration * rate))
     if n_samples < MIN_SAMPLES:
         # gyro_sim reads 0 samples as "run forever"
-        print(f"--duration {args.duration:g} s at {rate:g} Hz gives {n_samples} samples; "
-              f"need at least {MIN_SAMPLES}", file=sys.stderr)
+        error_line("demo", f"--duration {args.duration:g} s at {rate:g} Hz gives {n_samples} "
+                   f"samples; need at least {MIN_SAMPLES}")
         return 2
     stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
     prepared = _prepare_outputs(args, spec, stamp)
     if isinstance(prepared, str):
-        print(f"[demo] {prepared}", file=sys.stderr)
+        error_line("demo", prepared)
         return 1
     bag, plot = prepared
     env = node_environment()
@@ -409,7 +410,7 @@ def _summarize(spec, rate, args, truth, attitude, diagnostics, bag, plot, wall, 
         with SafeOutput(plot, force=args.force) as tmp:
             fig.savefig(tmp, dpi=110, format="png")
     except (OutputPathError, OSError) as exc:
-        print(f"[demo] --plot {plot}: {exc}", file=sys.stderr)
+        error_line("demo", f"--plot {plot}: {exc}")
         return 1
     finally:
         plt.close(fig)

@@ -14,16 +14,16 @@ import math
 import sys
 
 from gyro_attitude.cli import EXIT_INTERRUPTED
+from gyro_attitude.commands import error_line
 from gyro_attitude.commands.estimator_flags import (
     add_estimator_flags,
     config_from_args,
     given_settings,
 )
-from gyro_attitude.commands.replay import _one_line_error
 from gyro_attitude.core.attitude import ALGORITHMS
 from gyro_attitude.core.attitude.modes import InitialAttitudeSource
 from gyro_attitude.core.attitude.settings import SETTINGS
-from gyro_attitude.io.safe_output import SafeOutput, check_output_path
+from gyro_attitude.io.safe_output import SafeOutput, check_output_path, plot_format
 from gyro_attitude.io.scene_file import load_scene
 from gyro_attitude.offline import montecarlo as mc
 from gyro_attitude.offline.parallel import CONNECT_TIMEOUT_S, default_workers
@@ -54,7 +54,6 @@ def _positive(text: str) -> float:
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.error = _one_line_error(parser)
     parser.add_argument("scene", help="scene name (gyro-attitude scenes) or YAML path")
     parser.add_argument("--runs", type=_int_from(1, mc.MAX_RUNS), required=True, metavar="N",
                         help="noise draws per grade")
@@ -90,7 +89,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help=f"times of the statistics (default {mc.GRID_POINTS})")
     parser.add_argument("--json", metavar="OUT", default=None,
                         help="write runs, percentile bands and the NEES check as JSON")
-    parser.add_argument("--plot", metavar="PNG", default=None,
+    parser.add_argument("--plot", metavar="IMAGE", default=None,
                         help="percentile bands over time per grade, predicted 1σ/3σ")
     parser.add_argument("--force", action="store_true", help="overwrite --json / --plot files")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -157,10 +156,12 @@ def run(args) -> int:
         for path, what in ((args.json, "json"), (args.plot, "plot")):
             if path:
                 check_output_path(path, inputs=[args.scene], force=args.force, what=what)
+        if args.plot:
+            plot_format(args.plot)
         if args.json and args.plot and args.json == args.plot:
             raise ValueError("--json and --plot name the same file")
     except (ValueError, OSError) as exc:
-        print(f"montecarlo: error: {exc}", file=sys.stderr)
+        error_line("montecarlo", exc)
         return 1
     workers = args.workers or default_workers()
     try:
@@ -168,7 +169,7 @@ def run(args) -> int:
                                    progress=not args.no_progress and sys.stderr.isatty(),
                                    connect_timeout_s=args.connect_timeout)
     except (ValueError, OSError) as exc:
-        print(f"montecarlo: error: {exc}", file=sys.stderr)
+        error_line("montecarlo", exc)
         return 1
     doc = result.to_json()
     stats = doc["statistics"]
@@ -178,7 +179,7 @@ def run(args) -> int:
         if args.plot and not result.interrupted:
             mc.write_plot(result, stats, args.plot)
     except (ValueError, OSError) as exc:
-        print(f"montecarlo: error: {exc}", file=sys.stderr)
+        error_line("montecarlo", exc)
         return 1
     if result.interrupted:
         done = doc["runs_finished"]

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gyro_attitude.commands import error_line
 from gyro_attitude.commands.estimator_flags import (
     add_estimator_flags,
     config_from_args,
@@ -26,7 +27,7 @@ from gyro_attitude.core.attitude.modes import Estimator, Frame
 from gyro_attitude.core.attitude.sample_alignment import field_clock_warning
 from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.io.mcap_writer import COMPRESSIONS, DEFAULT_COMPRESSION
-from gyro_attitude.io.safe_output import check_output_path
+from gyro_attitude.io.safe_output import check_output_path, plot_format
 from gyro_attitude.offline.replay import (
     DEFAULT_IMU_TOPIC,
     DEFAULT_MAG_TOPIC,
@@ -40,14 +41,7 @@ __all__ = ["configure", "run", "replay_file"]
 _PROGRESS_MIN_BYTES = 50 * 1024 * 1024  # show a progress bar from this file size on
 
 
-def _one_line_error(parser: argparse.ArgumentParser):
-    def error(message: str):
-        parser.exit(2, f"{parser.prog}: error: {message}\n")
-    return error
-
-
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.error = _one_line_error(parser)  # one line, not usage + error
     parser.add_argument("input", metavar="IN.mcap", nargs="+",
                         help="recording (file or bag directory); several, or a glob, with "
                         "--out-dir (fleet replay)")
@@ -81,12 +75,18 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "transport rate (--frame enu), time-aligned to the Imu stamps as the "
                         "node's odometry_topic")
     parser.add_argument("--truth-topic", default=TRUTH_TOPIC,
-                        help=f"QuaternionStamped truth to compare with (default {TRUTH_TOPIC})")
+                        help="truth to compare with: geometry_msgs/QuaternionStamped, or the "
+                        "orientation of a PoseStamped, Odometry or TFMessage topic (a "
+                        f"motion-capture system's) (default {TRUTH_TOPIC})")
+    parser.add_argument("--truth-child-frame", default=None, metavar="FRAME",
+                        help="with a TFMessage truth topic: the child frame of the transforms "
+                        "that are the IMU's pose")
     parser.add_argument("--compression", choices=COMPRESSIONS, default=DEFAULT_COMPRESSION,
                         type=lambda s: "" if s == "none" else s, metavar="{zstd,lz4,none}",
                         help=f"chunk compression of OUT (default {DEFAULT_COMPRESSION})")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
-    parser.add_argument("--plot", metavar="PNG", default=None, help="write an error plot")
+    parser.add_argument("--plot", metavar="IMAGE", default=None,
+                        help="write an error plot (.png, .pdf, .svg or .jpg, by its suffix)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -125,6 +125,43 @@ _EVENT_WORDS = {
 }
 
 
+def truth_lines(out: dict) -> list[str]:
+    """The summary's lines on the error against the truth: the angle, the tilt and the
+    heading apart, the heading less the start's offset when the start was not the truth's,
+    and the span compared when truth and output only partly overlap."""
+    if not out["truth_matched"]:
+        if not out["truth_found"]:
+            return [f"  no error figures: no truth topic {out['truth_topic']!r} with messages "
+                    "in the input (--truth-topic)"]
+        if (out["truth_overlap"] or {}).get("note"):
+            return ["  no error figures: the truth does not overlap the output (see the "
+                    "warning)"]
+        return ["  no error figures: no truth stamp inside the span of two attitudes"]
+    d = np.degrees
+    lines = [f"  vs {out['truth_topic']} ({out['truth_matched']} stamps): final error "
+             f"{d(out['final_error_rad']):.3g}° (tilt {d(out['final_tilt_error_rad']):.3g}°, "
+             f"heading {d(out['final_heading_error_rad']):+.3g}°), max "
+             f"{d(out['max_error_rad']):.3g}°, RMS {d(out['rms_error_rad']):.3g}°; tilt RMS "
+             f"{d(out['rms_tilt_error_rad']):.3g}°, max {d(out['max_tilt_error_rad']):.3g}°"]
+    if out["final_heading_error_from_start_rad"] is not None:
+        lines.append(
+            f"  the start was not taken from the truth: heading error at the first truth "
+            f"stamp {d(out['initial_heading_error_rad']):+.3g}°, tilt "
+            f"{d(out['initial_tilt_error_rad']):.3g}°; final heading error less that offset "
+            f"{d(out['final_heading_error_from_start_rad']):+.3g}°"
+            + (" (a wrong start: --initial-attitude level or truth)"
+               if out["initial_tilt_error_rad"] > np.radians(10.0) else ""))
+    ov = out["truth_overlap"]
+    out_s = ov["output_span_s"][1] - ov["output_span_s"][0]
+    truth_s = ov["truth_span_s"][1] - ov["truth_span_s"][0]
+    if ov["overlap_s"] < 0.99 * out_s or ov["overlap_s"] < 0.99 * truth_s:
+        lines.append(f"  compared over the {ov['overlap_s']:.3f} s where truth and output "
+                     f"overlap: {100 * ov['overlap_s'] / max(out_s, 1e-9):.0f} % of the "
+                     f"output's {out_s:.3f} s, {100 * ov['overlap_s'] / max(truth_s, 1e-9):.0f} "
+                     f"% of the truth's {truth_s:.3f} s")
+    return lines
+
+
 def _stream_config(args) -> StreamConfig:
     given = given_settings(args)
     if given.get("frame") is Frame.ENU and "latitude_rad" not in given:
@@ -136,13 +173,12 @@ def run(args) -> int:
     try:
         config = _stream_config(args)
     except ValueError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        error_line("replay", exc)
         return 2
     if args.out_dir is not None or len(args.input) > 1:
         return run_fleet(args, config)
     if args.out is None:
-        print("error: give --out OUT.mcap (or --out-dir DIR for several inputs)",
-              file=sys.stderr)
+        error_line("replay", "give --out OUT.mcap (or --out-dir DIR for several inputs)")
         return 2
     args.input = args.input[0]
     bar = None
@@ -152,20 +188,21 @@ def run(args) -> int:
         if args.plot:
             check_output_path(args.plot, inputs=[args.input, args.out], force=args.force,
                               what="plot")
+            plot_format(args.plot)
         bar, update = _progress_bar(args)
         result = replay_file(
             args.input, args.out, imu_topic=args.imu_topic, algorithm=args.algorithm,
             truth_topic=args.truth_topic, odometry_topic=args.odometry_topic,
             compression=args.compression, force=args.force,
             progress=update, config=config, estimator=args.estimator,
-            mag_topic=args.mag_topic)
+            mag_topic=args.mag_topic, truth_child_frame=args.truth_child_frame)
         if bar is not None:
             bar.close()
             bar = None
         if args.plot:
             write_error_plot(result, args.plot, force=True)  # checked above
     except (ValueError, OSError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        error_line("replay", exc)
         return 1
     except KeyboardInterrupt:
         print("interrupted: no output written", file=sys.stderr)
@@ -193,13 +230,19 @@ def run(args) -> int:
     offset_warning = field_clock_warning((out["magnetometer"] or {}).get("clock_offset_s"))
     if offset_warning:
         print(f"warning: {offset_warning}", file=sys.stderr)
+    for key in ("accel_problem", "accel_note"):
+        if out[key]:
+            print(f"warning: {out[key]}", file=sys.stderr)
+    note = (out["truth_overlap"] or {}).get("note")
+    if note:
+        print(f"warning: {note}", file=sys.stderr)
     if "gyro_noise_unknown" in out["details"]:
         print(f"note: {out['details']['gyro_noise_unknown']}", file=sys.stderr)
     if len(out["frame_ids"]) > 1:
         print(f"warning: frame_id changes inside {out['imu_topic']} ({out['frame_ids']}): "
               "integrated as one frame", file=sys.stderr)
     for note in out["estimator_notes"]:
-        if note.startswith("no accelerometer"):
+        if note.startswith("no accelerometer") and not out["accel_problem"]:
             print(f"note: {note}", file=sys.stderr)
     if args.json:
         print(json.dumps(out, indent=2))
@@ -235,13 +278,8 @@ def run(args) -> int:
     if out["working_bytes_on_disk"]:
         print(f"  {out['working_bytes_on_disk'] / 1e6:.0f} MB of working arrays kept "
               "in files beside the output (unlinked, gone when the replay ends)")
-    if out["truth_matched"]:
-        print(f"  vs {out['truth_topic']} ({out['truth_matched']} stamps): final error "
-              f"{np.degrees(out['final_error_rad']):.3e} deg, max "
-              f"{np.degrees(out['max_error_rad']):.3e} deg")
-    else:
-        print("  no error figures: no truth topic in the input, or no truth stamp inside "
-              "the span of two attitudes")
+    for line in truth_lines(out):
+        print(line)
     print(f"  wrote {out['output']} (attitude, imu/data; compression "
           f"{out['compression'] or 'none'})" + (f", plot {args.plot}" if args.plot else ""))
     return 0

@@ -14,6 +14,7 @@ import os
 import sys
 import time
 
+from gyro_attitude.commands import error_line
 from gyro_attitude.offline.parallel import CONNECT_TIMEOUT_S, default_workers
 
 __all__ = ["add_fleet_flags", "run_fleet"]
@@ -35,8 +36,13 @@ def add_fleet_flags(parser: argparse.ArgumentParser) -> None:
 def _line(f) -> str:
     s = f.summary
     err = s.get("final_error_rad")
+    note = (s.get("truth_overlap") or {}).get("note")
     return (f"ok     {f.input}: {s['messages']} msgs, {s['duration_s']:.1f} s, {s['algorithm']}"
-            + (f", final error {math.degrees(err):.3g} deg" if err is not None else "")
+            + (f", final error {math.degrees(err):.3g}° (tilt "
+               f"{math.degrees(s['final_tilt_error_rad']):.3g}°, heading "
+               f"{math.degrees(s['final_heading_error_rad']):+.3g}°)" if err is not None else "")
+            + (f"; {note}" if note else "")
+            + ("; accelerometer not in m/s²: not used" if s.get("accel_problem") else "")
             + f" -> {f.output}")
 
 
@@ -44,20 +50,19 @@ def run_fleet(args, config) -> int:
     from gyro_attitude.offline.fleet import fleet_pairs, replay_fleet
 
     if args.out is not None or args.plot:
-        print("error: with several inputs give --out-dir DIR (not --out or --plot)",
-              file=sys.stderr)
+        error_line("replay", "with several inputs give --out-dir DIR (not --out or --plot)")
         return 2
     if args.out_dir is None:
-        print("error: several inputs need --out-dir DIR", file=sys.stderr)
+        error_line("replay", "several inputs need --out-dir DIR")
         return 2
     workers = args.workers or default_workers()
     if workers < 1 or not math.isfinite(args.connect_timeout) or args.connect_timeout <= 0:
-        print("error: --workers must be >= 1 and --connect-timeout > 0", file=sys.stderr)
+        error_line("replay", "--workers must be >= 1 and --connect-timeout > 0")
         return 2
     try:
         pairs = fleet_pairs(args.input, args.out_dir, force=args.force)
     except (ValueError, OSError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        error_line("replay", exc)
         return 1
 
     def report(f):
@@ -71,9 +76,10 @@ def run_fleet(args, config) -> int:
             connect_timeout_s=args.connect_timeout, on_file=report, imu_topic=args.imu_topic,
             algorithm=args.algorithm, truth_topic=args.truth_topic,
             compression=args.compression, force=args.force, config=config,
-            estimator=args.estimator)
+            estimator=args.estimator, mag_topic=args.mag_topic,
+            odometry_topic=args.odometry_topic, truth_child_frame=args.truth_child_frame)
     except (ValueError, OSError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        error_line("replay", exc)
         return 1
     wall = time.perf_counter() - t0
     ok = [f for f in files if f.summary is not None]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from gyro_attitude.commands import error_line
 from gyro_attitude.io.scene_file import (
     find_scene_file,
     list_scenes,
@@ -29,7 +30,7 @@ def run(args: argparse.Namespace) -> int:
             text = read_scene_text(path)
             validate_scene_text(text, path)
         except ValueError as exc:
-            print(f"error: {exc}", file=sys.stderr)
+            error_line("scenes", exc)
             return 1
         sys.stdout.write(text)
         return 0

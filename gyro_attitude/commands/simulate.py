@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from gyro_attitude.commands import error_line
 from gyro_attitude.offline.simulate import simulate
 
 
@@ -58,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
                      trajectory=args.trajectory,
                      trajectory_options=_trajectory_options(args))
     except (ValueError, OSError) as exc:
-        print(f"simulate: error: {exc}", file=sys.stderr)
+        error_line("simulate", exc)
         return 1
     except KeyboardInterrupt:
         print("simulate: interrupted; no output written", file=sys.stderr)

@@ -83,6 +83,7 @@ __all__ = [
     "SummaryInfo",
     "McapStreamReader",
     "resolve_mcap_path",
+    "recorded_topics",
     "bag_files",
     "topic_matches",
     "match_topic",
@@ -196,6 +197,27 @@ def match_topic(recorded: list[str], wanted: str) -> str | None:
     if len(fits) > 1:
         raise ValueError(f"topic {wanted!r} is ambiguous: {fits}; give the full name")
     return fits[0] if fits else None
+
+
+def recorded_topics(path, *, scan: bool = False) -> dict[str, str] | None:
+    """``{topic: type name}`` of a recording (a file or a bag directory's files) from the
+    summaries; a file without a usable summary is walked chunk by chunk when ``scan`` (its
+    Channel records are in the chunks), else the answer is None (not known without a pass
+    over the data)."""
+    out: dict[str, str] = {}
+    for f in bag_files(path):
+        reader = McapStreamReader(f, on_damage="warn")
+        summary = reader.summary()
+        if summary is not None and summary.channels:
+            channels = summary.channels.values()
+        elif scan:
+            for _ in reader.iter_chunks():
+                pass
+            channels = reader.channels.values()
+        else:
+            return None
+        out.update({c.topic: c.type_name for c in channels})
+    return out
 
 
 #: Largest bag ``metadata.yaml`` read (bytes): rosbag2's are a few kB.

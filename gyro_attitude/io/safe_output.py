@@ -21,7 +21,7 @@ from pathlib import Path
 
 __all__ = ["OutputPathError", "OutputWriteError", "write_error", "is_write_error",
            "check_output_path", "SafeOutput", "request_stop", "stop_handled",
-           "stop_requested", "raise_if_stop_requested"]
+           "stop_requested", "raise_if_stop_requested", "PLOT_FORMATS", "plot_format"]
 
 # What writing (not reading) an output fails with: no space, no quota, a file too large.
 _WRITE_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
@@ -79,6 +79,10 @@ def check_output_path(out, *, inputs: Iterable = (), force: bool = False,
     raises :class:`OutputPathError` naming what is wrong."""
     if not isinstance(out, str | os.PathLike) or not str(out).strip():
         raise OutputPathError(f"{what} path must be a non-empty path, got {out!r}")
+    if str(out).strip() == "-":
+        # the shell convention for standard output: these outputs are files renamed into
+        # place when complete (MCAP needs seeking), never a stream
+        raise OutputPathError(f"{what} '-' (standard output) is not supported: give a file name")
     out = Path(out)
     real = Path(os.path.realpath(out))
     for inp in inputs:
@@ -248,3 +252,19 @@ class SafeOutput:
         if is_write_error(exc):  # a full disk: say which file, and the free space
             raise write_error(self.path, exc, "nothing written under that name") from exc
         return False
+
+
+#: Image formats a plot is written in, by the file's suffix (matplotlib's Agg backend; JPEG
+#: through Pillow, a matplotlib dependency).
+PLOT_FORMATS = {".png": "png", ".pdf": "pdf", ".svg": "svg", ".jpg": "jpeg", ".jpeg": "jpeg"}
+
+
+def plot_format(path) -> str:
+    """The image format of a plot path from its suffix, or :class:`OutputPathError` naming
+    the suffixes taken (a ``.jpg`` must not receive PNG bytes)."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in PLOT_FORMATS:
+        raise OutputPathError(f"plot {path}: unknown image format "
+                              f"{suffix or '(no suffix)'}: give a name ending in "
+                              f"{', '.join(PLOT_FORMATS)}")
+    return PLOT_FORMATS[suffix]

@@ -228,7 +228,7 @@ class MonteCarloSetup:
             raise ValueError(f"duration {self.duration_s:g} s at {self.rate_hz:g} Hz gives "
                              f"{n} sample(s); at least 2 are needed")
         if n > MAX_SAMPLES_PER_RUN:
-            raise ValueError(f"duration {self.duration_s:g} s at {self.rate_hz:g} Hz is {n} "
+            raise ValueError(f"duration {self.duration_s:g} s at {self.rate_hz:g} Hz is {n:.3g} "
                              f"samples per run; the limit is {MAX_SAMPLES_PER_RUN}")
 
     @property
@@ -666,7 +666,7 @@ def write_plot(result: MonteCarloResult, stats: list[dict], png, *, force: bool 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from gyro_attitude.io.safe_output import SafeOutput
+    from gyro_attitude.io.safe_output import SafeOutput, plot_format
 
     rows = [s for s in stats if "error_angle_rad" in s]
     if not rows:
@@ -698,6 +698,6 @@ def write_plot(result: MonteCarloResult, stats: list[dict], png, *, force: bool 
         row[0].legend(fontsize=7, loc="upper left")
     try:
         with SafeOutput(png, force=force) as tmp:
-            fig.savefig(tmp, dpi=100, format="png")
+            fig.savefig(tmp, dpi=100, format=plot_format(png))
     finally:
         plt.close(fig)

@@ -27,6 +27,7 @@ import numpy as np
 
 from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, DEFAULT_OFFLINE_ALGORITHM, NavFrame
 from gyro_attitude.core.attitude import validation as iv
+from gyro_attitude.core.attitude.accel_units import check_accel_scale
 from gyro_attitude.core.attitude.input_topics import shared_topic, shared_topic_message
 from gyro_attitude.core.attitude.inputs import first_step_back
 from gyro_attitude.core.attitude.modes import Aiding, Estimator, InitialAttitudeSource, parse_mode
@@ -46,9 +47,12 @@ from gyro_attitude.core.attitude.stream import (
 from gyro_attitude.core.attitude.truth import (
     default_max_interval_ns,
     initial_attitude_from_truth,
+    span_words,
+    tilt_and_heading_error,
     truth_at_stamps,
 )
 from gyro_attitude.core.attitude.world_frame import frame_id_of, from_enu
+from gyro_attitude.core.earth import STANDARD_GRAVITY
 from gyro_attitude.core.rotation import quat_angle_between
 from gyro_attitude.io.cdr_arrays import (
     IMU_TYPE,
@@ -58,12 +62,13 @@ from gyro_attitude.io.cdr_arrays import (
     quaternion_stamped_batch,
 )
 from gyro_attitude.io.copy_topics import TopicCopy
-from gyro_attitude.io.imu_fast import read_topic_arrays
-from gyro_attitude.io.mcap_reader import bag_files
+from gyro_attitude.io.imu_fast import QuaternionArrays, read_topic_arrays
+from gyro_attitude.io.mcap_reader import bag_files, match_topic, recorded_topics
 from gyro_attitude.io.mcap_writer import DEFAULT_COMPRESSION, Rosbag2McapWriter
 from gyro_attitude.io.odometry_file import read_odometry_velocities
-from gyro_attitude.io.safe_output import SafeOutput, check_output_path
+from gyro_attitude.io.safe_output import SafeOutput, check_output_path, plot_format
 from gyro_attitude.io.spool import Spool
+from gyro_attitude.io.trajectory_file import POSE_TYPES, read_pose_topic
 
 __all__ = [
     "DEFAULT_IMU_TOPIC",
@@ -135,6 +140,20 @@ class ReplayResult:
     final_error_rad: float | None = None
     max_error_rad: float | None = None
     rms_error_rad: float | None = None
+    # the error apart (rad): tilt (final, max, RMS, at the first compared stamp), signed
+    # heading (final, first) and, when the start was not taken from the truth, the final
+    # heading error less the first (the start's heading offset removed)
+    final_tilt_error_rad: float | None = None
+    max_tilt_error_rad: float | None = None
+    rms_tilt_error_rad: float | None = None
+    initial_tilt_error_rad: float | None = None
+    final_heading_error_rad: float | None = None
+    initial_heading_error_rad: float | None = None
+    final_heading_error_from_start_rad: float | None = None
+    truth_overlap: dict | None = None  # spans (s) of truth, output and their overlap; a note
+    accel_problem: str | None = None  # why the accelerometer was not used (not in m/s²)
+    truth_found: bool = False  # the truth topic is in the input, with messages
+    accel_note: str | None = None  # an accelerometer in m/s² too far off g for the rest test
     index: np.ndarray = field(default=None, repr=False)
     t_ns: np.ndarray = field(default=None, repr=False)
     q: np.ndarray = field(default=None, repr=False)
@@ -308,7 +327,8 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                 on_damage: str = "warn", config: StreamConfig | None = None,
                 odometry_topic: str | None = None,
                 estimator: Estimator | str = Estimator.OFFLINE,
-                mag_topic: str = DEFAULT_MAG_TOPIC) -> ReplayResult:
+                mag_topic: str = DEFAULT_MAG_TOPIC,
+                truth_child_frame: str | None = None) -> ReplayResult:
     """Integrate every Imu message of ``input_path`` and write ``output_path``.
 
     ``estimator`` ``offline``: the whole-recording estimator
@@ -331,6 +351,9 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     With ``aiding`` magnetometer the ``sensor_msgs/MagneticField`` topic ``mag_topic`` is read
     and matched to the Imu stamps as the node matches it (the latest field sample at or before
     each stamp, at most ``mag_max_age_s`` old: :mod:`.sample_alignment`).
+    The truth ``truth_topic`` is a ``geometry_msgs/QuaternionStamped`` or the orientation of
+    a pose topic as motion-capture systems publish it (``PoseStamped``, ``Odometry``, or the
+    transforms of a ``TFMessage`` whose child frame is ``truth_child_frame``).
     ``progress(bytes_done, bytes_total)`` is called while reading.  Raises ValueError (bad
     arguments, unusable input, nothing to write) and OSError.
     """
@@ -341,6 +364,10 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                         ("mag_topic", mag_topic)):
         if not isinstance(value, str) or not value:
             raise ValueError(f"{name} must be a topic name, got {value!r}")
+    if truth_child_frame is not None and (not isinstance(truth_child_frame, str)
+                                          or not truth_child_frame):
+        raise ValueError(f"truth_child_frame must be a frame name or None, got "
+                         f"{truth_child_frame!r}")
     if odometry_topic is not None and not isinstance(odometry_topic, str):
         raise ValueError(f"odometry_topic must be a topic name or None, got {odometry_topic!r}")
     if config is not None and not isinstance(config, StreamConfig):
@@ -359,7 +386,18 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     check_output_path(output_path, inputs=[input_path], force=force)
     t_start = time.perf_counter()
     use_mag = config.aiding is Aiding.MAGNETOMETER
-    topics = {imu_topic: IMU_TYPE, truth_topic: QUATERNION_STAMPED_TYPE}
+    # the truth as a QuaternionStamped (read with the Imu) or as the poses of a motion-capture
+    # topic (PoseStamped, Odometry, TFMessage: the trajectory input's reader)
+    known = recorded_topics(input_path)  # None: the files have no summary to say
+    truth_name = None if known is None else match_topic(list(known), truth_topic)
+    truth_type = QUATERNION_STAMPED_TYPE if truth_name is None else known[truth_name]
+    topics = {imu_topic: IMU_TYPE}
+    if truth_type == QUATERNION_STAMPED_TYPE:
+        topics[truth_topic] = QUATERNION_STAMPED_TYPE
+    elif truth_type not in POSE_TYPES:
+        raise ValueError(f"{input_path}: truth topic {truth_name} holds {truth_type or '?'}; "
+                         f"truth is read from {QUATERNION_STAMPED_TYPE}, "
+                         f"{', '.join(POSE_TYPES)} (--truth-topic)")
     if use_mag:
         topics[mag_topic] = MAGNETIC_FIELD_TYPE
     # the columns of the recording's length in files beside the output (io/spool.py): the
@@ -374,7 +412,10 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
                                                    "linear_acceleration_covariance")})
     damage = next((a.damage for a in arrays.values() if a.damage), None)
     if imu_topic not in arrays:
-        raise ValueError(f"{input_path}: no Imu topic {imu_topic!r} (use --imu-topic)"
+        known = recorded_topics(input_path, scan=True) if known is None else known
+        have = sorted(t for t, ty in known.items() if ty == IMU_TYPE)
+        raise ValueError(f"{input_path}: no Imu topic {imu_topic!r}; its Imu topics: "
+                         f"{', '.join(have) or 'none'} (use --imu-topic)"
                          + (f"; {damage}" if damage else ""))
     # in log-time order, as ros2 bag play and mcap_player deliver them to the node (a file
     # written with receive jitter is not stored in that order)
@@ -399,6 +440,17 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     truth = arrays.pop(truth_topic, None)
     if truth is not None:  # its stamps and quaternions are used, its MCAP times never
         truth = dataclasses.replace(truth, log_time_ns=None, publish_time_ns=None)
+    elif truth_type in POSE_TYPES:
+        truth = _pose_truth(input_path, truth_name, truth_type, truth_child_frame)
+    truth_notes = []
+    if truth is not None and len(truth):
+        # one truth for the start and the figures: a repeated stamp or a NaN quaternion (a
+        # tracker that lost the markers) is left out of both, and said
+        ts, tq = _usable_truth(truth.stamp_ns, truth.quaternion, spool.empty)
+        if ts.size < len(truth):
+            truth_notes.append(f"truth: {len(truth) - ts.size} of {len(truth)} samples left out "
+                               "(not finite, zero, or a stamp not after the one before)")
+            truth = dataclasses.replace(truth, stamp_ns=ts, quaternion=tq)
     del arrays
     t_all = imu.stamp_ns
     if odometry_topic:
@@ -415,6 +467,26 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     # (every message must carry one, REP-145: one that says it has none makes the
     # accelerometer unknown for the recording)
     has_accel = bool(len(imu)) and not iv.no_estimate(imu.linear_acceleration_covariance).any()
+    accel_problem = accel_note = None
+    if has_accel:
+        # a field in g, mg, cm/s² or all zero is no specific force in m/s²: taken as one it
+        # finds no rest or false ones and aids the tilt toward garbage (core/attitude/accel_units)
+        scale = check_accel_scale(imu.linear_acceleration, imu.angular_velocity)
+        if not scale.ok:
+            if config.levelling:
+                raise ValueError(f"{input_path}: {scale.problem}: initial attitude 'level' "
+                                 "needs the accelerometer in m/s²")
+            has_accel = False
+            accel_problem = (f"{scale.problem}: the accelerometer is not used (no rests from "
+                             "it, no levelling, no aiding)")
+        elif scale.basis.startswith("still") and abs(
+                scale.median_norm - STANDARD_GRAVITY) > config.rest_accel_norm_tol:
+            # in m/s², but too far off g for the rest test's norm tolerance: no window passes
+            accel_note = (f"the accelerometer reads |f| {scale.median_norm:.3f} m/s² when "
+                          f"still, {abs(scale.median_norm - STANDARD_GRAVITY):.2f} m/s² from g: "
+                          f"beyond rest_accel_norm_tol ({config.rest_accel_norm_tol:g} m/s²), "
+                          "no rest passes the accelerometer test (calibrate its scale, or "
+                          "raise --rest-accel-norm-tol)")
     # One frame per decoded message is not kept by the array reader: the first frame stands
     # for all (the node would also reject samples whose frame_id changes: see frame_ids).
     est = estimate_recording(
@@ -445,8 +517,10 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     out_frame = frame_id_of(config.frame, config.world_frame)
     # the error figures before the output is written: nothing they need (working arrays, an
     # interrupt) can fail after the output is in place
-    figures = _truth_figures(truth, tv, qv, spool.empty) if truth is not None and len(truth) \
-        else None
+    figures = _truth_figures(
+        truth, tv, qv, spool.empty,
+        start_from_truth=config.initial_attitude_source is InitialAttitudeSource.TRUTH) \
+        if truth is not None and len(truth) else None
     passed = TopicCopy(input_path, on_damage=on_damage)  # /tf, /tf_static as recorded
     with SafeOutput(output_path, force=force) as tmp:
         with Rosbag2McapWriter(tmp, compression=compression, chunk_size=chunk_size) as w:
@@ -484,7 +558,8 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         wall_seconds=t_end - t_start, read_seconds=t_read - t_start,
         integrate_seconds=t_int - t_read, write_seconds=t_end - t_int,
         messages_per_second=len(imu) / max(t_end - t_start, 1e-12), input_damage=damage,
-        estimator_notes=notes + _spool_notes(spool),
+        estimator_notes=notes + truth_notes + _spool_notes(spool), accel_problem=accel_problem,
+        accel_note=accel_note,
         working_bytes_on_disk=spool.spooled_bytes,
         index=keep, t_ns=tv, q=q_out, error_t_ns=np.zeros(0, np.int64), error_rad=np.zeros(0))
     if use_mag and est.aiding is not None:
@@ -501,16 +576,39 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
     if figures is not None:
         for name, value in figures.items():
             setattr(result, name, value)
+    result.truth_found = truth is not None and len(truth) > 0
+    if not result.truth_found:
+        result.truth_topic = truth_topic  # asked for, not in the input (the summary says so)
     return result
 
 
-def _truth_figures(truth, t_ns: np.ndarray, q: np.ndarray, empty=np.empty) -> dict | None:
+def _pose_truth(path, topic: str, type_name: str, child_frame: str | None) -> QuaternionArrays:
+    """The orientations of a pose topic as truth (the trajectory input's reader)."""
+    if type_name == POSE_TYPES[2] and not child_frame:
+        raise ValueError(f"{path}: truth topic {topic} is a TFMessage: say which transform is "
+                         "the IMU's (--truth-child-frame)")
+    poses = read_pose_topic(path, topic, child_frame)
+    return QuaternionArrays(topic=topic, stamp_ns=poses.t_ns, log_time_ns=None,
+                            publish_time_ns=None, frame_id="", frame_ids=set(),
+                            fast_messages=0, fallback_messages=len(poses.t_ns), damage=None,
+                            quaternion=poses.q)
+
+
+def _truth_figures(truth, t_ns: np.ndarray, q: np.ndarray, empty=np.empty,
+                   start_from_truth: bool = False) -> dict | None:
     """Error figures at every truth stamp inside the output's span: the truth runs on its
     own clock (a tracker at 120 Hz beside a 200 Hz Imu shares no stamp), so the attitude is
     slerped there between the two output samples around it (exact at a coinciding stamp;
     none across a gap in the output, as truth_at_stamps decides). The dense series is the
     one interpolated: slerping a 10 Hz truth across a coning motion would measure the
     interpolation, not the estimate.
+
+    Truth and output are compared where they overlap (``truth_overlap`` says over which
+    span, and what each covers); truth that does not overlap the output at all gives no
+    figures and a ``note`` naming both spans.  Besides the error angle: the tilt error and the
+    signed heading error (about up) apart, and, unless the start was taken from the truth
+    (``start_from_truth``), the heading error less its value at the first compared stamp
+    (the start's heading offset removed: an identity start facing another way is no drift).
 
     Computed TRUTH_BLOCK truth stamps at a time: the slerp's and the error angle's (M, 4)
     temporaries are bounded by a block, not by the recording. Every step is row-local (the
@@ -520,22 +618,32 @@ def _truth_figures(truth, t_ns: np.ndarray, q: np.ndarray, empty=np.empty) -> di
     est_t, est_q = _strictly_increasing(t_ns, q)  # the output may jump back in time
     if est_t.size < 2:  # one attitude: nothing to slerp between
         return None
-    ts, tq = truth.stamp_ns, truth.quaternion
-    usable = empty(ts.size, bool)
-    for lo in range(0, ts.size, TRUTH_BLOCK):
-        b = tq[lo:lo + TRUTH_BLOCK]
-        usable[lo:lo + TRUTH_BLOCK] = np.isfinite(b).all(axis=1) & (
-            np.linalg.norm(b, axis=1) > 1e-9)
-    if not usable.all():
-        ts, tq = ts[usable], tq[usable]
-    del usable
-    ts, tq = _strictly_increasing(ts, tq)
+    ts, tq = _usable_truth(truth.stamp_ns, truth.quaternion, empty)
     if ts.size == 0:
         return None
+    # where the truth and the output overlap: the truth stamps outside the output's span have
+    # no attitude around them (a block of them gave truth_at_stamps one output sample)
+    t0, t1 = int(est_t[0]), int(est_t[-1])
+    s0, s1 = int(ts[0]), int(ts[-1])
+    i0, i1 = int(np.searchsorted(ts, t0, side="left")), int(np.searchsorted(ts, t1,
+                                                                              side="right"))
+    spans = {"truth_span_s": [s0 * 1e-9, s1 * 1e-9], "output_span_s": [t0 * 1e-9, t1 * 1e-9],
+             "overlap_s": max(min(s1, t1) - max(s0, t0), 0) * 1e-9}
+    if i1 <= i0:
+        return {"truth_topic": truth.topic, "truth_overlap": {
+            **spans, "note": (
+                f"the truth {truth.topic} {span_words(s0, s1)} does not "
+                f"overlap the Imu output {span_words(t0, t1)} (another clock?): no error "
+                "figures")}}
+    if i0 or i1 < ts.size:
+        ts, tq = ts[i0:i1], tq[i0:i1]
     limit = default_max_interval_ns(est_t)  # what truth_at_stamps takes over the whole output
     covered = empty(ts.size, bool)
     err = empty(ts.size, np.float64)
     n = 0
+    tilt_sq = 0.0
+    tilt_max = 0.0
+    first = last = None  # (tilt, heading) at the first and last compared stamps
     for lo in range(0, ts.size, TRUTH_BLOCK):
         hi = min(lo + TRUTH_BLOCK, ts.size)
         s = ts[lo:hi]
@@ -546,7 +654,16 @@ def _truth_figures(truth, t_ns: np.ndarray, q: np.ndarray, empty=np.empty) -> di
         qe, cov = truth_at_stamps(est_t[a:b], est_q[a:b], s, max_interval_ns=limit)
         covered[lo:hi] = cov
         m = int(cov.sum())
-        err[n:n + m] = quat_angle_between(qe, tq[lo:hi][cov])
+        if m == 0:
+            continue
+        qt = tq[lo:hi][cov]
+        err[n:n + m] = quat_angle_between(qe, qt)
+        tilt, heading = tilt_and_heading_error(qe, qt)
+        tilt_sq += float(np.dot(tilt, tilt))
+        tilt_max = max(tilt_max, float(tilt.max()))
+        if first is None:
+            first = (float(tilt[0]), float(heading[0]))
+        last = (float(tilt[-1]), float(heading[-1]))
         n += m
     if n == 0:
         return None
@@ -556,8 +673,30 @@ def _truth_figures(truth, t_ns: np.ndarray, q: np.ndarray, empty=np.empty) -> di
     return {"truth_topic": truth.topic, "truth_matched": n, "final_error_rad": float(err[-1]),
             "max_error_rad": float(err.max()),
             "rms_error_rad": float(np.sqrt(np.mean(square))),
+            "final_tilt_error_rad": last[0], "max_tilt_error_rad": tilt_max,
+            "rms_tilt_error_rad": math.sqrt(tilt_sq / n),
+            "initial_tilt_error_rad": first[0],
+            "final_heading_error_rad": last[1], "initial_heading_error_rad": first[1],
+            "final_heading_error_from_start_rad": None if start_from_truth else float(
+                (last[1] - first[1] + math.pi) % (2 * math.pi) - math.pi),
+            "truth_overlap": spans,
             "error_t_ns": ts if n == ts.size else rows(ts, np.flatnonzero(covered), empty),
             "error_rad": err}
+
+
+def _usable_truth(ts: np.ndarray, tq: np.ndarray, empty=np.empty) -> tuple[np.ndarray,
+                                                                           np.ndarray]:
+    """The truth samples that can be compared with: finite non-zero quaternions, sorted by
+    stamp, the first of a repeated stamp (``ts``, ``tq`` themselves when all are)."""
+    usable = empty(ts.size, bool)
+    for lo in range(0, ts.size, TRUTH_BLOCK):
+        b = tq[lo:lo + TRUTH_BLOCK]
+        usable[lo:lo + TRUTH_BLOCK] = np.isfinite(b).all(axis=1) & (
+            np.linalg.norm(b, axis=1) > 1e-9)
+    if not usable.all():
+        ts, tq = ts[usable], tq[usable]
+    del usable
+    return _strictly_increasing(ts, tq)
 
 
 def _strictly_increasing(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -572,8 +711,9 @@ def _strictly_increasing(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.n
 
 
 def write_error_plot(result: ReplayResult, png, *, force: bool = True) -> None:
-    """PNG of the error against truth over time (or, without truth, the rotation from the
-    initial attitude), written through a temporary file renamed into place."""
+    """A plot (its format from the suffix) of the error against truth over time (or,
+    without truth, the rotation from the initial attitude), written through a temporary
+    file renamed into place."""
     # matplotlib is imported here: it costs ~0.5 s of start-up that a replay without
     # --plot does not need.
     import matplotlib
@@ -600,6 +740,6 @@ def write_error_plot(result: ReplayResult, png, *, force: bool = True) -> None:
     ax.grid(True, which="both", alpha=0.3)
     try:
         with SafeOutput(png, force=force) as tmp:
-            fig.savefig(tmp, dpi=110, format="png")
+            fig.savefig(tmp, dpi=110, format=plot_format(png))
     finally:
         plt.close(fig)

@@ -125,9 +125,9 @@ def simulate(scene: str | SceneSpec, duration_s: float | None, out, *,
     else:
         n_total = int(round(duration_s * rate))
     if n_total < 1:
-        raise ValueError(f"duration {duration_s} s at {rate:g} Hz gives no sample")
+        raise ValueError(f"duration {duration_s:g} s at {rate:g} Hz gives no sample")
     if n_total > MAX_SAMPLES:
-        raise ValueError(f"duration {duration_s} s at {rate:g} Hz is {n_total} samples; "
+        raise ValueError(f"duration {duration_s:g} s at {rate:g} Hz is {n_total:.3g} samples; "
                          f"the limit is {MAX_SAMPLES}")
     inputs = _scene_inputs(scene) + ([trajectory] if trajectory is not None else [])
     out = check_output_path(out, inputs=inputs, force=force)

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.exceptions import InvalidParameterValueException, ParameterException
+from rclpy.parameter import Parameter
 
 __all__ = ["ParamSpec", "ParameterError", "declare_all", "check_value", "check_update",
            "spec_from_setting"]
@@ -75,8 +76,8 @@ def _descriptor(spec: ParamSpec) -> ParameterDescriptor:
         desc.additional_constraints = "; ".join(extra)
     if isinstance(spec.default, float) and not isinstance(spec.default, bool):
         # Accept `-p rate_hz:=500` (an INTEGER on the command line) for a float parameter;
-        # check_value() still enforces number-ness and the range, and declare_all()
-        # converts to float.
+        # check_value() still enforces number-ness and the range, and declare_all() makes
+        # it a DOUBLE (at start and on every set: its pre-set callback).
         desc.dynamic_typing = True
     if spec.low is not None and spec.high is not None:
         if isinstance(spec.default, bool):
@@ -141,6 +142,17 @@ def declare_all(node, specs: list[ParamSpec]) -> dict[str, object]:
     Returns ``{name: value}``. Raises :class:`ParameterError` naming the first bad one.
     """
     values: dict[str, object] = {}
+    floats = {s.name for s in specs if isinstance(s.default, float)
+              and not isinstance(s.default, bool)}
+
+    def as_double(params):
+        # `-p max_gap_s:=1` or `ros2 param set ... 2`: an INTEGER for a double parameter is
+        # taken as that double (dynamic typing lets it through; it must not stay an integer)
+        return [Parameter(p.name, Parameter.Type.DOUBLE, float(p.value))
+                if p.name in floats and p.type_ is Parameter.Type.INTEGER else p
+                for p in params]
+
+    node.add_pre_set_parameters_callback(as_double)
     for spec in specs:
         default = spec.default
         if spec.is_string_array:
@@ -164,6 +176,8 @@ def declare_all(node, specs: list[ParamSpec]) -> dict[str, object]:
             raise ParameterError(reason)
         if isinstance(spec.default, float) and not isinstance(value, bool):
             value = float(value)
+            if param.type_ is Parameter.Type.INTEGER:  # an override given as an integer
+                node.set_parameters([Parameter(spec.name, Parameter.Type.DOUBLE, value)])
         values[spec.name] = value
     return values
 

@@ -297,7 +297,8 @@ def test_one_topic_given_two_roles_is_refused_in_one_line(tmp_path, capsys, extr
     rc = cli_main(["replay", str(sample), "--out", str(out), "--imu-topic", "imu/data_raw",
                    *extra])
     line = _one_line(capsys.readouterr().err)
-    assert rc == 1 and "each need their own topic" in line and line.startswith(f"error: {flag}:")
+    assert rc == 1 and "each need their own topic" in line and line.startswith(
+        f"gyro-attitude replay: error: {flag}:")
     assert not out.exists()
 
 

@@ -86,3 +86,26 @@ def test_a_field_late_against_the_gyro_is_warned_about(recording, tmp_path, caps
     assert rc == 0 and seen == [(12000, 3)]  # the field rows at the Imu stamps
     err = capsys.readouterr().err
     assert "warning: the magnetic field's stamps look 200 ms late against the gyro's" in err
+
+
+def test_a_levelled_start_aided_by_the_field_reports_the_field_heading_not_the_given_one(
+        recording, tmp_path, capsys):
+    # offline --initial-attitude level --aiding magnetometer levels with the given heading
+    # (0°), then the field turns the attitude: the summary's heading is the field's, near the
+    # truth's at the start (issue 38 item 10; it printed "heading 0.00° (given)")
+    m = load_scene("magnet_disturbance").magnetometer
+    hard = ",".join(f"{c:.9g}" for c in m.hard_iron)
+    args = ["replay", str(recording), "--out", str(tmp_path / "o.mcap"), "--aiding",
+            "magnetometer", "--initial-attitude", "level", "--magnetic-declination-deg",
+            f"{math.degrees(m.declination):.6f}", "--mag-hard-iron-t", hard]
+    assert cli_main([*args, "--json"]) == 0
+    a = json.loads(capsys.readouterr().out)["alignment"]
+    truth = read_quaternion_stamped_arrays(recording, "truth/attitude").quaternion[0]
+    x, y, z, w = truth
+    yaw = math.atan2(2 * (x * y + z * w), 1 - 2 * (y * y + z * z))
+    want = math.degrees(math.pi / 2 - yaw) % 360.0
+    assert a["heading_source"] == "magnetometer"
+    assert abs((a["heading_deg"] - want + 180.0) % 360.0 - 180.0) < 1.0
+    assert cli_main([*args, "--force"]) == 0
+    out = capsys.readouterr().out
+    assert "(magnetometer)" in out and "(given)" not in out

@@ -62,7 +62,8 @@ def test_simulate_onto_a_full_disk_names_the_file(small_disk, capsys):
                      "--out", str(out), "--quiet"]) == 1
     err = capsys.readouterr().err
     assert len(err.splitlines()) == 1, err
-    assert err.startswith(f"simulate: error: {out}: No space left on device (")
+    assert err.startswith(
+        f"gyro-attitude simulate: error: {out}: No space left on device (")
     assert "nothing written under that name" in err
     assert list(small_disk.iterdir()) == []
 

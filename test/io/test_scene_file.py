@@ -128,7 +128,7 @@ def test_scenes_command_refuses_a_file_that_is_not_a_valid_scene(tmp_path, capsy
     assert cli_main(["scenes", str(p)]) == 1
     out, err = capsys.readouterr()
     assert out == ""
-    assert len(err.splitlines()) == 1 and err.startswith("error: ")
+    assert len(err.splitlines()) == 1 and err.startswith("gyro-attitude scenes: error: ")
     assert re.search(message, err), err
 
 
@@ -149,5 +149,6 @@ def test_scenes_command_on_system_files_is_one_line_and_nonzero(path):
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.returncode == 1, r
     assert r.stdout == ""
-    assert len(r.stderr.splitlines()) == 1 and r.stderr.startswith("error: /"), r.stderr
+    assert len(r.stderr.splitlines()) == 1 and r.stderr.startswith(
+        "gyro-attitude scenes: error: /"), r.stderr
     assert "Traceback" not in r.stderr

@@ -288,7 +288,7 @@ def test_output_never_overwrites_the_pose_file_and_flags_are_checked(tmp_path, c
     before = tum.read_bytes()
     assert cli_main(["simulate", "lab_bench", "--trajectory", str(tum), "--out", str(tum),
                      "--force", "--quiet"]) == 1
-    assert tum.read_bytes() == before and "simulate: error" in capsys.readouterr().err
+    assert tum.read_bytes() == before and "gyro-attitude simulate: error" in capsys.readouterr().err
     rc, _ = _simulate(tmp_path, tum, "--position-sigma", "nan")
     assert rc == 1 and "--position-sigma must lie in [0, 1]" in capsys.readouterr().err
     rc, _ = _simulate(tmp_path, tum, "--duration", "100")

@@ -8,10 +8,13 @@ array operation over chunks of ``chunk_samples`` accepted samples (no per-sample
 
 1. **rests** over the whole recording (:func:`.rest.detect_rest`, window statistics by
    cumulative sums, the thresholds of the causal path, per gap-free run with a usable
-   accelerometer); a sample is at rest when it is the oldest sample of a rest window (as the
-   causal consumers take it: the gentle start of a motion is out) and the newest of one (the
-   tail of a motion is out too: a window starting there may pass the test, and holding the
-   attitude over it loses the last of the turn); a rest counts when it spans ``min_rest_s``;
+   accelerometer); a sample is at rest when it is followed by a full window of rest (between
+   the oldest samples of the first and the last window of a run of rest windows, as the
+   causal consumers take it: the gentle start of a motion is out) and it is the newest of a
+   rest window (the tail of a motion is out too: a window starting there may pass the test,
+   and holding the attitude over it loses the last of the turn); a rest counts when the
+   causal bias stage counts it (those oldest samples span ``min_rest_s``), so both find the
+   same rests, on even, jittered or irregular stamps alike;
 2. **gyro bias per rest** (``gyro_bias="auto"``): the rest mean with its standard error
    ``√(σ²/n + K² T/3)`` (white noise, plus the bias random walk ``K`` over the rest's length
    ``T``); between rests the bias is interpolated linearly in time (the smoother of a random-walk
@@ -193,9 +196,11 @@ def _mean_var(x: np.ndarray, lo: int, hi: int, size: int) -> tuple[np.ndarray, n
 
 def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, lo: int, hi: int,
                params: dict, window_ns: int, size: int, out: np.ndarray,
-               zeros=np.zeros) -> None:
-    """Mark in ``out`` the rows of ``[lo, hi)`` (one gap-free run) that are the oldest sample
-    of a rest window: the windows, and their 'full' test, of a detector started at ``lo``.
+               zeros=np.zeros, min_ns: int = 0) -> None:
+    """Mark in ``out`` the rows of ``[lo, hi)`` (one gap-free run) that rest: preceded by a
+    full window of rest (the newest sample of a rest window) and followed by one (between the
+    oldest samples of the first and the last window of a run of rest windows), in a rest the
+    causal bias stage counts (those oldest samples span ``min_ns``: gyro_bias.accumulate's test).
 
     A window at rest has ``|mean ω_i| <= gyro_mean_max`` on every axis and spread
     ``<= gyro_std_max``, so the mean of ``|ω|²`` over it is at most ``3 gyro_mean_max² +
@@ -223,7 +228,6 @@ def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, lo: int, hi: 
         cand = zeros(n, bool)
         cand.fill(True)
     newest = zeros(n, bool)  # the window ending here is at rest
-    oldest_of = zeros(n, bool)  # oldest sample of a rest window
     for e0, e1 in _segments(cand):  # window ends that may be at rest
         s0 = lo + int(np.searchsorted(tr, tr[e0] - window_ns, side="left"))
         s1 = lo + e1
@@ -237,10 +241,24 @@ def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, lo: int, hi: 
             if p != lo:  # not starting the run: 'full' counts from the run's first sample
                 kk = kk[t[p + kk] - t[lo] >= window_ns]
             newest[p + kk - lo] = True
-            oldest_of[p + rw.oldest[kk] - lo] = True
+    # Followed by a full window of rest: every sample from the oldest of a run's first rest
+    # window to the oldest of its last.  On even stamps consecutive windows have consecutive
+    # oldest samples; on jittered or irregular stamps a window may drop two old samples at
+    # once, and the one skipped is still followed by a window of rest (marking only the
+    # windows' oldest samples left holes there, and no rest reached min_ns).
+    followed = zeros(n, bool)
+    pad = np.zeros(1, np.int8)
+    edges = np.diff(np.concatenate((pad, newest.view(np.int8), pad)))
+    e0, e1 = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    del edges
+    o0 = np.searchsorted(tr, tr[e0] - window_ns, side="left")
+    o1 = np.searchsorted(tr, tr[e1 - 1] - window_ns, side="left")
+    keep = tr[o1] - tr[o0] >= min_ns  # the causal stage's span of the same rest
+    for a, b in zip(o0[keep].tolist(), o1[keep].tolist(), strict=True):
+        followed[a:b + 1] = True
     # at rest: followed by a full window of rest (the gentle start of a motion is out) and
     # preceded by one (so is the tail of a motion, which a window starting there can pass)
-    out[lo:hi] |= newest & oldest_of
+    out[lo:hi] |= newest & followed
 
 
 def _segments(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -490,6 +508,7 @@ class _Estimator:
                            / (r0.stop - r0.start)) / g
             tilt_var0 = sl * sl
             if self.alignment is None:
+                self._align_row = b0 + r0.start
                 self.alignment = AlignmentResult(
                     q_start, roll, pitch, wrap_2pi(math.radians(cfg.initial_heading_deg)),
                     "given", sl, math.nan, int(self.t[b0 + r0.start]),
@@ -512,6 +531,7 @@ class _Estimator:
                 self.notes.append("aiding magnetometer without a field: heading gyro-only")
             else:
                 self._heading_from_field(b0, b1, q_out, var_out)
+                self._aligned_heading_from_field(b0, b1, q_out)
 
     def _zeros(self, shape, dtype) -> np.ndarray:
         """A zeroed array from the allocator (the flags and clocks of a block's length)."""
@@ -539,16 +559,16 @@ class _Estimator:
                     continue
                 mark = self._zeros(p1 - p0, bool)
                 _rest_mask(t[p0:p1], w[p0:p1], None if a is None else a[p0:p1], 0, p1 - p0,
-                           params, self.window_ns, self.size, mark, self._zeros)
+                           params, self.window_ns, self.size, mark, self._zeros,
+                           int(round(self.cfg.min_rest_s * 1e9)))
                 rest[p0 - b0:p1 - b0] |= mark
 
     def _rest_stats(self, b0, b1, rest, tau) -> list[OfflineRest]:
         cfg = self.cfg
-        min_ns = int(round(cfg.min_rest_s * 1e9))
         out = []
         k2 = cfg.gyro_bias_rw ** 2
         for s0, s1 in _segments(rest):
-            if self.t[b0 + s1 - 1] - self.t[b0 + s0] < min_ns or s1 - s0 < 3:
+            if s1 - s0 < 3:  # (the span min_rest_s was tested on the rest as a whole)
                 rest[s0:s1] = False  # too short to count: not a rest for any step
                 continue
             mean_w, var_w = _mean_var(self.w, b0 + s0, b0 + s1, self.size)
@@ -863,6 +883,18 @@ class _Estimator:
                           f"{math.degrees(ref_d):.1f}° ("
                           + ("learned: medians over the recording" if ref.learned else "given")
                           + ")")
+
+    def _aligned_heading_from_field(self, b0, b1, q_out):
+        """The alignment's heading is the field's once the heading pass has run over the
+        levelling rest (not the ``initial_heading_deg`` the start was levelled with)."""
+        row = getattr(self, "_align_row", None)
+        a = self.alignment
+        if row is None or a is None or not b0 <= row < b1 or a.heading_source != "given":
+            return
+        c = quat_as_matrix(q_out[row])
+        heading = wrap_2pi(math.pi / 2 - math.atan2(float(c[1, 0]), float(c[0, 0])))
+        self.alignment = replace(a, q_nb=q_out[row].copy(), heading=heading,
+                                 heading_source="magnetometer")
 
     def _level_at_rests(self, b0, b1, rests, tau, q_out, var_out):
         """Levelling at every rest, the correction interpolated in time between rests."""

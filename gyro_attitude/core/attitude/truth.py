@@ -16,7 +16,7 @@ import numpy as np
 from gyro_attitude.core.rotation import _exp_rotvec, _log_quat, _qmul, quat_conjugate
 
 __all__ = ["TruthStart", "default_max_interval_ns", "initial_attitude_from_truth", "truth_at",
-           "truth_at_stamps"]
+           "truth_at_stamps", "tilt_and_heading_error", "span_words"]
 
 
 def _check(truth_t, truth_q) -> tuple[np.ndarray, np.ndarray]:
@@ -112,6 +112,36 @@ def truth_at_stamps(truth_t, truth_q, t_ns,
     return out[covered], covered
 
 
+def tilt_and_heading_error(q_est, q_true) -> tuple[np.ndarray, np.ndarray]:
+    """``(tilt, heading)`` (M,) rad of estimates ``q_est`` against ``q_true`` (M, 4), both
+    body to a z-up frame (ENU): ``tilt`` the angle between the estimated and the true up seen
+    in the body, whatever the heading; ``heading`` the signed rotation about up of the error
+    ``q_est ⊗ q_true⁻¹`` (its twist about z), in (−π, π]."""
+    qe = np.asarray(q_est, dtype=np.float64)
+    qt = np.asarray(q_true, dtype=np.float64)
+
+    def up_in_body(q):
+        # the third row of C_nb(q): the frame's up in body coordinates (unit q not assumed)
+        x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+        s = 2.0 / np.einsum("ij,ij->i", q, q)
+        return np.column_stack((s * (x * z - y * w), s * (y * z + x * w),
+                                1.0 - s * (x * x + y * y)))
+
+    u, v = up_in_body(qe), up_in_body(qt)
+    # the angle from atan2(|u × v|, u·v): accurate near 0 and π, where arccos is not
+    tilt = np.arctan2(np.linalg.norm(np.cross(u, v), axis=1), np.einsum("ij,ij->i", u, v))
+    e = _qmul(qe, quat_conjugate(qt))
+    heading = 2.0 * np.arctan2(e[:, 2], e[:, 3])
+    heading = (heading + np.pi) % (2.0 * np.pi) - np.pi
+    heading[heading == -np.pi] = np.pi
+    return tilt, heading
+
+
+def span_words(t0_ns: int, t1_ns: int) -> str:
+    """``[t0, t1] s`` of two stamps, to the millisecond (epoch or boot clock alike)."""
+    return f"[{t0_ns * 1e-9:.3f}, {t1_ns * 1e-9:.3f}] s"
+
+
 def initial_attitude_from_truth(imu_t, truth_t, truth_q, max_interval_ns: int | None = None,
                                 usable=None) -> tuple[np.ndarray, int, int]:
     """``(q0, first_index, skipped)``: the truth at the first usable Imu stamp it covers.
@@ -136,8 +166,9 @@ def initial_attitude_from_truth(imu_t, truth_t, truth_q, max_interval_ns: int | 
             return _truth_at_checked(t, q, int(imu[k]), max_interval_ns), k, k
         except ValueError:
             continue  # inside a truth gap: try the next Imu sample
-    raise ValueError(f"no Imu stamp lies within the truth's span [{t[0]}, {t[-1]}] ns: "
-                     "cannot take the initial attitude from the truth")
+    raise ValueError(f"no Imu stamp lies within the truth's span {span_words(t[0], t[-1])} "
+                     f"(the Imu spans {span_words(int(imu.min()), int(imu.max()))}): cannot "
+                     "take the initial attitude from the truth")
 
 
 class TruthStart:

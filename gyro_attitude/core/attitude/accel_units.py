@@ -1,0 +1,103 @@
+"""Is the accelerometer in m/s²?  The specific force's magnitude at rest against gravity.
+
+An Imu message's ``linear_acceleration`` is m/s² (REP-145), but drivers publish g (|f| ≈ 1 at
+rest), mg or cm/s² (≈ 1000 or 981), or zeros when the sensor has none and says nothing.  Taken
+as m/s², such a field makes every rest test fail or pass on garbage and turns gravity aiding
+into a tilt toward noise, silently.  :func:`check_accel_scale` looks at the median ``|f|`` over
+the samples whose gyro says they are still (``|ω|`` below :data:`STILL_RATE_RAD_S`; over the whole
+recording when fewer than :data:`MIN_STILL` of them), which is g at rest and, over a recording
+of a carrier that starts and stops, g on the median too, and compares it with ``gravity``
+within ``tolerance`` (relative; the default accepts a 4-5 % scale error and the 0.3 % of
+gravity's change with latitude with room to spare, while g, mg and cm/s² are off by a factor
+of ~10 or ~100).
+
+Arrays only (no ROS, no files): replay calls it before the estimator, the live node can call it
+on its first seconds of samples.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from gyro_attitude.core.earth import STANDARD_GRAVITY
+
+__all__ = ["ACCEL_SCALE_TOLERANCE", "AccelScale", "check_accel_scale"]
+
+#: Relative distance of the median |f| from gravity still taken for m/s².
+ACCEL_SCALE_TOLERANCE = 0.2
+#: A sample is still enough to show gravity when its rate is below this (rad/s, 3 °/s).
+STILL_RATE_RAD_S = 0.05
+#: Still samples needed to judge from them alone.
+MIN_STILL = 50
+#: Samples the median is taken over at most (evenly strided: a threshold needs no more).
+MEDIAN_SAMPLES = 1 << 20
+
+
+@dataclass(frozen=True)
+class AccelScale:
+    """The verdict: ``median_norm`` of |f| (NaN when no finite sample), over ``basis``
+    (``"still samples"`` or ``"the whole recording"``, ``samples`` of them), ``ok`` when it is
+    within the tolerance of gravity, and ``problem``: one line naming what it looks like (None
+    when ok)."""
+
+    median_norm: float
+    basis: str
+    samples: int
+    ok: bool
+    problem: str | None
+
+
+def _strided(n: int) -> slice:
+    return slice(0, n, max(1, -(-n // MEDIAN_SAMPLES)))
+
+
+def check_accel_scale(accel, gyro=None, *, gravity: float = STANDARD_GRAVITY,
+                      tolerance: float = ACCEL_SCALE_TOLERANCE) -> AccelScale:
+    """Whether ``accel`` (N, 3), the specific force as recorded, is in m/s²: its median norm
+    over the still samples (``gyro`` (N, 3) rad/s, optional) or over every sample, against
+    ``gravity`` within the relative ``tolerance``.  Rows with a non-finite value are left out.
+    Raises ValueError on malformed arguments."""
+    a = np.asarray(accel)
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise ValueError(f"accel must have shape (N, 3), got {a.shape}")
+    if not (isinstance(gravity, int | float) and math.isfinite(gravity) and gravity > 0):
+        raise ValueError(f"gravity must be a positive number, got {gravity!r}")
+    if not (isinstance(tolerance, int | float) and 0 < tolerance < 1):
+        raise ValueError(f"tolerance must be in (0, 1), got {tolerance!r}")
+    pick = _strided(a.shape[0])
+    f = np.asarray(a[pick], dtype=np.float64)
+    with np.errstate(over="ignore", invalid="ignore"):
+        norm = np.sqrt(np.einsum("ij,ij->i", f, f))
+    finite = np.isfinite(norm)
+    basis, use = "the whole recording", finite
+    if gyro is not None:
+        g = np.asarray(gyro)
+        if g.shape != a.shape:
+            raise ValueError(f"gyro must have the shape of accel {a.shape}, got {g.shape}")
+        w = np.asarray(g[pick], dtype=np.float64)
+        with np.errstate(over="ignore", invalid="ignore"):
+            still = finite & (np.einsum("ij,ij->i", w, w) < STILL_RATE_RAD_S ** 2)
+        if np.count_nonzero(still) >= MIN_STILL:
+            basis, use = "still samples", still
+    m = int(np.count_nonzero(use))
+    if m == 0:
+        return AccelScale(math.nan, basis, 0, False, "linear_acceleration has no finite sample")
+    med = float(np.median(norm[use]))
+    if abs(med - gravity) <= tolerance * gravity:
+        return AccelScale(med, basis, m, True, None)
+    ratio = med / gravity
+    if med == 0.0:
+        looks = "all zero: no accelerometer?"
+    elif abs(ratio * gravity - 1.0) <= tolerance:
+        looks = "in g?"
+    elif abs(ratio / 100.0 - 1.0) <= 0.1 or abs(ratio / (1000.0 / gravity) - 1.0) <= 0.1:
+        looks = "in mg or cm/s²?"
+    else:
+        looks = "not a specific force"
+    where = "still samples" if basis.startswith("still") else "samples"
+    return AccelScale(med, basis, m, False,
+                      f"linear_acceleration is not in m/s² (REP-145): median |f| {med:.4g} over "
+                      f"{m} {where}, gravity is {gravity:.5g} m/s² ({looks})")
