@@ -81,11 +81,13 @@ def hostile_field(n):
 AIDINGS = ("none", "gravity", "tilt", "magnetometer")
 BROAD_STRIDE = 25
 SHARED_REAL = REPO.parent / "shared" / "real"
-# the replay summary's fields that say how the run went (paths, timings and the forms that ran
-# are not results)
-NOT_RESULTS = {"input", "output", "wall_seconds", "read_seconds", "integrate_seconds",
-               "write_seconds", "messages_per_second", "fast_path_messages",
-               "fallback_messages", "working_bytes_on_disk"}
+# the replay summary's fields that the estimator's results are (replay's own figures -- the
+# error against the truth, timings, paths -- are not)
+ESTIMATOR_RESULTS = ("messages", "attitude_messages", "frame_ids", "skipped", "gaps",
+                     "time_jump_resets", "invalid_covariances", "integrator_errors",
+                     "missing_samples", "saturated", "rate_fit_fallbacks", "details",
+                     "skipped_before_truth", "gyro_bias", "gyro_bias_rad_s", "alignment",
+                     "estimator_notes", "magnetometer")
 
 
 def broad_files() -> list[Path]:
@@ -181,5 +183,5 @@ def broad_outputs(path: Path, aiding: str) -> tuple[dict, dict]:
     sel = np.r_[np.arange(0, res.q.shape[0], BROAD_STRIDE), res.q.shape[0] - 1]
     arrays = {"q": res.q[sel], "q_file": q_file[sel], "variance": cov[sel],
               "t_ns": res.t_ns[sel], "index": res.index[sel]}
-    summary = {k: v for k, v in res.summary().items() if k not in NOT_RESULTS}
+    summary = {k: v for k, v in res.summary().items() if k in ESTIMATOR_RESULTS}
     return arrays, _plain(summary)

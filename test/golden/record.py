@@ -3,7 +3,7 @@
 Run once on the release before a change (and again, in the same commit, where a change alters
 results on purpose, saying why):
 
-    .venv/bin/python test/golden/record.py
+    .venv/bin/python test/golden/record.py [hostile] [broad]
 
 Two sets:
 * ``hostile.npz`` + ``hostile.json``: every mode of :data:`golden_cases.MODES` on the hostile
@@ -36,7 +36,14 @@ from golden_cases import (  # noqa: E402
 )
 
 
-def main() -> None:
+def main(which=("hostile", "broad")) -> None:
+    if "hostile" in which:
+        record_hostile()
+    if "broad" in which:
+        record_broad()
+
+
+def record_hostile() -> None:
     arrays, meta = {}, {}
     for mode in sorted(MODES):
         for form in ("push", "run"):
@@ -46,6 +53,9 @@ def main() -> None:
             meta[f"{mode}/{form}"] = m
     np.savez_compressed(HERE / "hostile.npz", **arrays)
     (HERE / "hostile.json").write_text(json.dumps(meta, indent=1, sort_keys=True) + "\n")
+
+
+def record_broad() -> None:
     arrays, meta = {}, {}
     for path in broad_files():
         for aiding in AIDINGS:
@@ -60,4 +70,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    main(tuple(sys.argv[1:]) or ("hostile", "broad"))

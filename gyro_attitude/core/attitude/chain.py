@@ -104,8 +104,12 @@ BIAS_NONE, BIAS_PARAMETER, BIAS_AUTO = 0, 1, 2
 ACCEL_ABSURD = 1e6
 #: (rad/s)²: a gyro variance beyond this (σ = 1000 rad/s) is no estimate of a real gyro's noise
 MAX_GYRO_VARIANCE = 1.0e6
-#: rad/s: a value repeated at the largest magnitude seen is a clip only this high
+#: rad/s: a value held at the largest magnitude seen is a clip only this high
 SATURATION_MIN_RAD_S = 1.0
+#: ns: a clip holds the axis's largest value this long; a smooth peak quantized repeats its top
+#: value for a few samples only (the BROAD gyros at 286 Hz: up to 4 samples, 11 ms, at
+#: 2.5-5.7 rad/s; a 3 rad/s peak of a 0.2 Hz motion stays within 1e-3 rad/s for ~10 ms)
+SATURATION_PLATEAU_NS = 20_000_000
 #: REP-145: element 0 of a covariance is −1 when the field carries no estimate
 NO_ESTIMATE = -1.0
 
@@ -130,7 +134,7 @@ STATE_DTYPE = np.dtype([
     ("has_resume", np.bool_), ("phase", np.int64), ("start_t", np.int64),
     ("has_start", np.bool_), ("accel_present", np.int64), ("first_rest_pending", np.bool_),
     ("variance_known", np.bool_), ("noise_unknown", np.bool_), ("aided_seen", np.int64),
-    ("sat", np.float64, (6,)),
+    ("sat", np.float64, (6,)), ("sat_t0", np.int64, (3,)),
     # counts of the chain's own events
     ("invalid_covariance", np.int64), ("invalid_accel", np.int64),
     ("integrator_error", np.int64), ("saturated", np.int64), ("rate_fit_fallback", np.int64),
@@ -249,17 +253,21 @@ def judge_covariance(s, cv):
 
 
 @kernel
-def saturation_step(s, w0, w1, w2):
-    """Count an accepted sample pinned at a repeated extreme: the axis (-1: none) on which it
-    repeats the previous value at the largest magnitude seen (at least SATURATION_MIN_RAD_S).
-    ``s.sat`` holds the largest |ω| per axis (0:3) and the last ω (3:6)."""
+def saturation_step(s, t, w0, w1, w2):
+    """Count an accepted sample pinned on a plateau: the axis (-1: none) that has held one
+    value at the largest magnitude seen (at least SATURATION_MIN_RAD_S) for
+    SATURATION_PLATEAU_NS up to this sample ``t``.  ``s.sat`` holds the largest |ω| per axis
+    (0:3) and the last ω (3:6), ``s.sat_t0`` the stamp where the last ω's value began."""
     sat = s.sat
     pinned = -1
     for i, x in ((0, w0), (1, w1), (2, w2)):
         a = abs(x)
         if a > sat[i]:
             sat[i] = a
-        if a == sat[i] and x == sat[3 + i] and a >= SATURATION_MIN_RAD_S:
+        if x != sat[3 + i]:
+            s.sat_t0[i] = t
+        elif a == sat[i] and a >= SATURATION_MIN_RAD_S and t - s.sat_t0[i] >= \
+                SATURATION_PLATEAU_NS:
             pinned = i
         sat[3 + i] = x
     if pinned >= 0:
@@ -556,7 +564,7 @@ def chain_step(ca, sa, bias_ring, align_ring, align_buf, t, w0, w1, w2, frame_ok
         s.has_start, s.start_t = True, t
     if action != ACCEPT:
         break_windows(c, s)
-    saturation_step(s, w0, w1, w2)
+    saturation_step(s, t, w0, w1, w2)
     # 2. rest -> gyro bias
     if bias_stage(c, s, bias_ring, t, w0, w1, w2, has_a, a0, a1, a2) < 0:
         return BIAS_RING_FULL, 0, False  # (not reached: the ring was checked above)

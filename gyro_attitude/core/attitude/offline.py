@@ -87,6 +87,7 @@ from gyro_attitude.core.attitude import NavFrame, integrate_batch
 from gyro_attitude.core.attitude import validation as v
 from gyro_attitude.core.attitude.ahrs import MAG_ABSURD_T, MAG_ZERO_T
 from gyro_attitude.core.attitude.alignment import AlignmentResult, level_quaternion
+from gyro_attitude.core.attitude.chain import SATURATION_MIN_RAD_S, SATURATION_PLATEAU_NS
 from gyro_attitude.core.attitude.gyro_bias import GyroBiasReport
 from gyro_attitude.core.attitude.modes import Aiding, Frame, GyroBiasMode, HeadingSource
 from gyro_attitude.core.attitude.registry import DEFAULT_ALGORITHM
@@ -101,7 +102,6 @@ from gyro_attitude.core.attitude.stream import (
     MAG_MISSING,
     RATE_FIT_FALLBACK,
     SATURATED,
-    SATURATION_MIN_RAD_S,
     StreamResult,
     _unit_quat,
     covariance_rows,
@@ -394,7 +394,7 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
                              f"{nav.series_length()}")
         nav = nav_rows(nav, valid, n)  # (a velocity schedule: one row per accepted sample)
     # saturated samples: counted as the causal path counts them
-    count_saturated(wv, counts, details, chunk_samples)
+    count_saturated(tv, wv, counts, details, chunk_samples)
     est = _Estimator(cfg, q_init, nav, algorithm, chunk_samples, tv, wv, av, usable, sig2,
                      rows(act, valid), mv, empty)
     q_out, var_out, known_out = est.run()
@@ -1068,24 +1068,32 @@ class _Estimator:
                                  "Earth rate absorbed into the bias (latitude unknown)"))
 
 
-def count_saturated(wv: np.ndarray, counts: dict, details: dict, chunk: int) -> None:
-    """Accepted rows ``wv`` pinned at a repeated extreme, counted as the causal chain counts
-    them (its running maximum and repeats), ``chunk`` rows at a time (the running maximum and
-    the last row carried, as from one sample to the next)."""
+def count_saturated(tv: np.ndarray, wv: np.ndarray, counts: dict, details: dict,
+                    chunk: int) -> None:
+    """Accepted rows (stamps ``tv``, rates ``wv``) pinned on a plateau of an axis: one value
+    held at the largest magnitude the axis ever reaches (at least SATURATION_MIN_RAD_S) for
+    SATURATION_PLATEAU_NS up to the row -- the causal step's rule with the whole recording's
+    largest value (a repeated local peak is no clip).  ``chunk`` rows at a time."""
     counts[SATURATED] = 0
-    sat = np.array([0.0, 0.0, 0.0] + [math.nan] * 3)
-    for c0 in range(0, wv.shape[0], chunk):
-        part = wv[c0:c0 + chunk]
-        a = np.abs(part)
-        run_max = np.maximum.accumulate(np.vstack([sat[None, :3], a]), axis=0)[1:]
-        prev = np.vstack([sat[None, 3:], part[:-1]])
-        with np.errstate(invalid="ignore"):
-            pinned = (a == run_max) & (part == prev) & (a >= SATURATION_MIN_RAD_S)
-        rows_pinned = np.flatnonzero(pinned.any(axis=1))
-        counts[SATURATED] += int(rows_pinned.size)
-        if rows_pinned.size:
-            k = int(rows_pinned[0])
-            axis = int(np.flatnonzero(pinned[k])[-1])
-            details.setdefault(SATURATED, saturation_note(axis, float(part[k, axis])))
-        sat[:3] = run_max[-1]
-        sat[3:] = part[-1]
+    n = wv.shape[0]
+    top = np.zeros(3)
+    for c0 in range(0, n, chunk):
+        np.maximum(top, np.abs(wv[c0:c0 + chunk]).max(axis=0, initial=0.0), out=top)
+    pinned = set()
+    first = None
+    for axis in np.flatnonzero(top >= SATURATION_MIN_RAD_S).tolist():
+        # the rows at the top: few (a clip, a peak), found a chunk at a time
+        at_top = np.concatenate([np.flatnonzero(np.abs(wv[c0:c0 + chunk, axis]) == top[axis])
+                                 + c0 for c0 in range(0, n, chunk)])
+        for k in at_top.tolist():
+            x = wv[k, axis]
+            j = k
+            while j > 0 and wv[j - 1, axis] == x:  # where this value began
+                j -= 1
+            if tv[k] - tv[j] >= SATURATION_PLATEAU_NS:
+                pinned.add(k)
+                if first is None or k < first[0]:
+                    first = (k, axis, float(x))
+    counts[SATURATED] = len(pinned)
+    if first is not None:
+        details.setdefault(SATURATED, saturation_note(first[1], first[2]))

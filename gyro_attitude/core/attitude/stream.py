@@ -63,6 +63,10 @@ from gyro_attitude.core.attitude.alignment import (
     failure_words,
     level_quaternion,
 )
+from gyro_attitude.core.attitude.chain import (  # one home: the step's
+    ACCEL_ABSURD,
+    MAX_GYRO_VARIANCE,
+)
 from gyro_attitude.core.attitude.covariance import V_TT, AttitudeCovariance
 from gyro_attitude.core.attitude.gravity_aiding import GravityAiding
 from gyro_attitude.core.attitude.gyro_bias import GyroBiasEstimator, GyroBiasReport
@@ -87,9 +91,6 @@ __all__ = ["AttitudeStream", "StreamConfig", "StreamResult", "bias_summary", "co
 
 
 INVALID_COVARIANCE = "invalid_covariance"
-# (rad/s)²: a gyro variance beyond this (σ = 1000 rad/s) is no estimate of a real gyro's noise,
-# and summed over an attitude it would overflow the orientation variance
-MAX_GYRO_VARIANCE = 1.0e6
 INTEGRATOR_ERROR = "integrator_error"
 INVALID_ACCEL = "invalid_accel"
 # aiding magnetometer: Imu samples with no field within mag_max_age_s, fields that are not a
@@ -97,13 +98,8 @@ INVALID_ACCEL = "invalid_accel"
 MAG_MISSING = "mag_missing"
 INVALID_MAG = "invalid_mag"
 MAG_DISTURBED = "mag_disturbed"
-# m/s²: a specific force beyond this (1e5 g) is no accelerometer reading
-ACCEL_ABSURD = 1e6
 # accepted samples pinned at a repeated extreme: a clipped (saturated) gyro
 SATURATED = "saturated"
-# rad/s: a value repeated at the largest magnitude seen is a clip only this high (every gyro's
-# range is above 2 rad/s; a quantized gyro at rest repeats its small values)
-SATURATION_MIN_RAD_S = 1.0
 # intervals whose rate fit could not be trusted (the samples alias the motion, or the fit leaves
 # their range): integrated toward the exponential map (interpolation.untrusted_fits)
 RATE_FIT_FALLBACK = "rate_fit_fallback"
@@ -340,7 +336,7 @@ class AttitudeStream:
         s.first_rest_pending = cfg.gyro_bias is GyroBiasMode.AUTO and not cfg.levelling
         s.variance_known = bool(cfg.gyro_noise_density > 0 or cfg.gyro_bias_sigma_rad_s > 0
                                 or cfg.levelling)
-        s.sat = [0.0, 0.0, 0.0, math.nan, math.nan, math.nan]
+        s.sat = [0.0] * 3 + [math.nan] * 3
         fixed = cfg.gyro_bias_rad_s if cfg.gyro_bias is GyroBiasMode.PARAMETER else None
         est = GyroBiasEstimator(cfg.gyro_bias, fixed, min_rest_s=cfg.min_rest_s,
                                 latitude_rad=self.latitude_rad, rest=cfg.rest_params())
