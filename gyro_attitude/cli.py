@@ -17,7 +17,7 @@ import sys
 import threading
 
 from gyro_attitude import __version__
-from gyro_attitude.commands import one_line_parser_errors
+from gyro_attitude.commands import EXIT_INTERRUPTED, one_line_parser_errors
 from gyro_attitude.io.ament_prefix import ensure_ament_prefix_path
 from gyro_attitude.io.safe_output import request_stop, stop_handled
 from gyro_attitude.offline.allocator import keep_freed_memory
@@ -96,7 +96,6 @@ class _Interrupt:
                 signal.signal(sig, signal.SIG_IGN)
 
 
-EXIT_INTERRUPTED = 130  # 128 + SIGINT, what a shell reports for a command stopped by Ctrl-C
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import sys
 
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, what a shell reports for a command stopped by Ctrl-C
+
 
 def error_line(command: str, message) -> None:
     """Print ``gyro-attitude <command>: error: <message>`` on stderr."""

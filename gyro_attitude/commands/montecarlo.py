@@ -13,8 +13,7 @@ import json
 import math
 import sys
 
-from gyro_attitude.cli import EXIT_INTERRUPTED
-from gyro_attitude.commands import error_line
+from gyro_attitude.commands import EXIT_INTERRUPTED, error_line
 from gyro_attitude.commands.estimator_flags import (
     add_estimator_flags,
     config_from_args,
