@@ -34,6 +34,7 @@ SUITES: dict[str, str] = {
     "nodes": "gyro_attitude.benchmarks.nodes",
     "scenes": "gyro_attitude.benchmarks.scenes",
     "real": "gyro_attitude.benchmarks.real",
+    "estimator": "gyro_attitude.benchmarks.estimator",
     "jitter": "gyro_attitude.benchmarks.jitter",
     "offline-memory": "gyro_attitude.benchmarks.offline_memory",
     "nyquist": "gyro_attitude.benchmarks.nyquist",
