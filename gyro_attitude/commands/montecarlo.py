@@ -1,9 +1,10 @@
 """``gyro-attitude montecarlo SCENE --runs N``: error budgets over many noise draws (the engine is
 :mod:`gyro_attitude.offline.montecarlo`; where it runs, :mod:`gyro_attitude.offline.parallel`).
 
-Exit status: 0 every run finished, 1 unusable input or output, an unreachable scheduler, or some
-runs failed (the others are in the output, the failed ones named), 2 bad arguments, 130
-interrupted (``--json`` then holds the runs that finished, marked ``"complete": false``).
+Exit status: 0 every run finished, 1 unusable input or output, an unreachable scheduler, a Dask
+cluster left without a worker, or some runs failed (the others are in the output, the failed
+ones named), 2 bad arguments, 130 interrupted (``--json`` then holds the runs that finished,
+marked ``"complete": false``, as when the cluster lost its workers).
 """
 
 from __future__ import annotations
@@ -26,9 +27,11 @@ from gyro_attitude.core.attitude.settings import SETTINGS
 from gyro_attitude.io.safe_output import SafeOutput, check_output_path
 from gyro_attitude.io.scene_file import load_scene
 from gyro_attitude.offline import montecarlo as mc
-from gyro_attitude.offline.parallel import CONNECT_TIMEOUT_S, default_workers
+from gyro_attitude.offline.parallel import CONNECT_TIMEOUT_S, NO_WORKER_TIMEOUT_S, default_workers
 
 __all__ = ["configure", "run"]
+
+PROG = "gyro-attitude montecarlo"
 
 
 def _int_from(lo: int, hi: int):
@@ -74,6 +77,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--connect-timeout", type=_positive, default=CONNECT_TIMEOUT_S,
                         metavar="S", help=f"seconds to wait for the scheduler (default "
                         f"{CONNECT_TIMEOUT_S:g})")
+    parser.add_argument("--worker-timeout", type=_positive, default=NO_WORKER_TIMEOUT_S,
+                        metavar="S", help="Dask: seconds the set waits while the cluster has "
+                        "no worker (all lost) before it ends with the runs that finished "
+                        f"(default {NO_WORKER_TIMEOUT_S:g})")
     parser.add_argument("--grade", action="append", default=[], metavar="NAME|NAME*F|*F",
                         help="sensor grade to compare (repeat for several): the gyro and "
                         "accelerometer errors of scene NAME, scaled by F, or the scene's own "
@@ -160,38 +167,42 @@ def run(args) -> int:
         if args.json and args.plot and args.json == args.plot:
             raise ValueError("--json and --plot name the same file")
     except (ValueError, OSError) as exc:
-        print(f"montecarlo: error: {exc}", file=sys.stderr)
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 1
     workers = args.workers or default_workers()
     try:
         result = mc.run_montecarlo(setup, workers=workers, scheduler=args.scheduler,
                                    progress=not args.no_progress and sys.stderr.isatty(),
-                                   connect_timeout_s=args.connect_timeout)
+                                   connect_timeout_s=args.connect_timeout,
+                                   no_worker_timeout_s=args.worker_timeout)
     except (ValueError, OSError) as exc:
-        print(f"montecarlo: error: {exc}", file=sys.stderr)
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 1
     doc = result.to_json()
     stats = doc["statistics"]
     try:
         if args.json:
             _write_json(args.json, doc)
-        if args.plot and not result.interrupted:
+        if args.plot and not result.interrupted and result.stopped is None:
             mc.write_plot(result, stats, args.plot)
     except (ValueError, OSError) as exc:
-        print(f"montecarlo: error: {exc}", file=sys.stderr)
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 1
-    if result.interrupted:
+    if result.interrupted or result.stopped:
         done = doc["runs_finished"]
-        print(f"montecarlo: interrupted after {done} of {setup.runs * len(setup.grades)} runs"
+        total = setup.runs * len(setup.grades)
+        what = (f"interrupted after {done} of {total} runs" if result.interrupted else
+                f"error: {result.stopped}; {done} of {total} runs finished")
+        print(f"{PROG}: {what}"
               + (f"; {args.json} holds them (\"complete\": false)" if args.json else "")
               + ("; no plot" if args.plot else ""), file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return EXIT_INTERRUPTED if result.interrupted else 1
     _print_table(result, stats)
     for r in result.failed:
-        print(f"montecarlo: run {r['index']} ({r['grade']}, seed {r['seed']}) failed: "
+        print(f"{PROG}: run {r['index']} ({r['grade']}, seed {r['seed']}) failed: "
               f"{r['error']}", file=sys.stderr)
     if result.failed:
-        print(f"montecarlo: {len(result.failed)} run(s) failed; the statistics are over the "
+        print(f"{PROG}: {len(result.failed)} run(s) failed; the statistics are over the "
               f"{doc['runs_finished']} that finished", file=sys.stderr)
         return 1
     return 0

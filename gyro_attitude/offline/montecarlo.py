@@ -61,7 +61,13 @@ from gyro_attitude.core.scene import MAX_RATE_HZ, SceneSimulator, SceneSpec
 from gyro_attitude.core.sensor_errors import SensorErrorParams
 from gyro_attitude.core.sim_topics import DEFAULT_FRAME_ID
 from gyro_attitude.io.safe_output import raise_if_stop_requested, stop_handled
-from gyro_attitude.offline.parallel import CONNECT_TIMEOUT_S, TaskCost, run_tasks
+from gyro_attitude.offline.parallel import (
+    CONNECT_TIMEOUT_S,
+    NO_WORKER_TIMEOUT_S,
+    TaskCost,
+    WorkersLost,
+    run_tasks,
+)
 from gyro_attitude.offline.replay import estimate_recording
 
 #: what a run imports where it uses it, preloaded once for a pool's workers: the sensor errors'
@@ -501,10 +507,13 @@ class MonteCarloResult:
     cost: TaskCost | None = None
     own_cpu_s: float | None = None
     load_average: tuple[float, float] | None = None
+    #: why the set ended before every run finished (the Dask cluster lost its workers), or None
+    stopped: str | None = None
 
     @property
     def complete(self) -> bool:
-        return not self.interrupted and len(self.runs) == self.setup.runs * len(self.setup.grades)
+        return not self.interrupted and self.stopped is None and \
+            len(self.runs) == self.setup.runs * len(self.setup.grades)
 
     @property
     def failed(self) -> list[dict]:
@@ -539,6 +548,7 @@ class MonteCarloResult:
             "seed": s.seed, "grades": [g.label for g in s.grades],
             "estimator": s.estimator.describe(),
             "complete": self.complete, "interrupted": self.interrupted,
+            "stopped": self.stopped,
             "runs_finished": len(done), "runs_failed": len(self.failed),
             "workers": self.workers, "scheduler": self.scheduler, "wall_s": self.wall_s,
             "cost_per_run_s": self.cost_per_run_s(),
@@ -595,10 +605,13 @@ def _chunks(setup: MonteCarloSetup, workers: int) -> list[tuple]:
 
 def run_montecarlo(setup: MonteCarloSetup, *, workers: int = 1, scheduler: str | None = None,
                    progress: bool = False,
-                   connect_timeout_s: float = CONNECT_TIMEOUT_S) -> MonteCarloResult:
+                   connect_timeout_s: float = CONNECT_TIMEOUT_S,
+                   no_worker_timeout_s: float = NO_WORKER_TIMEOUT_S) -> MonteCarloResult:
     """Every run of ``setup`` on ``workers`` local processes (1: this process) or the Dask
-    scheduler at ``scheduler``.  A Ctrl-C returns what finished with ``interrupted`` set.
-    Raises :class:`~.parallel.SchedulerUnreachable` and ValueError for bad arguments."""
+    scheduler at ``scheduler``.  A Ctrl-C returns what finished with ``interrupted`` set; a
+    Dask cluster without a worker for ``no_worker_timeout_s`` returns what finished with
+    ``stopped`` saying so.  Raises :class:`~.parallel.SchedulerUnreachable` and ValueError for
+    bad arguments."""
     tasks = _chunks(setup, 16 if scheduler else workers)
     results: dict[int, list[dict]] = {}
     bar = None
@@ -621,6 +634,7 @@ def run_montecarlo(setup: MonteCarloSetup, *, workers: int = 1, scheduler: str |
             bar.update(len(tasks[i][2]))
 
     interrupted = False
+    stopped = None
     cost = None
     load0 = _load_average()
     t0, c0 = time.perf_counter(), _own_cpu_s()
@@ -628,10 +642,12 @@ def run_montecarlo(setup: MonteCarloSetup, *, workers: int = 1, scheduler: str |
         cost = run_tasks(_run_chunk, tasks, on_result, workers=workers, scheduler=scheduler,
                          on_error=on_error, progress=advance,
                          connect_timeout_s=connect_timeout_s, help_while_starting=True,
-                         preload=TASK_IMPORTS)
+                         preload=TASK_IMPORTS, no_worker_timeout_s=no_worker_timeout_s)
     except KeyboardInterrupt:
         interrupted = True
         stop_handled()  # the runs that finished are written (``--json`` marked partial)
+    except WorkersLost as exc:
+        stopped = str(exc)  # the runs that finished are kept
     finally:
         if bar is not None:
             bar.close()
@@ -640,7 +656,7 @@ def run_montecarlo(setup: MonteCarloSetup, *, workers: int = 1, scheduler: str |
     order = {g.label: k for k, g in enumerate(setup.grades)}
     runs.sort(key=lambda r: (order[r["grade"]], r["index"]))
     return MonteCarloResult(setup, runs, interrupted, wall, workers, scheduler, cost, own,
-                            (load0, _load_average()))
+                            (load0, _load_average()), stopped)
 
 
 def _own_cpu_s() -> float:
