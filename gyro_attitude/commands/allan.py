@@ -8,7 +8,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from gyro_attitude.commands.replay import _one_line_error
+from gyro_attitude.commands.usage_errors import one_line_errors
 from gyro_attitude.core.units import format_si
 from gyro_attitude.io.safe_output import SafeOutput, check_output_path
 from gyro_attitude.io.scene_file import validate_scene_text
@@ -26,7 +26,7 @@ _ACCEL_UNITS = (("random_walk", "VRW", "velocity random walk"),
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.error = _one_line_error(parser)  # one line, not usage + error
+    one_line_errors(parser)  # one line, not usage + error
     parser.add_argument("input", metavar="IN.mcap", help="recording of an IMU at rest (where "
                         "it moves, the longest rest is analysed and the rests are listed)")
     parser.add_argument("--imu-topic", default="imu/data_raw", help="sensor_msgs/Imu topic")

@@ -20,6 +20,7 @@ import time
 import traceback
 
 from gyro_attitude.benchmarks import machine_description
+from gyro_attitude.commands.usage_errors import one_line_errors
 from gyro_attitude.io.safe_output import (
     OutputPathError,
     SafeOutput,
@@ -39,10 +40,15 @@ SUITES: dict[str, str] = {
     "instruments": "gyro_attitude.benchmarks.instruments",
     "trajectory": "gyro_attitude.benchmarks.trajectory",
     "montecarlo": "gyro_attitude.benchmarks.montecarlo",
+    "montecarlo-dask": "gyro_attitude.benchmarks.montecarlo_dask",
 }
 
 
+PROG = "gyro-attitude bench"
+
+
 def configure(parser: argparse.ArgumentParser) -> None:
+    one_line_errors(parser)  # one line, not usage + error
     parser.add_argument("--suite", action="append", choices=sorted(SUITES), metavar="NAME",
                         help=f"suite to run (repeatable): {', '.join(SUITES)}; "
                              "default: attitude")
@@ -114,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
     suites = list(dict.fromkeys(args.suite or ["attitude"]))
     problem = _prepare_outputs(args)
     if problem is not None:
-        print(f"gyro-attitude bench: {problem}", file=sys.stderr)
+        print(f"{PROG}: error: {problem}", file=sys.stderr)
         return 2
     out_dir = pathlib.Path(args.out_dir)
     rows: list[dict] = []
@@ -156,7 +162,7 @@ def run(args: argparse.Namespace) -> int:
             with SafeOutput(path, force=args.force) as tmp:
                 tmp.write_text(json.dumps(_clean({"meta": meta, "rows": rows}), indent=1))
         except (OutputPathError, OSError) as exc:
-            print(f"gyro-attitude bench: --json {path}: {exc}", file=sys.stderr)
+            print(f"{PROG}: error: --json {path}: {exc}", file=sys.stderr)
             return 1
         print(f"wrote {len(rows)} rows to {path}")
     return 1 if "error" in status.values() else 0

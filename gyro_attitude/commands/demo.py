@@ -28,6 +28,7 @@ import time
 from datetime import UTC, datetime
 from pathlib import Path
 
+from gyro_attitude.commands.usage_errors import one_line_errors
 from gyro_attitude.core.attitude import causal_algorithms
 from gyro_attitude.core.rotation import quat_angle_between
 from gyro_attitude.io.cdr_arrays import QuaternionStampedCdr
@@ -36,6 +37,7 @@ from gyro_attitude.io.scene_file import load_scene
 
 PACKAGE = "gyro_attitude"
 DEFAULT_SCENE = "coning"
+PROG = "gyro-attitude demo"
 
 
 MIN_SAMPLES = 2  # an attitude error needs at least one integrated interval
@@ -76,6 +78,7 @@ def _png_path(text: str) -> Path:
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
+    one_line_errors(parser)  # one line, not usage + error
     parser.add_argument("--scene", default=DEFAULT_SCENE,
                         help=f"scene name or YAML path (default {DEFAULT_SCENE}: closed-form truth)")
     parser.add_argument("--duration", type=_positive_up_to("duration_s", "s"), default=10.0,
@@ -198,19 +201,20 @@ def run(args: argparse.Namespace) -> int:
     try:
         spec = load_scene(args.scene)
     except (ValueError, OSError) as exc:
-        print(f"--scene {args.scene!r}: {exc}", file=sys.stderr)
+        print(f"{PROG}: error: --scene {args.scene!r}: {exc}", file=sys.stderr)
         return 2
     rate = args.rate if args.rate is not None else float(spec.rate_hz)
     n_samples = int(round(args.duration * rate))
     if n_samples < MIN_SAMPLES:
         # gyro_sim reads 0 samples as "run forever"
-        print(f"--duration {args.duration:g} s at {rate:g} Hz gives {n_samples} samples; "
+        print(f"{PROG}: error: --duration {args.duration:g} s at {rate:g} Hz gives "
+              f"{n_samples} samples; "
               f"need at least {MIN_SAMPLES}", file=sys.stderr)
         return 2
     stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
     prepared = _prepare_outputs(args, spec, stamp)
     if isinstance(prepared, str):
-        print(f"[demo] {prepared}", file=sys.stderr)
+        print(f"{PROG}: error: {prepared}", file=sys.stderr)
         return 1
     bag, plot = prepared
     env = demo_environment()
@@ -335,7 +339,7 @@ def run(args: argparse.Namespace) -> int:
                 sim_code = sim.wait(timeout=5)
             except subprocess.TimeoutExpired:
                 _stop(sim)
-                print(f"[demo] gyro_sim did not finish {args.duration:g} s within "
+                print(f"{PROG}: error: gyro_sim did not finish {args.duration:g} s within "
                       f"{time.monotonic() - t_wall:.0f} s; logs in {log_dir}", file=sys.stderr)
                 return 1
         sim_code = sim.returncode
@@ -345,7 +349,7 @@ def run(args: argparse.Namespace) -> int:
         executor.shutdown()
         node.destroy_node()
     except KeyboardInterrupt:
-        print("[demo] interrupted", file=sys.stderr)
+        print(f"{PROG}: interrupted", file=sys.stderr)
         return 130
     finally:
         for p in procs:
@@ -378,7 +382,7 @@ def _quaternions_by_stamp(messages: list[bytes]) -> dict[int, tuple]:
 def _node_failed(name: str, code: int, log: Path) -> int:
     """One line for a node that exited with an error; the demo's exit status (1)."""
     said = _last_line(log)
-    print(f"[demo] {name} exited with status {code}" + (f": {said}" if said else "")
+    print(f"{PROG}: error: {name} exited with status {code}" + (f": {said}" if said else "")
           + f" (log: {log})", file=sys.stderr)
     return 1
 
@@ -403,7 +407,8 @@ def _summarize(spec, rate, args, truth, attitude, diagnostics, bag, plot, wall, 
     if bag is not None and bag.exists():
         print(f"[demo] recording: {bag} ({bag.stat().st_size / 1e6:.1f} MB)")
     if not stamps:
-        print("[demo] no attitude matched a truth stamp: nothing to compare", file=sys.stderr)
+        print(f"{PROG}: error: no attitude matched a truth stamp: nothing to compare",
+              file=sys.stderr)
         return 1
     t_ns = np.array(stamps, dtype=np.int64)
     q_t = np.array([truth[s] for s in stamps])
@@ -439,7 +444,7 @@ def _summarize(spec, rate, args, truth, attitude, diagnostics, bag, plot, wall, 
         with SafeOutput(plot, force=args.force) as tmp:
             fig.savefig(tmp, dpi=110, format="png")
     except (OutputPathError, OSError) as exc:
-        print(f"[demo] --plot {plot}: {exc}", file=sys.stderr)
+        print(f"{PROG}: error: --plot {plot}: {exc}", file=sys.stderr)
         return 1
     finally:
         plt.close(fig)

@@ -20,7 +20,7 @@ from gyro_attitude.commands.estimator_flags import (
     config_from_args,
     given_settings,
 )
-from gyro_attitude.commands.replay import _one_line_error
+from gyro_attitude.commands.usage_errors import one_line_errors
 from gyro_attitude.core.attitude import ALGORITHMS
 from gyro_attitude.core.attitude.modes import InitialAttitudeSource
 from gyro_attitude.core.attitude.settings import SETTINGS
@@ -57,7 +57,7 @@ def _positive(text: str) -> float:
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.error = _one_line_error(parser)
+    one_line_errors(parser)  # one line, not usage + error
     parser.add_argument("scene", help="scene name (gyro-attitude scenes) or YAML path")
     parser.add_argument("--runs", type=_int_from(1, mc.MAX_RUNS), required=True, metavar="N",
                         help="noise draws per grade")
