@@ -149,6 +149,16 @@ def _print_table(result: mc.MonteCarloResult, stats: list[dict]) -> None:
               f"{_deg(pred):>8} {nees:>24}")
     cost = result.cost_per_run_s()
     print(f"wall {result.wall_s:.2f} s" + (f", {cost:.3g} s per run" if cost else ""))
+    for st in stats:
+        n = st.get("nees", {}).get("final") or {}
+        if "outside" not in n:
+            continue
+        why = n["explanation"]
+        print(f"note: {st['label']}: the final NEES {n['mean']:.3g} lies {n['outside']} its 95 % "
+              f"band [{n['lower']:.3g}, {n['upper']:.3g}]: the reported covariance is "
+              + ("too small" if n["outside"] == "above" else "too large") + " here. "
+              + ("; ".join(why) + "." if why else "No term of the scene explains it.")
+              + " (docs/montecarlo.md: the NEES check)")
 
 
 def _write_json(path, doc: dict) -> None:

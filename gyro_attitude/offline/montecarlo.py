@@ -89,6 +89,7 @@ __all__ = [
     "run_one",
     "run_montecarlo",
     "grade_statistics",
+    "nees_explanation",
     "write_plot",
 ]
 
@@ -488,6 +489,73 @@ def grade_statistics(setup: MonteCarloSetup, runs: list[dict]) -> dict:
     return out
 
 
+def _si(x) -> str:
+    return f"{float(np.max(np.abs(x))):.3g}"
+
+
+def nees_explanation(spec: SceneSpec, config: StreamConfig, above: bool) -> list[str]:
+    """Why the mean NEES of a grade lies outside its band: the terms of ``spec``'s gyro that
+    the covariance the estimator reports (core/attitude/covariance.py) leaves out with the
+    settings ``config`` (``above``: NEES above the band, the errors are larger than reported),
+    or counts as white rate noise though they are not (below the band).  Read off the scene
+    and the settings, not fitted: a list of plain sentences (empty when no term explains it).
+
+    The covariance integrates the per-sample gyro variance the simulator publishes (white
+    noise N²/dt, the bias instability's stationary σ², quantization q²/(6 dt²)) as white rate
+    noise, a bias random walk ``gyro_bias_rw`` between rests, and the standard error of the
+    white noise at each rest sample (gyro_bias auto) or ``gyro_bias_sigma_rad_s``."""
+    g = spec.gyro_errors
+    sampling = spec.gyro_sampling
+    turning = spec.motion_type != "stationary"
+    mode = config.gyro_bias
+    out: list[str] = []
+    if not above:
+        if np.any(g.quantum > 0):
+            out.append(f"quantization ({_si(g.quantum)} rad of integrated output) is counted as "
+                       "white rate noise, q²/(6 dt²) a sample, but its angle error stays within "
+                       "a quantum: the reported variance grows where the error does not")
+        return out
+    if np.any(g.bias_instability_floor > 0) or np.any(g.bias_instability_sigma > 0):
+        what = (f"Allan floor {_si(g.bias_instability_floor)} rad/s"
+                if np.any(g.bias_instability_floor > 0) else
+                f"Gauss–Markov σ {_si(g.bias_instability_sigma)} rad/s, τ "
+                f"{_si(g.bias_instability_tau)} s")
+        out.append(f"bias instability ({what}) is counted as white rate noise, but it is "
+                   "correlated over tens to hundreds of seconds: its integral grows faster "
+                   "than the reported variance (the covariance has no bias-instability state)")
+    k = g.rate_random_walk
+    if np.any(k > 0):
+        if mode is GyroBiasMode.AUTO:
+            out.append(f"rate random walk ({_si(k)} rad/s/√s): with gyro_bias auto the bias "
+                       "variance is set at every rest sample from the white-noise spread "
+                       "alone (gyro_bias_rw acts only between rests), so the bias drift "
+                       "within the averaging window is not in it")
+        elif config.gyro_bias_rw < float(np.max(k)):
+            out.append(f"rate random walk ({_si(k)} rad/s/√s) against gyro_bias_rw "
+                       f"{config.gyro_bias_rw:.3g}")
+    fixed = np.abs(g.bias)
+    if sampling.turn_on_bias_sigma is not None:
+        fixed = fixed + 2.0 * np.asarray(sampling.turn_on_bias_sigma)
+    sigma = config.gyro_bias_sigma_rad_s
+    if np.any(fixed > 0) and float(np.max(fixed)) > 2.0 * sigma:
+        if mode is GyroBiasMode.NONE:
+            out.append(f"a fixed gyro bias (up to {_si(fixed)} rad/s) is not subtracted "
+                       f"(gyro_bias none) and gyro_bias_sigma_rad_s is {sigma:.3g}")
+        elif mode is GyroBiasMode.AUTO and turning:
+            out.append(f"a fixed gyro bias (up to {_si(fixed)} rad/s) is subtracted only from "
+                       "a rest: where the motion leaves none it stays, with variance "
+                       f"gyro_bias_sigma_rad_s² = {sigma:.3g}²")
+    if turning and (np.any(g.scale_factor != 0) or np.any(g.misalignment != 0)):
+        out.append("scale factor and misalignment errors times the motion's rates are not in "
+                   "the covariance")
+    if sampling.g_sensitivity is not None:
+        out.append("g-sensitivity (rate error from the specific force) is not in the covariance")
+    if turning and (spec.gyro_model != "ideal" or sampling.bandwidth is not None):
+        out.append(f"the {spec.gyro_model if spec.gyro_model != 'ideal' else 'band-limited'} "
+                   "gyro's dynamic error on the motion is not in the covariance")
+    return out
+
+
 # --------------------------------------------------------------------------- the whole set
 @dataclass
 class MonteCarloResult:
@@ -520,9 +588,19 @@ class MonteCarloResult:
         return [r for r in self.runs if "error" in r]
 
     def statistics(self) -> list[dict]:
-        return [{"label": g.label, **grade_statistics(
-            self.setup, [r for r in self.runs if r["grade"] == g.label])}
-            for g in self.setup.grades]
+        out = []
+        for g in self.setup.grades:
+            st = {"label": g.label, **grade_statistics(
+                self.setup, [r for r in self.runs if r["grade"] == g.label])}
+            final = st.get("nees", {}).get("final")
+            if final is not None and final["within"] is False:
+                # outside its band: which of the scene's terms the reported covariance misses
+                above = final["mean"] > final["upper"]
+                final["outside"] = "above" if above else "below"
+                final["explanation"] = nees_explanation(
+                    g.spec, self.setup.estimator.config, above)
+            out.append(st)
+        return out
 
     def cost_per_run_s(self) -> float | None:
         """Wall time of the whole set per finished run (pool start-up included)."""
