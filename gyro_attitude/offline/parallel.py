@@ -443,8 +443,9 @@ class _WorkerWatch:
                 self.warn(f"the Dask scheduler at {self.address} does not answer")
         for w in sorted(self.known - workers):
             self.lost_any = True
-            self.warn(f"Dask worker {w} lost ({len(workers)} left; the scheduler runs its "
-                      "tasks again elsewhere)")
+            self.warn(f"Dask worker {w} lost ({len(workers)} left"
+                      + ("; the scheduler runs its tasks again on the others)" if workers
+                         else ")"))
         if self.lost_any:
             for w in sorted(workers - self.known):
                 self.warn(f"Dask worker {w} joined ({len(workers)} now)")
