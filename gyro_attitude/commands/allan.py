@@ -8,7 +8,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from gyro_attitude.commands.usage_errors import one_line_errors
+from gyro_attitude.commands.usage_errors import figure_file, one_line_errors, output_file
 from gyro_attitude.core.units import format_si
 from gyro_attitude.io.safe_output import SafeOutput, check_output_path
 from gyro_attitude.io.scene_file import validate_scene_text
@@ -30,11 +30,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("input", metavar="IN.mcap", help="recording of an IMU at rest (where "
                         "it moves, the longest rest is analysed and the rests are listed)")
     parser.add_argument("--imu-topic", default="imu/data_raw", help="sensor_msgs/Imu topic")
-    parser.add_argument("--json", metavar="PATH", help="write deviation and terms as JSON")
-    parser.add_argument("--plot", metavar="PNG", help="log-log plot with the fitted terms")
-    parser.add_argument("--scene-out", metavar="YAML",
+    parser.add_argument("--json", metavar="PATH", type=output_file, help="write deviation and terms as JSON")
+    parser.add_argument("--plot", metavar="PNG", type=figure_file(),
+                        help="log-log plot with the fitted terms (format from the suffix: .png, "
+                        ".pdf, .svg, ...)")
+    parser.add_argument("--scene-out", metavar="YAML", type=output_file,
                         help="write a scene whose errors are the fitted terms")
-    parser.add_argument("--kalibr-out", metavar="YAML",
+    parser.add_argument("--kalibr-out", metavar="YAML", type=output_file,
                         help="write the fitted terms as a Kalibr / VIO imu.yaml (continuous-"
                              "time noise densities and random walks; a scene takes the same "
                              "file with kalibr_imu:)")

@@ -20,7 +20,7 @@ import time
 import traceback
 
 from gyro_attitude.benchmarks import machine_description
-from gyro_attitude.commands.usage_errors import one_line_errors
+from gyro_attitude.commands.usage_errors import one_line_errors, output_file
 from gyro_attitude.io.safe_output import (
     OutputPathError,
     SafeOutput,
@@ -54,7 +54,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "default: attitude")
     parser.add_argument("--quick", action="store_true",
                         help="small sizes (each suite aims at under a minute)")
-    parser.add_argument("--json", metavar="PATH", type=pathlib.Path,
+    parser.add_argument("--json", metavar="PATH",
+                        type=lambda text: pathlib.Path(output_file(text)),
                         help="write all rows as JSON to PATH")
     parser.add_argument("--out-dir", metavar="DIR", type=pathlib.Path,
                         default=pathlib.Path("bench_out"),
