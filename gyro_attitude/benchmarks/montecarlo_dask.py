@@ -48,6 +48,21 @@ def _no_plugin(_client):
     yield False
 
 
+@contextlib.contextmanager
+def _environment(clean: dict):
+    """``os.environ`` as ``clean`` inside (a LocalCluster's nannies, living in this process, set
+    Dask's ``MALLOC_TRIM_THRESHOLD_`` here for good: a pool started after them would inherit
+    it, and its workers would take it for the user's choice and skip their allocator setting)."""
+    saved = dict(os.environ)
+    os.environ.clear()
+    os.environ.update(clean)
+    try:
+        yield
+    finally:
+        os.environ.clear()
+        os.environ.update(saved)
+
+
 def _set(label: str, setup: mc.MonteCarloSetup, reference, **where) -> dict:
     load0 = os.getloadavg()[0]
     res = mc.run_montecarlo(setup, **where)
@@ -67,13 +82,15 @@ def run(quick: bool, out_dir: pathlib.Path) -> list[dict]:
     setup = _setup(runs, duration, "none", "causal")
     sets = []
     pool = None
+    clean = dict(os.environ)  # before the cluster: the pool runs as the command would
     t0 = time.perf_counter()
     with distributed.LocalCluster(n_workers=WORKERS, threads_per_worker=1, processes=True,
                                   host="127.0.0.1", dashboard_address=None) as cluster:
         cluster_start_s = time.perf_counter() - t0
         at = {"scheduler": cluster.scheduler_address}
         for k in range(1, rounds + 1):
-            sets.append(_set(f"pool_{k}", setup, pool, workers=WORKERS))
+            with _environment(clean):
+                sets.append(_set(f"pool_{k}", setup, pool, workers=WORKERS))
             pool = pool or sets[-1]["_result"]
             sets.append(_set(f"dask_{k}", setup, pool, **at))
         tuned = dask_allocator.kept_on_workers
