@@ -501,10 +501,11 @@ def _run_dask(fn, args, done, address: str, timeout_s: float,
             unfinished = len(futures)
             results = as_completed(futures, loop=client.loop)
             while unfinished:
-                # without blocking: the watch must run while nothing finishes (no worker)
+                # without blocking: the watch must run while nothing finishes (no worker);
+                # it looks at the cluster once a second, results arriving or not
+                watch.check(unfinished)
                 batch = results.next_batch(block=False)
                 if not batch:
-                    watch.check(unfinished)
                     time.sleep(0.02)
                     continue
                 for f in batch:
