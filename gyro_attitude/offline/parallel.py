@@ -157,15 +157,28 @@ def _dask_call(fn, arg):
     return fn(arg)
 
 
-def _worker_init() -> None:
+def _worker_init(not_the_users: dict | None = None) -> None:
     """A worker ignores Ctrl-C (the command decides) and ends its task on SIGTERM by an
     exception, so that the task's clean-up runs (a half-written output is removed) before
     the process ends; it composes attitudes single-threaded and keeps freed array memory for
-    reuse (the module docstring)."""
+    reuse (the module docstring; ``not_the_users``: environment variables set by Dask, see
+    :func:`_dask_set_environment`)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _stop_on_sigterm)
     set_prepare_threads(0)
-    keep_freed_memory()
+    keep_freed_memory(not_the_users or {})
+
+
+def _dask_set_environment() -> dict:
+    """Variables a ``distributed.LocalCluster`` of this process set in its environment (its
+    in-process nannies write Dask's ``MALLOC_TRIM_THRESHOLD_`` into ``os.environ`` for good):
+    a pool's workers inherit them, and must not take them for the user's choice.  Empty when
+    Dask was never imported here."""
+    if "distributed" not in sys.modules:
+        return {}
+    from gyro_attitude.offline.dask_allocator import _dask_environment
+
+    return _dask_environment()
 
 
 def _context():
@@ -307,7 +320,8 @@ def _run_pool(fn, args, done, workers: int, help_while_starting: bool = False,
                 context.set_forkserver_preload(["__main__", fn.__module__, *preload])
                 multiprocessing.forkserver.ensure_running()
             pool = ProcessPoolExecutor(max_workers=min(workers, len(pending)),
-                                       mp_context=context, initializer=_worker_init)
+                                       mp_context=context, initializer=_worker_init,
+                                       initargs=(_dask_set_environment(),))
         futures = {}
         starter = None
         try:
