@@ -4,13 +4,19 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
+import tempfile
 from pathlib import Path
 
 from gyro_attitude.commands import error_line
+from gyro_attitude.commands.usage_errors import figure_file, output_file
 from gyro_attitude.core.units import format_si
 from gyro_attitude.io.safe_output import SafeOutput, check_output_path, plot_format
+from gyro_attitude.io.scene_file import validate_scene_text
 from gyro_attitude.io.strict_yaml import dump_yaml
-from gyro_attitude.offline.allan import AXES, analyse_mcap, plot
+from gyro_attitude.offline.allan import AXES, MIN_REST_S, analyse_mcap, plot
+
+PROG = "gyro-attitude allan"
 
 _GYRO_UNITS = (("random_walk", "N (ARW)", "angle random walk"),
                ("bias_instability", "B (bias inst.)", "angular rate"),
@@ -21,16 +27,23 @@ _ACCEL_UNITS = (("random_walk", "VRW", "velocity random walk"),
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("input", metavar="IN.mcap", help="recording of an IMU at rest")
+    parser.add_argument("input", metavar="IN.mcap", help="recording of an IMU at rest (where "
+                        "it moves, the longest rest is analysed and the rests are listed)")
     parser.add_argument("--imu-topic", default="imu/data_raw", help="sensor_msgs/Imu topic")
-    parser.add_argument("--json", metavar="PATH", help="write deviation and terms as JSON")
-    parser.add_argument("--plot", metavar="PNG", help="log-log plot with the fitted terms")
-    parser.add_argument("--scene-out", metavar="YAML",
+    parser.add_argument("--json", metavar="PATH", type=output_file, help="write deviation and terms as JSON")
+    parser.add_argument("--plot", metavar="PNG", type=figure_file(),
+                        help="log-log plot with the fitted terms (format from the suffix: .png, "
+                        ".pdf, .svg, ...)")
+    parser.add_argument("--scene-out", metavar="YAML", type=output_file,
                         help="write a scene whose errors are the fitted terms")
-    parser.add_argument("--kalibr-out", metavar="YAML",
+    parser.add_argument("--kalibr-out", metavar="YAML", type=output_file,
                         help="write the fitted terms as a Kalibr / VIO imu.yaml (continuous-"
                              "time noise densities and random walks; a scene takes the same "
                              "file with kalibr_imu:)")
+    parser.add_argument("--whole-record", action="store_true",
+                        help="analyse every sample even where the IMU moves (the terms then "
+                        f"include the motion); default: the longest rest of at least "
+                        f"{MIN_REST_S:g} s")
     parser.add_argument("--force", action="store_true", help="overwrite existing outputs")
 
 
@@ -84,6 +97,28 @@ def _kalibr_yaml(result, source: str) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _check_scene(text: str, name: str) -> None:
+    """The scene as ``simulate`` would load it: ValueError with its reason when refused."""
+    validate_scene_text(text, Path(name))
+
+
+def _check_kalibr(text: str, has_accel: bool, name: str) -> None:
+    """The imu.yaml as a scene's ``kalibr_imu:`` would read it (the same checks and limits
+    ``simulate`` applies): ValueError with the reason when refused."""
+    scene = {"description": "check", "seed": 1, "rate_hz": 100.0, "duration_s": 1.0,
+             "earth": {"latitude_deg": 0.0}, "motion": {"type": "stationary"}, "gyro": {"model": "ideal"},
+             "kalibr_imu": "imu.yaml"}
+    if has_accel:
+        scene["accelerometer"] = {"gravity": True}
+    with tempfile.TemporaryDirectory(prefix="gyro-attitude-allan-") as tmp:
+        (Path(tmp) / "imu.yaml").write_text(text, encoding="utf-8")
+        try:
+            validate_scene_text(dump_yaml(scene), Path(tmp) / "check.yaml")
+        except ValueError as exc:
+            reason = str(exc).removeprefix("check.yaml: ")
+            raise ValueError(f"{name} as a scene's kalibr_imu: {reason}") from None
+
+
 def _write_text(path: str, text: str, force: bool) -> None:
 
     with SafeOutput(path, force=force) as tmp:
@@ -103,12 +138,15 @@ def run(args: argparse.Namespace) -> int:
                               force=args.force, what=f"{what} output")
         if args.plot:
             plot_format(args.plot)
-        result = analyse_mcap(args.input, args.imu_topic)
+        result = analyse_mcap(args.input, args.imu_topic, whole_record=args.whole_record)
     except (ValueError, OSError) as exc:
         error_line("allan", exc)
         return 1
+    span = "" if result.analysed_s is None else \
+        f" (the rest {result.analysed_s[0]:g}–{result.analysed_s[1]:g} s)"
     print(f"[allan] {args.input} {result.topic}: {result.samples} samples every "
-          f"{result.dt_s * 1e3:g} ms, τ from {result.tau_s[0]:g} s to {result.tau_s[-1]:g} s")
+          f"{result.dt_s * 1e3:g} ms{span}, τ from {result.tau_s[0]:g} s to "
+          f"{result.tau_s[-1]:g} s")
     for name, axes, units in (("gyro", result.gyro, _GYRO_UNITS),
                               ("accelerometer", result.accel, _ACCEL_UNITS)):
         if axes is None:
@@ -122,16 +160,36 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {axis}: " + ";  ".join(cells))
     for note in result.notes:
         print(f"[allan] note: {note}")
+    if result.moving:
+        print(f"{PROG}: warning: the IMU moves in {Path(args.input).name}: "
+              + ("the terms are those of the longest rest (see the note)"
+                 if result.analysed_s is not None else
+                 "the terms include the motion (--whole-record)"), file=sys.stderr)
+    source = Path(args.input).name
+    texts = {}
+    try:
+        # every file checked before the first is written: a scene or imu.yaml that simulate
+        # would refuse is never written (nor the others beside it)
+        if args.scene_out:
+            texts["scene"] = _scene_yaml(result, source)
+            _check_scene(texts["scene"], Path(args.scene_out).name)
+        if args.kalibr_out:
+            texts["kalibr"] = _kalibr_yaml(result, source)
+            _check_kalibr(texts["kalibr"], result.accel is not None,
+                          Path(args.kalibr_out).name)
+    except ValueError as exc:
+        print(f"{PROG}: error: the fitted terms make no scene simulate accepts ({exc}); "
+              "nothing written", file=sys.stderr)
+        return 1
     try:
         if args.json:
             _write_text(args.json, json.dumps(result.to_json(), indent=1), args.force)
             print(f"[allan] JSON -> {args.json}")
         if args.scene_out:
-            _write_text(args.scene_out, _scene_yaml(result, Path(args.input).name), args.force)
+            _write_text(args.scene_out, texts["scene"], args.force)
             print(f"[allan] scene -> {args.scene_out}")
         if args.kalibr_out:
-            _write_text(args.kalibr_out, _kalibr_yaml(result, Path(args.input).name),
-                        args.force)
+            _write_text(args.kalibr_out, texts["kalibr"], args.force)
             print(f"[allan] Kalibr imu.yaml -> {args.kalibr_out}")
         if args.plot:
             with SafeOutput(args.plot, force=args.force) as tmp:

@@ -20,6 +20,7 @@ import traceback
 
 from gyro_attitude.benchmarks import machine_description
 from gyro_attitude.commands import error_line
+from gyro_attitude.commands.usage_errors import output_file
 from gyro_attitude.io.safe_output import (
     OutputPathError,
     SafeOutput,
@@ -41,7 +42,11 @@ SUITES: dict[str, str] = {
     "instruments": "gyro_attitude.benchmarks.instruments",
     "trajectory": "gyro_attitude.benchmarks.trajectory",
     "montecarlo": "gyro_attitude.benchmarks.montecarlo",
+    "montecarlo-dask": "gyro_attitude.benchmarks.montecarlo_dask",
 }
+
+
+PROG = "gyro-attitude bench"
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -50,7 +55,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "default: attitude")
     parser.add_argument("--quick", action="store_true",
                         help="small sizes (each suite aims at under a minute)")
-    parser.add_argument("--json", metavar="PATH", type=pathlib.Path,
+    parser.add_argument("--json", metavar="PATH",
+                        type=lambda text: pathlib.Path(output_file(text)),
                         help="write all rows as JSON to PATH")
     parser.add_argument("--out-dir", metavar="DIR", type=pathlib.Path,
                         default=pathlib.Path("bench_out"),

@@ -37,6 +37,7 @@ from gyro_attitude.io.scene_file import load_scene
 
 PACKAGE = "gyro_attitude"
 DEFAULT_SCENE = "coning"
+PROG = "gyro-attitude demo"
 
 
 MIN_SAMPLES = 2  # an attitude error needs at least one integrated interval
@@ -306,7 +307,7 @@ def run(args: argparse.Namespace) -> int:
                 sim_code = sim.wait(timeout=5)
             except subprocess.TimeoutExpired:
                 _stop(sim)
-                print(f"[demo] gyro_sim did not finish {args.duration:g} s within "
+                print(f"{PROG}: error: gyro_sim did not finish {args.duration:g} s within "
                       f"{time.monotonic() - t_wall:.0f} s; logs in {log_dir}", file=sys.stderr)
                 return 1
         sim_code = sim.returncode
@@ -316,7 +317,7 @@ def run(args: argparse.Namespace) -> int:
         executor.shutdown()
         node.destroy_node()
     except KeyboardInterrupt:
-        print("[demo] interrupted", file=sys.stderr)
+        print(f"{PROG}: interrupted", file=sys.stderr)
         return 130
     finally:
         for p in procs:
@@ -349,7 +350,7 @@ def _quaternions_by_stamp(messages: list[bytes]) -> dict[int, tuple]:
 def _node_failed(name: str, code: int, log: Path) -> int:
     """One line for a node that exited with an error; the demo's exit status (1)."""
     said = _last_line(log)
-    print(f"[demo] {name} exited with status {code}" + (f": {said}" if said else "")
+    print(f"{PROG}: error: {name} exited with status {code}" + (f": {said}" if said else "")
           + f" (log: {log})", file=sys.stderr)
     return 1
 
@@ -374,7 +375,8 @@ def _summarize(spec, rate, args, truth, attitude, diagnostics, bag, plot, wall, 
     if bag is not None and bag.exists():
         print(f"[demo] recording: {bag} ({bag.stat().st_size / 1e6:.1f} MB)")
     if not stamps:
-        print("[demo] no attitude matched a truth stamp: nothing to compare", file=sys.stderr)
+        print(f"{PROG}: error: no attitude matched a truth stamp: nothing to compare",
+              file=sys.stderr)
         return 1
     t_ns = np.array(stamps, dtype=np.int64)
     q_t = np.array([truth[s] for s in stamps])

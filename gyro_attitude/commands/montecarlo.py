@@ -1,9 +1,10 @@
 """``gyro-attitude montecarlo SCENE --runs N``: error budgets over many noise draws (the engine is
 :mod:`gyro_attitude.offline.montecarlo`; where it runs, :mod:`gyro_attitude.offline.parallel`).
 
-Exit status: 0 every run finished, 1 unusable input or output, an unreachable scheduler, or some
-runs failed (the others are in the output, the failed ones named), 2 bad arguments, 130
-interrupted (``--json`` then holds the runs that finished, marked ``"complete": false``).
+Exit status: 0 every run finished, 1 unusable input or output, an unreachable scheduler, a Dask
+cluster left without a worker, or some runs failed (the others are in the output, the failed
+ones named), 2 bad arguments, 130 interrupted (``--json`` then holds the runs that finished,
+marked ``"complete": false``, as when the cluster lost its workers).
 """
 
 from __future__ import annotations
@@ -19,15 +20,18 @@ from gyro_attitude.commands.estimator_flags import (
     config_from_args,
     given_settings,
 )
+from gyro_attitude.commands.usage_errors import output_file
 from gyro_attitude.core.attitude import ALGORITHMS
 from gyro_attitude.core.attitude.modes import InitialAttitudeSource
 from gyro_attitude.core.attitude.settings import SETTINGS
 from gyro_attitude.io.safe_output import SafeOutput, check_output_path, plot_format
 from gyro_attitude.io.scene_file import load_scene
 from gyro_attitude.offline import montecarlo as mc
-from gyro_attitude.offline.parallel import CONNECT_TIMEOUT_S, default_workers
+from gyro_attitude.offline.parallel import CONNECT_TIMEOUT_S, NO_WORKER_TIMEOUT_S, default_workers
 
 __all__ = ["configure", "run"]
+
+PROG = "gyro-attitude montecarlo"
 
 
 def _int_from(lo: int, hi: int):
@@ -72,6 +76,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--connect-timeout", type=_positive, default=CONNECT_TIMEOUT_S,
                         metavar="S", help=f"seconds to wait for the scheduler (default "
                         f"{CONNECT_TIMEOUT_S:g})")
+    parser.add_argument("--worker-timeout", type=_positive, default=NO_WORKER_TIMEOUT_S,
+                        metavar="S", help="Dask: seconds the set waits while the cluster has "
+                        "no worker (all lost) before it ends with the runs that finished "
+                        f"(default {NO_WORKER_TIMEOUT_S:g})")
     parser.add_argument("--grade", action="append", default=[], metavar="NAME|NAME*F|*F",
                         help="sensor grade to compare (repeat for several): the gyro and "
                         "accelerometer errors of scene NAME, scaled by F, or the scene's own "
@@ -86,7 +94,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_estimator_flags(parser, [s for s in SETTINGS if s.name not in mc.SCENE_SETTINGS])
     parser.add_argument("--grid-points", type=_int_from(2, 100_000), default=mc.GRID_POINTS,
                         help=f"times of the statistics (default {mc.GRID_POINTS})")
-    parser.add_argument("--json", metavar="OUT", default=None,
+    parser.add_argument("--json", metavar="OUT", default=None, type=output_file,
                         help="write runs, percentile bands and the NEES check as JSON")
     parser.add_argument("--plot", metavar="IMAGE", default=None,
                         help="percentile bands over time per grade, predicted 1σ/3σ")
@@ -140,6 +148,16 @@ def _print_table(result: mc.MonteCarloResult, stats: list[dict]) -> None:
               f"{_deg(pred):>8} {nees:>24}")
     cost = result.cost_per_run_s()
     print(f"wall {result.wall_s:.2f} s" + (f", {cost:.3g} s per run" if cost else ""))
+    for st in stats:
+        n = st.get("nees", {}).get("final") or {}
+        if "outside" not in n:
+            continue
+        why = n["explanation"]
+        print(f"note: {st['label']}: the final NEES {n['mean']:.3g} lies {n['outside']} its 95 % "
+              f"band [{n['lower']:.3g}, {n['upper']:.3g}]: the reported covariance is "
+              + ("too small" if n["outside"] == "above" else "too large") + " here. "
+              + ("; ".join(why) + "." if why else "No term of the scene explains it.")
+              + " (docs/montecarlo.md: the NEES check)")
 
 
 def _write_json(path, doc: dict) -> None:
@@ -166,7 +184,8 @@ def run(args) -> int:
     try:
         result = mc.run_montecarlo(setup, workers=workers, scheduler=args.scheduler,
                                    progress=not args.no_progress and sys.stderr.isatty(),
-                                   connect_timeout_s=args.connect_timeout)
+                                   connect_timeout_s=args.connect_timeout,
+                                   no_worker_timeout_s=args.worker_timeout)
     except (ValueError, OSError) as exc:
         error_line("montecarlo", exc)
         return 1
@@ -175,23 +194,26 @@ def run(args) -> int:
     try:
         if args.json:
             _write_json(args.json, doc)
-        if args.plot and not result.interrupted:
+        if args.plot and not result.interrupted and result.stopped is None:
             mc.write_plot(result, stats, args.plot)
     except (ValueError, OSError) as exc:
         error_line("montecarlo", exc)
         return 1
-    if result.interrupted:
+    if result.interrupted or result.stopped:
         done = doc["runs_finished"]
-        print(f"montecarlo: interrupted after {done} of {setup.runs * len(setup.grades)} runs"
+        total = setup.runs * len(setup.grades)
+        what = (f"interrupted after {done} of {total} runs" if result.interrupted else
+                f"error: {result.stopped}; {done} of {total} runs finished")
+        print(f"{PROG}: {what}"
               + (f"; {args.json} holds them (\"complete\": false)" if args.json else "")
               + ("; no plot" if args.plot else ""), file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return EXIT_INTERRUPTED if result.interrupted else 1
     _print_table(result, stats)
     for r in result.failed:
-        print(f"montecarlo: run {r['index']} ({r['grade']}, seed {r['seed']}) failed: "
+        print(f"{PROG}: run {r['index']} ({r['grade']}, seed {r['seed']}) failed: "
               f"{r['error']}", file=sys.stderr)
     if result.failed:
-        print(f"montecarlo: {len(result.failed)} run(s) failed; the statistics are over the "
+        print(f"{PROG}: {len(result.failed)} run(s) failed; the statistics are over the "
               f"{doc['runs_finished']} that finished", file=sys.stderr)
         return 1
     return 0

@@ -1,4 +1,9 @@
-"""Allan analysis of a static IMU recording: deviation per axis, fitted terms, JSON, scene, plot."""
+"""Allan analysis of a static IMU recording: deviation per axis, fitted terms, JSON, scene, plot.
+
+Allan analysis describes the noise of a sensor at rest: motion in the record reads as huge
+bias instability and random walks.  :func:`find_rests` finds the stretches where the IMU is
+still, and :func:`analyse_mcap` analyses the whole record only when it is still throughout;
+otherwise the longest rest, and says so (or refuses when no rest is long enough)."""
 
 from __future__ import annotations
 
@@ -16,13 +21,14 @@ from gyro_attitude.core.allan import (
     model_variance,
     relative_error,
 )
+from gyro_attitude.core.attitude.rest import RestThresholds
 from gyro_attitude.core.attitude.validation import no_estimate
 from gyro_attitude.core.sensor_errors import FLICKER_FLOOR_FACTOR
 from gyro_attitude.core.units import format_si
 from gyro_attitude.io.imu_fast import read_imu_arrays
 
 __all__ = ["AxisAllan", "AllanResult", "allan_deviation", "analyse_rates", "analyse_mcap",
-           "KALIBR_KEYS"]
+           "KALIBR_KEYS", "RestSearch", "find_rests", "MIN_REST_S"]
 
 #: Kalibr / VIO IMU noise-model keys: (sensor, term) -> key.
 KALIBR_KEYS = {
@@ -75,11 +81,21 @@ class AllanResult:
     gyro: dict[str, AxisAllan]
     accel: dict[str, AxisAllan] | None = None
     notes: list[str] = field(default_factory=list)
+    #: where the IMU is still, ``(start, end)`` seconds after the first sample (None: not
+    #: searched, e.g. :func:`analyse_rates` on arrays)
+    rests_s: list[tuple[float, float]] | None = None
+    #: the part analysed, seconds after the first sample (None: every sample)
+    analysed_s: tuple[float, float] | None = None
+    #: the IMU moves somewhere in the record (the terms are those of ``analysed_s`` then,
+    #: or of a moving record when the whole was asked for)
+    moving: bool = False
 
     def to_json(self) -> dict:
         """The ``--json`` document (SI units in the key names)."""
         out = {"topic": self.topic, "samples": self.samples, "dt_s": self.dt_s,
-               "tau_s": self.tau_s.tolist()}
+               "tau_s": self.tau_s.tolist(), "moving": self.moving,
+               "rests_s": None if self.rests_s is None else [list(r) for r in self.rests_s],
+               "analysed_s": None if self.analysed_s is None else list(self.analysed_s)}
         for key, axes, names in (("", self.gyro, _GYRO_JSON), ("accel_", self.accel, _ACCEL_JSON)):
             if axes is None:
                 continue
@@ -221,12 +237,157 @@ def analyse_rates(gyro: np.ndarray, dt: float, accel: np.ndarray | None = None,
     return result
 
 
-def analyse_mcap(path, topic: str = "imu/data_raw") -> AllanResult:
+#: Rest search (:func:`find_rests`): blocks of about this long (and at least
+#: :data:`REST_BLOCK_MIN_SAMPLES` samples) are judged still or moving.
+REST_BLOCK_S = 1.0
+REST_BLOCK_MIN_SAMPLES = 32
+#: A block is still when its deviation on every axis stays within this factor of the record's
+#: quiet blocks' (the 5th percentile of the block deviations, per axis and sensor).
+REST_STD_FACTOR = 3.0
+REST_QUIET_PERCENTILE = 5.0
+#: ... and its mean rate within this of the still blocks' median on every axis (rad/s): a
+#: steady turn shows no spread (the rest detector's bound for a bias, core/attitude/rest.py)
+REST_MEAN_TOL_RAD_S = RestThresholds.gyro_mean_max
+#: (or within this many standard errors of a block mean, for a noisy gyro)
+REST_MEAN_NOISE_FACTOR = 6.0
+#: Shortest rest analysed on its own: τ up to about 1 s, where the ARW is read.
+MIN_REST_S = 10.0
+
+
+@dataclass(frozen=True)
+class RestSearch:
+    """Still stretches of a record, ``(first, last)`` sample indices (inclusive), in order;
+    ``still`` when one stretch holds every sample."""
+
+    segments: tuple[tuple[int, int], ...]
+    samples: int
+
+    @property
+    def still(self) -> bool:
+        return self.segments == ((0, self.samples - 1),)
+
+    def longest(self) -> tuple[int, int] | None:
+        return max(self.segments, key=lambda s: s[1] - s[0]) if self.segments else None
+
+
+def _block_stats(x: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per-axis mean and standard deviation of consecutive blocks of ``size`` samples (the
+    last, partial block left out), block by block: no copy of the record."""
+    nb = x.shape[0] // size
+    mean = np.empty((nb, x.shape[1]))
+    std = np.empty((nb, x.shape[1]))
+    step = max(1, (1 << 20) // size)  # blocks per pass: about a million samples
+    for b0 in range(0, nb, step):
+        b1 = min(nb, b0 + step)
+        part = x[b0 * size:b1 * size].reshape(b1 - b0, size, x.shape[1])
+        mean[b0:b1] = part.mean(axis=1)
+        std[b0:b1] = part.std(axis=1)
+    return mean, std
+
+
+def _quiet_std(std: np.ndarray) -> np.ndarray:
+    """Per axis, the deviation of the record's quiet blocks: the low percentile of the blocks'
+    deviations (blocks of identical samples left out: a quantized sensor's, which a noise
+    floor of 0 would make every other block exceed)."""
+    out = np.zeros(std.shape[1])
+    for i in range(std.shape[1]):
+        s = std[:, i][std[:, i] > 0]
+        out[i] = np.percentile(s, REST_QUIET_PERCENTILE) if s.size else 0.0
+    return out
+
+
+def find_rests(gyro: np.ndarray, dt: float, accel: np.ndarray | None = None) -> RestSearch:
+    """Where the IMU of evenly spaced samples ``(n, 3)`` every ``dt`` s is still.
+
+    The record is cut into blocks of about :data:`REST_BLOCK_S`.  A block is still when on
+    every axis its deviation is at most :data:`REST_STD_FACTOR` times that of the record's
+    quiet blocks (gyro, and accelerometer when given) and its mean rate lies within
+    :data:`REST_MEAN_TOL_RAD_S` (or :data:`REST_MEAN_NOISE_FACTOR` standard errors of a block
+    mean) of the still blocks' median.  The thresholds are relative to the record's own
+    noise, not absolute like the estimator's rest detector: a static record of a noisy or
+    strongly biased gyro is still throughout, whatever its grade, as long as its bias wanders
+    by less than the tolerance over the record.  (For white noise over a block of L ≥ 32
+    samples the deviation scatters by about 1/√(2L) ≤ 13 %, so a still block of a static
+    record is never taken for motion.)  Runs of still blocks are the
+    rests; a rest bordered by motion loses one block at that side (the block where the motion
+    starts or ends may look still).  A record still in every block is one rest holding every
+    sample (the tail shorter than a block included).  A slow creep of the mean, under the
+    tolerance, is not seen."""
+    n = gyro.shape[0]
+    size = max(REST_BLOCK_MIN_SAMPLES, int(round(REST_BLOCK_S / dt)))
+    nb = n // size
+    if nb < 2:  # too short to judge: taken as one rest (the analysis says if too short)
+        return RestSearch(((0, n - 1),), n)
+    mean, std = _block_stats(gyro, size)
+    quiet = _quiet_std(std)
+    still = (std <= REST_STD_FACTOR * quiet).all(axis=1)
+    if accel is not None:
+        _, a_std = _block_stats(accel, size)
+        still &= (a_std <= REST_STD_FACTOR * _quiet_std(a_std)).all(axis=1)
+    if still.any():
+        ref = np.median(mean[still], axis=0)
+        # the white noise alone scatters a block's mean by σ/√L: never a motion below 6 of it
+        tol = np.maximum(REST_MEAN_TOL_RAD_S, REST_MEAN_NOISE_FACTOR * quiet / math.sqrt(size))
+        still &= (np.abs(mean - ref) <= tol).all(axis=1)
+    if still.all():
+        return RestSearch(((0, n - 1),), n)
+    edges = np.diff(np.concatenate([[0], still.astype(np.int8), [0]]))
+    segments = []
+    for b0, b1 in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
+        first, last = int(b0), int(b1) - 1  # blocks, inclusive
+        if first > 0:
+            first += 1
+        if b1 < nb:  # motion follows (an unjudged tail shorter than a block is left out)
+            last -= 1
+        if last >= first:
+            segments.append((first * size, (last + 1) * size - 1))
+    return RestSearch(tuple(segments), n)
+
+
+def _check_stamps(t: np.ndarray, path: Path, topic: str) -> None:
+    """One line naming what is wrong with the stamps: unset (zero), repeated or going back."""
+    where = f"{path}: Imu stamps on {topic!r}"
+    if t.size < 2:
+        raise ValueError(f"{path}: only {t.size} Imu message on topic {topic!r}: Allan "
+                         "analysis needs a record")
+    zero = int(np.count_nonzero(t == 0))
+    # (one stamp 0 at the start is a clock's origin: a simulated record starts there)
+    if zero > 1 or (zero and t[0] != 0):
+        which = "every one" if zero == t.size else f"{zero} of the {t.size}"
+        first = int(np.flatnonzero(t == 0)[0])
+        raise ValueError(f"{where}: {which} is zero (header.stamp not set by the driver; "
+                         f"first at message {first}): Allan analysis needs the sample times")
+    steps = np.diff(t)
+    back, same = steps < 0, steps == 0
+    if back.any() or same.any():
+        parts = []
+        for mask, what in ((back, "go back"), (same, "repeat")):
+            if mask.any():
+                k = int(np.flatnonzero(mask)[0]) + 1
+                parts.append(f"{what} {int(mask.sum())} time(s) (first at message {k}, "
+                             f"{(t[k] - t[0]) * 1e-9:g} s after the first)")
+        raise ValueError(f"{where} {' and '.join(parts)}: Allan analysis needs strictly "
+                         "increasing stamps")
+
+
+def _span(t: np.ndarray, first: int, last: int) -> tuple[float, float]:
+    return (round(float(t[first] - t[0]) * 1e-9, 3), round(float(t[last] - t[0]) * 1e-9, 3))
+
+
+def _rest_list(rests: list[tuple[float, float]], limit: int = 6) -> str:
+    text = ", ".join(f"{a:g}–{b:g} s" for a, b in rests[:limit])
+    return text + (f" and {len(rests) - limit} more" if len(rests) > limit else "")
+
+
+def analyse_mcap(path, topic: str = "imu/data_raw", whole_record: bool = False) -> AllanResult:
     """Read every ``sensor_msgs/Imu`` of ``topic`` from an MCAP file and analyse it.
 
     The accelerometer is analysed when the messages carry one (linear acceleration
-    covariance element 0 is not −1). ``ValueError`` with one line on a bad file, no Imu,
-    uneven stamps or too few samples."""
+    covariance element 0 is not −1).  Where the IMU moves (:func:`find_rests`), the longest
+    rest is analysed instead of the whole (``moving`` set and a note saying so), unless
+    ``whole_record``; ``ValueError`` when no rest lasts :data:`MIN_REST_S`, naming the rests.
+    ``ValueError`` with one line on a bad file, no Imu, bad or uneven stamps or too few
+    samples."""
     path = Path(path)
     try:
         imu = read_imu_arrays(path, topic)  # a file, a bag directory or a split bag
@@ -237,9 +398,8 @@ def analyse_mcap(path, topic: str = "imu/data_raw") -> AllanResult:
     if len(imu) == 0:
         raise ValueError(f"{path}: no sensor_msgs/Imu messages on topic {topic!r}")
     t = imu.stamp_ns.astype(np.int64)
+    _check_stamps(t, path, topic)
     steps = np.diff(t)
-    if steps.size == 0 or np.any(steps <= 0):
-        raise ValueError(f"{path}: Imu stamps on {topic!r} are not strictly increasing")
     dt_ns = float(np.median(steps))
     notes = []
     # A step of about k steps (k >= 2, i.e. >= 1.5 steps) is a hole of k - 1 missing
@@ -267,12 +427,45 @@ def analyse_mcap(path, topic: str = "imu/data_raw") -> AllanResult:
     if spread > 0.01:
         notes.append(f"stamp jitter up to {spread:.1%} of the step (treated as even)")
     has_accel = not no_estimate(imu.linear_acceleration_covariance).any()
+    gyro = imu.angular_velocity
+    accel = imu.linear_acceleration if has_accel else None
+    rests = None
+    if np.all(np.isfinite(gyro)) and (accel is None or np.all(np.isfinite(accel))):
+        rests = find_rests(gyro, dt_ns / 1e9, accel)  # (non-finite samples: refused below)
+    first, last = 0, t.size - 1
+    moving = rests is not None and not rests.still
+    if moving:
+        spans = [_span(t, a, b) for a, b in rests.segments]
+        if not whole_record:
+            longest = rests.longest()
+            if longest is None or (t[longest[1]] - t[longest[0]]) * 1e-9 < MIN_REST_S:
+                found = (f"rests: {_rest_list(spans)}" if spans else "no rest found")
+                raise ValueError(
+                    f"{path}: the IMU on {topic!r} moves: no rest lasts {MIN_REST_S:g} s "
+                    f"({found}); Allan analysis needs the sensor at rest (--whole-record "
+                    "analyses every sample anyway)")
+            first, last = longest
+            notes.append(f"the IMU moves in this record (rests at {_rest_list(spans)}): "
+                         f"analysed the longest rest, {_span(t, first, last)[0]:g}–"
+                         f"{_span(t, first, last)[1]:g} s ({last - first + 1} samples)")
+        else:
+            notes.append(f"the IMU moves in this record (rests at "
+                         f"{_rest_list(spans) if spans else 'none'}): every sample analysed "
+                         "as asked (--whole-record): the terms include the motion")
+    sub = slice(first, last + 1)
+    if first or last < t.size - 1:
+        starts = np.r_[0, starts[(starts > first) & (starts <= last)] - first]
     try:
-        result = analyse_rates(imu.angular_velocity, dt_ns / 1e9,
-                               imu.linear_acceleration if has_accel else None, topic, starts)
+        result = analyse_rates(gyro[sub], dt_ns / 1e9,
+                               accel[sub] if accel is not None else None, topic, starts)
     except ValueError as exc:
         raise ValueError(f"{path}: {exc}") from None
     result.notes += notes
+    result.moving = moving
+    if rests is not None:
+        result.rests_s = [_span(t, a, b) for a, b in rests.segments]
+    if moving and not whole_record:
+        result.analysed_s = _span(t, first, last)
     return result
 
 

@@ -61,7 +61,13 @@ from gyro_attitude.core.scene import MAX_RATE_HZ, SceneSimulator, SceneSpec
 from gyro_attitude.core.sensor_errors import SensorErrorParams
 from gyro_attitude.core.sim_topics import DEFAULT_FRAME_ID
 from gyro_attitude.io.safe_output import raise_if_stop_requested, stop_handled
-from gyro_attitude.offline.parallel import CONNECT_TIMEOUT_S, TaskCost, run_tasks
+from gyro_attitude.offline.parallel import (
+    CONNECT_TIMEOUT_S,
+    NO_WORKER_TIMEOUT_S,
+    TaskCost,
+    WorkersLost,
+    run_tasks,
+)
 from gyro_attitude.offline.replay import estimate_recording
 
 #: what a run imports where it uses it, preloaded once for a pool's workers: the sensor errors'
@@ -83,6 +89,7 @@ __all__ = [
     "run_one",
     "run_montecarlo",
     "grade_statistics",
+    "nees_explanation",
     "write_plot",
 ]
 
@@ -482,6 +489,73 @@ def grade_statistics(setup: MonteCarloSetup, runs: list[dict]) -> dict:
     return out
 
 
+def _si(x) -> str:
+    return f"{float(np.max(np.abs(x))):.3g}"
+
+
+def nees_explanation(spec: SceneSpec, config: StreamConfig, above: bool) -> list[str]:
+    """Why the mean NEES of a grade lies outside its band: the terms of ``spec``'s gyro that
+    the covariance the estimator reports (core/attitude/covariance.py) leaves out with the
+    settings ``config`` (``above``: NEES above the band, the errors are larger than reported),
+    or counts as white rate noise though they are not (below the band).  Read off the scene
+    and the settings, not fitted: a list of plain sentences (empty when no term explains it).
+
+    The covariance integrates the per-sample gyro variance the simulator publishes (white
+    noise N²/dt, the bias instability's stationary σ², quantization q²/(6 dt²)) as white rate
+    noise, a bias random walk ``gyro_bias_rw`` between rests, and the standard error of the
+    white noise at each rest sample (gyro_bias auto) or ``gyro_bias_sigma_rad_s``."""
+    g = spec.gyro_errors
+    sampling = spec.gyro_sampling
+    turning = spec.motion_type != "stationary"
+    mode = config.gyro_bias
+    out: list[str] = []
+    if not above:
+        if np.any(g.quantum > 0):
+            out.append(f"quantization ({_si(g.quantum)} rad of integrated output) is counted as "
+                       "white rate noise, q²/(6 dt²) a sample, but its angle error stays within "
+                       "a quantum: the reported variance grows where the error does not")
+        return out
+    if np.any(g.bias_instability_floor > 0) or np.any(g.bias_instability_sigma > 0):
+        what = (f"Allan floor {_si(g.bias_instability_floor)} rad/s"
+                if np.any(g.bias_instability_floor > 0) else
+                f"Gauss–Markov σ {_si(g.bias_instability_sigma)} rad/s, τ "
+                f"{_si(g.bias_instability_tau)} s")
+        out.append(f"bias instability ({what}) is counted as white rate noise, but it is "
+                   "correlated over tens to hundreds of seconds: its integral grows faster "
+                   "than the reported variance (the covariance has no bias-instability state)")
+    k = g.rate_random_walk
+    if np.any(k > 0):
+        if mode is GyroBiasMode.AUTO:
+            out.append(f"rate random walk ({_si(k)} rad/s/√s): with gyro_bias auto the bias "
+                       "variance is set at every rest sample from the white-noise spread "
+                       "alone (gyro_bias_rw acts only between rests), so the bias drift "
+                       "within the averaging window is not in it")
+        elif config.gyro_bias_rw < float(np.max(k)):
+            out.append(f"rate random walk ({_si(k)} rad/s/√s) against gyro_bias_rw "
+                       f"{config.gyro_bias_rw:.3g}")
+    fixed = np.abs(g.bias)
+    if sampling.turn_on_bias_sigma is not None:
+        fixed = fixed + 2.0 * np.asarray(sampling.turn_on_bias_sigma)
+    sigma = config.gyro_bias_sigma_rad_s
+    if np.any(fixed > 0) and float(np.max(fixed)) > 2.0 * sigma:
+        if mode is GyroBiasMode.NONE:
+            out.append(f"a fixed gyro bias (up to {_si(fixed)} rad/s) is not subtracted "
+                       f"(gyro_bias none) and gyro_bias_sigma_rad_s is {sigma:.3g}")
+        elif mode is GyroBiasMode.AUTO and turning:
+            out.append(f"a fixed gyro bias (up to {_si(fixed)} rad/s) is subtracted only from "
+                       "a rest: where the motion leaves none it stays, with variance "
+                       f"gyro_bias_sigma_rad_s² = {sigma:.3g}²")
+    if turning and (np.any(g.scale_factor != 0) or np.any(g.misalignment != 0)):
+        out.append("scale factor and misalignment errors times the motion's rates are not in "
+                   "the covariance")
+    if sampling.g_sensitivity is not None:
+        out.append("g-sensitivity (rate error from the specific force) is not in the covariance")
+    if turning and (spec.gyro_model != "ideal" or sampling.bandwidth is not None):
+        out.append(f"the {spec.gyro_model if spec.gyro_model != 'ideal' else 'band-limited'} "
+                   "gyro's dynamic error on the motion is not in the covariance")
+    return out
+
+
 # --------------------------------------------------------------------------- the whole set
 @dataclass
 class MonteCarloResult:
@@ -501,19 +575,32 @@ class MonteCarloResult:
     cost: TaskCost | None = None
     own_cpu_s: float | None = None
     load_average: tuple[float, float] | None = None
+    #: why the set ended before every run finished (the Dask cluster lost its workers), or None
+    stopped: str | None = None
 
     @property
     def complete(self) -> bool:
-        return not self.interrupted and len(self.runs) == self.setup.runs * len(self.setup.grades)
+        return not self.interrupted and self.stopped is None and \
+            len(self.runs) == self.setup.runs * len(self.setup.grades)
 
     @property
     def failed(self) -> list[dict]:
         return [r for r in self.runs if "error" in r]
 
     def statistics(self) -> list[dict]:
-        return [{"label": g.label, **grade_statistics(
-            self.setup, [r for r in self.runs if r["grade"] == g.label])}
-            for g in self.setup.grades]
+        out = []
+        for g in self.setup.grades:
+            st = {"label": g.label, **grade_statistics(
+                self.setup, [r for r in self.runs if r["grade"] == g.label])}
+            final = st.get("nees", {}).get("final")
+            if final is not None and final["within"] is False:
+                # outside its band: which of the scene's terms the reported covariance misses
+                above = final["mean"] > final["upper"]
+                final["outside"] = "above" if above else "below"
+                final["explanation"] = nees_explanation(
+                    g.spec, self.setup.estimator.config, above)
+            out.append(st)
+        return out
 
     def cost_per_run_s(self) -> float | None:
         """Wall time of the whole set per finished run (pool start-up included)."""
@@ -539,6 +626,7 @@ class MonteCarloResult:
             "seed": s.seed, "grades": [g.label for g in s.grades],
             "estimator": s.estimator.describe(),
             "complete": self.complete, "interrupted": self.interrupted,
+            "stopped": self.stopped,
             "runs_finished": len(done), "runs_failed": len(self.failed),
             "workers": self.workers, "scheduler": self.scheduler, "wall_s": self.wall_s,
             "cost_per_run_s": self.cost_per_run_s(),
@@ -595,10 +683,13 @@ def _chunks(setup: MonteCarloSetup, workers: int) -> list[tuple]:
 
 def run_montecarlo(setup: MonteCarloSetup, *, workers: int = 1, scheduler: str | None = None,
                    progress: bool = False,
-                   connect_timeout_s: float = CONNECT_TIMEOUT_S) -> MonteCarloResult:
+                   connect_timeout_s: float = CONNECT_TIMEOUT_S,
+                   no_worker_timeout_s: float = NO_WORKER_TIMEOUT_S) -> MonteCarloResult:
     """Every run of ``setup`` on ``workers`` local processes (1: this process) or the Dask
-    scheduler at ``scheduler``.  A Ctrl-C returns what finished with ``interrupted`` set.
-    Raises :class:`~.parallel.SchedulerUnreachable` and ValueError for bad arguments."""
+    scheduler at ``scheduler``.  A Ctrl-C returns what finished with ``interrupted`` set; a
+    Dask cluster without a worker for ``no_worker_timeout_s`` returns what finished with
+    ``stopped`` saying so.  Raises :class:`~.parallel.SchedulerUnreachable` and ValueError for
+    bad arguments."""
     tasks = _chunks(setup, 16 if scheduler else workers)
     results: dict[int, list[dict]] = {}
     bar = None
@@ -621,6 +712,7 @@ def run_montecarlo(setup: MonteCarloSetup, *, workers: int = 1, scheduler: str |
             bar.update(len(tasks[i][2]))
 
     interrupted = False
+    stopped = None
     cost = None
     load0 = _load_average()
     t0, c0 = time.perf_counter(), _own_cpu_s()
@@ -628,10 +720,12 @@ def run_montecarlo(setup: MonteCarloSetup, *, workers: int = 1, scheduler: str |
         cost = run_tasks(_run_chunk, tasks, on_result, workers=workers, scheduler=scheduler,
                          on_error=on_error, progress=advance,
                          connect_timeout_s=connect_timeout_s, help_while_starting=True,
-                         preload=TASK_IMPORTS)
+                         preload=TASK_IMPORTS, no_worker_timeout_s=no_worker_timeout_s)
     except KeyboardInterrupt:
         interrupted = True
         stop_handled()  # the runs that finished are written (``--json`` marked partial)
+    except WorkersLost as exc:
+        stopped = str(exc)  # the runs that finished are kept
     finally:
         if bar is not None:
             bar.close()
@@ -640,7 +734,7 @@ def run_montecarlo(setup: MonteCarloSetup, *, workers: int = 1, scheduler: str |
     order = {g.label: k for k, g in enumerate(setup.grades)}
     runs.sort(key=lambda r: (order[r["grade"]], r["index"]))
     return MonteCarloResult(setup, runs, interrupted, wall, workers, scheduler, cost, own,
-                            (load0, _load_average()))
+                            (load0, _load_average()), stopped)
 
 
 def _own_cpu_s() -> float:

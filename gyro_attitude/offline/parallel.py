@@ -28,11 +28,15 @@ arrives (in completion order: the caller files it under ``i``).
 * Every local worker process keeps the memory of freed arrays for the next ones
   (:func:`gyro_attitude.offline.allocator.keep_freed_memory`, as the command-line process
   does): a task's chunk-sized arrays would otherwise be mapped and faulted in afresh each
-  time, and most of all in a new worker.  The caller's process and Dask's workers are left as
-  they are.
+  time, and most of all in a new worker.  Dask's workers do the same while the set runs (a
+  worker plugin, :mod:`.dask_allocator`, removed at the end: they give the memory back); the
+  caller's process is left as it is.
 * ``scheduler``: a running ``dask.distributed`` scheduler at that address; Dask is imported only
   then.  The scheduler itself re-runs the tasks of a lost worker (its ``allowed-failures``
-  setting, 3 by default); a task that killed too many workers is reported as failed.
+  setting, 3 by default); a task that killed too many workers is reported as failed.  Lost
+  workers are reported on stderr as they go; when the cluster has had no worker for
+  ``no_worker_timeout_s`` the set ends with :class:`WorkersLost` (what finished was handed
+  over already).
 
 A task function should catch its own errors (a run that fails is a result); an exception that
 still escapes is given to ``on_error(i, message)`` and the other tasks go on.  On
@@ -62,16 +66,25 @@ from gyro_attitude.core.attitude.compose import set_prepare_threads
 from gyro_attitude.io.safe_output import raise_if_stop_requested
 from gyro_attitude.offline.allocator import keep_freed_memory
 
-__all__ = ["POOL_RESTARTS", "CONNECT_TIMEOUT_S", "default_workers", "run_tasks",
-           "SchedulerUnreachable", "TaskCost"]
+__all__ = ["POOL_RESTARTS", "CONNECT_TIMEOUT_S", "NO_WORKER_TIMEOUT_S", "default_workers",
+           "run_tasks", "SchedulerUnreachable", "TaskCost", "WorkersLost"]
 
 POOL_RESTARTS = 2
 #: Seconds to wait for a Dask scheduler before giving up (one line, exit 1).
 CONNECT_TIMEOUT_S = 10.0
+#: Seconds a Dask set waits while the cluster has no worker before it ends (:class:`WorkersLost`).
+NO_WORKER_TIMEOUT_S = 30.0
+#: Seconds between two looks at the cluster's workers during a Dask set.
+WORKER_POLL_S = 1.0
 
 
 class SchedulerUnreachable(OSError):
     """No Dask scheduler answered at the address within the timeout."""
+
+
+class WorkersLost(OSError):
+    """The Dask cluster had no worker for the timeout (every worker lost, none came back):
+    the tasks not finished are cancelled; what finished was handed to ``on_result``."""
 
 
 @dataclass(frozen=True)
@@ -144,15 +157,28 @@ def _dask_call(fn, arg):
     return fn(arg)
 
 
-def _worker_init() -> None:
+def _worker_init(not_the_users: dict | None = None) -> None:
     """A worker ignores Ctrl-C (the command decides) and ends its task on SIGTERM by an
     exception, so that the task's clean-up runs (a half-written output is removed) before
     the process ends; it composes attitudes single-threaded and keeps freed array memory for
-    reuse (the module docstring)."""
+    reuse (the module docstring; ``not_the_users``: environment variables set by Dask, see
+    :func:`_dask_set_environment`)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _stop_on_sigterm)
     set_prepare_threads(0)
-    keep_freed_memory()
+    keep_freed_memory(not_the_users or {})
+
+
+def _dask_set_environment() -> dict:
+    """Variables a ``distributed.LocalCluster`` of this process set in its environment (its
+    in-process nannies write Dask's ``MALLOC_TRIM_THRESHOLD_`` into ``os.environ`` for good):
+    a pool's workers inherit them, and must not take them for the user's choice.  Empty when
+    Dask was never imported here."""
+    if "distributed" not in sys.modules:
+        return {}
+    from gyro_attitude.offline.dask_allocator import _dask_environment
+
+    return _dask_environment()
 
 
 def _context():
@@ -214,7 +240,8 @@ def run_tasks(fn: Callable, args: Sequence, on_result: Callable[[int, object], N
               on_error: Callable[[int, str], None] | None = None,
               progress: Callable[[int], None] | None = None,
               connect_timeout_s: float = CONNECT_TIMEOUT_S,
-              help_while_starting: bool = False, preload: Sequence[str] = ()) -> TaskCost:
+              help_while_starting: bool = False, preload: Sequence[str] = (),
+              no_worker_timeout_s: float = NO_WORKER_TIMEOUT_S) -> TaskCost:
     """``on_result(i, fn(args[i]))`` for every task (see the module docstring); returns what
     they cost (:class:`TaskCost`; an interrupted run raises instead).
 
@@ -223,7 +250,9 @@ def run_tasks(fn: Callable, args: Sequence, on_result: Callable[[int, object], N
 
     ``progress(i)`` is called after each task's result or error.  Raises
     :class:`SchedulerUnreachable` when the scheduler does not answer within
-    ``connect_timeout_s``, and KeyboardInterrupt after cleaning up.
+    ``connect_timeout_s``, :class:`WorkersLost` when a Dask cluster has had no worker for
+    ``no_worker_timeout_s`` (lost workers are reported on stderr as they go), and
+    KeyboardInterrupt after cleaning up.
     """
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
@@ -246,7 +275,7 @@ def run_tasks(fn: Callable, args: Sequence, on_result: Callable[[int, object], N
         raise_if_stop_requested()
 
     if scheduler is not None:
-        _run_dask(fn, args, done, scheduler, connect_timeout_s)
+        _run_dask(fn, args, done, scheduler, connect_timeout_s, no_worker_timeout_s)
         return TaskCost(None, 0, None)
     if workers == 1 or len(args) <= 1:
         cpu0 = _process_cpu_s()
@@ -291,7 +320,8 @@ def _run_pool(fn, args, done, workers: int, help_while_starting: bool = False,
                 context.set_forkserver_preload(["__main__", fn.__module__, *preload])
                 multiprocessing.forkserver.ensure_running()
             pool = ProcessPoolExecutor(max_workers=min(workers, len(pending)),
-                                       mp_context=context, initializer=_worker_init)
+                                       mp_context=context, initializer=_worker_init,
+                                       initargs=(_dask_set_environment(),))
         futures = {}
         starter = None
         try:
@@ -391,13 +421,78 @@ def _terminate(pool: ProcessPoolExecutor) -> None:
             p.join(timeout=5)
 
 
-def _run_dask(fn, args, done, address: str, timeout_s: float) -> None:
+def _dask_workers(client) -> set[str] | None:
+    """Addresses of the cluster's workers now, or None when the scheduler does not answer."""
+    try:
+        return set(client.nthreads())
+    except (OSError, TimeoutError):
+        return None
+
+
+class _WorkerWatch:
+    """Reports workers lost (and joining after a loss) as they go, and ends the set when the
+    cluster has had no worker for ``no_worker_timeout_s`` (:class:`WorkersLost`)."""
+
+    def __init__(self, client, address: str, total: int, no_worker_timeout_s: float,
+                 warn: Callable[[str], None]):
+        self.client, self.address, self.total = client, address, total
+        self.timeout_s, self.warn = no_worker_timeout_s, warn
+        self.known = _dask_workers(client) or set()
+        self.lost_any = False
+        self.alone_since = None if self.known else time.monotonic()
+        self.next_check = time.monotonic() + WORKER_POLL_S
+        if not self.known:
+            warn(f"the Dask scheduler at {address} has no worker; waiting up to "
+                 f"{self.timeout_s:g} s for one")
+
+    def check(self, unfinished: int) -> None:
+        now = time.monotonic()
+        if now < self.next_check:
+            return
+        self.next_check = now + WORKER_POLL_S
+        workers = _dask_workers(self.client)
+        if workers is None:
+            workers = set()
+            if self.known:
+                self.warn(f"the Dask scheduler at {self.address} does not answer")
+        for w in sorted(self.known - workers):
+            self.lost_any = True
+            self.warn(f"Dask worker {w} lost ({len(workers)} left"
+                      + ("; the scheduler runs its tasks again on the others)" if workers
+                         else ")"))
+        if self.lost_any:
+            for w in sorted(workers - self.known):
+                self.warn(f"Dask worker {w} joined ({len(workers)} now)")
+        self.known = workers
+        if workers:
+            self.alone_since = None
+            return
+        if self.alone_since is None:
+            self.alone_since = now
+            if self.lost_any:
+                self.warn(f"no Dask worker left; waiting up to {self.timeout_s:g} s for one")
+        elif now - self.alone_since >= self.timeout_s:
+            raise WorkersLost(
+                f"no Dask worker at {self.address} for {self.timeout_s:g} s"
+                + (" (every worker was lost)" if self.lost_any else "")
+                + f": {unfinished} of {self.total} task(s) unfinished")
+
+
+def _warn(message: str) -> None:
+    print(f"warning: {message}", file=sys.stderr, flush=True)
+
+
+def _run_dask(fn, args, done, address: str, timeout_s: float,
+              no_worker_timeout_s: float = NO_WORKER_TIMEOUT_S,
+              warn: Callable[[str], None] = _warn) -> None:
     # Dask only here: the local path does not pay its import (~1 s).
     try:
         from distributed import Client, as_completed
     except ImportError as exc:  # pragma: no cover - pinned in requirements.txt
         raise OSError(f"--scheduler needs dask.distributed: {exc}") from None
     from distributed.comm.addressing import parse_address, parse_host_port
+
+    from gyro_attitude.offline.dask_allocator import kept_on_workers
 
     try:  # a malformed address fails inside Client() and again in its finalizer: check first
         parse_host_port(parse_address(address)[1])
@@ -412,19 +507,33 @@ def _run_dask(fn, args, done, address: str, timeout_s: float) -> None:
             f"({_describe(exc)})") from None
     futures = []
     try:
-        # pure=False: every task runs (two equal arguments are still two runs to count)
-        futures = client.map(functools.partial(_dask_call, fn), list(args), pure=False)
-        index = {f.key: i for i, f in enumerate(futures)}
-        for f in as_completed(futures, loop=client.loop):
-            i = index[f.key]
-            try:
-                # waits: a future whose worker was lost can be handed out before its rerun ends
-                value = f.result()
-            except Exception as exc:  # the task raised, or killed too many workers
-                done(i, error=_describe(exc))
-            else:
-                done(i, value)
-    except KeyboardInterrupt:
+        with kept_on_workers(client):
+            watch = _WorkerWatch(client, address, len(args), no_worker_timeout_s, warn)
+            # pure=False: every task runs (two equal arguments are still two runs to count)
+            futures = client.map(functools.partial(_dask_call, fn), list(args), pure=False)
+            index = {f.key: i for i, f in enumerate(futures)}
+            unfinished = len(futures)
+            results = as_completed(futures, loop=client.loop)
+            while unfinished:
+                # without blocking: the watch must run while nothing finishes (no worker);
+                # it looks at the cluster once a second, results arriving or not
+                watch.check(unfinished)
+                batch = results.next_batch(block=False)
+                if not batch:
+                    time.sleep(0.02)
+                    continue
+                for f in batch:
+                    unfinished -= 1
+                    i = index[f.key]
+                    try:
+                        # waits: a future whose worker was lost can be handed out before its
+                        # rerun ends
+                        value = f.result()
+                    except Exception as exc:  # the task raised, or killed too many workers
+                        done(i, error=_describe(exc))
+                    else:
+                        done(i, value)
+    except (KeyboardInterrupt, WorkersLost):
         client.cancel(futures)
         raise
     finally:

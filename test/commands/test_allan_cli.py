@@ -115,7 +115,8 @@ def test_outputs_are_checked_before_any_work(white_bag, tmp_path, capsys):
     link = tmp_path / "link.json"
     link.symlink_to(path)
     rel = os.path.relpath(path)
-    for flag, out, match in (("--json", link, "is the input"), ("--plot", rel, "is the input"),
+    # (a --plot named like the input is refused by its suffix already: test_one_line_errors)
+    for flag, out, match in (("--json", link, "is the input"), ("--json", rel, "is the input"),
                              ("--scene-out", path, "is the input"),
                              ("--json", tmp_path / "nodir" / "a.json", "does not exist"),
                              ("--json", tmp_path, "is a directory")):
