@@ -1,6 +1,6 @@
 """gyro_sim + attitude_integrator (+ mcap_recorder with record:=true) on one scene.
 
-    ros2 launch gyro_attitude demo.launch.py scene:=ship rate_hz:=200.0 algorithm:=quat_rk4 \
+    ros2 launch gyro_attitude demo.launch.py scene:=ship rate_hz:=200.0 algorithm:=exp_map \
         frame:=enu record:=true
 
 Node parameters start from the installed config/<node>.yaml files; the launch arguments

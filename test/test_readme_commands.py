@@ -131,7 +131,7 @@ def _check_output(argv: list[str], out: str, cwd: Path) -> None:
     elif cmd == "replay":
         assert "4000 attitudes" in out, out
         if "truth" in argv:  # started from the truth: the coning bag's error stays tiny
-            final = re.search(r"final error ([0-9.e+-]+) deg", out)
+            final = re.search(r"final error ([0-9.e+-]+)°", out)
             assert final and float(final.group(1)) < 1e-3, out
     elif cmd == "allan":
         assert "N (ARW)" in out, out

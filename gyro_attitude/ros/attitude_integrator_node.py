@@ -80,7 +80,7 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu, MagneticField
 
-from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, causal_algorithms
+from gyro_attitude.core.attitude import DEFAULT_ALGORITHM
 from gyro_attitude.core.attitude import validation as iv
 from gyro_attitude.core.attitude.input_topics import (
     input_on_output,
@@ -105,6 +105,7 @@ from gyro_attitude.core.attitude.stream import (
     RATE_FIT_FALLBACK,
     RUNNING,
     SATURATED,
+    STEP_ALGORITHMS,
     AttitudeStream,
     compile_kernels,
 )
@@ -135,7 +136,7 @@ def parameter_specs(settings=SETTINGS) -> list[ParamSpec]:
     return [
         ParamSpec("algorithm", DEFAULT_ALGORITHM,
                   "attitude update algorithm (gyro-attitude bench lists them)",
-                  choices=tuple(causal_algorithms()), runtime=True),
+                  choices=tuple(STEP_ALGORITHMS), runtime=True),
         *(spec_from_setting(s) for s in settings),
         ParamSpec("odometry_topic", "",
                   "nav_msgs/Odometry topic giving the carrier velocity for the transport "

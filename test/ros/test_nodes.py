@@ -249,12 +249,13 @@ def test_integrator_rejects_bad_input_and_refuses_bad_parameters(launch, ros_nod
         assert ros_node.spin_until(future.done, timeout=10)
         return future.result().results[0]
 
-    for name, value in (("algorithm", "no_such_algorithm"), ("max_gap_s", -1.0),
-                        ("frame", "enu"), ("time_jump_threshold_s", math.inf)):
+    for name, value in (("algorithm", "no_such_algorithm"), ("algorithm", "quat_rk4"),
+                        ("max_gap_s", -1.0), ("frame", "enu"),
+                        ("time_jump_threshold_s", math.inf)):
         result = set_param(name, value)
         assert not result.successful and name in result.reason, (name, result.reason)
-    assert set_param("algorithm", "quat_rk4").successful
-    # the switch keeps attitude and time base: constant rate stays exact (RK4 to 1e-9)
+    assert set_param("algorithm", "exp_map").successful
+    # the switch keeps attitude and time base: constant rate stays exact (exp_map to 1e-9)
     for k in range(4, 8):
         send(t1 + k * dt_ns)
     assert ros_node.spin_until(lambda: len(att) >= n_accepted + 4, timeout=10)

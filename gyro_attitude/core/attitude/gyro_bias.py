@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gyro_attitude.core.attitude.modes import GyroBiasMode, parse_mode
 from gyro_attitude.core.attitude.rest import (
     NOISE_FLOOR_RAD_S,
     R_AT_REST,
@@ -55,7 +56,7 @@ from gyro_attitude.core.rotation import as_quat_array
 
 __all__ = ["BIAS_MODES", "GyroBiasEstimator", "GyroBiasReport", "estimate_gyro_bias"]
 
-BIAS_MODES = ("auto", "none", "parameter")
+BIAS_MODES = tuple(m.value for m in GyroBiasMode)
 
 
 @dataclass(frozen=True)
@@ -238,11 +239,10 @@ class GyroBiasEstimator:
 
     def __init__(self, mode: str = "auto", bias=None, *, min_rest_s: float = 1.0,
                  latitude_rad: float | None = None, initial=None, rest: dict | None = None):
-        if mode not in BIAS_MODES:
-            raise ValueError(f"gyro bias mode must be one of {BIAS_MODES}, got {mode!r}")
-        if mode == "parameter" and bias is None:
+        mode = parse_mode(GyroBiasMode, mode, "gyro bias mode")
+        if mode is GyroBiasMode.PARAMETER and bias is None:
             raise ValueError("gyro bias mode 'parameter' needs bias=[x, y, z] in rad/s")
-        if mode != "parameter" and bias is not None:
+        if mode is not GyroBiasMode.PARAMETER and bias is not None:
             raise ValueError(f"a fixed bias is only used with mode 'parameter', not {mode!r}")
         self.mode = mode
         self._fixed = _check_vector("bias", bias) if bias is not None else (0.0, 0.0, 0.0)
@@ -286,8 +286,8 @@ class GyroBiasEstimator:
         self.bi[:] = 0
         self.bi[J_EARTH_ALL] = 1
         self.bi[J_LAST_ACC] = -1
-        self._bias = self._fixed if self.mode == "parameter" else (
-            self._initial if self.mode == "auto" else (0.0, 0.0, 0.0))
+        self._bias = self._fixed if self.mode is GyroBiasMode.PARAMETER else (
+            self._initial if self.mode is GyroBiasMode.AUTO else (0.0, 0.0, 0.0))
         self._se = (math.nan,) * 3
 
     def _floats(i):
@@ -341,7 +341,7 @@ class GyroBiasEstimator:
         own step, which the stream's array-and-loop form drives from the array form of the
         detector (:meth:`rests`)."""
         self.updated = False
-        if self.mode != "auto":
+        if self.mode is not GyroBiasMode.AUTO:
             return self._bias
         has_a = a is not None
         a0, a1, a2 = a if has_a else (0.0, 0.0, 0.0)
@@ -396,10 +396,10 @@ class GyroBiasEstimator:
 
 
     def report(self) -> GyroBiasReport:
-        if self.mode == "none":
+        if self.mode is GyroBiasMode.NONE:
             return GyroBiasReport("none", np.zeros(3), 0, 0, np.full(3, np.nan), False,
                                   "bias not corrected (mode none)")
-        if self.mode == "parameter":
+        if self.mode is GyroBiasMode.PARAMETER:
             return GyroBiasReport("parameter", np.array(self._fixed), 0, 0, np.full(3, np.nan),
                                   False, "fixed bias given as a parameter")
         if self._k == 0:

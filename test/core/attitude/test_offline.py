@@ -90,7 +90,7 @@ def test_verdicts_are_those_of_the_causal_path_and_bad_samples_are_counted():
     w[500] = np.nan
     w[900] = (np.inf, 0, 0)
     w[1200] = (1e300, 0, 0)
-    w[2500:2504, 0] = 4.3  # a clipped gyro: pinned at its largest value (motion phase)
+    w[2500:2540, 0] = 4.3  # a clipped gyro: pinned at its largest value (motion phase)
     t[1500] = t[1499]  # duplicate stamp
     t[3000:] += 300_000_000  # a 0.3 s gap
     cfg = StreamConfig()
