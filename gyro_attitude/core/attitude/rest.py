@@ -222,7 +222,7 @@ class RestDetector:
         """Forget all samples (after a gap or a restart the window fills again); in place (the
         compiled chain holds the arrays)."""
         self.ri[R_WINDOW_NS] = self._window_ns
-        compiled(rest_reset)(self.rf, self.ri)
+        rest_reset(self.rf, self.ri)  # the kernel's Python form: no compiler for a reset
 
     samples = property(lambda self: int(self.ri[R_SAMPLES]))
     last_t_ns = property(lambda self: int(self.ri[R_LAST_T]) if self.ri[R_HAS_LAST] else None)

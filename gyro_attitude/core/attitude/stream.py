@@ -358,7 +358,8 @@ class AttitudeStream:
             s.ahrs_f, s.ahrs_i = self.aiding.af, self.aiding.ai
             self.aiding.af, self.aiding.ai = self.state.ahrs_f[0], self.state.ahrs_i[0]
         self._set_nav(self.nav)
-        compiled(chain.integrator_reset)(self.coef[0], s, *q_initial.tolist(), False, 0)
+        # one-off steps run as the kernels' Python form: no compiler for a reset
+        chain.integrator_reset(self.coef[0], s, *q_initial.tolist(), False, 0)
         cov = AttitudeCovariance(cfg.initial_attitude_variance, cfg.gyro_bias_sigma_rad_s,
                                  cfg.gyro_bias_rw)
         s.cov, s.initial_tt = cov.c, cov.initial_tt
@@ -482,7 +483,7 @@ class AttitudeStream:
         q = s.cubic_f[:4].tolist()
         self.algorithm = algorithm
         self.coef.algorithm[0] = STEP_ALGORITHMS[algorithm]
-        compiled(chain.integrator_reset)(self.coef[0], s, *q, has_t,
+        chain.integrator_reset(self.coef[0], s, *q, has_t,
                                          int(ci[C_LAST_T]) if has_t else 0)
 
     def update_nav(self, nav: NavFrame) -> None:
@@ -507,10 +508,10 @@ class AttitudeStream:
             s.q_initial = _unit_quat(q0)
             s.q = s.q_initial
         s.has_resume = False
-        compiled(v.stamps_reset)(s.stamps)
+        v.stamps_reset(s.stamps)
         self._locked = -1
         s.interval_fill = 0
-        compiled(chain.break_windows)(self.coef[0], s)
+        chain.break_windows(self.coef[0], s)
 
     # ------------------------------------------------------------------ one sample
     def push(self, t_ns: int, omega, frame_id: str = "", angular_velocity_covariance=None,
