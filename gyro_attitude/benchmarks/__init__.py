@@ -28,3 +28,16 @@ def machine_description() -> dict:
     return {"cpu_model": model, "cpu_count": os.cpu_count(), "load_avg_1min": round(load, 2),
             "platform": platform.platform(), "python": platform.python_version(),
             "numpy": np.__version__}
+
+
+def best_seconds(fn, repeats: int) -> float:
+    """The shortest wall time of ``repeats`` calls of ``fn`` (a shared machine's noise only
+    ever adds time)."""
+    import time
+
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best

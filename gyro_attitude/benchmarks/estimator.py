@@ -22,10 +22,11 @@ from __future__ import annotations
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
+
+from gyro_attitude.benchmarks import best_seconds
 
 REPEATS = 3
 PUSHED = 20_000
@@ -34,12 +35,7 @@ RECORDINGS = ("broad_05_slow_rotation_with_breaks", "broad_16_fast_translation")
 
 
 def _best(fn, repeats: int = REPEATS) -> float:
-    best = float("inf")
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
+    return best_seconds(fn, repeats)
 
 
 def rows_for(path: Path) -> list[dict]:

@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import pathlib
 import tempfile
-import time
 
 import numpy as np
 
+from gyro_attitude.benchmarks import best_seconds
 from gyro_attitude.core.scene import SceneSimulator, SceneSpec
 from gyro_attitude.core.sim_topics import (
     IMU_TOPIC,
@@ -42,12 +42,7 @@ TARGET_SAMPLES_PER_S = 1.0e6
 
 
 def _best(fn, repeats: int) -> float:
-    best = float("inf")
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
+    return best_seconds(fn, repeats)
 
 
 def _measure(spec: SceneSpec, rate: float, n: int, tmp: pathlib.Path, repeats: int) -> dict:

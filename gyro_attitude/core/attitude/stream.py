@@ -81,7 +81,7 @@ from gyro_attitude.core.attitude.modes import (
 )
 from gyro_attitude.core.attitude.rest import R_COUNT, grown_ring
 from gyro_attitude.core.attitude.settings import StreamConfig, check_gyrocompass_feasible
-from gyro_attitude.core.attitude.streaming import C_HAS_LAST, C_LAST_T
+from gyro_attitude.core.attitude.streaming import C_HAS_LAST, C_LAST_T, constant_nav_rate
 from gyro_attitude.core.earth import STANDARD_GRAVITY, check_latitude, earth_rate_enu
 from gyro_attitude.core.jit import compiled, direct
 from gyro_attitude.core.rotation import quat_normalize
@@ -483,20 +483,12 @@ class AttitudeStream:
         q = s.cubic_f[:4].tolist()
         self.algorithm = algorithm
         self.coef.algorithm[0] = STEP_ALGORITHMS[algorithm]
-        chain.integrator_reset(self.coef[0], s, *q, has_t,
-                                         int(ci[C_LAST_T]) if has_t else 0)
+        chain.integrator_reset(self.coef[0], s, *q, has_t, int(ci[C_LAST_T]) if has_t else 0)
 
     def update_nav(self, nav: NavFrame) -> None:
         """Constant nav frame from the next sample on: its rate ``ω_in^n`` is evaluated here,
         once, and is the nav rate at the next sample (see StreamingIntegrator.update_nav)."""
-        if self.nav is None:
-            raise ValueError("update_nav needs an integrator built with a NavFrame (q_nb); "
-                             "this one integrates q_ib")
-        if not isinstance(nav, NavFrame):
-            raise ValueError(f"nav must be a NavFrame, got {type(nav).__name__}")
-        rate = nav.rate_enu(None)  # raises on series and on invalid values
-        if rate.shape != (3,):
-            raise ValueError(f"update_nav needs a constant NavFrame, got rate shape {rate.shape}")
+        rate = constant_nav_rate(self.nav, nav)
         self.nav = nav
         self.state.nav_rate[0] = rate
 

@@ -26,6 +26,23 @@ C_N, C_SAMPLES, C_LAST_T, C_HAS_LAST, C_FALLBACKS, C_FIRST_FELL, C_NEED_W0, C_HA
 F_Q, F_Q_START, F_ZETA_FIRST, F_NAV_PREV = 0, 4, 8, 11
 
 
+@kernel(inline=True)
+def nav_interval(ci, cf, t, has_nav, r0, r1, r2):
+    """ζ of the interval ending at ``t`` -- the trapezoid of the nav rates at its ends
+    (nav_zeta_scalar) -- when there is one: (has ζ, ζ); the nav rate ``r`` kept for the next."""
+    has_z = False
+    z0 = z1 = z2 = 0.0
+    if has_nav:
+        if ci[C_HAS_LAST] == 1:
+            h = (t - ci[C_LAST_T]) * 1e-9
+            z0 = 0.5 * (cf[F_NAV_PREV] + r0) * h
+            z1 = 0.5 * (cf[F_NAV_PREV + 1] + r1) * h
+            z2 = 0.5 * (cf[F_NAV_PREV + 2] + r2) * h
+            has_z = True
+        cf[F_NAV_PREV], cf[F_NAV_PREV + 1], cf[F_NAV_PREV + 2] = r0, r1, r2
+    return has_z, z0, z1, z2
+
+
 @kernel
 def cubic_advance(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
     """One sample ``t`` (int ns after the last), rate ``(w0, w1, w2)`` and nav rate
@@ -34,17 +51,8 @@ def cubic_advance(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
     :meth:`StreamingIntegrator.advance` for the cubic: the history of the last four samples,
     the first interval redone as the third sample arrives (the quadratic through 0, 1, 2, as
     the batch), the fit's fallbacks counted."""
-    has_z = False
-    z0 = z1 = z2 = 0.0
+    has_z, z0, z1, z2 = nav_interval(ci, cf, t, has_nav, r0, r1, r2)
     if has_nav:
-        if ci[C_HAS_LAST] == 1:
-            # ζ of the interval: the trapezoid of the nav rates at its ends (nav_zeta_scalar)
-            h = (t - ci[C_LAST_T]) * 1e-9
-            z0 = 0.5 * (cf[F_NAV_PREV] + r0) * h
-            z1 = 0.5 * (cf[F_NAV_PREV + 1] + r1) * h
-            z2 = 0.5 * (cf[F_NAV_PREV + 2] + r2) * h
-            has_z = True
-        cf[F_NAV_PREV], cf[F_NAV_PREV + 1], cf[F_NAV_PREV + 2] = r0, r1, r2
         ci[C_HAS_NAV_PREV] = 1
     ci[C_SAMPLES] += 1
     if ci[C_HAS_LAST] == 0:
@@ -236,14 +244,7 @@ class StreamingIntegrator:
         nav frame, ``nav`` is not a NavFrame, holds time series, or has an invalid
         latitude (beyond ±π/2) or non-finite values.
         """
-        if self.nav is None:
-            raise ValueError("update_nav needs an integrator built with a NavFrame (q_nb); "
-                             "this one integrates q_ib")
-        if not isinstance(nav, NavFrame):
-            raise ValueError(f"nav must be a NavFrame, got {type(nav).__name__}")
-        rate = nav.rate_enu(None)  # raises on series and on invalid values
-        if rate.shape != (3,):
-            raise ValueError(f"update_nav needs a constant NavFrame, got rate shape {rate.shape}")
+        rate = constant_nav_rate(self.nav, nav)
         self.nav = nav
         self._nav_const = rate
         self._nav_rates = None
@@ -392,16 +393,7 @@ def cubic_reset(ci, ts, ws, cf, qx, qy, qz, qw, has_t, t, has_nav, r0, r1, r2):
 def exp_advance(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
     """:meth:`StreamingIntegrator.advance` for ``exp_map`` on the cubic's arrays (the last
     sample in ``ts[0]``, ``ws[0]``): the exponential map of the trapezoid increment."""
-    has_z = False
-    z0 = z1 = z2 = 0.0
-    if has_nav:
-        if ci[C_HAS_LAST] == 1:
-            h = (t - ci[C_LAST_T]) * 1e-9
-            z0 = 0.5 * (cf[F_NAV_PREV] + r0) * h
-            z1 = 0.5 * (cf[F_NAV_PREV + 1] + r1) * h
-            z2 = 0.5 * (cf[F_NAV_PREV + 2] + r2) * h
-            has_z = True
-        cf[F_NAV_PREV], cf[F_NAV_PREV + 1], cf[F_NAV_PREV + 2] = r0, r1, r2
+    has_z, z0, z1, z2 = nav_interval(ci, cf, t, has_nav, r0, r1, r2)
     ci[C_SAMPLES] += 1
     if ci[C_HAS_LAST] == 0 or ci[C_NEED_W0] == 1:
         if ci[C_HAS_LAST] == 0:
@@ -425,3 +417,18 @@ def exp_advance(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
     ws[0, 0], ws[0, 1], ws[0, 2] = w0, w1, w2
     ci[C_LAST_T] = t
     return q
+
+
+def constant_nav_rate(current, nav) -> np.ndarray:
+    """The rate ``ω_in^n`` (3,) of the constant NavFrame ``nav`` that replaces ``current``
+    (:meth:`StreamingIntegrator.update_nav`), or ValueError: no frame to replace (q_ib), not a
+    NavFrame, a time series, an invalid latitude or non-finite values."""
+    if current is None:
+        raise ValueError("update_nav needs an integrator built with a NavFrame (q_nb); "
+                         "this one integrates q_ib")
+    if not isinstance(nav, NavFrame):
+        raise ValueError(f"nav must be a NavFrame, got {type(nav).__name__}")
+    rate = nav.rate_enu(None)  # raises on series and on invalid values
+    if rate.shape != (3,):
+        raise ValueError(f"update_nav needs a constant NavFrame, got rate shape {rate.shape}")
+    return rate
