@@ -410,7 +410,7 @@ def ahrs_step(pa, af, ai, t, w0, w1, w2, has_f, fx, fy, fz, x, y, z, s, mag_stat
     return ox + ex * inv, oy + ey * inv, oz + ez * inv
 
 
-@kernel
+@kernel(inline=True)
 def _tilt(pa, af, ai, dt, ox, oy, oz, fx, fy, fz, c00, c01, c02, c10, c11, c12, c20, c21, c22):
     """The tilt correction (nav x, y rotation) of one accelerometer sample."""
     if not (abs(fx) <= 1e6 and abs(fy) <= 1e6 and abs(fz) <= 1e6):
