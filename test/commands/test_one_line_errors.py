@@ -33,7 +33,7 @@ def test_a_bad_argument_is_one_line_with_the_command_prefix(argv, names, capsys)
     (["allan", "x.mcap", "--scene-out", "-"], "standard output"),
     (["allan", "x.mcap", "--plot", "a.xyz"], ".png"),
     (["allan", "x.mcap", "--plot", "noext"], ".png"),
-    (["montecarlo", "lab_bench", "--runs", "2", "--plot", "o.jpg"], ".png"),
+    (["montecarlo", "lab_bench", "--runs", "2", "--plot", "o.xyz"], ".png"),
     (["montecarlo", "lab_bench", "--runs", "2", "--json", "-"], "standard output"),
     (["bench", "--json", "-"], "standard output"),
 ])
