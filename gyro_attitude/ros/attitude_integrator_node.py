@@ -614,7 +614,7 @@ class AttitudeIntegratorNode(Node):
         self._last_period_accepted = v.accepted
         status = DiagnosticStatus()
         status.name = f"{self.get_name()}: imu input"
-        status.hardware_id = v.validator.frame_id or ""
+        status.hardware_id = v.frame_id or ""
         if v.phase == FAILED:
             status.level = DiagnosticStatus.ERROR
             status.message = f"alignment failed: {v.alignment_error}"

@@ -197,7 +197,7 @@ def _as_floats(v) -> tuple[float, float, float] | None:
     try:
         x, y, z = v.tolist() if isinstance(v, np.ndarray) else v
         x, y, z = float(x), float(y), float(z)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return None
     if math.isfinite(x) and math.isfinite(y) and math.isfinite(z):
         return x, y, z

@@ -400,6 +400,7 @@ def integrate(c, s, action, fresh, t, w0, w1, w2, has_a, a0, a1, a2, vok, v0, v1
         s.resume_q[0], s.resume_q[1], s.resume_q[2], s.resume_q[3] = (s.q[0], s.q[1], s.q[2],
                                                                       s.q[3])
         s.has_resume = True
+        s.first_rest_pending = False  # a new time base: no longer still since the start
         integrator_reset(c, s, s.q[0], s.q[1], s.q[2], s.q[3], False, 0)
         stamps_reset(s.stamps)  # the next sample starts a fresh time base
         aiding_restart(c, s)
@@ -591,8 +592,12 @@ def chain_step(ca, sa, bias_ring, align_ring, align_buf, t, w0, w1, w2, frame_ok
     if c.mag_mode and ms == MAG_ABSENT:
         s.mag_missing += 1
         s.ev_mag_missing = True
-    if not s.has_start:
+    if not s.has_start or action == RESET_TIME_JUMP:
+        # the start the first rest's estimate may be applied back to: a jump back starts the
+        # attitude again from the initial one, a fresh start
         s.has_start, s.start_t = True, t
+    elif action == RESTART_AFTER_GAP:
+        s.first_rest_pending = False  # the samples before the gap are not the rest's
     if action != ACCEPT:
         break_windows(c, s)
     saturation_step(s, t, w0, w1, w2)

@@ -53,7 +53,6 @@ from gyro_attitude.core.attitude.ahrs import (
     MAG_NOT_FLOATS,
     AhrsFilter,
     AhrsParams,
-    _as_floats,
 )
 from gyro_attitude.core.attitude.alignment import (
     ALIGN_RING_DTYPE,
@@ -108,9 +107,12 @@ GYRO_NOISE_UNKNOWN = "gyro_noise_unknown"  # a detail (said once), not a count
 
 
 def field_absent(mag) -> bool:
-    """Whether a sample has no magnetic field: none given, or a row of NaN."""
-    return mag is None or (isinstance(mag, np.ndarray) and mag.shape == (3,)
-                           and bool(np.isnan(mag).all()))
+    """Whether a sample has no magnetic field: none given, or a row of 3 NaN (in any
+    container: run()'s rows and a node's field alike)."""
+    if mag is None:
+        return True
+    m = _floats(mag)
+    return m is not None and all(math.isnan(c) for c in m)
 
 
 def _values(x) -> str:
@@ -118,7 +120,7 @@ def _values(x) -> str:
     numbers): the same text from push() and from run()."""
     try:
         return str(np.asarray(x, dtype=np.float64).reshape(-1).tolist())
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return repr(x)
 
 
@@ -277,8 +279,8 @@ class AttitudeStream:
         self.align_buffer = np.zeros(_RING_START, chain.ALIGN_BUFFER_DTYPE).view(np.recarray)
         self._set_coefficients(cfg)
         self._init_state(cfg, q_initial)
-        self._frames: dict[str, int] = {}
-        self._locked = -1
+        self._locked: str | None = None  # the frame of the time base (validation)
+        self._pushed = False
         self._details: dict[str, str] = {}
         self._max_rate = float(self.coef.max_rate[0])
         self.alignment_error: str | None = None
@@ -394,6 +396,11 @@ class AttitudeStream:
         return (Phase.RUNNING, Phase.ALIGNING, Phase.FAILED)[int(self.state.phase[0])]
 
     @property
+    def frame_id(self) -> str | None:
+        """The frame_id of the samples the time base locked in (None before the first)."""
+        return self._locked
+
+    @property
     def q_initial(self) -> np.ndarray:
         return np.array(self.state.q_initial[0])
 
@@ -477,6 +484,8 @@ class AttitudeStream:
         """Switch the algorithm, keeping the attitude and the time base (raises ValueError and
         changes nothing for an unknown or unsuitable algorithm)."""
         self._check_algorithm(algorithm)
+        if algorithm == self.algorithm:
+            return  # nothing to switch (the integrator's history kept)
         s = self.state[0]
         ci = s.cubic_i
         has_t = bool(ci[C_HAS_LAST])
@@ -500,8 +509,9 @@ class AttitudeStream:
             s.q_initial = _unit_quat(q0)
             s.q = s.q_initial
         s.has_resume = False
+        s.has_start = False  # the start the first rest's estimate may go back to: the next
         v.stamps_reset(s.stamps)
-        self._locked = -1
+        self._locked = None
         s.interval_fill = 0
         chain.break_windows(self.coef[0], s)
 
@@ -514,12 +524,9 @@ class AttitudeStream:
         counted ``mag_missing``, heading gyro-only; a field that is not finite, absurd or zero
         is counted ``invalid_mag``, one that disagrees with the reference ``mag_disturbed``)."""
         w = _floats(omega)
-        t = t_ns if type(t_ns) is int else self._stamp(t_ns, w)
+        t = t_ns if type(t_ns) is int and -2**63 <= t_ns < 2**63 else self._stamp(t_ns, w)
         w0, w1, w2 = w if w is not None else (math.nan, math.nan, math.nan)
-        frame = self._frames.get(frame_id)
-        if frame is None:
-            frame = self._frames.setdefault(frame_id, len(self._frames))
-        frame_ok = self._locked < 0 or frame == self._locked
+        frame_ok = self._locked is None or frame_id == self._locked
         a = None if accel is None else _floats(accel) or (math.nan, math.nan, math.nan)
         a0, a1, a2 = a if a is not None else (0.0, 0.0, 0.0)
         cv = _ZERO9
@@ -537,8 +544,9 @@ class AttitudeStream:
             self._grow(code)
         if not self._direct:
             self._step, self._direct = direct(self._step), True
-        if code == v.A_START and self._locked < 0:
-            self._locked = frame
+        if code == v.A_START and self._locked is None:
+            self._locked = frame_id
+        self._pushed = True
         if reason == 0 and ev == 0:
             verdict = v.PLAIN_VERDICTS[code]
         else:
@@ -554,8 +562,10 @@ class AttitudeStream:
         if w is None or not (abs(w[0]) <= self._max_rate and abs(w[1]) <= self._max_rate
                              and abs(w[2]) <= self._max_rate):
             return 0
-        if isinstance(t_ns, bool) or not isinstance(t_ns, int | np.integer):
-            raise ValueError(f"t_ns must be an integer number of nanoseconds, got {t_ns!r}")
+        if isinstance(t_ns, bool) or not isinstance(t_ns, int | np.integer) or \
+                not -2**63 <= int(t_ns) < 2**63:
+            raise ValueError(f"t_ns must be an integer number of nanoseconds within int64, got "
+                             f"{t_ns!r}")
         return int(t_ns)
 
     def _grow(self, code: int) -> None:
@@ -587,7 +597,7 @@ class AttitudeStream:
         allocates the arrays of the recording's length (default ``np.empty``; replay gives
         file-backed ones).  Raises ValueError when levelling cannot align on the recording.
         """
-        if self.last_t_ns is not None or self.accepted:
+        if self._pushed:
             raise ValueError("run() needs a fresh AttitudeStream (it replays a whole recording)")
         t = np.asarray(t_ns)
         w = np.asarray(omega, dtype=np.float64)
@@ -596,6 +606,8 @@ class AttitudeStream:
                 w.shape != (t.shape[0], 3):
             raise ValueError(f"t_ns must be a 1-D integer array of nanoseconds and omega must "
                              f"have shape (N, 3); got {t.dtype} {t.shape} and shape {w.shape}")
+        if t.dtype.kind == "u" and t.size and int(t.max()) >= 2**63:
+            raise ValueError(f"t_ns must be nanoseconds within int64, got {int(t.max())}")
         t = t.astype(np.int64, copy=False)
         cov, acc = recording_arrays(n, angular_velocity_covariance, accel)
         ms, mg = _field_rows(mag, n, self.config.aiding is Aiding.MAGNETOMETER)
@@ -630,8 +642,8 @@ class AttitudeStream:
                 self._grow(chain.BIAS_RING_FULL if self.state.rest_i[0][R_COUNT]
                            == self.bias_ring.shape[0] else chain.ALIGN_RING_FULL)
             k = r
-        self._locked = locked
-        self._frames = {name: i for i, name in enumerate(names)}
+        self._locked = names[locked] if locked >= 0 else None
+        self._pushed = True
         _Words.after_run(self, t, w, names, frames, first_row, first_fig, cov,
                          angular_velocity_covariance, accel, acc)
         if self.state.phase[0] != chain.RUNNING:
@@ -647,11 +659,16 @@ _ZERO9 = np.zeros(9)
 _ZERO9x1 = np.zeros((1, 9))
 _ZERO3x1 = np.zeros((1, 3))
 def _floats(x) -> tuple[float, float, float] | None:
-    """3 floats of a sample (NaN stays NaN), or None when it is not 3 numbers."""
+    """3 floats of a sample (NaN stays NaN), or None when it is not 3 numbers (text, a
+    mapping, numbers beyond float64)."""
+    if isinstance(x, str | bytes | dict) or (type(x) is np.ndarray and x.dtype.kind not in "iuf"):
+        return None
     try:
         a, b, c = x.tolist() if type(x) is np.ndarray and x.ndim == 1 else x
+        if isinstance(a, str | bytes) or isinstance(b, str | bytes) or isinstance(c, str | bytes):
+            return None
         return float(a), float(b), float(c)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return None
 
 
@@ -663,9 +680,11 @@ def _covariance_row(covariance) -> np.ndarray:
     if type(c) is np.ndarray and c.dtype == np.float64 and c.shape == (9,) and \
             c.flags.c_contiguous and c.flags.writeable:
         return c
+    if isinstance(c, str | bytes | dict):
+        return np.full(9, np.nan)
     try:
         c = np.array(covariance, dtype=np.float64).reshape(-1)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return np.full(9, np.nan)
     return c if c.shape == (9,) else np.full(9, np.nan)
 
@@ -675,8 +694,10 @@ def _field(mag) -> tuple[int, tuple | None]:
     numbers, or given."""
     if field_absent(mag):
         return MAG_ABSENT, None
-    m = _as_floats(mag)
-    return (MAG_NOT_FLOATS, None) if m is None else (MAG_GIVEN, m)
+    m = _floats(mag)
+    if m is None or not all(map(math.isfinite, m)):
+        return MAG_NOT_FLOATS, None
+    return MAG_GIVEN, m
 
 
 def _field_rows(mag, n: int, use: bool):
@@ -740,8 +761,7 @@ class _Words:
         st = self.stream
         if name == v.NON_FINITE and self.w is None:
             return f"not numbers: {self.omega!r}"
-        locked = next((k for k, i in st._frames.items() if i == st._locked), None)
-        return v.reason_words(name, self.t_ns, self.w, self.frame_id, locked, figures,
+        return v.reason_words(name, self.t_ns, self.w, self.frame_id, st._locked, figures,
                               st.config.check_config())
 
     @classmethod
