@@ -20,7 +20,7 @@ from gyro_attitude.commands.estimator_flags import (
     config_from_args,
     given_settings,
 )
-from gyro_attitude.commands.usage_errors import figure_file, output_file
+from gyro_attitude.commands.usage_errors import output_file
 from gyro_attitude.core.attitude import ALGORITHMS
 from gyro_attitude.core.attitude.modes import InitialAttitudeSource
 from gyro_attitude.core.attitude.settings import SETTINGS
@@ -96,7 +96,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help=f"times of the statistics (default {mc.GRID_POINTS})")
     parser.add_argument("--json", metavar="OUT", default=None, type=output_file,
                         help="write runs, percentile bands and the NEES check as JSON")
-    parser.add_argument("--plot", metavar="IMAGE", default=None, type=figure_file(),
+    parser.add_argument("--plot", metavar="IMAGE", default=None,
                         help="percentile bands over time per grade, predicted 1σ/3σ")
     parser.add_argument("--force", action="store_true", help="overwrite --json / --plot files")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")

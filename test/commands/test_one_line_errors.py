@@ -33,7 +33,8 @@ def test_a_bad_argument_is_one_line_with_the_command_prefix(argv, names, capsys)
     (["allan", "x.mcap", "--scene-out", "-"], "standard output"),
     (["allan", "x.mcap", "--plot", "a.xyz"], ".png"),
     (["allan", "x.mcap", "--plot", "noext"], ".png"),
-    (["montecarlo", "lab_bench", "--runs", "2", "--plot", "o.xyz"], ".png"),
+    # (montecarlo's --plot format is refused before the work too, exit 1:
+    # test_command_errors.test_a_plot_of_an_unknown_format_is_refused_before_the_work)
     (["montecarlo", "lab_bench", "--runs", "2", "--json", "-"], "standard output"),
     (["bench", "--json", "-"], "standard output"),
 ])
