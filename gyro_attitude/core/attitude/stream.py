@@ -661,7 +661,13 @@ _ZERO3x1 = np.zeros((1, 3))
 def _floats(x) -> tuple[float, float, float] | None:
     """3 floats of a sample (NaN stays NaN), or None when it is not 3 numbers (text, a
     mapping, numbers beyond float64)."""
-    if isinstance(x, str | bytes | dict) or (type(x) is np.ndarray and x.dtype.kind not in "iuf"):
+    if type(x) is np.ndarray:
+        if x.dtype.kind not in "iuf":
+            return None
+        if x.shape == (3,):  # a message's array: the common case
+            a, b, c = x.tolist()
+            return float(a), float(b), float(c)
+    elif isinstance(x, str | bytes | dict):
         return None
     try:
         a, b, c = x.tolist() if type(x) is np.ndarray and x.ndim == 1 else x
@@ -692,12 +698,17 @@ def _covariance_row(covariance) -> np.ndarray:
 def _field(mag) -> tuple[int, tuple | None]:
     """(state, 3 floats) of a magnetometer sample: absent (None or a row of NaN), not 3 finite
     numbers, or given."""
-    if field_absent(mag):
+    if mag is None:
         return MAG_ABSENT, None
     m = _floats(mag)
-    if m is None or not all(map(math.isfinite, m)):
+    if m is None:
         return MAG_NOT_FLOATS, None
-    return MAG_GIVEN, m
+    x, y, z = m
+    if math.isfinite(x) and math.isfinite(y) and math.isfinite(z):
+        return MAG_GIVEN, m
+    if math.isnan(x) and math.isnan(y) and math.isnan(z):
+        return MAG_ABSENT, None  # a row of NaN: no field at this sample
+    return MAG_NOT_FLOATS, None
 
 
 def _field_rows(mag, n: int, use: bool):
