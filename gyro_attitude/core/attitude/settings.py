@@ -8,7 +8,7 @@ table come
 * :class:`StreamConfig`, the frozen settings object of the core (its fields are the rows);
 * the node's declared parameters with descriptors (``ros/attitude_integrator_node.py``);
 * replay's flags (``commands/estimator_flags.py``);
-* the commented ``config/attitude_integrator.yaml`` and the README's parameter table
+* the commented ``config/attitude_integrator.yaml`` and the parameter table of ``docs/settings.md``
   (:func:`yaml_lines`, :func:`markdown_table`; a test fails when the files drift).
 
 Adding a setting is one row here (and the code that uses it).  Values are checked against the
@@ -138,7 +138,7 @@ class Setting:
 
 _HALF_PI = math.pi / 2
 
-#: The table (order = the order of the YAML file and the README table).
+#: The table (order = the order of the YAML file and the table of docs/settings.md).
 SETTINGS: tuple[Setting, ...] = (
     # -- frame and position
     Setting("frame", Frame.INERTIAL, "inertial: integrate q_ib; enu: q_nb with Earth and "
@@ -412,7 +412,7 @@ def yaml_lines(indent: str = "    ", settings=SETTINGS) -> list[str]:
 
 
 def markdown_table(settings=SETTINGS) -> list[str]:
-    """The estimator settings as a Markdown table (README)."""
+    """The estimator settings as a Markdown table (docs/settings.md)."""
     out = ["| setting (parameter, `replay` flag) | default | unit | meaning |",
            "|---|---|---|---|"]
     for s in settings:
