@@ -18,7 +18,7 @@ from sim_static import rest_motion_rest  # noqa: E402
 from gyro_attitude.core.attitude import DEFAULT_ALGORITHM  # noqa: E402
 from gyro_attitude.core.attitude.stream import AttitudeStream, StreamConfig  # noqa: E402
 
-# frozen copies of test_stream_real's modes and hostile inputs as they were recorded
+# the modes and hostile inputs as they were recorded (test_stream_real and its neighbours use these)
 MODES = {
     "auto": StreamConfig(),
     "auto_noise": StreamConfig(gyro_noise_density=1e-4, gyro_bias_sigma_rad_s=0.01),

@@ -17,7 +17,7 @@ Heading from the magnetometer (``mag_heading``: the stream's ``aiding: magnetome
 ``initial_attitude_source: level``): the mean field over the same rest samples, less the hard
 iron, levelled with the roll and pitch (tilt-compensated) gives the heading,
 ``h = declination − atan2(−m_y, m_x)`` with ``(m_x, m_y)`` the horizontal field in the yaw-0
-level frame (:func:`magnetic_heading`).  The mean of the N rest samples, not one sample: its
+level frame (:func:`aligner_result`).  The mean of the N rest samples, not one sample: its
 noise is ``σ_m / (B_h √N)`` (``σ_m`` per axis, ``B_h`` the horizontal field), and a tilt error
 ``δ`` turns it by ``tan(dip)·δ``; expected ``√(σ_m²/(N B_h²) + tan²(dip) σ_level²)``.  Rest
 samples without a usable field (absent, non-finite, beyond 10 mT, below 0.1 µT) are left out
@@ -64,7 +64,7 @@ from gyro_attitude.core.attitude.validation import within
 from gyro_attitude.core.earth import OMEGA_IE, check_latitude
 from gyro_attitude.core.jit import compiled, kernel
 
-__all__ = ["AlignmentResult", "StaticAligner", "align", "gyrocompass_heading", "level_q",
+__all__ = ["AlignmentResult", "StaticAligner", "align", "level_q",
            "level_quaternion"]
 
 
@@ -89,13 +89,6 @@ class AlignmentResult:
     mean_magnetic_field: np.ndarray | None = None
     mag_samples: int = 0
 
-
-def _c_lb(roll: float, pitch: float) -> np.ndarray:
-    """Body → level frame (yaw 0): Ry(pitch) Rx(roll)."""
-    cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
-    ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
-    rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
-    return ry @ rx
 
 
 @kernel
@@ -132,24 +125,6 @@ def level_quaternion(f_b, heading: float) -> tuple[np.ndarray, float, float]:
     return np.array([x, y, z, w]), roll, pitch
 
 
-
-def gyrocompass_heading(w_b, roll: float, pitch: float) -> float:
-    """Heading (clockwise from north) from the bias-free mean rate at rest: in the levelled frame
-    the horizontal Earth rate is ``ω_ie cos L · [sin ψ, cos ψ]``, so ``ψ = atan2(ω_x, ω_y)``."""
-    w_l = _c_lb(roll, pitch) @ np.asarray(w_b, dtype=np.float64)
-    psi = math.atan2(float(w_l[0]), float(w_l[1]))
-    return wrap_2pi(math.pi / 2 - psi)
-
-
-def magnetic_heading(m_b, roll: float, pitch: float, declination: float = 0.0) -> float:
-    """Heading (clockwise from true north, [0, 2π)) of the body x axis from the field ``m_b``
-    (body, hard iron removed), the body levelled by ``roll`` and ``pitch``, the field's
-    horizontal part pointing ``declination`` east of true north."""
-    m_l = _c_lb(roll, pitch) @ np.asarray(m_b, dtype=np.float64)
-    # in the yaw-0 level frame (x the body's x made horizontal, y to its left, z up) the
-    # horizontal field lies atan2(−m_y, m_x) clockwise of the body x axis; the x axis is at
-    # heading h, the field at the declination: h + that angle = declination
-    return wrap_2pi(declination - math.atan2(-float(m_l[1]), float(m_l[0])))
 
 
 def _check_nonneg(name, v) -> float:
@@ -432,7 +407,7 @@ def aligner_update(al, ring, t, g0, g1, g2, a0, a1, a2, has_m, m0, m1, m2):
 
 @kernel(inline=True)
 def _level_frame(roll, pitch, x, y, z):
-    """``C_lb v``: body → level frame (yaw 0), Ry(pitch) Rx(roll) (:func:`_c_lb`)."""
+    """``C_lb v``: body → level frame (yaw 0), Ry(pitch) Rx(roll)."""
     cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
     return (cp * x + sp * sr * y + sp * cr * z, cr * y - sr * z,
             -sp * x + cp * sr * y + cp * cr * z)

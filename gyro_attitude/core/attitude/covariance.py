@@ -78,14 +78,6 @@ class AttitudeCovariance:
     noise = _slot(V_NOISE)
     del _slot
 
-    def tt_floats(self) -> tuple[float, float, float]:
-        """``tt`` as three floats."""
-        return tuple(self.c[V_TT:V_TT + 3].tolist())
-
-    def first_rest_update(self, standard_error, elapsed_s: float) -> None:
-        """The first bias estimate, applied back to the start ``elapsed_s`` ago (still since)."""
-        se0, se1, se2 = (float(se) for se in standard_error)
-        compiled(first_rest_update)(self.c, np.array(self._it), se0, se1, se2, float(elapsed_s))
 
     def propagate(self, dt_s: float, q) -> None:
         """One accepted interval of ``dt_s`` seconds with angle-random-walk increment ``q`` (3,)."""
@@ -105,10 +97,6 @@ class AttitudeCovariance:
         """Back to the initial attitude (time-jump reset)."""
         compiled(reset_attitude)(self.c, np.array(self._it))
 
-
-    def aid_tilt(self, kp_dt: float, floor_var: float) -> None:
-        """Gravity aiding over one interval (loop gain × dt): tilt axes 0 and 1 relax to the floor."""
-        compiled(aid_tilt)(self.c, kp_dt, floor_var)
 
 
 @kernel(inline=True)
@@ -141,10 +129,6 @@ def aid_tilt(c, kp_dt, floor_var):
     for i in range(2):
         c[V_TT + i] = a2 * c[V_TT + i] + (1.0 - a2) * floor_var
         c[V_TB + i] = a * c[V_TB + i]
-
-
-_SHORT = 16  # segments up to this long are summed position by position, longer ones by cumsum
-
 
 
 

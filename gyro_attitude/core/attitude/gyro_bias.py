@@ -212,14 +212,6 @@ def bias_step(bf, bi, min_rest_ns, rf, ri, wt, wx, wc, pv, pe, earth_n, t, g0, g
     return slot
 
 
-def _earth_rate_body(q_nb, w_n) -> tuple[float, float, float]:
-    """``C_bn ω_ie^n`` in plain floats (per sample: numpy's call overhead would dominate)."""
-    x, y, z, w = (float(c) for c in q_nb)
-    n = x * x + y * y + z * z + w * w
-    if not (math.isfinite(n) and n > 1e-18):
-        raise ValueError(f"q_nb must be a finite non-zero quaternion, got {q_nb!r}")
-    return _c_bn_times(x, y, z, w, 2.0 / n, w_n)
-
 
 @kernel(inline=True)
 def _c_bn_times(x, y, z, w, s, w_n):
@@ -319,15 +311,6 @@ class GyroBiasEstimator:
     def bias(self) -> np.ndarray:
         return np.array(self._bias)
 
-    @property
-    def bias_floats(self) -> tuple[float, float, float]:
-        """:attr:`bias` as 3 floats (the per-sample step's form)."""
-        return self._bias
-
-    @property
-    def standard_error_floats(self) -> tuple[float, float, float]:
-        """:attr:`standard_error` as 3 floats."""
-        return self._se
 
     def update(self, t_ns: int, gyro, accel=None, q_nb=None) -> np.ndarray:
         """Consume one sample; return the bias (3,) rad/s to subtract from it."""
@@ -361,38 +344,6 @@ class GyroBiasEstimator:
             raise ValueError(det.refusal(code, t))
         return self._bias
 
-    def value(self, g, q_nb=None) -> tuple[tuple, bool]:
-        """(what a rest averages for the rate sample ``g``: ``g − C_bn ω_ie^n`` with a latitude
-        and an attitude ``q_nb``, else ``g``; whether the Earth rate was taken out)."""
-        if self._earth_n is not None and q_nb is not None:
-            e = _earth_rate_body(q_nb, self._earth_n)
-            return (g[0] - e[0], g[1] - e[1], g[2] - e[2]), True
-        return g, False
-
-    def accumulate(self, t: int, v, earth: bool) -> None:
-        """Add the rest sample of time ``t`` with value ``v`` (:meth:`value`) to the open rest
-        (opened by the first); publish the pooled estimate once the rest spans ``min_rest_s``
-        (``updated`` then says so).  The kernel :func:`accumulate`."""
-        compiled(accumulate)(self.bf, self.bi, self.min_rest_ns, t, float(v[0]), float(v[1]),
-                             float(v[2]), bool(earth))
-
-    def close_rest(self) -> None:
-        """The open rest ended: pooled when it spans ``min_rest_s``."""
-        compiled(close_rest)(self.bf, self.bi, self.min_rest_ns)
-
-    @property
-    def rests_completed(self) -> int:
-        """Qualifying rests closed and pooled so far (the open one not counted)."""
-        return int(self.bi[J_POOL_K])
-
-    @property
-    def open_rest_start_ns(self) -> int | None:
-        """Time of the first sample of the rest being accumulated, or None."""
-        return int(self.bi[J_SEG_T0]) if self.bi[J_HAS_SEG] else None
-
-    @property
-    def window_ns(self) -> int:
-        return self.detector.window_ns
 
 
     def report(self) -> GyroBiasReport:

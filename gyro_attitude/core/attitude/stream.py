@@ -102,17 +102,8 @@ SATURATED = "saturated"
 # intervals whose rate fit could not be trusted (the samples alias the motion, or the fit leaves
 # their range): integrated toward the exponential map (interpolation.untrusted_fits)
 RATE_FIT_FALLBACK = "rate_fit_fallback"
-EXTRA_COUNTS = (INVALID_COVARIANCE, INVALID_ACCEL, INTEGRATOR_ERROR, SATURATED, RATE_FIT_FALLBACK)
 GYRO_NOISE_UNKNOWN = "gyro_noise_unknown"  # a detail (said once), not a count
 
-
-def field_absent(mag) -> bool:
-    """Whether a sample has no magnetic field: none given, or a row of 3 NaN (in any
-    container: run()'s rows and a node's field alike)."""
-    if mag is None:
-        return True
-    m = _floats(mag)
-    return m is not None and all(math.isnan(c) for c in m)
 
 
 def _values(x) -> str:
@@ -840,8 +831,6 @@ def cannot_align(cfg: StreamConfig) -> str:
     return (f"cannot align: no rest of at least {cfg.min_rest_s:g} s followed by motion in the "
             "recording (initial_attitude_source 'level' needs the IMU still at the start)")
 
-
-_ONES = np.ones(3)
 
 
 def recording_arrays(n: int, angular_velocity_covariance, accel):

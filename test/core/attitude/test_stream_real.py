@@ -3,6 +3,8 @@ rest included), the bias is removed at rests, level alignment and gyrocompass re
 first-rest correction, and the truth at an Imu stamp (scipy Slerp as the oracle)."""
 
 import math
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,62 +21,9 @@ from gyro_attitude.core.attitude.stream import (
 )
 from gyro_attitude.core.attitude.truth import initial_attitude_from_truth, truth_at
 
-MODES = {
-    "auto": StreamConfig(),
-    "auto_noise": StreamConfig(gyro_noise_density=1e-4, gyro_bias_sigma_rad_s=0.01),
-    "parameter": StreamConfig(gyro_bias="parameter", gyro_bias_rad_s=(0.02, -0.01, 0.05),
-                              gyro_bias_sigma_rad_s=1e-3, gyro_bias_rw=1e-4,
-                              gyro_noise_density=1e-4),
-    "none_rw": StreamConfig(gyro_bias="none", gyro_bias_sigma_rad_s=0.05, gyro_bias_rw=1e-3),
-    "level": StreamConfig(initial_attitude_source="level", initial_heading_deg=30.0),
-    "gravity": StreamConfig(aiding="gravity", gyro_noise_density=1e-4),
-    "level_gravity": StreamConfig(initial_attitude_source="level", aiding="gravity"),
-    # the Earth rate taken out of the rest averages at the current attitude (frame enu)
-    "auto_enu": StreamConfig(frame="enu", latitude_rad=0.9, gyro_noise_density=1e-4),
-    "level_enu": StreamConfig(frame="enu", latitude_rad=0.9, initial_attitude_source="level",
-                              initial_heading_deg=30.0),
-    # the AHRS stage, and aiding with the Earth rate taken out of the bias at the attitude the
-    # aiding corrects (the loop of run() carries the coupling sample by sample)
-    "tilt": StreamConfig(aiding="tilt", gyro_noise_density=1e-4),
-    "level_tilt": StreamConfig(initial_attitude_source="level", aiding="tilt"),
-    "magnetometer": StreamConfig(aiding="magnetometer", gyro_noise_density=1e-4),
-    "level_magnetometer_enu": StreamConfig(frame="enu", latitude_rad=0.9, aiding="magnetometer",
-                                           initial_attitude_source="level"),
-    "gravity_enu": StreamConfig(frame="enu", latitude_rad=0.9, aiding="gravity",
-                                gyro_noise_density=1e-4),
-}
-
-
-def hostile_rest_motion_rest():
-    """rest–motion–rest–motion–rest at 200 Hz with, in the middle of the first rest (2.0–2.2 s)
-    and the second one: NaN and 1e300 rates, a NaN and a 1e300 accelerometer sample, a duplicate
-    and an out-of-order stamp, a zero stamp, a 0.3 s gap and a 2 s backward jump."""
-    t, g, a, _ = rest_motion_rest(rests=(4.0, 3.0, 3.0))
-    g, a = g.copy(), a.copy()
-    g[400] = [np.nan, 0, 0]
-    g[405] = [1e300, 0, 0]
-    a[410] = [np.nan, 0, 0]
-    a[415] = [0, 1e300, 0]
-    t[420] = t[419]
-    t[425] = t[424] - 2_000_000
-    t[430] = 0
-    second_rest = 800 + 300  # 4 s rest + 1... inside the second rest (after the first motion)
-    a[second_rest] = [np.inf, 0, 0]
-    t[second_rest + 50:] += 300_000_000  # gap
-    t[-200:] -= 2_500_000_000  # backward jump
-    cov = np.tile(np.diag([4e-6, 4e-6, 4e-6]).reshape(9), (t.size, 1))
-    return t, g, a, cov
-
-
-def hostile_field(n):
-    """A field fixed in the body (the motion of rest_motion_rest turns and comes back) with
-    noise, rows without a field (NaN), a NaN component and an absurd reading."""
-    rng = np.random.default_rng(7)
-    mag = np.array([20e-6, 5e-6, -40e-6]) + 2e-7 * rng.standard_normal((n, 3))
-    mag[300:340] = np.nan
-    mag[700, 1] = np.nan
-    mag[1200] = [1e300, 0.0, 0.0]
-    return mag
+# the modes and hostile inputs of the golden regression test (one home: test/golden)
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "golden"))
+from golden_cases import MODES, hostile_field, hostile_rest_motion_rest
 
 
 def push_all(stream, t, g, a, cov, mag=None):
