@@ -2,7 +2,8 @@
 
 init → build the node and its executor → ``gc.freeze()`` → rclpy's signal handlers → spin →
 rclpy's signal handlers off → the executor's shutdown → the node's own ``finish`` → destroy
-→ shutdown (:func:`run_node` says why in this order). Exit status: 0 when the node is done
+→ shutdown (:func:`run_node` says why in this order; a signalled process exits once its
+output is finished, without the destroy and shutdown). Exit status: 0 when the node is done
 or on SIGINT/SIGTERM/SIGHUP (a closed terminal is an orderly shutdown too; also when the
 signal is repeated during shutdown: ``ros2 launch`` forwards the terminal's Ctrl-C, so every
 node gets it twice); 2 with one line on an invalid parameter
@@ -205,6 +206,20 @@ def _exit_if_teardown_hangs(name: str, status: int) -> threading.Timer:
     return timer
 
 
+def _exit_without_teardown(status: int) -> None:
+    """End a signalled process now that its output is finished, without destroying the node.
+
+    The middleware's destruction of a publisher after a signal has been seen to block inside
+    a C call that holds the GIL (clean-clone CI, 2026-12-07: ``publisher.destroy`` still
+    running 60 s after one SIGINT), so no Python watchdog thread can run to end it. The user
+    asked the process to stop and nothing is left to save, so it exits here as after a
+    crash-free ``exit``: stdio flushed, the operating system freeing what the middleware
+    held (DDS peers see the participant go when its lease ends)."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(status)
+
+
 def _destroy(node: Node) -> None:
     """``destroy_node`` that tolerates a context already shut down by a signal."""
     try:
@@ -321,13 +336,18 @@ def run_node(name: str, make_node: Callable[[], Node], args=None, *,
                 executor = None
                 gc.collect()
             if node is not None:
+                finished = False
                 try:
                     if finish is not None:
                         finish(node)
+                    finished = True
                 except OutputWriteError as exc:  # the disk filled while finishing the file
                     say(f"cannot write output: {exc}")
                     status = EXIT_OUTPUT
+                    finished = True
                 finally:
+                    if finished and signals.received is not None:
+                        _exit_without_teardown(status)
                     watchdog = _exit_if_teardown_hangs(name, status)
                     _destroy(node)
         finally:
