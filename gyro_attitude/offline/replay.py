@@ -304,17 +304,17 @@ def estimate_recording(t_ns, omega, accel, gyro_covariance, frame_id, *, config:
         accel = None if accel is None else accel[first:]
         mag = None if mag is None else mag[first:]
     if estimator is Estimator.OFFLINE:
-        # aiding gravity | tilt | magnetometer: the offline chain's tilt from gravity, and with
+        # aiding auto | tilt | magnetometer: the offline chain's tilt from gravity, and with
         # magnetometer its heading from the field (core/attitude/offline.py, steps 4 and 6)
         algorithm = algorithm or DEFAULT_OFFLINE_ALGORITHM
         res = estimate_offline(t_ns, omega, accel, config=config, q0=q0, nav=nav,
                                frame_id=frame_id, angular_velocity_covariance=gyro_covariance,
                                algorithm=algorithm, mag=mag, empty=empty)
-        return Estimate(res, first, algorithm, list(res.notes), res.field_reference,
-                        Estimator.OFFLINE)
-    notes = []
+        return Estimate(res, first, algorithm, config.notes() + list(res.notes),
+                        res.field_reference, Estimator.OFFLINE)
     stream = AttitudeStream(algorithm or DEFAULT_ALGORITHM, q0=q0, nav=nav, config=config)
     res = stream.run(t_ns, omega, frame_id, gyro_covariance, accel, mag, empty=empty)
+    notes = config.notes() + [stream.aiding_note] + [n for n in (stream.start_note,) if n]
     return Estimate(res, first, stream.algorithm, notes, stream.aiding, Estimator.CAUSAL)
 
 

@@ -28,8 +28,9 @@ out of it, with ``frame: inertial`` it is absorbed (the diagnostics say which).
 ``initial_attitude_source: level`` levels from the specific force over the first rest, with
 ``initial_heading_deg`` or ``heading_source: gyrocompass``; while aligning, no attitude is
 published, only diagnostics; the attitude then starts with the alignment's covariance.
-``aiding: gravity`` pulls the tilt toward the accelerometer's vertical (heading gyro-only:
-it drifts without a magnetometer). The orientation covariance grows with the gyro noise
+``aiding: auto`` (the default) runs the AHRS filter on the accelerometer whenever the Imu
+carries one (tilt; heading gyro-only, it drifts without ``aiding: magnetometer``) and starts
+the tilt from the first accelerometer sample; gyro-only without one; the log says which, once. The orientation covariance grows with the gyro noise
 (input covariance or ``gyro_noise_density``) and the bias uncertainty, and shrinks with
 alignment, rests and aiding (core/attitude/covariance.py). ``linear_acceleration_covariance[0]
 = -1`` means no accelerometer.
@@ -275,9 +276,11 @@ class AttitudeIntegratorNode(Node):
             self.inputs.start()
         self.get_logger().info(
             f"integrating imu/data_raw with '{p['algorithm']}' in frame '{config.frame}' "
-            f"(initial attitude from {config.initial_attitude_source}, "
+            f"(aiding {config.aiding}, initial attitude from {config.initial_attitude_source}, "
             f"QoS {p['qos_reliability']}/{p['qos_depth']})"
         )
+        for note in config.notes():
+            self.get_logger().warning(note)
 
     def destroy_node(self):
         if self.inputs is not None:
@@ -505,6 +508,8 @@ class AttitudeIntegratorNode(Node):
                 self._warn(verdict.reason,
                            f"rejected Imu sample ({verdict.reason}): {verdict.detail}")
             return
+        if not self._aiding_said:
+            self._say_aiding()
         if verdict.action == iv.RESET_TIME_JUMP:
             self._warn("time_jump", f"{verdict.detail}: attitude reset")
             self._velocities.clear()  # stamps of the old time line
@@ -513,6 +518,17 @@ class AttitudeIntegratorNode(Node):
         elif verdict.reason == iv.MISSING_SAMPLES:
             self._warn(iv.MISSING_SAMPLES, f"{verdict.detail}: integrated across")
         self._publish(msg, q)
+
+    _aiding_said = False  # which aiding runs is said once, at the first attitude
+
+    def _say_aiding(self) -> None:
+        """Which aiding runs and why, and how the attitude started: once, at the first
+        attitude (the first Imu message shows whether it carries an accelerometer)."""
+        self._aiding_said = True
+        st = self._stream
+        for note in (st.aiding_note, st.start_note):
+            if note:
+                self.get_logger().info(note)
 
     def _log_phase(self) -> None:
         st = self._stream

@@ -64,7 +64,7 @@ from gyro_attitude.core.attitude.validation import within
 from gyro_attitude.core.earth import OMEGA_IE, check_latitude
 from gyro_attitude.core.jit import compiled, kernel
 
-__all__ = ["AlignmentResult", "StaticAligner", "align", "level_q",
+__all__ = ["AlignmentResult", "StaticAligner", "align", "heading_of", "level_q",
            "level_quaternion"]
 
 
@@ -113,6 +113,15 @@ def level_q(fx, fy, fz, heading):
     if w < 0:  # w >= 0, as quat_from_matrix gives
         return True, -x, -y, -z, -w, roll, pitch
     return True, x, y, z, w, roll, pitch
+
+
+def heading_of(q_nb) -> float:
+    """The heading (rad, clockwise from north: ENU's y axis) of the body x axis of ``q_nb``
+    (x, y, z, w): the ``heading`` that :func:`level_q` gives that axis."""
+    x, y, z, w = (float(c) for c in q_nb)
+    east = 1.0 - 2.0 * (y * y + z * z)
+    north = 2.0 * (x * y + z * w)
+    return math.atan2(east, north)
 
 
 def level_quaternion(f_b, heading: float) -> tuple[np.ndarray, float, float]:

@@ -44,7 +44,6 @@ from gyro_attitude.core.attitude.covariance import (
     reset_attitude,
     zero_rate_update,
 )
-from gyro_attitude.core.attitude.gravity_aiding import G_AIDED, G_HAS_LAST, gravity_step
 from gyro_attitude.core.attitude.gyro_bias import (
     B_BIAS,
     B_SE,
@@ -104,11 +103,10 @@ class StepPhase(IntEnum):
 
 
 class AidingKind(IntEnum):
-    """The aiding filter the step runs (modes.Aiding: tilt and magnetometer are the AHRS)."""
+    """The aiding filter the step runs (modes.Aiding: every aided mode is the AHRS)."""
 
     NONE = 0
-    GRAVITY = 1
-    AHRS = 2
+    AHRS = 1
 
 
 class StepAlgorithm(IntEnum):
@@ -127,7 +125,7 @@ class BiasKind(IntEnum):
 
 
 RUNNING, ALIGNING, FAILED = StepPhase.RUNNING, StepPhase.ALIGNING, StepPhase.FAILED
-AID_NONE, AID_GRAVITY, AID_AHRS = AidingKind.NONE, AidingKind.GRAVITY, AidingKind.AHRS
+AID_NONE, AID_AHRS = AidingKind.NONE, AidingKind.AHRS
 ALG_CUBIC, ALG_EXP_MAP = StepAlgorithm.CUBIC, StepAlgorithm.EXP_MAP
 BIAS_NONE, BIAS_PARAMETER, BIAS_AUTO = BiasKind.NONE, BiasKind.PARAMETER, BiasKind.AUTO
 
@@ -152,8 +150,8 @@ COEF_DTYPE = np.dtype([
     ("bias_mode", np.int64), ("earth", np.bool_), ("earth_n", np.float64, (3,)),
     ("min_rest_ns", np.int64), ("heading", np.float64),
     # alignment, aiding, integration, covariance
-    ("levelling", np.bool_), ("aiding", np.int64), ("mag_mode", np.bool_),
-    ("ahrs", np.float64, (22,)), ("gravity", np.float64, (6,)), ("kp", np.float64),
+    ("levelling", np.bool_), ("level_first", np.bool_), ("aiding", np.int64),
+    ("mag_mode", np.bool_), ("ahrs", np.float64, (22,)), ("kp", np.float64),
     ("algorithm", np.int64), ("n2", np.float64), ("k2", np.float64),
     ("accel_floor_var", np.float64),
 ])
@@ -164,6 +162,7 @@ STATE_DTYPE = np.dtype([
     ("q", np.float64, (4,)), ("q_initial", np.float64, (4,)), ("resume_q", np.float64, (4,)),
     ("has_resume", np.bool_), ("phase", np.int64), ("start_t", np.int64),
     ("has_start", np.bool_), ("accel_present", np.int64), ("first_rest_pending", np.bool_),
+    ("level_pending", np.bool_), ("levelled_first", np.bool_),
     ("variance_known", np.bool_), ("noise_unknown", np.bool_), ("aided_seen", np.int64),
     ("sat", np.float64, (6,)), ("sat_t0", np.int64, (3,)),
     # counts of the chain's own events
@@ -179,7 +178,6 @@ STATE_DTYPE = np.dtype([
     ("rest_f", np.float64, (32,)), ("rest_i", np.int64, (10,)),
     ("bias_f", np.float64, (24,)), ("bias_i", np.int64, (13,)),
     ("aligner", ALIGNER_DTYPE),
-    ("gravity_f", np.float64, (6,)), ("gravity_i", np.int64, (4,)),
     ("ahrs_f", np.float64, (45,)), ("ahrs_i", np.int64, (19,)),
     ("cubic_i", np.int64, (9,)), ("cubic_t", np.int64, (4,)), ("cubic_w", np.float64, (4, 3)),
     ("cubic_f", np.float64, (14,)), ("has_nav", np.bool_), ("nav_rate", np.float64, (3,)),
@@ -223,18 +221,13 @@ def integrator_advance(c, s, t, w0, w1, w2):
 @kernel
 def aiding_restart(c, s):
     """A new time base for the aiding filter (its low-pass starts again)."""
-    if c.aiding == AID_GRAVITY:
-        s.gravity_i[G_HAS_LAST] = 0
-    elif c.aiding == AID_AHRS:
+    if c.aiding == AID_AHRS:
         s.ahrs_i[AHRS_HAS_LAST] = 0
 
 
 @kernel
 def aiding_step(c, s, t, w0, w1, w2, has_a, a0, a1, a2, x, y, z, u, ms, m0, m1, m2):
     """The aiding stage: the rate to integrate."""
-    if c.aiding == AID_GRAVITY:
-        return gravity_step(c.gravity, s.gravity_f, s.gravity_i, t, w0, w1, w2, has_a, a0,
-                            a1, a2, x, y, z, u)
     if c.aiding == AID_AHRS:
         return ahrs_step(c.ahrs, s.ahrs_f, s.ahrs_i, t, w0, w1, w2, has_a, a0, a1, a2, x, y,
                          z, u, ms, m0, m1, m2)
@@ -243,8 +236,6 @@ def aiding_step(c, s, t, w0, w1, w2, has_a, a0, a1, a2, x, y, z, u, ms, m0, m1, 
 
 @kernel
 def aided_samples(c, s):
-    if c.aiding == AID_GRAVITY:
-        return s.gravity_i[G_AIDED]
     if c.aiding == AID_AHRS:
         return s.ahrs_i[AHRS_AIDED]
     return 0
@@ -257,7 +248,6 @@ def break_windows(c, s):
     if s.phase == ALIGNING:
         aligner_break(s.aligner)
         s.align_count = 0
-    s.gravity_i[G_HAS_LAST] = 0
     s.ahrs_i[AHRS_HAS_LAST] = 0
 
 
@@ -330,6 +320,21 @@ def first_rest_back(c, s, p0, p1, p2):
     else:
         zero_rate_update(s.cov, bf[B_SE], bf[B_SE + 1], bf[B_SE + 2])
     s.first_rest_pending = False
+
+
+@kernel
+def level_from_first(c, s, a0, a1, a2):
+    """``initial_attitude_source: accelerometer``: the initial attitude's roll and pitch from
+    the first sample's specific force (heading ``c.heading``), as VQF and imu_tools start; its
+    tilt variance the accelerometer bias's (one sample's noise is far below it)."""
+    ok, x, y, z, u, _, _ = level_q(a0, a1, a2, c.heading)
+    if not ok:
+        return
+    s.q_initial[0], s.q_initial[1], s.q_initial[2], s.q_initial[3] = x, y, z, u
+    s.q[0], s.q[1], s.q[2], s.q[3] = x, y, z, u
+    s.initial_tt[0] = s.initial_tt[1] = c.accel_floor_var
+    reset_attitude(s.cov, s.initial_tt)
+    s.levelled_first = True
 
 
 @kernel
@@ -592,6 +597,10 @@ def chain_step(ca, sa, bias_ring, align_ring, align_buf, t, w0, w1, w2, frame_ok
     if c.mag_mode and ms == MAG_ABSENT:
         s.mag_missing += 1
         s.ev_mag_missing = True
+    if s.level_pending and action == START:
+        s.level_pending = False  # the first sample only: later ones would make the tilt jump
+        if has_a and s.phase == RUNNING:
+            level_from_first(c, s, a0, a1, a2)
     if not s.has_start or action == RESET_TIME_JUMP:
         # the start the first rest's estimate may be applied back to: a jump back starts the
         # attitude again from the initial one, a fresh start

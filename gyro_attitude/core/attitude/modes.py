@@ -43,11 +43,16 @@ class WorldFrame(StrEnum):
 
 class InitialAttitudeSource(StrEnum):
     """Where the initial attitude comes from: the ``initial_attitude`` setting, the truth topic
-    at the first accepted sample, or levelling from the specific force over the first rest."""
+    at the first accepted sample, levelling from the specific force over the first rest, or
+    the first accelerometer sample's tilt (an attitude from the first sample on).  ``auto``:
+    ``accelerometer`` when the aiding uses the accelerometer and ``initial_attitude`` is left at
+    the identity, ``parameter`` otherwise (:meth:`StreamConfig.start_source`)."""
 
+    AUTO = "auto"
     PARAMETER = "parameter"
     TRUTH = "truth"
     LEVEL = "level"
+    ACCELEROMETER = "accelerometer"
 
 
 class HeadingSource(StrEnum):
@@ -66,15 +71,17 @@ class GyroBiasMode(StrEnum):
 
 
 class Aiding(StrEnum):
-    """Aiding of the integrated attitude: none; tilt from gravity (``gravity``: the Mahony-style
-    complementary filter of gravity_aiding.py); ``tilt``: the AHRS filter of ahrs.py on the
-    accelerometer alone (heading gyro-only); ``magnetometer``: the AHRS filter with the
-    magnetometer for heading."""
+    """Aiding of the integrated attitude: ``auto`` the AHRS filter of ahrs.py on the
+    accelerometer whenever the Imu carries one (gyro-only without); ``none``; ``tilt`` the AHRS
+    filter on the accelerometer alone (heading gyro-only); ``magnetometer`` the AHRS filter with
+    the magnetometer for heading; ``gravity`` retired (the older complementary filter, weaker
+    than ``tilt`` on every real recording): accepted, runs ``tilt`` and says so."""
 
+    AUTO = "auto"
     NONE = "none"
-    GRAVITY = "gravity"
     TILT = "tilt"
     MAGNETOMETER = "magnetometer"
+    GRAVITY = "gravity"
 
 
 class Estimator(StrEnum):

@@ -86,14 +86,21 @@ from gyro_attitude.core.angles import wrap_2pi
 from gyro_attitude.core.attitude import NavFrame, integrate_batch
 from gyro_attitude.core.attitude import validation as v
 from gyro_attitude.core.attitude.ahrs import MAG_ABSURD_T, MAG_ZERO_T
-from gyro_attitude.core.attitude.alignment import AlignmentResult, level_quaternion
+from gyro_attitude.core.attitude.alignment import AlignmentResult, heading_of, level_quaternion
 from gyro_attitude.core.attitude.chain import SATURATION_MIN_RAD_S, SATURATION_PLATEAU_NS
 from gyro_attitude.core.attitude.gyro_bias import GyroBiasReport
-from gyro_attitude.core.attitude.modes import Aiding, Frame, GyroBiasMode, HeadingSource
+from gyro_attitude.core.attitude.modes import (
+    Aiding,
+    Frame,
+    GyroBiasMode,
+    HeadingSource,
+    InitialAttitudeSource,
+)
 from gyro_attitude.core.attitude.registry import DEFAULT_ALGORITHM
 from gyro_attitude.core.attitude.rest import NOISE_FLOOR_RAD_S, detect_rest
 from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.core.attitude.stream import (
+    START_NOTE,
     INTEGRATOR_ERROR,
     INVALID_ACCEL,
     INVALID_COVARIANCE,
@@ -104,6 +111,7 @@ from gyro_attitude.core.attitude.stream import (
     SATURATED,
     StreamResult,
     _unit_quat,
+    aiding_note,
     covariance_rows,
     nav_rows,
     rate_fit_note,
@@ -373,6 +381,12 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
                                "finite or absurd: not used for rests, levelling or aiding")
         if not usable.any():
             av = usable = None
+    start_notes = [aiding_note(cfg, av is not None)] if cfg.aided else []
+    if cfg.start_source is InitialAttitudeSource.ACCELEROMETER and av is not None:
+        # as the causal step starts (chain.level_from_first): the first usable sample's tilt
+        heading = heading_of(q_init)
+        q_init, _, _ = level_quaternion(av[int(np.argmax(usable))], heading)
+        start_notes.append(START_NOTE.format(math.degrees(heading)))
     mv = None
     if cfg.aiding is Aiding.MAGNETOMETER:
         counts.update({MAG_MISSING: 0, INVALID_MAG: 0, MAG_DISTURBED: 0})
@@ -414,9 +428,9 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
                 details.setdefault(key, text)
     if acc is None or av is None:
         notes.insert(0, "no accelerometer: gyro-only offline estimation (rests from the gyro, "
-                     "no levelling, no gravity aiding)")
+                     "no levelling, no tilt aiding)")
     res = StreamResult(valid, q_out, var_out, known_out, act, counts, cls.time_jump_resets,
-                       details, est.bias_report(), est.alignment, notes=notes)
+                       details, est.bias_report(), est.alignment, notes=start_notes + notes)
     res.field_reference = est.field_reference  # None unless aiding magnetometer
     return res
 

@@ -157,8 +157,10 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("velocity_enu", (0.0, 0.0, 0.0), "carrier velocity east, north, up (frame enu; an "
             "odometry topic replaces it)", "m/s", -1.0e4, 1.0e4, length=3, group="frame"),
     # -- initial attitude
-    Setting("initial_attitude_source", InitialAttitudeSource.PARAMETER,
-            "parameter: initial_attitude; truth: the truth topic slerped to the first accepted "
+    Setting("initial_attitude_source", InitialAttitudeSource.AUTO,
+            "auto: accelerometer when the aiding uses the accelerometer and initial_attitude is "
+            "the identity, else parameter; accelerometer: roll and pitch from the first "
+            "accelerometer sample, the heading of initial_attitude; parameter: initial_attitude; truth: the truth topic slerped to the first accepted "
             "Imu stamp; level: roll and pitch from the specific force over the first rest, "
             "heading per heading_source (no attitude while aligning)",
             choices=InitialAttitudeSource, group="initial attitude"),
@@ -207,24 +209,14 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("rest_accel_norm_tol", RestThresholds.accel_norm_tol, "rest: largest | |f| - g |",
             "m/s^2", 1e-4, 100.0, group="rest"),
     # -- aiding
-    Setting("aiding", Aiding.NONE, "gravity: tilt pulled toward the accelerometer's vertical with "
-            "gyro-bias feedback, gated in fast motion (heading stays gyro-only); tilt: the AHRS "
-            "filter (specific force low-passed in an almost-inertial frame, acceleration "
-            "rejection, settings ahrs_*); magnetometer: the same with the heading from the "
-            "magnetometer (mag_*)", choices=Aiding, group="aiding"),
-    Setting("aiding_kp", 1.0, "gravity aiding: proportional gain of the tilt correction", "1/s",
-            0.0, 1.0e3, group="aiding"),
-    Setting("aiding_ki", 0.002, "gravity aiding: integral gain (tilt-axis bias feedback)",
-            "1/s^2", 0.0, 1.0e3, group="aiding"),
-    Setting("aiding_accel_tol", 2.0, "gravity aiding: used only while | |f| - g | is below this",
-            "m/s^2", 0.0, 1.0e3, group="aiding"),
-    Setting("aiding_rate_max", 1.0, "gravity aiding: used only while |omega| is below this",
-            "rad/s", 0.0, 1.0e3, group="aiding"),
-    Setting("aiding_accel_lowpass_s", 1.0, "gravity aiding: time constant of the nav-frame "
-            "low-pass of the specific force (averages out hand and vehicle accelerations; 0 = "
-            "off)", "s", 0.0, 100.0, group="aiding"),
+    Setting("aiding", Aiding.AUTO, "auto: the AHRS filter on the accelerometer whenever the "
+            "Imu carries one (REP-145: linear_acceleration_covariance[0] not -1, finite values), "
+            "gyro-only without; tilt: the AHRS filter (specific force low-passed in an "
+            "almost-inertial frame, acceleration rejection, settings ahrs_*); magnetometer: the "
+            "same with the heading from the magnetometer (mag_*); none: gyro-only; gravity: "
+            "retired, runs tilt", choices=Aiding, group="aiding"),
     Setting("offline_tilt_tau_s", 3.0, "offline estimator (replay --estimator offline) with "
-            "gravity aiding: time constant of the zero-phase low-pass of the specific force in the "
+            "tilt aiding: time constant of the zero-phase low-pass of the specific force in the "
             "integration frame", "s", 0.01, 1000.0, group="aiding"),
     Setting("offline_mag_tau_s", 30.0, "offline estimator with magnetometer aiding: time constant "
             "of the zero-phase low-pass of the field's horizontal direction (the heading "
@@ -339,6 +331,28 @@ class _StreamConfigMethods:
         return self.initial_attitude_source is InitialAttitudeSource.LEVEL
 
     @property
+    def aided(self) -> bool:
+        """The aiding uses the accelerometer (when the Imu carries one)."""
+        return self.aiding is not Aiding.NONE
+
+    @property
+    def start_source(self) -> InitialAttitudeSource:
+        """``initial_attitude_source`` with ``auto`` resolved (:class:`InitialAttitudeSource`)."""
+        src = self.initial_attitude_source
+        if src is not InitialAttitudeSource.AUTO:
+            return src
+        if self.aided and _is_identity(self.initial_attitude):
+            return InitialAttitudeSource.ACCELEROMETER
+        return InitialAttitudeSource.PARAMETER
+
+    def notes(self) -> list[str]:
+        """What these settings resolve to that a user should be told once (a retired name)."""
+        if self.aiding is Aiding.GRAVITY:
+            return ["aiding gravity is retired: the AHRS tilt filter runs instead (aiding tilt; "
+                    "it was better on every real recording)"]
+        return []
+
+    @property
     def latitude_known(self) -> bool:
         """The latitude describes where the IMU is: with frame enu, or for gyrocompassing
         (frame inertial otherwise leaves the Earth rate in the bias: see gyro_bias.py)."""
@@ -385,6 +399,12 @@ StreamConfig = make_dataclass(
 StreamConfig.__module__ = __name__
 StreamConfig.__doc__ = ("Settings of the attitude estimator: one field per row of "
                         ":data:`SETTINGS` (see there for names, units and ranges).")
+
+
+def _is_identity(q) -> bool:
+    """``q`` (x, y, z, w, any scale) is the identity rotation."""
+    x, y, z, w = (float(c) for c in q)
+    return x == 0.0 and y == 0.0 and z == 0.0 and w > 0.0
 
 
 def _yaml_value(x) -> str:

@@ -17,8 +17,8 @@ Every Imu sample passes the stages in one order (the numbered steps of :meth:`At
 3. **alignment** (:mod:`.alignment`, ``initial_attitude_source: level``): no attitude while
    :attr:`StreamState.phase` is ``aligning``; when the first rest of ``min_rest_s`` ends, the
    attitude starts from the levelled one with the samples since the last rest sample integrated.
-4. **aiding** (:mod:`.gravity_aiding`, ``aiding: gravity``): a rate correction toward the
-   accelerometer's vertical.
+4. **aiding** (:mod:`.ahrs`, ``aiding: auto`` with an accelerometer, ``tilt``, ``magnetometer``):
+   a rate correction toward the accelerometer's vertical (and the magnetometer's heading).
 5. **integrate** ``ω − bias (+ correction)`` (:mod:`.streaming`); every attitude handed out is
    finite and unit (a non-finite update restores the last good attitude, restarts the time base
    and counts an ``integrator_error``).
@@ -60,6 +60,7 @@ from gyro_attitude.core.attitude.alignment import (
     StaticAligner,
     alignment_result,
     failure_words,
+    heading_of,
     level_quaternion,
 )
 from gyro_attitude.core.attitude.chain import (  # one home: the step's
@@ -67,7 +68,6 @@ from gyro_attitude.core.attitude.chain import (  # one home: the step's
     MAX_GYRO_VARIANCE,
 )
 from gyro_attitude.core.attitude.covariance import V_TT, AttitudeCovariance
-from gyro_attitude.core.attitude.gravity_aiding import GravityAiding
 from gyro_attitude.core.attitude.gyro_bias import GyroBiasEstimator, GyroBiasReport
 from gyro_attitude.core.attitude.modes import (
     Aiding,
@@ -85,8 +85,8 @@ from gyro_attitude.core.earth import STANDARD_GRAVITY, check_latitude, earth_rat
 from gyro_attitude.core.jit import compiled, direct
 from gyro_attitude.core.rotation import quat_normalize
 
-__all__ = ["AttitudeStream", "StreamConfig", "StreamResult", "bias_summary", "compile_kernels",
-           "gyro_variances"]
+__all__ = ["AttitudeStream", "StreamConfig", "StreamResult", "aiding_note", "bias_summary",
+           "compile_kernels", "gyro_variances"]
 
 
 INVALID_COVARIANCE = "invalid_covariance"
@@ -181,6 +181,26 @@ def gyro_variances_array(covariance: np.ndarray) -> tuple[np.ndarray, np.ndarray
         zeros = ~np.any(c != 0, axis=1)
     known = ~no_estimate & ~invalid & ~zeros
     return np.where(known[:, None], d, 0.0), known, invalid
+
+
+START_NOTE = ("initial attitude: roll and pitch from the first accelerometer sample, the "
+              "heading of initial_attitude ({:.4g}° from north)")
+
+
+def aiding_note(cfg: StreamConfig, accel_seen: bool | None) -> str:
+    """Which aiding runs and why, in one line: ``accel_seen`` whether the Imu carried a
+    usable linear acceleration (None: not known yet)."""
+    name = f"aiding {cfg.aiding}"
+    if not cfg.aided:
+        return f"{name}: gyro-only"
+    if cfg.aiding is Aiding.MAGNETOMETER:
+        return (f"{name}: the AHRS filter, tilt from the accelerometer and heading from the "
+                "magnetometer")
+    if accel_seen is False:
+        return (f"{name}: gyro-only, the Imu carries no linear acceleration (REP-145: "
+                "linear_acceleration_covariance[0] = -1)")
+    return (f"{name}: the AHRS filter, tilt from the accelerometer (heading gyro-only; aiding "
+            "magnetometer adds the magnetometer)")
 
 
 def bias_summary(report: GyroBiasReport) -> str:
@@ -305,18 +325,17 @@ class AttitudeStream:
             c.earth_n = earth_rate_enu(check_latitude(self.latitude_rad, "latitude_rad"))
         c.min_rest_ns = int(round(cfg.min_rest_s * 1e9))
         c.heading = math.radians(cfg.initial_heading_deg)
+        if cfg.start_source is InitialAttitudeSource.ACCELEROMETER:
+            c.heading = heading_of(_unit_quat(cfg.initial_attitude))
         c.levelling = cfg.levelling
         c.mag_mode = cfg.aiding is Aiding.MAGNETOMETER
         c.algorithm = STEP_ALGORITHMS[self.algorithm]
         c.n2 = cfg.gyro_noise_density * cfg.gyro_noise_density
         c.k2 = float(cfg.gyro_bias_rw) ** 2
         c.accel_floor_var = (cfg.accel_bias_sigma / STANDARD_GRAVITY) ** 2
+        c.level_first = cfg.start_source is InitialAttitudeSource.ACCELEROMETER
         c.aiding = chain.AID_NONE
-        if cfg.aiding is Aiding.GRAVITY:
-            aid = GravityAiding(cfg.aiding_kp, cfg.aiding_ki, cfg.aiding_accel_tol,
-                                cfg.aiding_rate_max, accel_lowpass_s=cfg.aiding_accel_lowpass_s)
-            c.aiding, c.gravity, c.kp = chain.AID_GRAVITY, aid.params, aid.kp
-        elif cfg.aiding in (Aiding.TILT, Aiding.MAGNETOMETER):
+        if cfg.aided:
             aid = AhrsFilter(AhrsParams.from_config(cfg))
             c.aiding, c.ahrs, c.kp = chain.AID_AHRS, aid.pa, aid.kp
 
@@ -339,14 +358,9 @@ class AttitudeStream:
         self._bias = est
         if cfg.levelling:
             self._init_aligner(cfg)
+        s.level_pending = self.coef.level_first[0]
         self.aiding = None
-        if cfg.aiding is Aiding.GRAVITY:
-            self.aiding = GravityAiding(cfg.aiding_kp, cfg.aiding_ki, cfg.aiding_accel_tol,
-                                        cfg.aiding_rate_max,
-                                        accel_lowpass_s=cfg.aiding_accel_lowpass_s)
-            s.gravity_f, s.gravity_i = self.aiding.gf, self.aiding.gi
-            self.aiding.gf, self.aiding.gi = self.state.gravity_f[0], self.state.gravity_i[0]
-        elif cfg.aiding in (Aiding.TILT, Aiding.MAGNETOMETER):
+        if cfg.aided:
             self.aiding = AhrsFilter(AhrsParams.from_config(cfg))
             s.ahrs_f, s.ahrs_i = self.aiding.af, self.aiding.ai
             self.aiding.af, self.aiding.ai = self.state.ahrs_f[0], self.state.ahrs_i[0]
@@ -457,6 +471,21 @@ class AttitudeStream:
         r = self.state.aligner[0]
         return alignment_result(r) if r.aligned else None
 
+    @property
+    def aiding_note(self) -> str:
+        """Which aiding runs and why, in one line (said once by the node and by replay)."""
+        present = int(self.state.accel_present[0])
+        seen = None if present < 0 else present == 1
+        if self.aiding is not None and self.aiding.aided_samples > 0:
+            seen = True
+        return aiding_note(self.config, seen)
+
+    @property
+    def start_note(self) -> str | None:
+        """How the attitude started when the accelerometer gave its tilt, else None."""
+        return START_NOTE.format(math.degrees(self.coef.heading[0])) \
+            if self.state.levelled_first[0] else None
+
     # ------------------------------------------------------------------ settings
     def set_config(self, config: StreamConfig) -> None:
         """New validation thresholds from the next sample on (state kept; the bias, alignment
@@ -499,6 +528,7 @@ class AttitudeStream:
         if q0 is not None:
             s.q_initial = _unit_quat(q0)
             s.q = s.q_initial
+            s.level_pending = False  # a given attitude, not the accelerometer's
         s.has_resume = False
         s.has_start = False  # the start the first rest's estimate may go back to: the next
         v.stamps_reset(s.stamps)
