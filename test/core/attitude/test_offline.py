@@ -22,6 +22,8 @@ G = 9.80665
 RATE_HZ = 200.0
 
 
+GYRO_ONLY = StreamConfig(aiding="none")  # the default aids the tilt with the accelerometer
+
 def rest_motion_rest(seed, rest_s=8.0, motion_s=20.0, noise_density=1.5e-4, bias_sigma=0.003,
                      accel_noise=0.02, accel_bias=0.0, tilt0_deg=5.0, amp_range=(0.8, 1.5),
                      shake=0.0, scale_sigma=0.0, axis=None, gain=None):
@@ -93,7 +95,7 @@ def test_verdicts_are_those_of_the_causal_path_and_bad_samples_are_counted():
     w[2500:2540, 0] = 4.3  # a clipped gyro: pinned at its largest value (motion phase)
     t[1500] = t[1499]  # duplicate stamp
     t[3000:] += 300_000_000  # a 0.3 s gap
-    cfg = StreamConfig()
+    cfg = StreamConfig(aiding="none")  # gyro-only: the attitude is held across the gap
     res = estimate_offline(t, w, a, q0=q_true[0], config=cfg)
     causal = AttitudeStream(config=cfg, q0=q_true[0]).run(t, w, "", None, a)
     np.testing.assert_array_equal(res.action, causal.action)
@@ -115,7 +117,7 @@ def test_a_backward_time_jump_resets_to_the_initial_attitude():
     w = np.concatenate([w, w[-1000:]])
     a = np.concatenate([a, a[-1000:]])
     q0 = q_true[0]
-    res = estimate_offline(t, w, a, q0=q0)
+    res = estimate_offline(t, w, a, q0=q0, config=GYRO_ONLY)
     assert res.time_jump_resets == 1
     j = int(np.flatnonzero(res.action[res.index] == v.ACTION_CODES[v.RESET_TIME_JUMP])[0])
     np.testing.assert_allclose(res.q[j], q0 / np.linalg.norm(q0), atol=1e-15)
@@ -129,8 +131,8 @@ def test_tilt_from_gravity_beats_the_gyro_alone_under_a_bias_the_rests_cannot_se
     w = w.copy()
     n = t.size
     w[n // 3:2 * n // 3] += (0.008, -0.006, 0.0)  # a bias step inside the motion
-    gyro_only = estimate_offline(t, w, a, q0=q_true[0])
-    aided = estimate_offline(t, w, a, q0=q_true[0], config=StreamConfig(aiding="gravity"))
+    gyro_only = estimate_offline(t, w, a, q0=q_true[0], config=GYRO_ONLY)
+    aided = estimate_offline(t, w, a, q0=q_true[0])  # aiding auto: tilt from gravity
     tilt = lambda q: np.degrees(np.linalg.norm(nav_error(q_true, q)[:, :2], axis=1))  # noqa: E731
     rms_gyro = np.sqrt(np.mean(tilt(gyro_only.q) ** 2))
     rms_aided = np.sqrt(np.mean(tilt(aided.q) ** 2))
@@ -153,7 +155,7 @@ def test_levelling_at_every_rest_starts_level_and_corrects_the_tilt_at_rests():
 
 def test_without_accelerometer_it_runs_gyro_only_and_says_so():
     t, w, a, q_true, var, k_end = rest_motion_rest(6)
-    res = estimate_offline(t, w, None, q0=q_true[0], config=StreamConfig(aiding="gravity"))
+    res = estimate_offline(t, w, None, q0=q_true[0], config=StreamConfig(aiding="tilt"))
     assert any("no accelerometer" in n for n in res.notes)
     assert res.bias.rests_used == 2  # rests from the gyro alone
     with pytest.raises(ValueError, match="cannot align"):
@@ -165,13 +167,13 @@ def test_unusable_accelerometer_samples_are_counted_and_not_used():
     a = a.copy()
     a[2000] = np.nan
     a[2100] = (1e9, 0, 0)
-    res = estimate_offline(t, w, a, q0=q_true[0], config=StreamConfig(aiding="gravity"))
+    res = estimate_offline(t, w, a, q0=q_true[0], config=StreamConfig(aiding="tilt"))
     assert res.counts["invalid_accel"] == 2
     assert np.isfinite(res.q).all()
 
 
 @pytest.mark.parametrize("keep_forward", [True, False])
-@pytest.mark.parametrize("aiding", ["none", "gravity"])
+@pytest.mark.parametrize("aiding", ["none", "tilt"])
 def test_chunked_passes_give_the_whole_recording_result(aiding, keep_forward, monkeypatch):
     t, w, a, q_true, var, k_end = rest_motion_rest(8)
     cfg = StreamConfig(aiding=aiding)
@@ -207,7 +209,7 @@ def test_covariance_is_honest_over_100_simulated_mems_recordings():
     dominates), half turn slowly while shaken (the rests' bias errors dominate); every gyro
     has a gain-and-axes error matrix of 1σ = 1e-4 per element, as stated to the estimator."""
     z = []
-    cfg = StreamConfig(gyro_scale_factor_sigma=1e-4)
+    cfg = StreamConfig(gyro_scale_factor_sigma=1e-4, aiding="none")
     for seed in range(100):
         slow = seed % 2 == 1
         t, w, a, q_true, var, k_end = rest_motion_rest(
@@ -236,7 +238,7 @@ def test_an_axis_misalignment_is_in_the_covariance_of_the_other_axes():
                                                    gain=gain)
     cov = np.broadcast_to(np.array([var, 0, 0, 0, var, 0, 0, 0, var]), (t.size, 9))
     res = estimate_offline(t, w, a, q0=q_true[0], angular_velocity_covariance=cov,
-                           config=StreamConfig(gyro_scale_factor_sigma=0.01))
+                           config=StreamConfig(gyro_scale_factor_sigma=0.01, aiding="none"))
     e = nav_error(q_true[k_end], res.q[k_end])
     sd = np.sqrt(res.variance[k_end])
     assert np.linalg.norm(e[:2]) > 0.01  # the leak is there (~0.02 rad)
@@ -279,7 +281,7 @@ def test_hostile_samples_never_give_a_non_finite_or_non_unit_attitude():
                 t[k] = 0
             else:
                 w[k] = (9999.0, -9999.0, 9999.0)
-        for cfg in (StreamConfig(), StreamConfig(aiding="gravity")):
+        for cfg in (GYRO_ONLY, StreamConfig(aiding="tilt")):
             r = estimate_offline(t, w, a, config=cfg, chunk_samples=int(rng.integers(64, 3000)))
             assert np.isfinite(r.q).all(), trial
             np.testing.assert_allclose(np.linalg.norm(r.q, axis=1), 1.0, atol=1e-12)
@@ -301,7 +303,7 @@ def test_a_slow_steady_turn_is_never_a_rest_and_leaves_the_bias_alone(rate):
     bias = np.array([0.003, -0.002, 0.004])
     w = np.where(turning[:, None], rate * axis, 0.0) + bias + rng.normal(scale=2e-3, size=(n, 3))
     a = np.array([0.0, 0.0, G]) + rng.normal(scale=0.02, size=(n, 3))  # small tilt: ignored
-    res = estimate_offline(t, w, a)
+    res = estimate_offline(t, w, a, config=GYRO_ONLY)
     assert res.bias.rests_used == 2  # the two still stretches, not the turn
     np.testing.assert_allclose(res.bias.bias, bias, atol=2e-4)
     turned = 2 * np.arctan2(np.linalg.norm(res.q[-1, :3]), res.q[-1, 3])
@@ -320,7 +322,7 @@ def test_gyro_only_variance_after_one_rest_is_the_closed_form():
     a = np.array([0.0, 0.0, G]) + rng.normal(scale=0.02, size=(n, 3))
     a[int(8 * RATE_HZ):] += rng.normal(scale=1.0, size=(n - int(8 * RATE_HZ), 3))
     cov = np.broadcast_to(np.diag([sigma ** 2] * 3).reshape(9), (n, 9))
-    cfg = StreamConfig(gyro_scale_factor_sigma=0.0)
+    cfg = StreamConfig(gyro_scale_factor_sigma=0.0, aiding="none")
     res = estimate_offline(t, w, a, config=cfg, angular_velocity_covariance=cov)
     assert res.bias.rests_used == 1
     se2 = sigma ** 2 / res.bias.rest_samples

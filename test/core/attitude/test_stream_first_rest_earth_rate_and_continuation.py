@@ -61,7 +61,7 @@ def still_body(n, shaken=0, seed=11):
 def first_rest_config():
     # auto bias (the default), given attitude; variances chosen so that the bias-estimate term
     # (elapsed² · SE², SE ≈ 1e-7 rad/s) is as large as the others and rtol 1e-9 sees it
-    return StreamConfig(initial_attitude_variance=V0, gyro_noise_density=N_DENS,
+    return StreamConfig(aiding="none", initial_attitude_variance=V0, gyro_noise_density=N_DENS,
                         gyro_bias_sigma_rad_s=SIGMA_B0)
 
 

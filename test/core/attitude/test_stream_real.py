@@ -100,7 +100,8 @@ def test_earth_rate_taken_out_in_enu():
     lat = math.radians(50.0)
     q_nb = Rotation.from_euler("z", 20, degrees=True).as_quat()
     t, g, a = static_imu(1000, 100.0, q_nb, lat, gyro_noise=2e-5, accel_noise=0.01, seed=3)
-    s = AttitudeStream("rotvec_cubic", q0=q_nb, nav=NavFrame(latitude_rad=lat))
+    s = AttitudeStream("rotvec_cubic", q0=q_nb, nav=NavFrame(latitude_rad=lat),
+                       config=StreamConfig(aiding="none"))  # the gyro alone: its Earth rate
     res = s.run(t, g, "imu", None, a)
     assert res.bias.earth_rate_removed
     assert np.max(np.abs(res.bias.bias)) < 5 * np.max(res.bias.standard_error) + 1e-7
@@ -245,12 +246,12 @@ def test_run_counts_negative_absurd_values_like_push():
 
 
 def test_a_zero_specific_force_through_a_wide_gate_is_no_vertical():
-    # aiding_accel_tol ≥ g lets |f| = 0 through the norm gate: a sample with no direction to
-    # align to is skipped by the aiding, not divided by (push and run alike, finite)
+    # ahrs_accel_norm_tol ≥ g lets |f| = 0 through the norm gate: a sample with no direction
+    # to align to is skipped by the aiding, not divided by (push and run alike, finite)
     t, g, a, cov = hostile_rest_motion_rest()
     a = a.copy()
     a[1500:1510] = 0.0
-    cfg = StreamConfig(aiding="gravity", aiding_accel_tol=20.0, aiding_accel_lowpass_s=0.0)
+    cfg = StreamConfig(aiding="tilt", ahrs_accel_norm_tol=20.0)
     res = AttitudeStream(config=cfg).run(t, g, "imu", cov, a)
     pushed = push_all(AttitudeStream(config=cfg), t, g, a, cov)
     assert np.max(np.abs(res.q - np.array([q for _, q, _ in pushed]))) <= 1e-12

@@ -44,11 +44,6 @@ BOUNDS = [
     ("initial_heading_deg", -360.0, 360.0),
     ("accel_bias_sigma", 0.0, 10.0),
     ("heading_error_limit_deg", 0.0, 180.0),
-    ("aiding_kp", 0.0, 1e3),
-    ("aiding_ki", 0.0, 1e3),
-    ("aiding_accel_tol", 0.0, 1e3),
-    ("aiding_rate_max", 0.0, 1e3),
-    ("aiding_accel_lowpass_s", 0.0, 100.0),
     ("max_gap_s", 1e-6, 1e6),
     ("min_rest_s", 0.01, 3600.0),
 ]
@@ -288,7 +283,8 @@ def test_level_then_turn_integrates_from_the_last_rest_sample():
     sigma2 = 4e-8
     cov = np.tile(np.diag([sigma2] * 3).reshape(9), (n, 1))
     cfg = StreamConfig(initial_attitude_source="level", initial_heading_deg=30.0, gyro_bias="parameter",
-                       gyro_bias_rad_s=tuple(b), initial_attitude_variance=1e-4, min_rest_s=1.0)
+                       gyro_bias_rad_s=tuple(b), initial_attitude_variance=1e-4, min_rest_s=1.0,
+                       aiding="none")
     s = AttitudeStream("exp_map", config=cfg)
     first = None
     for k in range(n):
@@ -515,42 +511,6 @@ def _tilt(q_est, q_true):
     return np.arccos(np.clip(np.sum(u * v, axis=-1), -1, 1))
 
 
-def test_gravity_aiding_in_the_stream_closes_the_tilt_loop_and_relaxes_the_variance():
-    # Level and still (gyro 0), started 2° tilted: the first-order loop gives
-    # δ(t) = δ0 e^(−k_p t) (test_gravity_aiding; no accelerometer low-pass, which would add
-    # a second pole), through push() as through run().
-    # Variance (covariance.aid_tilt per aided interval, a = 1 − k_p h): tilt axes relax as
-    # tt_k = floor + (V0 − floor) a^(2k), floor = (accel_bias_sigma / g0)²; z keeps V0.
-    kp, h, n = 0.5, 0.01, 201
-    t = np.arange(1, n + 1, dtype=np.int64) * 10 * MS
-    g = np.zeros((n, 3))
-    f = np.tile([0.0, 0.0, G], (n, 1))
-    cov = np.tile(np.diag([1e-30] * 3).reshape(9), (n, 1))  # known, negligible noise
-    q0 = Rotation.from_euler("x", 2, degrees=True).as_quat()
-    v0 = 1e-4
-    cfg = StreamConfig(aiding="gravity", aiding_kp=kp, aiding_ki=0.0, gyro_bias="none",
-                       initial_attitude_variance=v0, accel_bias_sigma=0.05, aiding_accel_lowpass_s=0.0)
-    s = AttitudeStream("exp_map", q0=q0, config=cfg)
-    qs, var = [], []
-    for k in range(n):
-        _, q = s.push(int(t[k]), g[k], "imu", cov[k], f[k])
-        qs.append(q)
-        var.append(s.variance)
-    err = _tilt(np.array(qs), np.array([0.0, 0.0, 0.0, 1.0]))
-    np.testing.assert_allclose(err[200], math.radians(2) * math.exp(-kp * 2.0), rtol=0.02)
-    floor = (0.05 / G) ** 2
-    a = 1.0 - kp * h
-    k = np.arange(n)  # accepted (aided) intervals up to each sample
-    expected_xy = floor + (v0 - floor) * a ** (2 * k)
-    var = np.array(var)
-    np.testing.assert_allclose(var[:, 0], expected_xy, rtol=1e-9, atol=0)
-    np.testing.assert_allclose(var[:, 1], expected_xy, rtol=1e-9, atol=0)
-    np.testing.assert_allclose(var[:, 2], v0, rtol=1e-9, atol=0)
-    res = AttitudeStream("exp_map", q0=q0, config=cfg).run(t, g, "imu", cov, f)
-    np.testing.assert_allclose(res.q, np.array(qs), rtol=0, atol=1e-15)
-
-
-# ------------------------------------------------------------------------- classify() details
 def test_classify_reasons_counts_details_and_locked_frame_written_out():
     t = np.array([5, 0, -3, 1, 7, 8, 9, 10], dtype=np.int64)
     w = np.zeros((8, 3))
