@@ -128,6 +128,11 @@ def _check_output(argv: list[str], out: str, cwd: Path) -> None:
         assert summary["messages"] == summary["attitude_messages"] == 4000  # 20 s at 200 Hz
         estimator = argv[argv.index("--estimator") + 1] if "--estimator" in argv else "offline"
         assert summary["estimator"] == estimator
+    elif cmd == "replay" and "broad_05" in " ".join(argv):
+        # a real IMU with an accelerometer and no flags: the tilt is aided, and it says so
+        assert "aiding auto: the AHRS filter, tilt from the accelerometer" in out, out
+        final = re.search(r"tilt RMS ([0-9.e+-]+)°", out)
+        assert final and float(final.group(1)) < 0.5, out
     elif cmd == "replay":
         assert "4000 attitudes" in out, out
         if "truth" in argv:  # started from the truth: the coning bag's error stays tiny
@@ -145,6 +150,9 @@ def readme_runs(tmp_path_factory):
     """Every cheap README command run in order in one directory: [(argv, result)]."""
     cwd = tmp_path_factory.mktemp("readme")
     (cwd / "bags").symlink_to(REPO / "bags")
+    # ../shared (the real recordings beside the repository, as in CI) seen from cwd too
+    if not (cwd.parent / "shared").exists():
+        (cwd.parent / "shared").symlink_to(REPO.parent / "shared")
     env = dict(os.environ, MPLBACKEND="Agg")
     results = []
     for argv in RUNS:

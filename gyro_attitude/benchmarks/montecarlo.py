@@ -66,7 +66,7 @@ def _phases(setup: mc.MonteCarloSetup, repeats: int = 3) -> dict:
     spec = setup.grades[0].spec
     seed = mc.run_seeds(setup.seed, 1)[0]
     s = spec
-    if not mc._uses_accelerometer(setup.estimator.config):  # as run_one simulates it
+    if not setup.estimator.config.uses_accelerometer:  # as run_one simulates it
         s = dataclasses.replace(spec, accelerometer=False)
     best = {"simulate": np.inf, "estimate": np.inf, "run": np.inf}
     for _ in range(repeats):

@@ -44,8 +44,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gyro_attitude.core.attitude import NavFrame
-from gyro_attitude.core.attitude.modes import Aiding, Frame, GyroBiasMode, InitialAttitudeSource, parse_mode
 from gyro_attitude.core.attitude.modes import Estimator as EstimatorKind
+from gyro_attitude.core.attitude.modes import Frame, GyroBiasMode, InitialAttitudeSource, parse_mode
 from gyro_attitude.core.attitude.stream import (
     StreamConfig,
 )
@@ -316,22 +316,12 @@ def simulate_run(spec: SceneSpec, rate_hz: float, samples: int, seed: int):
     return block, gyro_var
 
 
-def _uses_accelerometer(config: StreamConfig) -> bool:
-    """Whether the estimator reads the accelerometer with these settings: its rest detector
-    (auto gyro bias), the levelling and the gravity aiding do; without them the gyro is
-    integrated alone, and a run need not simulate the accelerometer (its errors draw from
-    their own random stream: the gyro's samples are the same either way).  (The stages are the
-    estimator's: a ``StreamConfig`` property would be this rule's better home.)"""
-    return (config.gyro_bias is GyroBiasMode.AUTO or config.levelling
-            or config.aiding is not Aiding.NONE)
-
-
 def run_one(spec: SceneSpec, setup: MonteCarloSetup, index: int, seed: int, label: str) -> dict:
     """One run: its entry of the ``runs`` list, with the grid series under ``"_grid"``.
     Raises what the simulator or the estimator raise (the caller reports it)."""
     t0, c0 = time.perf_counter(), time.process_time()
     est = setup.estimator
-    if spec.accelerometer and not _uses_accelerometer(est.config):
+    if spec.accelerometer and not est.config.uses_accelerometer:
         spec = dataclasses.replace(spec, accelerometer=False)
     block, gyro_var = simulate_run(spec, setup.rate_hz, setup.samples, seed)
     t_ns = block.t_ns

@@ -30,7 +30,8 @@ out of it, with ``frame: inertial`` it is absorbed (the diagnostics say which).
 published, only diagnostics; the attitude then starts with the alignment's covariance.
 ``aiding: auto`` (the default) runs the AHRS filter on the accelerometer whenever the Imu
 carries one (tilt; heading gyro-only, it drifts without ``aiding: magnetometer``) and starts
-the tilt from the first accelerometer sample; gyro-only without one; the log says which, once. The orientation covariance grows with the gyro noise
+the tilt from the first accelerometer sample; gyro-only without one; the log says which, once.
+The orientation covariance grows with the gyro noise
 (input covariance or ``gyro_noise_density``) and the bias uncertainty, and shrinks with
 alignment, rests and aiding (core/attitude/covariance.py). ``linear_acceleration_covariance[0]
 = -1`` means no accelerometer.
@@ -93,7 +94,7 @@ from gyro_attitude.core.attitude.input_topics import (
 from gyro_attitude.core.attitude.modes import Aiding, InitialAttitudeSource, SettingError
 from gyro_attitude.core.attitude.nav_frame import VelocitySchedule
 from gyro_attitude.core.attitude.sample_alignment import LatestSamples
-from gyro_attitude.core.attitude.settings import SETTINGS, StreamConfig
+from gyro_attitude.core.attitude.settings import RETIRED_SETTINGS, SETTINGS, StreamConfig
 from gyro_attitude.core.attitude.stream import (
     ALIGNING,
     FAILED,
@@ -281,6 +282,10 @@ class AttitudeIntegratorNode(Node):
         )
         for note in config.notes():
             self.get_logger().warning(note)
+        # the values given (-p, --params-file) that no declaration took: rclpy keeps them in
+        # _parameter_overrides and has no public reader (undeclared ones are dropped silently)
+        for name in sorted(set(self._parameter_overrides) & set(RETIRED_SETTINGS)):
+            self.get_logger().warning(f"parameter {name} is ignored: {RETIRED_SETTINGS[name]}")
 
     def destroy_node(self):
         if self.inputs is not None:

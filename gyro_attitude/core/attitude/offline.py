@@ -100,7 +100,6 @@ from gyro_attitude.core.attitude.registry import DEFAULT_ALGORITHM
 from gyro_attitude.core.attitude.rest import NOISE_FLOOR_RAD_S, detect_rest
 from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.core.attitude.stream import (
-    START_NOTE,
     INTEGRATOR_ERROR,
     INVALID_ACCEL,
     INVALID_COVARIANCE,
@@ -109,6 +108,7 @@ from gyro_attitude.core.attitude.stream import (
     MAG_MISSING,
     RATE_FIT_FALLBACK,
     SATURATED,
+    START_NOTE,
     StreamResult,
     _unit_quat,
     aiding_note,

@@ -160,8 +160,9 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("initial_attitude_source", InitialAttitudeSource.AUTO,
             "auto: accelerometer when the aiding uses the accelerometer and initial_attitude is "
             "the identity, else parameter; accelerometer: roll and pitch from the first "
-            "accelerometer sample, the heading of initial_attitude; parameter: initial_attitude; truth: the truth topic slerped to the first accepted "
-            "Imu stamp; level: roll and pitch from the specific force over the first rest, "
+            "accelerometer sample, the heading of initial_attitude; parameter: "
+            "initial_attitude; truth: the truth topic slerped to the first accepted Imu stamp; "
+            "level: roll and pitch from the specific force over the first rest, "
             "heading per heading_source (no attitude while aligning)",
             choices=InitialAttitudeSource, group="initial attitude"),
     Setting("initial_attitude", (0.0, 0.0, 0.0, 1.0), "initial attitude quaternion x, y, z, w "
@@ -280,6 +281,12 @@ SETTINGS: tuple[Setting, ...] = (
 
 _BY_NAME = {s.name: s for s in SETTINGS}
 
+#: settings of earlier releases that are gone, and why (a node given one says so)
+RETIRED_SETTINGS = dict.fromkeys(
+    ("aiding_kp", "aiding_ki", "aiding_accel_tol", "aiding_rate_max", "aiding_accel_lowpass_s"),
+    "the gravity filter is retired (aiding gravity runs the AHRS filter: its settings are "
+    "ahrs_*)")
+
 
 def setting(name: str) -> Setting:
     """The row called ``name``."""
@@ -334,6 +341,13 @@ class _StreamConfigMethods:
     def aided(self) -> bool:
         """The aiding uses the accelerometer (when the Imu carries one)."""
         return self.aiding is not Aiding.NONE
+
+    @property
+    def uses_accelerometer(self) -> bool:
+        """The estimator reads the accelerometer: its rest detector (auto gyro bias), the
+        levelling, the aiding and the start from the first sample do."""
+        return (self.gyro_bias is GyroBiasMode.AUTO or self.levelling or self.aided
+                or self.start_source is InitialAttitudeSource.ACCELEROMETER)
 
     @property
     def start_source(self) -> InitialAttitudeSource:
