@@ -43,6 +43,7 @@ SUITES: dict[str, str] = {
     "trajectory": "gyro_attitude.benchmarks.trajectory",
     "montecarlo": "gyro_attitude.benchmarks.montecarlo",
     "montecarlo-dask": "gyro_attitude.benchmarks.montecarlo_dask",
+    "vqf": "gyro_attitude.benchmarks.vqf_parity",
 }
 
 

@@ -290,7 +290,7 @@ def estimate_recording(t_ns, omega, accel, gyro_covariance, frame_id, *, config:
     estimator = parse_mode(Estimator, estimator, "estimator")
     n = t_ns.shape[0]
     first = 0
-    q0 = config.initial_attitude
+    q0 = None  # the settings' start (initial_attitude, or the first accelerometer sample)
     if config.initial_attitude_source is InitialAttitudeSource.TRUTH:
         if truth is None:
             raise ValueError("initial attitude 'truth' needs the truth")

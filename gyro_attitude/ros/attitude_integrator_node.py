@@ -205,8 +205,7 @@ class AttitudeIntegratorNode(Node):
                     self._nav.rate_enu()  # height and velocity within what a carrier can have
                 except ValueError as exc:
                     raise SettingError("velocity_enu", f"height_m/velocity_enu: {exc}") from None
-            self._stream = AttitudeStream(p["algorithm"], q0=config.initial_attitude,
-                                          nav=self._nav, config=config)
+            self._stream = AttitudeStream(p["algorithm"], nav=self._nav, config=config)
         except SettingError as exc:  # the message names the setting
             raise ParameterError(f"parameter '{exc.setting}': {exc}") from exc
         except ValueError as exc:  # e.g. an Euler-angle algorithm with frame=enu

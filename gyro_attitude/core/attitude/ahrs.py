@@ -15,7 +15,9 @@ vectorized).
 Tilt (the structure of VQF, Laidig & Seel 2023, written from the paper):
 
 * The specific force is rotated into the nav frame with the current attitude and low-passed
-  there by a second-order Butterworth filter (time constant ``accel_tau_s``).  Every correction
+  there by a second-order Butterworth filter (time constant ``accel_tau_s``; a new low-pass is
+  the mean of the samples so far for its first ``accel_tau_s``, then the Butterworth from the
+  steady state at that mean, as VQF: a wrong start is levelled at once).  Every correction
   the filter applies to the attitude is applied to the filter's state too (a rotation of its
   delay elements), so the state lives in the frame the gyro alone would give — the
   "almost-inertial" frame: gyro errors are not fed back into the average, and accelerations of a
@@ -223,6 +225,8 @@ P_ACCEL_TAU, P_TILT_TAU, P_REST_ACCEL_TAU, P_REST_RATE_MAX, P_REST_ACCEL_TOL, P_
     P_GRAVITY, P_ACCEL_NORM_TOL, P_ACCEL_RECOVERY_S, P_BIAS_GAIN, P_MAG_TAU, P_MAG_NORM_TOL, \
     P_MAG_REF_S, P_HI_WINDOW_S, P_DECL, P_REJECT_COS, P_TILT_RATE, P_SETTLE_S, \
     P_RECOVERY_RATE, P_DIP_TOL, P_REF_NORM_GIVEN, P_MAG_RECOVERY_S = range(22)
+# the low-pass's phase (I_HAS_LP): none yet, the mean of the first accel_tau_s, the Butterworth
+LP_NONE, LP_MEAN, LP_BUTTERWORTH = 0, 2, 1
 # a magnetometer sample as the kernel takes it: absent, present but not 3 finite numbers, given
 MAG_ABSENT, MAG_NOT_FLOATS, MAG_GIVEN = 0, 1, 2
 
@@ -354,7 +358,7 @@ def ahrs_step(pa, af, ai, t, w0, w1, w2, has_f, fx, fy, fz, x, y, z, s, mag_stat
     ai[I_LAST_T], ai[I_HAS_LAST] = t, 1
     ox, oy, oz = w0 - af[A_BIAS], w1 - af[A_BIAS + 1], w2 - af[A_BIAS + 2]
     if dt == 0.0:
-        ai[I_HAS_LP] = 0  # a new time base: the low-pass starts again
+        ai[I_HAS_LP] = LP_NONE  # a new time base: the low-pass starts again
     # C_nb of the (normalized) attitude: body -> nav
     k = 2.0 / (x * x + y * y + z * z + s * s)
     c00 = 1.0 - k * (y * y + z * z)
@@ -386,7 +390,7 @@ def ahrs_step(pa, af, ai, t, w0, w1, w2, has_f, fx, fy, fz, x, y, z, s, mag_stat
                                      c21, c22)
     if dx == 0.0 and dy == 0.0 and dz == 0.0:
         return ox, oy, oz
-    if ai[I_HAS_LP] == 1:  # the same rotation applied to the filter's state (almost-inertial)
+    if ai[I_HAS_LP] != LP_NONE:  # the same rotation applied to the filter's state (almost-inertial)
         for i in (A_LP, A_LP + 3):
             ax, ay, az = af[i], af[i + 1], af[i + 2]
             af[i] = ax + dy * az - dz * ay
@@ -428,30 +432,46 @@ def _tilt(pa, af, ai, dt, ox, oy, oz, fx, fy, fz, c00, c01, c02, c10, c11, c12, 
     rest = af[A_REST_S] >= pa[P_REST_MIN_S]
     ai[I_AT_REST] = 1 if rest else 0
     lp = A_LP
+    tau = pa[P_REST_ACCEL_TAU] if rest else pa[P_ACCEL_TAU]
     if ai[I_HAS_LP] == 0:
-        # steady state at the estimate's vertical, not at this one sample: the low-pass then
-        # moves from what the attitude says to what the accelerometer says over accel_tau_s
-        # (one noisy or moving sample would otherwise set the tilt)
-        _, c1, c2, c3, c4 = _coefficients(af, ai, pa[P_ACCEL_TAU], 0.0035)
-        r1 = (c1 - c3 + c2 - c4) * fn
-        r2 = (c2 - c4) * fn
-        af[lp], af[lp + 1], af[lp + 2], af[lp + 3], af[lp + 4], af[lp + 5] = \
-            0.0, 0.0, r1, 0.0, 0.0, r2
-        ai[I_HAS_LP] = 1
+        # a new low-pass: the mean of the samples so far for its first accel_tau_s (as VQF),
+        # then the Butterworth from the steady state at that mean.  (Started at the estimate's
+        # vertical instead, the low-pass would pull a wrong initial attitude to the
+        # accelerometer's only over accel_tau_s, and a start that is right gains nothing
+        # from it: the tilt goes to the accelerometer's vertical either way.)
+        af[lp], af[lp + 1], af[lp + 2] = nx, ny, nz
+        af[lp + 3], af[lp + 4], af[lp + 5] = 0.0, 0.0, 0.0
+        ai[I_HAS_LP] = LP_MEAN
         af[A_RUN_S] = 0.0
-        return 0.0, 0.0, False
-    af[A_RUN_S] += dt
-    b0, b1, b2, a1, a2 = _coefficients(af, ai, pa[P_REST_ACCEL_TAU] if rest
-                                       else pa[P_ACCEL_TAU], dt)
-    gx = b0 * nx + af[lp]
-    gy = b0 * ny + af[lp + 1]
-    gz = b0 * nz + af[lp + 2]
-    af[lp] = b1 * nx - a1 * gx + af[lp + 3]
-    af[lp + 1] = b1 * ny - a1 * gy + af[lp + 4]
-    af[lp + 2] = b1 * nz - a1 * gz + af[lp + 5]
-    af[lp + 3] = b2 * nx - a2 * gx
-    af[lp + 4] = b2 * ny - a2 * gy
-    af[lp + 5] = b2 * nz - a2 * gz
+        gx, gy, gz = nx, ny, nz
+    elif ai[I_HAS_LP] == LP_MEAN:
+        af[A_RUN_S] += dt
+        # the time-weighted mean (the first sample weighs one interval): 1/(k+1) at a steady
+        # rate; it lives in the almost-inertial frame like the Butterworth's state
+        w = dt / (af[A_RUN_S] + dt)
+        gx = af[lp] + w * (nx - af[lp])
+        gy = af[lp + 1] + w * (ny - af[lp + 1])
+        gz = af[lp + 2] + w * (nz - af[lp + 2])
+        af[lp], af[lp + 1], af[lp + 2] = gx, gy, gz
+        if af[A_RUN_S] >= pa[P_ACCEL_TAU]:
+            _, c1, c2, c3, c4 = _coefficients(af, ai, tau, dt)
+            r1 = c1 - c3 + c2 - c4
+            r2 = c2 - c4
+            af[lp], af[lp + 1], af[lp + 2] = r1 * gx, r1 * gy, r1 * gz
+            af[lp + 3], af[lp + 4], af[lp + 5] = r2 * gx, r2 * gy, r2 * gz
+            ai[I_HAS_LP] = LP_BUTTERWORTH
+    else:
+        af[A_RUN_S] += dt
+        b0, b1, b2, a1, a2 = _coefficients(af, ai, tau, dt)
+        gx = b0 * nx + af[lp]
+        gy = b0 * ny + af[lp + 1]
+        gz = b0 * nz + af[lp + 2]
+        af[lp] = b1 * nx - a1 * gx + af[lp + 3]
+        af[lp + 1] = b1 * ny - a1 * gy + af[lp + 4]
+        af[lp + 2] = b1 * nz - a1 * gz + af[lp + 5]
+        af[lp + 3] = b2 * nx - a2 * gx
+        af[lp + 4] = b2 * ny - a2 * gy
+        af[lp + 5] = b2 * nz - a2 * gz
     gn = math.sqrt(gx * gx + gy * gy + gz * gz)
     if gn < 1e-9:
         return 0.0, 0.0, False

@@ -94,7 +94,6 @@ from gyro_attitude.core.attitude.modes import (
     Frame,
     GyroBiasMode,
     HeadingSource,
-    InitialAttitudeSource,
 )
 from gyro_attitude.core.attitude.registry import DEFAULT_ALGORITHM
 from gyro_attitude.core.attitude.rest import NOISE_FLOOR_RAD_S, detect_rest
@@ -118,6 +117,7 @@ from gyro_attitude.core.attitude.stream import (
     recording_arrays,
     rows,
     saturation_note,
+    starts_from_accelerometer,
     usable_accel,
 )
 from gyro_attitude.core.earth import OMEGA_IE, STANDARD_GRAVITY
@@ -324,7 +324,7 @@ class _Block:
 
 
 def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = None,
-                     q0=(0.0, 0.0, 0.0, 1.0), nav: NavFrame | None = None, mag=None,
+                     q0=None, nav: NavFrame | None = None, mag=None,
                      frame_id: str | list[str] | None = "", angular_velocity_covariance=None,
                      algorithm: str = DEFAULT_ALGORITHM,
                      chunk_samples: int = DEFAULT_CHUNK_SAMPLES, empty=np.empty) -> StreamResult:
@@ -333,7 +333,9 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
     ``t_ns`` (N,) int stamps; ``omega`` (N, 3) rad/s; ``accel`` (N, 3) m/s² specific force or
     None (gyro-only: no levelling, no aiding, rests from the gyro alone); ``config`` the stream
     settings (bias mode, rest thresholds, ``initial_attitude``, ``aiding``, noise figures);
-    ``q0`` the initial attitude (``level``: its heading is ``initial_heading_deg``); ``nav`` a
+    ``q0`` the initial attitude (``level``: its heading is ``initial_heading_deg``; None:
+    ``initial_attitude``, whose tilt the first accelerometer sample replaces when
+    :func:`.stream.starts_from_accelerometer`); ``nav`` a
     constant :class:`NavFrame` for q_nb or None for q_ib; ``mag`` (N, 3) the magnetic field in
     tesla at the samples (rows of NaN: none there), used with ``aiding="magnetometer"`` (step 6);
     ``angular_velocity_covariance`` (N, 9) or None.  ``empty(shape, dtype)`` allocates the
@@ -354,7 +356,7 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
         nav = cfg.nav_frame()
     if nav is not None and not isinstance(nav, NavFrame):
         raise ValueError(f"nav must be a NavFrame or None, got {type(nav).__name__}")
-    q_init = _unit_quat(q0)
+    q_init = _unit_quat(cfg.initial_attitude if q0 is None else q0)
     t = np.asarray(t_ns)
     w = np.asarray(omega, dtype=np.float64)
     cls = v.classify(t, w, frame_id, cfg.check_config())  # checks t and omega shapes
@@ -382,7 +384,7 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
         if not usable.any():
             av = usable = None
     start_notes = [aiding_note(cfg, av is not None)] if cfg.aided else []
-    if cfg.start_source is InitialAttitudeSource.ACCELEROMETER and av is not None:
+    if starts_from_accelerometer(cfg, q0) and av is not None:
         # as the causal step starts (chain.level_from_first): the first usable sample's tilt
         heading = heading_of(q_init)
         q_init, _, _ = level_quaternion(av[int(np.argmax(usable))], heading)

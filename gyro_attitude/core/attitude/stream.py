@@ -187,6 +187,15 @@ START_NOTE = ("initial attitude: roll and pitch from the first accelerometer sam
               "heading of initial_attitude ({:.4g}° from north)")
 
 
+def starts_from_accelerometer(cfg: StreamConfig, q0) -> bool:
+    """The tilt starts from the first accelerometer sample: ``initial_attitude_source``
+    accelerometer, or auto resolved to it with no attitude given to the estimator (``q0``
+    None; a given one is the start, as ``parameter``)."""
+    if cfg.initial_attitude_source is InitialAttitudeSource.ACCELEROMETER:
+        return True
+    return q0 is None and cfg.start_source is InitialAttitudeSource.ACCELEROMETER
+
+
 def aiding_note(cfg: StreamConfig, accel_seen: bool | None) -> str:
     """Which aiding runs and why, in one line: ``accel_seen`` whether the Imu carried a
     usable linear acceleration (None: not known yet)."""
@@ -255,8 +264,9 @@ class AttitudeStream:
     """Imu samples in, attitude out, through the chain of the module docstring.
 
     ``algorithm`` one of :data:`STEP_ALGORITHMS`; ``q0`` the initial attitude (also the one a
-    time jump resets to; levelling replaces it); ``nav`` a :class:`NavFrame` for q_nb (Earth
-    and transport rate removed; default: the one of ``config`` with frame enu) or None for
+    time jump resets to; levelling replaces it; None: ``initial_attitude``, whose tilt the
+    first accelerometer sample replaces when :func:`starts_from_accelerometer`); ``nav`` a
+    :class:`NavFrame` for q_nb (Earth and transport rate removed; default: the one of ``config`` with frame enu) or None for
     q_ib; ``config`` the settings.  The latitude is known with a nav frame or for
     gyrocompassing; then the Earth rate is taken out of the bias estimate at the current
     attitude.
@@ -266,10 +276,11 @@ class AttitudeStream:
     :attr:`aiding`, :attr:`intervals` and :attr:`bias_report` read the record.
     """
 
-    def __init__(self, algorithm: str = DEFAULT_ALGORITHM, q0=(0.0, 0.0, 0.0, 1.0),
+    def __init__(self, algorithm: str = DEFAULT_ALGORITHM, q0=None,
                  nav: NavFrame | None = None, config: StreamConfig | None = None):
         self.config = cfg = config if config is not None else StreamConfig()
-        q_initial = _unit_quat(q0)
+        q_initial = _unit_quat(cfg.initial_attitude if q0 is None else q0)
+        self._level_first = starts_from_accelerometer(cfg, q0)
         if nav is None and cfg.frame is Frame.ENU:
             nav = cfg.nav_frame()
         if nav is not None and not isinstance(nav, NavFrame):
@@ -288,7 +299,7 @@ class AttitudeStream:
         self.bias_ring = np.zeros(_RING_START, chain.BIAS_RING_DTYPE).view(np.recarray)
         self.align_ring = np.zeros(_RING_START, ALIGN_RING_DTYPE).view(np.recarray)
         self.align_buffer = np.zeros(_RING_START, chain.ALIGN_BUFFER_DTYPE).view(np.recarray)
-        self._set_coefficients(cfg)
+        self._set_coefficients(cfg, q_initial)
         self._init_state(cfg, q_initial)
         self._locked: str | None = None  # the frame of the time base (validation)
         self._pushed = False
@@ -311,7 +322,7 @@ class AttitudeStream:
                              "library (integrate_batch, gyro-attitude bench) has every "
                              "algorithm")
 
-    def _set_coefficients(self, cfg: StreamConfig) -> None:
+    def _set_coefficients(self, cfg: StreamConfig, q_initial: np.ndarray) -> None:
         """The coefficients of ``cfg``: the settings as the step reads them."""
         c = self.coef[0]
         chk = cfg.check_config()
@@ -325,15 +336,15 @@ class AttitudeStream:
             c.earth_n = earth_rate_enu(check_latitude(self.latitude_rad, "latitude_rad"))
         c.min_rest_ns = int(round(cfg.min_rest_s * 1e9))
         c.heading = math.radians(cfg.initial_heading_deg)
-        if cfg.start_source is InitialAttitudeSource.ACCELEROMETER:
-            c.heading = heading_of(_unit_quat(cfg.initial_attitude))
+        if self._level_first:
+            c.heading = heading_of(q_initial)
         c.levelling = cfg.levelling
         c.mag_mode = cfg.aiding is Aiding.MAGNETOMETER
         c.algorithm = STEP_ALGORITHMS[self.algorithm]
         c.n2 = cfg.gyro_noise_density * cfg.gyro_noise_density
         c.k2 = float(cfg.gyro_bias_rw) ** 2
         c.accel_floor_var = (cfg.accel_bias_sigma / STANDARD_GRAVITY) ** 2
-        c.level_first = cfg.start_source is InitialAttitudeSource.ACCELEROMETER
+        c.level_first = self._level_first
         c.aiding = chain.AID_NONE
         if cfg.aided:
             aid = AhrsFilter(AhrsParams.from_config(cfg))
