@@ -9,8 +9,9 @@ the ``real`` suite only.
 Per recording, four estimators on the same arrays, in the same run:
 
 * ``causal``: what ``replay --estimator causal --aiding <aiding>`` gives with no initial
-  attitude (the default ``initial_attitude`` (0, 0, 0, 1), ``gyro_bias`` auto, the node's
-  default algorithm): :func:`~gyro_attitude.offline.replay.estimate_recording`, i.e.
+  attitude (``initial_attitude_source`` auto: aided, the tilt of the first accelerometer
+  sample; ``gyro_bias`` auto, the node's default algorithm):
+  :func:`~gyro_attitude.offline.replay.estimate_recording`, i.e.
   :meth:`AttitudeStream.run <gyro_attitude.core.attitude.stream.AttitudeStream.run>` over the
   arrays, frame ``enu`` at BROAD's latitude (52.5°N, as the ``real`` suite: the Earth rate is
   taken out of the bias);
@@ -28,8 +29,8 @@ truth at its own stamps as shared (the truth stamps are Imu stamps).
 **The motion** (as the ``real`` suite): the truth samples from the first one to the last one at
 or before the start of the final rest, the final rest being the last run of the rest detector
 (core/attitude/rest.py, default thresholds) on the data itself that reaches the end of the
-recording (:func:`.real.end_of_motion`).  So the initial rest (and the causal filter's
-convergence from the identity there) is included, the final rest is not.  Over it: the RMS
+recording (:func:`.real.end_of_motion`).  So the initial rest (and the filters' start there)
+is included, the final rest is not.  Over it: the RMS
 tilt error and the peak (largest) tilt error.
 
 Per recording the ratios ours / peer; then the median and worst over recordings and whether
@@ -44,7 +45,7 @@ import time
 import numpy as np
 
 RECORDINGS_QUICK = ("broad_05_slow_rotation_with_breaks", "broad_16_fast_translation")
-DEFAULT_AIDING: str | None = "tilt"  # None: the settings table's default aiding
+DEFAULT_AIDING: str | None = None  # None: the settings table's default aiding (auto)
 TARGETS = {"causal_rms_median": 0.75, "causal_rms_worst": 1.0, "causal_peak_worst": 1.5,
            "offline_rms_median": 0.75, "offline_rms_worst": 1.0}
 ESTIMATORS = ("causal", "vqf", "offline", "offline_vqf")

@@ -266,9 +266,9 @@ class AttitudeStream:
     ``algorithm`` one of :data:`STEP_ALGORITHMS`; ``q0`` the initial attitude (also the one a
     time jump resets to; levelling replaces it; None: ``initial_attitude``, whose tilt the
     first accelerometer sample replaces when :func:`starts_from_accelerometer`); ``nav`` a
-    :class:`NavFrame` for q_nb (Earth and transport rate removed; default: the one of ``config`` with frame enu) or None for
-    q_ib; ``config`` the settings.  The latitude is known with a nav frame or for
-    gyrocompassing; then the Earth rate is taken out of the bias estimate at the current
+    :class:`NavFrame` for q_nb (Earth and transport rate removed; default: the one of
+    ``config`` with frame enu) or None for q_ib; ``config`` the settings.  The latitude is
+    known with a nav frame or for gyrocompassing; then the Earth rate is taken out of the bias estimate at the current
     attitude.
 
     The whole state is :attr:`state` (one record of :data:`.chain.STATE_DTYPE`) and three
