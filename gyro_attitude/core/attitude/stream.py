@@ -268,8 +268,8 @@ class AttitudeStream:
     first accelerometer sample replaces when :func:`starts_from_accelerometer`); ``nav`` a
     :class:`NavFrame` for q_nb (Earth and transport rate removed; default: the one of
     ``config`` with frame enu) or None for q_ib; ``config`` the settings.  The latitude is
-    known with a nav frame or for gyrocompassing; then the Earth rate is taken out of the bias estimate at the current
-    attitude.
+    known with a nav frame or for gyrocompassing; then the Earth rate is taken out of the
+    bias estimate at the current attitude.
 
     The whole state is :attr:`state` (one record of :data:`.chain.STATE_DTYPE`) and three
     rings; the settings are :attr:`coef` (:data:`.chain.COEF_DTYPE`), computed once.
