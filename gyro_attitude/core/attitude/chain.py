@@ -310,10 +310,20 @@ def first_rest_back(c, s, p0, p1, p2):
             and bi[J_POOL_K] == 0:
         t_prev = ci[C_LAST_T]
         elapsed = (t_prev - s.start_t) * 1e-9
-        d = exp_scalar(-(bf[B_BIAS] - p0) * elapsed, -(bf[B_BIAS + 1] - p1) * elapsed,
-                       -(bf[B_BIAS + 2] - p2) * elapsed)
+        ex, ey, ez = (-(bf[B_BIAS] - p0) * elapsed, -(bf[B_BIAS + 1] - p1) * elapsed,
+                      -(bf[B_BIAS + 2] - p2) * elapsed)
         qf = s.cubic_f
-        x, y, z, u = qmul_scalar((qf[0], qf[1], qf[2], qf[3]), d)
+        q = (qf[0], qf[1], qf[2], qf[3])
+        if c.aiding == AID_AHRS:
+            # the tilt filter has already taken the tilt part of this error out (and its
+            # low-pass state holds that): only the part about the vertical goes back
+            x, y, z, u = q
+            k = 2.0 / (x * x + y * y + z * z + u * u)
+            vz = (k * (x * z - y * u) * ex + k * (y * z + x * u) * ey
+                  + (1.0 - k * (x * x + y * y)) * ez)
+            x, y, z, u = qmul_scalar(exp_scalar(0.0, 0.0, vz), q)
+        else:
+            x, y, z, u = qmul_scalar(q, exp_scalar(ex, ey, ez))
         integrator_reset(c, s, x, y, z, u, True, t_prev)
         s.q[0], s.q[1], s.q[2], s.q[3] = x, y, z, u
         first_rest_update(s.cov, s.initial_tt, bf[B_SE], bf[B_SE + 1], bf[B_SE + 2], elapsed)
