@@ -84,6 +84,7 @@ from sensor_msgs.msg import Imu, MagneticField
 
 from gyro_attitude.core.attitude import DEFAULT_ALGORITHM
 from gyro_attitude.core.attitude import validation as iv
+from gyro_attitude.core.attitude.accel_units import AccelScaleWatch
 from gyro_attitude.core.attitude.input_topics import (
     input_on_output,
     input_on_output_message,
@@ -228,6 +229,10 @@ class AttitudeIntegratorNode(Node):
         self._velocities = VelocitySchedule(kept=self._ODOM_QUEUE)
 
         self._undecodable = 0
+        # is linear_acceleration in m/s²?  Judged once on the first accepted samples (as replay
+        # judges the recording); a field in g, mg, cm/s² or all zero is pushed no more
+        self._accel_watch = AccelScaleWatch()
+        self._accel_dropped = 0  # samples whose accelerometer was not pushed for that
         self._att_cdr = QuaternionStampedCdr(self._world_frame)
         self._check_distinct_topics(p, config)  # before any publisher or subscription exists
         self._tf = (TfBroadcaster(self, self._world_frame, p["tf_child_frame_id"] or None)
@@ -499,6 +504,9 @@ class AttitudeIntegratorNode(Node):
             return
         if iv.no_estimate(msg.linear_acceleration_covariance):  # REP-145: no accelerometer
             accel = None
+        elif not self._accel_watch.use_accel:
+            accel = None
+            self._accel_dropped += 1
         if self._sub_odom is not None:
             self._apply_odometry(t_ns)
         st = self._stream
@@ -507,6 +515,8 @@ class AttitudeIntegratorNode(Node):
         if st.phase != self._phase_seen:
             self._phase_seen = st.phase
             self._log_phase()
+        if accel is not None and q is not None:
+            self._watch_accel(t_ns, accel, omega)
         if q is None:
             if verdict.rejected:
                 self._warn(verdict.reason,
@@ -533,6 +543,12 @@ class AttitudeIntegratorNode(Node):
         for note in (st.aiding_note, st.start_note):
             if note:
                 self.get_logger().info(note)
+
+    def _watch_accel(self, t_ns: int, accel, omega) -> None:
+        scale = self._accel_watch.add(t_ns, accel, omega)
+        if scale is not None and not scale.ok:
+            self.get_logger().error(f"{scale.problem}: the accelerometer is not used from now on "
+                                    "(no rests from it, no levelling, no aiding)")
 
     def _log_phase(self) -> None:
         st = self._stream
@@ -591,6 +607,9 @@ class AttitudeIntegratorNode(Node):
             "invalid_covariances": str(counts[INVALID_COVARIANCE]),
             "odometry_updates": str(self.odometry_updates),
             "invalid_accels": str(counts[INVALID_ACCEL]),
+            "accel_units": ("watching" if self._accel_watch.verdict is None else "m/s²"
+                            if self._accel_watch.verdict.ok else "not m/s²: not used"),
+            "accels_not_used": str(self._accel_dropped),
             "phase": st.phase,
         }
         if self._mag is not None:

@@ -11,8 +11,9 @@ within ``tolerance`` (relative; the default accepts a 4-5 % scale error and the 
 gravity's change with latitude with room to spare, while g, mg and cm/s² are off by a factor
 of ~10 or ~100).
 
-Arrays only (no ROS, no files): replay calls it before the estimator, the live node can call it
-on its first seconds of samples.
+Arrays only (no ROS, no files): replay calls it before the estimator; the live node feeds its
+first accepted samples to an :class:`AccelScaleWatch`, which judges them once with the same
+function (no second estimator: the node drops the field from what it pushes on a bad verdict).
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ import numpy as np
 
 from gyro_attitude.core.earth import STANDARD_GRAVITY
 
-__all__ = ["ACCEL_SCALE_TOLERANCE", "AccelScale", "check_accel_scale"]
+__all__ = ["ACCEL_SCALE_TOLERANCE", "AccelScale", "AccelScaleWatch", "check_accel_scale"]
 
 #: Relative distance of the median |f| from gravity still taken for m/s².
 ACCEL_SCALE_TOLERANCE = 0.2
@@ -34,6 +35,9 @@ STILL_RATE_RAD_S = 0.05
 MIN_STILL = 50
 #: Samples the median is taken over at most (evenly strided: a threshold needs no more).
 MEDIAN_SAMPLES = 1 << 20
+#: Seconds of samples the live watch judges (and at most this many samples: 2 s at 8 kHz).
+WATCH_S = 2.0
+WATCH_SAMPLES = 1 << 14
 
 
 @dataclass(frozen=True)
@@ -101,3 +105,46 @@ def check_accel_scale(accel, gyro=None, *, gravity: float = STANDARD_GRAVITY,
     return AccelScale(med, basis, m, False,
                       f"linear_acceleration is not in m/s² (REP-145): median |f| {med:.4g} over "
                       f"{m} {where}, gravity is {gravity:.5g} m/s² ({looks})")
+
+
+class AccelScaleWatch:
+    """:func:`check_accel_scale` on the first samples of a stream, judged once: after
+    ``span_s`` of stamps and at least :data:`MIN_STILL` samples, or ``max_samples`` of them.
+    :meth:`add` each accepted sample carrying an accelerometer; it returns the verdict on the
+    sample that completes the watch (None before and after).  ``use_accel`` says whether to go
+    on pushing the field: yes while watching (the estimator's own norm tests refuse a field
+    in g, mg, cm/s² or zero meanwhile), then as the verdict says."""
+
+    def __init__(self, span_s: float = WATCH_S, max_samples: int = WATCH_SAMPLES, *,
+                 gravity: float = STANDARD_GRAVITY, tolerance: float = ACCEL_SCALE_TOLERANCE):
+        if not (isinstance(span_s, int | float) and 0 < span_s < 1e6):
+            raise ValueError(f"span_s must be a positive number of seconds, got {span_s!r}")
+        if isinstance(max_samples, bool) or not isinstance(max_samples, int) or max_samples < 1:
+            raise ValueError(f"max_samples must be a positive int, got {max_samples!r}")
+        self._span_ns = int(round(span_s * 1e9))
+        self._gravity, self._tolerance = gravity, tolerance
+        self._a: np.ndarray | None = np.empty((max_samples, 3))
+        self._w = np.empty((max_samples, 3))
+        self._n = 0
+        self._t0: int | None = None
+        self.verdict: AccelScale | None = None
+
+    @property
+    def use_accel(self) -> bool:
+        return self.verdict is None or self.verdict.ok
+
+    def add(self, t_ns: int, accel, gyro) -> AccelScale | None:
+        if self.verdict is not None:
+            return None
+        if self._t0 is None:
+            self._t0 = int(t_ns)
+        self._a[self._n] = accel
+        self._w[self._n] = gyro
+        self._n += 1
+        if self._n < self._a.shape[0] and (int(t_ns) - self._t0 < self._span_ns
+                                           or self._n < MIN_STILL):
+            return None
+        self.verdict = check_accel_scale(self._a[:self._n], self._w[:self._n],
+                                         gravity=self._gravity, tolerance=self._tolerance)
+        self._a = self._w = None  # judged: the samples are no longer needed
+        return self.verdict

@@ -254,7 +254,6 @@ def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, lo: int, hi: 
     # oldest samples; on jittered or irregular stamps a window may drop two old samples at
     # once, and the one skipped is still followed by a window of rest (marking only the
     # windows' oldest samples left holes there, and no rest reached min_ns).
-    followed = zeros(n, bool)
     pad = np.zeros(1, np.int8)
     edges = np.diff(np.concatenate((pad, newest.view(np.int8), pad)))
     e0, e1 = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
@@ -262,11 +261,15 @@ def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, lo: int, hi: 
     o0 = np.searchsorted(tr, tr[e0] - window_ns, side="left")
     o1 = np.searchsorted(tr, tr[e1 - 1] - window_ns, side="left")
     keep = tr[o1] - tr[o0] >= min_ns  # the causal stage's span of the same rest
-    for a, b in zip(o0[keep].tolist(), o1[keep].tolist(), strict=True):
-        followed[a:b + 1] = True
     # at rest: followed by a full window of rest (the gentle start of a motion is out) and
-    # preceded by one (so is the tail of a motion, which a window starting there can pass)
-    out[lo:hi] |= newest & followed
+    # preceded by one (so is the tail of a motion, which a window starting there can pass),
+    # both by windows of the same run: [e0, o1] (o0 < e0 and o1 < e1).  A run the causal
+    # stage does not count marks nothing, not even where a counted run's windows follow it:
+    # intersecting all runs' newest samples with the counted runs' followed ones made a
+    # flickering rest edge (an accelerometer near the norm tolerance) into extra rests the
+    # causal stage never counted (9 against 7 at 125 Hz with |f| 5 % above g)
+    for a, b in zip(e0[keep].tolist(), o1[keep].tolist(), strict=True):
+        out[lo + a:lo + b + 1] = True
 
 
 def _segments(mask: np.ndarray) -> list[tuple[int, int]]:

@@ -64,3 +64,63 @@ def test_non_finite_rows_are_left_out_and_none_finite_is_a_problem():
 def test_malformed_arguments_are_refused_in_words(kwargs):
     with pytest.raises(ValueError):
         check_accel_scale(**kwargs)
+
+
+# --- the live node's watch (issue 38 follow-up): its first seconds judged once, as replay's
+
+
+def watch_stream(scale, rate_hz=100.0, seconds=5.0, seed=1):
+    rng = np.random.default_rng(seed)
+    n = int(rate_hz * seconds)
+    t = (7 * 10**9 + np.round(np.arange(n) * 1e9 / rate_hz)).astype(np.int64)
+    up = np.array([0.1, -0.2, 0.97]) / np.linalg.norm([0.1, -0.2, 0.97])
+    f = (G * up + rng.normal(scale=0.05, size=(n, 3))) * scale
+    w = rng.normal(scale=0.002, size=(n, 3))
+    return t, f, w
+
+
+def feed(watch, t, f, w):
+    """The index of the sample the verdict came on, and the verdicts returned (one)."""
+    said = [(k, v) for k in range(t.size) if (v := watch.add(int(t[k]), f[k], w[k])) is not None]
+    return said
+
+
+@pytest.mark.parametrize("scale, ok, words", [(1.0, True, None), (0.96, True, None),
+                                              (1.04, True, None), (1 / G, False, "in g?"),
+                                              (1000 / G, False, "in mg or cm/s²?"),
+                                              (100.0, False, "in mg or cm/s²?"),
+                                              (0.0, False, "all zero")])
+def test_the_live_watch_names_a_field_not_in_m_s2_once_after_two_seconds(scale, ok, words):
+    from gyro_attitude.core.attitude.accel_units import AccelScaleWatch
+
+    t, f, w = watch_stream(scale)
+    watch = AccelScaleWatch()
+    assert watch.use_accel  # pushed while watching (the estimator's norm tests refuse junk)
+    said = feed(watch, t, f, w)
+    assert len(said) == 1  # once
+    k, v = said[0]
+    assert t[k] - t[0] >= 2 * 10**9 and t[k - 1] - t[0] < 2 * 10**9  # at 2 s of samples
+    assert v.ok is ok and watch.use_accel is ok and v.basis == "still samples"
+    if not ok:
+        assert words in v.problem and "not in m/s²" in v.problem and "\n" not in v.problem
+
+
+def test_the_watch_judges_at_its_sample_cap_on_a_fast_stream_and_needs_enough_samples():
+    from gyro_attitude.core.attitude.accel_units import MIN_STILL, AccelScaleWatch
+
+    t, f, w = watch_stream(1 / G, rate_hz=8000.0, seconds=3.0)
+    said = feed(AccelScaleWatch(max_samples=4096), t, f, w)
+    assert [k for k, _ in said] == [4095] and not said[0][1].ok
+    # a slow stream: 2 s are not enough samples at 10 Hz; judged at MIN_STILL
+    t, f, w = watch_stream(1 / G, rate_hz=10.0, seconds=10.0)
+    said = feed(AccelScaleWatch(), t, f, w)
+    assert [k for k, _ in said] == [MIN_STILL - 1]
+
+
+@pytest.mark.parametrize("kwargs", [{"span_s": 0.0}, {"span_s": "2"}, {"max_samples": 0},
+                                    {"max_samples": True}])
+def test_the_watch_refuses_malformed_arguments_in_words(kwargs):
+    from gyro_attitude.core.attitude.accel_units import AccelScaleWatch
+
+    with pytest.raises(ValueError):
+        AccelScaleWatch(**kwargs)
