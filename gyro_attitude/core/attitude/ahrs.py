@@ -390,12 +390,7 @@ def ahrs_step(pa, af, ai, t, w0, w1, w2, has_f, fx, fy, fz, x, y, z, s, mag_stat
                                      c21, c22)
     if dx == 0.0 and dy == 0.0 and dz == 0.0:
         return ox, oy, oz
-    if ai[I_HAS_LP] != LP_NONE:  # the same rotation applied to the filter's state (almost-inertial)
-        for i in (A_LP, A_LP + 3):
-            ax, ay, az = af[i], af[i + 1], af[i + 2]
-            af[i] = ax + dy * az - dz * ay
-            af[i + 1] = ay + dz * ax - dx * az
-            af[i + 2] = az + dx * ay - dy * ax
+    rotate_lowpass(af, ai, dx, dy, dz)
     # the nav-frame rotation as a body rate over this interval: C_bn δ / dt
     ex = c00 * dx + c10 * dy + c20 * dz
     ey = c01 * dx + c11 * dy + c21 * dz
@@ -412,6 +407,20 @@ def ahrs_step(pa, af, ai, t, w0, w1, w2, has_f, fx, fy, fz, x, y, z, s, mag_stat
         af[A_BIAS + 2] -= g * (c02 * lx + c12 * ly + c22 * lz)
     inv = 1.0 / dt
     return ox + ex * inv, oy + ey * inv, oz + ez * inv
+
+
+@kernel(inline=True)
+def rotate_lowpass(af, ai, dx, dy, dz):
+    """A small nav-frame rotation ``d`` of the attitude applied to the low-pass's state too
+    (to first order: v + d × v), so that it stays in the frame the gyro alone would give
+    (almost-inertial)."""
+    if ai[I_HAS_LP] == LP_NONE:
+        return
+    for i in (A_LP, A_LP + 3):
+        ax, ay, az = af[i], af[i + 1], af[i + 2]
+        af[i] = ax + dy * az - dz * ay
+        af[i + 1] = ay + dz * ax - dx * az
+        af[i + 2] = az + dx * ay - dy * ax
 
 
 @kernel(inline=True)

@@ -315,8 +315,9 @@ def first_rest_back(c, s, p0, p1, p2):
         qf = s.cubic_f
         q = (qf[0], qf[1], qf[2], qf[3])
         if c.aiding == AID_AHRS:
-            # the tilt filter has already taken the tilt part of this error out (and its
-            # low-pass state holds that): only the part about the vertical goes back
+            # the tilt filter has already taken out part of the tilt this bias caused (how
+            # much, its state does not say): the tilt is left to it, only the part about the
+            # vertical (C_nb e)_z goes back
             x, y, z, u = q
             k = 2.0 / (x * x + y * y + z * z + u * u)
             vz = (k * (x * z - y * u) * ex + k * (y * z + x * u) * ey

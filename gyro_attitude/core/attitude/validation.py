@@ -392,72 +392,80 @@ def classify(t_ns, omega, frame_id: str | list[str] | None = "",
     action = np.zeros(n, np.int8)
     reason = np.zeros(n, np.int8)
     details: dict[str, str] = {}
-
-    # Sample-local checks, in the validator's order: values, then stamp, then frame.
-    # The usual recording passes them all: one frame, rates within bounds, stamps positive
-    # (then no per-row mask is made: ok None stands for all rows).
-    ok = None
-    locked = 0
-    rates_within = all_within(w, cfg.max_rate_rad_s)
-    if not (n and codes is None and rates_within and int(t.min()) > 0):
-        if rates_within:  # the rates pass: no per-row value checks
-            finite = plausible = np.ones(n, dtype=bool)
-        else:
-            with np.errstate(invalid="ignore"):
-                finite = np.isfinite(w).all(axis=1)
-                plausible = (np.abs(w) <= cfg.max_rate_rad_s).all(axis=1)
-        bad_value = ~finite
-        rate_bad = finite & ~plausible
-        zero = (t <= 0) & finite & plausible
-        ok = finite & plausible & (t > 0)
-        reason[bad_value] = _REASON_CODES[NON_FINITE]
-        reason[rate_bad] = _REASON_CODES[IMPLAUSIBLE_RATE]
-        reason[zero] = _REASON_CODES[ZERO_STAMP]
-        for name, mask in ((NON_FINITE, bad_value), (IMPLAUSIBLE_RATE, rate_bad),
-                           (ZERO_STAMP, zero)):
-            if mask.any():
-                k = int(np.flatnonzero(mask)[0])
-                details[name] = {
-                    NON_FINITE: f"non-finite value(s) {w[k].tolist()}",
-                    IMPLAUSIBLE_RATE: f"rate {w[k].tolist()} rad/s beyond "
-                                      f"max_rate_rad_s = {cfg.max_rate_rad_s:g}",
-                    ZERO_STAMP: f"stamp {int(t[k])} ns is not positive (0: unset)"}[name]
-        locked = None
-        if ok.any():
-            # the first sample that passes the local checks is always accepted (START): its
-            # frame is the one locked in
-            first = int(np.flatnonzero(ok)[0])
-            locked = 0 if codes is None else int(codes[first])
-            if codes is not None:
-                changed = ok & (codes != locked)
-                if changed.any():
-                    reason[changed] = _REASON_CODES[FRAME_CHANGED]
-                    ok &= ~changed
-                    k = int(np.flatnonzero(changed)[0])
-                    details[FRAME_CHANGED] = (f"frame_id {names[int(codes[k])]!r} differs from "
-                                              f"{names[locked]!r}")
-
-    # Stamp checks depend on the last accepted stamp. A regular stream (strictly increasing,
-    # no gap) is settled array-wide; anything else walks the candidate stamps in Python ints.
-    every = ok is None or bool(ok.all())  # then no row index, no copy of the stamps
-    idx = None if every else np.flatnonzero(ok)
-    m = n if every else idx.size
-    resets = 0
+    ok, locked = _local_checks(t, w, codes, names, cfg, reason, details)
     record = np.zeros(1, STAMPS_DTYPE).view(np.recarray)
-    if m:
-        tc = t if every else t[idx]
-        if _regular_stamps(tc, cfg.max_gap_ns):
-            where = slice(None) if every else idx
-            action[where] = ACTION_CODES[ACCEPT]
-            action[0 if every else idx[0]] = ACTION_CODES[START]
-        else:
-            resets = _walk(tc, np.arange(n) if every else idx, action, reason, details, cfg,
-                           record)
-        del tc
+    resets = _stamp_checks(t, ok, cfg, action, reason, details, record)
     counts = {r: int(np.count_nonzero(reason == _REASON_CODES[r])) for r in REJECT_REASONS}
     accepted = int(np.count_nonzero(action != ACTION_CODES[REJECT]))
     return Classification(action, reason, counts, details, resets, accepted,
                           None if locked is None else names[locked], int(record.missing[0]))
+
+
+def _local_checks(t, w, codes, names, cfg, reason, details):
+    """The sample-local checks, in the validator's order: values, then stamp, then frame
+    (reasons and first details written into ``reason`` and ``details``).  Returns (the rows
+    that pass, None standing for all: the usual recording, one frame, rates within bounds,
+    stamps positive, makes no per-row mask; the locked frame's code, None when no row passes)."""
+    n = t.shape[0]
+    rates_within = all_within(w, cfg.max_rate_rad_s)
+    if n and codes is None and rates_within and int(t.min()) > 0:
+        return None, 0
+    if rates_within:  # the rates pass: no per-row value checks
+        finite = plausible = np.ones(n, dtype=bool)
+    else:
+        with np.errstate(invalid="ignore"):
+            finite = np.isfinite(w).all(axis=1)
+            plausible = (np.abs(w) <= cfg.max_rate_rad_s).all(axis=1)
+    bad_value = ~finite
+    rate_bad = finite & ~plausible
+    zero = (t <= 0) & finite & plausible
+    ok = finite & plausible & (t > 0)
+    reason[bad_value] = _REASON_CODES[NON_FINITE]
+    reason[rate_bad] = _REASON_CODES[IMPLAUSIBLE_RATE]
+    reason[zero] = _REASON_CODES[ZERO_STAMP]
+    for name, mask in ((NON_FINITE, bad_value), (IMPLAUSIBLE_RATE, rate_bad),
+                       (ZERO_STAMP, zero)):
+        if mask.any():
+            k = int(np.flatnonzero(mask)[0])
+            details[name] = {
+                NON_FINITE: f"non-finite value(s) {w[k].tolist()}",
+                IMPLAUSIBLE_RATE: f"rate {w[k].tolist()} rad/s beyond "
+                                  f"max_rate_rad_s = {cfg.max_rate_rad_s:g}",
+                ZERO_STAMP: f"stamp {int(t[k])} ns is not positive (0: unset)"}[name]
+    if not ok.any():
+        return ok, None
+    # the first sample that passes the local checks is always accepted (START): its frame is
+    # the one locked in
+    first = int(np.flatnonzero(ok)[0])
+    locked = 0 if codes is None else int(codes[first])
+    if codes is not None:
+        changed = ok & (codes != locked)
+        if changed.any():
+            reason[changed] = _REASON_CODES[FRAME_CHANGED]
+            ok &= ~changed
+            k = int(np.flatnonzero(changed)[0])
+            details[FRAME_CHANGED] = (f"frame_id {names[int(codes[k])]!r} differs from "
+                                      f"{names[locked]!r}")
+    return ok, locked
+
+
+def _stamp_checks(t, ok, cfg, action, reason, details, record) -> int:
+    """The stamp checks of the rows that passed the local ones (``ok``; None: all), which
+    depend on the last accepted stamp: a regular stream (strictly increasing, no gap) is
+    settled array-wide; anything else walks the candidate stamps.  Returns the time-jump
+    resets."""
+    n = t.shape[0]
+    every = ok is None or bool(ok.all())  # then no row index, no copy of the stamps
+    idx = None if every else np.flatnonzero(ok)
+    m = n if every else idx.size
+    if not m:
+        return 0
+    tc = t if every else t[idx]
+    if _regular_stamps(tc, cfg.max_gap_ns):
+        action[slice(None) if every else idx] = ACTION_CODES[ACCEPT]
+        action[0 if every else idx[0]] = ACTION_CODES[START]
+        return 0
+    return _walk(tc, np.arange(n) if every else idx, action, reason, details, cfg, record)
 
 
 @kernel
