@@ -346,19 +346,7 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
     file-backed ones).  Raises ValueError on malformed input and when
     ``initial_attitude="level"`` finds no rest to level on.
     """
-    cfg = config if config is not None else StreamConfig()
-    if not isinstance(cfg, StreamConfig):
-        raise ValueError(f"config must be a StreamConfig, got {type(cfg).__name__}")
-    if isinstance(chunk_samples, bool) or not isinstance(chunk_samples, int) or \
-            not 64 <= chunk_samples <= 1 << 26:
-        raise ValueError(f"chunk_samples must be an int in [64, 2**26], got {chunk_samples!r}")
-    if cfg.heading_source is HeadingSource.GYROCOMPASS:
-        raise ValueError("the offline estimator does not gyrocompass (heading_source "
-                         "'gyrocompass'): use --estimator causal or give the heading")
-    if nav is None and cfg.frame is Frame.ENU:
-        nav = cfg.nav_frame()
-    if nav is not None and not isinstance(nav, NavFrame):
-        raise ValueError(f"nav must be a NavFrame or None, got {type(nav).__name__}")
+    cfg, nav = _checked_arguments(config, nav, chunk_samples)
     q_init = _unit_quat(cfg.initial_attitude if q0 is None else q0)
     t = np.asarray(t_ns)
     w = np.asarray(omega, dtype=np.float64)
@@ -372,36 +360,16 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
               INVALID_ACCEL: 0, INTEGRATOR_ERROR: 0, SATURATED: 0,
               RATE_FIT_FALLBACK: 0}
     details = dict(cls.details)
-    m = valid.size
     tv = rows(t, valid, empty)
     wv = rows(w, valid, empty)
-    av = None if acc is None else rows(acc, valid, empty)
-    usable = None
-    if av is not None:
-        usable = usable_accel(av)
-        counts[INVALID_ACCEL] = int(m - np.count_nonzero(usable))
-        if counts[INVALID_ACCEL]:
-            k = int(np.flatnonzero(~usable)[0])
-            details.setdefault(INVALID_ACCEL, f"linear_acceleration {av[k].tolist()} is not "
-                               "finite or absurd: not used for rests, levelling or aiding")
-        if not usable.any():
-            av = usable = None
+    av, usable = _accel_rows(acc, valid, empty, counts, details)
     start_notes = [aiding_note(cfg, av is not None)] if cfg.aided else []
     if starts_from_accelerometer(cfg, q0) and av is not None:
         # as the causal step starts (chain.level_from_first): the first usable sample's tilt
         heading = heading_of(q_init)
         q_init, _, _ = level_quaternion(av[int(np.argmax(usable))], heading)
         start_notes.append(START_NOTE.format(math.degrees(heading)))
-    mv = None
-    if cfg.aiding is Aiding.MAGNETOMETER:
-        counts.update({MAG_MISSING: 0, INVALID_MAG: 0, MAG_DISTURBED: 0})
-        if mag is None:
-            counts[MAG_MISSING] = m
-        else:
-            mag = np.asarray(mag, dtype=np.float64)
-            if mag.shape != (n, 3):
-                raise ValueError(f"mag must have shape ({n}, 3), got {mag.shape}")
-            mv = rows(mag, valid, empty)
+    mv = _mag_rows(cfg, mag, n, valid, empty, counts)
     sig2 = None  # per-row gyro variance (M, 3) from the messages, where known
     if cov is not None:
         var_v, known_v = covariance_rows(cov, valid, counts, details)
@@ -423,14 +391,7 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
         details.setdefault(RATE_FIT_FALLBACK, rate_fit_note(int(tv[int(fell_back.min())])))
     notes = est.notes
     if cfg.aiding is Aiding.MAGNETOMETER:
-        for key, c in est.mag_counts.items():
-            counts[key] += c
-        for key, text in ((INVALID_MAG, "a magnetic field sample not finite, beyond 10 mT or "
-                                        "below 0.1 µT"),
-                          (MAG_DISTURBED, "a field whose norm or dip is off the reference"),
-                          (MAG_MISSING, "no magnetic field sample for these Imu samples")):
-            if counts[key]:
-                details.setdefault(key, text)
+        _mag_counts(est.mag_counts, counts, details)
     if acc is None or av is None:
         notes.insert(0, "no accelerometer: gyro-only offline estimation (rests from the gyro, "
                      "no levelling, no tilt aiding)")
@@ -438,6 +399,154 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
                        details, est.bias_report(), est.alignment, notes=start_notes + notes)
     res.field_reference = est.field_reference  # None unless aiding magnetometer
     return res
+
+
+def _checked_arguments(config, nav, chunk_samples) -> tuple[StreamConfig, NavFrame | None]:
+    """The settings and the nav frame of :func:`estimate_offline` (ValueError naming a bad
+    argument)."""
+    cfg = config if config is not None else StreamConfig()
+    if not isinstance(cfg, StreamConfig):
+        raise ValueError(f"config must be a StreamConfig, got {type(cfg).__name__}")
+    if isinstance(chunk_samples, bool) or not isinstance(chunk_samples, int) or \
+            not 64 <= chunk_samples <= 1 << 26:
+        raise ValueError(f"chunk_samples must be an int in [64, 2**26], got {chunk_samples!r}")
+    if cfg.heading_source is HeadingSource.GYROCOMPASS:
+        raise ValueError("the offline estimator does not gyrocompass (heading_source "
+                         "'gyrocompass'): use --estimator causal or give the heading")
+    if nav is None and cfg.frame is Frame.ENU:
+        nav = cfg.nav_frame()
+    if nav is not None and not isinstance(nav, NavFrame):
+        raise ValueError(f"nav must be a NavFrame or None, got {type(nav).__name__}")
+    return cfg, nav
+
+
+def _accel_rows(acc, valid, empty, counts, details):
+    """(the accepted rows' specific force, which of them are usable), both None when there is
+    no usable one; the unusable ones counted (``invalid_accel``) with the first's detail."""
+    if acc is None:
+        return None, None
+    av = rows(acc, valid, empty)
+    usable = usable_accel(av)
+    counts[INVALID_ACCEL] = int(valid.size - np.count_nonzero(usable))
+    if counts[INVALID_ACCEL]:
+        k = int(np.flatnonzero(~usable)[0])
+        details.setdefault(INVALID_ACCEL, f"linear_acceleration {av[k].tolist()} is not "
+                           "finite or absurd: not used for rests, levelling or aiding")
+    if not usable.any():
+        return None, None
+    return av, usable
+
+
+def _mag_rows(cfg, mag, n, valid, empty, counts):
+    """The accepted rows' magnetic field (aiding magnetometer), else None; its counts start."""
+    if cfg.aiding is not Aiding.MAGNETOMETER:
+        return None
+    counts.update({MAG_MISSING: 0, INVALID_MAG: 0, MAG_DISTURBED: 0})
+    if mag is None:
+        counts[MAG_MISSING] = valid.size
+        return None
+    mag = np.asarray(mag, dtype=np.float64)
+    if mag.shape != (n, 3):
+        raise ValueError(f"mag must have shape ({n}, 3), got {mag.shape}")
+    return rows(mag, valid, empty)
+
+
+def _mag_counts(mag_counts, counts, details) -> None:
+    """The magnetometer's counts added, with a detail for each that occurred."""
+    for key, c in mag_counts.items():
+        counts[key] += c
+    for key, text in ((INVALID_MAG, "a magnetic field sample not finite, beyond 10 mT or "
+                                    "below 0.1 µT"),
+                      (MAG_DISTURBED, "a field whose norm or dip is off the reference"),
+                      (MAG_MISSING, "no magnetic field sample for these Imu samples")):
+        if counts[key]:
+            details.setdefault(key, text)
+
+
+class _BiasTerms:
+    """The bias estimate's share of the offline covariance, block by block along the
+    recording (module docstring, step 5): the error of the bias interpolated between the rests'
+    estimates (their standard errors, weighted by the interpolation), and the bias random walk
+    (``k2``), which acts on the attitude only while it is integrated (not while it is held at
+    rests): its terms run on the motion clock.  Interval s: before rest 0 (s = 0), between
+    rests s-1 and s, after the last (s = nr); rest s-1's lever grows with weight 1 − w there
+    (``m_fall``), rest s's with w (``m_rise``).  ``rests`` None: one bias of 1σ ``sigma`` held
+    throughout."""
+
+    def __init__(self, rests, sigma: float, k2: float):
+        self.rests, self.k2 = rests, k2
+        if rests:
+            self.x = np.asarray([r.tau_s for r in rests])
+            self.se2 = [r.standard_error ** 2 for r in rests]
+            dur = np.array([r.duration_s for r in rests])
+            # each interval's motion time: the time between the rests' middles less their halves
+            self.t_motion = np.maximum(np.diff(self.x) - 0.5 * (dur[:-1] + dur[1:]), 1e-9) \
+                if self.x.size > 1 else np.zeros(0)
+        else:
+            self.x = np.asarray([0.0])
+            self.se2 = [np.full(3, sigma ** 2)]
+        self.done = np.zeros(3)  # variance from rests whose weights are complete
+        self.rw_done = 0.0
+        self.rw_last = 0.0  # the walk's term at the last block of the current interval
+        self.mclock = 0.0  # motion time so far
+        self.m_node = 0.0  # motion time at the start of the current interval
+        self.m_fall = np.zeros((3, 3))
+        self.m_rise = np.zeros((3, 3))
+        self.j = 0
+
+    def blocks(self, c, dtb, tr) -> np.ndarray:
+        """The terms after each block (C_nb ``c``, motion time ``dtb`` and bias-clock ``tr``
+        per block; ``tr`` is monotonic)."""
+        mc = self.mclock + np.cumsum(dtb)  # motion clock after each block
+        self.mclock = float(mc[-1])
+        seg = np.searchsorted(self.x, tr, side="right")  # interval per block
+        edges = np.flatnonzero(np.diff(seg)) + 1
+        out = np.zeros((dtb.size, 3))
+        for lo, hi in zip([0, *edges.tolist()], [*edges.tolist(), dtb.size], strict=True):
+            s = int(seg[lo])
+            while self.j < s:  # entering interval j + 1: rest j-1's weight is complete
+                self._next_interval(float(mc[lo] - dtb[lo]))
+            var_b, rw = self._interval(s, c[lo:hi] * dtb[lo:hi, None, None], tr[lo:hi],
+                                       mc[lo:hi])
+            out[lo:hi] = self.done + var_b + (self.rw_done + rw)[:, None]
+            self.rw_last = float(rw[-1])
+        return out
+
+    def _next_interval(self, m_node: float) -> None:
+        self.rw_done += self.rw_last  # the walk's share of the interval left is frozen in
+        self.rw_last = 0.0
+        if self.j >= 1:
+            self.done += np.einsum("km,m->k", self.m_fall ** 2, self.se2[self.j - 1])
+        self.m_fall, self.m_rise = self.m_rise, np.zeros((3, 3))
+        self.j += 1
+        self.m_node = m_node
+
+    def _interval(self, s, cd, tr, mc):
+        """(bias variance, random-walk variance) of blocks in interval ``s``."""
+        x, se2, k2, nr = self.x, self.se2, self.k2, self.x.size
+        if 0 < s < nr:
+            wgt = ((tr - x[s - 1]) / (x[s] - x[s - 1]))[:, None, None]
+            mf = self.m_fall + np.cumsum(cd * (1.0 - wgt), axis=0)
+            mr = self.m_rise + np.cumsum(cd * wgt, axis=0)
+            var_b = np.einsum("ikm,m->ik", mf ** 2, se2[s - 1]) + np.einsum(
+                "ikm,m->ik", mr ** 2, se2[s])
+            self.m_fall, self.m_rise = mf[-1], mr[-1]
+            sm = mc - self.m_node
+            big_t = max(float(self.t_motion[s - 1]), float(sm[-1]))
+            return var_b, k2 * (sm ** 3 / 3.0 - sm ** 4 / (4.0 * big_t))
+        if s == 0:  # before the first rest: its estimate, held back to the start
+            mr = self.m_rise + np.cumsum(cd, axis=0)
+            self.m_rise = mr[-1]
+            # the first rest's bias applied back to the start: at motion time u of the x0
+            # before that rest, Var ∫_0^u (W(τ) − W(x0)) dτ = K² (x0 u² − 2u³/3)
+            x0m = max(x[0] - 0.5 * self.rests[0].duration_s, 0.0) if self.rests else 0.0
+            um = np.minimum(mc, x0m)
+            return (np.einsum("ikm,m->ik", mr ** 2, se2[0]),
+                    k2 * (x0m * um ** 2 - 2.0 * um ** 3 / 3.0))
+        # after the last rest: its estimate held
+        mf = self.m_fall + np.cumsum(cd, axis=0)
+        self.m_fall = mf[-1]
+        return np.einsum("ikm,m->ik", mf ** 2, se2[nr - 1]), k2 * (mc - self.m_node) ** 3 / 3.0
 
 
 class _Estimator:
@@ -937,74 +1046,27 @@ class _Estimator:
         cfg = self.cfg
         size = max(_COV_BLOCK, self.size // _COV_BLOCK * _COV_BLOCK)  # blocks never straddle
         auto = cfg.gyro_bias is GyroBiasMode.AUTO and rests
-        if auto:
-            xs = [r.tau_s for r in rests]
-            se2 = [r.standard_error ** 2 for r in rests]
-        else:
-            xs = [0.0]
-            se2 = [np.full(3, cfg.gyro_bias_sigma_rad_s ** 2)]
-        # gyro noise per row: messages, else the density, else the scatter measured at rests
-        n2 = cfg.gyro_noise_density ** 2
-        measured = None
-        if self.rests or rests:
-            rr = [r for r in (rests or self.rests) if r.stop - r.start > 1]
-            if rr:
-                measured = np.average([r.gyro_var for r in rr], axis=0,
-                                      weights=[r.stop - r.start for r in rr])
-        k2 = getattr(self, "k2", cfg.gyro_bias_rw ** 2)
+        bias = _BiasTerms(rests if auto else None, cfg.gyro_bias_sigma_rad_s,
+                          getattr(self, "k2", cfg.gyro_bias_rw ** 2))
+        measured = self._measured_noise(rests)
         sf2 = cfg.gyro_scale_factor_sigma ** 2
         # ∫ C_nb[k, m] ω_n dτ: the lever of the gyro's gain-and-axes error matrix E[m, n]
         # (scale factors on the diagonal, axis misalignments off it; never reset)
         m_sf = np.zeros((3, 3, 3))
-        x = np.asarray(xs)
-        nr = x.size
-        # interval s: before rest 0 (s = 0), between rests s-1 and s, after the last (s = nr);
-        # rest s-1's M grows with weight 1 − w there (m_fall), rest s's with w (m_rise)
-        done = np.zeros(3)  # variance from rests whose weights are complete
-        rw_done = 0.0
-        # the bias random walk acts on the attitude only while it is integrated (not while it
-        # is held at rests): its terms run on the motion clock, and each interval's length is
-        # the time between the rests' middles less their halves
-        if auto:
-            dur = np.array([r.duration_s for r in rests])
-            t_motion = np.maximum(np.diff(x) - 0.5 * (dur[:-1] + dur[1:]), 1e-9) if x.size > 1 \
-                else np.zeros(0)
-        rw_last = 0.0  # the walk's term at the last block of the current interval
-        mclock = 0.0  # motion time so far
-        m_node = 0.0  # motion time at the start of the current interval
-        m_fall = np.zeros((3, 3))
-        m_rise = np.zeros((3, 3))
         arw = np.zeros(3)
-        j = 0
         prev_end = tt0.copy()  # variance at the row before the chunk
         for c0, c1 in _chunks(b0, b1, size):
             nrow = c1 - c0
-            dt = np.zeros(nrow)
-            dt[1:] = np.diff(self.t[c0:c1]) * 1e-9
-            if c0 > b0:
-                dt[0] = (self.t[c0] - self.t[c0 - 1]) * 1e-9
-            dt[self.act[c0:c1] != v.ACTION_CODES[v.ACCEPT]] = 0.0
-            if rest is not None:
-                dt[rest[c0 - b0:c1 - b0]] = 0.0  # held: no error grows
-            if self.sig2 is not None:
-                s2 = np.where(self.sig2[1][c0:c1, None], self.sig2[0][c0:c1], 0.0) * (
-                    dt * dt)[:, None]
-            elif n2 > 0:
-                s2 = (n2 * dt)[:, None] * np.ones(3)
-            elif measured is not None:
-                s2 = measured[None, :] * (dt * dt)[:, None]
-            else:
-                s2 = np.zeros((nrow, 3))
+            dt, s2 = self._row_noise(b0, c0, c1, rest, measured)
             # The variance is smooth: it is propagated over blocks of _COV_BLOCK rows (C_nb and
             # the interpolation weight taken at each block's middle row) and interpolated
             # linearly to the rows in between.
             nodes = np.arange(0, nrow, _COV_BLOCK)
             mid = np.minimum(nodes + _COV_BLOCK // 2, nrow - 1)
             dtb = np.add.reduceat(dt, nodes)
-            s2b = np.add.reduceat(s2, nodes, axis=0)
             c = quat_as_matrix(q_out[c0 + mid])  # C_nb (rows: output axes)
-            tr = tau[c0 - b0 + mid]
-            out = tt0 + arw + np.cumsum(np.einsum("ikm,im->ik", c * c, s2b), axis=0)
+            out = tt0 + arw + np.cumsum(np.einsum("ikm,im->ik", c * c,
+                                                  np.add.reduceat(s2, nodes, axis=0)), axis=0)
             arw = out[-1] - tt0
             if sf2 > 0:
                 # gain and axes error: δθ = ∫ C_nb E ω dτ with the same E throughout, every
@@ -1015,47 +1077,7 @@ class _Estimator:
                 msf = m_sf + np.cumsum(c[:, :, :, None] * turn[:, None, None, :], axis=0)
                 out += sf2 * np.einsum("ikmn,ikmn->ik", msf, msf)
                 m_sf = msf[-1]
-            mc = mclock + np.cumsum(dtb)  # motion clock after each block
-            mclock = float(mc[-1])
-            seg = np.searchsorted(x, tr, side="right")  # interval per block (tau is monotonic)
-            edges = np.flatnonzero(np.diff(seg)) + 1
-            for lo, hi in zip([0, *edges.tolist()], [*edges.tolist(), nodes.size], strict=True):
-                s = int(seg[lo])
-                while j < s:  # entering interval j + 1: rest j-1's weight is complete
-                    rw_done += rw_last  # the walk's share of the interval left is frozen in
-                    rw_last = 0.0
-                    if j >= 1:
-                        done += np.einsum("km,m->k", m_fall ** 2, se2[j - 1])
-                    m_fall, m_rise = m_rise, np.zeros((3, 3))
-                    j += 1
-                    m_node = float(mc[lo] - dtb[lo])
-                cd = c[lo:hi] * dtb[lo:hi, None, None]
-                if 0 < s < nr:
-                    wgt = ((tr[lo:hi] - x[s - 1]) / (x[s] - x[s - 1]))[:, None, None]
-                    mf = m_fall + np.cumsum(cd * (1.0 - wgt), axis=0)
-                    mr = m_rise + np.cumsum(cd * wgt, axis=0)
-                    var_b = np.einsum("ikm,m->ik", mf ** 2, se2[s - 1]) + np.einsum(
-                        "ikm,m->ik", mr ** 2, se2[s])
-                    m_fall, m_rise = mf[-1], mr[-1]
-                    sm = mc[lo:hi] - m_node
-                    big_t = max(float(t_motion[s - 1]), float(sm[-1]))
-                    rw = k2 * (sm ** 3 / 3.0 - sm ** 4 / (4.0 * big_t))
-                elif s == 0:  # before the first rest: its estimate, held back to the start
-                    mr = m_rise + np.cumsum(cd, axis=0)
-                    var_b = np.einsum("ikm,m->ik", mr ** 2, se2[0])
-                    m_rise = mr[-1]
-                    # the first rest's bias applied back to the start: at motion time u of
-                    # the x0 before that rest, Var ∫_0^u (W(τ) − W(x0)) dτ = K² (x0 u² − 2u³/3)
-                    x0m = max(x[0] - 0.5 * rests[0].duration_s, 0.0) if auto else 0.0
-                    um = np.minimum(mc[lo:hi], x0m)
-                    rw = k2 * (x0m * um ** 2 - 2.0 * um ** 3 / 3.0)
-                else:  # after the last rest: its estimate held
-                    mf = m_fall + np.cumsum(cd, axis=0)
-                    var_b = np.einsum("ikm,m->ik", mf ** 2, se2[nr - 1])
-                    m_fall = mf[-1]
-                    rw = k2 * (mc[lo:hi] - m_node) ** 3 / 3.0
-                out[lo:hi] += done + var_b + (rw_done + rw)[:, None]
-                rw_last = float(rw[-1])
+            out += bias.blocks(c, dtb, tau[c0 - b0 + mid])
             # out[i] is the variance after block i (at its last row); rows in between linearly
             last = np.minimum(nodes + _COV_BLOCK, nrow) - 1
             xs_r = np.concatenate(([-1], last))
@@ -1064,6 +1086,39 @@ class _Estimator:
                 var_out[c0:c1, k] = np.interp(row_ix, xs_r, np.concatenate(([prev_end[k]],
                                                                            out[:, k])))
             prev_end = out[-1].copy()
+
+    def _measured_noise(self, rests):
+        """The gyro's noise variance measured at the rests (weighted by length), or None."""
+        if self.rests or rests:
+            rr = [r for r in (rests or self.rests) if r.stop - r.start > 1]
+            if rr:
+                return np.average([r.gyro_var for r in rr], axis=0,
+                                  weights=[r.stop - r.start for r in rr])
+        return None
+
+    def _row_noise(self, b0, c0, c1, rest, measured):
+        """(dt, angle-noise variance per row and axis) of rows ``c0:c1``: the gyro noise from
+        the messages, else the density, else the scatter measured at rests; no time passes
+        at a rejected row or a rest (held: no error grows)."""
+        nrow = c1 - c0
+        dt = np.zeros(nrow)
+        dt[1:] = np.diff(self.t[c0:c1]) * 1e-9
+        if c0 > b0:
+            dt[0] = (self.t[c0] - self.t[c0 - 1]) * 1e-9
+        dt[self.act[c0:c1] != v.ACTION_CODES[v.ACCEPT]] = 0.0
+        if rest is not None:
+            dt[rest[c0 - b0:c1 - b0]] = 0.0
+        n2 = self.cfg.gyro_noise_density ** 2
+        if self.sig2 is not None:
+            s2 = np.where(self.sig2[1][c0:c1, None], self.sig2[0][c0:c1], 0.0) * (
+                dt * dt)[:, None]
+        elif n2 > 0:
+            s2 = (n2 * dt)[:, None] * np.ones(3)
+        elif measured is not None:
+            s2 = measured[None, :] * (dt * dt)[:, None]
+        else:
+            s2 = np.zeros((nrow, 3))
+        return dt, s2
 
     # ------------------------------------------------------------------ report
     def bias_report(self) -> GyroBiasReport:
