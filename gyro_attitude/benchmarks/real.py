@@ -1,4 +1,4 @@
-"""Real MEMS recordings with optical truth (BROAD, CC BY 4.0): bias, levelling, gravity aiding, peers.
+"""Real MEMS recordings with optical truth (BROAD, CC BY 4.0): bias, levelling, tilt aiding, peers.
 
 ``gyro-attitude bench --suite real`` or ``run(quick, out_dir)``.  Data:
 ``shared/real/*.mcap`` in the working directory or above (``../shared/real``), or
@@ -14,8 +14,8 @@ so these are the figures users get), in the ENU frame at the recording's latitud
 52.5°N: the Earth rate is taken out of the bias), from the truth at the first Imu stamp
 (``initial_attitude_from_truth``) except ``level``: ``none`` raw gyro (batch path); ``auto``
 bias from rests; ``level`` roll/pitch from the initial rest's specific force, heading from the
-truth (the truth's north is magnetic), auto bias; ``gravity`` auto bias + gravity aiding;
-``level+gravity`` both.  ``none/push`` is ``none`` through the per-sample path (the cost of the
+truth (the truth's north is magnetic), auto bias; ``tilt`` auto bias + tilt aiding (the AHRS filter);
+``level+tilt`` both.  ``none/push`` is ``none`` through the per-sample path (the cost of the
 sequential path against the batch one, same numbers); likewise ``<aided mode>/push``, the
 node's per-sample cost of the aided modes against ``run()``'s (``form``: which form ran); the
 compiled kernels are loaded before the first row, as the node loads them before it subscribes.
@@ -67,21 +67,21 @@ from gyro_attitude.io.imu_fast import (
 
 RECORDINGS = ("broad_05_slow_rotation_with_breaks", "broad_16_fast_translation")
 LATITUDE_RAD = np.radians(52.5)  # TU Berlin, where BROAD was recorded
-MODES = ("none", "none/push", "auto", "level", "gravity", "level+gravity", "tilt", "level+tilt",
-         "magnetometer", "level+magnetometer", "gravity/push", "tilt/push", "magnetometer/push",
-         "level+magnetometer/push")
+MODES = ("none", "none/push", "auto", "level", "tilt", "level+tilt", "magnetometer",
+         "level+magnetometer", "tilt/push", "magnetometer/push", "level+magnetometer/push")
 # the offline (whole-recording) estimator, core/attitude/offline.py, same settings as the
 # causal mode after the "+"
-OFFLINE_MODES = ("offline/auto", "offline/level", "offline/gravity", "offline/level+gravity",
+OFFLINE_MODES = ("offline/auto", "offline/level", "offline/tilt", "offline/level+tilt",
                  "offline/magnetometer", "offline/level+magnetometer")
 
 
 def stream_config(mode: str, heading_deg: float = 0.0) -> StreamConfig:
     """The StreamConfig of a benchmark mode (what node parameters / replay flags give)."""
     kw: dict = {"gyro_bias": "none"} if mode.startswith("none") else {}
+    kw["aiding"] = "none"  # unless the mode names one
     if "level" in mode:
         kw |= {"initial_attitude_source": "level", "initial_heading_deg": heading_deg}
-    for aiding in ("gravity", "tilt", "magnetometer"):
+    for aiding in ("tilt", "magnetometer"):
         if aiding in mode:
             kw["aiding"] = aiding
     return StreamConfig(**kw)
@@ -287,7 +287,7 @@ def evaluate(name: str, directory=None, modes=MODES, peers=True,
             e = quat_as_rotvec(quat_multiply(tq[motion], quat_conjugate(qe)))
             sd = np.sqrt(np.maximum(_rows_at(res, first, t.size)[idx][motion], 1e-300))
             z = np.abs(e) / sd
-            axes = [0, 1] if "gravity" in mode or "level" in mode else [0, 1, 2]
+            axes = [0, 1] if "tilt" in mode or "level" in mode else [0, 1, 2]
             if "magnetometer" in mode:
                 axes = [0, 1, 2]
             rows[-1]["within_1sigma"] = float(np.mean(z[:, axes] <= 1.0))
@@ -367,7 +367,7 @@ def simulated(seeds=range(5)) -> list[dict]:
     """The same comparison on simulated recordings that no setting was tuned on: the shipped
     ``handheld_mems`` scene (rest, 8 s of hand motion with accelerations, rest; MEMS gyro and
     accelerometer errors like BROAD's) with several noise seeds.  RMS tilt over the motion
-    against the simulator's closed-form truth: offline (gravity) vs offlineVQF and VQF 6D."""
+    against the simulator's closed-form truth: offline (tilt) vs offlineVQF and VQF 6D."""
     import dataclasses
 
     from gyro_attitude.core.scene.simulator import SceneSimulator
@@ -388,8 +388,8 @@ def simulated(seeds=range(5)) -> list[dict]:
         nav = NavFrame(latitude_rad=spec.earth.latitude_rad)
         est = {}
         t0 = time.perf_counter()
-        res = estimate_offline(t, w, f, q0=q_true[0], nav=nav, config=stream_config("gravity"))
-        est["offline/gravity"] = (res.q, time.perf_counter() - t0)
+        res = estimate_offline(t, w, f, q0=q_true[0], nav=nav, config=stream_config("tilt"))
+        est["offline/tilt"] = (res.q, time.perf_counter() - t0)
         try:
             from vqf import VQF, offlineVQF
             t0 = time.perf_counter()
@@ -424,16 +424,16 @@ def replay_speed(name: str, directory=None) -> list[dict]:
 
     path = (directory or real_dir()) / f"{name}.mcap"
     rows = []
-    runs = {"replay (offline, defaults)": [], "replay --aiding gravity (offline)":
-            ["--aiding", "gravity"], "replay --estimator causal": ["--estimator", "causal"],
-            "replay --estimator causal --aiding gravity": ["--estimator", "causal", "--aiding",
-                                                          "gravity"]}
+    runs = {"replay (offline, defaults)": [], "replay --aiding none (offline)":
+            ["--aiding", "none"], "replay --estimator causal": ["--estimator", "causal"],
+            "replay --estimator causal --aiding none": ["--estimator", "causal", "--aiding",
+                                                       "none"]}
     with tempfile.TemporaryDirectory() as tmp:
         for label, flags in runs.items():
             kw = {"imu_topic": "/imu/data_raw", "truth_topic": "/truth/attitude", "force": True,
                   "estimator": "causal" if "causal" in flags else "offline"}
-            if "gravity" in flags:
-                kw["config"] = StreamConfig(aiding="gravity")
+            if "none" in flags:
+                kw["config"] = StreamConfig(aiding="none")
             res = min((replay_file(path, pathlib.Path(tmp) / "o.mcap", **kw)
                        for _ in range(REPEATS)), key=lambda r: r.integrate_seconds)
             t0 = time.perf_counter()
@@ -459,24 +459,24 @@ def _offline_ratios(rows: list[dict]) -> list[dict]:
         by = {r["mode"]: r for r in rows if r.get("recording") == name}
         ovqf = by.get("peer/offline_vqf_6d")
         gyro, oracle = by.get("offline/auto"), by.get("oracle/initial_rest_bias")
-        aided = by.get("offline/gravity")
+        aided = by.get("offline/tilt")
         if not (ovqf and gyro and oracle and aided):
             continue
         r = {"recording": name, "mode": "ratios",
-             "offline_gravity_rms_tilt_over_offline_vqf": aided["rms_tilt_deg"]
+             "offline_tilt_rms_tilt_over_offline_vqf": aided["rms_tilt_deg"]
              / ovqf["rms_tilt_deg"],
-             "offline_gravity_rms_tilt_over_offline_vqf_truth_on_gyro_clock":
+             "offline_tilt_rms_tilt_over_offline_vqf_truth_on_gyro_clock":
              aided["rms_tilt_deg_truth_on_gyro_clock"]
              / ovqf["rms_tilt_deg_truth_on_gyro_clock"],
              "offline_gyro_only_end_error_over_oracle": gyro["end_error_deg"]
              / oracle["end_error_deg"],
-             "offline_gravity_speed_over_offline_vqf": aided["samples_per_s"]
+             "offline_tilt_speed_over_offline_vqf": aided["samples_per_s"]
              / ovqf["samples_per_s"],
              "offline_auto_speed_over_offline_vqf": gyro["samples_per_s"]
              / ovqf["samples_per_s"]}
         print(f"{name}: truth {aided['truth_lag_ms']:+.2f} ms from the gyro's clock; on the gyro's "
-              "clock offline/gravity RMS tilt = "
-              f"{r['offline_gravity_rms_tilt_over_offline_vqf_truth_on_gyro_clock']:.2f}× "
+              "clock offline/tilt RMS tilt = "
+              f"{r['offline_tilt_rms_tilt_over_offline_vqf_truth_on_gyro_clock']:.2f}× "
               "offlineVQF's")
         ovqf9, mag9 = by.get("peer/offline_vqf_9d"), by.get("offline/magnetometer")
         if ovqf9 and mag9:
@@ -485,10 +485,10 @@ def _offline_ratios(rows: list[dict]) -> list[dict]:
             print(f"{name}: offline/magnetometer RMS heading = "
                   f"{r['offline_magnetometer_rms_heading_over_offline_vqf_9d']:.2f}× offlineVQF "
                   "9D's")
-        print(f"{name}: offline/gravity RMS tilt = {r[next(iter(list(r)[2:]))]:.2f}× offlineVQF; "
+        print(f"{name}: offline/tilt RMS tilt = {r[next(iter(list(r)[2:]))]:.2f}× offlineVQF; "
               f"gyro-only end error = {r['offline_gyro_only_end_error_over_oracle']:.2f}× the "
-              f"rest-bias oracle; speed {r['offline_gravity_speed_over_offline_vqf']:.2f}× "
-              f"(gravity), {r['offline_auto_speed_over_offline_vqf']:.2f}× (auto) offlineVQF's")
+              f"rest-bias oracle; speed {r['offline_tilt_speed_over_offline_vqf']:.2f}× "
+              f"(tilt), {r['offline_auto_speed_over_offline_vqf']:.2f}× (auto) offlineVQF's")
         out.append(r)
     return out
 
@@ -534,14 +534,14 @@ def run(quick: bool = False, out_dir=None) -> list[dict]:
     by = {}
     for r in sim:
         by.setdefault(r["recording"], {})[r["mode"]] = r["rms_tilt_deg"]
-    ratios = [m["offline/gravity"] / m["peer/offline_vqf_6d"] for m in by.values()
+    ratios = [m["offline/tilt"] / m["peer/offline_vqf_6d"] for m in by.values()
               if "peer/offline_vqf_6d" in m]
     if ratios:
-        print(f"simulated: offline/gravity RMS tilt over offlineVQF's: median "
+        print(f"simulated: offline/tilt RMS tilt over offlineVQF's: median "
               f"{np.median(ratios):.2f}, worst {max(ratios):.2f} ({len(ratios)} recordings)")
         sim.append({"recording": "sim/handheld_mems", "mode": "ratios",
-                    "offline_gravity_rms_tilt_over_offline_vqf_median": float(np.median(ratios)),
-                    "offline_gravity_rms_tilt_over_offline_vqf_worst": float(max(ratios))})
+                    "offline_tilt_rms_tilt_over_offline_vqf_median": float(np.median(ratios)),
+                    "offline_tilt_rms_tilt_over_offline_vqf_worst": float(max(ratios))})
     rows += sim
     if out_dir is not None and hist:
         import matplotlib

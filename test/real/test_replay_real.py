@@ -39,7 +39,7 @@ def test_replay_defaults_remove_the_bias(name, estimator, tmp_path, capsys):
     assert final_deg <= 1.2 * MEAN_OVER_INITIAL_REST_DEG[name]
 
 
-@pytest.mark.parametrize("aiding", ["gravity", "none"])
+@pytest.mark.parametrize("aiding", ["auto", "none"])
 def test_offline_algorithm_in_the_causal_estimator_is_refused_in_one_line(tmp_path, capsys,
                                                                           aiding):
     # the causal estimator steps sample by sample: an algorithm that needs the samples after
