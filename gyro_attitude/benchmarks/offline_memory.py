@@ -2,7 +2,7 @@
 offline-memory``).
 
 Each size runs in a fresh process: a 1 kHz noisy MEMS recording (rest, a slow tumble with
-accelerations, rest; gyro and accelerometer) is made in memory and estimated with gravity
+accelerations, rest; gyro and accelerometer) is made in memory and estimated with tilt
 aiding, its arrays of the recording's length taken from a :class:`~gyro_attitude.io.spool.Spool`
 as replay takes them.  The peak RSS (Linux ``VmHWM``) is reset after the input is made, so the
 figures are the estimation's own: peak RSS, peak anonymous RSS (``RssAnon``, sampled every
@@ -71,7 +71,7 @@ spool = Spool(tempfile.gettempdir())
 th = threading.Thread(target=sample, daemon=True)
 th.start()
 t0 = time.perf_counter()
-res = estimate_offline(t, w, a, config=StreamConfig(aiding="gravity"), empty=spool.empty)
+res = estimate_offline(t, w, a, config=StreamConfig(aiding="tilt"), empty=spool.empty)
 sec = time.perf_counter() - t0
 done.set()
 th.join()
