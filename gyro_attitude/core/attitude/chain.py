@@ -251,25 +251,51 @@ def break_windows(c, s):
     s.ahrs_i[AHRS_HAS_LAST] = 0
 
 
-@kernel
-def judge_covariance(s, cv):
-    """(variances known, s0, s1, s2) of a row-major 3x3 ``angular_velocity_covariance`` (9,):
-    unknown for "no estimate" (REP-145) or all zeros; an invalid diagonal (non-finite,
-    negative, beyond MAX_GYRO_VARIANCE, or a row that is not 9 numbers: NaN) is counted."""
+#: :func:`covariance_verdict`'s codes: REP-145's "no estimate", all zeros (unknown), an
+#: invalid diagonal (treated as unknown, counted), variances known
+COV_NO_ESTIMATE, COV_ZEROS, COV_INVALID, COV_KNOWN = 0, 1, 2, 3
+
+
+@kernel(inline=True)
+def covariance_verdict(cv):
+    """(code, s0, s1, s2) of a row-major 3x3 ``angular_velocity_covariance`` (9,), the one
+    home of the policy: "no estimate" (REP-145: element 0 is −1); an invalid diagonal
+    (non-finite, negative, beyond MAX_GYRO_VARIANCE, or a row that is not 9 numbers: NaN);
+    all zeros (unknown); else the diagonal's variances."""
     if cv[0] == NO_ESTIMATE:
-        s.noise_unknown = True  # said once (the first time: an event)
-        return False, 0.0, 0.0, 0.0
+        return COV_NO_ESTIMATE, 0.0, 0.0, 0.0
     d0, d1, d2 = cv[0], cv[4], cv[8]
     # a chained comparison is False for NaN, so this refuses non-finite values too
     if not (0.0 <= d0 <= MAX_GYRO_VARIANCE and 0.0 <= d1 <= MAX_GYRO_VARIANCE
             and 0.0 <= d2 <= MAX_GYRO_VARIANCE):
-        s.invalid_covariance += 1
-        s.ev_invalid_cov = True
-        return False, 0.0, 0.0, 0.0
+        return COV_INVALID, 0.0, 0.0, 0.0
     for i in range(9):
         if cv[i] != 0.0:
-            s.variance_known = True
-            return True, d0, d1, d2
+            return COV_KNOWN, d0, d1, d2
+    return COV_ZEROS, 0.0, 0.0, 0.0
+
+
+@kernel
+def covariance_verdicts(cov, var, code):
+    """:func:`covariance_verdict` of every row of ``cov`` (N, 9) into ``var`` (N, 3) and
+    ``code`` (N,) (the offline estimator's rows)."""
+    for k in range(cov.shape[0]):
+        code[k], var[k, 0], var[k, 1], var[k, 2] = covariance_verdict(cov[k])
+
+
+@kernel
+def judge_covariance(s, cv):
+    """(variances known, s0, s1, s2) of a sample's covariance (:func:`covariance_verdict`):
+    "no estimate" said once (the first time: an event), an invalid one counted."""
+    code, d0, d1, d2 = covariance_verdict(cv)
+    if code == COV_NO_ESTIMATE:
+        s.noise_unknown = True
+    elif code == COV_INVALID:
+        s.invalid_covariance += 1
+        s.ev_invalid_cov = True
+    elif code == COV_KNOWN:
+        s.variance_known = True
+        return True, d0, d1, d2
     return False, 0.0, 0.0, 0.0
 
 

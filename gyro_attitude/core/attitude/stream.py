@@ -25,7 +25,7 @@ Every Imu sample passes the stages in one order (the numbered steps of :meth:`At
 6. **covariance** (:mod:`.covariance`): the per-axis attitude/bias error covariance (gyro noise
    ``σ_ω² dt²`` from the diagonal of ``angular_velocity_covariance`` or ``N² dt``, bias
    uncertainty, zero-rate updates, alignment, aiding); a covariance that says "no estimate"
-   (REP-145: :func:`gyro_variances`) adds nothing, an invalid one is counted.
+   (REP-145: :func:`.chain.covariance_verdict`) adds nothing, an invalid one is counted.
 
 Each stage keeps its own state (the validator, the bias estimator, the aligner, the aiding
 filter, the integrator, the covariance); what the chain itself carries between samples is one
@@ -65,7 +65,6 @@ from gyro_attitude.core.attitude.alignment import (
 )
 from gyro_attitude.core.attitude.chain import (  # one home: the step's
     ACCEL_ABSURD,
-    MAX_GYRO_VARIANCE,
 )
 from gyro_attitude.core.attitude.covariance import V_TT, AttitudeCovariance
 from gyro_attitude.core.attitude.gyro_bias import GyroBiasEstimator, GyroBiasReport
@@ -86,7 +85,7 @@ from gyro_attitude.core.jit import compiled, direct
 from gyro_attitude.core.rotation import quat_normalize
 
 __all__ = ["AttitudeStream", "StreamConfig", "StreamResult", "aiding_note", "bias_summary",
-           "compile_kernels", "gyro_variances"]
+           "compile_kernels"]
 
 
 INVALID_COVARIANCE = "invalid_covariance"
@@ -135,52 +134,6 @@ def unknown_noise_note(cfg: StreamConfig) -> str:
 
 ALIGNING, RUNNING, FAILED = Phase.ALIGNING, Phase.RUNNING, Phase.FAILED
 _ACCEPTED, _STARTED = v.Verdict(v.ACCEPT, "", ""), v.Verdict(v.START, "", "")
-
-
-def gyro_variances(covariance) -> tuple[tuple[float, float, float] | None, bool]:
-    """(per-axis variances, invalid) of a row-major 3x3 ``angular_velocity_covariance``.
-
-    ``None, False`` when it carries no estimate (REP-145, :func:`.validation.no_estimate`) or is
-    all zeros (unknown); ``None, True`` when its diagonal is non-finite, negative or beyond
-    MAX_GYRO_VARIANCE (treated as unknown).  Plain floats: it runs once per live sample.
-    """
-    if covariance is None:
-        return None, False
-    return row_variances(np.asarray(covariance, dtype=np.float64).reshape(-1).tolist())
-
-
-def row_variances(c: list) -> tuple[tuple[float, float, float] | None, bool]:
-    """:func:`gyro_variances` of a covariance already made a list of floats."""
-    if len(c) != 9:
-        return None, True
-    if v.no_estimate(c):
-        return None, False
-    d = c[0], c[4], c[8]
-    # a chained comparison is False for NaN, so this refuses non-finite values too
-    if not all(0.0 <= x <= MAX_GYRO_VARIANCE for x in d):
-        return None, True
-    if not any(c):
-        return None, False
-    return d, False
-
-
-def gyro_variances_array(covariance: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Array form of :func:`gyro_variances` for (N, 9): (variances (N, 3), known, invalid)."""
-    c = np.asarray(covariance, dtype=np.float64)
-    if c.ndim == 2 and c.shape[0] > 1 and c.strides[0] == 0:
-        # one row repeated (a broadcast view: every message carried the same covariance)
-        var, known, invalid = gyro_variances_array(c[:1])
-        n = c.shape[0]
-        return (np.broadcast_to(var, (n, 3)), np.broadcast_to(known, (n,)),
-                np.broadcast_to(invalid, (n,)))
-    d = c[:, [0, 4, 8]]
-    no_estimate = v.no_estimate(c)
-    with np.errstate(invalid="ignore"):
-        invalid = ~no_estimate & (~np.isfinite(d).all(axis=1) | (d < 0).any(axis=1)
-                                  | (d > MAX_GYRO_VARIANCE).any(axis=1))
-        zeros = ~np.any(c != 0, axis=1)
-    known = ~no_estimate & ~invalid & ~zeros
-    return np.where(known[:, None], d, 0.0), known, invalid
 
 
 START_NOTE = ("initial attitude: roll and pitch from the first accelerometer sample, the "
@@ -892,15 +845,31 @@ def recording_arrays(n: int, angular_velocity_covariance, accel):
 
 def covariance_rows(cov: np.ndarray, valid: np.ndarray, counts: dict, details: dict):
     """Per-axis gyro variances (M, 3) and whether each is known (M,) for the accepted rows
-    ``valid`` of ``cov`` (N, 9); the invalid ones are counted in ``counts`` and the first is
-    described in ``details`` (treated as unknown)."""
-    var_all, known_all, invalid_all = gyro_variances_array(cov)
-    inv = rows(invalid_all, valid)
+    ``valid`` of ``cov`` (N, 9), by the causal step's verdict (:func:`.chain.covariance_verdict`);
+    the invalid ones are counted in ``counts`` and the first is described in ``details``
+    (treated as unknown)."""
+    c = np.asarray(cov, dtype=np.float64)
+    if c.ndim == 2 and c.shape[0] > 1 and c.strides[0] == 0:
+        # one row repeated (a broadcast view: every message carried the same covariance)
+        var1, code1 = _verdicts(c[:1])
+        var_all = np.broadcast_to(var1, c.shape[:1] + (3,))
+        code_all = np.broadcast_to(code1, c.shape[:1])
+    else:
+        var_all, code_all = _verdicts(c)
+    code = rows(code_all, valid)
+    inv = code == chain.COV_INVALID
     counts[INVALID_COVARIANCE] = int(np.count_nonzero(inv))
     if counts[INVALID_COVARIANCE]:
         k = int(valid[np.flatnonzero(inv)[0]])
         details.setdefault(INVALID_COVARIANCE, invalid_covariance_note(cov[k]))
-    return rows(var_all, valid), rows(known_all, valid)
+    return rows(var_all, valid), code == chain.COV_KNOWN
+
+
+def _verdicts(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    var = np.zeros((c.shape[0], 3))
+    code = np.zeros(c.shape[0], np.int8)
+    compiled(chain.covariance_verdicts)(np.ascontiguousarray(c), var, code)
+    return var, code
 
 
 def rows(a: np.ndarray, index: np.ndarray, empty=None) -> np.ndarray:

@@ -10,14 +10,23 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
+from gyro_attitude.core.attitude import chain
 from gyro_attitude.core.attitude import validation as iv
 from gyro_attitude.core.attitude.stream import (
     INTEGRATOR_ERROR,
     INVALID_COVARIANCE,
     AttitudeStream,
     StreamConfig,
-    gyro_variances,
+    _covariance_row,
 )
+from gyro_attitude.core.jit import compiled
+
+
+def gyro_variances(cov):
+    """(variances or None, invalid) by the step's verdict on one covariance as push() takes
+    it (a row that is not 9 numbers becomes NaN: invalid)."""
+    code, *d = compiled(chain.covariance_verdict)(_covariance_row(cov))
+    return (tuple(d) if code == chain.COV_KNOWN else None), code == chain.COV_INVALID
 
 MS = 1_000_000
 CAUSAL = ["rotvec_cubic", "exp_map"]  # the algorithms of the estimator's step

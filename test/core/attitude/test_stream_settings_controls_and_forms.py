@@ -17,12 +17,12 @@ from gyro_attitude.core.attitude.settings import check_gyrocompass_feasible
 from gyro_attitude.core.attitude.stream import (
     ALIGNING,
     INTEGRATOR_ERROR,
+    INVALID_COVARIANCE,
     RUNNING,
     AttitudeStream,
     StreamConfig,
     bias_summary,
-    gyro_variances,
-    gyro_variances_array,
+    covariance_rows,
 )
 
 MS = 1_000_000
@@ -129,23 +129,31 @@ COV_TABLE = [  # row-major 3x3 → (variances or None, invalid)
 ]
 
 
-def test_covariance_rows_array_form_written_out():
-    rows = np.array([c for c, _, _ in COV_TABLE])
-    var, known, invalid = gyro_variances_array(rows)
+def test_covariance_rows_written_out():
+    """The offline estimator's rows and the causal step judge a covariance alike (one
+    verdict kernel): as the table says, row by row, and for one row repeated as a read-only
+    view (what the array reader returns for a constant covariance)."""
+    table = np.array([c for c, _, _ in COV_TABLE])
+    counts, details = {}, {}
+    var, known = covariance_rows(table, np.arange(len(COV_TABLE)), counts, details)
+    assert counts[INVALID_COVARIANCE] == sum(bad for _, _, bad in COV_TABLE)
     for k, (cov, expected, bad) in enumerate(COV_TABLE):
-        assert bool(invalid[k]) == bad, cov
         assert bool(known[k]) == (expected is not None), cov
-        np.testing.assert_array_equal(var[k], expected if expected is not None else [0.0] * 3)
-        scalar, scalar_bad = gyro_variances(cov)
-        assert scalar_bad == bad and (scalar is None) == (expected is None)
-    assert var.dtype == np.float64
-    # one row repeated as a read-only view (what the array reader returns for a constant
-    # covariance): the same verdicts, row by row
+        if expected is not None:
+            np.testing.assert_array_equal(var[k], expected)
+        # the causal step: a known covariance gives a variance, an invalid one is counted
+        s = AttitudeStream("exp_map")
+        s.push(MS, [0.0, 0.0, 0.0], "imu", cov)
+        s.push(2 * MS, [0.0, 0.0, 0.0], "imu", cov)
+        assert (s.counts[INVALID_COVARIANCE] == 2) == bad, cov
+        assert (s.variance is not None) == (expected is not None), cov
     for cov, expected, bad in COV_TABLE:
-        var, known, invalid = gyro_variances_array(np.broadcast_to(cov, (5, 9)))
-        assert var.shape == (5, 3) and known.shape == invalid.shape == (5,)
-        assert invalid.tolist() == [bad] * 5 and known.tolist() == [expected is not None] * 5
-        np.testing.assert_array_equal(var, [expected if expected is not None else [0.0] * 3] * 5)
+        counts = {}
+        var, known = covariance_rows(np.broadcast_to(cov, (5, 9)), np.arange(5), counts, {})
+        assert var.shape == (5, 3) and known.shape == (5,)
+        assert counts[INVALID_COVARIANCE] == 5 * bad and known.tolist() == [expected is not None] * 5
+        if expected is not None:
+            np.testing.assert_array_equal(var, [expected] * 5)
 
 
 # ------------------------------------------------------------------------- interval statistics
