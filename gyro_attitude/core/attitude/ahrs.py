@@ -208,13 +208,14 @@ def _as_floats(v) -> tuple[float, float, float] | None:
 
 # The filter's state as arrays (what the compiled chain steps).  Float slots:
 A_BIAS, A_LP, A_COEF, A_KEY_TAU, A_REST_S, A_REJECT_S, A_RUN_S, A_SINCE_HEADING, A_REF_ACC, \
-    A_CAND, A_HI_SUMS, A_HI_SINCE, A_HARD_IRON, A_REF_NORM, A_REF_DIP = \
-    0, 3, 9, 14, 15, 16, 17, 18, 19, 22, 25, 39, 40, 43, 44
-_A_FLOATS = 45
+    A_CAND, A_HI_SUMS, A_HI_SINCE, A_HARD_IRON, A_REF_NORM, A_REF_DIP, A_LP_OUT = \
+    0, 3, 9, 14, 15, 16, 17, 18, 19, 22, 25, 39, 40, 43, 44, 45
+_A_FLOATS = 48
 # (bias 3; the Butterworth's delay elements s1, s2 in the nav frame 6; its coefficients 5 and
 # the time constant they are for; the rest, rejection, run and heading clocks; Σ norm, Σ dip,
 # Σ seconds while learning the reference; a steady disturbed field's norm, dip, seconds; the
-# 14 sphere-fit sums and the seconds since the last solve; the hard iron; the reference)
+# 14 sphere-fit sums and the seconds since the last solve; the hard iron; the reference; the
+# low-pass's last output, nav frame)
 # Int slots:
 I_LAST_T, I_HAS_LAST, I_AIDED, I_REJECTED, I_RECOVERIES, I_MAG_USED, I_MAG_DISTURBED, \
     I_MAG_INVALID, I_REF_CHANGES, I_AT_REST, I_HEADING_INIT, I_HAS_LP, I_HAS_KEY, I_KEY_DT, \
@@ -416,7 +417,7 @@ def rotate_lowpass(af, ai, dx, dy, dz):
     (almost-inertial)."""
     if ai[I_HAS_LP] == LP_NONE:
         return
-    for i in (A_LP, A_LP + 3):
+    for i in (A_LP, A_LP + 3, A_LP_OUT):
         ax, ay, az = af[i], af[i + 1], af[i + 2]
         af[i] = ax + dy * az - dz * ay
         af[i + 1] = ay + dz * ax - dx * az
@@ -471,7 +472,17 @@ def _tilt(pa, af, ai, dt, ox, oy, oz, fx, fy, fz, c00, c01, c02, c10, c11, c12, 
             ai[I_HAS_LP] = LP_BUTTERWORTH
     else:
         af[A_RUN_S] += dt
-        b0, b1, b2, a1, a2 = _coefficients(af, ai, tau, dt)
+        ob0, ob2, oa2 = af[A_COEF], af[A_COEF + 2], af[A_COEF + 4]
+        b0, b1, b2, a1, a2 = _coefficients(af, ai, tau, dt)  # (set when the mean ended)
+        if b0 != ob0 or b2 != ob2 or a2 != oa2:
+            # new coefficients (the time constant switched at a rest's start or end, or the
+            # interval changed): the state moved by the difference of the two steady states
+            # at the last output, so the output goes on from where it was instead of jumping
+            # (a 0.5 s → 3 s switch would swell it 4× for seconds)
+            d1, d2 = ob0 - b0, (b2 - a2) - (ob2 - oa2)
+            for i in range(3):
+                af[lp + i] += d1 * af[A_LP_OUT + i]
+                af[lp + 3 + i] += d2 * af[A_LP_OUT + i]
         gx = b0 * nx + af[lp]
         gy = b0 * ny + af[lp + 1]
         gz = b0 * nz + af[lp + 2]
@@ -481,6 +492,7 @@ def _tilt(pa, af, ai, dt, ox, oy, oz, fx, fy, fz, c00, c01, c02, c10, c11, c12, 
         af[lp + 3] = b2 * nx - a2 * gx
         af[lp + 4] = b2 * ny - a2 * gy
         af[lp + 5] = b2 * nz - a2 * gz
+    af[A_LP_OUT], af[A_LP_OUT + 1], af[A_LP_OUT + 2] = gx, gy, gz
     gn = math.sqrt(gx * gx + gy * gy + gz * gz)
     if gn < 1e-9:
         return 0.0, 0.0, False

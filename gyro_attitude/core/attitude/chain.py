@@ -178,7 +178,7 @@ STATE_DTYPE = np.dtype([
     ("rest_f", np.float64, (32,)), ("rest_i", np.int64, (10,)),
     ("bias_f", np.float64, (24,)), ("bias_i", np.int64, (13,)),
     ("aligner", ALIGNER_DTYPE),
-    ("ahrs_f", np.float64, (45,)), ("ahrs_i", np.int64, (19,)),
+    ("ahrs_f", np.float64, (48,)), ("ahrs_i", np.int64, (19,)),
     ("cubic_i", np.int64, (9,)), ("cubic_t", np.int64, (4,)), ("cubic_w", np.float64, (4, 3)),
     ("cubic_f", np.float64, (14,)), ("has_nav", np.bool_), ("nav_rate", np.float64, (3,)),
     ("cov", np.float64, (12,)), ("initial_tt", np.float64, (3,)),

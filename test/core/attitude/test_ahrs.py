@@ -52,6 +52,24 @@ def test_butterworth_has_unit_dc_gain_and_half_power_at_its_cutoff():
     assert abs(h) ** 2 == pytest.approx(0.5, rel=1e-6)
 
 
+def test_the_low_pass_goes_on_from_its_output_when_its_time_constant_switches():
+    """At a rest the low-pass runs with the short rest time constant, in motion with the long
+    one: a constant specific force must come out unchanged across the switch (a second-order
+    state kept as it was swells the output ~4x for seconds after a 0.5 s -> 3 s switch)."""
+    from gyro_attitude.core.attitude.ahrs import A_LP_OUT
+
+    f = np.array([0.0, 0.0, 9.8])  # level: no correction rotates the filter's state
+    aid = AhrsFilter(AhrsParams(rest_accel_tau_s=0.5, accel_tau_s=3.0))
+    seen = []
+    for k in range(2000):  # 10 s at 200 Hz: 4 s still (a rest from 1 s on), then a turn
+        rate = (0.0, 0.0, 0.0) if k < 800 else (0.0, 0.0, 0.2)  # about the vertical: f stays
+        aid.update(10**9 + k * 5_000_000, rate, f, (0.0, 0.0, 0.0, 1.0))
+        if k >= 700:
+            seen.append(aid.af[A_LP_OUT:A_LP_OUT + 3].copy())
+    assert aid.at_rest is False
+    np.testing.assert_allclose(np.array(seen), np.tile(f, (len(seen), 1)), rtol=1e-9)
+
+
 def test_tilt_converges_to_the_static_tilt_from_a_level_start():
     truth = Rotation.from_euler("xyz", [12.0, -7.0, 30.0], degrees=True)
     t, w, f, m, qt = static(truth, 20.0, np.random.default_rng(1))
