@@ -2,7 +2,7 @@
 from the magnetometer, with acceleration and magnetic-disturbance rejection (no ROS, plain floats).
 
 Contract (streaming, the aiding stage): ``AhrsFilter.update(t_ns, rate, accel, q_nb, mag=None)
--> rate`` once per accepted sample, as :class:`.gravity_aiding.GravityAiding`: ``rate`` (3,)
+-> rate`` once per accepted sample: ``rate`` (3,)
 rad/s is the gyro rate with the known bias removed, ``accel`` the specific force (3,) m/s² or
 None, ``q_nb`` the current attitude estimate (body→ENU, scalar last), ``mag`` the magnetic field
 (3,) tesla in the body frame or None; the returned rate (a 3-tuple) is what the attitude
@@ -15,40 +15,40 @@ vectorized).
 Tilt (the structure of VQF, Laidig & Seel 2023, written from the paper):
 
 * The specific force is rotated into the nav frame with the current attitude and low-passed
-  there by a second-order Butterworth filter (time constant ``accel_tau_s``; a new low-pass is
-  the mean of the samples so far for its first ``accel_tau_s``, then the Butterworth from the
+  there by a second-order Butterworth filter (time constant ``ahrs_accel_tau_s``; a new low-pass is
+  the mean of the samples so far for its first ``ahrs_accel_tau_s``, then the Butterworth from the
   steady state at that mean, as VQF: a wrong start is levelled at once).  Every correction
   the filter applies to the attitude is applied to the filter's state too (a rotation of its
   delay elements), so the state lives in the frame the gyro alone would give — the
   "almost-inertial" frame: gyro errors are not fed back into the average, and accelerations of a
   motion average out (their integral is the velocity change) while gravity does not.
-* The tilt is then pulled toward the filtered vertical with time constant ``tilt_tau_s``
+* The tilt is then pulled toward the filtered vertical with time constant ``ahrs_tilt_tau_s``
   (0: the full correction every sample, as VQF).
-* Acceleration rejection: while the filtered vertical is more than ``accel_reject_deg`` from the
-  estimated one, or ``|‖f‖ − g| > accel_norm_tol``, the tilt is gyro-only (counted in
-  ``accel_rejected``).  Recovery: at a rest (rate below ``rest_rate_max`` and force within
-  ``rest_accel_tol`` of g for ``rest_min_s``) the filter trusts the accelerometer at once and
-  with the short time constant ``rest_accel_tau_s`` (rest-adaptive); and after
-  ``accel_recovery_s`` of continuous rejection in motion (a gyro that really drifted) the
+* Acceleration rejection: while the filtered vertical is more than ``ahrs_accel_reject_deg`` from the
+  estimated one, or ``|‖f‖ − g| > ahrs_accel_norm_tol``, the tilt is gyro-only (counted in
+  ``accel_rejected``).  Recovery: at a rest (rate below ``ahrs_rest_rate_max`` and force within
+  ``ahrs_rest_accel_tol`` of g for ``ahrs_rest_min_s``) the filter trusts the accelerometer at once and
+  with the short time constant ``ahrs_rest_accel_tau_s`` (rest-adaptive); and after
+  ``ahrs_accel_recovery_s`` of continuous rejection in motion (a gyro that really drifted) the
   correction resumes (``accel_recoveries``).  So a sustained acceleration pulls the tilt by at
   most the rejection angle, never by its full ``atan(a/g)``.
-* A slow bias integral (``bias_gain``, 1/s) removes the rate the corrections keep applying.
+* A slow bias integral (``ahrs_bias_gain``, 1/s) removes the rate the corrections keep applying.
 
 Heading (``mag`` given): the field minus the hard-iron offset is rotated into the nav frame;
-the angle of its horizontal part east of north, minus ``declination_deg`` (true north; 0 gives
+the angle of its horizontal part east of north, minus ``magnetic_declination_deg`` (true north; 0 gives
 magnetic north) is the heading error, taken out about the vertical with time constant
-``mag_tau_s`` (the first usable field sets the heading at once when ``initial_heading_from_mag``;
-the first ``mag_tau_s`` after it converge faster).  A field whose norm differs from the
+``ahrs_mag_tau_s`` (the first usable field sets the heading at once when the stream levels;
+the first ``ahrs_mag_tau_s`` after it converge faster).  A field whose norm differs from the
 reference by more than ``mag_norm_tol`` (relative) or whose dip (inclination, positive down)
 differs by more than ``mag_dip_tol_deg`` is a disturbance: counted (``mag_disturbed``), heading
-gyro-only.  The reference is given (``mag_ref_norm_t``, ``mag_ref_dip_deg``) or learned from the
-first ``mag_ref_s`` of field; a disturbed field that stays steady (same norm and dip within the
+gyro-only.  The reference is given (``mag_reference_enu_t``) or learned from the
+first ``mag_reference_s`` of field; a disturbed field that stays steady (same norm and dip within the
 tolerances) for ``mag_recovery_s`` becomes the new reference (``mag_reference_changes``), unless
 its dip has the other sign (a field cannot cross the magnetic equator under a robot).  Fields that
 are not 3 finite numbers, beyond ``MAG_ABSURD_T`` or below ``MAG_ZERO_T`` are counted
 (``mag_invalid``) and not used.
 
-Hard iron: ``hard_iron_t`` given, or ``estimate_hard_iron``: the sphere fit
+Hard iron: ``mag_hard_iron_t`` given, or ``mag_hard_iron_estimate``: the sphere fit
 ``‖m − b‖² = r²`` (linear least squares in ``b`` and ``r² − ‖b‖²``) over sums accumulated per
 sample and solved every ``HARD_IRON_SOLVE_S`` with exponential forgetting; a solution is taken
 only when the field has been seen from directions spread enough (the smallest eigenvalue of the
@@ -58,18 +58,17 @@ field's scatter above a quarter of r²... see :meth:`AhrsFilter._solve_hard_iron
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from gyro_attitude.core.angles import wrap_pi_float
 from gyro_attitude.core.attitude.modes import SettingError
-from gyro_attitude.core.attitude.settings import setting
+from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.core.attitude.validation import within
 from gyro_attitude.core.earth import STANDARD_GRAVITY
 from gyro_attitude.core.jit import compiled, kernel
 
-__all__ = ["AhrsFilter", "AhrsParams", "ahrs_attitude", "MAG_ABSURD_T", "MAG_ZERO_T"]
+__all__ = ["AhrsFilter", "ahrs_attitude", "ahrs_coefficients", "MAG_ABSURD_T", "MAG_ZERO_T"]
 
 MAG_ABSURD_T = 1e-2  # tesla: 10 mT, beyond any magnetometer's range (Earth's field ~25-65 µT)
 MAG_ZERO_T = 1e-7  # tesla: 0.1 µT, no magnetometer in a geomagnetic field reads this little
@@ -79,105 +78,32 @@ HEADING_INIT_S = 2.0
 _SQRT2 = math.sqrt(2.0)
 
 
-# AhrsParams field -> the estimator setting (core/attitude/settings.py) that is its one home:
-# default, range and help come from there.
-SETTING_OF = {
-    "accel_tau_s": "ahrs_accel_tau_s",
-    "accel_reject_deg": "ahrs_accel_reject_deg",
-    "accel_norm_tol": "ahrs_accel_norm_tol",
-    "accel_recovery_s": "ahrs_accel_recovery_s",
-    "accel_recovery_rate_deg_s": "ahrs_recovery_rate_deg_s",
-    "tilt_rate_max_deg_s": "ahrs_tilt_rate_max_deg_s",
-    "bias_gain": "ahrs_bias_gain",
-    "mag_tau_s": "ahrs_mag_tau_s",
-    "declination_deg": "magnetic_declination_deg",
-    "mag_norm_tol": "mag_norm_tol",
-    "mag_dip_tol_deg": "mag_dip_tol_deg",
-    "mag_recovery_s": "mag_recovery_s",
-    "hard_iron_t": "mag_hard_iron_t",
-    "estimate_hard_iron": "mag_hard_iron_estimate",
-}
+def ahrs_coefficients(cfg) -> np.ndarray:
+    """The filter's parameter row (``P_*`` slots) of a :class:`~.settings.StreamConfig`: its
+    ``ahrs_*`` and ``mag_*`` rows, as the kernels read them (angles in radians, the rejection
+    angle as a cosine); the table has checked every value."""
+    return np.array([
+        cfg.ahrs_accel_tau_s, cfg.ahrs_tilt_tau_s, cfg.ahrs_rest_accel_tau_s,
+        cfg.ahrs_rest_rate_max, cfg.ahrs_rest_accel_tol, cfg.ahrs_rest_min_s, STANDARD_GRAVITY,
+        cfg.ahrs_accel_norm_tol, cfg.ahrs_accel_recovery_s, cfg.ahrs_bias_gain,
+        cfg.ahrs_mag_tau_s, cfg.mag_norm_tol, cfg.mag_reference_s, cfg.mag_hard_iron_window_s,
+        math.radians(cfg.magnetic_declination_deg),
+        math.cos(math.radians(cfg.ahrs_accel_reject_deg)),
+        math.radians(cfg.ahrs_tilt_rate_max_deg_s), 2.0 * cfg.ahrs_accel_tau_s,
+        math.radians(cfg.ahrs_recovery_rate_deg_s), math.radians(cfg.mag_dip_tol_deg),
+        1.0 if _field_reference(cfg) is not None else 0.0, cfg.mag_recovery_s])
 
 
-def _default(name: str):
-    return setting(SETTING_OF[name]).default
-
-
-@dataclass(frozen=True)
-class AhrsParams:
-    """Settings of :class:`AhrsFilter` (module docstring); SI units, angles in degrees.  The
-    user-facing ones are rows of the estimator's settings table (:data:`SETTING_OF`); the rest
-    are the filter's internals: ``tilt_tau_s`` (0: the full correction every sample, as VQF),
-    the filter's own rest test (``rest_*``), ``initial_heading_from_mag`` (the first usable
-    field sets the heading at once), the field reference (``mag_ref_norm_t``,
-    ``mag_ref_dip_deg``; None: learned over ``mag_ref_s``) and the hard-iron fit's memory."""
-
-    accel_tau_s: float = _default("accel_tau_s")
-    accel_reject_deg: float = _default("accel_reject_deg")
-    accel_norm_tol: float = _default("accel_norm_tol")
-    accel_recovery_s: float = _default("accel_recovery_s")
-    accel_recovery_rate_deg_s: float = _default("accel_recovery_rate_deg_s")
-    tilt_rate_max_deg_s: float = _default("tilt_rate_max_deg_s")
-    bias_gain: float = _default("bias_gain")
-    mag_tau_s: float = _default("mag_tau_s")
-    declination_deg: float = _default("declination_deg")
-    mag_norm_tol: float = _default("mag_norm_tol")
-    mag_dip_tol_deg: float = _default("mag_dip_tol_deg")
-    mag_recovery_s: float = _default("mag_recovery_s")
-    hard_iron_t: tuple = _default("hard_iron_t")
-    estimate_hard_iron: bool = _default("estimate_hard_iron")
-    tilt_tau_s: float = 0.0
-    rest_accel_tau_s: float = 0.5
-    rest_rate_max: float = 0.05
-    rest_accel_tol: float = 0.3
-    rest_min_s: float = 1.0
-    gravity: float = STANDARD_GRAVITY
-    initial_heading_from_mag: bool = True
-    mag_ref_norm_t: float | None = None
-    mag_ref_dip_deg: float | None = None
-    mag_ref_s: float = 1.0
-    hard_iron_window_s: float = 60.0
-
-    def __post_init__(self):
-        for name, row in SETTING_OF.items():
-            object.__setattr__(self, name, setting(row).check(getattr(self, name)))
-        limits = {"tilt_tau_s": (0.0, 1e3), "rest_accel_tau_s": (1e-3, 1e3),
-                  "rest_rate_max": (0.0, 10.0), "rest_accel_tol": (0.0, 100.0),
-                  "rest_min_s": (0.0, 1e3), "gravity": (1.0, 100.0), "mag_ref_s": (0.0, 1e3),
-                  "hard_iron_window_s": (1.0, 1e6)}
-        for name, (lo, hi) in limits.items():
-            _check_num(name, getattr(self, name), lo, hi)
-        if self.mag_ref_norm_t is not None:
-            _check_num("mag_ref_norm_t", self.mag_ref_norm_t, MAG_ZERO_T, MAG_ABSURD_T)
-        if self.mag_ref_dip_deg is not None:
-            _check_num("mag_ref_dip_deg", self.mag_ref_dip_deg, -90.0, 90.0)
-        if not isinstance(self.initial_heading_from_mag, bool):
-            raise ValueError("initial_heading_from_mag must be true or false, got "
-                             f"{self.initial_heading_from_mag!r}")
-
-    @classmethod
-    def from_config(cls, cfg) -> AhrsParams:
-        """The filter's parameters of a :class:`~.settings.StreamConfig`: the table's rows, the
-        field reference from ``mag_reference_enu_t`` (zeros: learned), and the heading set from
-        the field when the stream levels (a given initial attitude keeps its heading and the
-        field pulls it slowly)."""
-        kw = {name: getattr(cfg, row) for name, row in SETTING_OF.items()}
-        e, n, u = cfg.mag_reference_enu_t
-        norm = math.sqrt(e * e + n * n + u * u)
-        if norm > 0.0:
-            if norm < MAG_ZERO_T:
-                raise SettingError("mag_reference_enu_t", "mag_reference_enu_t must be zeros "
-                                   f"(learn it) or a field of at least {MAG_ZERO_T:g} T")
-            kw["mag_ref_norm_t"] = norm
-            kw["mag_ref_dip_deg"] = math.degrees(math.atan2(-u, math.hypot(e, n)))
-        return cls(initial_heading_from_mag=cfg.levelling, **kw)
-
-
-def _check_num(name, v, lo, hi) -> float:
-    if isinstance(v, bool) or not isinstance(v, int | float | np.integer | np.floating) \
-            or not (math.isfinite(v) and lo <= v <= hi):
-        raise ValueError(f"{name} must be a finite number in [{lo:g}, {hi:g}], got {v!r}")
-    return float(v)
+def _field_reference(cfg) -> tuple[float, float] | None:
+    """(norm T, dip rad) of ``mag_reference_enu_t``, None for zeros (learned)."""
+    e, n, u = cfg.mag_reference_enu_t
+    norm = math.sqrt(e * e + n * n + u * u)
+    if norm == 0.0:
+        return None
+    if norm < MAG_ZERO_T:
+        raise SettingError("mag_reference_enu_t", "mag_reference_enu_t must be zeros (learn it) "
+                           f"or a field of at least {MAG_ZERO_T:g} T")
+    return norm, math.atan2(-u, math.hypot(e, n))
 
 
 @kernel(inline=True)
@@ -221,7 +147,7 @@ I_LAST_T, I_HAS_LAST, I_AIDED, I_REJECTED, I_RECOVERIES, I_MAG_USED, I_MAG_DISTU
     I_MAG_INVALID, I_REF_CHANGES, I_AT_REST, I_HEADING_INIT, I_HAS_LP, I_HAS_KEY, I_KEY_DT, \
     I_HAS_CAND, I_HAS_REF_NORM, I_HAS_REF_DIP, I_HI_ON, I_HI_FITS = range(19)
 _A_INTS = 19
-# Parameters (AhrsParams and what follows from it):
+# Parameters (ahrs_coefficients: the settings and what follows from them):
 P_ACCEL_TAU, P_TILT_TAU, P_REST_ACCEL_TAU, P_REST_RATE_MAX, P_REST_ACCEL_TOL, P_REST_MIN_S, \
     P_GRAVITY, P_ACCEL_NORM_TOL, P_ACCEL_RECOVERY_S, P_BIAS_GAIN, P_MAG_TAU, P_MAG_NORM_TOL, \
     P_MAG_REF_S, P_HI_WINDOW_S, P_DECL, P_REJECT_COS, P_TILT_RATE, P_SETTLE_S, \
@@ -233,46 +159,40 @@ MAG_ABSENT, MAG_NOT_FLOATS, MAG_GIVEN = 0, 1, 2
 
 
 class AhrsFilter:
-    """The causal AHRS aiding stage (see the module docstring).  Counters and state are public
-    attributes: ``accel_rejected``, ``accel_recoveries``, ``aided_samples`` (samples whose tilt
-    was corrected), ``mag_used``, ``mag_disturbed``, ``mag_invalid``, ``mag_reference_changes``,
-    ``at_rest``, ``bias`` (rad/s, subtracted), ``hard_iron`` (tesla), ``mag_ref_norm`` (tesla)
-    and ``mag_ref_dip`` (rad) once known, ``heading_initialized``.  They read the arrays
-    ``params``, ``af`` (float state) and ``ai`` (int state) that the kernel :func:`ahrs_step`
-    steps."""
+    """The causal AHRS aiding stage (see the module docstring) for the settings ``config``.
+    Counters and state are public attributes: ``accel_rejected``, ``accel_recoveries``,
+    ``aided_samples`` (samples whose tilt was corrected), ``mag_used``, ``mag_disturbed``,
+    ``mag_invalid``, ``mag_reference_changes``, ``at_rest``, ``bias`` (rad/s, subtracted),
+    ``hard_iron`` (tesla), ``mag_ref_norm`` (tesla) and ``mag_ref_dip`` (rad) once known,
+    ``heading_initialized``.  They read the arrays ``pa`` (the parameter row,
+    :func:`ahrs_coefficients`), ``af`` (float state) and ``ai`` (int state) that the kernel
+    :func:`ahrs_step` steps."""
 
-    def __init__(self, params: AhrsParams | None = None, **kw):
-        self.params = p = params if params is not None else AhrsParams(**kw)
-        if params is not None and kw:
-            raise ValueError("give AhrsParams or keyword settings, not both")
+    def __init__(self, config: StreamConfig | None = None):
+        self.config = cfg = config if config is not None else StreamConfig()
+        self.pa = ahrs_coefficients(cfg)
         # the tilt's effective gain for the covariance stage: the low-pass sets the time constant
-        self.kp = 1.0 / max(p.accel_tau_s, p.tilt_tau_s)
-        self.pa = np.array([
-            p.accel_tau_s, p.tilt_tau_s, p.rest_accel_tau_s, p.rest_rate_max, p.rest_accel_tol,
-            p.rest_min_s, p.gravity, p.accel_norm_tol, p.accel_recovery_s, p.bias_gain,
-            p.mag_tau_s, p.mag_norm_tol, p.mag_ref_s, p.hard_iron_window_s,
-            math.radians(p.declination_deg), math.cos(math.radians(p.accel_reject_deg)),
-            math.radians(p.tilt_rate_max_deg_s), 2.0 * p.accel_tau_s,
-            math.radians(p.accel_recovery_rate_deg_s), math.radians(p.mag_dip_tol_deg),
-            0.0 if p.mag_ref_norm_t is None else 1.0, p.mag_recovery_s])
+        self.kp = 1.0 / max(cfg.ahrs_accel_tau_s, cfg.ahrs_tilt_tau_s)
         self.reset()
 
     def reset(self) -> None:
-        """Back to the start, in place (the compiled chain holds the arrays)."""
-        p = self.params
+        """Back to the start, in place (the compiled chain holds the arrays).  The heading is
+        set from the first usable field when the stream levels (a given initial attitude keeps
+        its heading and the field pulls it slowly)."""
+        cfg = self.config
         if not hasattr(self, "af"):
             self.af = np.zeros(_A_FLOATS)
             self.ai = np.zeros(_A_INTS, dtype=np.int64)
         af, ai = self.af, self.ai
         af[:] = 0.0
         ai[:] = 0
-        ai[I_HEADING_INIT] = not p.initial_heading_from_mag
-        af[A_HARD_IRON:A_HARD_IRON + 3] = [float(c) for c in p.hard_iron_t]
-        if p.mag_ref_norm_t is not None:
-            af[A_REF_NORM], ai[I_HAS_REF_NORM] = p.mag_ref_norm_t, 1
-        if p.mag_ref_dip_deg is not None:
-            af[A_REF_DIP], ai[I_HAS_REF_DIP] = math.radians(p.mag_ref_dip_deg), 1
-        ai[I_HI_ON] = bool(p.estimate_hard_iron)
+        ai[I_HEADING_INIT] = not cfg.levelling
+        af[A_HARD_IRON:A_HARD_IRON + 3] = [float(c) for c in cfg.mag_hard_iron_t]
+        ref = _field_reference(cfg)
+        if ref is not None:
+            af[A_REF_NORM], ai[I_HAS_REF_NORM] = ref[0], 1
+            af[A_REF_DIP], ai[I_HAS_REF_DIP] = ref[1], 1
+        ai[I_HI_ON] = bool(cfg.mag_hard_iron_estimate)
 
     # ------------------------------------------------------------------ the state, read
     def _count(i):
@@ -726,7 +646,7 @@ def _solve_hard_iron(pa, af, ai):
         af[A_REF_NORM], ai[I_HAS_REF_NORM] = r * 1e-6, 1
 
 
-def ahrs_attitude(t_ns, gyro, accel, q0, mag=None, *, params: AhrsParams | None = None,
+def ahrs_attitude(t_ns, gyro, accel, q0, mag=None, *, config: StreamConfig | None = None,
                   algorithm: str = "exp_map") -> tuple[np.ndarray, AhrsFilter]:
     """Batch: attitudes (N, 4) of the filter over bias-free ``gyro`` (N, 3) rad/s, ``accel``
     (N, 3) m/s², ``mag`` (N, 3) tesla or None (rows of NaN: no field at that sample), from
@@ -741,7 +661,7 @@ def ahrs_attitude(t_ns, gyro, accel, q0, mag=None, *, params: AhrsParams | None 
         m = np.asarray(mag, dtype=np.float64)
         if m.shape != (t.size, 3):
             raise ValueError(f"mag must have shape ({t.size}, 3), got {m.shape}")
-    aid = AhrsFilter(params)
+    aid = AhrsFilter(config)
     integ = StreamingIntegrator(algorithm, q0=q0)
     q = np.empty((t.size, 4))
     cur = integ.quaternion

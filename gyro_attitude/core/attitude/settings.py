@@ -49,6 +49,8 @@ class Setting:
     the enum whose words are allowed; ``optional``: ``None`` is allowed and means "not given"
     (the node declares ``ros_default`` instead and treats it as given only where the setting's
     help says so); ``runtime``: the node accepts a change while running (validation thresholds).
+    A filter's internal constants are rows too, their help starting "internal" (tuned on real
+    recordings, rarely worth changing).
     """
 
     name: str
@@ -264,6 +266,25 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("mag_max_age_s", 0.1, "magnetometer aiding: a field sample serves the Imu samples "
             "up to this long after its stamp (then heading gyro-only, counted mag_missing)", "s",
             0.0, 10.0, group="ahrs"),
+    # -- the AHRS filter's internals: rows like the others (one home, one checker), tuned on
+    # real recordings and rarely worth changing
+    Setting("ahrs_tilt_tau_s", 0.0, "internal, tilt/magnetometer aiding: time constant of the "
+            "tilt toward the filtered vertical in motion (0: the full correction every sample, "
+            "as VQF)", "s", 0.0, 1.0e3, group="ahrs internals"),
+    Setting("ahrs_rest_accel_tau_s", 0.5, "internal, tilt/magnetometer aiding: time constant "
+            "of the specific-force low-pass at a rest", "s", 1e-3, 1.0e3,
+            group="ahrs internals"),
+    Setting("ahrs_rest_rate_max", 0.05, "internal, tilt/magnetometer aiding: the filter's rest "
+            "test, largest |omega|", "rad/s", 0.0, 10.0, group="ahrs internals"),
+    Setting("ahrs_rest_accel_tol", 0.3, "internal, tilt/magnetometer aiding: the filter's rest "
+            "test, largest | |f| - g |", "m/s^2", 0.0, 100.0, group="ahrs internals"),
+    Setting("ahrs_rest_min_s", 1.0, "internal, tilt/magnetometer aiding: the filter's rest "
+            "test, how long both hold", "s", 0.0, 1.0e3, group="ahrs internals"),
+    Setting("mag_reference_s", 1.0, "internal, magnetometer aiding: seconds of field the "
+            "reference is learned from (mag_reference_enu_t zeros)", "s", 0.0, 1.0e3,
+            group="ahrs internals"),
+    Setting("mag_hard_iron_window_s", 60.0, "internal, magnetometer aiding: memory of the "
+            "hard-iron sphere fit", "s", 1.0, 1.0e6, group="ahrs internals"),
     # -- validation of the input stream
     Setting("max_gap_s", 0.1, "a forward stamp step longer than this is a gap: not integrated "
             "across, attitude held", "s", 1e-6, 1e6, runtime=True, group="input"),

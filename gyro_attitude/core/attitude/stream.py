@@ -52,7 +52,6 @@ from gyro_attitude.core.attitude.ahrs import (
     MAG_GIVEN,
     MAG_NOT_FLOATS,
     AhrsFilter,
-    AhrsParams,
 )
 from gyro_attitude.core.attitude.alignment import (
     ALIGN_RING_DTYPE,
@@ -300,7 +299,7 @@ class AttitudeStream:
         c.level_first = self._level_first
         c.aiding = chain.AID_NONE
         if cfg.aided:
-            aid = AhrsFilter(AhrsParams.from_config(cfg))
+            aid = AhrsFilter(cfg)
             c.aiding, c.ahrs, c.kp = chain.AID_AHRS, aid.pa, aid.kp
 
     def _init_state(self, cfg: StreamConfig, q_initial: np.ndarray) -> None:
@@ -325,7 +324,7 @@ class AttitudeStream:
         s.level_pending = self.coef.level_first[0]
         self.aiding = None
         if cfg.aided:
-            self.aiding = AhrsFilter(AhrsParams.from_config(cfg))
+            self.aiding = AhrsFilter(cfg)
             s.ahrs_f, s.ahrs_i = self.aiding.af, self.aiding.ai
             self.aiding.af, self.aiding.ai = self.state.ahrs_f[0], self.state.ahrs_i[0]
         self._set_nav(self.nav)

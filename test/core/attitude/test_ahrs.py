@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from gyro_attitude.core.attitude.ahrs import AhrsFilter, AhrsParams, _butterworth2, ahrs_attitude
+from gyro_attitude.core.attitude.ahrs import AhrsFilter, _butterworth2, ahrs_attitude
+from gyro_attitude.core.attitude.settings import StreamConfig
 
 FS = 200.0
 G = 9.81
@@ -59,7 +60,7 @@ def test_the_low_pass_goes_on_from_its_output_when_its_time_constant_switches():
     from gyro_attitude.core.attitude.ahrs import A_LP_OUT
 
     f = np.array([0.0, 0.0, 9.8])  # level: no correction rotates the filter's state
-    aid = AhrsFilter(AhrsParams(rest_accel_tau_s=0.5, accel_tau_s=3.0))
+    aid = AhrsFilter(StreamConfig(ahrs_rest_accel_tau_s=0.5, ahrs_accel_tau_s=3.0))
     seen = []
     for k in range(2000):  # 10 s at 200 Hz: 4 s still (a rest from 1 s on), then a turn
         rate = (0.0, 0.0, 0.0) if k < 800 else (0.0, 0.0, 0.2)  # about the vertical: f stays
@@ -107,7 +108,7 @@ def test_declination_turns_the_heading_to_true_north():
     truth = Rotation.from_euler("z", 40.0, degrees=True)
     t, w, f, m, qt = static(truth, 10.0, b_enu=b)
     q_true_north, _ = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m,
-                                    params=AhrsParams(declination_deg=decl))
+                                    config=StreamConfig(magnetic_declination_deg=decl))
     q_magnetic, _ = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m)
     assert heading_deg(q_true_north[-1], qt[-1]) < 0.05
     assert heading_deg(q_magnetic[-1], qt[-1]) == pytest.approx(decl, abs=0.05)
@@ -131,7 +132,8 @@ def test_sustained_acceleration_pulls_the_tilt_by_the_rejection_angle_only():
     assert aid.accel_rejected > 0
     # without the rejection the filter follows the apparent vertical
     q_free, _ = ahrs_attitude(t, w, f, [0, 0, 0, 1.0],
-                              params=AhrsParams(accel_reject_deg=180.0, accel_norm_tol=1e3))
+                              config=StreamConfig(ahrs_accel_reject_deg=180.0,
+                                                                 ahrs_accel_norm_tol=1e3))
     assert tilt_deg(q_free, np.array([0, 0, 0, 1.0])).max() > 10.0
 
 
@@ -173,7 +175,7 @@ def test_a_steady_new_field_becomes_the_reference_after_the_recovery_time():
     later = t > 20e9
     m2 = m.copy()
     m2[later] *= 1.3  # a steady 30 % stronger field from 20 s (another building)
-    _, aid = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m2, params=AhrsParams(mag_recovery_s=15.0))
+    _, aid = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m2, config=StreamConfig(mag_recovery_s=15.0))
     assert aid.mag_reference_changes == 1
     assert aid.mag_ref_norm == pytest.approx(1.3 * np.linalg.norm(B_ENU), rel=0.01)
 
@@ -197,7 +199,7 @@ def test_hard_iron_given_is_taken_out():
     hi = (20e-6, -10e-6, 5e-6)
     truth = Rotation.from_euler("z", 70.0, degrees=True)
     t, w, f, m, qt = static(truth, 10.0, hard_iron=hi)
-    q_given, _ = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m, params=AhrsParams(hard_iron_t=hi))
+    q_given, _ = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m, config=StreamConfig(mag_hard_iron_t=tuple(hi)))
     q_ignored, _ = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m)
     assert heading_deg(q_given[-1], qt[-1]) < 0.05
     assert heading_deg(q_ignored[-1], qt[-1]) > 5.0
@@ -211,7 +213,7 @@ def test_hard_iron_is_estimated_by_the_sphere_fit_when_the_body_turns_about_two_
     f = np.concatenate([p[2] for p in parts])
     w = np.concatenate([p[1] for p in parts])
     t = (np.arange(m.shape[0]) * (1e9 / FS)).astype(np.int64)
-    aid = AhrsFilter(estimate_hard_iron=True)
+    aid = AhrsFilter(StreamConfig(mag_hard_iron_estimate=True))
     q = np.array([0, 0, 0, 1.0])
     for k in range(t.size):  # attitude not integrated: only the fit is under test
         aid.update(int(t[k]), w[k], f[k], q, m[k])
@@ -223,7 +225,7 @@ def test_hard_iron_is_estimated_by_the_sphere_fit_when_the_body_turns_about_two_
 def test_hard_iron_fit_refuses_a_field_seen_from_one_direction_only():
     t, w, f, m, qt = static(Rotation.identity(), 10.0, np.random.default_rng(3),
                             hard_iron=(20e-6, 0, 0))
-    aid = AhrsFilter(estimate_hard_iron=True)
+    aid = AhrsFilter(StreamConfig(mag_hard_iron_estimate=True))
     for k in range(t.size):
         aid.update(int(t[k]), w[k], f[k], qt[k], m[k])
     assert aid.hard_iron_fits == 0 and aid.hard_iron == [0.0, 0.0, 0.0]
@@ -252,7 +254,7 @@ def test_hard_iron_solve_agrees_with_numpy_least_squares_and_eigenvalues(seed):
     u /= np.linalg.norm(u, axis=1, keepdims=True)
     pts = b + 45.0 * (Rotation.random(random_state=seed).apply(u)) + 0.05 * rng.standard_normal(
         (400, 3))
-    aid = AhrsFilter(estimate_hard_iron=True)
+    aid = AhrsFilter(StreamConfig(mag_hard_iron_estimate=True))
     aid.af[ahrs.A_HI_SUMS:ahrs.A_HI_SUMS + 14] = _fit_sums(pts)
     ahrs._solve_hard_iron(aid.pa, aid.af, aid.ai)
     design = np.column_stack([2.0 * pts, np.ones(len(pts))])
@@ -265,15 +267,19 @@ def test_hard_iron_solve_agrees_with_numpy_least_squares_and_eigenvalues(seed):
         np.testing.assert_allclose(np.array(aid.hard_iron) * 1e6, sol[:3], rtol=1e-7, atol=1e-7)
 
 
-@pytest.mark.parametrize("name,value,named", [
-    ("accel_tau_s", 0.0, "ahrs_accel_tau_s"), ("mag_tau_s", math.nan, "ahrs_mag_tau_s"),
-    ("declination_deg", 400.0, "magnetic_declination_deg"),
-    ("hard_iron_t", (1, 2), "mag_hard_iron_t"), ("mag_ref_norm_t", 1.0, "mag_ref_norm_t"),
-    ("estimate_hard_iron", "yes", "mag_hard_iron_estimate"),
-    ("accel_reject_deg", True, "ahrs_accel_reject_deg"), ("rest_min_s", -1.0, "rest_min_s")])
-def test_bad_settings_are_refused_naming_the_setting(name, value, named):
-    with pytest.raises(ValueError, match=named):
-        AhrsParams(**{name: value})
+@pytest.mark.parametrize("name,value", [
+    ("ahrs_accel_tau_s", 0.0), ("ahrs_mag_tau_s", math.nan), ("magnetic_declination_deg", 400.0),
+    ("mag_hard_iron_t", (1, 2)), ("mag_reference_enu_t", (0.0, 0.0, 1.0)),
+    ("mag_hard_iron_estimate", "yes"), ("ahrs_accel_reject_deg", True),
+    ("ahrs_rest_min_s", -1.0), ("ahrs_rest_accel_tau_s", 0.0), ("mag_hard_iron_window_s", 0.5)])
+def test_bad_settings_are_refused_naming_the_setting(name, value):
+    with pytest.raises(ValueError, match=name):
+        AhrsFilter(StreamConfig(**{name: value}))
+
+
+def test_a_field_reference_too_weak_to_be_a_field_is_refused_naming_the_setting():
+    with pytest.raises(ValueError, match="mag_reference_enu_t"):
+        AhrsFilter(StreamConfig(mag_reference_enu_t=(0.0, 0.0, -1e-9)))
 
 
 def test_time_must_increase():
