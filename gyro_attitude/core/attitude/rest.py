@@ -68,6 +68,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gyro_attitude.core.attitude.inputs import first_step_back
+from gyro_attitude.core.attitude.settings import setting
 from gyro_attitude.core.earth import STANDARD_GRAVITY
 from gyro_attitude.core.jit import compiled, kernel
 
@@ -143,20 +144,37 @@ def check_sample(t_ns, gyro, accel=None) -> tuple[int, tuple, tuple | None]:
     return int(t_ns), vals[0], vals[1]
 
 
+#: the rest test's user-facing thresholds: their rows in the settings table (defaults, ranges,
+#: the one checker)
+_ROWS = {"window_s": "rest_window_s", "gyro_std_max": "rest_gyro_std_max",
+         "gyro_mean_max": "rest_gyro_mean_max", "accel_std_max": "rest_accel_std_max",
+         "accel_norm_tol": "rest_accel_norm_tol"}
+
+
+def _default(field: str) -> float:
+    return setting(_ROWS[field]).default
+
+
 @dataclass(frozen=True)
 class RestThresholds:
-    window_s: float = 0.5
-    gyro_std_max: float = 0.01  # rad/s, deviation from the window mean, over three axes
-    gyro_mean_max: float = 0.011  # rad/s (0.63 °/s) on any axis: the largest bias taken for rest
-    accel_std_max: float = 0.25  # m/s², deviation from the window mean, over three axes
-    accel_norm_tol: float = 1.0  # m/s², |‖mean f‖ − gravity| (an uncalibrated scale and offset)
+    """The rest test's thresholds as the detector reads them: the table's rows ``rest_*``
+    (defaults, ranges), the gravity it compares with, and ``gyro_std_min`` (rad/s: a window
+    less noisy than this is not a rest; the bias estimator asks for the noise floor)."""
+
+    window_s: float = _default("window_s")
+    gyro_std_max: float = _default("gyro_std_max")  # deviation from the window mean, 3 axes
+    gyro_mean_max: float = _default("gyro_mean_max")  # on any axis: the largest bias taken
+    accel_std_max: float = _default("accel_std_max")  # deviation from the window mean, 3 axes
+    accel_norm_tol: float = _default("accel_norm_tol")  # |‖mean f‖ − gravity|
     gravity: float = STANDARD_GRAVITY
-    gyro_std_min: float = 0.0  # rad/s: a window less noisy than this is not a rest
+    gyro_std_min: float = 0.0
 
     def checked(self) -> RestThresholds:
-        for name in ("window_s", "gyro_std_max", "gyro_mean_max", "accel_std_max",
-                     "accel_norm_tol", "gravity"):
-            _check_param(name, getattr(self, name))
+        """Self, each threshold checked by its row of the table (ValueError naming the
+        setting)."""
+        for name, row in _ROWS.items():
+            setting(row).check(getattr(self, name))
+        _check_param("gravity", self.gravity)
         _check_param("gyro_std_min", self.gyro_std_min, allow_zero=True)
         if not self.gyro_std_min < self.gyro_std_max:
             raise ValueError(f"gyro_std_min ({self.gyro_std_min!r}) must be below gyro_std_max "
