@@ -350,7 +350,7 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
     q_init = _unit_quat(cfg.initial_attitude if q0 is None else q0)
     t = np.asarray(t_ns)
     w = np.asarray(omega, dtype=np.float64)
-    cls = v.classify(t, w, frame_id, cfg.check_config())  # checks t and omega shapes
+    cls = v.classify(t, w, frame_id, v.ImuCheckConfig.of(cfg))  # checks t and omega shapes
     n = w.shape[0]
     t = t.astype(np.int64, copy=False)
     cov, acc = recording_arrays(n, angular_velocity_covariance, accel)

@@ -22,7 +22,6 @@ import math
 from dataclasses import dataclass, field, make_dataclass, replace
 from enum import Enum
 
-from gyro_attitude.core.attitude import validation as v
 from gyro_attitude.core.attitude.modes import (
     Aiding,
     Frame,
@@ -294,8 +293,12 @@ SETTINGS: tuple[Setting, ...] = (
             "than 1.5 nominal periods, the median of a time base's first 16) is counted; one "
             "missing more than this many is a gap", "samples", 0, 1e6, runtime=True,
             group="input"),
-    Setting("max_rate_rad_s", v.DEFAULT_MAX_RATE_RAD_S, "a sample with a larger rate on any axis "
-            "is implausible and skipped", "rad/s", 1e-3, v.MAX_RATE_LIMIT_RAD_S, runtime=True,
+    # far above any real gyro's range (tactical and MEMS gyros saturate at 40..200 rad/s), far
+    # below what overflows a rotation angle in float64 over any step; likewise the bounds: a
+    # rate limit above 1e6 rad/s or a gap/jump threshold above 1e6 s lets through steps whose
+    # rotation angle no longer means anything
+    Setting("max_rate_rad_s", 1.0e4, "a sample with a larger rate on any axis "
+            "is implausible and skipped", "rad/s", 1e-3, 1.0e6, runtime=True,
             group="input"),
 )
 
@@ -387,10 +390,6 @@ class _StreamConfigMethods:
         """The latitude describes where the IMU is: with frame enu, or for gyrocompassing
         (frame inertial otherwise leaves the Earth rate in the bias: see gyro_bias.py)."""
         return self.frame is Frame.ENU or self.heading_source is HeadingSource.GYROCOMPASS
-
-    def check_config(self) -> v.ImuCheckConfig:
-        return v.ImuCheckConfig(self.max_gap_ns, self.time_jump_ns, self.max_rate_rad_s,
-                                self.max_missing_samples)
 
     def rest_params(self) -> dict:
         return {"window_s": self.rest_window_s, "gyro_std_max": self.rest_gyro_std_max,

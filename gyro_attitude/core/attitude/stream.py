@@ -277,7 +277,7 @@ class AttitudeStream:
     def _set_coefficients(self, cfg: StreamConfig, q_initial: np.ndarray) -> None:
         """The coefficients of ``cfg``: the settings as the step reads them."""
         c = self.coef[0]
-        chk = cfg.check_config()
+        chk = v.ImuCheckConfig.of(cfg)
         c.max_gap_ns, c.time_jump_ns = chk.max_gap_ns, chk.time_jump_ns
         c.max_rate, c.max_missing = chk.max_rate_rad_s, chk.max_missing_samples
         c.bias_mode = {GyroBiasMode.NONE: chain.BIAS_NONE,
@@ -457,7 +457,7 @@ class AttitudeStream:
                               time_jump_threshold_s=config.time_jump_threshold_s,
                               max_rate_rad_s=config.max_rate_rad_s,
                               max_missing_samples=config.max_missing_samples)
-        chk = self.config.check_config()
+        chk = v.ImuCheckConfig.of(self.config)
         c = self.coef[0]
         c.max_gap_ns, c.time_jump_ns = chk.max_gap_ns, chk.time_jump_ns
         c.max_rate, c.max_missing = chk.max_rate_rad_s, chk.max_missing_samples
@@ -757,7 +757,7 @@ class _Words:
         if name == v.NON_FINITE and self.w is None:
             return f"not numbers: {self.omega!r}"
         return v.reason_words(name, self.t_ns, self.w, self.frame_id, st._locked, figures,
-                              st.config.check_config())
+                              v.ImuCheckConfig.of(st.config))
 
     @classmethod
     def after_run(cls, st, t, w, names, frames, first_row, first_fig, cov, cov_in, accel_in,

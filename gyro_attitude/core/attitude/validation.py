@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gyro_attitude.core.attitude.settings import setting
 from gyro_attitude.core.jit import compiled, kernel
 
 # Verdicts. ACCEPT: integrate over (last, t]. START: first sample (or first after a restart):
@@ -65,13 +66,9 @@ ACTION_CODES: dict[str, int] = {
 }
 _REASON_CODES: dict[str, int] = {r: i + 1 for i, r in enumerate(REJECT_REASONS)}
 
-# Far above any real gyro's range (tactical and MEMS gyros saturate at 40..200 rad/s), far
-# below what overflows a rotation angle in float64 over any step.
-DEFAULT_MAX_RATE_RAD_S = 1.0e4
-# Upper bounds of the settings: a rate limit above 1e6 rad/s or a gap/jump threshold above
-# 1e6 s lets through steps whose rotation angle no longer means anything.
-MAX_RATE_LIMIT_RAD_S = 1.0e6
-MAX_THRESHOLD_NS = 1_000_000 * 1_000_000_000
+# the rate limit's default and bound: their home is the settings table (max_rate_rad_s)
+DEFAULT_MAX_RATE_RAD_S = setting("max_rate_rad_s").default
+MAX_RATE_LIMIT_RAD_S = setting("max_rate_rad_s").high
 
 
 @dataclass(frozen=True)
@@ -88,28 +85,25 @@ class ImuCheckConfig:
         time base (it restarts at a gap or a time jump).
     """
 
-    max_gap_ns: int = 100_000_000
-    time_jump_ns: int = 1_000_000_000
+    max_gap_ns: int = round(setting("max_gap_s").default * 1e9)
+    time_jump_ns: int = round(setting("time_jump_threshold_s").default * 1e9)
     max_rate_rad_s: float = DEFAULT_MAX_RATE_RAD_S
-    max_missing_samples: int = 4
+    max_missing_samples: int = setting("max_missing_samples").default
 
     def __post_init__(self):
-        m = self.max_missing_samples
-        if isinstance(m, bool) or not isinstance(m, int | np.integer) or not 0 <= m <= 10**6:
-            raise ValueError(f"max_missing_samples must be an integer from 0 to 1e6, got {m!r}")
-        for name in ("max_gap_ns", "time_jump_ns"):
+        # the table's rows check the values (their ranges, in seconds for the thresholds)
+        for name, row in (("max_gap_ns", "max_gap_s"), ("time_jump_ns", "time_jump_threshold_s")):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | np.integer):
                 raise ValueError(f"{name} must be an integer number of nanoseconds, got {value!r}")
-            if not 0 < value <= MAX_THRESHOLD_NS:
-                raise ValueError(f"{name} must be > 0 ns and <= {MAX_THRESHOLD_NS} ns (1e6 s), "
-                                 f"got {value}")
-        rate = self.max_rate_rad_s
-        if isinstance(rate, bool) or not isinstance(rate, int | float | np.integer | np.floating):
-            raise ValueError(f"max_rate_rad_s must be a number, got {rate!r}")
-        if not (math.isfinite(rate) and 0 < rate <= MAX_RATE_LIMIT_RAD_S):
-            raise ValueError(f"max_rate_rad_s must be > 0 and <= {MAX_RATE_LIMIT_RAD_S:g}, got "
-                             f"{rate!r}")
+            setting(row).check(int(value) * 1e-9)
+        setting("max_rate_rad_s").check(self.max_rate_rad_s)
+        setting("max_missing_samples").check(self.max_missing_samples)
+
+    @classmethod
+    def of(cls, cfg) -> ImuCheckConfig:
+        """The validator's view of a :class:`~.settings.StreamConfig` (thresholds in ns)."""
+        return cls(cfg.max_gap_ns, cfg.time_jump_ns, cfg.max_rate_rad_s, cfg.max_missing_samples)
 
 
 @dataclass(frozen=True)

@@ -77,12 +77,12 @@ def test_reset_forgets_frame_and_time():
     assert v.check(1 * MS, [0, 0, 0], "b").action == iv.START
 
 
-@pytest.mark.parametrize(
-    "kwargs", [{"max_gap_ns": 0}, {"time_jump_ns": -1}, {"max_gap_ns": 1.5}, {"time_jump_ns": True}]
-)
-def test_config_refuses_bad_thresholds(kwargs):
-    name = next(iter(kwargs))
-    with pytest.raises(ValueError, match=name):
+@pytest.mark.parametrize("kwargs, named", [
+    ({"max_gap_ns": 0}, "max_gap_s"), ({"time_jump_ns": -1}, "time_jump_threshold_s"),
+    ({"max_gap_ns": 1.5}, "max_gap_ns"), ({"time_jump_ns": True}, "time_jump_ns"),
+    ({"max_rate_rad_s": 0.0}, "max_rate_rad_s"), ({"max_missing_samples": -1}, "max_missing")])
+def test_config_refuses_bad_thresholds_naming_the_setting(kwargs, named):
+    with pytest.raises(ValueError, match=named):
         iv.ImuCheckConfig(**kwargs)
 
 

@@ -26,7 +26,7 @@ def stream_with_holes(holes):
 
 def test_a_few_missing_samples_are_counted_and_a_long_hole_is_a_gap():
     t, w = stream_with_holes([(100, 2), (200, 10), (300, 4)])
-    val = iv.ImuStreamValidator(StreamConfig().check_config())
+    val = iv.ImuStreamValidator(iv.ImuCheckConfig.of(StreamConfig()))
     verdicts = [val.check(int(x), w[0], "imu") for x in t]
     hole = {int(m) - 1: int(k) + 1 for k, m in
             zip(np.flatnonzero(np.diff(t) > PERIOD), np.diff(t)[np.diff(t) > PERIOD] // PERIOD,
@@ -36,7 +36,7 @@ def test_a_few_missing_samples_are_counted_and_a_long_hole_is_a_gap():
     assert val.missing_samples == 2 + 4 and val.counts[iv.GAP] == 1
     assert verdicts[hole[2]].reason == verdicts[hole[4]].reason == iv.MISSING_SAMPLES
     # the array form gives the same verdicts and counts
-    cls = iv.classify(t, w, "imu", StreamConfig().check_config())
+    cls = iv.classify(t, w, "imu", iv.ImuCheckConfig.of(StreamConfig()))
     codes = [iv.ACTION_CODES[vd.action] for vd in verdicts]
     assert cls.action.tolist() == codes and cls.missing_samples == 6 and cls.counts[iv.GAP] == 1
 
@@ -58,18 +58,18 @@ def test_holes_are_found_only_once_the_period_is_known_and_jitter_is_no_hole():
     dt = PERIOD + rng.integers(-PERIOD // 4, PERIOD // 4, 500)  # ±25 % jitter
     t = np.cumsum(dt).astype(np.int64)
     w = np.zeros((t.size, 3))
-    cls = iv.classify(t, w, "imu", StreamConfig().check_config())
+    cls = iv.classify(t, w, "imu", iv.ImuCheckConfig.of(StreamConfig()))
     assert cls.missing_samples == 0 and cls.counts[iv.GAP] == 0
     # a hole within the first 16 intervals (while the period is learnt) is not counted
     t2, w2 = stream_with_holes([(5, 3)])
-    assert iv.classify(t2, w2, "imu", StreamConfig().check_config()).missing_samples == 0
+    assert iv.classify(t2, w2, "imu", iv.ImuCheckConfig.of(StreamConfig())).missing_samples == 0
 
 
 def test_rejected_samples_make_holes_but_are_not_counted_missing():
     t, w = stream_with_holes([])
     w[100] = np.nan  # one rejected: a hole of 1, counted as non-finite, not as missing
     w[200:210] = np.nan  # ten rejected in a row: the integration cannot bridge them: a gap
-    cfg = StreamConfig().check_config()
+    cfg = iv.ImuCheckConfig.of(StreamConfig())
     cls = iv.classify(t, w, "imu", cfg)
     val = iv.ImuStreamValidator(cfg)
     codes = [iv.ACTION_CODES[val.check(int(x), w[k], "imu").action] for k, x in enumerate(t)]
