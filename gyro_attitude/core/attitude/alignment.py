@@ -48,6 +48,7 @@ import numpy as np
 
 from gyro_attitude.core.angles import wrap_2pi
 from gyro_attitude.core.attitude.ahrs import MAG_ABSURD_T, MAG_ZERO_T
+from gyro_attitude.core.attitude.modes import Aiding, GyroBiasMode, HeadingSource
 from gyro_attitude.core.attitude.rest import (
     R_AT_REST,
     R_HEAD,
@@ -60,6 +61,7 @@ from gyro_attitude.core.attitude.rest import (
     rest_reset,
     rest_update,
 )
+from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.core.attitude.validation import within
 from gyro_attitude.core.earth import OMEGA_IE, check_latitude
 from gyro_attitude.core.jit import compiled, kernel
@@ -146,62 +148,38 @@ def _check_nonneg(name, v) -> float:
     return x
 
 
-class _Options:
-    def __init__(self, initial_heading_deg, gyrocompass, latitude_rad, gyro_bias, gyro_bias_sigma,
-                 accel_bias_sigma, heading_error_limit_deg, min_rest_s, rest, mag_heading=False,
-                 declination_deg=0.0, hard_iron_t=(0.0, 0.0, 0.0)):
-        if isinstance(initial_heading_deg, bool) or not isinstance(initial_heading_deg, int | float) \
-                or not math.isfinite(initial_heading_deg) or abs(initial_heading_deg) > 1e6:
-            raise ValueError(f"initial_heading_deg must be a finite number, got {initial_heading_deg!r}")
-        self.heading = wrap_2pi(math.radians(initial_heading_deg))
-        self.gyrocompass = bool(gyrocompass)
-        self.lat = None if latitude_rad is None else float(check_latitude(float(latitude_rad),
-                                                                          "latitude_rad"))
-        try:
-            self.bias = np.array([float(c) for c in gyro_bias], dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ValueError(f"gyro_bias must be 3 numbers (rad/s), got {gyro_bias!r}") from None
-        if self.bias.shape != (3,) or not np.all(np.isfinite(self.bias)):
-            raise ValueError(f"gyro_bias must be 3 finite numbers (rad/s), got {gyro_bias!r}")
-        self.bias_sigma = None if gyro_bias_sigma is None else _check_nonneg(
-            "gyro_bias_sigma", gyro_bias_sigma)
-        self.accel_bias_sigma = _check_nonneg("accel_bias_sigma", accel_bias_sigma)
-        self.limit = math.radians(_check_nonneg("heading_error_limit_deg", heading_error_limit_deg))
-        self.min_rest_ns = int(round(_check_nonneg("min_rest_s", min_rest_s) * 1e9))
-        self.rest = dict(rest or {})
-        self.mag_heading = bool(mag_heading)
-        self.declination = math.radians(float(declination_deg))
-        self.hard_iron = tuple(float(c) for c in hard_iron_t)
-        if self.gyrocompass and (self.lat is None or self.bias_sigma is None):
-            raise ValueError("gyrocompass alignment needs latitude_rad and gyro_bias_sigma (the "
-                             "1σ uncertainty of the gyro_bias subtracted, rad/s)")
-
-
 class StaticAligner:
     """Streaming static alignment over the first rest (see the module docstring): a face on one
     record of :data:`ALIGNER_DTYPE` and its rest window's ring, stepped by the kernels
     :func:`aligner_update` and :func:`aligner_result` (the causal estimator's step runs the
     same kernels on the same record inside its state)."""
 
-    def __init__(self, initial_heading_deg: float = 0.0, *, gyrocompass: bool = False,
-                 latitude_rad: float | None = None, gyro_bias=(0.0, 0.0, 0.0),
-                 gyro_bias_sigma: float | None = None, accel_bias_sigma: float = 0.05,
-                 heading_error_limit_deg: float = 5.0, min_rest_s: float = 1.0,
-                 rest: dict | None = None, mag_heading: bool = False,
-                 declination_deg: float = 0.0, hard_iron_t=(0.0, 0.0, 0.0),
-                 given_heading_variance: float = 0.0):
-        opt = _Options(initial_heading_deg, gyrocompass, latitude_rad, gyro_bias,
-                       gyro_bias_sigma, accel_bias_sigma, heading_error_limit_deg, min_rest_s,
-                       rest, mag_heading, declination_deg, hard_iron_t)
+    def __init__(self, config: StreamConfig | None = None, latitude_rad: float | None = None):
+        """The alignment of ``config`` (``initial_heading_deg`` or ``heading_source``
+        gyrocompass at ``latitude_rad``, the gyro bias subtracted when it is a ``parameter``,
+        ``accel_bias_sigma``, ``heading_error_limit_deg``, ``min_rest_s``, the rest thresholds,
+        the heading from the field with ``aiding: magnetometer``); the table has checked every
+        value."""
+        cfg = config if config is not None else StreamConfig()
+        gc = cfg.heading_source is HeadingSource.GYROCOMPASS
+        if gc and latitude_rad is None:
+            raise ValueError("gyrocompass alignment needs the latitude (frame enu or latitude_rad)")
         self.record = np.zeros(1, ALIGNER_DTYPE).view(np.recarray)
         r = self.record[0]
-        r.heading, r.gyrocompass, r.lat = opt.heading, opt.gyrocompass, opt.lat or 0.0
-        r.bias, r.bias_sigma = opt.bias, opt.bias_sigma or 0.0
-        r.accel_bias_sigma, r.limit, r.min_rest_ns = (opt.accel_bias_sigma, opt.limit,
-                                                      opt.min_rest_ns)
-        r.mag_heading, r.decl, r.hard_iron = opt.mag_heading, opt.declination, opt.hard_iron
-        r.given_heading_var = given_heading_variance
-        detector = RestDetector(**opt.rest)
+        r.heading = wrap_2pi(math.radians(cfg.initial_heading_deg))
+        r.gyrocompass = gc
+        r.lat = float(check_latitude(float(latitude_rad), "latitude_rad")) if gc else 0.0
+        r.bias = (cfg.gyro_bias_rad_s if cfg.gyro_bias is GyroBiasMode.PARAMETER
+                  else (0.0, 0.0, 0.0))
+        r.bias_sigma = cfg.gyro_bias_sigma_rad_s if gc else 0.0
+        r.accel_bias_sigma = cfg.accel_bias_sigma
+        r.limit = math.radians(cfg.heading_error_limit_deg)
+        r.min_rest_ns = int(round(cfg.min_rest_s * 1e9))
+        r.mag_heading = cfg.aiding is Aiding.MAGNETOMETER
+        r.decl = math.radians(cfg.magnetic_declination_deg)
+        r.hard_iron = cfg.mag_hard_iron_t
+        r.given_heading_var = float(np.broadcast_to(cfg.initial_attitude_variance, (3,))[2])
+        detector = RestDetector(**cfg.rest_params())
         r.rest_f, r.rest_i = detector.rf, detector.ri
         r.last_acc = -1
         self.ring = np.zeros(64, ALIGN_RING_DTYPE).view(np.recarray)
@@ -288,20 +266,13 @@ def failure_words(r, failed: int) -> str:
     return (f"specific force {np.array(r.mean_f)!r} is not a usable gravity measurement")
 
 
-def align(t_ns, gyro, accel, initial_heading_deg: float = 0.0, *, gyrocompass: bool = False,
-          latitude_rad: float | None = None, gyro_bias=(0.0, 0.0, 0.0),
-          gyro_bias_sigma: float | None = None, accel_bias_sigma: float = 0.05,
-          heading_error_limit_deg: float = 5.0, min_rest_s: float = 1.0,
-          rest: dict | None = None) -> AlignmentResult:
+def align(t_ns, gyro, accel, config: StreamConfig | None = None,
+          latitude_rad: float | None = None) -> AlignmentResult:
     """:class:`StaticAligner` over arrays: alignment over the first qualifying rest (one that
     lasts to the end of the data counts too)."""
     if accel is None:
         raise ValueError("alignment needs the accelerometer (accel is None)")
-    al = StaticAligner(initial_heading_deg, gyrocompass=gyrocompass, latitude_rad=latitude_rad,
-                       gyro_bias=gyro_bias, gyro_bias_sigma=gyro_bias_sigma,
-                       accel_bias_sigma=accel_bias_sigma,
-                       heading_error_limit_deg=heading_error_limit_deg, min_rest_s=min_rest_s,
-                       rest=rest)
+    al = StaticAligner(config, latitude_rad)
     t, g, a = check_samples(t_ns, gyro, accel)
     for tk, gk, ak in zip(t.tolist(), g.tolist(), a.tolist(), strict=True):
         if al.update_checked(tk, gk, ak):

@@ -339,16 +339,7 @@ class AttitudeStream:
 
     def _init_aligner(self, cfg: StreamConfig) -> None:
         gc = cfg.heading_source is HeadingSource.GYROCOMPASS
-        al = StaticAligner(
-            cfg.initial_heading_deg, gyrocompass=gc, latitude_rad=self.latitude_rad if gc else None,
-            gyro_bias=(cfg.gyro_bias_rad_s if cfg.gyro_bias is GyroBiasMode.PARAMETER
-                       else (0.0, 0.0, 0.0)),
-            gyro_bias_sigma=cfg.gyro_bias_sigma_rad_s if gc else None,
-            accel_bias_sigma=cfg.accel_bias_sigma,
-            heading_error_limit_deg=cfg.heading_error_limit_deg, min_rest_s=cfg.min_rest_s,
-            rest=cfg.rest_params(), mag_heading=cfg.aiding is Aiding.MAGNETOMETER,
-            declination_deg=cfg.magnetic_declination_deg, hard_iron_t=cfg.mag_hard_iron_t,
-            given_heading_variance=float(np.broadcast_to(cfg.initial_attitude_variance, (3,))[2]))
+        al = StaticAligner(cfg, self.latitude_rad if gc else None)
         self.state.aligner[0] = al.record[0]
 
     def _set_nav(self, nav) -> None:

@@ -7,6 +7,7 @@ from scipy.spatial.transform import Rotation
 from sim_static import OMEGA_IE, G, static_imu
 
 from gyro_attitude.core.attitude.alignment import StaticAligner, align
+from gyro_attitude.core.attitude.settings import StreamConfig
 
 DEG_PER_H = np.radians(1.0) / 3600.0
 
@@ -22,11 +23,22 @@ def _tilt_error(q_est, q_true):
     return np.arccos(np.clip(up_est @ up_true, -1, 1))
 
 
+
+def level(**kw) -> StreamConfig:
+    return StreamConfig(initial_attitude_source="level", **kw)
+
+
+def gyrocompass(lat, sigma, **kw) -> StreamConfig:
+    """Gyrocompassing at ``lat`` with the residual gyro bias of 1σ ``sigma`` (the bias given
+    is zero: the gyro's own is the residual)."""
+    return level(heading_source="gyrocompass", gyro_bias="parameter",
+                 gyro_bias_sigma_rad_s=sigma, latitude_rad=lat, **kw)
+
 @pytest.mark.parametrize("accel_bias", [(0.05, 0.0, 0.0), (0.0, -0.1, 0.0), (0.03, 0.04, 0.2)])
 def test_levelling_error_equals_horizontal_accel_bias_over_g(accel_bias):
     q = _q(40.0, 0.0, 0.0)  # level: body axes horizontal, so the horizontal bias is (b_x, b_y)
     t, g, a = static_imu(600, 200.0, q, np.radians(45), accel_bias=accel_bias)
-    res = align(t, g, a, 40.0)
+    res = align(t, g, a, level(initial_heading_deg=40.0))
     # Exact: tilt = atan(|b_h| / (g + b_z)).
     expected = np.arctan(np.hypot(*accel_bias[:2]) / (G + accel_bias[2]))
     np.testing.assert_allclose(_tilt_error(res.q_nb, q), expected, rtol=1e-6, atol=1e-12)
@@ -36,7 +48,7 @@ def test_levelling_error_equals_horizontal_accel_bias_over_g(accel_bias):
 def test_levelling_recovers_roll_pitch_and_reports_expected_error():
     q = _q(200.0, 12.0, -25.0)
     t, g, a = static_imu(600, 200.0, q, 0.5, accel_noise=0.03, seed=2)
-    res = align(t, g, a, 200.0, accel_bias_sigma=0.02)
+    res = align(t, g, a, level(initial_heading_deg=200.0, accel_bias_sigma=0.02))
     np.testing.assert_allclose(np.degrees([res.roll, res.pitch]), [-25.0, 12.0], atol=0.02)
     # Expected 1σ: √(0.02² + 0.03²/n)/g ≈ 0.02/g.
     np.testing.assert_allclose(res.level_error_expected, np.hypot(0.02, 0.03 / np.sqrt(res.samples)) / G,
@@ -57,8 +69,8 @@ def test_gyrocompass_heading_error_is_bias_over_horizontal_earth_rate(grade_deg_
     c_nb = Rotation.from_quat(q)
     east_b = c_nb.inv().apply([bias_err, 0.0, 0.0])
     t, g, a = static_imu(2000, 100.0, q, lat, gyro_bias=east_b)
-    res = align(t, g, a, gyrocompass=True, latitude_rad=lat, gyro_bias_sigma=bias_err,
-                accel_bias_sigma=0.0, heading_error_limit_deg=10.0)
+    res = align(t, g, a, gyrocompass(lat, bias_err, accel_bias_sigma=0.0,
+                                     heading_error_limit_deg=10.0), lat)
     expected = np.arctan2(bias_err, OMEGA_IE * np.cos(lat))  # exact for a level frame rotation
     err = (res.heading - np.radians(heading_deg) + np.pi) % (2 * np.pi) - np.pi
     # Sign: an east bias adds to sin ψ → ψ grows → heading (= 90° − ψ) shrinks.
@@ -72,12 +84,12 @@ def test_gyrocompass_refused_for_mems_gyro():
     q = _q(30.0, 0.0, 0.0)
     t, g, a = static_imu(1000, 100.0, q, np.radians(45), gyro_bias=(1e-4, 0, 0))
     with pytest.raises(ValueError, match="gyrocompass refused"):
-        align(t, g, a, gyrocompass=True, latitude_rad=np.radians(45), gyro_bias_sigma=np.radians(0.01))
+        align(t, g, a, gyrocompass(np.radians(45), np.radians(0.01)), np.radians(45))
     # A tactical gyro (1 °/h) at 60°N: expected 7.6° > the default 5° limit.
     with pytest.raises(ValueError, match="7.6"):
-        align(t, g, a, gyrocompass=True, latitude_rad=np.radians(60), gyro_bias_sigma=DEG_PER_H)
+        align(t, g, a, gyrocompass(np.radians(60), DEG_PER_H), np.radians(60))
     with pytest.raises(ValueError, match="gyro_bias_sigma"):
-        align(t, g, a, gyrocompass=True, latitude_rad=np.radians(45))
+        align(t, g, a, gyrocompass(np.radians(45), 0.0), np.radians(45))
 
 
 def test_no_rest_refused_not_identity():
@@ -102,8 +114,8 @@ def test_stream_equals_batch_bitwise():
     # Motion after the rest ends the alignment.
     g[500:] += 0.5
     a[500:, 0] += 3.0
-    res = align(t, g, a, 77.0)
-    al = StaticAligner(77.0)
+    res = align(t, g, a, level(initial_heading_deg=77.0))
+    al = StaticAligner(level(initial_heading_deg=77.0))
     done = [al.update(t[k], g[k], a[k]) for k in range(t.size)]
     assert done[-1] and not done[0]
     rs = al.result()
