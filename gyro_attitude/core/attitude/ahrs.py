@@ -361,8 +361,46 @@ def _tilt(pa, af, ai, dt, ox, oy, oz, fx, fy, fz, c00, c01, c02, c10, c11, c12, 
         af[A_REST_S] = 0.0
     rest = af[A_REST_S] >= pa[P_REST_MIN_S]
     ai[I_AT_REST] = 1 if rest else 0
+    gx, gy, gz = _lowpass(pa, af, ai, dt, pa[P_REST_ACCEL_TAU] if rest else pa[P_ACCEL_TAU],
+                          nx, ny, nz)
+    af[A_LP_OUT], af[A_LP_OUT + 1], af[A_LP_OUT + 2] = gx, gy, gz
+    gn = math.sqrt(gx * gx + gy * gy + gz * gz)
+    if gn < 1e-9:
+        return 0.0, 0.0, False
+    h = math.sqrt(gx * gx + gy * gy)
+    if h < 1e-12 * gn:
+        return 0.0, 0.0, False
+    # the rotation about the horizontal axis ĝ × e_up taking ĝ to the vertical
+    angle = math.atan2(h, gz)
+    learn = False
+    if af[A_RUN_S] < pa[P_SETTLE_S]:
+        pass  # a new low-pass: the accelerometer is all there is, trusted in full
+    elif gz < pa[P_REJECT_COS] * gn or abs(fn - g0) > pa[P_ACCEL_NORM_TOL]:
+        af[A_REJECT_S] += dt
+        if af[A_REJECT_S] < pa[P_ACCEL_RECOVERY_S]:
+            ai[I_REJECTED] += 1
+            return 0.0, 0.0, False
+        if af[A_REJECT_S] - dt < pa[P_ACCEL_RECOVERY_S]:
+            ai[I_RECOVERIES] += 1
+        # recovering: no faster than a gyro can drift, so that an acceleration that lasts
+        # pulls the tilt by that rate only
+        angle = min(angle, pa[P_RECOVERY_RATE] * dt)
+    else:
+        af[A_REJECT_S] = 0.0
+        if pa[P_TILT_TAU] > 0.0 and not rest:
+            angle *= min(1.0, dt / pa[P_TILT_TAU])
+        angle = min(angle, pa[P_TILT_RATE] * dt)
+        learn = True
+    ai[I_AIDED] += 1
+    f = angle / h
+    return f * gy, -f * gx, learn
+
+
+@kernel(inline=True)
+def _lowpass(pa, af, ai, dt, tau, nx, ny, nz):
+    """The specific force ``n`` (nav frame) through the filter's low-pass of time constant
+    ``tau``: its output (the filtered vertical, not normalized)."""
     lp = A_LP
-    tau = pa[P_REST_ACCEL_TAU] if rest else pa[P_ACCEL_TAU]
     if ai[I_HAS_LP] == 0:
         # a new low-pass: the mean of the samples so far for its first accel_tau_s (as VQF),
         # then the Butterworth from the steady state at that mean.  (Started at the estimate's
@@ -412,37 +450,7 @@ def _tilt(pa, af, ai, dt, ox, oy, oz, fx, fy, fz, c00, c01, c02, c10, c11, c12, 
         af[lp + 3] = b2 * nx - a2 * gx
         af[lp + 4] = b2 * ny - a2 * gy
         af[lp + 5] = b2 * nz - a2 * gz
-    af[A_LP_OUT], af[A_LP_OUT + 1], af[A_LP_OUT + 2] = gx, gy, gz
-    gn = math.sqrt(gx * gx + gy * gy + gz * gz)
-    if gn < 1e-9:
-        return 0.0, 0.0, False
-    h = math.sqrt(gx * gx + gy * gy)
-    if h < 1e-12 * gn:
-        return 0.0, 0.0, False
-    # the rotation about the horizontal axis ĝ × e_up taking ĝ to the vertical
-    angle = math.atan2(h, gz)
-    learn = False
-    if af[A_RUN_S] < pa[P_SETTLE_S]:
-        pass  # a new low-pass: the accelerometer is all there is, trusted in full
-    elif gz < pa[P_REJECT_COS] * gn or abs(fn - g0) > pa[P_ACCEL_NORM_TOL]:
-        af[A_REJECT_S] += dt
-        if af[A_REJECT_S] < pa[P_ACCEL_RECOVERY_S]:
-            ai[I_REJECTED] += 1
-            return 0.0, 0.0, False
-        if af[A_REJECT_S] - dt < pa[P_ACCEL_RECOVERY_S]:
-            ai[I_RECOVERIES] += 1
-        # recovering: no faster than a gyro can drift, so that an acceleration that lasts
-        # pulls the tilt by that rate only
-        angle = min(angle, pa[P_RECOVERY_RATE] * dt)
-    else:
-        af[A_REJECT_S] = 0.0
-        if pa[P_TILT_TAU] > 0.0 and not rest:
-            angle *= min(1.0, dt / pa[P_TILT_TAU])
-        angle = min(angle, pa[P_TILT_RATE] * dt)
-        learn = True
-    ai[I_AIDED] += 1
-    f = angle / h
-    return f * gy, -f * gx, learn
+    return gx, gy, gz
 
 
 @kernel(inline=True)
