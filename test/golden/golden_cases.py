@@ -20,19 +20,23 @@ from gyro_attitude.core.attitude.stream import AttitudeStream, StreamConfig  # n
 
 # the modes and hostile inputs as they were recorded (test_stream_real and its neighbours use these)
 MODES = {
-    "auto": StreamConfig(),
-    "auto_noise": StreamConfig(gyro_noise_density=1e-4, gyro_bias_sigma_rad_s=0.01),
+    "default": StreamConfig(),  # aiding auto: the AHRS filter, the tilt from the first sample
+    "auto": StreamConfig(aiding="none"),
+    "auto_noise": StreamConfig(gyro_noise_density=1e-4, gyro_bias_sigma_rad_s=0.01,
+                               aiding="none"),
     "parameter": StreamConfig(gyro_bias="parameter", gyro_bias_rad_s=(0.02, -0.01, 0.05),
                               gyro_bias_sigma_rad_s=1e-3, gyro_bias_rw=1e-4,
-                              gyro_noise_density=1e-4),
-    "none_rw": StreamConfig(gyro_bias="none", gyro_bias_sigma_rad_s=0.05, gyro_bias_rw=1e-3),
-    "level": StreamConfig(initial_attitude_source="level", initial_heading_deg=30.0),
-    "gravity": StreamConfig(aiding="gravity", gyro_noise_density=1e-4),
-    "level_gravity": StreamConfig(initial_attitude_source="level", aiding="gravity"),
+                              gyro_noise_density=1e-4, aiding="none"),
+    "none_rw": StreamConfig(gyro_bias="none", gyro_bias_sigma_rad_s=0.05, gyro_bias_rw=1e-3,
+                            aiding="none"),
+    "level": StreamConfig(initial_attitude_source="level", initial_heading_deg=30.0,
+                          aiding="none"),
+    "gravity_retired": StreamConfig(aiding="gravity", gyro_noise_density=1e-4),
     # the Earth rate taken out of the rest averages at the current attitude (frame enu)
-    "auto_enu": StreamConfig(frame="enu", latitude_rad=0.9, gyro_noise_density=1e-4),
+    "auto_enu": StreamConfig(frame="enu", latitude_rad=0.9, gyro_noise_density=1e-4,
+                             aiding="none"),
     "level_enu": StreamConfig(frame="enu", latitude_rad=0.9, initial_attitude_source="level",
-                              initial_heading_deg=30.0),
+                              initial_heading_deg=30.0, aiding="none"),
     # the AHRS stage, and aiding with the Earth rate taken out of the bias at the attitude the
     # aiding corrects (the loop of run() carries the coupling sample by sample)
     "tilt": StreamConfig(aiding="tilt", gyro_noise_density=1e-4),
@@ -40,8 +44,8 @@ MODES = {
     "magnetometer": StreamConfig(aiding="magnetometer", gyro_noise_density=1e-4),
     "level_magnetometer_enu": StreamConfig(frame="enu", latitude_rad=0.9, aiding="magnetometer",
                                            initial_attitude_source="level"),
-    "gravity_enu": StreamConfig(frame="enu", latitude_rad=0.9, aiding="gravity",
-                                gyro_noise_density=1e-4),
+    "tilt_enu": StreamConfig(frame="enu", latitude_rad=0.9, aiding="tilt",
+                             gyro_noise_density=1e-4),
 }
 
 
@@ -78,7 +82,7 @@ def hostile_field(n):
 
 
 
-AIDINGS = ("none", "gravity", "tilt", "magnetometer")
+AIDINGS = ("none", "auto", "magnetometer")  # (auto is tilt on an Imu with an accelerometer)
 BROAD_STRIDE = 25
 SHARED_REAL = REPO.parent / "shared" / "real"
 # the replay summary's fields that the estimator's results are (replay's own figures -- the

@@ -17,7 +17,7 @@ from gyro_attitude.core.jit import backend, compiled, direct, kernel
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parents[2]
-AIDED = ("gravity", "gravity_enu", "tilt", "level_tilt", "magnetometer",
+AIDED = ("default", "gravity_retired", "tilt_enu", "tilt", "level_tilt", "magnetometer",
          "level_magnetometer_enu")
 
 _RUN = """
@@ -145,7 +145,7 @@ def test_the_pushed_input_rate_and_jitter_are_the_stamps():
     # the interval statistics of the diagnostics, from the compiled step's ring
     rng = np.random.default_rng(4)
     t = 1_000_000_000 + np.cumsum(rng.integers(4_900_000, 5_100_000, 3000))
-    s = AttitudeStream(config=MODES["gravity"])
+    s = AttitudeStream(config=MODES["tilt"])
     for k in range(t.size):
         s.push(int(t[k]), 1e-3 * rng.standard_normal(3), "imu", None,
                np.array([0.0, 0.0, 9.81]), None)
@@ -182,7 +182,7 @@ def test_compile_kernels_warms_the_steps_of_a_start_that_cannot_align_on_its_rec
     code = ("from gyro_attitude.core.attitude.stream import compile_kernels\n"
             "from gyro_attitude.core.attitude.settings import StreamConfig\n"
             "from gyro_attitude.core.jit import compiled, backend\n"
-            "cfg = StreamConfig(aiding='gravity', initial_attitude_source='level',\n"
+            "cfg = StreamConfig(aiding='tilt', initial_attitude_source='level',\n"
             "                   heading_source='gyrocompass', gyro_bias='parameter',\n"
             "                   gyro_bias_sigma_rad_s=1e-7, frame='enu', latitude_rad=0.8)\n"
             "compile_kernels(cfg)\n"
@@ -192,7 +192,7 @@ def test_compile_kernels_warms_the_steps_of_a_start_that_cannot_align_on_its_rec
 
 
 @pytest.mark.parametrize("axis", [0, 1, 2])
-@pytest.mark.parametrize("mode", ["gravity", "level_enu", "level_magnetometer_enu"])
+@pytest.mark.parametrize("mode", ["tilt", "level_enu", "level_magnetometer_enu"])
 def test_a_nan_on_any_accelerometer_axis_is_counted_and_skipped_while_aligning_or_running(
         mode, axis):
     # (a test of the compiled step's bound: max() skips a NaN that is not first, so one NaN on

@@ -60,7 +60,7 @@ def test_the_heading_comes_from_the_field_whatever_the_start_heading(declination
     # the heading variance is an observation's now: bounded, not growing with the motion
     assert res.variance[k_end, 2] < res.variance[k_end, 0] * 20
     # without the field (gyro aiding only) the start error stays: the field did the work
-    grav = estimate_offline(t, w, a, q0=q0, config=StreamConfig(aiding="gravity"))
+    grav = estimate_offline(t, w, a, q0=q0, config=StreamConfig(aiding="tilt"))
     assert heading_error_deg(grav.q, q_true[grav.index]).min() > 24.0
 
 
