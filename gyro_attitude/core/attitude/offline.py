@@ -28,9 +28,12 @@ array operation over chunks of ``chunk_samples`` accepted samples (no per-sample
 4. **tilt from gravity** (``aiding`` gravity, tilt or magnetometer): the specific force rotated
    into the integration frame, ``f_i = C(q) f_b``, points up plus the slowly drifting gyro
    error plus the carrier's acceleration, whose mean over a few seconds is small.  It is
-   low-passed zero-phase (a
-   first-order filter with time constant ``offline_tilt_tau_s`` run forward, then backward over
-   the forward output), every usable accelerometer sample weighted 1, no gate (a gate on
+   low-passed zero-phase: averaged with the kernel ``e^(−|s_k − s_j|/τ)``, ``τ =
+   offline_tilt_tau_s`` (a first-order filter run forward plus one run backward), on a clock
+   ``s`` that stops at the rests where the attitude is held: there the integration error
+   cannot change, so a rest's samples all see the error of the motion's ends next to it, and
+   the time spent still is no reason to trust them less (the smoother of a state that drifts
+   only while the body moves).  Every usable accelerometer sample weighted 1, no gate (a gate on
    ``| |f| − g |`` keeps the samples whose norm happens to cross g during a translation, which
    point anywhere: docs/real_sensors.md); the smoothed direction ``u`` gives the tilt
    correction, the smallest rotation taking ``u`` to up, applied on the left (integration
@@ -47,7 +50,8 @@ array operation over chunks of ``chunk_samples`` accepted samples (no per-sample
    angle random walk ``Σ C[k,m]² σ_m² dt²`` plus the random walk's bridge ``K²(s³/3 − s⁴/4T)``
    (``s`` motion time since the rest, ``T`` to the next).  The heading (third) axis keeps it and
    grows between rests; the tilt axes take the tilt-from-gravity variance where gravity is used:
-   ``(σ_ba/g)² + σ_f²/(g² n_eff)`` with ``n_eff`` the samples the smoother averages and ``σ_f²`` the
+   ``(σ_ba/g)² + σ_f²/(g² n_eff)`` with ``n_eff = (Σ k w)²/Σ k² w²`` the samples the smoother
+   averages (``k`` its kernel, ``w`` the weights) and ``σ_f²`` the
    measured scatter of ``f_i`` about ``g u`` (accelerometer noise and the carrier's acceleration:
    the residual that leaks into the mean), or the levelling variance at rests with the gyro-only
    growth bridged between them.  The gyro noise ``σ_ω`` comes from the messages'
@@ -317,6 +321,32 @@ def _level_left(u: np.ndarray, q: np.ndarray) -> np.ndarray:
     out[:, 2] = cw * qz + cx * qy - cy * qx
     out[:, 3] = cw * qw - cx * qx - cy * qy
     return out
+
+
+# a decaying sum runs over pieces whose clock spans at most this many time constants
+# (e^±200: far from overflow, and terms older than that are below any float's precision)
+_SPAN = 200.0
+
+
+def _decaying_sum(ds: np.ndarray, x: np.ndarray, tau: float, z) -> np.ndarray:
+    """``y_k = e^(−ds_k/τ) y_(k−1) + x_k`` over the rows of ``x`` from ``y_(−1) = z`` (None:
+    0) as array operations: ``y_k = Σ_j e^(−(s_k − s_j)/τ) x_j`` with ``s`` the running sum of
+    ``ds``, summed over pieces of at most ``_SPAN`` time constants against the piece's end."""
+    s = np.cumsum(ds) / tau
+    y = np.empty_like(x)
+    n = s.size
+    i0, base = 0, 0.0
+    while i0 < n:
+        i1 = max(i0 + 1, int(np.searchsorted(s, base + _SPAN, side="right")))
+        sp = s[i0:i1] - base
+        e = np.exp(sp - sp[-1])[:, None]  # in (e^-SPAN, 1]
+        y[i0:i1] = np.cumsum(e * x[i0:i1], axis=0) / e
+        if z is not None:
+            y[i0:i1] += np.exp(-sp)[:, None] * z
+        z = y[i1 - 1]
+        base = s[i1 - 1]
+        i0 = i1
+    return y
 
 
 class _Block:
@@ -651,7 +681,7 @@ class _Estimator:
         if self.a is not None and cfg.aiding is not Aiding.NONE:
             # gravity, tilt, magnetometer: the tilt from gravity of step 4 (the offline chain
             # has one tilt method; the causal filters' differences are causal remedies)
-            self._tilt_from_gravity(b0, b1, rest, q_out, var_out)
+            self._tilt_from_gravity(b0, b1, rest if zupt else None, q_out, var_out)
         elif self.a is not None and cfg.levelling:
             self._level_at_rests(b0, b1, rests, tau, q_out, var_out)
         if cfg.aiding is Aiding.MAGNETOMETER:
@@ -799,51 +829,81 @@ class _Estimator:
             q_prev = q_out[r1 - 1]
 
     # ------------------------------------------------------------------ 4. tilt, 6. heading
-    def _zero_phase(self, b0, b1, tau_s, columns, apply):
-        """The one zero-phase smoother of the chain: a first-order low-pass (time constant
-        ``tau_s``) of the columns ``columns(c0, c1)`` -> (rows, K), run forward over the block,
-        then backward over the forward output; ``apply(c0, c1, sm, n_full)`` gets each chunk's smoothed
-        columns, last chunk first, and the number of samples the smoother averages where every
-        weight is 1 (weights are 0 or 1: ``n_eff = den · n_full``, ``den`` the smoothed weight).
-        The forward pass keeps its state at chunk starts (and its
-        output while the block is short); the backward pass recomputes a chunk's forward part
-        where it was not kept -- before ``apply`` of that chunk, so ``columns`` may read what
-        ``apply`` of later chunks changed, not what it changes in this one."""
-        # imported here: scipy.signal pulls in scipy.stats, seconds of start-up that the causal
-        # estimator, the node and every refused command line would pay for nothing
-        from scipy.signal import lfilter
+    def _clock_steps(self, b0, c0, c1, still):
+        """Seconds of the smoother's clock from the row before to each row of ``c0:c1``: the
+        stamp step, 0 at the block's first row, at a row not accepted (a gap restart: the
+        attitude is held across the gap) and at a row of ``still`` (block-relative: a rest,
+        where the attitude is held and its error cannot change)."""
+        ds = np.empty(c1 - c0)
+        ds[1:] = np.diff(self.t[c0:c1]) * 1e-9
+        ds[0] = (self.t[c0] - self.t[c0 - 1]) * 1e-9 if c0 > b0 else 0.0
+        ds[self.act[c0:c1] != v.ACTION_CODES[v.ACCEPT]] = 0.0
+        if still is not None:
+            ds[still[c0 - b0:c1 - b0]] = 0.0
+        return ds
 
+    def _zero_phase(self, b0, b1, tau_s, columns, apply, still=None):
+        """The one zero-phase smoother of the chain: every row's columns ``columns(c0, c1)`` ->
+        (rows, K), the last the sample's weight ``w``, averaged with the kernel
+        ``e^(−|s_k − s_j|/τ)`` on the clock ``s`` (:meth:`_clock_steps`: time, stopped at the
+        rows of ``still``), as a first-order low-pass run forward plus one run backward (the
+        two-filter form: ``Σ_{j≤k} + Σ_{j≥k} − the row itself``).  ``apply(c0, c1, sm, n_eff)``
+        gets each chunk's smoothed columns, last chunk first, scaled so that the weight column
+        is 1 where every weight is 1 on even stamps, and the number of samples the average is
+        worth, ``n_eff = (Σ k w)² / Σ k² w²`` (``k`` the kernel; 4τ/dt on even stamps with
+        every weight 1; every row of a still stretch counts whole: its clock does not move).
+        The forward pass keeps its state at chunk starts (and its output while the block is
+        short); the backward pass recomputes a chunk's forward part where it was not kept --
+        before ``apply`` of that chunk, so ``columns`` may read what ``apply`` of later chunks
+        changed, not what it changes in this one."""
         t = self.t
         dt = float(np.median(np.diff(t[b0:min(b1, b0 + 100_000)]))) * 1e-9 if b1 - b0 > 1 else 0.01
         alpha = math.exp(-max(dt, 1e-9) / tau_s)
-        bcoef, acoef = np.array([1.0 - alpha]), np.array([1.0, -alpha])
-        # the forward-backward kernel is c α^|m|, c = (1 − α)/(1 + α): with every weight 1 it
-        # averages n_full = 1/Σk² = (1 + α)²(1 − α²)/((1 − α)²(1 + α²)) ≈ 4τ/dt samples
-        n_full = (1 + alpha) ** 2 * (1 - alpha * alpha) / ((1 - alpha) ** 2 * (1 + alpha * alpha)) \
-            if alpha < 1.0 else 1.0
+        scale = (1.0 - alpha) / (1.0 + alpha)  # 1 / Σ k on even stamps
         chunks = list(_chunks(b0, b1, self.size))
         keep = b1 - b0 <= _KEEP_FORWARD
-        zf = None
-        states = []
-        kept = []
-        for c0, c1 in chunks:  # forward
-            x = columns(c0, c1)
-            if zf is None:
-                zf = np.zeros((1, x.shape[1]))
-            states.append(zf)
-            fwd, zf = lfilter(bcoef, acoef, x, axis=0, zi=zf)
-            kept.append(fwd if keep else None)
-        zb = np.zeros_like(zf)
-        for (c0, c1), zi, fwd in zip(reversed(chunks), reversed(states), reversed(kept),
-                                     strict=True):
-            if fwd is None:
-                fwd, _ = lfilter(bcoef, acoef, columns(c0, c1), axis=0, zi=zi)
-            sm, zb = lfilter(bcoef, acoef, fwd[::-1], axis=0, zi=zb)
-            apply(c0, c1, sm[::-1], n_full)
 
-    def _tilt_from_gravity(self, b0, b1, rest, q_out, var_out):
+        def rows(c0, c1):
+            """The chunk's columns, its squared weight beside them (it rides with the squared
+            kernel, τ/2), and its clock steps."""
+            x = columns(c0, c1)
+            return np.column_stack((x, x[:, -1] * x[:, -1])), self._clock_steps(b0, c0, c1, still)
+
+        half = 0.5 * tau_s
+
+        def run(ds, x, z):
+            if z is None:
+                z = (None, None)
+            y1 = _decaying_sum(ds, x[:, :-1], tau_s, z[0])
+            y2 = _decaying_sum(ds, x[:, -1:], half, z[1])
+            # (copies: a view of the last row would keep the chunk's sums alive)
+            return np.column_stack((y1, y2)), (y1[-1].copy(), y2[-1].copy())
+
+        z = None
+        states, kept = [], []
+        for c0, c1 in chunks:  # forward
+            states.append(z)
+            x, ds = rows(c0, c1)
+            _, z = run(ds, x, z)
+            kept.append((x, ds) if keep else None)
+        zb = None
+        ds_next = 0.0  # the clock step into the row after the chunk (none after the block)
+        for (c0, c1), zi, xk in zip(reversed(chunks), reversed(states), reversed(kept),
+                                    strict=True):
+            x, ds = xk if xk is not None else rows(c0, c1)
+            fwd, _ = run(ds, x, zi)
+            # backward: the step from each row to the next, rows reversed
+            yb, zb = run(np.concatenate(([ds_next], ds[:0:-1])), x[::-1], zb)
+            ds_next = ds[0]
+            sm = fwd + yb[::-1] - x  # Σ_{j≤k} + Σ_{j≥k} − the row itself
+            s2, sw = sm[:, -1], sm[:, -2]
+            n_eff = np.divide(sw * sw, s2, out=np.zeros_like(s2), where=s2 > 0.0)
+            apply(c0, c1, sm[:, :-1] * scale, n_eff)
+
+    def _tilt_from_gravity(self, b0, b1, held, q_out, var_out):
         """Zero-phase weighted low-pass of ``f_i`` (module docstring, step 4), the correction
-        applied in place chunk by chunk."""
+        applied in place chunk by chunk; ``held``: the rows where the attitude was held (the
+        rests, block-relative; None without), where the smoother's clock stops."""
         cfg = self.cfg
         g0 = STANDARD_GRAVITY
         noise = [r.accel_var for r in self.rests if np.isfinite(r.accel_var).all()]
@@ -861,7 +921,7 @@ class _Estimator:
                 x[:, 3] = wt
             return x
 
-        def apply(c0, c1, sm, n_full):
+        def apply(c0, c1, sm, n_eff):
             den = sm[:, 3]
             okd = den > 1e-12
             # the smallest rotation taking the smoothed f_i to up (scale-free: Σ w f_i needs no
@@ -872,7 +932,7 @@ class _Estimator:
             q_out[c0:c1] = _level_left(u, q_out[c0:c1])
             # tilt variance: the accelerometer-bias floor plus its noise over the samples
             # the smoother averages
-            tilt = floor + sf2 / (g0 * g0) / np.maximum(den * n_full, 1.0)
+            tilt = floor + sf2 / (g0 * g0) / np.maximum(n_eff, 1.0)
             if okd.all():
                 var_out[c0:c1, 0] = tilt
                 var_out[c0:c1, 1] = tilt
@@ -880,7 +940,7 @@ class _Estimator:
                 var_out[c0:c1, 0] = np.where(okd, tilt, var_out[c0:c1, 0])
                 var_out[c0:c1, 1] = np.where(okd, tilt, var_out[c0:c1, 1])
 
-        self._zero_phase(b0, b1, cfg.offline_tilt_tau_s, columns, apply)
+        self._zero_phase(b0, b1, cfg.offline_tilt_tau_s, columns, apply, still=held)
         self.notes.append(f"tilt from gravity: zero-phase low-pass, τ = {cfg.offline_tilt_tau_s:g} "
                           "s")
 
@@ -979,7 +1039,7 @@ class _Estimator:
 
         scatter = [None]  # the last measured azimuth scatter about the smoothed one (rad²)
 
-        def apply(c0, c1, sm, n_full):
+        def apply(c0, c1, sm, n_eff):
             ex, ey, good, ok, missing = kept.pop(c0) if kept is not None else directions(c0, c1)
             self.mag_counts[MAG_MISSING] += int(np.count_nonzero(missing))
             self.mag_counts[INVALID_MAG] += int(np.count_nonzero(~ok & ~missing))
@@ -998,7 +1058,7 @@ class _Estimator:
                 r = (np.arctan2(ex[good], ey[good]) - err[good] + math.pi) % (2 * math.pi) - math.pi
                 scatter[0] = float(np.mean(r * r))
             if scatter[0] is not None:
-                head = scatter[0] / np.maximum(den * n_full, 1.0) + coupling * var_out[c0:c1, 1]
+                head = scatter[0] / np.maximum(n_eff, 1.0) + coupling * var_out[c0:c1, 1]
                 var_out[c0:c1, 2] = np.where(okd, head, var_out[c0:c1, 2])
 
         self._zero_phase(b0, b1, cfg.offline_mag_tau_s, columns, apply)

@@ -354,3 +354,56 @@ def test_the_tail_of_a_turn_is_integrated_not_held():
     for r in (res, res_auto):
         yaw = 2 * np.arctan2(r.q[-1, 2], r.q[-1, 3])
         assert abs(yaw - turn) < 5e-4, (yaw, turn)
+
+
+def _brute_smoother(t_ns, act, still, x, tau):
+    """The tilt smoother by its definition, O(n²): kernel e^(−|s_k − s_j|/τ) on the clock that
+    advances by the stamp step at accepted rows and not at still ones; n_eff = (Σkw)²/Σk²w²."""
+    ds = np.diff(t_ns, prepend=t_ns[0]) * 1e-9
+    ds[(act != v.ACTION_CODES[v.ACCEPT]) | still] = 0.0
+    s = np.cumsum(ds)
+    k = np.exp(-np.abs(s[:, None] - s[None, :]) / tau)
+    w = x[:, -1]
+    sw = k @ w
+    return k @ x, sw * sw / ((k * k) @ (w * w))
+
+
+@pytest.mark.parametrize("chunk", [64, 10_000])
+def test_the_smoother_clock_stops_where_the_attitude_is_held(chunk):
+    # the one zero-phase smoother against its definition: jittered stamps, a gap restart,
+    # two still stretches (a rest's rows share the instant of the motion's end next to it),
+    # weights 0 and 1, chunk boundaries, and stretches far beyond _SPAN time constants
+    rng = np.random.default_rng(3)
+    n = 700
+    t = np.cumsum(rng.uniform(3e6, 7e6, n)).astype(np.int64)
+    t[400:] += 2 * 10**9  # a gap: held across
+    act = np.full(n, v.ACTION_CODES[v.ACCEPT])
+    act[0] = act[400] = v.ACTION_CODES[v.START]
+    still = np.zeros(n, bool)
+    still[100:250] = True
+    still[500:520] = True
+    x = rng.normal(size=(n, 4))
+    x[:, 3] = rng.uniform(size=n) > 0.2
+    x[:, :3] *= x[:, 3:]
+    for tau in (0.05, 1e-4):  # 1e-4 s: the clock spans thousands of τ (pieces, underflow)
+        est = type("Stub", (), {})()
+        est.t, est.act, est.size = t, act, chunk
+        est._clock_steps = lambda b0, c0, c1, st, e=est: offline._Estimator._clock_steps(
+            e, b0, c0, c1, st)
+        got_sm = np.empty((n, 4))
+        got_n = np.empty(n)
+
+        def apply(c0, c1, sm, n_eff, got_sm=got_sm, got_n=got_n):
+            got_sm[c0:c1] = sm
+            got_n[c0:c1] = n_eff
+
+        offline._Estimator._zero_phase(est, 0, n, tau, lambda c0, c1: x[c0:c1].copy(), apply,
+                                       still=still)
+        want_sm, want_n = _brute_smoother(t, act, still, x, tau)
+        dt = np.median(np.diff(t)) * 1e-9
+        alpha = np.exp(-dt / tau)
+        np.testing.assert_allclose(got_sm, want_sm * (1 - alpha) / (1 + alpha), rtol=1e-9,
+                                   atol=1e-12)
+        np.testing.assert_allclose(got_n, want_n, rtol=1e-9)
+    # at a still stretch every row counts whole: n_eff at least its weighted rows
+    assert got_n[150] >= x[100:250, 3].sum() - 1e-9
