@@ -4,7 +4,8 @@ with its type, range and help.
 
 Flags not given stay out of the namespace (``argparse.SUPPRESS``), so :func:`config_from_args`
 knows which settings the user set and leaves the rest at the table's defaults.  Shorthands kept
-from earlier releases, each one line below: ``--initial-attitude truth|level`` (the source),
+from earlier releases, each one line below: ``--initial-attitude truth|level|accelerometer|auto``
+(the source),
 ``--gyro-bias X,Y,Z`` (a fixed bias), ``--latitude-deg`` / ``--longitude-deg`` (degrees), and
 ``--gyro-bias-sigma``.
 """
@@ -60,13 +61,15 @@ def _metavar(setting: Setting) -> str:
 
 
 class _Shorthand(argparse.Action):
-    """``--initial-attitude truth|level`` and ``--gyro-bias X,Y,Z``: one flag setting two
+    """``--initial-attitude truth|level|accelerometer|auto`` and ``--gyro-bias X,Y,Z``: one
+    flag setting two
     settings, as earlier releases took them."""
 
     def __call__(self, parser, namespace, values, option_string=None):
         name, (mode_setting, mode) = self.dest[len(_DEST):], self.const
         text = values.strip().lower()
-        if name == "initial_attitude" and text in ("truth", "level"):
+        if name == "initial_attitude" and text in (m.value for m in InitialAttitudeSource) \
+                and text != InitialAttitudeSource.PARAMETER:
             setattr(namespace, _DEST + mode_setting, InitialAttitudeSource(text))
             return
         if name == "gyro_bias" and text in (m.value for m in GyroBiasMode):
@@ -104,9 +107,9 @@ def add_estimator_flags(parser: argparse.ArgumentParser, settings=SETTINGS) -> N
         if s.name == "initial_attitude":
             group.add_argument(s.flag, action=_Shorthand,
                                const=("initial_attitude_source", InitialAttitudeSource.PARAMETER),
-                               **{**kwargs, "metavar": "X,Y,Z,W|truth|level",
-                                  "help": kwargs["help"] + "; 'truth' or 'level' set "
-                                  "--initial-attitude-source"})
+                               **{**kwargs, "metavar": "X,Y,Z,W|truth|level|accelerometer",
+                                  "help": kwargs["help"] + "; 'truth', 'level', "
+                                  "'accelerometer' or 'auto' set --initial-attitude-source"})
         elif s.name == "gyro_bias":
             group.add_argument(s.flag, action=_Shorthand,
                                const=("gyro_bias", GyroBiasMode.PARAMETER),
