@@ -138,16 +138,6 @@ def level_quaternion(f_b, heading: float) -> tuple[np.ndarray, float, float]:
 
 
 
-def _check_nonneg(name, v) -> float:
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {v!r}") from None
-    if not math.isfinite(x) or x < 0 or x > 1e6:
-        raise ValueError(f"{name} must be a finite non-negative number, got {v!r}")
-    return x
-
-
 class StaticAligner:
     """Streaming static alignment over the first rest (see the module docstring): a face on one
     record of :data:`ALIGNER_DTYPE` and its rest window's ring, stepped by the kernels
