@@ -269,7 +269,7 @@ def heading_from_field(af, ai, seconds, norm_t, dip_rad):
         af[A_REF_DIP], ai[I_HAS_REF_DIP] = dip_rad, 1
 
 
-@kernel
+@kernel(inline=True)
 def ahrs_step(pa, af, ai, t, w0, w1, w2, has_f, fx, fy, fz, x, y, z, s, mag_state, mx, my, mz):
     """One sample of the filter (module docstring) on its state arrays: ``t`` int ns after the
     last, ``w`` the gyro rate less the known bias, ``f`` the specific force (``has_f``), ``(x,

@@ -562,7 +562,7 @@ E_INVALID_COV, E_INVALID_ACCEL, E_SATURATED, E_FALLBACK, E_MAG_MISSING, E_NOISE_
     E_ALIGN = 1, 2, 4, 8, 16, 32, 64
 
 
-@kernel
+@kernel(inline=True)
 def step(ca, sa, bias_ring, align_ring, align_buf, t, w0, w1, w2, frame_ok, has_a, a0, a1, a2,
          has_cov, cv, ms, m0, m1, m2):
     """One Imu sample through the chain (:func:`chain_step`): (code, reason, whether an
@@ -590,7 +590,7 @@ def step(ca, sa, bias_ring, align_ring, align_buf, t, w0, w1, w2, frame_ok, has_
     return code, reason, got, ev, s.q[0], s.q[1], s.q[2], s.q[3]
 
 
-@kernel
+@kernel(inline=True)
 def chain_step(ca, sa, bias_ring, align_ring, align_buf, t, w0, w1, w2, frame_ok, has_a, a0,
                a1, a2, has_cov, cv, ms, m0, m1, m2):
     """One Imu sample through the chain: (code, reason, whether an attitude was handed out
