@@ -198,19 +198,7 @@ class AttitudeIntegratorNode(Node):
         self._lock = threading.RLock()
         self.inputs = (InputThread(self.context, self._lock, name=f"{NODE_NAME} inputs")
                        if p["executor"] == INPUT_THREAD else None)
-        try:
-            config = self._stream_config(p)
-            self._nav = config.nav_frame()
-            if self._nav is not None:
-                try:
-                    self._nav.rate_enu()  # height and velocity within what a carrier can have
-                except ValueError as exc:
-                    raise SettingError("velocity_enu", f"height_m/velocity_enu: {exc}") from None
-            self._stream = AttitudeStream(p["algorithm"], nav=self._nav, config=config)
-        except SettingError as exc:  # the message names the setting
-            raise ParameterError(f"parameter '{exc.setting}': {exc}") from exc
-        except ValueError as exc:  # e.g. an Euler-angle algorithm with frame=enu
-            raise ParameterError(f"parameter 'algorithm' = {p['algorithm']!r}: {exc}") from exc
+        config = self._make_stream(p)
         self._world = config.world_frame
         self._world_frame = p["world_frame_id"] or frame_id_of(config.frame, config.world_frame)
         self._truth_start = None
@@ -250,6 +238,35 @@ class AttitudeIntegratorNode(Node):
         self._pub_imu = self.create_publisher(Imu, imu_out, OUTPUT_DEPTH)
         self._pub_att = self.create_publisher(QuaternionStamped, attitude_out, OUTPUT_DEPTH)
         self._pub_diag = self.create_publisher(DiagnosticArray, diagnostics_out, 10)
+        self._create_subscriptions(p, config)
+        self.create_timer(p["diagnostics_period_s"], self._publish_diagnostics)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        if self.inputs is not None:
+            # started here, not by the spin: the node takes its inputs however it is spun
+            # (rclpy.spin, any executor, a container); destroy_node stops it
+            self.inputs.start()
+        self._say_start(p, config)
+
+    def _make_stream(self, p) -> StreamConfig:
+        """The estimator of the parameters ``p`` (ParameterError naming a bad one): its
+        settings, nav frame and stream."""
+        try:
+            config = self._stream_config(p)
+            self._nav = config.nav_frame()
+            if self._nav is not None:
+                try:
+                    self._nav.rate_enu()  # height and velocity within what a carrier can have
+                except ValueError as exc:
+                    raise SettingError("velocity_enu", f"height_m/velocity_enu: {exc}") from None
+            self._stream = AttitudeStream(p["algorithm"], nav=self._nav, config=config)
+        except SettingError as exc:  # the message names the setting
+            raise ParameterError(f"parameter '{exc.setting}': {exc}") from exc
+        except ValueError as exc:  # e.g. an Euler-angle algorithm with frame=enu
+            raise ParameterError(f"parameter 'algorithm' = {p['algorithm']!r}: {exc}") from exc
+        return config
+
+    def _create_subscriptions(self, p, config) -> None:
+        """The inputs: truth (start from it), odometry, magnetometer, then the Imu."""
         # every input takes the one QoS rule: best effort (the default) matches any publisher,
         # reliable ones and the best-effort republishing of a bag without offered profiles
         qos = imu_qos(p["qos_reliability"], p["qos_depth"])
@@ -273,12 +290,9 @@ class AttitudeIntegratorNode(Node):
         self._sub_imu = self._subscribe(
             Imu, "imu/data_raw", self._on_imu_raw if self.inputs else self._on_imu_wakeup,
             qos, raw=True)
-        self.create_timer(p["diagnostics_period_s"], self._publish_diagnostics)
-        self.add_on_set_parameters_callback(self._on_set_parameters)
-        if self.inputs is not None:
-            # started here, not by the spin: the node takes its inputs however it is spun
-            # (rclpy.spin, any executor, a container); destroy_node stops it
-            self.inputs.start()
+
+    def _say_start(self, p, config) -> None:
+        """The start-up lines: what runs, and any retired name the user gave."""
         self.get_logger().info(
             f"integrating imu/data_raw with '{p['algorithm']}' in frame '{config.frame}' "
             f"(aiding {config.aiding}, initial attitude from {config.initial_attitude_source}, "
