@@ -43,6 +43,19 @@ def nav_interval(ci, cf, t, has_nav, r0, r1, r2):
     return has_z, z0, z1, z2
 
 
+@kernel(inline=True)
+def _compose_into(cf, b, has_z, z0, z1, z2):
+    """The stored attitude advanced by the body increment ``b`` (and the nav-frame rotation
+    ``z`` over the interval when ``has_z``), stored and returned."""
+    q = (cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3])
+    if has_z:
+        q = compose_scalar(q, b, (z0, z1, z2))
+    else:
+        q = compose_scalar(q, b, None)
+    cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3] = q
+    return q
+
+
 @kernel
 def cubic_advance(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
     """One sample ``t`` (int ns after the last), rate ``(w0, w1, w2)`` and nav rate
@@ -91,12 +104,7 @@ def cubic_advance(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
         ci[C_FALLBACKS] += 1
     if n == 2:
         ci[C_FIRST_FELL] = 1 if fell else 0
-    q = (cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3])
-    if has_z:
-        q = compose_scalar(q, b, (z0, z1, z2))
-    else:
-        q = compose_scalar(q, b, None)
-    cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3] = q
+    q = _compose_into(cf, b, has_z, z0, z1, z2)
     ci[C_LAST_T] = t
     return q
 
@@ -407,12 +415,7 @@ def exp_advance(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
     h = (t - ts[0]) * 1e-9
     b = exp_scalar(0.5 * (ws[0, 0] + w0) * h, 0.5 * (ws[0, 1] + w1) * h,
                    0.5 * (ws[0, 2] + w2) * h)
-    q = (cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3])
-    if has_z:
-        q = compose_scalar(q, b, (z0, z1, z2))
-    else:
-        q = compose_scalar(q, b, None)
-    cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3] = q
+    q = _compose_into(cf, b, has_z, z0, z1, z2)
     ts[0] = t
     ws[0, 0], ws[0, 1], ws[0, 2] = w0, w1, w2
     ci[C_LAST_T] = t

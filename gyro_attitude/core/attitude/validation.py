@@ -395,6 +395,10 @@ def classify(t_ns, omega, frame_id: str | list[str] | None = "",
                           None if locked is None else names[locked], int(record.missing[0]))
 
 
+#: the validator's figures (dt, hole, missing, skipped, period) where a reason needs none
+_NO_FIGURES = (0, 0, 0, 0, 0)
+
+
 def _local_checks(t, w, codes, names, cfg, reason, details):
     """The sample-local checks, in the validator's order: values, then stamp, then frame
     (reasons and first details written into ``reason`` and ``details``).  Returns (the rows
@@ -421,11 +425,8 @@ def _local_checks(t, w, codes, names, cfg, reason, details):
                        (ZERO_STAMP, zero)):
         if mask.any():
             k = int(np.flatnonzero(mask)[0])
-            details[name] = {
-                NON_FINITE: f"non-finite value(s) {w[k].tolist()}",
-                IMPLAUSIBLE_RATE: f"rate {w[k].tolist()} rad/s beyond "
-                                  f"max_rate_rad_s = {cfg.max_rate_rad_s:g}",
-                ZERO_STAMP: f"stamp {int(t[k])} ns is not positive (0: unset)"}[name]
+            details[name] = reason_words(name, int(t[k]), w[k].tolist(), None, None,
+                                         _NO_FIGURES, cfg)
     if not ok.any():
         return ok, None
     # the first sample that passes the local checks is always accepted (START): its frame is
@@ -438,8 +439,9 @@ def _local_checks(t, w, codes, names, cfg, reason, details):
             reason[changed] = _REASON_CODES[FRAME_CHANGED]
             ok &= ~changed
             k = int(np.flatnonzero(changed)[0])
-            details[FRAME_CHANGED] = (f"frame_id {names[int(codes[k])]!r} differs from "
-                                      f"{names[locked]!r}")
+            details[FRAME_CHANGED] = reason_words(FRAME_CHANGED, int(t[k]), None,
+                                                  names[int(codes[k])], names[locked],
+                                                  _NO_FIGURES, cfg)
     return ok, locked
 
 
