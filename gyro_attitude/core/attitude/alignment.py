@@ -128,9 +128,10 @@ def heading_of(q_nb) -> float:
 
 def level_quaternion(f_b, heading: float) -> tuple[np.ndarray, float, float]:
     """``(q_nb, roll, pitch)`` with body z along the measured up ``f_b`` and the given heading
-    (:func:`level_q`, compiled: the same numbers as the compiled chain's)."""
+    (:func:`level_q` run by the interpreter: one call is not worth loading the compiled form,
+    a third of a second in a fresh process)."""
     fx, fy, fz = (float(c) for c in f_b)
-    ok, x, y, z, w, roll, pitch = compiled(level_q)(fx, fy, fz, float(heading))
+    ok, x, y, z, w, roll, pitch = level_q(fx, fy, fz, float(heading))
     if not ok:
         raise ValueError(f"specific force {f_b!r} is not a usable gravity measurement")
     return np.array([x, y, z, w]), roll, pitch

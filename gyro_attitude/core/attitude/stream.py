@@ -841,11 +841,11 @@ def covariance_rows(cov: np.ndarray, valid: np.ndarray, counts: dict, details: d
     c = np.asarray(cov, dtype=np.float64)
     if c.ndim == 2 and c.shape[0] > 1 and c.strides[0] == 0:
         # one row repeated (a broadcast view: every message carried the same covariance)
-        var1, code1 = _verdicts(c[:1])
+        var1, code1 = _verdicts(c[:1], loop=chain.covariance_verdicts)
         var_all = np.broadcast_to(var1, c.shape[:1] + (3,))
         code_all = np.broadcast_to(code1, c.shape[:1])
     else:
-        var_all, code_all = _verdicts(c)
+        var_all, code_all = _distinct_verdicts(c)
     code = rows(code_all, valid)
     inv = code == chain.COV_INVALID
     counts[INVALID_COVARIANCE] = int(np.count_nonzero(inv))
@@ -855,11 +855,29 @@ def covariance_rows(cov: np.ndarray, valid: np.ndarray, counts: dict, details: d
     return rows(var_all, valid), code == chain.COV_KNOWN
 
 
-def _verdicts(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _verdicts(c: np.ndarray, loop=None) -> tuple[np.ndarray, np.ndarray]:
     var = np.zeros((c.shape[0], 3))
     code = np.zeros(c.shape[0], np.int8)
-    compiled(chain.covariance_verdicts)(np.ascontiguousarray(c), var, code)
+    (loop or compiled(chain.covariance_verdicts))(np.ascontiguousarray(c), var, code)
     return var, code
+
+
+#: past this many distinct covariance rows the verdicts run compiled
+_FEW_DISTINCT_ROWS = 4096
+
+
+def _distinct_verdicts(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_verdicts` of every row, judged once per distinct row (by its bits): a driver
+    sends one covariance, or a few, so the interpreter judges them and a replay that runs no
+    other compiled code does not load numba (two thirds of a second in a fresh process)."""
+    if c.ndim != 2 or c.shape[0] == 0:
+        return _verdicts(c)
+    bits = np.ascontiguousarray(c).view(np.dtype((np.void, c.dtype.itemsize * c.shape[1])))
+    distinct, first, inverse = np.unique(bits[:, 0], return_index=True, return_inverse=True)
+    if distinct.size > _FEW_DISTINCT_ROWS:
+        return _verdicts(c)
+    var, code = _verdicts(c[first], loop=chain.covariance_verdicts)
+    return var[inverse], code[inverse]
 
 
 def rows(a: np.ndarray, index: np.ndarray, empty=None) -> np.ndarray:
