@@ -1,16 +1,12 @@
 """Causal AHRS aiding: tilt from the specific force filtered in an almost-inertial frame, heading
 from the magnetometer, with acceleration and magnetic-disturbance rejection (no ROS, plain floats).
 
-Contract (streaming, the aiding stage): ``AhrsFilter.update(t_ns, rate, accel, q_nb, mag=None)
--> rate`` once per accepted sample: ``rate`` (3,)
-rad/s is the gyro rate with the known bias removed, ``accel`` the specific force (3,) m/s² or
-None, ``q_nb`` the current attitude estimate (body→ENU, scalar last), ``mag`` the magnetic field
-(3,) tesla in the body frame or None; the returned rate (a 3-tuple) is what the attitude
-integrator integrates for the interval ending at this sample.  The filter owns no attitude: it
-expresses every correction as an added body rate, so the stream's integrator (any causal
-algorithm) stays the one home of the attitude.  :func:`ahrs_attitude` is the batch form over
-whole arrays (the same per-sample step: the filter is a feedback loop, so it cannot be
-vectorized).
+Contract (the aiding stage of the causal chain): the kernel :func:`ahrs_step` once per accepted
+sample, on the state arrays of :class:`AhrsFilter`: the gyro rate with the known bias removed,
+the specific force (m/s², or none), the current attitude estimate (body→ENU, scalar last) and
+the magnetic field (tesla, body frame, or none) in; the rate the integrator integrates for the
+interval ending at this sample out.  The filter owns no attitude: it expresses every correction
+as an added body rate, so the chain's integrator stays the one home of the attitude.
 
 Tilt (the structure of VQF, Laidig & Seel 2023, written from the paper):
 
@@ -52,7 +48,7 @@ Hard iron: ``mag_hard_iron_t`` given, or ``mag_hard_iron_estimate``: the sphere 
 ``‖m − b‖² = r²`` (linear least squares in ``b`` and ``r² − ‖b‖²``) over sums accumulated per
 sample and solved every ``HARD_IRON_SOLVE_S`` with exponential forgetting; a solution is taken
 only when the field has been seen from directions spread enough (the smallest eigenvalue of the
-field's scatter above a quarter of r²... see :meth:`AhrsFilter._solve_hard_iron`).
+field's scatter above a quarter of r²... see :func:`_solve_hard_iron`).
 """
 
 from __future__ import annotations
@@ -66,9 +62,9 @@ from gyro_attitude.core.attitude.modes import SettingError
 from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.core.attitude.validation import within
 from gyro_attitude.core.earth import STANDARD_GRAVITY
-from gyro_attitude.core.jit import compiled, kernel
+from gyro_attitude.core.jit import kernel
 
-__all__ = ["AhrsFilter", "ahrs_attitude", "ahrs_coefficients", "MAG_ABSURD_T", "MAG_ZERO_T"]
+__all__ = ["AhrsFilter", "ahrs_coefficients", "MAG_ABSURD_T", "MAG_ZERO_T"]
 
 MAG_ABSURD_T = 1e-2  # tesla: 10 mT, beyond any magnetometer's range (Earth's field ~25-65 µT)
 MAG_ZERO_T = 1e-7  # tesla: 0.1 µT, no magnetometer in a geomagnetic field reads this little
@@ -116,20 +112,6 @@ def _butterworth2(tau: float, dt: float) -> tuple[float, float, float, float, fl
     d = c * c + _SQRT2 * c + 1.0
     b0 = c * c / d
     return b0, 2.0 * b0, b0, 2.0 * (c * c - 1.0) / d, (1.0 - _SQRT2 * c + c * c) / d
-
-
-def _as_floats(v) -> tuple[float, float, float] | None:
-    """3 finite floats, or None (absent, wrong shape, non-finite)."""
-    if v is None:
-        return None
-    try:
-        x, y, z = v.tolist() if isinstance(v, np.ndarray) else v
-        x, y, z = float(x), float(y), float(z)
-    except (TypeError, ValueError, OverflowError):
-        return None
-    if math.isfinite(x) and math.isfinite(y) and math.isfinite(z):
-        return x, y, z
-    return None
 
 
 # The filter's state as arrays (what the compiled chain steps).  Float slots:
@@ -216,51 +198,13 @@ class AhrsFilter:
     mag_ref_dip = property(lambda self: float(self.af[A_REF_DIP]) if self.ai[I_HAS_REF_DIP]
                            else None)
 
-    @property
-    def last_t_ns(self) -> int | None:
-        """The last sample's stamp (ns), None for a new time base."""
-        return int(self.ai[I_LAST_T]) if self.ai[I_HAS_LAST] else None
-
-    def heading_from_field(self, seconds: float, norm_t: float, dip_rad: float) -> None:
-        """The heading was just set from the mean field over ``seconds`` of rest (the static
-        alignment, with the levelled attitude): the filter goes on from it as a running average
-        that has already seen that much field (no fast first phase, the time constant starts at
-        ``seconds``), and that field (norm, dip) is the reference unless one is given."""
-        heading_from_field(self.af, self.ai, float(seconds), float(norm_t), float(dip_rad))
-
-    def restart(self) -> None:
-        """A new time base (gap, reset): the low-pass starts again from the next sample; the
-        references, the bias and the hard iron are kept."""
-        self.ai[I_HAS_LAST] = 0
-
-    # ------------------------------------------------------------------ one sample
-    def update(self, t_ns: int, rate, accel, q_nb, mag=None):
-        w = rate.tolist() if isinstance(rate, np.ndarray) else rate
-        x, y, z, s = q_nb.tolist() if isinstance(q_nb, np.ndarray) else q_nb
-        t = int(t_ns)
-        if self.ai[I_HAS_LAST] and t <= self.ai[I_LAST_T]:
-            raise ValueError(f"t_ns must increase: {t} after {int(self.ai[I_LAST_T])}")
-        has_f = accel is not None
-        fx = fy = fz = 0.0
-        if has_f:
-            fx, fy, fz = accel.tolist() if isinstance(accel, np.ndarray) else accel
-        mag_state, mx, my, mz = MAG_ABSENT, 0.0, 0.0, 0.0
-        if mag is not None:
-            m = _as_floats(mag)
-            if m is None:
-                mag_state = MAG_NOT_FLOATS
-            else:
-                mag_state, (mx, my, mz) = MAG_GIVEN, m
-        return compiled(ahrs_step)(self.pa, self.af, self.ai, t, float(w[0]), float(w[1]),
-                                   float(w[2]), has_f, float(fx), float(fy), float(fz),
-                                   float(x), float(y), float(z), float(s), mag_state, mx, my, mz)
-
-    step = update  # the stage's step on checked inputs (the stream's chain): the same step
-
 
 @kernel
 def heading_from_field(af, ai, seconds, norm_t, dip_rad):
-    """:meth:`AhrsFilter.heading_from_field` on the state arrays."""
+    """The heading was just set from the mean field over ``seconds`` of rest (the static
+    alignment, with the levelled attitude): the filter goes on from it as a running average
+    that has already seen that much field (no fast first phase, the time constant starts at
+    ``seconds``), and that field (norm, dip) is the reference unless one is given."""
     ai[I_HEADING_INIT] = 1
     af[A_SINCE_HEADING] = HEADING_INIT_S + seconds
     if ai[I_HAS_REF_NORM] == 0:
@@ -469,7 +413,7 @@ def _coefficients(af, ai, tau, dt):
 def _heading(pa, af, ai, dt, mag_state, m0, m1, m2, hx, hy, hz, c00, c01, c02, c10, c11, c12,
              c20, c21, c22):
     """(heading correction (nav z rotation), steady) of one magnetometer sample (tesla);
-    ``h`` the body rotation over half the step (see update)."""
+    ``h`` the body rotation over half the step (see :func:`ahrs_step`)."""
     if mag_state != MAG_GIVEN or not within(m0, m1, m2, MAG_ABSURD_T):
         ai[I_MAG_INVALID] += 1
         return 0.0, False
@@ -652,34 +596,3 @@ def _solve_hard_iron(pa, af, ai):
     ai[I_HI_FITS] += 1
     if pa[P_REF_NORM_GIVEN] == 0.0:
         af[A_REF_NORM], ai[I_HAS_REF_NORM] = r * 1e-6, 1
-
-
-def ahrs_attitude(t_ns, gyro, accel, q0, mag=None, *, config: StreamConfig | None = None,
-                  algorithm: str = "exp_map") -> tuple[np.ndarray, AhrsFilter]:
-    """Batch: attitudes (N, 4) of the filter over bias-free ``gyro`` (N, 3) rad/s, ``accel``
-    (N, 3) m/s², ``mag`` (N, 3) tesla or None (rows of NaN: no field at that sample), from
-    ``q0``; the filter is returned for its counters.  Integrated with ``algorithm`` (a causal
-    one of the registry); the aiding sees the attitude at the previous sample."""
-    from gyro_attitude.core.attitude.rest import check_samples
-    from gyro_attitude.core.attitude.streaming import StreamingIntegrator
-
-    t, w, f = check_samples(t_ns, gyro, accel)
-    m = None
-    if mag is not None:
-        m = np.asarray(mag, dtype=np.float64)
-        if m.shape != (t.size, 3):
-            raise ValueError(f"mag must have shape ({t.size}, 3), got {m.shape}")
-    aid = AhrsFilter(config)
-    integ = StreamingIntegrator(algorithm, q0=q0)
-    q = np.empty((t.size, 4))
-    cur = integ.quaternion
-    tl = t.tolist()
-    wl = w.tolist()
-    fl = None if f is None else f.tolist()
-    ml = None if m is None else m.tolist()
-    for k in range(t.size):
-        rate = aid.update(tl[k], wl[k], None if fl is None else fl[k], cur,
-                          None if ml is None else ml[k])
-        cur = integ.update(tl[k], rate)
-        q[k] = cur
-    return q, aid

@@ -545,7 +545,7 @@ def align_stage(c, s, ring, buf, t, w0, w1, w2, has_a, a0, a1, a2, b0, b1, b2, v
 @kernel
 def _heading_from_field(c, s, al):
     """The heading is the mean field's over the rest: the AHRS goes on from it as a running
-    average that has already seen that much field (ahrs.AhrsFilter.heading_from_field)."""
+    average that has already seen that much field (ahrs.heading_from_field)."""
     x, y, z, u = al.q[0], al.q[1], al.q[2], al.q[3]
     vx, vy, vz = al.mean_m[0], al.mean_m[1], al.mean_m[2]
     # v' = v + w t + u × t with t = 2 u × v (rotation.quat_rotate)

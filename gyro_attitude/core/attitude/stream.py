@@ -633,15 +633,18 @@ class AttitudeStream:
 _ZERO9 = np.zeros(9)
 _ZERO9x1 = np.zeros((1, 9))
 _ZERO3x1 = np.zeros((1, 3))
+_F64 = np.dtype(np.float64)
+
+
 def _floats(x) -> tuple[float, float, float] | None:
     """3 floats of a sample (NaN stays NaN), or None when it is not 3 numbers (text, a
     mapping, numbers beyond float64)."""
     if type(x) is np.ndarray:
+        if x.dtype is _F64 and x.shape == (3,):  # a message's array: the common case
+            a, b, c = x.tolist()
+            return a, b, c
         if x.dtype.kind not in "iuf":
             return None
-        if x.shape == (3,):  # a message's array: the common case
-            a, b, c = x.tolist()
-            return float(a), float(b), float(c)
     elif isinstance(x, str | bytes | dict):
         return None
     try:
