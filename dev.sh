@@ -41,6 +41,11 @@ warm='from gyro_attitude.core.attitude.stream import compile_kernels; compile_ke
 echo "[dev.sh] compiling the per-sample kernels (cached after the first time)" >&2
 (cd / && "$venv/bin/python" -c "$warm")
 [ "$what" = "test" ] && "$venv/bin/python" -c "$warm"
+# the recording loop of replay --estimator causal compiled ahead of time (a fresh process then
+# needs no numba); without a C compiler one line says so and the loop is compiled just in time
+echo "[dev.sh] compiling the recording loop ahead of time" >&2
+(cd / && "$venv/bin/python" -m gyro_attitude.io.precompile) || true
+if [ "$what" = "test" ]; then "$venv/bin/python" -m gyro_attitude.io.precompile || true; fi
 
 # The ament index (package lookup of `ros2 run`, message .msg/.json files) lives in the venv.
 export AMENT_PREFIX_PATH="$venv${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"

@@ -14,16 +14,26 @@ that never run a per-sample chain do not pay its import.  Compiled code is cache
 installation compiles (seconds), later ones load.  Where numba finds no writable place for
 its cache (a read-only installation, no writable home), the kernels are compiled in every
 process, said once as a warning.
+
+:func:`precompiled` gives the ahead-of-time compiled form of a kernel when the installation
+holds one built from this very source (``python -m gyro_attitude.io.precompile``, run by
+``dev.sh``): the same code in an extension module that needs no numba in the process, so a
+fresh process skips numba's import and the first load of its cache (0.7 s, more than a whole
+replay of a 3-minute recording takes without them).
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
+import importlib
 import os
+import pickle
+import sys
 import types
 import warnings
 
-__all__ = ["backend", "compiled", "direct", "kernel"]
+__all__ = ["backend", "compiled", "direct", "kernel", "precompiled", "precompiled_name"]
 
 _MARK = "__gyro_attitude_kernel__"
 
@@ -42,7 +52,7 @@ def kernel(func=None, *, inline: bool = False):
 @functools.cache
 def backend() -> str:
     """``"numba"`` or ``"python"`` (chosen once per process)."""
-    if os.environ.get("GYRO_ATTITUDE_JIT", "1").strip() == "0":
+    if _jit_off():
         return "python"
     try:
         import numba  # noqa: F401
@@ -78,6 +88,68 @@ def compiled(func):
     except RuntimeError as exc:  # no writable cache beside the source nor in the user's home
         _warn_uncached(exc)
         return numba.njit(cache=False, **options)(twin)
+
+
+def _jit_off() -> bool:
+    return os.environ.get("GYRO_ATTITUDE_JIT", "1").strip() == "0"
+
+
+def _source_files(func, seen: set) -> set[str]:
+    """The files of ``func`` and of every kernel it calls, at any depth."""
+    seen.add(func)
+    files = {sys.modules[func.__module__].__file__}
+    for name in func.__code__.co_names:
+        callee = func.__globals__.get(name)
+        if getattr(callee, _MARK, False) and callee not in seen:
+            files |= _source_files(callee, seen)
+    return files
+
+
+@functools.cache
+def precompiled_name(func) -> str:
+    """The module name of the ahead-of-time form of the kernel ``func``: it names a digest of
+    the source files of ``func`` and its callees and of numpy's version, so a module built
+    from other code is never taken."""
+    import numpy
+
+    digest = hashlib.sha256(numpy.__version__.encode())
+    for path in sorted(_source_files(func, set()) | {__file__}):
+        with open(path, "rb") as f:
+            digest.update(f.read())
+    return f"_aot_{func.__name__}_{digest.hexdigest()[:16]}"
+
+
+@functools.cache
+def precompiled(func):
+    """The ahead-of-time compiled ``func`` from this package's directory, or None (not built
+    for this source, ``GYRO_ATTITUDE_PRECOMPILED=0`` or ``GYRO_ATTITUDE_JIT=0``).  Called
+    with arrays of other dtypes, dimensions or layouts than it was built for (the machine code
+    would read them wrongly: it does not check), it hands the call to :func:`compiled`."""
+    if _jit_off() or os.environ.get("GYRO_ATTITUDE_PRECOMPILED", "1").strip() == "0" or \
+            not getattr(func, _MARK, False):
+        return None
+    name = precompiled_name(func)
+    try:
+        module = importlib.import_module(f"{__package__}.{name}")
+        with open(os.path.join(os.path.dirname(__file__), name + ARGS_SUFFIX), "rb") as f:
+            arrays = pickle.load(f)  # written by the build beside the module
+    except (ImportError, OSError, pickle.UnpicklingError, EOFError):
+        return None
+    machine_code = getattr(module, func.__name__)
+
+    def call(*args):
+        for a, spec in zip(args, arrays, strict=True):
+            if spec is not None and not (isinstance(a, spec[0]) and a.ndim == spec[1]
+                                         and a.dtype == spec[2] and a.flags.c_contiguous
+                                         and a.flags.aligned):
+                return compiled(func)(*args)
+        return machine_code(*args)
+
+    return call
+
+
+#: beside a precompiled module: per argument None (a scalar) or (ndarray, ndim, dtype)
+ARGS_SUFFIX = ".args.pickle"
 
 
 def direct(kernel_form):

@@ -80,7 +80,7 @@ from gyro_attitude.core.attitude.rest import R_COUNT, grown_ring
 from gyro_attitude.core.attitude.settings import StreamConfig, check_gyrocompass_feasible
 from gyro_attitude.core.attitude.streaming import C_HAS_LAST, C_LAST_T, constant_nav_rate
 from gyro_attitude.core.earth import STANDARD_GRAVITY, check_latitude, earth_rate_enu
-from gyro_attitude.core.jit import compiled, direct
+from gyro_attitude.core.jit import compiled, direct, precompiled
 from gyro_attitude.core.rotation import quat_normalize
 
 __all__ = ["AttitudeStream", "StreamConfig", "StreamResult", "aiding_note", "bias_summary",
@@ -258,8 +258,7 @@ class AttitudeStream:
         self._details: dict[str, str] = {}
         self._max_rate = float(self.coef.max_rate[0])
         self.alignment_error: str | None = None
-        self._step = compiled(chain.step)
-        self._direct = False
+        self._step = None  # the compiled step, at the first push() (run() needs none)
 
     @staticmethod
     def _check_algorithm(algorithm) -> None:
@@ -509,6 +508,8 @@ class AttitudeStream:
             cv = _covariance_row(angular_velocity_covariance)
         ms, m = _field(mag) if self.config.aiding is Aiding.MAGNETOMETER else (MAG_ABSENT, None)
         m0, m1, m2 = m if m is not None else (0.0, 0.0, 0.0)
+        if self._step is None:
+            self._step = compiled(chain.step)
         while True:
             code, reason, got, ev, x, y, z, u = self._step(
                 self.coef, self.state, self.bias_ring, self.align_ring, self.align_buffer, t,
@@ -517,8 +518,8 @@ class AttitudeStream:
             if code >= 0:
                 break
             self._grow(code)
-        if not self._direct:
-            self._step, self._direct = direct(self._step), True
+        if not self._pushed:
+            self._step = direct(self._step)
         if code == v.A_START and self._locked is None:
             self._locked = frame_id
         self._pushed = True
@@ -583,7 +584,8 @@ class AttitudeStream:
                              f"have shape (N, 3); got {t.dtype} {t.shape} and shape {w.shape}")
         if t.dtype.kind == "u" and t.size and int(t.max()) >= 2**63:
             raise ValueError(f"t_ns must be nanoseconds within int64, got {int(t.max())}")
-        t = t.astype(np.int64, copy=False)
+        # C-contiguous rows: what the loop was compiled for (precompiled: exactly those types)
+        t, w = np.ascontiguousarray(t, np.int64), np.ascontiguousarray(w)
         cov, acc = recording_arrays(n, angular_velocity_covariance, accel)
         ms, mg = _field_rows(mag, n, self.config.aiding is Aiding.MAGNETOMETER)
         codes, names = v._frame_codes(frame_id, n)
@@ -599,7 +601,7 @@ class AttitudeStream:
         var, known = empty((n, 3), np.float64), empty(n, np.bool_)
         first_row = np.full(chain.N_EVENTS, -1, np.int64)
         first_fig = np.zeros((chain.N_EVENTS, 5), np.int64)
-        loop = compiled(chain.run_rows)
+        loop = precompiled(chain.run_rows) or compiled(chain.run_rows)
         rest = (acc is not None, _ZERO3x1 if acc is None else acc, cov is not None,
                 _ZERO9x1 if cov is None else cov, mg is not None, ms,
                 _ZERO3x1 if mg is None else mg, action, got, q, var, known, first_row,
@@ -705,7 +707,7 @@ def _field_rows(mag, n: int, use: bool):
 
 
 def _check_mag_shape(mag, n: int) -> np.ndarray:
-    mg = np.asarray(mag, dtype=np.float64)
+    mg = np.ascontiguousarray(mag, dtype=np.float64)
     if mg.shape != (n, 3):
         raise ValueError(f"mag must have shape ({n}, 3), got {mg.shape}")
     return mg
@@ -825,12 +827,12 @@ def recording_arrays(n: int, angular_velocity_covariance, accel):
     recording of n samples, or ValueError naming the wrong shape."""
     cov = acc = None
     if angular_velocity_covariance is not None:
-        cov = np.asarray(angular_velocity_covariance, dtype=np.float64)
+        cov = np.ascontiguousarray(angular_velocity_covariance, dtype=np.float64)
         if cov.shape != (n, 9):
             raise ValueError(f"angular_velocity_covariance must have shape ({n}, 9), got "
                              f"{cov.shape}")
     if accel is not None:
-        acc = np.asarray(accel, dtype=np.float64)
+        acc = np.ascontiguousarray(accel, dtype=np.float64)
         if acc.shape != (n, 3):
             raise ValueError(f"accel must have shape ({n}, 3), got {acc.shape}")
     return cov, acc

@@ -1,0 +1,113 @@
+"""Build the ahead-of-time compiled form of the causal estimator's loop (``chain.run_rows``)
+into the package: ``python -m gyro_attitude.io.precompile`` (``dev.sh`` runs it after
+installing).  See :func:`gyro_attitude.core.jit.precompiled`.
+
+It is the same code numba's JIT compiles, built by numba's ahead-of-time compiler
+(``numba.pycc``: pending deprecation since numba 0.57, and the only one numba has; if it goes,
+this build fails in one line and the loop is compiled just in time as before).  The argument
+types are those the JIT compiled for (:func:`.stream.compile_kernels` runs first).  Needs a C
+compiler; without one, one line says so and nothing else changes.
+"""
+
+from __future__ import annotations
+
+import inspect
+import os
+import pickle
+import shutil
+import sys
+import tempfile
+import warnings
+from pathlib import Path
+
+from gyro_attitude.core import jit
+
+PREFIX = "_aot_"
+
+
+def build(func, directory: Path) -> Path:
+    """Compile the kernel ``func`` ahead of time into ``directory`` (the package directory of
+    :mod:`gyro_attitude.core.jit`) for the one set of argument types :func:`jit.compiled`
+    has compiled it for; older builds of it there are removed."""
+    from numba.core.errors import NumbaPendingDeprecationWarning
+
+    form = jit.compiled(func)
+    if len(form.signatures) != 1:
+        raise RuntimeError(f"{func.__name__} was compiled for {len(form.signatures)} sets of "
+                           "argument types, not one")
+    signature = form.overloads[form.signatures[0]].signature
+    # the export calls the JIT form: pycc compiles an exported function with its own default
+    # flags (Python's error model: a ZeroDivisionError where the kernels give inf), a callee
+    # with the options the JIT gave it
+    names = ", ".join(inspect.signature(func).parameters)
+    scope = {"target": form}
+    exec(f"def entry({names}):\n    return target({names})\n", scope)
+    name = jit.precompiled_name(func)
+    work = Path(tempfile.mkdtemp(dir=directory, prefix=".build-"))
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NumbaPendingDeprecationWarning)
+            from numba.pycc import CC
+
+            cc = CC(name)
+            cc.output_dir = str(work)
+            cc.verbose = False
+            cc.export(func.__name__, signature)(scope["entry"])
+            cc.compile()
+        built = next(work.glob(f"{name}.*"))
+        with open(work / (name + jit.ARGS_SUFFIX), "wb") as f:
+            pickle.dump(_array_args(signature), f)
+        for old in directory.glob(f"{PREFIX}{func.__name__}_*"):
+            old.unlink()
+        (work / (name + jit.ARGS_SUFFIX)).replace(directory / (name + jit.ARGS_SUFFIX))
+        target = directory / built.name
+        built.replace(target)  # within one file system: the module appears whole
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return target
+
+
+def _array_args(signature) -> list:
+    """Per argument of ``signature``: None (a scalar) or (np.ndarray, ndim, dtype), what
+    :func:`jit.precompiled` checks before it calls the machine code."""
+    import numpy as np
+    from numba import types
+    from numba.np.numpy_support import as_dtype
+
+    return [(np.ndarray, t.ndim, as_dtype(t.dtype)) if isinstance(t, types.Array) else None
+            for t in signature.args]
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Build unless a module built from this source is there (``--force``: build anyway)."""
+    from gyro_attitude.core.attitude import chain
+    from gyro_attitude.core.attitude.stream import compile_kernels
+
+    force = "--force" in (sys.argv[1:] if argv is None else argv)
+    directory = Path(jit.__file__).parent
+    if jit.backend() != "numba":
+        print("precompile: skipped (no numba, or GYRO_ATTITUDE_JIT=0)", file=sys.stderr)
+        return 0
+    if not force and jit.precompiled(chain.run_rows) is not None:
+        print(f"precompile: {jit.precompiled_name(chain.run_rows)} is up to date",
+              file=sys.stderr)
+        return 0
+    try:
+        # the just-in-time form, compiled for the argument types a run passes
+        os.environ["GYRO_ATTITUDE_PRECOMPILED"] = "0"
+        compile_kernels()
+        target = build(chain.run_rows, directory)
+    except Exception as exc:  # a compiler missing, a read-only installation, pycc gone
+        first = (str(exc).splitlines() or [""])[0]
+        if "compiler" in first:
+            first = "no working C compiler (install gcc, or name one in CC)"
+        print(f"precompile: not built ({type(exc).__name__}: {first}); "
+              "replay --estimator causal compiles its loop just in time (0.7 s more at "
+              "start)", file=sys.stderr)
+        return 1
+    print(f"precompile: {target.name}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
