@@ -39,8 +39,9 @@ rm -rf build/ros_launchers
 # source tree too (their subprocesses import it).
 warm='from gyro_attitude.core.attitude.stream import compile_kernels; compile_kernels()'
 echo "[dev.sh] compiling the per-sample kernels (cached after the first time)" >&2
-(cd / && "$venv/bin/python" -c "$warm")
-[ "$what" = "test" ] && "$venv/bin/python" -c "$warm"
+# (the just-in-time loop too, where a precompiled one would be taken: it is the fallback)
+(cd / && GYRO_ATTITUDE_PRECOMPILED=0 "$venv/bin/python" -c "$warm")
+[ "$what" = "test" ] && GYRO_ATTITUDE_PRECOMPILED=0 "$venv/bin/python" -c "$warm"
 # the recording loop of replay --estimator causal compiled ahead of time (a fresh process then
 # needs no numba); without a C compiler one line says so and the loop is compiled just in time
 echo "[dev.sh] compiling the recording loop ahead of time" >&2
