@@ -58,7 +58,8 @@ def build(func, directory: Path) -> Path:
         with open(work / (name + jit.ARGS_SUFFIX), "wb") as f:
             pickle.dump(_array_args(signature), f)
         for old in directory.glob(f"{PREFIX}{func.__name__}_*"):
-            old.unlink()
+            if not old.name.startswith(name + "."):  # builds of other source
+                old.unlink(missing_ok=True)
         (work / (name + jit.ARGS_SUFFIX)).replace(directory / (name + jit.ARGS_SUFFIX))
         target = directory / built.name
         built.replace(target)  # within one file system: the module appears whole
