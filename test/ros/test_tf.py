@@ -61,22 +61,26 @@ def test_integrator_and_sim_publish_tf_equal_to_their_attitude_topics(launch, ro
                    "-p", "publish_tf:=true")
     assert ros_node.wait_for_publishers("attitude"), integ.output()
     assert ros_node.wait_for_publishers("/tf"), integ.output()
+    # the type is Jazzy's: a system ROS's tf2 tools read it
+    hashes = {str(i.topic_type_hash) for i in ros_node.get_publishers_info_by_topic("/tf")}
+    assert hashes == {JAZZY_TF_HASH}, hashes
     # discovery is two-sided: the node's /tf writer must have matched this reader too
     ros_node.spin_until(lambda: False, 1.5)
     sim = launch(SIM, "--params-file", str(config / "gyro_sim.yaml"), "-p", "scene:=coning",
                  "-p", f"rate_hz:={rate}", "-p", f"duration_s:={duration}",
                  "-p", "wait_for_subscribers:=2", "-p", "qos_reliability:=reliable",
                  "-p", "publish_tf:=true")
-    assert ros_node.spin_until(lambda: len(att) >= n and len(tf) >= 2 * n, timeout=60), (
+    # (with initial_attitude_source truth, an Imu sample that comes before the first truth
+    # sample gets no attitude: a loaded machine may skip one or two)
+    assert ros_node.spin_until(lambda: len(att) >= n - 2 and len(truth) >= n
+                               and len(tf) >= len(att) + len(truth), timeout=60), (
         f"{len(raw)} Imu, {len(truth)} truth, {len(att)} attitudes, TF messages of {n}: "
         f"{Counter(t.child_frame_id for m in tf for t in m.transforms)}\n"
         f"{integ.output()}\n{sim.output()}")
     assert sim.wait(timeout=15) == 0, sim.output()
+    ros_node.spin_until(lambda: len(att) >= n and len(tf) >= 2 * n, timeout=2)
     assert integ.stop(signal.SIGTERM) == 0, integ.output()
 
-    # the type is Jazzy's: a system ROS's tf2 tools read it
-    hashes = {str(i.topic_type_hash) for i in ros_node.get_publishers_info_by_topic("/tf")}
-    assert hashes <= {JAZZY_TF_HASH}, hashes
     transforms = [t for m in tf for t in m.transforms]
     assert len(transforms) == len(tf)  # one transform per message
     by_child: dict[str, list] = {}
@@ -86,7 +90,7 @@ def test_integrator_and_sim_publish_tf_equal_to_their_attitude_topics(launch, ro
     for child, topic, parent in (("imu_link", att, "inertial"),
                                  ("imu_link_truth", truth, "enu")):
         ts = by_child[child]
-        assert len(ts) == len(topic) == n, (child, len(ts), len(topic))
+        assert len(ts) == len(topic) >= n - 2, (child, len(ts), len(topic))
         assert {t.header.frame_id for t in ts} == {parent}
         assert {m.header.frame_id for m in topic} == {parent}
         assert [_stamp(t) for t in ts] == [_stamp(m) for m in topic]
@@ -119,6 +123,7 @@ def test_publish_tf_refused_in_one_line_without_tf2_msgs_and_the_rest_runs(
     assert ros_node.spin_until(lambda: len(att) >= 50, timeout=60), (
         f"{len(att)}\n{integ.output()}\n{sim.output()}")
     assert sim.wait(timeout=15) == 0, sim.output()
+    ros_node.spin_until(lambda: len(att) >= n and len(tf) >= 2 * n, timeout=2)
     assert integ.stop(signal.SIGTERM) == 0, integ.output()
 
 
