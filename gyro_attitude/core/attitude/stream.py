@@ -333,9 +333,8 @@ class AttitudeStream:
         cov = AttitudeCovariance(cfg.initial_attitude_variance, cfg.gyro_bias_sigma_rad_s,
                                  cfg.gyro_bias_rw)
         s.cov, s.initial_tt = cov.c, cov.initial_tt
-        self.intervals = v.IntervalStatistics(window=v.RING)
-        self.intervals.ring, self.intervals.fill = (self.state.intervals[0],
-                                                    self.state.interval_fill[0])
+        self.intervals = v.IntervalStatistics(self.state.intervals[0],
+                                              self.state.interval_fill[0])
 
     def _init_aligner(self, cfg: StreamConfig) -> None:
         gc = cfg.heading_source is HeadingSource.GYROCOMPASS
