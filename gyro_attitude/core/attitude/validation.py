@@ -120,7 +120,6 @@ class Verdict:
         return self.action == REJECT
 
 
-
 def _regular_stamps(t: np.ndarray, max_gap_ns: int, size: int = 1 << 16) -> bool:
     """Whether stamps ``t`` rise strictly, with no interval beyond ``max_gap_ns`` and none
     that :class:`StampRule` takes for missing samples (from the 17th interval on, 1.5 times
