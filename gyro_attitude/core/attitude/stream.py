@@ -65,7 +65,7 @@ from gyro_attitude.core.attitude.alignment import (
 from gyro_attitude.core.attitude.chain import (  # one home: the step's
     ACCEL_ABSURD,
 )
-from gyro_attitude.core.attitude.covariance import V_TT, AttitudeCovariance
+from gyro_attitude.core.attitude.covariance import V_TT, covariance_start
 from gyro_attitude.core.attitude.gyro_bias import GyroBiasReport, bias_report, bias_start
 from gyro_attitude.core.attitude.modes import (
     Aiding,
@@ -324,9 +324,7 @@ class AttitudeStream:
         self._set_nav(self.nav)
         # one-off steps run as the kernels' Python form: no compiler for a reset
         chain.integrator_reset(self.coef[0], s, *q_initial.tolist(), False, 0)
-        cov = AttitudeCovariance(cfg.initial_attitude_variance, cfg.gyro_bias_sigma_rad_s,
-                                 cfg.gyro_bias_rw)
-        s.cov, s.initial_tt = cov.c, cov.initial_tt
+        s.cov, s.initial_tt = covariance_start(cfg)
         self.intervals = v.IntervalStatistics(self.state.intervals[0],
                                               self.state.interval_fill[0])
 

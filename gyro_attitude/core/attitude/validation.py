@@ -60,10 +60,9 @@ REJECT_REASONS: tuple[str, ...] = (
     GAP,
 )
 
-# Integer codes of the verdicts in the arrays of :func:`classify`.
-ACTION_CODES: dict[str, int] = {
-    REJECT: 0, START: 1, ACCEPT: 2, RESTART_AFTER_GAP: 3, RESET_TIME_JUMP: 4,
-}
+#: the verdict of each code (the step's A_* codes, the arrays of :func:`classify`)
+ACTIONS = (REJECT, START, ACCEPT, RESTART_AFTER_GAP, RESET_TIME_JUMP)
+ACTION_CODES: dict[str, int] = {a: i for i, a in enumerate(ACTIONS)}
 _REASON_CODES: dict[str, int] = {r: i + 1 for i, r in enumerate(REJECT_REASONS)}
 
 # the rate limit's default and bound: their home is the settings table (max_rate_rad_s)
@@ -483,17 +482,16 @@ def interval_summary(dt_ns: np.ndarray) -> dict[str, float]:
 # ---------------------------------------------------------------------------- the step's form
 #: the intervals the statistics hold (the stream's input rate and jitter)
 RING = 2000
-#: verdict codes of the step (the values of ACTION_CODES)
-A_REJECT, A_START, A_ACCEPT, A_RESTART_AFTER_GAP, A_RESET_TIME_JUMP = 0, 1, 2, 3, 4
-#: reason codes of the step: 1 + the index in REJECT_REASONS, then these
-R_TIME_JUMP, R_MISSING, R_INTEGRATOR = len(REJECT_REASONS) + 1, len(REJECT_REASONS) + 2, \
-    len(REJECT_REASONS) + 3
-R_NON_FINITE, R_IMPLAUSIBLE, R_ZERO, R_DUPLICATE, R_OUT_OF_ORDER, R_FRAME, R_GAP = range(1, 8)
+#: verdict codes of the step (the indices in ACTIONS)
+A_REJECT, A_START, A_ACCEPT, A_RESTART_AFTER_GAP, A_RESET_TIME_JUMP = range(len(ACTIONS))
+#: reason codes of the step (the indices in REASON_NAMES): 1 + the index in REJECT_REASONS,
+#: then a time jump, missing samples, a non-finite attitude
+R_NON_FINITE, R_IMPLAUSIBLE, R_ZERO, R_DUPLICATE, R_OUT_OF_ORDER, R_FRAME, R_GAP, R_TIME_JUMP, \
+    R_MISSING, R_INTEGRATOR = range(1, len(REJECT_REASONS) + 4)
 
 #: a backward jump's reason (reset, not a rejection)
 TIME_JUMP = "time_jump"
-#: the action of each code, the reason of each code (None: none)
-ACTIONS = (REJECT, START, ACCEPT, RESTART_AFTER_GAP, RESET_TIME_JUMP)
+#: the reason of each code (None: none)
 REASON_NAMES = (None, *REJECT_REASONS, TIME_JUMP, MISSING_SAMPLES, "integrator_error")
 PLAIN_VERDICTS = tuple(Verdict(a) for a in ACTIONS)
 
