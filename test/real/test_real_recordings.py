@@ -12,8 +12,7 @@ import pytest
 
 from gyro_attitude.benchmarks import real
 from gyro_attitude.core.attitude import NavFrame
-from gyro_attitude.core.attitude.alignment import align
-from gyro_attitude.core.attitude.stream import AttitudeStream
+from gyro_attitude.core.attitude.stream import AttitudeStream, StreamConfig
 
 DIR = real.real_dir()
 HAVE = all((DIR / f"{n}.mcap").exists() for n in real.RECORDINGS)
@@ -50,7 +49,8 @@ def test_tilt_aiding_tilt_stays_small_during_fast_translation(rows):
 @pytest.mark.parametrize("name", real.RECORDINGS)
 def test_levelling_tilt_against_first_truth(name):
     t, g, a, _, tq = real.load(name, DIR)
-    res = align(t, g, a)
+    res = AttitudeStream(config=StreamConfig(initial_attitude_source="level")).run(
+        t, g, "imu", None, a).alignment
     tilt = float(np.degrees(real.tilt_error(res.q_nb, tq[0])))
     # Levelling error ≈ accel bias / g: the reported 1σ (5 mg assumed) is 0.29°; allow 3σ.
     assert tilt <= 3 * np.degrees(res.level_error_expected), tilt
@@ -61,22 +61,24 @@ def test_the_rests_are_still_found_with_the_per_axis_mean_bound(name):
     # The mean-rate bound (0.011 rad/s per axis) refuses a steady turn of 0.019 rad/s about any
     # axis; the BROAD biases (0.12–0.24 °/s per axis) pass it: the same rests, sample for sample,
     # as with a bound nine times looser (0.1 rad/s, the previous default in norm).
-    from gyro_attitude.core.attitude.gyro_bias import GyroBiasEstimator
+    from gyro_attitude.core.attitude.gyro_bias import J_UPDATED
     from gyro_attitude.io.imu_fast import read_imu_arrays
 
     imu = read_imu_arrays(DIR / f"{name}.mcap", "/imu/data_raw")
-    t, g, a = imu.stamp_ns.tolist(), imu.angular_velocity.tolist(), imu.linear_acceleration.tolist()
+    t, g, a = imu.stamp_ns.tolist(), imu.angular_velocity, imu.linear_acceleration
 
-    def updates(est):
-        rows = []
+    def updates(cfg):
+        """The samples after which the stream's bias stage published a new estimate."""
+        s = AttitudeStream("rotvec_cubic", config=cfg)
+        bias_i, rows = s.state.bias_i[0], []
         for k in range(len(t)):
-            est.step(t[k], g[k], a[k])
-            if est.updated:
+            s.push(t[k], g[k], "imu", None, a[k])
+            if bias_i[J_UPDATED]:
                 rows.append(k)
         return rows
 
-    strict = updates(GyroBiasEstimator("auto"))
-    loose = updates(GyroBiasEstimator("auto", rest={"gyro_mean_max": 0.1}))
+    strict = updates(StreamConfig(aiding="none"))
+    loose = updates(StreamConfig(aiding="none", rest_gyro_mean_max=0.1))
     assert len(strict) > 5000  # rests at the start, between motions and at the end
     assert strict == loose
 

@@ -1,12 +1,11 @@
 """Static self-alignment at the first rest: levelling from the specific force, heading given or gyrocompassed.
 
-Contract (streaming): ``StaticAligner.update(t_ns, gyro, accel) -> bool`` once per accepted
-sample (accelerometer required), O(1); returns True once the first rest of at least
-``min_rest_s`` has ended (motion started) — the alignment is then final.  ``result()`` gives
-the :class:`AlignmentResult` from the rest samples so far (also before the rest ended), or raises
-``ValueError`` when no rest of ``min_rest_s`` has been seen: an IMU that never rests cannot align,
-and an identity attitude would be a silent lie.  :func:`align` is the batch form over arrays
-with bit-identical results.  Rest samples are the oldest samples of rest windows (rest.py).
+Contract (streaming): the kernel :func:`aligner_update` once per accepted sample (accelerometer
+required), O(1), on the record :func:`aligner_start` makes; it says True once the first rest of
+at least ``min_rest_s`` has ended (motion started).  :func:`aligner_result` then computes the
+alignment from the rest samples (or why it failed); an IMU that never rests cannot align, and
+an identity attitude would be a silent lie.  Rest samples are the oldest samples of rest
+windows (rest.py).
 
 Heading convention: ``heading`` is the azimuth of the body x axis, clockwise from north
 (navigation usage); in ENU its yaw about up is ``ψ = π/2 − heading``.  ``q_nb = Rz(ψ) Ry(θ) Rx(φ)``
@@ -53,21 +52,16 @@ from gyro_attitude.core.attitude.rest import (
     R_AT_REST,
     R_HEAD,
     R_OLDEST,
-    RING_FULL,
-    RestDetector,
-    check_sample,
-    check_samples,
-    grown_ring,
     rest_reset,
+    rest_start,
     rest_update,
 )
 from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.core.attitude.validation import within
 from gyro_attitude.core.earth import OMEGA_IE, check_latitude
-from gyro_attitude.core.jit import compiled, kernel
+from gyro_attitude.core.jit import kernel
 
-__all__ = ["AlignmentResult", "StaticAligner", "align", "heading_of", "level_q",
-           "level_quaternion"]
+__all__ = ["AlignmentResult", "aligner_start", "heading_of", "level_q", "level_quaternion"]
 
 
 @dataclass(frozen=True)
@@ -90,7 +84,6 @@ class AlignmentResult:
     # and how many rest samples had one; None, 0 otherwise
     mean_magnetic_field: np.ndarray | None = None
     mag_samples: int = 0
-
 
 
 @kernel
@@ -137,104 +130,32 @@ def level_quaternion(f_b, heading: float) -> tuple[np.ndarray, float, float]:
     return np.array([x, y, z, w]), roll, pitch
 
 
-
-
-class StaticAligner:
-    """Streaming static alignment over the first rest (see the module docstring): a face on one
-    record of :data:`ALIGNER_DTYPE` and its rest window's ring, stepped by the kernels
-    :func:`aligner_update` and :func:`aligner_result` (the causal estimator's step runs the
-    same kernels on the same record inside its state)."""
-
-    def __init__(self, config: StreamConfig | None = None, latitude_rad: float | None = None):
-        """The alignment of ``config`` (``initial_heading_deg`` or ``heading_source``
-        gyrocompass at ``latitude_rad``, the gyro bias subtracted when it is a ``parameter``,
-        ``accel_bias_sigma``, ``heading_error_limit_deg``, ``min_rest_s``, the rest thresholds,
-        the heading from the field with ``aiding: magnetometer``); the table has checked every
-        value."""
-        cfg = config if config is not None else StreamConfig()
-        gc = cfg.heading_source is HeadingSource.GYROCOMPASS
-        if gc and latitude_rad is None:
-            raise ValueError("gyrocompass alignment needs the latitude (frame enu or latitude_rad)")
-        self.record = np.zeros(1, ALIGNER_DTYPE).view(np.recarray)
-        r = self.record[0]
-        r.heading = wrap_2pi(math.radians(cfg.initial_heading_deg))
-        r.gyrocompass = gc
-        r.lat = float(check_latitude(float(latitude_rad), "latitude_rad")) if gc else 0.0
-        r.bias = (cfg.gyro_bias_rad_s if cfg.gyro_bias is GyroBiasMode.PARAMETER
-                  else (0.0, 0.0, 0.0))
-        r.bias_sigma = cfg.gyro_bias_sigma_rad_s if gc else 0.0
-        r.accel_bias_sigma = cfg.accel_bias_sigma
-        r.limit = math.radians(cfg.heading_error_limit_deg)
-        r.min_rest_ns = int(round(cfg.min_rest_s * 1e9))
-        r.mag_heading = cfg.aiding is Aiding.MAGNETOMETER
-        r.decl = math.radians(cfg.magnetic_declination_deg)
-        r.hard_iron = cfg.mag_hard_iron_t
-        r.given_heading_var = float(np.broadcast_to(cfg.initial_attitude_variance, (3,))[2])
-        detector = RestDetector(**cfg.rest_params())
-        r.rest_f, r.rest_i = detector.rf, detector.ri
-        r.last_acc = -1
-        self.ring = np.zeros(64, ALIGN_RING_DTYPE).view(np.recarray)
-
-    def break_window(self) -> None:
-        """The stream broke (gap, time jump, unusable accelerometer sample): the alignment needs
-        one unbroken rest, so an open rest is discarded and the window starts afresh."""
-        compiled(aligner_break)(self.record[0])
-
-    @property
-    def done(self) -> bool:
-        return bool(self.record.done[0])
-
-    @property
-    def rest_open(self) -> bool:
-        """A rest is being accumulated."""
-        return bool(self.record.has_seg[0])
-
-    @property
-    def last_rest_ns(self) -> int | None:
-        """Time of the last sample accumulated into the open rest (None without one)."""
-        return int(self.record.t1[0]) if self.rest_open else None
-
-    def update(self, t_ns: int, gyro, accel, mag=None) -> bool:
-        """Consume one sample (``mag`` the field, tesla, or None; used with ``mag_heading``);
-        True once the first qualifying rest has ended."""
-        if self.done:
-            return True
-        if accel is None:
-            raise ValueError("alignment needs the accelerometer (accel is None)")
-        t, g, a = check_sample(t_ns, gyro, accel)
-        m = None
-        if mag is not None:
-            try:
-                m = tuple(float(c) for c in mag)
-            except (TypeError, ValueError):
-                m = None
-        return self.update_checked(t, g, a, m)
-
-    def update_checked(self, t: int, g: tuple, a: tuple, m=None) -> bool:
-        """:meth:`update` for a sample already through :func:`.rest.check_sample` (int stamp,
-        3 finite floats of sane size each for the gyro and the accelerometer)."""
-        has_m = m is not None and len(m) == 3
-        m0, m1, m2 = m if has_m else (0.0, 0.0, 0.0)
-        r = self.record[0]
-        while True:
-            code, done = compiled(aligner_update)(r, self.ring, t, g[0], g[1], g[2], a[0], a[1],
-                                                  a[2], has_m, m0, m1, m2)
-            if code != RING_FULL:
-                break
-            self.ring = grown_ring(self.ring, r.rest_i)
-        if code < 0:
-            raise ValueError(RestDetector.refusal_words(code, t, r.rest_i))
-        return bool(done)
-
-    def result(self) -> AlignmentResult:
-        r = self.record[0]
-        if not r.has_seg or r.t1 - r.t0 < r.min_rest_ns:
-            raise ValueError(f"cannot align: no rest of at least {r.min_rest_ns / 1e9:g} s "
-                             "seen yet (alignment needs the IMU still)")
-        failed = compiled(aligner_result)(r)
-        if failed:
-            raise ValueError(failure_words(r, failed))
-        return alignment_result(r)
+def aligner_start(cfg: StreamConfig, latitude_rad: float | None = None) -> np.recarray:
+    """The aligner's record (:data:`ALIGNER_DTYPE`, one) of ``cfg`` before the first sample:
+    ``initial_heading_deg`` or ``heading_source`` gyrocompass at ``latitude_rad``, the gyro
+    bias subtracted when it is a ``parameter``, ``accel_bias_sigma``,
+    ``heading_error_limit_deg``, ``min_rest_s``, the rest thresholds, the heading from the
+    field with ``aiding: magnetometer``; the table has checked every value."""
+    gc = cfg.heading_source is HeadingSource.GYROCOMPASS
+    if gc and latitude_rad is None:
+        raise ValueError("gyrocompass alignment needs the latitude (frame enu or latitude_rad)")
+    record = np.zeros(1, ALIGNER_DTYPE).view(np.recarray)
+    r = record[0]
+    r.heading = wrap_2pi(math.radians(cfg.initial_heading_deg))
+    r.gyrocompass = gc
+    r.lat = float(check_latitude(float(latitude_rad), "latitude_rad")) if gc else 0.0
+    r.bias = cfg.gyro_bias_rad_s if cfg.gyro_bias is GyroBiasMode.PARAMETER else (0.0, 0.0, 0.0)
+    r.bias_sigma = cfg.gyro_bias_sigma_rad_s if gc else 0.0
+    r.accel_bias_sigma = cfg.accel_bias_sigma
+    r.limit = math.radians(cfg.heading_error_limit_deg)
+    r.min_rest_ns = int(round(cfg.min_rest_s * 1e9))
+    r.mag_heading = cfg.aiding is Aiding.MAGNETOMETER
+    r.decl = math.radians(cfg.magnetic_declination_deg)
+    r.hard_iron = cfg.mag_hard_iron_t
+    r.given_heading_var = float(np.broadcast_to(cfg.initial_attitude_variance, (3,))[2])
+    r.rest_f, r.rest_i = rest_start(**cfg.rest_params())
+    r.last_acc = -1
+    return record
 
 
 def alignment_result(r) -> AlignmentResult:
@@ -257,20 +178,6 @@ def failure_words(r, failed: int) -> str:
     return (f"specific force {np.array(r.mean_f)!r} is not a usable gravity measurement")
 
 
-def align(t_ns, gyro, accel, config: StreamConfig | None = None,
-          latitude_rad: float | None = None) -> AlignmentResult:
-    """:class:`StaticAligner` over arrays: alignment over the first qualifying rest (one that
-    lasts to the end of the data counts too)."""
-    if accel is None:
-        raise ValueError("alignment needs the accelerometer (accel is None)")
-    al = StaticAligner(config, latitude_rad)
-    t, g, a = check_samples(t_ns, gyro, accel)
-    for tk, gk, ak in zip(t.tolist(), g.tolist(), a.tolist(), strict=True):
-        if al.update_checked(tk, gk, ak):
-            break
-    return al.result()
-
-
 # ---------------------------------------------------------------------------- the step's form
 #: :func:`aligner_result` failures: the gyrocompass refused (its expected heading error beyond
 #: the limit), the mean specific force no gravity measurement
@@ -284,10 +191,10 @@ ALIGN_RING_DTYPE = np.dtype([("t", np.int64), ("x", np.int64), ("c", np.float64,
                              ("g", np.float64, (3,)), ("a", np.float64, (3,)),
                              ("m", np.float64, (3,)), ("hm", np.bool_)])
 
-#: :class:`StaticAligner` as one record: its options, its rest detector, the open rest's sums
-#: and, once done, the alignment
+#: the aligner as one record: its options, its rest detector, the open rest's sums and, once
+#: done, the alignment
 ALIGNER_DTYPE = np.dtype([
-    # options (_Options)
+    # options
     ("heading", np.float64), ("gyrocompass", np.bool_), ("lat", np.float64),
     ("bias", np.float64, (3,)), ("bias_sigma", np.float64), ("accel_bias_sigma", np.float64),
     ("limit", np.float64), ("min_rest_ns", np.int64), ("mag_heading", np.bool_),
@@ -310,8 +217,8 @@ ALIGNER_DTYPE = np.dtype([
 
 @kernel
 def aligner_break(al):
-    """:meth:`StaticAligner.break_window`: an open rest is discarded, the window starts
-    afresh."""
+    """The stream broke (gap, time jump, unusable accelerometer sample): the alignment needs
+    one unbroken rest, so an open rest is discarded and the window starts afresh."""
     rest_reset(al.rest_f, al.rest_i)
     al.has_seg = False
     al.last_acc = -1
@@ -319,7 +226,7 @@ def aligner_break(al):
 
 @kernel
 def _aligner_add(al, t, g, a, hm, m):
-    """:meth:`StaticAligner._add`: a rest sample into the open rest's sums."""
+    """A rest sample into the open rest's sums."""
     if not al.has_seg:
         al.has_seg, al.t0, al.n, al.n_m = True, t, 0, 0
         for i in range(3):
@@ -347,8 +254,9 @@ def _aligner_add(al, t, g, a, hm, m):
 
 @kernel
 def aligner_update(al, ring, t, g0, g1, g2, a0, a1, a2, has_m, m0, m1, m2):
-    """:meth:`StaticAligner.update_checked` on the record: (the detector's code, <0 a
-    refusal with nothing changed; whether the first qualifying rest has ended)."""
+    """One sample (``has_m``: with the field ``m``, tesla) into the aligner's record ``al`` and
+    its rest window's ``ring``: (the detector's code, <0 a refusal with nothing changed;
+    whether the first qualifying rest has ended)."""
     if al.done:
         return 0, True
     slot = rest_update(al.rest_f, al.rest_i, ring.t, ring.x, ring.c, t, g0, g1, g2, True, a0,
@@ -391,8 +299,8 @@ def _var(s1, s2, n, i):
 
 @kernel
 def aligner_result(al):
-    """The alignment over the rest (:func:`_result`) into the record's result fields: 0, or
-    why it failed (:data:`ALIGN_FAILED_GYROCOMPASS`, :data:`ALIGN_FAILED_GRAVITY`)."""
+    """The alignment over the rest into the record's result fields: 0, or why it failed
+    (:data:`ALIGN_FAILED_GYROCOMPASS`, :data:`ALIGN_FAILED_GRAVITY`)."""
     n = al.n
     for i in range(3):
         al.mean_f[i] = al.ref_f[i] + al.s1f[i] / n

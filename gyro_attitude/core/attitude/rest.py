@@ -1,14 +1,14 @@
 """Rest (zero-motion) detection from gyro and accelerometer statistics over a sliding time window.
 
-Contract (streaming, one call per accepted sample, O(1) amortized):
-``RestDetector.update(t_ns, gyro, accel=None) -> bool`` says whether the window that ENDS at this
-sample (all samples with ``t >= t_ns - window``) is at rest; ``oldest_index`` is then the index
-(counted from the first sample after construction / ``reset``) of the oldest sample in that
-window.  A rest window vouches for every sample in it; the consumers (gyro bias, alignment) take
-the *oldest* sample of each rest window, so a sample counts once it is followed by a full window
-of rest: the gentle start of a motion, which a window can miss for a few samples, never enters a
-rest average.  :func:`detect_rest` is the batch form over arrays and gives bit-identical results
-(same cumulative sums, same operation order).
+Contract (streaming, one call per accepted sample, O(1) amortized): the kernel
+:func:`rest_update` says whether the window that ENDS at this sample (all samples with
+``t >= t_ns - window``) is at rest; the index of the oldest sample in that window (counted from
+the first sample after :func:`rest_start` / :func:`rest_reset`) is then ``ri[R_OLDEST]``.  A rest
+window vouches for every sample in it; the consumers (gyro bias, alignment) take the *oldest*
+sample of each rest window, so a sample counts once it is followed by a full window of rest: the
+gentle start of a motion, which a window can miss for a few samples, never enters a rest
+average.  :func:`detect_rest` is the batch form over arrays (the offline estimator's) and gives
+bit-identical results (same cumulative sums, same operation order).
 
 A window is at rest when all hold:
 
@@ -70,10 +70,10 @@ import numpy as np
 from gyro_attitude.core.attitude.inputs import first_step_back
 from gyro_attitude.core.attitude.settings import setting
 from gyro_attitude.core.earth import STANDARD_GRAVITY
-from gyro_attitude.core.jit import compiled, kernel
+from gyro_attitude.core.jit import kernel
 
-__all__ = ["NOISE_FLOOR_RAD_S", "RestDetector", "RestWindows", "detect_rest", "rest_segments",
-           "check_samples"]
+__all__ = ["NOISE_FLOOR_RAD_S", "RestWindows", "check_samples", "detect_rest", "rest_segments",
+           "rest_start", "rest_update"]
 
 # Every real gyro shows noise at rest (a navigation-grade one still ~1e-6 rad/s per sample at
 # 100 Hz), so a window whose output is constant to rounding is a noise-free simulation or a stuck
@@ -122,26 +122,6 @@ def check_samples(t_ns, gyro, accel=None) -> tuple[np.ndarray, np.ndarray, np.nd
             raise ValueError(f"{name} sample {k} is not finite or absurdly large: {a[k]}")
         out.append(a)
     return t, out[0], out[1]
-
-
-def check_sample(t_ns, gyro, accel=None) -> tuple[int, tuple, tuple | None]:
-    """One validated streaming sample: (int t_ns, gyro 3 floats, accel 3 floats or None)."""
-    if isinstance(t_ns, bool) or not isinstance(t_ns, int | np.integer):
-        raise ValueError(f"t_ns must be an int number of nanoseconds, got {t_ns!r}")
-    vals = []
-    for name, v in (("gyro", gyro), ("accel", accel)):
-        if v is None:
-            vals.append(None)
-            continue
-        try:
-            x, y, z = (float(c) for c in v)
-        except (TypeError, ValueError):
-            raise ValueError(f"{name} must be 3 finite numbers, got {v!r}") from None
-        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)) or max(
-                abs(x), abs(y), abs(z)) > 1e6:
-            raise ValueError(f"{name} must be 3 finite numbers of sane size, got {v!r}")
-        vals.append((x, y, z))
-    return int(t_ns), vals[0], vals[1]
 
 
 #: the rest test's user-facing thresholds: their rows in the settings table (defaults, ranges,
@@ -199,9 +179,9 @@ class RestWindows:
     covered: np.ndarray
 
 
-# The streaming detector's state as arrays (what the compiled per-sample chain steps). Float
-# slots: the running sums (gyro x, gyro x², accel x, accel x²; 3 each), the reference samples,
-# the last window's statistics, the thresholds.
+# The streaming detector's state as two arrays (in the chain's state record). Float slots: the
+# running sums (gyro x, gyro x², accel x, accel x²; 3 each), the reference samples, the last
+# window's statistics, the thresholds.
 F_C, F_REF_G, F_REF_A, F_GYRO_STD, F_ACCEL_STD, F_GYRO_MEAN, F_ACCEL_MEAN = 0, 12, 15, 18, 19, 20, 23
 F_STD_MIN, F_STD_MAX, F_MEAN_MAX, F_ACCEL_STD_MAX, F_NORM_TOL, F_GRAVITY = 26, 27, 28, 29, 30, 31
 _R_FLOATS = 32
@@ -212,111 +192,32 @@ R_SAMPLES, R_HAS_LAST, R_LAST_T, R_OLDEST, R_AT_REST, R_HAS_ACCEL, R_T_FIRST, R_
     R_WINDOW_NS = range(10)
 _R_INTS = 10
 #: :func:`rest_update` codes besides a ring slot (≥ 0): the ring is full (nothing changed: grow
-#: it and step again); the stamp does not increase, or the accelerometer came or went
-#: (nothing changed: the caller resets the window)
+#: it, :func:`grown_ring`, and step again); the stamp does not increase, or the accelerometer
+#: came or went (nothing changed: the caller resets the window)
 RING_FULL, NOT_INCREASING, ACCEL_CHANGED = -2, -1, -4
-_RING_START = 64  # window entries held at first; the ring doubles when a window needs more
 
 
-class RestDetector:
-    """Streaming rest detector (see the module docstring for the contract and defaults).
-
-    The state is in arrays (``rf``, ``ri`` and the window's ring ``wt``/``wx``/``wc``: stamp,
-    sample index and the running sums before each sample), stepped by :func:`rest_update`."""
-
-    def __init__(self, window_s: float = RestThresholds.window_s,
-                 gyro_std_max: float = RestThresholds.gyro_std_max,
-                 gyro_mean_max: float = RestThresholds.gyro_mean_max,
-                 accel_std_max: float = RestThresholds.accel_std_max,
-                 accel_norm_tol: float = RestThresholds.accel_norm_tol,
-                 gravity: float = STANDARD_GRAVITY, gyro_std_min: float = 0.0):
-        self.thresholds = th = RestThresholds(window_s, gyro_std_max, gyro_mean_max,
-                                              accel_std_max, accel_norm_tol, gravity,
-                                              gyro_std_min).checked()
-        self._window_ns = int(round(th.window_s * 1e9))
-        self.rf = np.zeros(_R_FLOATS)
-        self.ri = np.zeros(_R_INTS, dtype=np.int64)
-        self.rf[F_STD_MIN:F_GRAVITY + 1] = (th.gyro_std_min, th.gyro_std_max, th.gyro_mean_max,
-                                            th.accel_std_max, th.accel_norm_tol, th.gravity)
-        self.wt = np.zeros(_RING_START, dtype=np.int64)
-        self.wx = np.zeros(_RING_START, dtype=np.int64)
-        self.wc = np.zeros((_RING_START, 12))
-        self.reset()
-
-    @property
-    def window_ns(self) -> int:
-        """The window length in ns."""
-        return self._window_ns
-
-    def reset(self) -> None:
-        """Forget all samples (after a gap or a restart the window fills again); in place (the
-        compiled chain holds the arrays)."""
-        self.ri[R_WINDOW_NS] = self._window_ns
-        rest_reset(self.rf, self.ri)  # the kernel's Python form: no compiler for a reset
-
-    samples = property(lambda self: int(self.ri[R_SAMPLES]))
-    last_t_ns = property(lambda self: int(self.ri[R_LAST_T]) if self.ri[R_HAS_LAST] else None)
-    oldest_index = property(lambda self: int(self.ri[R_OLDEST]))
-    at_rest = property(lambda self: bool(self.ri[R_AT_REST]))
-    gyro_std = property(lambda self: float(self.rf[F_GYRO_STD]))
-    accel_std = property(lambda self: float(self.rf[F_ACCEL_STD]))
-    gyro_mean = property(lambda self: tuple(self.rf[F_GYRO_MEAN:F_GYRO_MEAN + 3].tolist()))
-    accel_mean = property(lambda self: tuple(self.rf[F_ACCEL_MEAN:F_ACCEL_MEAN + 3].tolist()))
-
-    def update(self, t_ns: int, gyro, accel=None) -> bool:
-        """Add one sample; return whether the window ending at it is at rest."""
-        t, g, a = check_sample(t_ns, gyro, accel)
-        return self.update_checked(t, g, a)
-
-    def update_checked(self, t: int, g: tuple, a: tuple | None) -> bool:
-        """:meth:`update` for a sample already through :func:`check_sample`."""
-        has_a = a is not None
-        a0, a1, a2 = a if has_a else (0.0, 0.0, 0.0)
-        while True:
-            slot = compiled(rest_update)(self.rf, self.ri, self.wt, self.wx, self.wc, t, g[0],
-                                         g[1], g[2], has_a, a0, a1, a2)
-            if slot != RING_FULL:
-                break
-            self.grow()
-        if slot < 0:
-            raise ValueError(self.refusal(slot, t))
-        return bool(self.ri[R_AT_REST])
-
-    def refusal(self, code: int, t: int) -> str:
-        """The words of a :func:`rest_update` refusal."""
-        return self.refusal_words(code, t, self.ri)
-
-    @staticmethod
-    def refusal_words(code: int, t: int, ri) -> str:
-        """The words of a :func:`rest_update` refusal of the sample at ``t`` (``ri`` the
-        detector's int state)."""
-        if code == NOT_INCREASING:
-            return f"t_ns must increase: {t} after {int(ri[R_LAST_T])}"
-        return ("accel must be given for every sample or for none "
-                "(reset the detector when the sensor changes)")
-
-    def grow(self, *companions: np.ndarray) -> list[np.ndarray]:
-        """Double the window's ring (its entries kept in order from slot 0); ``companions``
-        (arrays indexed by the same slots, e.g. the bias stage's pending values) grown
-        alike and returned."""
-        ri = self.ri
-        head, count = int(ri[R_HEAD]), int(ri[R_COUNT])
-        order = (head + np.arange(count)) % self.wt.shape[0]
-        grown = []
-        for arr in (self.wt, self.wx, self.wc, *companions):
-            new = np.zeros((2 * arr.shape[0], *arr.shape[1:]), dtype=arr.dtype)
-            new[:count] = arr[order]
-            grown.append(new)
-        self.wt, self.wx, self.wc = grown[:3]
-        ri[R_HEAD] = 0
-        return grown[3:]
+def rest_start(**thresholds) -> tuple[np.ndarray, np.ndarray]:
+    """A rest detector's state arrays (``rf`` floats, ``ri`` ints) before its first sample:
+    the :class:`RestThresholds` given (checked by their rows of the table), the others their
+    defaults."""
+    th = RestThresholds(**thresholds).checked()
+    rf = np.zeros(_R_FLOATS)
+    ri = np.zeros(_R_INTS, dtype=np.int64)
+    rf[F_STD_MIN:F_GRAVITY + 1] = (th.gyro_std_min, th.gyro_std_max, th.gyro_mean_max,
+                                   th.accel_std_max, th.accel_norm_tol, th.gravity)
+    ri[R_WINDOW_NS] = int(round(th.window_s * 1e9))
+    rest_reset(rf, ri)  # the kernel's Python form: no compiler for a start
+    return rf, ri
 
 
 @kernel
 def rest_update(rf, ri, wt, wx, wc, t, g0, g1, g2, has_a, a0, a1, a2):
-    """:meth:`RestDetector.update_checked` on the state arrays: the ring slot of this sample
-    (the decision in ``ri[R_AT_REST]``), or a refusal code (:data:`RING_FULL`,
-    :data:`NOT_INCREASING`, :data:`ACCEL_CHANGED`) with nothing changed."""
+    """One sample (stamp ``t``, rate ``g``, specific force ``a`` when ``has_a``) into the
+    window of the state arrays ``rf``, ``ri`` and its ring (``wt`` stamp, ``wx`` sample index,
+    ``wc`` the running sums before each sample): the ring slot of this sample (the decision in
+    ``ri[R_AT_REST]``), or a refusal code (:data:`RING_FULL`, :data:`NOT_INCREASING`,
+    :data:`ACCEL_CHANGED`) with nothing changed."""
     cap = wt.shape[0]
     if ri[R_COUNT] == cap:
         return RING_FULL
@@ -446,8 +347,8 @@ def detect_rest(t_ns, gyro, accel=None, window_s: float = RestThresholds.window_
                 accel_norm_tol: float = RestThresholds.accel_norm_tol,
                 gravity: float = STANDARD_GRAVITY, gyro_std_min: float = 0.0,
                 empty=np.empty) -> RestWindows:
-    """Batch :class:`RestDetector` over arrays (bit-identical decisions, vectorized); the
-    per-sample results come from ``empty(shape, dtype)`` (default ``np.empty``)."""
+    """:func:`rest_update` over arrays (bit-identical decisions, vectorized); the per-sample
+    results come from ``empty(shape, dtype)`` (default ``np.empty``)."""
     th = RestThresholds(window_s, gyro_std_max, gyro_mean_max, accel_std_max, accel_norm_tol,
                         gravity, gyro_std_min).checked()
     t, g, a = check_samples(t_ns, gyro, accel)
@@ -505,7 +406,7 @@ def rest_segments(covered: np.ndarray) -> list[tuple[int, int]]:
 
 @kernel
 def rest_reset(rf, ri):
-    """:meth:`RestDetector.reset` on the state arrays: all samples forgotten (the thresholds
+    """All samples forgotten (after a gap or a restart the window fills again; the thresholds
     and the window length kept)."""
     window_ns = ri[R_WINDOW_NS]
     for i in range(F_STD_MIN):

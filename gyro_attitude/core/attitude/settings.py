@@ -481,8 +481,8 @@ def markdown_table(settings=SETTINGS) -> list[str]:
 def check_gyrocompass_feasible(gyro_bias_sigma_rad_s: float, latitude_rad: float | None,
                                heading_error_limit_deg: float) -> None:
     """Refuse gyrocompassing whose heading error from the bias uncertainty alone,
-    ``σ_b / (ω_ie cos L)``, already exceeds the limit (:class:`StaticAligner` checks the full
-    figure with the measured noise at the end of the rest)."""
+    ``σ_b / (ω_ie cos L)``, already exceeds the limit (:func:`.alignment.aligner_result`
+    checks the full figure with the measured noise at the end of the rest)."""
     if latitude_rad is None:
         raise SettingError("heading_source", "gyrocompass needs the latitude (frame enu or "
                            "latitude_rad)")

@@ -56,7 +56,7 @@ from gyro_attitude.core.attitude.ahrs import (
 from gyro_attitude.core.attitude.alignment import (
     ALIGN_RING_DTYPE,
     AlignmentResult,
-    StaticAligner,
+    aligner_start,
     alignment_result,
     failure_words,
     heading_of,
@@ -65,8 +65,8 @@ from gyro_attitude.core.attitude.alignment import (
 from gyro_attitude.core.attitude.chain import (  # one home: the step's
     ACCEL_ABSURD,
 )
-from gyro_attitude.core.attitude.covariance import V_TT, AttitudeCovariance
-from gyro_attitude.core.attitude.gyro_bias import GyroBiasEstimator, GyroBiasReport
+from gyro_attitude.core.attitude.covariance import V_TT, covariance_start
+from gyro_attitude.core.attitude.gyro_bias import GyroBiasReport, bias_report, bias_start
 from gyro_attitude.core.attitude.modes import (
     Aiding,
     Frame,
@@ -311,13 +311,7 @@ class AttitudeStream:
         s.variance_known = bool(cfg.gyro_noise_density > 0 or cfg.gyro_bias_sigma_rad_s > 0
                                 or cfg.levelling)
         s.sat = [0.0] * 3 + [math.nan] * 3
-        fixed = cfg.gyro_bias_rad_s if cfg.gyro_bias is GyroBiasMode.PARAMETER else None
-        est = GyroBiasEstimator(cfg.gyro_bias, fixed, min_rest_s=cfg.min_rest_s,
-                                latitude_rad=self.latitude_rad, rest=cfg.rest_params())
-        s.rest_f, s.rest_i = est.detector.rf, est.detector.ri
-        s.bias_f, s.bias_i = est.bf, est.bi
-        est.bf, est.bi = self.state.bias_f[0], self.state.bias_i[0]  # the report reads these
-        self._bias = est
+        s.rest_f, s.rest_i, s.bias_f, s.bias_i = bias_start(cfg)
         if cfg.levelling:
             self._init_aligner(cfg)
         s.level_pending = self.coef.level_first[0]
@@ -329,17 +323,13 @@ class AttitudeStream:
         self._set_nav(self.nav)
         # one-off steps run as the kernels' Python form: no compiler for a reset
         chain.integrator_reset(self.coef[0], s, *q_initial.tolist(), False, 0)
-        cov = AttitudeCovariance(cfg.initial_attitude_variance, cfg.gyro_bias_sigma_rad_s,
-                                 cfg.gyro_bias_rw)
-        s.cov, s.initial_tt = cov.c, cov.initial_tt
-        self.intervals = v.IntervalStatistics(window=v.RING)
-        self.intervals.ring, self.intervals.fill = (self.state.intervals[0],
-                                                    self.state.interval_fill[0])
+        s.cov, s.initial_tt = covariance_start(cfg)
+        self.intervals = v.IntervalStatistics(self.state.intervals[0],
+                                              self.state.interval_fill[0])
 
     def _init_aligner(self, cfg: StreamConfig) -> None:
         gc = cfg.heading_source is HeadingSource.GYROCOMPASS
-        al = StaticAligner(cfg, self.latitude_rad if gc else None)
-        self.state.aligner[0] = al.record[0]
+        self.state.aligner[0] = aligner_start(cfg, self.latitude_rad if gc else None)[0]
 
     def _set_nav(self, nav) -> None:
         """The nav rate ω_in^n of a constant frame (a series is fed row by row: run())."""
@@ -417,7 +407,8 @@ class AttitudeStream:
 
     @property
     def bias_report(self) -> GyroBiasReport:
-        return self._bias.report()
+        s = self.state[0]
+        return bias_report(self.config.gyro_bias, s.bias_f, s.bias_i, int(self.coef.min_rest_ns[0]))
 
     @property
     def alignment(self) -> AlignmentResult | None:

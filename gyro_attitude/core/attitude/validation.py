@@ -3,11 +3,11 @@
 An attitude integrator must never let one bad message corrupt its state: a NaN or absurd rate
 poisons the quaternion forever, a duplicate or out-of-order stamp gives ``dt <= 0``, a gap makes
 the rate-times-time step meaningless, and a changed ``frame_id`` means the rates are no longer
-about the axes the attitude is for. :class:`ImuStreamValidator` classifies each sample *before*
-it reaches the integrator and keeps counts per reason; :func:`classify` gives the same verdicts
-for a whole recording at once (vectorized where the stream is regular). Both are used through
-:class:`gyro_attitude.core.attitude.stream.AttitudeStream`, the one policy of node and replay.
-:class:`IntervalStatistics` keeps the input rate and dt jitter over a sliding window.
+about the axes the attitude is for. The kernel :func:`validate` classifies each sample *before*
+it reaches the integrator and keeps counts per reason on a :data:`STAMPS_DTYPE` record (the
+causal estimator's step, :mod:`.chain`); :func:`classify` gives the same verdicts for a whole
+recording at once (vectorized where the stream is regular; the offline estimator's).
+:class:`IntervalStatistics` reads the input rate and dt jitter off the step's ring of intervals.
 
 Times are integer nanoseconds (the ``header.stamp`` of the message).
 """
@@ -60,15 +60,13 @@ REJECT_REASONS: tuple[str, ...] = (
     GAP,
 )
 
-# Integer codes of the verdicts in the arrays of :func:`classify`.
-ACTION_CODES: dict[str, int] = {
-    REJECT: 0, START: 1, ACCEPT: 2, RESTART_AFTER_GAP: 3, RESET_TIME_JUMP: 4,
-}
+#: the verdict of each code (the step's A_* codes, the arrays of :func:`classify`)
+ACTIONS = (REJECT, START, ACCEPT, RESTART_AFTER_GAP, RESET_TIME_JUMP)
+ACTION_CODES: dict[str, int] = {a: i for i, a in enumerate(ACTIONS)}
 _REASON_CODES: dict[str, int] = {r: i + 1 for i, r in enumerate(REJECT_REASONS)}
 
 # the rate limit's default and bound: their home is the settings table (max_rate_rad_s)
 DEFAULT_MAX_RATE_RAD_S = setting("max_rate_rad_s").default
-MAX_RATE_LIMIT_RAD_S = setting("max_rate_rad_s").high
 
 
 @dataclass(frozen=True)
@@ -121,25 +119,6 @@ class Verdict:
         return self.action == REJECT
 
 
-_ACCEPTED = Verdict(ACCEPT)
-_STARTED = Verdict(START)
-
-
-def value_problem(omega, max_rate_rad_s: float) -> tuple[str, str] | None:
-    """(reason, detail) when the rate sample itself is unusable, else None."""
-    try:
-        values = [float(c) for c in (
-            omega.tolist() if isinstance(omega, np.ndarray) and omega.ndim == 1 else omega)]
-    except (TypeError, ValueError):
-        return NON_FINITE, f"not numbers: {omega!r}"
-    if len(values) != 3 or not all(math.isfinite(x) for x in values):
-        return NON_FINITE, f"non-finite value(s) {values}"
-    if any(abs(x) > max_rate_rad_s for x in values):
-        return IMPLAUSIBLE_RATE, (f"rate {values} rad/s beyond max_rate_rad_s = "
-                                  f"{max_rate_rad_s:g}")
-    return None
-
-
 def _regular_stamps(t: np.ndarray, max_gap_ns: int, size: int = 1 << 16) -> bool:
     """Whether stamps ``t`` rise strictly, with no interval beyond ``max_gap_ns`` and none
     that :class:`StampRule` takes for missing samples (from the 17th interval on, 1.5 times
@@ -182,9 +161,16 @@ def accepted_rows(action: np.ndarray, empty=np.empty, size: int = 1 << 16) -> np
 def sample_problem(t_ns, omega, max_rate_rad_s: float) -> tuple[str, str] | None:
     """(reason, detail) when a sample is unusable on its own (its values, a stamp that is not
     positive), else None: the checks that need no earlier sample."""
-    problem = value_problem(omega, max_rate_rad_s)
-    if problem is not None:
-        return problem
+    try:
+        values = [float(c) for c in (
+            omega.tolist() if isinstance(omega, np.ndarray) and omega.ndim == 1 else omega)]
+    except (TypeError, ValueError):
+        return NON_FINITE, f"not numbers: {omega!r}"
+    if len(values) != 3 or not all(math.isfinite(x) for x in values):
+        return NON_FINITE, f"non-finite value(s) {values}"
+    if any(abs(x) > max_rate_rad_s for x in values):
+        return IMPLAUSIBLE_RATE, (f"rate {values} rad/s beyond max_rate_rad_s = "
+                                  f"{max_rate_rad_s:g}")
     if isinstance(t_ns, bool) or not isinstance(t_ns, int | np.integer):
         raise ValueError(f"t_ns must be an integer number of nanoseconds, got {t_ns!r}")
     if t_ns <= 0:
@@ -199,77 +185,6 @@ def usable_samples(t_ns: np.ndarray, omega: np.ndarray, max_rate_rad_s: float) -
     with np.errstate(invalid="ignore"):
         ok = (np.abs(omega) <= max_rate_rad_s).all(axis=1)  # NaN fails the comparison
     return ok & (np.asarray(t_ns) > 0)
-
-
-class ImuStreamValidator:
-    """Classify each Imu sample of a stream; count rejections by reason: a face on one record
-    of :data:`STAMPS_DTYPE` stepped by the kernel :func:`validate` (the causal estimator's step
-    runs the same kernel on the same record inside its state).
-
-    The frame of the first accepted sample is locked in; ``reset()`` forgets it and the
-    time base. A rejected sample leaves the state (last stamp, frame) untouched, so one
-    bad message costs exactly one sample.
-    """
-
-    def __init__(self, config: ImuCheckConfig | None = None):
-        self.config = config if config is not None else ImuCheckConfig()
-        self.record = np.zeros(1, STAMPS_DTYPE).view(np.recarray)
-        self.frame_id: str | None = None
-
-    @property
-    def counts(self) -> dict[str, int]:
-        c = self.record.counts[0]
-        return {r: int(c[i + 1]) for i, r in enumerate(REJECT_REASONS)}
-
-    accepted = property(lambda self: int(self.record.accepted[0]))
-    time_jump_resets = property(lambda self: int(self.record.jump_resets[0]))
-
-    @property
-    def missing_samples(self) -> int:
-        """Samples missing inside accepted intervals (holes up to max_missing_samples)."""
-        return int(self.record.missing[0])
-
-    @property
-    def last_t_ns(self) -> int | None:
-        """The last accepted stamp (None before the first, after a reset)."""
-        r = self.record[0]
-        return int(r.last) if r.has_last else None
-
-    @property
-    def rejected_total(self) -> int:
-        return sum(n for r, n in self.counts.items() if r != GAP)
-
-    def reset(self) -> None:
-        """Forget the time base and the locked frame (counts are kept)."""
-        compiled(stamps_reset)(self.record[0])
-        self.frame_id = None
-
-    def check(self, t_ns: int, omega, frame_id: str = "") -> Verdict:
-        """Classify one sample and update the state.
-
-        t_ns: header stamp in ns; omega: angular rate (3,) [rad/s]; frame_id: header.frame_id.
-        """
-        problem = value_problem(omega, self.config.max_rate_rad_s)
-        if problem is None and (isinstance(t_ns, bool) or not isinstance(t_ns, int | np.integer)):
-            raise ValueError(f"t_ns must be an integer number of nanoseconds, got {t_ns!r}")
-        w = (math.nan,) * 3 if problem is not None and problem[0] == NON_FINITE else tuple(
-            float(c) for c in (omega.tolist() if isinstance(omega, np.ndarray) else omega))
-        cfg = self.config
-        r = self.record[0]
-        action, reason = compiled(validate)(
-            r, float(cfg.max_rate_rad_s), int(cfg.max_gap_ns), int(cfg.time_jump_ns),
-            int(cfg.max_missing_samples), 0 if problem is not None else int(t_ns), w[0], w[1],
-            w[2], self.frame_id is None or frame_id == self.frame_id)
-        if action == A_START:
-            self.frame_id = frame_id
-        if reason == 0:
-            return PLAIN_VERDICTS[action]
-        name = REASON_NAMES[reason]
-        if problem is not None and name == problem[0]:
-            detail = problem[1]
-        else:
-            detail = reason_words(name, int(t_ns), None, frame_id, self.frame_id, r, cfg)
-        return Verdict(ACTIONS[action], name, detail)
 
 
 def reason_words(name: str, t_ns: int, values, frame_id, locked, figures, cfg) -> str:
@@ -367,7 +282,7 @@ def all_within(a: np.ndarray, limit: float) -> bool:
 
 def classify(t_ns, omega, frame_id: str | list[str] | None = "",
              config: ImuCheckConfig | None = None) -> Classification:
-    """The verdicts :class:`ImuStreamValidator` gives to these samples in this order.
+    """The verdicts :func:`validate` gives to these samples in this order.
 
     ``t_ns`` (N,) int stamps, ``omega`` (N, 3) rates, ``frame_id`` one string for all samples or
     one per sample. A fresh validator is assumed (no locked frame, no time base).
@@ -514,36 +429,22 @@ def _walk(tc: np.ndarray, idx: np.ndarray, action: np.ndarray, reason: np.ndarra
 
 
 class IntervalStatistics:
-    """Input rate and dt jitter over the last ``window`` accepted intervals.
+    """Input rate and dt jitter over the last accepted intervals: a face on the step's ring of
+    intervals ``ring`` (ns) and its ``fill`` (held, next slot), written by :func:`interval_add`.
 
     ``rate_hz`` = 1/mean(dt); ``jitter_s`` = standard deviation of dt (population);
     ``max_dt_s`` = largest dt in the window. NaN while fewer than 2 intervals are known.
     """
 
-    def __init__(self, window: int = 1000):
-        if int(window) < 2:
-            raise ValueError(f"window must be >= 2 intervals, got {window}")
-        # a ring (what the compiled per-sample chain steps): the intervals, and (held, next slot)
-        self.ring = np.zeros(int(window), dtype=np.int64)
-        self.fill = np.zeros(2, dtype=np.int64)
-
-    def add(self, dt_ns: int) -> None:
-        interval_add(self.ring, self.fill, int(dt_ns))
-
-
-    @property
-    def window(self) -> int:
-        return self.ring.shape[0]
-
-    def clear(self) -> None:
-        self.fill[:] = 0
+    def __init__(self, ring: np.ndarray, fill: np.ndarray):
+        self.ring, self.fill = ring, fill
 
     def __len__(self) -> int:
         return int(self.fill[0])
 
     def summary(self) -> dict[str, float]:
         held, nxt = int(self.fill[0]), int(self.fill[1])
-        order = (nxt - held + np.arange(held)) % self.window  # oldest first
+        order = (nxt - held + np.arange(held)) % self.ring.shape[0]  # oldest first
         return interval_summary(self.ring[order])
 
 
@@ -556,7 +457,7 @@ def within(x, y, z, bound):
 
 @kernel(inline=True)
 def interval_add(ring, fill, dt_ns):
-    """:meth:`IntervalStatistics.add` on its ring."""
+    """One accepted interval into the ring (the oldest one out when it is full)."""
     ring[fill[1]] = dt_ns
     fill[1] = (fill[1] + 1) % ring.shape[0]
     if fill[0] < ring.shape[0]:
@@ -581,17 +482,16 @@ def interval_summary(dt_ns: np.ndarray) -> dict[str, float]:
 # ---------------------------------------------------------------------------- the step's form
 #: the intervals the statistics hold (the stream's input rate and jitter)
 RING = 2000
-#: verdict codes of the step (the values of ACTION_CODES)
-A_REJECT, A_START, A_ACCEPT, A_RESTART_AFTER_GAP, A_RESET_TIME_JUMP = 0, 1, 2, 3, 4
-#: reason codes of the step: 1 + the index in REJECT_REASONS, then these
-R_TIME_JUMP, R_MISSING, R_INTEGRATOR = len(REJECT_REASONS) + 1, len(REJECT_REASONS) + 2, \
-    len(REJECT_REASONS) + 3
-R_NON_FINITE, R_IMPLAUSIBLE, R_ZERO, R_DUPLICATE, R_OUT_OF_ORDER, R_FRAME, R_GAP = range(1, 8)
+#: verdict codes of the step (the indices in ACTIONS)
+A_REJECT, A_START, A_ACCEPT, A_RESTART_AFTER_GAP, A_RESET_TIME_JUMP = range(len(ACTIONS))
+#: reason codes of the step (the indices in REASON_NAMES): 1 + the index in REJECT_REASONS,
+#: then a time jump, missing samples, a non-finite attitude
+R_NON_FINITE, R_IMPLAUSIBLE, R_ZERO, R_DUPLICATE, R_OUT_OF_ORDER, R_FRAME, R_GAP, R_TIME_JUMP, \
+    R_MISSING, R_INTEGRATOR = range(1, len(REJECT_REASONS) + 4)
 
 #: a backward jump's reason (reset, not a rejection)
 TIME_JUMP = "time_jump"
-#: the action of each code, the reason of each code (None: none)
-ACTIONS = (REJECT, START, ACCEPT, RESTART_AFTER_GAP, RESET_TIME_JUMP)
+#: the reason of each code (None: none)
 REASON_NAMES = (None, *REJECT_REASONS, TIME_JUMP, MISSING_SAMPLES, "integrator_error")
 PLAIN_VERDICTS = tuple(Verdict(a) for a in ACTIONS)
 
@@ -675,7 +575,7 @@ def stamp_step(v, max_gap_ns, time_jump_ns, max_missing, t):
 
 @kernel
 def validate(v, max_rate, max_gap_ns, time_jump_ns, max_missing, t, w0, w1, w2, frame_ok):
-    """:meth:`ImuStreamValidator.check` on the record ``v``: the sample's values (finite,
+    """One sample's verdict on the record ``v``: the sample's values (finite,
     within ``max_rate``), its stamp (positive), its frame (``frame_ok``: the locked one, or
     none locked yet), then the stamp rule; a rejection is counted and leaves the time base
     alone.  (action code, reason code)."""

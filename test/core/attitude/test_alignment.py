@@ -1,13 +1,15 @@
 """Static alignment against closed forms: levelling error = accel bias / g, gyrocompass error =
-bias / (ω_ie cos L), refusal for a MEMS gyro, no rest → ValueError, stream == batch."""
+bias / (ω_ie cos L), refusal for a MEMS gyro, no rest → ValueError; the stream's aligner stage
+gives the kernels' alignment bit for bit."""
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 from sim_static import OMEGA_IE, G, static_imu
+from stages import aligned as align
 
-from gyro_attitude.core.attitude.alignment import StaticAligner, align
 from gyro_attitude.core.attitude.settings import StreamConfig
+from gyro_attitude.core.attitude.stream import AttitudeStream
 
 DEG_PER_H = np.radians(1.0) / 3600.0
 
@@ -99,25 +101,21 @@ def test_no_rest_refused_not_identity():
     a = np.tile([0.0, 0.0, G], (1000, 1)) + np.column_stack([3 * np.sin(5 * s), 0 * s, 0 * s])
     with pytest.raises(ValueError, match="no rest"):
         align(t, g, a)
-    al = StaticAligner()
-    for k in range(t.size):
-        al.update(t[k], g[k], a[k])
-    with pytest.raises(ValueError, match="no rest"):
-        al.result()
-    with pytest.raises(ValueError, match="accel"):
-        align(t, g, None)
+    with pytest.raises(ValueError, match="no rest of at least 1 s followed by motion"):
+        AttitudeStream(config=level()).run(t, g, "imu", None, a)
 
 
-def test_stream_equals_batch_bitwise():
+def test_the_streams_aligner_stage_equals_the_kernels_bitwise():
     q = _q(77.0, 4.0, 9.0)
-    t, g, a = static_imu(800, 200.0, q, 0.3, gyro_noise=1e-3, accel_noise=0.05, seed=9)
+    t, g, a = static_imu(800, 200.0, q, 0.3, gyro_noise=1e-3, accel_noise=0.05, seed=9,
+                         t0_ns=10**9)  # (a stamp 0 is no sample to the stream)
     # Motion after the rest ends the alignment.
     g[500:] += 0.5
     a[500:, 0] += 3.0
     res = align(t, g, a, level(initial_heading_deg=77.0))
-    al = StaticAligner(level(initial_heading_deg=77.0))
-    done = [al.update(t[k], g[k], a[k]) for k in range(t.size)]
-    assert done[-1] and not done[0]
-    rs = al.result()
+    rs = AttitudeStream(config=level(initial_heading_deg=77.0)).run(t, g, "imu", None,
+                                                                     a).alignment
     np.testing.assert_array_equal(rs.q_nb, res.q_nb)
-    assert (rs.samples, rs.rest_start_ns, rs.rest_end_ns) == (res.samples, res.rest_start_ns, res.rest_end_ns)
+    assert (rs.samples, rs.rest_start_ns, rs.rest_end_ns) == (res.samples, res.rest_start_ns,
+                                                              res.rest_end_ns)
+    assert rs.samples > 300 and rs.rest_end_ns < t[500]

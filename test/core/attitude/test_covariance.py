@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from gyro_attitude.core.attitude.covariance import AttitudeCovariance
+from gyro_attitude.core.attitude.covariance import V_BB, V_TT, propagate
 from gyro_attitude.core.attitude.stream import AttitudeStream, StreamConfig
 
 G = 9.80665
@@ -107,17 +107,18 @@ def _rows(m, seed):
 
 def test_closed_form_bias_and_noise_growth():
     """Constant dt, no resets: tt(T) = tt0 + N² T + σ_b² T² (+ K² T³/3 from the walk)."""
-    c = AttitudeCovariance(0.0, bias_sigma=0.01, bias_rw=0.0)
+    c = np.zeros(12)
+    c[V_BB:V_BB + 3] = 0.01 ** 2
     dt, steps, n2 = 0.01, 1000, 1e-8
     for _ in range(steps):
-        c.propagate(dt, np.full(3, n2 * dt))
+        propagate(c, 0.0, dt, n2 * dt, n2 * dt, n2 * dt)
     T = dt * steps
-    np.testing.assert_allclose(c.tt, n2 * T + 1e-4 * T * T, rtol=1e-12, atol=0)
-    c = AttitudeCovariance(0.0, bias_sigma=0.0, bias_rw=1e-3)
+    np.testing.assert_allclose(c[V_TT:V_TT + 3], n2 * T + 1e-4 * T * T, rtol=1e-12, atol=0)
+    c = np.zeros(12)
     for _ in range(steps):
-        c.propagate(dt, np.zeros(3))
+        propagate(c, 1e-3 ** 2, dt, 0.0, 0.0, 0.0)
     # Σ_k dt² (k dt) K² ... → K² T³/3 for small dt (first order in dt: relative 1.5/steps)
-    np.testing.assert_allclose(c.tt, 1e-6 * T ** 3 / 3, rtol=2e-3, atol=0)
+    np.testing.assert_allclose(c[V_TT:V_TT + 3], 1e-6 * T ** 3 / 3, rtol=2e-3, atol=0)
 
 
 def test_tilt_aiding_bounds_tilt_not_heading():

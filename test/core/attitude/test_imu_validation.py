@@ -1,4 +1,5 @@
-"""Input checks of the Imu stream: each bad case is rejected with its own reason, once."""
+"""Input checks of the Imu stream (the validation stage of AttitudeStream.push): each bad case
+is rejected with its own reason, once."""
 
 import math
 
@@ -6,17 +7,24 @@ import numpy as np
 import pytest
 
 from gyro_attitude.core.attitude import validation as iv
+from gyro_attitude.core.attitude.stream import AttitudeStream, StreamConfig
 
 MS = 1_000_000
 
 
 def make(max_gap_ms=100, jump_ms=1000):
-    return iv.ImuStreamValidator(iv.ImuCheckConfig(max_gap_ms * MS, jump_ms * MS))
+    return AttitudeStream("rotvec_cubic", config=StreamConfig(
+        gyro_bias="none", max_gap_s=max_gap_ms / 1e3, time_jump_threshold_s=jump_ms / 1e3))
+
+
+def check(stream, t, w, frame):
+    """The verdict of one sample pushed."""
+    return stream.push(t, w, frame)[0]
 
 
 def test_clean_stream_is_accepted():
     v = make()
-    actions = [v.check(t * MS, [0.1, 0.2, 0.3], "imu").action for t in range(1, 11)]
+    actions = [check(v, t * MS, [0.1, 0.2, 0.3], "imu").action for t in range(1, 11)]
     assert actions == [iv.START] + [iv.ACCEPT] * 9
     assert v.accepted == 10 and v.rejected_total == 0
     assert v.last_t_ns == 10 * MS and v.frame_id == "imu"
@@ -25,24 +33,24 @@ def test_clean_stream_is_accepted():
 @pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
 def test_non_finite_rejected_and_state_untouched(bad):
     v = make()
-    v.check(1 * MS, [0, 0, 0], "imu")
-    verdict = v.check(2 * MS, [0, bad, 0], "imu")
+    check(v, 1 * MS, [0, 0, 0], "imu")
+    verdict = check(v, 2 * MS, [0, bad, 0], "imu")
     assert verdict.rejected and verdict.reason == iv.NON_FINITE
     assert v.last_t_ns == 1 * MS
     # the next good sample integrates over (1 ms, 3 ms]: the bad one cost one sample only
-    assert v.check(3 * MS, [0, 0, 0], "imu").action == iv.ACCEPT
+    assert check(v, 3 * MS, [0, 0, 0], "imu").action == iv.ACCEPT
     assert v.counts[iv.NON_FINITE] == 1 and v.rejected_total == 1
 
 
 def test_stamp_problems_each_have_their_reason():
     v = make()
-    assert v.check(0, [0, 0, 0], "imu").reason == iv.ZERO_STAMP
-    assert v.check(-5, [0, 0, 0], "imu").reason == iv.ZERO_STAMP
-    v.check(10 * MS, [0, 0, 0], "imu")
-    assert v.check(10 * MS, [0, 0, 0], "imu").reason == iv.DUPLICATE_STAMP
-    assert v.check(9 * MS, [0, 0, 0], "imu").reason == iv.OUT_OF_ORDER
-    assert v.check(11 * MS, [0, 0, 0], "other").reason == iv.FRAME_CHANGED
-    assert v.check(11 * MS, [0, 0, 0], "imu").action == iv.ACCEPT
+    assert check(v, 0, [0, 0, 0], "imu").reason == iv.ZERO_STAMP
+    assert check(v, -5, [0, 0, 0], "imu").reason == iv.ZERO_STAMP
+    check(v, 10 * MS, [0, 0, 0], "imu")
+    assert check(v, 10 * MS, [0, 0, 0], "imu").reason == iv.DUPLICATE_STAMP
+    assert check(v, 9 * MS, [0, 0, 0], "imu").reason == iv.OUT_OF_ORDER
+    assert check(v, 11 * MS, [0, 0, 0], "other").reason == iv.FRAME_CHANGED
+    assert check(v, 11 * MS, [0, 0, 0], "imu").action == iv.ACCEPT
     expected = {iv.ZERO_STAMP: 2, iv.DUPLICATE_STAMP: 1, iv.OUT_OF_ORDER: 1, iv.FRAME_CHANGED: 1}
     for reason in iv.REJECT_REASONS:
         assert v.counts[reason] == expected.get(reason, 0), reason
@@ -51,30 +59,30 @@ def test_stamp_problems_each_have_their_reason():
 
 def test_gap_restarts_time_base_and_is_counted():
     v = make(max_gap_ms=50)
-    v.check(1 * MS, [0, 0, 0], "imu")
-    assert v.check(51 * MS, [0, 0, 0], "imu").action == iv.ACCEPT  # exactly the limit: fine
-    verdict = v.check(102 * MS, [0, 0, 0], "imu")
+    check(v, 1 * MS, [0, 0, 0], "imu")
+    assert check(v, 51 * MS, [0, 0, 0], "imu").action == iv.ACCEPT  # exactly the limit: fine
+    verdict = check(v, 102 * MS, [0, 0, 0], "imu")
     assert verdict.action == iv.RESTART_AFTER_GAP and verdict.reason == iv.GAP
     assert v.last_t_ns == 102 * MS
-    assert v.check(103 * MS, [0, 0, 0], "imu").action == iv.ACCEPT
+    assert check(v, 103 * MS, [0, 0, 0], "imu").action == iv.ACCEPT
     assert v.counts[iv.GAP] == 1 and v.rejected_total == 0
 
 
 def test_backward_jump_beyond_threshold_resets():
     v = make(jump_ms=500)
-    v.check(2000 * MS, [0, 0, 0], "imu")
-    assert v.check(1600 * MS, [0, 0, 0], "imu").reason == iv.OUT_OF_ORDER
-    verdict = v.check(1000 * MS, [0, 0, 0], "imu")
+    check(v, 2000 * MS, [0, 0, 0], "imu")
+    assert check(v, 1600 * MS, [0, 0, 0], "imu").reason == iv.OUT_OF_ORDER
+    verdict = check(v, 1000 * MS, [0, 0, 0], "imu")
     assert verdict.action == iv.RESET_TIME_JUMP
     assert v.time_jump_resets == 1 and v.last_t_ns == 1000 * MS
-    assert v.check(1001 * MS, [0, 0, 0], "imu").action == iv.ACCEPT
+    assert check(v, 1001 * MS, [0, 0, 0], "imu").action == iv.ACCEPT
 
 
 def test_reset_forgets_frame_and_time():
     v = make()
-    v.check(5 * MS, [0, 0, 0], "a")
-    v.reset()
-    assert v.check(1 * MS, [0, 0, 0], "b").action == iv.START
+    check(v, 5 * MS, [0, 0, 0], "a")
+    v.restart()
+    assert check(v, 1 * MS, [0, 0, 0], "b").action == iv.START
 
 
 @pytest.mark.parametrize("kwargs, named", [
@@ -89,18 +97,17 @@ def test_config_refuses_bad_thresholds_naming_the_setting(kwargs, named):
 def test_interval_statistics_against_numpy():
     rng = np.random.default_rng(3)
     dt_ns = (1_000_000 + rng.integers(-20_000, 20_000, size=500)).astype(np.int64)
-    stats = iv.IntervalStatistics(window=200)
+    ring, fill = np.zeros(200, np.int64), np.zeros(2, np.int64)
+    stats = iv.IntervalStatistics(ring, fill)
     assert math.isnan(stats.summary()["rate_hz"])
     for d in dt_ns:
-        stats.add(int(d))
+        iv.interval_add(ring, fill, int(d))
     tail = dt_ns[-200:] / 1e9
     s = stats.summary()
     assert s["rate_hz"] == pytest.approx(1.0 / np.mean(tail), rel=1e-12)
     assert s["jitter_s"] == pytest.approx(np.std(tail), rel=1e-9)
     assert s["max_dt_s"] == pytest.approx(tail.max(), rel=1e-12)
     assert len(stats) == 200
-    with pytest.raises(ValueError, match="window"):
-        iv.IntervalStatistics(window=1)
 
 
 def test_random_streams_only_accept_positive_bounded_steps():
@@ -117,12 +124,12 @@ def test_random_streams_only_accept_positive_bounded_steps():
 
     @settings(max_examples=200, deadline=None)
     @given(st.lists(sample, max_size=60))
-    def check(stream):
+    def run(stream):
         v = make(max_gap_ms=100, jump_ms=1000)
         last = None
         rejects = 0
         for t, w, frame in stream:
-            verdict = v.check(t, [w, 0.0, 0.0], frame)
+            verdict = check(v, t, [w, 0.0, 0.0], frame)
             if verdict.rejected:
                 rejects += 1
                 continue
@@ -140,4 +147,4 @@ def test_random_streams_only_accept_positive_bounded_steps():
         assert v.rejected_total == rejects
         assert v.accepted == len(stream) - rejects
 
-    check()
+    run()

@@ -26,14 +26,14 @@ def stream_with_holes(holes):
 
 def test_a_few_missing_samples_are_counted_and_a_long_hole_is_a_gap():
     t, w = stream_with_holes([(100, 2), (200, 10), (300, 4)])
-    val = iv.ImuStreamValidator(iv.ImuCheckConfig.of(StreamConfig()))
-    verdicts = [val.check(int(x), w[0], "imu") for x in t]
+    val = AttitudeStream("rotvec_cubic", config=StreamConfig(gyro_bias="none"))
+    verdicts = [val.push(int(x), w[0], "imu")[0] for x in t]
     hole = {int(m) - 1: int(k) + 1 for k, m in
             zip(np.flatnonzero(np.diff(t) > PERIOD), np.diff(t)[np.diff(t) > PERIOD] // PERIOD,
                 strict=True)}  # samples missing -> row after the hole
     gaps = [k for k, vd in enumerate(verdicts) if vd.action == iv.RESTART_AFTER_GAP]
     assert gaps == [hole[10]] and "hole of 10 sample(s) (10 missing" in verdicts[hole[10]].detail
-    assert val.missing_samples == 2 + 4 and val.counts[iv.GAP] == 1
+    assert val.counts[iv.MISSING_SAMPLES] == 2 + 4 and val.counts[iv.GAP] == 1
     assert verdicts[hole[2]].reason == verdicts[hole[4]].reason == iv.MISSING_SAMPLES
     # the array form gives the same verdicts and counts
     cls = iv.classify(t, w, "imu", iv.ImuCheckConfig.of(StreamConfig()))
@@ -71,10 +71,10 @@ def test_rejected_samples_make_holes_but_are_not_counted_missing():
     w[200:210] = np.nan  # ten rejected in a row: the integration cannot bridge them: a gap
     cfg = iv.ImuCheckConfig.of(StreamConfig())
     cls = iv.classify(t, w, "imu", cfg)
-    val = iv.ImuStreamValidator(cfg)
-    codes = [iv.ACTION_CODES[val.check(int(x), w[k], "imu").action] for k, x in enumerate(t)]
+    val = AttitudeStream("rotvec_cubic", config=StreamConfig(gyro_bias="none"))
+    codes = [iv.ACTION_CODES[val.push(int(x), w[k], "imu")[0].action] for k, x in enumerate(t)]
     assert cls.action.tolist() == codes
-    assert cls.missing_samples == val.missing_samples == 0
+    assert cls.missing_samples == val.counts[iv.MISSING_SAMPLES] == 0
     assert cls.counts[iv.NON_FINITE] == 11 and cls.counts[iv.GAP] == 1
     assert cls.action[210] == iv.ACTION_CODES[iv.RESTART_AFTER_GAP]
 

@@ -4,24 +4,25 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 from sim_static import rest_motion_rest
+from stages import bias_rows, rest_rows
 
 from gyro_attitude.core.attitude import rest
-from gyro_attitude.core.attitude.gyro_bias import estimate_gyro_bias
-from gyro_attitude.core.attitude.rest import RestDetector, detect_rest, rest_segments
+from gyro_attitude.core.attitude.rest import (
+    ACCEL_CHANGED,
+    NOT_INCREASING,
+    detect_rest,
+    rest_segments,
+    rest_start,
+    rest_update,
+)
 
 
 def test_stream_equals_batch_bitwise():
     t, g, a, _ = rest_motion_rest(seed=3)
     batch = detect_rest(t, g, a)
-    det = RestDetector()
-    stream = np.array([det.update(t[k], g[k], a[k]) for k in range(t.size)])
-    oldest = []
-    det.reset()
-    for k in range(t.size):
-        det.update(t[k], g[k], a[k])
-        oldest.append(det.oldest_index)
-    np.testing.assert_array_equal(stream, batch.at_rest)
-    np.testing.assert_array_equal(oldest, batch.oldest)
+    got, _ = rest_rows(t, g, a)
+    np.testing.assert_array_equal([r[0] for r in got], batch.at_rest)
+    np.testing.assert_array_equal([r[1] for r in got], batch.oldest)
 
 
 def test_a_window_that_outgrows_its_ring_mid_stream_keeps_its_samples_in_order():
@@ -36,12 +37,7 @@ def test_a_window_that_outgrows_its_ring_mid_stream_keeps_its_samples_in_order()
     g[4000:6000, 2] += 0.8  # a turn in the fast part
     a = np.array([0.0, 0.0, 9.81]) + 0.02 * rng.standard_normal((t.size, 3))
     batch = detect_rest(t, g, a)
-    det = RestDetector()
-    ring_sizes = set()
-    got = []
-    for k in range(t.size):
-        got.append((det.update(t[k], g[k], a[k]), det.oldest_index, det.gyro_std))
-        ring_sizes.add(det.wt.shape[0])
+    got, ring_sizes = rest_rows(t, g, a)
     got = np.array(got)
     assert len(ring_sizes) >= 3  # it grew at least twice
     np.testing.assert_array_equal(got[:, 0].astype(bool), batch.at_rest)
@@ -58,9 +54,7 @@ def test_batch_in_chunks_equals_the_stream_bitwise(monkeypatch, chunk):
     monkeypatch.setattr(rest, "_STATS_CHUNK", chunk)
     t, g, a, _ = rest_motion_rest(seed=5)
     batch = detect_rest(t, g, a)
-    det = RestDetector()
-    got = np.array([(det.update(t[k], g[k], a[k]), det.oldest_index, det.gyro_std,
-                     det.accel_std) for k in range(t.size)])
+    got = np.array(rest_rows(t, g, a)[0])
     np.testing.assert_array_equal(got[:, 0].astype(bool), batch.at_rest)
     np.testing.assert_array_equal(got[:, 1], batch.oldest)
     np.testing.assert_array_equal(got[:, 2], batch.gyro_std)
@@ -97,18 +91,19 @@ def test_constant_fast_rotation_is_not_rest():
 
 
 def test_bad_input_is_refused():
-    det = RestDetector()
-    with pytest.raises(ValueError, match="gyro"):
-        det.update(0, [np.nan, 0, 0])
-    with pytest.raises(ValueError, match="t_ns"):
-        det.update(1.5, [0, 0, 0])
-    det.update(10, [0, 0, 0], [0, 0, 9.8])
-    with pytest.raises(ValueError, match="increase"):
-        det.update(10, [0, 0, 0], [0, 0, 9.8])
-    with pytest.raises(ValueError, match="accel"):
-        det.update(20, [0, 0, 0])
+    rf, ri = rest_start()
+    wt, wx, wc = np.zeros(4, np.int64), np.zeros(4, np.int64), np.zeros((4, 12))
+    assert rest_update(rf, ri, wt, wx, wc, 10, 0.0, 0.0, 0.0, True, 0.0, 0.0, 9.8) == 0
+    before = rf.copy(), ri.copy()
+    # refused with nothing changed: a stamp that does not increase, the accelerometer gone
+    assert rest_update(rf, ri, wt, wx, wc, 10, 0.0, 0.0, 0.0, True, 0.0, 0.0, 9.8) == \
+        NOT_INCREASING
+    assert rest_update(rf, ri, wt, wx, wc, 20, 0.0, 0.0, 0.0, False, 0.0, 0.0, 0.0) == \
+        ACCEL_CHANGED
+    np.testing.assert_array_equal(rf, before[0])
+    np.testing.assert_array_equal(ri, before[1])
     with pytest.raises(ValueError, match="window_s"):
-        RestDetector(window_s=float("inf"))
+        rest_start(window_s=float("inf"))
     with pytest.raises(ValueError, match="strictly increasing"):
         detect_rest([0, 0], np.zeros((2, 3)))
     with pytest.raises(ValueError, match="shape"):
@@ -136,10 +131,10 @@ def test_a_slow_steady_turn_is_never_a_rest_and_leaves_the_bias(rate, axis):
     a = f + 0.02 * rng.standard_normal((n, 3))
     assert not detect_rest(t, g, a).at_rest.any()
     assert not detect_rest(t, g).at_rest.any()  # gyro only
-    b, rep = estimate_gyro_bias(t, g, a)
+    b, rep = bias_rows(t, g, a)
     assert rep.rests_used == 0 and np.all(b == 0.0)
     # the same sensor still: a rest, and the bias it estimates
     still = bias + 1e-4 * np.sqrt(hz) * rng.standard_normal((n, 3))
     a_still = np.array([0.0, 0.0, 9.80665]) + 0.02 * rng.standard_normal((n, 3))
-    b, rep = estimate_gyro_bias(t, still, a_still)
+    b, rep = bias_rows(t, still, a_still)
     assert rep.rests_used == 1 and np.allclose(rep.bias, bias, atol=1e-4)

@@ -24,7 +24,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from gyro_attitude.core.attitude import offline
-from gyro_attitude.core.attitude.gyro_bias import J_LAST_ACC, GyroBiasEstimator
+from gyro_attitude.core.attitude.gyro_bias import J_LAST_ACC
 from gyro_attitude.core.attitude.offline import estimate_offline
 from gyro_attitude.core.attitude.rest import R_AT_REST
 from gyro_attitude.core.attitude.settings import StreamConfig
@@ -89,18 +89,19 @@ def arm(rate_hz, rests_s, moves_s, *, accel_scale=1.0, seed=0, t0_ns=3_000_000_0
 def causal_rests(t, w, a, cfg):
     """The causal bias stage's rest samples, run by run: (first, last) sample indices of each
     run of consecutive accumulated samples, and whether it counted (spans ``min_rest_s``).
-    The stage itself (GyroBiasEstimator, the kernel the stream's chain steps), read after
-    every sample: the index of the sample it last accumulated."""
-    est = GyroBiasEstimator("auto", min_rest_s=cfg.min_rest_s, rest=cfg.rest_params())
+    The stage itself, in the stream's state, read after every sample pushed: the index of the
+    sample it last accumulated."""
+    st = AttitudeStream("rotvec_cubic", config=cfg)
     taken = np.zeros(t.size, bool)
+    rest_i, bias_i = st.state.rest_i[0], st.state.bias_i[0]
     for k in range(t.size):
-        est.step(int(t[k]), tuple(w[k]), tuple(a[k]))
-        if est.detector.ri[R_AT_REST]:
-            taken[int(est.bi[J_LAST_ACC])] = True
+        st.push(int(t[k]), w[k], "imu", None, a[k])
+        if rest_i[R_AT_REST]:
+            taken[int(bias_i[J_LAST_ACC])] = True
     edges = np.diff(np.concatenate(([0], taken.view(np.int8), [0])))
     runs = list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1, strict=True))
     min_ns = int(round(cfg.min_rest_s * 1e9))
-    return [(int(s), int(e), bool(t[e] - t[s] >= min_ns)) for s, e in runs], est.report()
+    return [(int(s), int(e), bool(t[e] - t[s] >= min_ns)) for s, e in runs], st.bias_report
 
 
 def offline_rests(t, w, a, cfg, monkeypatch):

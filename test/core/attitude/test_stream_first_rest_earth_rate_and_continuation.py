@@ -8,9 +8,10 @@ import math
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
+from stages import bias_rows
 
-from gyro_attitude.core.attitude import NavFrame
-from gyro_attitude.core.attitude.gyro_bias import GyroBiasEstimator
+from gyro_attitude.core.attitude import NavFrame, chain
+from gyro_attitude.core.attitude.gyro_bias import BAD_ATTITUDE, J_HAS_SEG, bias_start, bias_step
 from gyro_attitude.core.attitude.stream import RUNNING, AttitudeStream, StreamConfig
 
 MS = 1_000_000
@@ -148,7 +149,7 @@ B_SMALL = np.array([2e-4, -1e-4, 3e-4])  # rad/s
 SIGMA_W = 1e-6
 
 
-def test_streaming_estimator_takes_the_earth_rate_out_at_the_given_attitude():
+def test_bias_stage_takes_the_earth_rate_out_at_the_given_attitude():
     # At rest at Q_TRUE, 50° N: gyro = C_bn ω_ie^n + b + noise.  With q_nb and the latitude the
     # rest average is b (to σ/√n ≈ 7e-8 over 200 rest samples); the Earth rate in the body
     # (≈ 7e-5 rad/s, all three axes non-zero here) must not be absorbed.  A quaternion is a
@@ -160,18 +161,20 @@ def test_streaming_estimator_takes_the_earth_rate_out_at_the_given_attitude():
     assert np.all(np.abs(earth_b) > 1e-5)
     g = earth_b + B_SMALL + SIGMA_W * rng.standard_normal((n, 3))
     for scale in (1.0, 3.0):
-        est = GyroBiasEstimator("auto", latitude_rad=LAT)
-        for k in range(n):
-            est.update(int(t[k]), g[k], None, scale * Q_TRUE.as_quat())
-        rep = est.report()
+        _, rep = bias_rows(t, g, None, np.tile(scale * Q_TRUE.as_quat(), (n, 1)),
+                           latitude_rad=LAT)
         assert rep.rests_used == 1 and rep.earth_rate_removed
         # estimate = mean of the rest samples 0..n−1−W minus the Earth rate (closed form)
         expected = np.mean(g[:n - W], axis=0) - earth_b
         np.testing.assert_allclose(rep.bias, expected, rtol=0, atol=1e-12)
         assert np.all(np.abs(rep.bias - B_SMALL) < 5 * SIGMA_W / math.sqrt(n - W))
-    est = GyroBiasEstimator("auto", latitude_rad=LAT)
-    with pytest.raises(ValueError, match="q_nb must be a finite non-zero quaternion"):
-        est.update(int(t[0]), g[0], None, (0.0, 0.0, 0.0, 0.0))
+    # a zero quaternion is no attitude: refused, nothing accumulated
+    rf, ri, bf, bi = bias_start(StreamConfig())
+    ring = np.zeros(64, chain.BIAS_RING_DTYPE).view(np.recarray)
+    assert bias_step(bf, bi, 10**9, rf, ri, ring.t, ring.x, ring.c, ring.pv, ring.pe,
+                     np.ones(3), int(t[0]), *g[0], False, 0.0, 0.0, 0.0, True, 0.0, 0.0, 0.0,
+                     0.0) == BAD_ATTITUDE
+    assert not bi[J_HAS_SEG]
 
 
 @pytest.mark.parametrize("where", ["config", "nav"])

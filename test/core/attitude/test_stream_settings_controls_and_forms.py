@@ -161,10 +161,11 @@ def test_interval_summary_of_two_intervals_written_out():
     s = iv.interval_summary(np.array([10 * MS, 20 * MS]))
     assert s == pytest.approx({"rate_hz": 1 / 0.015, "mean_dt_s": 0.015, "jitter_s": 0.005,
                                "max_dt_s": 0.020}, rel=1e-12)
-    stats = iv.IntervalStatistics(window=2)
+    ring, fill = np.zeros(2, np.int64), np.zeros(2, np.int64)
     for dt in (5 * MS, 10 * MS, 20 * MS):
-        stats.add(dt)
-    assert stats.summary() == pytest.approx(s, rel=1e-12)  # the oldest one left the window
+        iv.interval_add(ring, fill, dt)
+    # the oldest one left the window
+    assert iv.IntervalStatistics(ring, fill).summary() == pytest.approx(s, rel=1e-12)
     one = iv.interval_summary(np.array([10 * MS]))
     assert set(one) == set(s) and all(math.isnan(x) for x in one.values())
 
@@ -441,9 +442,10 @@ def test_stamp_boundaries_array_wide_and_per_sample():
                                                "previous one")
     assert cls.details[iv.OUT_OF_ORDER] == (f"stamp {base + 2 - 900 * MS} ns is 1000.000 ms "
                                             "before the previous")
-    val = iv.ImuStreamValidator(cfg)
+    val = AttitudeStream("rotvec_cubic", config=StreamConfig(
+        gyro_bias="none", max_gap_s=0.05, time_jump_threshold_s=1.0))
     for s, action, reason in steps:
-        verdict = val.check(s, [0.0, 0.0, 0.0], "imu")
+        verdict = val.push(s, [0.0, 0.0, 0.0], "imu")[0]
         assert verdict.action == action and (reason is None or verdict.reason == reason), s
     assert val.time_jump_resets == 2
 
