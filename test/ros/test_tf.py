@@ -123,7 +123,6 @@ def test_publish_tf_refused_in_one_line_without_tf2_msgs_and_the_rest_runs(
     assert ros_node.spin_until(lambda: len(att) >= 50, timeout=60), (
         f"{len(att)}\n{integ.output()}\n{sim.output()}")
     assert sim.wait(timeout=15) == 0, sim.output()
-    ros_node.spin_until(lambda: len(att) >= n and len(tf) >= 2 * n, timeout=2)
     assert integ.stop(signal.SIGTERM) == 0, integ.output()
 
 
