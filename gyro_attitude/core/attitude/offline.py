@@ -101,6 +101,7 @@ from gyro_attitude.core.attitude.modes import (
 )
 from gyro_attitude.core.attitude.registry import DEFAULT_ALGORITHM
 from gyro_attitude.core.attitude.rest import NOISE_FLOOR_RAD_S, detect_rest
+from gyro_attitude.core.attitude.sample_clock import sample_clock
 from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.core.attitude.stream import (
     INTEGRATOR_ERROR,
@@ -612,6 +613,7 @@ class _Estimator:
         resets = np.flatnonzero(self.act == codes[v.RESET_TIME_JUMP])
         bounds = [0, *resets.tolist(), m]
         starts = np.flatnonzero(self.act != codes[v.ACCEPT])  # START, gap restarts, resets
+        self.t_clock = sample_clock(self.t, starts, self.empty)  # integration's intervals: jitter out
         self._noise_known = bool(self.sig2 is not None or self.cfg.gyro_noise_density > 0)
         for b0, b1 in zip(bounds[:-1], bounds[1:], strict=True):
             if b1 <= b0:
@@ -809,7 +811,8 @@ class _Estimator:
                     nav = self.nav if self.nav_series is None else nav_rows(
                         self.nav, np.arange(lo, hi), self.nav_series)
                     fb = []
-                    q = integrate_batch(self.t[lo:hi], wc, q0=q_prev if start else q_out[lo],
+                    q = integrate_batch(self.t_clock[lo:hi], wc,
+                                        q0=q_prev if start else q_out[lo],
                                         algorithm=self.algorithm, nav=nav, fallbacks=fb)
                     for f in fb:  # counted once: the intervals of the rows this chunk keeps
                         r = f + lo

@@ -1,0 +1,125 @@
+"""The sample clock of a regular stream whose stamps jitter (issue 38 item 1).
+
+An IMU samples on its own clock; a driver that stamps each message when the host receives it
+moves the stamps by its timing (±0.5 ms on a USB IMU, ±2 ms on a phone), not the samples.
+Integrating with the jittered stamps' intervals turns the jitter into attitude error: each step
+``ω_k (δ_{k+1} − δ_k)`` sums, by parts, to ``−Σ δ_k Δω_k``, a random walk driven by the angular
+acceleration (BROAD 16 with ±1/3 of the period: 0.3–0.8° of heading at the end, where the even
+file has 0.1°).  The offline estimator sees the whole run, so it integrates on the clock the
+stamps jitter about instead:
+
+* a run's residuals ``r_i = t_i − t_0 − i·T`` (``T`` the median interval of its first
+  :data:`MEDIAN_INTERVALS`) are a line plus the jitter, with a step of ``m·T`` where ``m``
+  samples are missing;
+* a step is where the mean of the :data:`STEP_SAMPLES` residuals after a sample exceeds the
+  mean of those before it by more than ``T/2`` (the largest interval there marks it, and every
+  interval there longer than 1.5 T); the steps cut the run into segments on one linear clock
+  each;
+* each sample's clock is the mean of ``r`` over the symmetric window of ±:data:`HALF_WINDOW`
+  samples (exact on a line); near a segment's ends, where that window does not fit, the line
+  through the nearest sample whose window does (the widest the segment allows), with the
+  slope of that window's two halves.
+
+Stamps within :data:`KEEP_NS` of that clock everywhere in a chunk are kept as they are (even
+stamps, a rate whose period is not a whole number of nanoseconds).  The result is used for the
+integration's intervals only; the output keeps the stamps the messages carry.  A stream sampled
+at truly irregular instants is not told apart from a jittered one by its stamps: its runs have
+many steps or none, and the clock then stays within the stamps' own jitter of them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: samples each side of the clock's mean (a hardware clock drifts by ppm: seconds are a line)
+HALF_WINDOW = 256
+#: samples each side compared to find a missing sample's step in the residuals
+STEP_SAMPLES = 16
+#: intervals whose median is the run's period
+MEDIAN_INTERVALS = 100_000
+#: a chunk whose stamps all lie this close to their clock keeps its stamps (ns)
+KEEP_NS = 1_000
+#: samples a chunk computes at a time (plus its margins): temporaries bounded, not the run's
+CHUNK = 1 << 16
+
+
+def sample_clock(t_ns: np.ndarray, starts: np.ndarray, empty=np.empty,
+                 chunk: int = CHUNK) -> np.ndarray:
+    """The stamps ``t_ns`` (int64, strictly increasing within a run) on the clock they jitter
+    about; ``starts`` the rows that begin a run (a gap restart, a time reset: no clock spans
+    them; row 0 always does).  Returns ``t_ns`` itself when every stamp is kept, else a copy
+    from ``empty(shape, dtype)`` (the caller's allocator); temporaries are bounded by
+    ``chunk``."""
+    t = np.asarray(t_ns)
+    n = t.size
+    bounds = sorted({0, n, *np.asarray(starts, dtype=np.int64).tolist()})
+    out = t
+    for r0, r1 in zip(bounds[:-1], bounds[1:], strict=True):
+        if r1 - r0 < 2 * STEP_SAMPLES + 3:
+            continue
+        period = int(np.median(np.diff(t[r0:min(r1, r0 + MEDIAN_INTERVALS + 1)])))
+        if period <= 0:
+            continue
+        margin = 2 * HALF_WINDOW + 2 * STEP_SAMPLES + 2  # an anchor's window: 2 W away
+        for c0 in range(r0, r1, chunk):
+            c1 = min(c0 + chunk, r1)
+            e0, e1 = max(r0, c0 - margin), min(r1, c1 + margin)
+            tau = _clock(t[e0:e1], period, r0 == e0, r1 == e1)
+            tau = tau[c0 - e0:c1 - e0]
+            if np.abs(tau - t[c0:c1]).max() <= KEEP_NS:
+                continue
+            if out is t:
+                out = empty(n, np.int64)
+                out[:] = t
+            out[c0:c1] = tau
+    return out
+
+
+def _clock(t: np.ndarray, period: int, starts_run: bool, ends_run: bool) -> np.ndarray:
+    """The clock of one stretch of a run (its ends are the run's when ``starts_run`` /
+    ``ends_run``; otherwise margins whose own values are not used)."""
+    m = t.size
+    idx = np.arange(m, dtype=np.int64)
+    r = (t - t[0] - idx * period).astype(np.float64)  # the line plus the jitter and the steps
+    c = np.zeros(m + 1)
+    np.cumsum(r, out=c[1:])
+    # the step before sample i: the mean of r[i:i+S] over that of r[i-S:i] (fewer samples
+    # where the stretch ends)
+    s = STEP_SAMPLES
+    i = np.arange(1, m)
+    kl, kr = np.minimum(i, s), np.minimum(m - i, s)
+    d = np.full(m, -np.inf)
+    d[1:] = (c[i + kr] - c[i]) / kr - (c[i] - c[i - kl]) / kl
+    dt = np.diff(t)
+    cut = np.zeros(m + 1, bool)  # cut[i]: a segment begins at sample i
+    cut[0] = cut[m] = True
+    high = d > 0.5 * period
+    if high.any():
+        # an excursion of d above T/2 holds a step: cut at its largest interval and at every
+        # interval in it longer than 1.5 T (steps closer than S samples share an excursion)
+        edges = np.flatnonzero(np.diff(np.concatenate(([0], high.view(np.int8), [0]))))
+        for a, b in zip(edges[::2], edges[1::2], strict=True):
+            span = dt[a - 1:b - 1]
+            cut[a + int(np.argmax(span))] = True
+            cut[a + np.flatnonzero(span > 1.5 * period)] = True
+    if not starts_run:
+        cut[0] = False
+    if not ends_run:
+        cut[m] = False
+    # the segment of each sample, [lo, hi) (beyond a margin's end: far enough not to bind)
+    cuts = np.concatenate(([-HALF_WINDOW - 1], np.flatnonzero(cut), [m + HALF_WINDOW]))
+    seg = np.searchsorted(cuts, idx, side="right") - 1
+    lo, hi = cuts[seg], cuts[seg + 1]
+    h = np.minimum.reduce([np.full(m, HALF_WINDOW), idx - lo, hi - 1 - idx, idx, m - 1 - idx])
+    line = (c[idx + h + 1] - c[idx - h]) / (2 * h + 1)
+    # within h_max of a segment's end the window cannot be full: the line through its anchor
+    # (the first / last sample whose window is) with the slope of that window's two halves
+    # (a margin's segment is cut at the stretch's edge: only its own, unused, samples change)
+    lo, hi = np.maximum(lo, 0), np.minimum(hi, m)
+    h_max = np.minimum(HALF_WINDOW, (hi - lo - 1) // 2)
+    for zone, anchor in ((idx - lo < h_max, lo + h_max), (hi - 1 - idx < h_max, hi - 1 - h_max)):
+        if zone.any():
+            a, k = anchor[zone], h_max[zone]
+            slope = ((c[a + k + 1] - c[a + 1]) - (c[a] - c[a - k])) / (k * (k + 1))
+            line[zone] = line[a] + (idx[zone] - a) * slope
+    return t[0] + idx * period + np.round(line).astype(np.int64)
