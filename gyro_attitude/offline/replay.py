@@ -40,6 +40,7 @@ from gyro_attitude.core.attitude.stream import (
     MAG_MISSING,
     AttitudeStream,
     StreamConfig,
+    aiding_note,
     bias_summary,
     nav_rows,
     rows,
@@ -496,6 +497,10 @@ def replay_file(input_path, output_path, *, imu_topic: str = DEFAULT_IMU_TOPIC,
         truth=None if truth is None else (truth.stamp_ns, truth.quaternion), mag=mag_rows,
         empty=spool.empty)
     res, first, algorithm, notes = est.result, est.first, est.algorithm, est.notes
+    if accel_problem:  # the estimator saw no accelerometer: say why there is none
+        gyro_only = aiding_note(config, False)
+        notes = [aiding_note(config, False, "its accelerometer is not in m/s² (said above)")
+                 if n == gyro_only else n for n in notes]
     estimator = est.estimator
     t = t_all[first:]
     if res.index.size == 0:

@@ -95,3 +95,16 @@ def test_an_accelerometer_too_far_off_g_for_the_rest_test_is_said_with_the_remed
     code, out, err = replay(capsys, tmp_path / "in.mcap", "--out", tmp_path / "o.mcap",
                             "--force", "--rest-accel-norm-tol", "1.5")
     assert code == 0 and "beyond rest_accel_norm_tol" not in err and "no rest found" not in out
+
+
+def test_the_aiding_line_says_the_accelerometer_was_left_out_for_its_units(tmp_path, capsys):
+    """Not that the Imu carries none (REP-145): it carries one, in g."""
+    record(tmp_path / "in.mcap", 1 / G)
+    for estimator in ("offline", "causal"):
+        code, out, err = replay(capsys, tmp_path / "in.mcap", "--out", tmp_path / "o.mcap",
+                                "--estimator", estimator, "--force")
+        assert code == 0
+        said = [ln for ln in (out + err).splitlines() if "aiding auto" in ln]
+        assert said and all("gyro-only, its accelerometer is not in m/s²" in ln
+                            for ln in said), said
+        assert "carries no linear acceleration" not in out + err

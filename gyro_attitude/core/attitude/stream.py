@@ -148,18 +148,19 @@ def starts_from_accelerometer(cfg: StreamConfig, q0) -> bool:
     return q0 is None and cfg.start_source is InitialAttitudeSource.ACCELEROMETER
 
 
-def aiding_note(cfg: StreamConfig, accel_seen: bool | None) -> str:
+def aiding_note(cfg: StreamConfig, accel_seen: bool | None, unused: str | None = None) -> str:
     """Which aiding runs and why, in one line: ``accel_seen`` whether the Imu carried a
-    usable linear acceleration (None: not known yet)."""
+    usable linear acceleration (None: not known yet); ``unused`` why the Imu's accelerometer
+    was left out, when it was (else: it carries none)."""
     name = f"aiding {cfg.aiding}"
     if not cfg.aided:
         return f"{name}: gyro-only"
     if cfg.aiding is Aiding.MAGNETOMETER:
         return (f"{name}: the AHRS filter, tilt from the accelerometer and heading from the "
                 "magnetometer")
-    if accel_seen is False:
-        return (f"{name}: gyro-only, the Imu carries no linear acceleration (REP-145: "
-                "linear_acceleration_covariance[0] = -1)")
+    if accel_seen is False or unused:
+        return (f"{name}: gyro-only, " + (unused or "the Imu carries no linear acceleration "
+                                            "(REP-145: linear_acceleration_covariance[0] = -1)"))
     return (f"{name}: the AHRS filter, tilt from the accelerometer (heading gyro-only; aiding "
             "magnetometer adds the magnetometer)")
 
