@@ -349,13 +349,6 @@ def _decaying_sum(ds: np.ndarray, x: np.ndarray, tau: float, z) -> np.ndarray:
     return y
 
 
-class _Block:
-    """Accepted rows ``[b0, b1)`` between time-jump resets, estimated on their own."""
-
-    def __init__(self, b0, b1, runs):
-        self.b0, self.b1, self.runs = b0, b1, runs
-
-
 def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = None,
                      q0=None, nav: NavFrame | None = None, mag=None,
                      frame_id: str | list[str] | None = "", angular_velocity_covariance=None,
@@ -601,6 +594,8 @@ class _Estimator:
         self.latitude = None if lat is None else float(np.asarray(lat).reshape(-1)[0])
         self.window_ns = int(round(cfg.rest_window_s * 1e9))
         self.fit_fallbacks: list[np.ndarray] = []  # rows whose interval's rate fit fell back
+        self.k2 = 0.0  # the bias random walk's density², at least the stated one (rests)
+        self._align_row = None  # the alignment's rest's first row
 
     # ------------------------------------------------------------------ the chain
     def run(self):
@@ -612,78 +607,41 @@ class _Estimator:
         resets = np.flatnonzero(self.act == codes[v.RESET_TIME_JUMP])
         bounds = [0, *resets.tolist(), m]
         starts = np.flatnonzero(self.act != codes[v.ACCEPT])  # START, gap restarts, resets
-        self._noise_known = bool(self.sig2 is not None or self.cfg.gyro_noise_density > 0)
         for b0, b1 in zip(bounds[:-1], bounds[1:], strict=True):
             if b1 <= b0:
                 continue
             s = starts[(starts >= b0) & (starts < b1)].tolist()
             runs = list(zip(s, [*s[1:], b1], strict=True))
             self._block(b0, b1, runs, q_out, var_out)
-        known = self._var_known()
-        if not known:
-            var_out = None
-        if var_out is None:
+        cfg = self.cfg
+        if not (self.sig2 is not None or cfg.gyro_noise_density > 0 or cfg.gyro_bias_sigma_rad_s > 0
+                or cfg.levelling or any(r.gyro_var.any() for r in self.rests)):
             return q_out, None, None
         known = self.empty(m, bool)
         known.fill(True)
         return q_out, var_out, known
 
-    def _var_known(self) -> bool:
-        cfg = self.cfg
-        return bool(self._noise_known or cfg.gyro_bias_sigma_rad_s > 0
-                    or cfg.levelling or any(
-                        r.gyro_var.any() for r in self.rests))
-
     def _block(self, b0, b1, runs, q_out, var_out):
         cfg = self.cfg
-        tau = self._clock(b0, b1, runs)
+        tau = self._clock(b0, b1)
         rest = self._zeros(b1 - b0, bool)
         if cfg.gyro_bias is GyroBiasMode.AUTO or cfg.levelling or cfg.aiding is not Aiding.NONE:
             self._find_rests(b0, runs, rest)
         rests = self._rest_stats(b0, b1, rest, tau)
         self.rests += rests
-        q_start = self.q_init
-        tilt_var0 = None
-        if cfg.levelling:
-            with_f = [r for r in rests if np.isfinite(r.accel_mean).all()]
-            if not with_f and self.alignment is not None:
-                # a block after a time jump without a rest of its own: the attitude resets
-                # to the alignment of the recording's start
-                with_f = None
-            elif not with_f:
-                raise ValueError(f"cannot align: no rest of at least {cfg.min_rest_s:g} s with a "
-                                 "usable accelerometer in the recording (initial_attitude "
-                                 "'level')")
-        if cfg.levelling and with_f is None:
-            q_start = self.alignment.q_nb
-            tilt_var0 = self.alignment.level_error_expected ** 2
-        elif cfg.levelling:
-            r0 = with_f[0]
-            q_start, roll, pitch = level_quaternion(r0.accel_mean,
-                                                    math.radians(cfg.initial_heading_deg))
-            g = float(np.linalg.norm(r0.accel_mean))
-            sl = math.sqrt(cfg.accel_bias_sigma ** 2 + float(np.mean(r0.accel_var[:2]))
-                           / (r0.stop - r0.start)) / g
-            tilt_var0 = sl * sl
-            if self.alignment is None:
-                self._align_row = b0 + r0.start
-                self.alignment = AlignmentResult(
-                    q_start, roll, pitch, wrap_2pi(math.radians(cfg.initial_heading_deg)),
-                    "given", sl, math.nan, int(self.t[b0 + r0.start]),
-                    int(self.t[b0 + r0.stop - 1]), r0.stop - r0.start, r0.accel_mean,
-                    r0.bias)
-        zupt = cfg.gyro_bias is GyroBiasMode.AUTO
-        self._integrate(b0, runs, rest if zupt else None, rests, tau, q_start, q_out)
+        held = rest if cfg.gyro_bias is GyroBiasMode.AUTO else None  # the attitude held there
         tt0 = np.full(3, cfg.initial_attitude_variance)
-        if tilt_var0 is not None:
-            tt0[:2] = tilt_var0
-        self._covariance(b0, b1, rest if zupt else None, rests, tau, q_out, var_out, tt0)
+        q_start = self.q_init
+        if cfg.levelling:
+            q_start, tt0[:2] = self._level_start(b0, rests)
+        self._integrate(b0, runs, held, rests, tau, q_start, q_out)
+        self._covariance(b0, b1, held, rests, tau, q_out, var_out, tt0)
         if self.a is not None and cfg.aiding is not Aiding.NONE:
             # gravity, tilt, magnetometer: the tilt from gravity of step 4 (the offline chain
             # has one tilt method; the causal filters' differences are causal remedies)
-            self._tilt_from_gravity(b0, b1, rest if zupt else None, q_out, var_out)
+            self._tilt_from_gravity(b0, b1, held, q_out, var_out)
         elif self.a is not None and cfg.levelling:
-            self._level_at_rests(b0, b1, rests, tau, q_out, var_out)
+            self._level_at_rests(b0, b1, rests, tau, q_out)
         if cfg.aiding is Aiding.MAGNETOMETER:
             if self.mag is None:
                 self.notes.append("aiding magnetometer without a field: heading gyro-only")
@@ -691,13 +649,36 @@ class _Estimator:
                 self._heading_from_field(b0, b1, q_out, var_out)
                 self._aligned_heading_from_field(b0, b1, q_out)
 
+    def _level_start(self, b0, rests):
+        """(attitude, tilt variance) a block starts from with ``initial_attitude`` level:
+        levelled on its first rest with an accelerometer (the recording's first is the
+        alignment), else (a block after a time jump without one) the alignment's."""
+        cfg = self.cfg
+        r0 = next((r for r in rests if np.isfinite(r.accel_mean).all()), None)
+        if r0 is None and self.alignment is None:
+            raise ValueError(f"cannot align: no rest of at least {cfg.min_rest_s:g} s with a "
+                             "usable accelerometer in the recording (initial_attitude 'level')")
+        if r0 is None:
+            return self.alignment.q_nb, self.alignment.level_error_expected ** 2
+        heading = math.radians(cfg.initial_heading_deg)
+        q_start, roll, pitch = level_quaternion(r0.accel_mean, heading)
+        sl = math.sqrt(cfg.accel_bias_sigma ** 2 + float(np.mean(r0.accel_var[:2]))
+                       / (r0.stop - r0.start)) / float(np.linalg.norm(r0.accel_mean))
+        if self.alignment is None:
+            self._align_row = b0 + r0.start
+            self.alignment = AlignmentResult(
+                q_start, roll, pitch, wrap_2pi(heading), "given", sl, math.nan,
+                int(self.t[b0 + r0.start]), int(self.t[b0 + r0.stop - 1]), r0.stop - r0.start,
+                r0.accel_mean, r0.bias)
+        return q_start, sl * sl
+
     def _zeros(self, shape, dtype) -> np.ndarray:
         """A zeroed array from the allocator (the flags and clocks of a block's length)."""
         a = self.empty(shape, dtype)
         a.fill(0)
         return a
 
-    def _clock(self, b0, b1, runs) -> np.ndarray:
+    def _clock(self, b0, b1) -> np.ndarray:
         """Seconds since the block's first row, gaps counted (the bias walks across them)."""
         tau = self.empty(b1 - b0, np.float64)
         for c0, c1 in _chunks(b0, b1, self.size):
@@ -757,7 +738,7 @@ class _Estimator:
                 out = [replace(r, standard_error=np.sqrt(r.gyro_var / (r.stop - r.start)
                                                          + k2 * r.duration_s / 3.0))
                        for r in out]
-        self.k2 = max(k2, getattr(self, "k2", 0.0))
+        self.k2 = max(k2, self.k2)
         return out
 
     # ------------------------------------------------------------------ 2.-3. bias, integration
@@ -944,14 +925,10 @@ class _Estimator:
         self.notes.append(f"tilt from gravity: zero-phase low-pass, τ = {cfg.offline_tilt_tau_s:g} "
                           "s")
 
-    def _field(self, c0, c1, q):
-        """The field of rows ``[c0, c1)`` less the hard iron, rotated into the output frame by
-        ``q`` (zeros where unusable), its norm, and which rows are usable / missing."""
-        return self._field_rows(self.mag[c0:c1], q)
-
     def _field_rows(self, raw, q):
-        """:meth:`_field` of the rows ``raw``: the one validity rule of the heading pass and
-        of the reference it learns (a zero reading must not vote for the reference)."""
+        """The field ``raw`` less the hard iron, rotated into the output frame by ``q`` (zeros
+        where unusable), its norm, and which rows are usable / missing: the one validity rule
+        of the heading pass and of the reference it learns (a zero reading must not vote)."""
         missing = np.isnan(raw).all(axis=1)
         with np.errstate(invalid="ignore", over="ignore"):
             ok = np.isfinite(raw).all(axis=1) & (np.abs(raw).max(axis=1) <= MAG_ABSURD_T)
@@ -1018,7 +995,7 @@ class _Estimator:
         def directions(c0, c1):
             """(sin, cos) of each sample's azimuth less the declination, its weight, and the
             usable / missing rows (counted by the caller)."""
-            mn, norm, ok, missing = self._field(c0, c1, q_out[c0:c1])
+            mn, norm, ok, missing = self._field_rows(self.mag[c0:c1], q_out[c0:c1])
             horiz = np.hypot(mn[:, 0], mn[:, 1])
             dip = np.arctan2(-mn[:, 2], horiz)
             good = ok & (np.abs(norm - ref_n) <= tol_n) & (np.abs(dip - ref_d) <= tol_d)
@@ -1075,16 +1052,15 @@ class _Estimator:
     def _aligned_heading_from_field(self, b0, b1, q_out):
         """The alignment's heading is the field's once the heading pass has run over the
         levelling rest (not the ``initial_heading_deg`` the start was levelled with)."""
-        row = getattr(self, "_align_row", None)
-        a = self.alignment
-        if row is None or a is None or not b0 <= row < b1 or a.heading_source != "given":
+        row, a = self._align_row, self.alignment
+        if a is None or not b0 <= row < b1 or a.heading_source != "given":
             return
         c = quat_as_matrix(q_out[row])
         heading = wrap_2pi(math.pi / 2 - math.atan2(float(c[1, 0]), float(c[0, 0])))
         self.alignment = replace(a, q_nb=q_out[row].copy(), heading=heading,
                                  heading_source="magnetometer")
 
-    def _level_at_rests(self, b0, b1, rests, tau, q_out, var_out):
+    def _level_at_rests(self, b0, b1, rests, tau, q_out):
         """Levelling at every rest, the correction interpolated in time between rests."""
         with_f = [r for r in rests if np.isfinite(r.accel_mean).all()]
         if not with_f:
@@ -1107,7 +1083,7 @@ class _Estimator:
         size = max(_COV_BLOCK, self.size // _COV_BLOCK * _COV_BLOCK)  # blocks never straddle
         auto = cfg.gyro_bias is GyroBiasMode.AUTO and rests
         bias = _BiasTerms(rests if auto else None, cfg.gyro_bias_sigma_rad_s,
-                          getattr(self, "k2", cfg.gyro_bias_rw ** 2))
+                          self.k2)
         measured = self._measured_noise(rests)
         sf2 = cfg.gyro_scale_factor_sigma ** 2
         # ∫ C_nb[k, m] ω_n dτ: the lever of the gyro's gain-and-axes error matrix E[m, n]
@@ -1149,12 +1125,10 @@ class _Estimator:
 
     def _measured_noise(self, rests):
         """The gyro's noise variance measured at the rests (weighted by length), or None."""
-        if self.rests or rests:
-            rr = [r for r in (rests or self.rests) if r.stop - r.start > 1]
-            if rr:
-                return np.average([r.gyro_var for r in rr], axis=0,
-                                  weights=[r.stop - r.start for r in rr])
-        return None
+        rr = [r for r in (rests or self.rests) if r.stop - r.start > 1]
+        if not rr:
+            return None
+        return np.average([r.gyro_var for r in rr], axis=0, weights=[r.stop - r.start for r in rr])
 
     def _row_noise(self, b0, c0, c1, rest, measured):
         """(dt, angle-noise variance per row and axis) of rows ``c0:c1``: the gyro noise from
