@@ -206,65 +206,52 @@ def _mean_var(x: np.ndarray, lo: int, hi: int, size: int) -> tuple[np.ndarray, n
     return mean, var
 
 
-def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, lo: int, hi: int,
-               params: dict, window_ns: int, size: int, out: np.ndarray,
-               zeros=np.zeros, min_ns: int = 0) -> None:
-    """Mark in ``out`` the rows of ``[lo, hi)`` (one gap-free run) that rest: preceded by a
-    full window of rest (the newest sample of a rest window) and followed by one (between the
-    oldest samples of the first and the last window of a run of rest windows), in a rest the
-    causal bias stage counts (those oldest samples span ``min_ns``: gyro_bias.accumulate's test).
+def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, params: dict,
+               window_ns: int, min_ns: int, size: int, out: np.ndarray, zeros) -> None:
+    """Mark in ``out`` the rows of one gap-free run that rest (module docstring, step 1): the
+    newest sample of a rest window, followed by a full window of rest (between the oldest
+    samples of the first and the last window of a run of rest windows) whose oldest samples
+    span ``min_ns`` (the causal bias stage's test).  ``zeros(n, dtype)`` allocates the flags.
 
     A window at rest has ``|mean ω_i| <= gyro_mean_max`` on every axis and spread
     ``<= gyro_std_max``, so the mean of ``|ω|²`` over it is at most ``3 gyro_mean_max² +
-    gyro_std_max²``: windows above that (motion) are
-    skipped with one cumulative sum, and :func:`.rest.detect_rest` runs, in chunks carrying one
-    window of history, only over the stretches that may hold a rest.  ``zeros(n, dtype)``
-    allocates the run-long flags."""
-    n = hi - lo
-    tr = t[lo:hi]
-    if "gyro_mean_max" in params and "gyro_std_max" in params:
-        # the mean bound holds on every axis (rest.py): |mean|² <= 3 gyro_mean_max²
-        bound = (3.0 * params["gyro_mean_max"] ** 2 + params["gyro_std_max"] ** 2) \
-            * (1 + 1e-9) + 1e-300
-        cand = zeros(n, bool)
-        for c0, c1 in _chunks(0, n, size):
-            # the windows ending in this chunk, from a cumulative sum started at the oldest
-            # sample they reach (temporaries of a chunk, not of the run)
-            oldest = np.searchsorted(tr, tr[c0:c1] - window_ns, side="left")
-            p = int(oldest[0])
-            ww = np.einsum("ij,ij->i", w[lo + p:lo + c1], w[lo + p:lo + c1])
-            cs = np.concatenate(([0.0], np.cumsum(ww)))
-            k = np.arange(c0, c1)
-            cand[c0:c1] = (cs[k + 1 - p] - cs[oldest - p]) <= bound * (k + 1 - oldest)
-    else:  # a rest test without these two bounds: every window is a candidate
-        cand = zeros(n, bool)
-        cand.fill(True)
+    gyro_std_max²``: windows above that (motion) are skipped with one cumulative sum, and
+    :func:`.rest.detect_rest` runs, in chunks carrying one window of history, only over the
+    stretches that may hold a rest."""
+    n = t.size
+    bound = (3.0 * params["gyro_mean_max"] ** 2 + params["gyro_std_max"] ** 2) \
+        * (1 + 1e-9) + 1e-300
+    cand = zeros(n, bool)
+    for c0, c1 in _chunks(0, n, size):
+        # the windows ending in this chunk, from a cumulative sum started at the oldest
+        # sample they reach (temporaries of a chunk, not of the run)
+        oldest = np.searchsorted(t, t[c0:c1] - window_ns, side="left")
+        p = int(oldest[0])
+        ww = np.einsum("ij,ij->i", w[p:c1], w[p:c1])
+        cs = np.concatenate(([0.0], np.cumsum(ww)))
+        k = np.arange(c0, c1)
+        cand[c0:c1] = (cs[k + 1 - p] - cs[oldest - p]) <= bound * (k + 1 - oldest)
     newest = zeros(n, bool)  # the window ending here is at rest
     for e0, e1 in _segments(cand):  # window ends that may be at rest
-        s0 = lo + int(np.searchsorted(tr, tr[e0] - window_ns, side="left"))
-        s1 = lo + e1
-        for c0, c1 in _chunks(s0, s1, size):
-            p = lo if c0 == lo else max(lo, int(np.searchsorted(t[lo:c0], t[c0] - window_ns))
-                                        + lo - 1)
+        s0 = int(np.searchsorted(t, t[e0] - window_ns, side="left"))
+        for c0, c1 in _chunks(s0, e1, size):
+            p = 0 if c0 == 0 else max(0, int(np.searchsorted(t[:c0], t[c0] - window_ns)) - 1)
             if c1 - p < 2:
                 continue
             rw = detect_rest(t[p:c1], w[p:c1], None if a is None else a[p:c1], **params)
             kk = np.flatnonzero(rw.at_rest[c0 - p:]) + (c0 - p)
-            if p != lo:  # not starting the run: 'full' counts from the run's first sample
-                kk = kk[t[p + kk] - t[lo] >= window_ns]
-            newest[p + kk - lo] = True
+            if p != 0:  # not starting the run: 'full' counts from the run's first sample
+                kk = kk[t[p + kk] - t[0] >= window_ns]
+            newest[p + kk] = True
     # Followed by a full window of rest: every sample from the oldest of a run's first rest
     # window to the oldest of its last.  On even stamps consecutive windows have consecutive
     # oldest samples; on jittered or irregular stamps a window may drop two old samples at
     # once, and the one skipped is still followed by a window of rest (marking only the
     # windows' oldest samples left holes there, and no rest reached min_ns).
-    pad = np.zeros(1, np.int8)
-    edges = np.diff(np.concatenate((pad, newest.view(np.int8), pad)))
-    e0, e1 = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-    del edges
-    o0 = np.searchsorted(tr, tr[e0] - window_ns, side="left")
-    o1 = np.searchsorted(tr, tr[e1 - 1] - window_ns, side="left")
-    keep = tr[o1] - tr[o0] >= min_ns  # the causal stage's span of the same rest
+    e0, e1 = _edges(newest)
+    o0 = np.searchsorted(t, t[e0] - window_ns, side="left")
+    o1 = np.searchsorted(t, t[e1 - 1] - window_ns, side="left")
+    keep = t[o1] - t[o0] >= min_ns  # the causal stage's span of the same rest
     # at rest: followed by a full window of rest (the gentle start of a motion is out) and
     # preceded by one (so is the tail of a motion, which a window starting there can pass),
     # both by windows of the same run: [e0, o1] (o0 < e0 and o1 < e1).  A run the causal
@@ -273,15 +260,20 @@ def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, lo: int, hi: 
     # flickering rest edge (an accelerometer near the norm tolerance) into extra rests the
     # causal stage never counted (9 against 7 at 125 Hz with |f| 5 % above g)
     for a, b in zip(e0[keep].tolist(), o1[keep].tolist(), strict=True):
-        out[lo + a:lo + b + 1] = True
+        out[a:b + 1] = True
+
+
+def _edges(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Starts and stops of the runs of True in ``mask`` (one byte a row of temporaries)."""
+    pad = np.zeros(1, np.int8)
+    edges = np.diff(np.concatenate((pad, mask.view(np.int8), pad)))
+    return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
 
 
 def _segments(mask: np.ndarray) -> list[tuple[int, int]]:
-    """The runs of True in ``mask``: (start, stop) pairs (one byte a row of temporaries)."""
-    pad = np.zeros(1, np.int8)
-    edges = np.diff(np.concatenate((pad, mask.view(np.int8), pad)))
-    return list(zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist(),
-                    strict=True))
+    """The runs of True in ``mask``: (start, stop) pairs."""
+    e0, e1 = _edges(mask)
+    return list(zip(e0.tolist(), e1.tolist(), strict=True))
 
 
 def _up_correction(u: np.ndarray) -> np.ndarray:
@@ -689,18 +681,16 @@ class _Estimator:
     def _find_rests(self, b0, runs, rest):
         params = {"gyro_std_min": NOISE_FLOOR_RAD_S, **self.cfg.rest_params()}
         t, w, a, ok = self.t, self.w, self.a, self.usable
+        min_ns = int(round(self.cfg.min_rest_s * 1e9))
         for r0, r1 in runs:
             pieces = [(r0, r1)]
             if ok is not None and not ok[r0:r1].all():
                 pieces = [(r0 + p, r0 + q) for p, q in _segments(ok[r0:r1])]
             for p0, p1 in pieces:
-                if p1 - p0 < 2:
-                    continue
-                mark = self._zeros(p1 - p0, bool)
-                _rest_mask(t[p0:p1], w[p0:p1], None if a is None else a[p0:p1], 0, p1 - p0,
-                           params, self.window_ns, self.size, mark, self._zeros,
-                           int(round(self.cfg.min_rest_s * 1e9)))
-                rest[p0 - b0:p1 - b0] |= mark
+                if p1 - p0 >= 2:
+                    _rest_mask(t[p0:p1], w[p0:p1], None if a is None else a[p0:p1], params,
+                               self.window_ns, min_ns, self.size, rest[p0 - b0:p1 - b0],
+                               self._zeros)
 
     def _rest_stats(self, b0, b1, rest, tau) -> list[OfflineRest]:
         cfg = self.cfg
@@ -756,58 +746,45 @@ class _Estimator:
     def _integrate(self, b0, runs, rest, rests, tau, q_start, q_out):
         """``ω − b(t)`` integrated run by run (a gap holds the attitude), held at rests."""
         q_prev = q_start
-        size = self.size
         for r0, r1 in runs:
-            if self.act[r0] == v.ACTION_CODES[v.RESET_TIME_JUMP] or r0 == b0:
-                q_prev = q_start
-            pieces = [(r0, r1, False)]
-            if rest is not None and rest[r0 - b0:r1 - b0].any():
-                pieces = []
+            cuts = [r0, r1]
+            if rest is not None:  # pieces of motion and of rest
                 mr = rest[r0 - b0:r1 - b0]
-                edges = np.flatnonzero(np.diff(mr.view(np.int8))) + 1
-                cuts = [0, *edges.tolist(), r1 - r0]
-                pieces = [(r0 + c0, r0 + c1, bool(mr[c0])) for c0, c1 in
-                          zip(cuts[:-1], cuts[1:], strict=True)]
-            first = True
-            for p0, p1, at_rest in pieces:
-                if at_rest:
+                cuts[1:1] = (np.flatnonzero(np.diff(mr.view(np.int8))) + 1 + r0).tolist()
+            q_out[r0] = q_prev  # the run's first row: no interval before it
+            for p0, p1 in zip(cuts[:-1], cuts[1:], strict=True):
+                if rest is not None and rest[p0 - b0]:
                     q_out[p0:p1] = q_prev
-                    first = False
-                    continue
-                anchor = None  # the attitude at the chunk's first row, from the chunk before
-                for c0, c1 in _chunks(p0, p1, size):
-                    start = first and c0 == r0  # the run's first row: nothing to integrate
-                    if c0 == p0:
-                        lo = c0 if start else c0 - 1  # the row before: its interval
-                    else:
-                        lo = max(p0 if first and p0 == r0 else p0 - 1, c0 - _OVERLAP)
-                    hi = min(p1, c1 + _OVERLAP)
-                    if start:
-                        q_out[c0] = q_prev
-                        if hi - lo == 1:
-                            continue
-                    wc = self.w[lo:hi] - self._bias_rows(rests, tau[lo - b0:hi - b0])
-                    nav = self.nav if self.nav_series is None else nav_rows(
-                        self.nav, np.arange(lo, hi), self.nav_series)
-                    fb = []
-                    q = integrate_batch(self.t[lo:hi], wc, q0=q_prev if start else q_out[lo],
-                                        algorithm=self.algorithm, nav=nav, fallbacks=fb)
-                    for f in fb:  # counted once: the intervals of the rows this chunk keeps
-                        r = f + lo
-                        self.fit_fallbacks.append(r[(r >= c0) & (r < c1)])
-                    # Higher-order algorithms take each interval's increment from neighbouring
-                    # samples: the chunk runs _OVERLAP rows into its neighbours and, after the
-                    # first, is re-anchored at its first row (the attitude there came from the
-                    # chunk before, with both sides' samples), so chunks join as one run does.
-                    if anchor is not None:
-                        q = quat_multiply(quat_multiply(anchor, quat_conjugate(q[c0 - lo])), q)
-                    q_out[c0:c1] = q[c0 - lo:c1 - lo]
-                    if c0 == p0 and lo < c0:
-                        q_out[lo] = q[0]
-                    anchor = q[c1 - lo] if c1 < p1 else None
-                first = False
+                else:
+                    self._integrate_piece(b0, p0 if p0 == r0 else p0 - 1, p0, p1, rests, tau,
+                                          q_out)
                 q_prev = q_out[p1 - 1]
-            q_prev = q_out[r1 - 1]
+
+    def _integrate_piece(self, b0, first, p0, p1, rests, tau, q_out):
+        """Rows ``p0:p1`` integrated from the attitude at row ``first`` (``p0``, or the row
+        before it) in chunks.  Higher-order algorithms take each interval's increment from
+        neighbouring samples: a chunk runs _OVERLAP rows into its neighbours and, after the
+        first, is re-anchored at its first row (the attitude there came from the chunk
+        before, with both sides' samples), so chunks join as one run does."""
+        anchor = None  # the attitude at the chunk's first row, from the chunk before
+        for c0, c1 in _chunks(p0, p1, self.size):
+            lo, hi = max(first, c0 - _OVERLAP), min(p1, c1 + _OVERLAP)
+            if hi - lo == 1:  # a run of one row: nothing to integrate
+                continue
+            wc = self.w[lo:hi] - self._bias_rows(rests, tau[lo - b0:hi - b0])
+            nav = self.nav if self.nav_series is None else nav_rows(
+                self.nav, np.arange(lo, hi), self.nav_series)
+            fb = []
+            q = integrate_batch(self.t[lo:hi], wc, q0=q_out[lo], algorithm=self.algorithm,
+                                nav=nav, fallbacks=fb)
+            for f in fb:  # counted once: the intervals of the rows this chunk keeps
+                r = f + lo
+                self.fit_fallbacks.append(r[(r >= c0) & (r < c1)])
+            if anchor is not None:
+                q = quat_multiply(quat_multiply(anchor, quat_conjugate(q[c0 - lo])), q)
+            w0 = lo if c0 == p0 else c0
+            q_out[w0:c1] = q[w0 - lo:c1 - lo]
+            anchor = q[c1 - lo] if c1 < p1 else None
 
     # ------------------------------------------------------------------ 4. tilt, 6. heading
     def _clock_steps(self, b0, c0, c1, still):
