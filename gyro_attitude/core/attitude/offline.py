@@ -1,82 +1,64 @@
-"""Offline attitude over a whole recording: rests, bias and gravity seen from both sides of every sample.
+"""Offline attitude over a whole recording: rests, bias and gravity from both sides of a sample.
 
-:func:`estimate_offline` is the non-causal counterpart of :meth:`.stream.AttitudeStream.run`:
-same input, same sample verdicts (:func:`.validation.classify`: bad samples skipped and
-counted, no integration across a gap, a backward time jump resets to ``q0``), same
-:class:`.stream.StreamResult`; every attitude may use samples after it.  The chain, each step an
-array operation over chunks of ``chunk_samples`` accepted samples (no per-sample Python):
+:func:`estimate_offline` is the non-causal estimator beside :meth:`.stream.AttitudeStream.run`:
+the same sample verdicts (:func:`.validation.classify`: bad samples skipped and counted, no
+integration across a gap, a backward time jump resets to ``q0``) and the same
+:class:`.stream.StreamResult`, but every attitude may use samples after it.  Each step is an
+array operation over chunks of ``chunk_samples`` accepted samples:
 
-1. **rests** over the whole recording (:func:`.rest.detect_rest`, window statistics by
-   cumulative sums, the thresholds of the causal path, per gap-free run with a usable
-   accelerometer); a sample is at rest when it is followed by a full window of rest (between
-   the oldest samples of the first and the last window of a run of rest windows, as the
-   causal consumers take it: the gentle start of a motion is out) and it is the newest of a
-   rest window (the tail of a motion is out too: a window starting there may pass the test,
-   and holding the attitude over it loses the last of the turn); a rest counts when the
-   causal bias stage counts it (those oldest samples span ``min_rest_s``), so both find the
-   same rests, on even, jittered or irregular stamps alike;
-2. **gyro bias per rest** (``gyro_bias="auto"``): the rest mean with its standard error
-   ``√(σ²/n + K² T/3)`` (white noise, plus the bias random walk ``K`` over the rest's length
-   ``T``); between rests the bias is interpolated linearly in time (the smoother of a random-walk
-   bias between two point estimates), before the first and after the last rest it is held.  With
-   a latitude (``nav`` or ``latitude_rad``) and an accelerometer the vertical Earth rate
-   ``ω_ie sin L`` along the rest's measured up is taken out of the rest mean (the horizontal
-   component would need the heading; left in, it tilts -- and levelling and gravity aiding
-   correct tilt -- but does not turn the heading);
-3. **integration** of ``ω − b(t)`` with the chosen algorithm, the attitude **held at rests**
-   (zero-rate update);
-4. **tilt from gravity** (``aiding`` gravity, tilt or magnetometer): the specific force rotated
-   into the integration frame, ``f_i = C(q) f_b``, points up plus the slowly drifting gyro
-   error plus the carrier's acceleration, whose mean over a few seconds is small.  It is
-   low-passed zero-phase: averaged with the kernel ``e^(−|s_k − s_j|/τ)``, ``τ =
-   offline_tilt_tau_s`` (a first-order filter run forward plus one run backward), on a clock
-   ``s`` that stops at the rests where the attitude is held: there the integration error
-   cannot change, so a rest's samples all see the error of the motion's ends next to it, and
-   the time spent still is no reason to trust them less (the smoother of a state that drifts
-   only while the body moves).  Every usable accelerometer sample weighted 1, no gate (a gate on
-   ``| |f| − g |`` keeps the samples whose norm happens to cross g during a translation, which
-   point anywhere: docs/real_sensors.md); the smoothed direction ``u`` gives the tilt
-   correction, the smallest rotation taking ``u`` to up, applied on the left (integration
-   frame) so that the heading is untouched.  With ``initial_attitude="level"`` (without aiding)
-   the same correction is taken at **every rest** from the rest's mean specific force and
-   interpolated in time between rests; the initial roll and pitch come from the first rest;
-5. **covariance** per output axis (:func:`_gyro_error_variance`): the gyro-only error is the
-   integral of the body-frame bias and noise errors rotated into the output frame,
-   ``δθ(t) = ∫ C_nb (δb(τ) + E ω + n) dτ`` over the motion (held at rests; ``E`` the gyro's 3×3
-   gain-and-axes error, every element of 1σ ``gyro_scale_factor_sigma``: ``var_k += σ² Σ_mn
-   (∫ C[k,m] ω_n dτ)²``); with the interpolated bias
-   ``δb = (1 − w) δb_j + w δb_{j+1}`` this is ``Σ_j M_j(t) δb_j`` with ``M_j = ∫ C_nb φ_j dτ``
+1. **rests** (:func:`.rest.detect_rest` with the causal thresholds, per gap-free run with a
+   usable accelerometer): a sample rests when it is the newest of a rest window (the tail of
+   a motion is out: a window starting there may pass, and holding the attitude over it loses
+   the end of the turn) and is followed by a full window of rest (the gentle start of a
+   motion is out); a rest counts when the causal bias stage counts it (its windows' oldest
+   samples span ``min_rest_s``), so both find the same rests on even, jittered or irregular
+   stamps;
+2. **gyro bias per rest** (``gyro_bias="auto"``): the rest mean with standard error
+   ``√(σ²/n + K² T/3)`` (white noise plus the bias random walk ``K`` over the rest's length
+   ``T``), interpolated linearly in time between rests (the smoother of a random-walk bias
+   between two point estimates) and held before the first and after the last.  With a
+   latitude and an accelerometer the vertical Earth rate ``ω_ie sin L`` along the rest's
+   measured up is taken out of the mean (the horizontal part needs the heading; left in, it
+   tilts -- which gravity corrects -- but does not turn the heading);
+3. **integration** of ``ω − b(t)`` with the chosen algorithm, the attitude held at rests;
+4. **tilt from gravity** (any aiding): ``f_i = C(q) f_b`` points up plus the slowly drifting
+   gyro error plus the carrier's acceleration, whose mean over a few seconds is small.  It is
+   averaged zero-phase with the kernel ``e^(−|s_k − s_j|/τ)``, ``τ = offline_tilt_tau_s`` (a
+   first-order low-pass forward plus one backward), on a clock ``s`` that stops at rests: the
+   held attitude's error cannot change there, so a rest is no reason to trust the motion's
+   ends less.  Every usable sample weighs 1, no gate (a gate on ``| |f| − g |`` keeps the
+   samples whose norm crosses g during a translation, which point anywhere:
+   docs/real_sensors.md).  The smallest rotation taking the smoothed ``u`` to up is applied
+   on the left (integration frame), the heading untouched.  ``initial_attitude="level"``
+   without aiding takes that correction at every rest from the rest's mean specific force,
+   interpolated in time between rests (the initial roll and pitch from the first rest);
+5. **covariance** per output axis: the gyro-only error ``δθ(t) = ∫ C_nb (δb + E ω + n) dτ``
+   over the motion (``E`` the gyro's 3×3 gain-and-axes error, each element of 1σ
+   ``gyro_scale_factor_sigma``: ``var_k += σ² Σ_mn (∫ C[k,m] ω_n dτ)²``).  The interpolated
+   bias ``δb = (1 − w) δb_j + w δb_{j+1}`` gives ``Σ_j M_j(t) δb_j``, ``M_j = ∫ C_nb φ_j dτ``
    (``φ_j`` the interpolation weights), so ``var_k = Σ_j Σ_m SE_{j,m}² M_j[k,m]²`` plus the
-   angle random walk ``Σ C[k,m]² σ_m² dt²`` plus the random walk's bridge ``K²(s³/3 − s⁴/4T)``
-   (``s`` motion time since the rest, ``T`` to the next).  The heading (third) axis keeps it and
-   grows between rests; the tilt axes take the tilt-from-gravity variance where gravity is used:
-   ``(σ_ba/g)² + σ_f²/(g² n_eff)`` with ``n_eff = (Σ k w)²/Σ k² w²`` the samples the smoother
-   averages (``k`` its kernel, ``w`` the weights) and ``σ_f²`` the
-   measured scatter of ``f_i`` about ``g u`` (accelerometer noise and the carrier's acceleration:
-   the residual that leaks into the mean), or the levelling variance at rests with the gyro-only
-   growth bridged between them.  The gyro noise ``σ_ω`` comes from the messages'
-   ``angular_velocity_covariance``, else ``gyro_noise_density``, else the scatter measured at the
-   rests.
+   angle random walk ``Σ C[k,m]² σ_m² dt²`` plus the random walk's bridge ``K²(s³/3 −
+   s⁴/4T)`` (``s`` motion time since the rest, ``T`` to the next).  The heading keeps it; the
+   tilt axes take, where gravity is used, ``(σ_ba/g)² + σ_f²/(g² n_eff)`` with ``n_eff = (Σ k
+   w)²/Σ k² w²`` the samples the smoother averages (``k`` its kernel, ``w`` the weights) and
+   ``σ_f²`` the accelerometer's scatter at rest, or the levelling variance at rests with the
+   gyro-only growth bridged between them.  The gyro noise ``σ_ω`` comes from the messages'
+   ``angular_velocity_covariance``, else ``gyro_noise_density``, else the rests' scatter;
+6. **heading from the magnetometer** (``aiding="magnetometer"``): the field less
+   ``mag_hard_iron_t`` in the tilt-corrected output frame counts (weight 1) when its norm is
+   within ``mag_norm_tol`` of the reference and its dip within ``mag_dip_tol_deg``
+   (reference: ``mag_reference_enu_t``, or the medians over the recording -- a disturbance
+   covering less than half of it cannot become the reference); its horizontal direction,
+   turned by ``magnetic_declination_deg``, is smoothed as in step 4 (``offline_mag_tau_s``)
+   and the smoothed azimuth is the heading error, taken out about the vertical.  A disturbed
+   stretch weighs 0: the smoother bridges it from the field on both sides and the gyro, with
+   no jump toward a false north.  Heading variance: the azimuth scatter over ``n_eff`` plus
+   the tilt error about north seen through the dip (``tan²(dip) var_N``).  Not done offline:
+   hard-iron estimation, reference replacement after a lasting change (``mag_recovery_s``).
 
-6. **heading from the magnetometer** (``aiding="magnetometer"``, ``mag`` given): the field less
-   ``mag_hard_iron_t``, rotated into the tilt-corrected output frame; a sample counts
-   (weight 1) when its norm is within ``mag_norm_tol`` of the reference and its dip within
-   ``mag_dip_tol_deg`` (reference: ``mag_reference_enu_t``, or the medians of norm and dip over
-   the recording -- the whole recording votes, so a disturbance covering less than half of it
-   cannot become the reference); its horizontal direction, turned by
-   ``magnetic_declination_deg``, is low-passed zero-phase (``offline_mag_tau_s``) and the
-   azimuth of the smoothed direction is the heading error, taken out about the vertical on the
-   left.  A disturbed stretch has weight 0: the heading there is interpolated by the smoother
-   from the field on both sides and the gyro in between -- no jump toward a false north.  The
-   heading variance is then the azimuth scatter over the samples averaged plus the tilt error
-   about north seen through the dip (``tan²(dip) var_N``).  Not done offline: hard-iron
-   estimation (``mag_hard_iron_estimate``: the given offset is used), reference replacement
-   after a lasting change (the causal ``mag_recovery_s``).
-
-Time jumps split the recording into blocks that are estimated independently (the attitude
-resets to ``q0``); gaps are held across.  Memory: the output (index, q, variance, action) plus
-O(``chunk_samples``) working arrays; the forward low-pass keeps only its state at chunk
-boundaries and is recomputed chunk by chunk in the backward pass.
+Time jumps split the recording into blocks estimated independently; gaps are held across.
+Memory: the outputs plus O(``chunk_samples``) working arrays (the forward low-pass keeps its
+state at chunk starts and is recomputed chunk by chunk in the backward pass).
 """
 
 from __future__ import annotations
@@ -788,10 +770,9 @@ class _Estimator:
 
     # ------------------------------------------------------------------ 4. tilt, 6. heading
     def _clock_steps(self, b0, c0, c1, still):
-        """Seconds of the smoother's clock from the row before to each row of ``c0:c1``: the
-        stamp step, 0 at the block's first row, at a row not accepted (a gap restart: the
-        attitude is held across the gap) and at a row of ``still`` (block-relative: a rest,
-        where the attitude is held and its error cannot change)."""
+        """Steps (s) of the smoother's clock into each row of ``c0:c1``: the stamp step, 0 at
+        the block's first row, at a gap restart and at a row of ``still`` (block-relative:
+        the attitude is held there, its error cannot change)."""
         ds = np.empty(c1 - c0)
         ds[1:] = np.diff(self.t[c0:c1]) * 1e-9
         ds[0] = (self.t[c0] - self.t[c0 - 1]) * 1e-9 if c0 > b0 else 0.0
@@ -801,19 +782,15 @@ class _Estimator:
         return ds
 
     def _zero_phase(self, b0, b1, tau_s, columns, apply, still=None):
-        """The one zero-phase smoother of the chain: every row's columns ``columns(c0, c1)`` ->
-        (rows, K), the last the sample's weight ``w``, averaged with the kernel
-        ``e^(−|s_k − s_j|/τ)`` on the clock ``s`` (:meth:`_clock_steps`: time, stopped at the
-        rows of ``still``), as a first-order low-pass run forward plus one run backward (the
-        two-filter form: ``Σ_{j≤k} + Σ_{j≥k} − the row itself``).  ``apply(c0, c1, sm, n_eff)``
-        gets each chunk's smoothed columns, last chunk first, scaled so that the weight column
-        is 1 where every weight is 1 on even stamps, and the number of samples the average is
-        worth, ``n_eff = (Σ k w)² / Σ k² w²`` (``k`` the kernel; 4τ/dt on even stamps with
-        every weight 1; every row of a still stretch counts whole: its clock does not move).
-        The forward pass keeps its state at chunk starts (and its output while the block is
-        short); the backward pass recomputes a chunk's forward part where it was not kept --
-        before ``apply`` of that chunk, so ``columns`` may read what ``apply`` of later chunks
-        changed, not what it changes in this one."""
+        """The chain's one zero-phase smoother: the columns ``columns(c0, c1)`` (rows, K), the
+        last the sample's weight ``w``, averaged with the kernel ``e^(−|s_k − s_j|/τ)`` on the
+        clock of :meth:`_clock_steps` as a first-order low-pass forward plus one backward
+        (``Σ_{j≤k} + Σ_{j≥k} −`` the row itself).  ``apply(c0, c1, sm, n_eff)`` gets each
+        chunk, last first: the columns scaled so that the weight column is 1 with every weight
+        1 on even stamps, and ``n_eff = (Σ k w)² / Σ k² w²`` (4τ/dt on even stamps).  The
+        forward pass keeps its state at chunk starts (and its output while the block is
+        short); the backward pass recomputes a chunk's forward part before ``apply`` of that
+        chunk, so ``columns`` may read what ``apply`` of later chunks changed."""
         t = self.t
         dt = float(np.median(np.diff(t[b0:min(b1, b0 + 100_000)]))) * 1e-9 if b1 - b0 > 1 else 0.01
         alpha = math.exp(-max(dt, 1e-9) / tau_s)
@@ -822,8 +799,7 @@ class _Estimator:
         keep = b1 - b0 <= _KEEP_FORWARD
 
         def rows(c0, c1):
-            """The chunk's columns, its squared weight beside them (it rides with the squared
-            kernel, τ/2), and its clock steps."""
+            """The columns and the squared weight (it rides with the squared kernel, τ/2)."""
             x = columns(c0, c1)
             return np.column_stack((x, x[:, -1] * x[:, -1])), self._clock_steps(b0, c0, c1, still)
 
@@ -859,9 +835,7 @@ class _Estimator:
             apply(c0, c1, sm[:, :-1] * scale, n_eff)
 
     def _tilt_from_gravity(self, b0, b1, held, q_out, var_out):
-        """Zero-phase weighted low-pass of ``f_i`` (module docstring, step 4), the correction
-        applied in place chunk by chunk; ``held``: the rows where the attitude was held (the
-        rests, block-relative; None without), where the smoother's clock stops."""
+        """Step 4 of the module docstring, in place; the smoother's clock stops at ``held``."""
         cfg = self.cfg
         g0 = STANDARD_GRAVITY
         noise = [r.accel_var for r in self.rests if np.isfinite(r.accel_var).all()]
@@ -884,19 +858,11 @@ class _Estimator:
             okd = den > 1e-12
             # the smallest rotation taking the smoothed f_i to up (scale-free: Σ w f_i needs no
             # division by Σ w)
-            u = sm[:, :3]
-            if not okd.all():
-                u = np.where(okd[:, None], u, (0.0, 0.0, 1.0))
+            u = np.where(okd[:, None], sm[:, :3], (0.0, 0.0, 1.0))
             q_out[c0:c1] = _level_left(u, q_out[c0:c1])
-            # tilt variance: the accelerometer-bias floor plus its noise over the samples
-            # the smoother averages
+            # the accelerometer-bias floor plus its noise over the samples averaged
             tilt = floor + sf2 / (g0 * g0) / np.maximum(n_eff, 1.0)
-            if okd.all():
-                var_out[c0:c1, 0] = tilt
-                var_out[c0:c1, 1] = tilt
-            else:
-                var_out[c0:c1, 0] = np.where(okd, tilt, var_out[c0:c1, 0])
-                var_out[c0:c1, 1] = np.where(okd, tilt, var_out[c0:c1, 1])
+            var_out[c0:c1, :2] = np.where(okd[:, None], tilt[:, None], var_out[c0:c1, :2])
 
         self._zero_phase(b0, b1, cfg.offline_tilt_tau_s, columns, apply, still=held)
         self.notes.append(f"tilt from gravity: zero-phase low-pass, τ = {cfg.offline_tilt_tau_s:g} "
