@@ -366,7 +366,7 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
         heading = heading_of(q_init)
         q_init, _, _ = level_quaternion(av[int(np.argmax(usable))], heading)
         start_notes.append(START_NOTE.format(math.degrees(heading)))
-    mv = _mag_rows(cfg, mag, n, valid, empty, counts)
+    mv = _mag_rows(cfg, mag, n, valid, empty)
     sig2 = None  # per-row gyro variance (M, 3) from the messages, where known
     if cov is not None:
         var_v, known_v = covariance_rows(cov, valid, counts, details)
@@ -388,8 +388,13 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
         details.setdefault(RATE_FIT_FALLBACK, rate_fit_note(int(tv[int(fell_back.min())])))
     notes = est.notes
     if cfg.aiding is Aiding.MAGNETOMETER:
-        _mag_counts(est.mag_counts, counts, details)
-    if acc is None or av is None:
+        if mv is None:
+            est.mag_counts[MAG_MISSING] = valid.size
+        counts.update(est.mag_counts)
+        for key in (INVALID_MAG, MAG_DISTURBED, MAG_MISSING):
+            if counts[key]:
+                details.setdefault(key, _MAG_DETAILS[key])
+    if av is None:
         notes.insert(0, "no accelerometer: gyro-only offline estimation (rests from the gyro, "
                      "no levelling, no tilt aiding)")
     res = StreamResult(valid, q_out, var_out, known_out, act, counts, cls.time_jump_resets,
@@ -434,13 +439,9 @@ def _accel_rows(acc, valid, empty, counts, details):
     return av, usable
 
 
-def _mag_rows(cfg, mag, n, valid, empty, counts):
-    """The accepted rows' magnetic field (aiding magnetometer), else None; its counts start."""
-    if cfg.aiding is not Aiding.MAGNETOMETER:
-        return None
-    counts.update({MAG_MISSING: 0, INVALID_MAG: 0, MAG_DISTURBED: 0})
-    if mag is None:
-        counts[MAG_MISSING] = valid.size
+def _mag_rows(cfg, mag, n, valid, empty):
+    """The accepted rows' magnetic field (aiding magnetometer and a field given), else None."""
+    if cfg.aiding is not Aiding.MAGNETOMETER or mag is None:
         return None
     mag = np.asarray(mag, dtype=np.float64)
     if mag.shape != (n, 3):
@@ -448,16 +449,10 @@ def _mag_rows(cfg, mag, n, valid, empty, counts):
     return rows(mag, valid, empty)
 
 
-def _mag_counts(mag_counts, counts, details) -> None:
-    """The magnetometer's counts added, with a detail for each that occurred."""
-    for key, c in mag_counts.items():
-        counts[key] += c
-    for key, text in ((INVALID_MAG, "a magnetic field sample not finite, beyond 10 mT or "
-                                    "below 0.1 µT"),
-                      (MAG_DISTURBED, "a field whose norm or dip is off the reference"),
-                      (MAG_MISSING, "no magnetic field sample for these Imu samples")):
-        if counts[key]:
-            details.setdefault(key, text)
+# the magnetometer's counts (aiding magnetometer) and the detail of each that occurred
+_MAG_DETAILS = {MAG_MISSING: "no magnetic field sample for these Imu samples",
+                INVALID_MAG: "a magnetic field sample not finite, beyond 10 mT or below 0.1 µT",
+                MAG_DISTURBED: "a field whose norm or dip is off the reference"}
 
 
 class _BiasTerms:
@@ -556,7 +551,7 @@ class _Estimator:
         self.cfg, self.q_init, self.nav, self.algorithm, self.size = cfg, q_init, nav, algorithm, size
         self.t, self.w, self.a, self.usable, self.sig2, self.act = t, w, a, usable, sig2, act
         self.mag = mag
-        self.mag_counts = {MAG_MISSING: 0, INVALID_MAG: 0, MAG_DISTURBED: 0}
+        self.mag_counts = dict.fromkeys(_MAG_DETAILS, 0)
         self.field_reference: FieldReference | None = None
         self.all_usable = usable is not None and bool(usable.all())
         self.nav_series = None if nav is None else nav.series_length()
