@@ -1019,10 +1019,11 @@ class _Estimator:
         """Gyro-only error variance per output axis (module docstring, step 5)."""
         cfg = self.cfg
         size = max(_COV_BLOCK, self.size // _COV_BLOCK * _COV_BLOCK)  # blocks never straddle
-        auto = cfg.gyro_bias is GyroBiasMode.AUTO and rests
-        bias = _BiasTerms(rests if auto else None, cfg.gyro_bias_sigma_rad_s,
-                          self.k2)
-        measured = self._measured_noise(rests)
+        bias = _BiasTerms(rests if cfg.gyro_bias is GyroBiasMode.AUTO else None,
+                          cfg.gyro_bias_sigma_rad_s, self.k2)
+        rr = [r for r in (rests or self.rests) if r.stop - r.start > 1]  # the noise at rests
+        measured = np.average([r.gyro_var for r in rr], axis=0,
+                              weights=[r.stop - r.start for r in rr]) if rr else None
         sf2 = cfg.gyro_scale_factor_sigma ** 2
         # ∫ C_nb[k, m] ω_n dτ: the lever of the gyro's gain-and-axes error matrix E[m, n]
         # (scale factors on the diagonal, axis misalignments off it; never reset)
@@ -1061,25 +1062,12 @@ class _Estimator:
                                                                            out[:, k])))
             prev_end = out[-1].copy()
 
-    def _measured_noise(self, rests):
-        """The gyro's noise variance measured at the rests (weighted by length), or None."""
-        rr = [r for r in (rests or self.rests) if r.stop - r.start > 1]
-        if not rr:
-            return None
-        return np.average([r.gyro_var for r in rr], axis=0, weights=[r.stop - r.start for r in rr])
-
     def _row_noise(self, b0, c0, c1, rest, measured):
         """(dt, angle-noise variance per row and axis) of rows ``c0:c1``: the gyro noise from
-        the messages, else the density, else the scatter measured at rests; no time passes
-        at a rejected row or a rest (held: no error grows)."""
+        the messages, else the density, else the scatter measured at rests; the time is the
+        smoother's clock (none passes at a gap or a rest: the attitude is held)."""
         nrow = c1 - c0
-        dt = np.zeros(nrow)
-        dt[1:] = np.diff(self.t[c0:c1]) * 1e-9
-        if c0 > b0:
-            dt[0] = (self.t[c0] - self.t[c0 - 1]) * 1e-9
-        dt[self.act[c0:c1] != v.ACTION_CODES[v.ACCEPT]] = 0.0
-        if rest is not None:
-            dt[rest[c0 - b0:c1 - b0]] = 0.0
+        dt = self._clock_steps(b0, c0, c1, rest)
         n2 = self.cfg.gyro_noise_density ** 2
         if self.sig2 is not None:
             s2 = np.where(self.sig2[1][c0:c1, None], self.sig2[0][c0:c1], 0.0) * (
