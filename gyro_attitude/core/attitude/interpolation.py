@@ -27,7 +27,8 @@ def lagrange_eval(x_nodes: np.ndarray, y_nodes: np.ndarray, x_eval: np.ndarray) 
         w = np.ones(x_eval.shape)
         for j in range(n):
             if j != i:
-                w = w * (x_eval - x_nodes[:, j:j + 1]) / (x_nodes[:, i:i + 1] - x_nodes[:, j:j + 1])
+                xj = x_nodes[:, j:j + 1]
+                w = w * (x_eval - xj) / (x_nodes[:, i:i + 1] - xj)
         out += w[..., None] * y_nodes[:, None, i, :]
     return out
 
@@ -254,7 +255,8 @@ def untrusted_fits(t_ns: np.ndarray, omega: np.ndarray, k: np.ndarray, fitted: n
             wj = omega[np.minimum(first + jj, last)]
             lo, hi = np.minimum(lo, wj), np.maximum(hi, wj)
         slack = FIT_OVERSHOOT_MAX * (hi - lo) + 1e-12 * (np.abs(lo) + np.abs(hi))
-        over = ((fitted > (hi + slack)[:, None]) | (fitted < (lo - slack)[:, None])).any(axis=(1, 2))
+        over = ((fitted > (hi + slack)[:, None])
+                | (fitted < (lo - slack)[:, None])).any(axis=(1, 2))
         if over.any():
             bad = over.astype(np.float64) if bad is None else np.where(over, 1.0, bad)
     return bad

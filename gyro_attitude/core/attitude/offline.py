@@ -548,7 +548,8 @@ class _Estimator:
     def __init__(self, cfg, q_init, nav, algorithm, size, t, w, a, usable, sig2, act, mag=None,
                  empty=np.empty):
         self.empty = empty  # allocator of the outputs
-        self.cfg, self.q_init, self.nav, self.algorithm, self.size = cfg, q_init, nav, algorithm, size
+        self.cfg, self.q_init, self.nav, self.algorithm = cfg, q_init, nav, algorithm
+        self.size = size
         self.t, self.w, self.a, self.usable, self.sig2, self.act = t, w, a, usable, sig2, act
         self.mag = mag
         self.mag_counts = dict.fromkeys(_MAG_DETAILS, 0)
@@ -583,8 +584,9 @@ class _Estimator:
             runs = list(zip(s, [*s[1:], b1], strict=True))
             self._block(b0, b1, runs, q_out, var_out)
         cfg = self.cfg
-        if not (self.sig2 is not None or cfg.gyro_noise_density > 0 or cfg.gyro_bias_sigma_rad_s > 0
-                or cfg.levelling or any(r.gyro_var.any() for r in self.rests)):
+        if not (self.sig2 is not None or cfg.gyro_noise_density > 0
+                or cfg.gyro_bias_sigma_rad_s > 0 or cfg.levelling
+                or any(r.gyro_var.any() for r in self.rests)):
             return q_out, None, None
         known = self.empty(m, bool)
         known.fill(True)
@@ -860,8 +862,8 @@ class _Estimator:
             var_out[c0:c1, :2] = np.where(okd[:, None], tilt[:, None], var_out[c0:c1, :2])
 
         self._zero_phase(b0, b1, cfg.offline_tilt_tau_s, columns, apply, still=held)
-        self.notes.append(f"tilt from gravity: zero-phase low-pass, τ = {cfg.offline_tilt_tau_s:g} "
-                          "s")
+        self.notes.append(f"tilt from gravity: zero-phase low-pass, τ = "
+                          f"{cfg.offline_tilt_tau_s:g} s")
 
     def _field_rows(self, raw, q):
         """The field ``raw`` less the hard iron, rotated into the output frame by ``q`` (zeros
@@ -970,7 +972,8 @@ class _Estimator:
             # heading variance: the azimuth scatter of the samples over the n_eff the smoother
             # averages, plus the tilt error about north seen through the dip (δψ = tan(dip) δθ_N)
             if good.any():
-                r = (np.arctan2(ex[good], ey[good]) - err[good] + math.pi) % (2 * math.pi) - math.pi
+                r = (np.arctan2(ex[good], ey[good]) - err[good] + math.pi) % (2 * math.pi) \
+                    - math.pi
                 scatter[0] = float(np.mean(r * r))
             if scatter[0] is not None:
                 head = scatter[0] / np.maximum(n_eff, 1.0) + coupling * var_out[c0:c1, 1]
@@ -1087,9 +1090,10 @@ class _Estimator:
             return GyroBiasReport("parameter", np.asarray(cfg.gyro_bias_rad_s, float), 0, 0,
                                   np.full(3, np.nan), False, "fixed parameter")
         if cfg.gyro_bias is GyroBiasMode.NONE or not self.rests:
-            note = "no rest found: bias 0" if cfg.gyro_bias is GyroBiasMode.AUTO else "not estimated"
-            return GyroBiasReport(cfg.gyro_bias.value, np.zeros(3), 0, 0, np.full(3, np.nan), False,
-                                  note)
+            note = "no rest found: bias 0" if cfg.gyro_bias is GyroBiasMode.AUTO \
+                else "not estimated"
+            return GyroBiasReport(cfg.gyro_bias.value, np.zeros(3), 0, 0, np.full(3, np.nan),
+                                  False, note)
         n = np.array([r.stop - r.start for r in self.rests], dtype=np.float64)
         b = np.average([r.bias for r in self.rests], axis=0, weights=n)
         se = np.sqrt(np.average([r.standard_error ** 2 for r in self.rests], axis=0,
@@ -1108,7 +1112,6 @@ def count_saturated(tv: np.ndarray, wv: np.ndarray, counts: dict, details: dict,
     held at the largest magnitude the axis ever reaches (at least SATURATION_MIN_RAD_S) for
     SATURATION_PLATEAU_NS up to the row -- the causal step's rule with the whole recording's
     largest value (a repeated local peak is no clip).  ``chunk`` rows at a time."""
-    counts[SATURATED] = 0
     n = wv.shape[0]
     top = np.zeros(3)
     for c0 in range(0, n, chunk):
