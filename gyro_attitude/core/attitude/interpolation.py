@@ -27,7 +27,8 @@ def lagrange_eval(x_nodes: np.ndarray, y_nodes: np.ndarray, x_eval: np.ndarray) 
         w = np.ones(x_eval.shape)
         for j in range(n):
             if j != i:
-                w = w * (x_eval - x_nodes[:, j:j + 1]) / (x_nodes[:, i:i + 1] - x_nodes[:, j:j + 1])
+                xj = x_nodes[:, j:j + 1]
+                w = w * (x_eval - xj) / (x_nodes[:, i:i + 1] - xj)
         out += w[..., None] * y_nodes[:, None, i, :]
     return out
 
@@ -162,61 +163,6 @@ def _gathered_causal_rates(t_ns, omega, k, fractions, lookahead):
     return out
 
 
-@kernel
-def lagrange_points_scalar(xs, ys, es):
-    """Plain-float twin of :func:`lagrange_eval`: the polynomial through ``(xs[i], ys[i])``
-    (``ys[i]``: 3 values, a tuple or an array row) at each point of ``es``, a list of 3-tuples.
-    The weights' denominators ∏_{j≠i}(x_i − x_j) depend only on the nodes, so they are formed
-    once for all points (the causal cubic is evaluated at two Gauss points per sample); the
-    four-node case, every sample's, is written out.  A kernel (:mod:`gyro_attitude.core.jit`):
-    indexing only, no unpacking of lists."""
-    out = []
-    if len(xs) == 4:
-        x0, x1, x2, x3 = xs[0], xs[1], xs[2], xs[3]
-        d01, d02, d03, d12, d13, d23 = x0 - x1, x0 - x2, x0 - x3, x1 - x2, x1 - x3, x2 - x3
-        i0 = 1.0 / (d01 * d02 * d03)
-        i1 = -1.0 / (d01 * d12 * d13)
-        i2 = 1.0 / (d02 * d12 * d23)
-        i3 = -1.0 / (d03 * d13 * d23)
-        p, q, r, s = ys[0], ys[1], ys[2], ys[3]
-        for e in es:
-            a0, a1, a2, a3 = e - x0, e - x1, e - x2, e - x3
-            a01, a23 = a0 * a1, a2 * a3
-            w0, w1, w2, w3 = a1 * a23 * i0, a0 * a23 * i1, a01 * a3 * i2, a01 * a2 * i3
-            out.append((w0 * p[0] + w1 * q[0] + w2 * r[0] + w3 * s[0],
-                        w0 * p[1] + w1 * q[1] + w2 * r[1] + w3 * s[1],
-                        w0 * p[2] + w1 * q[2] + w2 * r[2] + w3 * s[2]))
-        return out
-    inv = []
-    for i in range(len(xs)):
-        d = 1.0
-        for j in range(len(xs)):
-            if j != i:
-                d *= xs[i] - xs[j]
-        inv.append(1.0 / d)
-    for e in es:
-        ox = oy = oz = 0.0
-        for i in range(len(xs)):
-            y = ys[i]
-            wgt = inv[i]
-            for j in range(len(xs)):
-                if j != i:
-                    wgt *= e - xs[j]
-            ox += wgt * y[0]
-            oy += wgt * y[1]
-            oz += wgt * y[2]
-        out.append((ox, oy, oz))
-    return out
-
-
-def causal_rates_scalar(ts, ws, k, nodes, fractions):
-    """Plain-float twin of :func:`causal_rates_at` for one interval ``k`` (fit on ``nodes``)."""
-    t_prev = ts[k - 1]
-    h = (ts[k] - t_prev) * 1e-9
-    xs = [(ts[i] - t_prev) * 1e-9 for i in nodes]
-    return lagrange_points_scalar(xs, [ws[i] for i in nodes], [h * f for f in fractions])
-
-
 # --------------------------------------------------------------------------- trusting a fit
 # A rate fit is a polynomial through samples; it can be trusted only where the samples resolve
 # the motion.  Two signs that they do not (docs/equations.md "When a rate fit cannot be trusted";
@@ -309,7 +255,8 @@ def untrusted_fits(t_ns: np.ndarray, omega: np.ndarray, k: np.ndarray, fitted: n
             wj = omega[np.minimum(first + jj, last)]
             lo, hi = np.minimum(lo, wj), np.maximum(hi, wj)
         slack = FIT_OVERSHOOT_MAX * (hi - lo) + 1e-12 * (np.abs(lo) + np.abs(hi))
-        over = ((fitted > (hi + slack)[:, None]) | (fitted < (lo - slack)[:, None])).any(axis=(1, 2))
+        over = ((fitted > (hi + slack)[:, None])
+                | (fitted < (lo - slack)[:, None])).any(axis=(1, 2))
         if over.any():
             bad = over.astype(np.float64) if bad is None else np.where(over, 1.0, bad)
     return bad
@@ -417,8 +364,7 @@ def causal_window(n_samples: int, lookahead: bool):
 @kernel(inline=True)
 def _lagrange_at(n, x0, x1, x2, x3, y0, y1, y2, y3, e):
     """The polynomial through the first ``n`` (2, 3 or 4) of the nodes ``(x_i, y_i)`` at
-    ``e``: :func:`lagrange_points_scalar` written out per node count, the same operations in
-    the same order (so the same numbers), nothing allocated."""
+    ``e`` (Lagrange form, written out per node count: nothing allocated)."""
     if n == 4:
         d01, d02, d03, d12, d13, d23 = x0 - x1, x0 - x2, x0 - x3, x1 - x2, x1 - x3, x2 - x3
         i0 = 1.0 / (d01 * d02 * d03)
@@ -446,10 +392,17 @@ def _lagrange_at(n, x0, x1, x2, x3, y0, y1, y2, y3, e):
 
 @kernel(inline=True)
 def causal_fit_two(ts, ws, k, n, fa, fb):
+    """:func:`causal_fit_points` and whether the fit can be trusted
+    (:func:`untrusted_fit_scalar`): (rate at ``fa``, at ``fb``, h, the exponential map's
+    weight)."""
+    f0, f1, h = causal_fit_points(ts, ws, k, n, fa, fb)
+    return f0, f1, h, untrusted_fit_scalar(ts, ws, k, n, f0, f1)
+
+
+@kernel(inline=True)
+def causal_fit_points(ts, ws, k, n, fa, fb):
     """The causal fit through the first ``n`` samples of the histories at the fractions
-    ``fa`` and ``fb`` of interval ``k``, and whether it can be trusted
-    (:func:`untrusted_fit_scalar`): (rate at the first point, at the second, h, the
-    exponential map's weight)."""
+    ``fa`` and ``fb`` of interval ``k``: (rate at the first point, at the second, h)."""
     t_prev = ts[k - 1]
     h = (ts[k] - t_prev) * 1e-9
     x0 = (ts[0] - t_prev) * 1e-9
@@ -461,4 +414,4 @@ def causal_fit_two(ts, ws, k, n, fa, fb):
     y3 = ws[3] if n > 3 else ws[0]
     f0 = _lagrange_at(n, x0, x1, x2, x3, y0, y1, y2, y3, h * fa)
     f1 = _lagrange_at(n, x0, x1, x2, x3, y0, y1, y2, y3, h * fb)
-    return f0, f1, h, untrusted_fit_scalar(ts, ws, k, n, f0, f1)
+    return f0, f1, h

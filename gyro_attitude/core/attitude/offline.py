@@ -1,82 +1,64 @@
-"""Offline attitude over a whole recording: rests, bias and gravity seen from both sides of every sample.
+"""Offline attitude over a whole recording: rests, bias and gravity from both sides of a sample.
 
-:func:`estimate_offline` is the non-causal counterpart of :meth:`.stream.AttitudeStream.run`:
-same input, same sample verdicts (:func:`.validation.classify`: bad samples skipped and
-counted, no integration across a gap, a backward time jump resets to ``q0``), same
-:class:`.stream.StreamResult`; every attitude may use samples after it.  The chain, each step an
-array operation over chunks of ``chunk_samples`` accepted samples (no per-sample Python):
+:func:`estimate_offline` is the non-causal estimator beside :meth:`.stream.AttitudeStream.run`:
+the same sample verdicts (:func:`.validation.classify`: bad samples skipped and counted, no
+integration across a gap, a backward time jump resets to ``q0``) and the same
+:class:`.stream.StreamResult`, but every attitude may use samples after it.  Each step is an
+array operation over chunks of ``chunk_samples`` accepted samples:
 
-1. **rests** over the whole recording (:func:`.rest.detect_rest`, window statistics by
-   cumulative sums, the thresholds of the causal path, per gap-free run with a usable
-   accelerometer); a sample is at rest when it is followed by a full window of rest (between
-   the oldest samples of the first and the last window of a run of rest windows, as the
-   causal consumers take it: the gentle start of a motion is out) and it is the newest of a
-   rest window (the tail of a motion is out too: a window starting there may pass the test,
-   and holding the attitude over it loses the last of the turn); a rest counts when the
-   causal bias stage counts it (those oldest samples span ``min_rest_s``), so both find the
-   same rests, on even, jittered or irregular stamps alike;
-2. **gyro bias per rest** (``gyro_bias="auto"``): the rest mean with its standard error
-   ``√(σ²/n + K² T/3)`` (white noise, plus the bias random walk ``K`` over the rest's length
-   ``T``); between rests the bias is interpolated linearly in time (the smoother of a random-walk
-   bias between two point estimates), before the first and after the last rest it is held.  With
-   a latitude (``nav`` or ``latitude_rad``) and an accelerometer the vertical Earth rate
-   ``ω_ie sin L`` along the rest's measured up is taken out of the rest mean (the horizontal
-   component would need the heading; left in, it tilts -- and levelling and gravity aiding
-   correct tilt -- but does not turn the heading);
-3. **integration** of ``ω − b(t)`` with the chosen algorithm, the attitude **held at rests**
-   (zero-rate update);
-4. **tilt from gravity** (``aiding`` gravity, tilt or magnetometer): the specific force rotated
-   into the integration frame, ``f_i = C(q) f_b``, points up plus the slowly drifting gyro
-   error plus the carrier's acceleration, whose mean over a few seconds is small.  It is
-   low-passed zero-phase: averaged with the kernel ``e^(−|s_k − s_j|/τ)``, ``τ =
-   offline_tilt_tau_s`` (a first-order filter run forward plus one run backward), on a clock
-   ``s`` that stops at the rests where the attitude is held: there the integration error
-   cannot change, so a rest's samples all see the error of the motion's ends next to it, and
-   the time spent still is no reason to trust them less (the smoother of a state that drifts
-   only while the body moves).  Every usable accelerometer sample weighted 1, no gate (a gate on
-   ``| |f| − g |`` keeps the samples whose norm happens to cross g during a translation, which
-   point anywhere: docs/real_sensors.md); the smoothed direction ``u`` gives the tilt
-   correction, the smallest rotation taking ``u`` to up, applied on the left (integration
-   frame) so that the heading is untouched.  With ``initial_attitude="level"`` (without aiding)
-   the same correction is taken at **every rest** from the rest's mean specific force and
-   interpolated in time between rests; the initial roll and pitch come from the first rest;
-5. **covariance** per output axis (:func:`_gyro_error_variance`): the gyro-only error is the
-   integral of the body-frame bias and noise errors rotated into the output frame,
-   ``δθ(t) = ∫ C_nb (δb(τ) + E ω + n) dτ`` over the motion (held at rests; ``E`` the gyro's 3×3
-   gain-and-axes error, every element of 1σ ``gyro_scale_factor_sigma``: ``var_k += σ² Σ_mn
-   (∫ C[k,m] ω_n dτ)²``); with the interpolated bias
-   ``δb = (1 − w) δb_j + w δb_{j+1}`` this is ``Σ_j M_j(t) δb_j`` with ``M_j = ∫ C_nb φ_j dτ``
+1. **rests** (:func:`.rest.detect_rest` with the causal thresholds, per gap-free run with a
+   usable accelerometer): a sample rests when it is the newest of a rest window (the tail of
+   a motion is out: a window starting there may pass, and holding the attitude over it loses
+   the end of the turn) and is followed by a full window of rest (the gentle start of a
+   motion is out); a rest counts when the causal bias stage counts it (its windows' oldest
+   samples span ``min_rest_s``), so both find the same rests on even, jittered or irregular
+   stamps;
+2. **gyro bias per rest** (``gyro_bias="auto"``): the rest mean with standard error
+   ``√(σ²/n + K² T/3)`` (white noise plus the bias random walk ``K`` over the rest's length
+   ``T``), interpolated linearly in time between rests (the smoother of a random-walk bias
+   between two point estimates) and held before the first and after the last.  With a
+   latitude and an accelerometer the vertical Earth rate ``ω_ie sin L`` along the rest's
+   measured up is taken out of the mean (the horizontal part needs the heading; left in, it
+   tilts -- which gravity corrects -- but does not turn the heading);
+3. **integration** of ``ω − b(t)`` with the chosen algorithm, the attitude held at rests;
+4. **tilt from gravity** (any aiding): ``f_i = C(q) f_b`` points up plus the slowly drifting
+   gyro error plus the carrier's acceleration, whose mean over a few seconds is small.  It is
+   averaged zero-phase with the kernel ``e^(−|s_k − s_j|/τ)``, ``τ = offline_tilt_tau_s`` (a
+   first-order low-pass forward plus one backward), on a clock ``s`` that stops at rests: the
+   held attitude's error cannot change there, so a rest is no reason to trust the motion's
+   ends less.  Every usable sample weighs 1, no gate (a gate on ``| |f| − g |`` keeps the
+   samples whose norm crosses g during a translation, which point anywhere:
+   docs/real_sensors.md).  The smallest rotation taking the smoothed ``u`` to up is applied
+   on the left (integration frame), the heading untouched.  ``initial_attitude="level"``
+   without aiding takes that correction at every rest from the rest's mean specific force,
+   interpolated in time between rests (the initial roll and pitch from the first rest);
+5. **covariance** per output axis: the gyro-only error ``δθ(t) = ∫ C_nb (δb + E ω + n) dτ``
+   over the motion (``E`` the gyro's 3×3 gain-and-axes error, each element of 1σ
+   ``gyro_scale_factor_sigma``: ``var_k += σ² Σ_mn (∫ C[k,m] ω_n dτ)²``).  The interpolated
+   bias ``δb = (1 − w) δb_j + w δb_{j+1}`` gives ``Σ_j M_j(t) δb_j``, ``M_j = ∫ C_nb φ_j dτ``
    (``φ_j`` the interpolation weights), so ``var_k = Σ_j Σ_m SE_{j,m}² M_j[k,m]²`` plus the
-   angle random walk ``Σ C[k,m]² σ_m² dt²`` plus the random walk's bridge ``K²(s³/3 − s⁴/4T)``
-   (``s`` motion time since the rest, ``T`` to the next).  The heading (third) axis keeps it and
-   grows between rests; the tilt axes take the tilt-from-gravity variance where gravity is used:
-   ``(σ_ba/g)² + σ_f²/(g² n_eff)`` with ``n_eff = (Σ k w)²/Σ k² w²`` the samples the smoother
-   averages (``k`` its kernel, ``w`` the weights) and ``σ_f²`` the
-   measured scatter of ``f_i`` about ``g u`` (accelerometer noise and the carrier's acceleration:
-   the residual that leaks into the mean), or the levelling variance at rests with the gyro-only
-   growth bridged between them.  The gyro noise ``σ_ω`` comes from the messages'
-   ``angular_velocity_covariance``, else ``gyro_noise_density``, else the scatter measured at the
-   rests.
+   angle random walk ``Σ C[k,m]² σ_m² dt²`` plus the random walk's bridge ``K²(s³/3 −
+   s⁴/4T)`` (``s`` motion time since the rest, ``T`` to the next).  The heading keeps it; the
+   tilt axes take, where gravity is used, ``(σ_ba/g)² + σ_f²/(g² n_eff)`` with ``n_eff = (Σ k
+   w)²/Σ k² w²`` the samples the smoother averages (``k`` its kernel, ``w`` the weights) and
+   ``σ_f²`` the accelerometer's scatter at rest, or the levelling variance at rests with the
+   gyro-only growth bridged between them.  The gyro noise ``σ_ω`` comes from the messages'
+   ``angular_velocity_covariance``, else ``gyro_noise_density``, else the rests' scatter;
+6. **heading from the magnetometer** (``aiding="magnetometer"``): the field less
+   ``mag_hard_iron_t`` in the tilt-corrected output frame counts (weight 1) when its norm is
+   within ``mag_norm_tol`` of the reference and its dip within ``mag_dip_tol_deg``
+   (reference: ``mag_reference_enu_t``, or the medians over the recording -- a disturbance
+   covering less than half of it cannot become the reference); its horizontal direction,
+   turned by ``magnetic_declination_deg``, is smoothed as in step 4 (``offline_mag_tau_s``)
+   and the smoothed azimuth is the heading error, taken out about the vertical.  A disturbed
+   stretch weighs 0: the smoother bridges it from the field on both sides and the gyro, with
+   no jump toward a false north.  Heading variance: the azimuth scatter over ``n_eff`` plus
+   the tilt error about north seen through the dip (``tan²(dip) var_N``).  Not done offline:
+   hard-iron estimation, reference replacement after a lasting change (``mag_recovery_s``).
 
-6. **heading from the magnetometer** (``aiding="magnetometer"``, ``mag`` given): the field less
-   ``mag_hard_iron_t``, rotated into the tilt-corrected output frame; a sample counts
-   (weight 1) when its norm is within ``mag_norm_tol`` of the reference and its dip within
-   ``mag_dip_tol_deg`` (reference: ``mag_reference_enu_t``, or the medians of norm and dip over
-   the recording -- the whole recording votes, so a disturbance covering less than half of it
-   cannot become the reference); its horizontal direction, turned by
-   ``magnetic_declination_deg``, is low-passed zero-phase (``offline_mag_tau_s``) and the
-   azimuth of the smoothed direction is the heading error, taken out about the vertical on the
-   left.  A disturbed stretch has weight 0: the heading there is interpolated by the smoother
-   from the field on both sides and the gyro in between -- no jump toward a false north.  The
-   heading variance is then the azimuth scatter over the samples averaged plus the tilt error
-   about north seen through the dip (``tan²(dip) var_N``).  Not done offline: hard-iron
-   estimation (``mag_hard_iron_estimate``: the given offset is used), reference replacement
-   after a lasting change (the causal ``mag_recovery_s``).
-
-Time jumps split the recording into blocks that are estimated independently (the attitude
-resets to ``q0``); gaps are held across.  Memory: the output (index, q, variance, action) plus
-O(``chunk_samples``) working arrays; the forward low-pass keeps only its state at chunk
-boundaries and is recomputed chunk by chunk in the backward pass.
+Time jumps split the recording into blocks estimated independently; gaps are held across.
+Memory: the outputs plus O(``chunk_samples``) working arrays (the forward low-pass keeps its
+state at chunk starts and is recomputed chunk by chunk in the backward pass).
 """
 
 from __future__ import annotations
@@ -207,65 +189,52 @@ def _mean_var(x: np.ndarray, lo: int, hi: int, size: int) -> tuple[np.ndarray, n
     return mean, var
 
 
-def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, lo: int, hi: int,
-               params: dict, window_ns: int, size: int, out: np.ndarray,
-               zeros=np.zeros, min_ns: int = 0) -> None:
-    """Mark in ``out`` the rows of ``[lo, hi)`` (one gap-free run) that rest: preceded by a
-    full window of rest (the newest sample of a rest window) and followed by one (between the
-    oldest samples of the first and the last window of a run of rest windows), in a rest the
-    causal bias stage counts (those oldest samples span ``min_ns``: gyro_bias.accumulate's test).
+def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, params: dict,
+               window_ns: int, min_ns: int, size: int, out: np.ndarray, zeros) -> None:
+    """Mark in ``out`` the rows of one gap-free run that rest (module docstring, step 1): the
+    newest sample of a rest window, followed by a full window of rest (between the oldest
+    samples of the first and the last window of a run of rest windows) whose oldest samples
+    span ``min_ns`` (the causal bias stage's test).  ``zeros(n, dtype)`` allocates the flags.
 
     A window at rest has ``|mean ω_i| <= gyro_mean_max`` on every axis and spread
     ``<= gyro_std_max``, so the mean of ``|ω|²`` over it is at most ``3 gyro_mean_max² +
-    gyro_std_max²``: windows above that (motion) are
-    skipped with one cumulative sum, and :func:`.rest.detect_rest` runs, in chunks carrying one
-    window of history, only over the stretches that may hold a rest.  ``zeros(n, dtype)``
-    allocates the run-long flags."""
-    n = hi - lo
-    tr = t[lo:hi]
-    if "gyro_mean_max" in params and "gyro_std_max" in params:
-        # the mean bound holds on every axis (rest.py): |mean|² <= 3 gyro_mean_max²
-        bound = (3.0 * params["gyro_mean_max"] ** 2 + params["gyro_std_max"] ** 2) \
-            * (1 + 1e-9) + 1e-300
-        cand = zeros(n, bool)
-        for c0, c1 in _chunks(0, n, size):
-            # the windows ending in this chunk, from a cumulative sum started at the oldest
-            # sample they reach (temporaries of a chunk, not of the run)
-            oldest = np.searchsorted(tr, tr[c0:c1] - window_ns, side="left")
-            p = int(oldest[0])
-            ww = np.einsum("ij,ij->i", w[lo + p:lo + c1], w[lo + p:lo + c1])
-            cs = np.concatenate(([0.0], np.cumsum(ww)))
-            k = np.arange(c0, c1)
-            cand[c0:c1] = (cs[k + 1 - p] - cs[oldest - p]) <= bound * (k + 1 - oldest)
-    else:  # a rest test without these two bounds: every window is a candidate
-        cand = zeros(n, bool)
-        cand.fill(True)
+    gyro_std_max²``: windows above that (motion) are skipped with one cumulative sum, and
+    :func:`.rest.detect_rest` runs, in chunks carrying one window of history, only over the
+    stretches that may hold a rest."""
+    n = t.size
+    bound = (3.0 * params["gyro_mean_max"] ** 2 + params["gyro_std_max"] ** 2) \
+        * (1 + 1e-9) + 1e-300
+    cand = zeros(n, bool)
+    for c0, c1 in _chunks(0, n, size):
+        # the windows ending in this chunk, from a cumulative sum started at the oldest
+        # sample they reach (temporaries of a chunk, not of the run)
+        oldest = np.searchsorted(t, t[c0:c1] - window_ns, side="left")
+        p = int(oldest[0])
+        ww = np.einsum("ij,ij->i", w[p:c1], w[p:c1])
+        cs = np.concatenate(([0.0], np.cumsum(ww)))
+        k = np.arange(c0, c1)
+        cand[c0:c1] = (cs[k + 1 - p] - cs[oldest - p]) <= bound * (k + 1 - oldest)
     newest = zeros(n, bool)  # the window ending here is at rest
     for e0, e1 in _segments(cand):  # window ends that may be at rest
-        s0 = lo + int(np.searchsorted(tr, tr[e0] - window_ns, side="left"))
-        s1 = lo + e1
-        for c0, c1 in _chunks(s0, s1, size):
-            p = lo if c0 == lo else max(lo, int(np.searchsorted(t[lo:c0], t[c0] - window_ns))
-                                        + lo - 1)
+        s0 = int(np.searchsorted(t, t[e0] - window_ns, side="left"))
+        for c0, c1 in _chunks(s0, e1, size):
+            p = 0 if c0 == 0 else max(0, int(np.searchsorted(t[:c0], t[c0] - window_ns)) - 1)
             if c1 - p < 2:
                 continue
             rw = detect_rest(t[p:c1], w[p:c1], None if a is None else a[p:c1], **params)
             kk = np.flatnonzero(rw.at_rest[c0 - p:]) + (c0 - p)
-            if p != lo:  # not starting the run: 'full' counts from the run's first sample
-                kk = kk[t[p + kk] - t[lo] >= window_ns]
-            newest[p + kk - lo] = True
+            if p != 0:  # not starting the run: 'full' counts from the run's first sample
+                kk = kk[t[p + kk] - t[0] >= window_ns]
+            newest[p + kk] = True
     # Followed by a full window of rest: every sample from the oldest of a run's first rest
     # window to the oldest of its last.  On even stamps consecutive windows have consecutive
     # oldest samples; on jittered or irregular stamps a window may drop two old samples at
     # once, and the one skipped is still followed by a window of rest (marking only the
     # windows' oldest samples left holes there, and no rest reached min_ns).
-    pad = np.zeros(1, np.int8)
-    edges = np.diff(np.concatenate((pad, newest.view(np.int8), pad)))
-    e0, e1 = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-    del edges
-    o0 = np.searchsorted(tr, tr[e0] - window_ns, side="left")
-    o1 = np.searchsorted(tr, tr[e1 - 1] - window_ns, side="left")
-    keep = tr[o1] - tr[o0] >= min_ns  # the causal stage's span of the same rest
+    e0, e1 = _edges(newest)
+    o0 = np.searchsorted(t, t[e0] - window_ns, side="left")
+    o1 = np.searchsorted(t, t[e1 - 1] - window_ns, side="left")
+    keep = t[o1] - t[o0] >= min_ns  # the causal stage's span of the same rest
     # at rest: followed by a full window of rest (the gentle start of a motion is out) and
     # preceded by one (so is the tail of a motion, which a window starting there can pass),
     # both by windows of the same run: [e0, o1] (o0 < e0 and o1 < e1).  A run the causal
@@ -274,15 +243,20 @@ def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, lo: int, hi: 
     # flickering rest edge (an accelerometer near the norm tolerance) into extra rests the
     # causal stage never counted (9 against 7 at 125 Hz with |f| 5 % above g)
     for a, b in zip(e0[keep].tolist(), o1[keep].tolist(), strict=True):
-        out[lo + a:lo + b + 1] = True
+        out[a:b + 1] = True
+
+
+def _edges(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Starts and stops of the runs of True in ``mask`` (one byte a row of temporaries)."""
+    pad = np.zeros(1, np.int8)
+    edges = np.diff(np.concatenate((pad, mask.view(np.int8), pad)))
+    return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
 
 
 def _segments(mask: np.ndarray) -> list[tuple[int, int]]:
-    """The runs of True in ``mask``: (start, stop) pairs (one byte a row of temporaries)."""
-    pad = np.zeros(1, np.int8)
-    edges = np.diff(np.concatenate((pad, mask.view(np.int8), pad)))
-    return list(zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist(),
-                    strict=True))
+    """The runs of True in ``mask``: (start, stop) pairs."""
+    e0, e1 = _edges(mask)
+    return list(zip(e0.tolist(), e1.tolist(), strict=True))
 
 
 def _up_correction(u: np.ndarray) -> np.ndarray:
@@ -350,13 +324,6 @@ def _decaying_sum(ds: np.ndarray, x: np.ndarray, tau: float, z) -> np.ndarray:
     return y
 
 
-class _Block:
-    """Accepted rows ``[b0, b1)`` between time-jump resets, estimated on their own."""
-
-    def __init__(self, b0, b1, runs):
-        self.b0, self.b1, self.runs = b0, b1, runs
-
-
 def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = None,
                      q0=None, nav: NavFrame | None = None, mag=None,
                      frame_id: str | list[str] | None = "", angular_velocity_covariance=None,
@@ -400,7 +367,7 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
         heading = heading_of(q_init)
         q_init, _, _ = level_quaternion(av[int(np.argmax(usable))], heading)
         start_notes.append(START_NOTE.format(math.degrees(heading)))
-    mv = _mag_rows(cfg, mag, n, valid, empty, counts)
+    mv = _mag_rows(cfg, mag, n, valid, empty)
     sig2 = None  # per-row gyro variance (M, 3) from the messages, where known
     if cov is not None:
         var_v, known_v = covariance_rows(cov, valid, counts, details)
@@ -422,8 +389,13 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
         details.setdefault(RATE_FIT_FALLBACK, rate_fit_note(int(tv[int(fell_back.min())])))
     notes = est.notes
     if cfg.aiding is Aiding.MAGNETOMETER:
-        _mag_counts(est.mag_counts, counts, details)
-    if acc is None or av is None:
+        if mv is None:
+            est.mag_counts[MAG_MISSING] = valid.size
+        counts.update(est.mag_counts)
+        for key in (INVALID_MAG, MAG_DISTURBED, MAG_MISSING):
+            if counts[key]:
+                details.setdefault(key, _MAG_DETAILS[key])
+    if av is None:
         notes.insert(0, "no accelerometer: gyro-only offline estimation (rests from the gyro, "
                      "no levelling, no tilt aiding)")
     res = StreamResult(valid, q_out, var_out, known_out, act, counts, cls.time_jump_resets,
@@ -468,13 +440,9 @@ def _accel_rows(acc, valid, empty, counts, details):
     return av, usable
 
 
-def _mag_rows(cfg, mag, n, valid, empty, counts):
-    """The accepted rows' magnetic field (aiding magnetometer), else None; its counts start."""
-    if cfg.aiding is not Aiding.MAGNETOMETER:
-        return None
-    counts.update({MAG_MISSING: 0, INVALID_MAG: 0, MAG_DISTURBED: 0})
-    if mag is None:
-        counts[MAG_MISSING] = valid.size
+def _mag_rows(cfg, mag, n, valid, empty):
+    """The accepted rows' magnetic field (aiding magnetometer and a field given), else None."""
+    if cfg.aiding is not Aiding.MAGNETOMETER or mag is None:
         return None
     mag = np.asarray(mag, dtype=np.float64)
     if mag.shape != (n, 3):
@@ -482,16 +450,10 @@ def _mag_rows(cfg, mag, n, valid, empty, counts):
     return rows(mag, valid, empty)
 
 
-def _mag_counts(mag_counts, counts, details) -> None:
-    """The magnetometer's counts added, with a detail for each that occurred."""
-    for key, c in mag_counts.items():
-        counts[key] += c
-    for key, text in ((INVALID_MAG, "a magnetic field sample not finite, beyond 10 mT or "
-                                    "below 0.1 µT"),
-                      (MAG_DISTURBED, "a field whose norm or dip is off the reference"),
-                      (MAG_MISSING, "no magnetic field sample for these Imu samples")):
-        if counts[key]:
-            details.setdefault(key, text)
+# the magnetometer's counts (aiding magnetometer) and the detail of each that occurred
+_MAG_DETAILS = {MAG_MISSING: "no magnetic field sample for these Imu samples",
+                INVALID_MAG: "a magnetic field sample not finite, beyond 10 mT or below 0.1 µT",
+                MAG_DISTURBED: "a field whose norm or dip is off the reference"}
 
 
 class _BiasTerms:
@@ -587,10 +549,11 @@ class _Estimator:
     def __init__(self, cfg, q_init, nav, algorithm, size, t, w, a, usable, sig2, act, mag=None,
                  empty=np.empty):
         self.empty = empty  # allocator of the outputs
-        self.cfg, self.q_init, self.nav, self.algorithm, self.size = cfg, q_init, nav, algorithm, size
+        self.cfg, self.q_init, self.nav, self.algorithm = cfg, q_init, nav, algorithm
+        self.size = size
         self.t, self.w, self.a, self.usable, self.sig2, self.act = t, w, a, usable, sig2, act
         self.mag = mag
-        self.mag_counts = {MAG_MISSING: 0, INVALID_MAG: 0, MAG_DISTURBED: 0}
+        self.mag_counts = dict.fromkeys(_MAG_DETAILS, 0)
         self.field_reference: FieldReference | None = None
         self.all_usable = usable is not None and bool(usable.all())
         self.nav_series = None if nav is None else nav.series_length()
@@ -602,6 +565,8 @@ class _Estimator:
         self.latitude = None if lat is None else float(np.asarray(lat).reshape(-1)[0])
         self.window_ns = int(round(cfg.rest_window_s * 1e9))
         self.fit_fallbacks: list[np.ndarray] = []  # rows whose interval's rate fit fell back
+        self.k2 = 0.0  # the bias random walk's density², at least the stated one (rests)
+        self._align_row = None  # the alignment's rest's first row
 
     # ------------------------------------------------------------------ the chain
     def run(self):
@@ -613,79 +578,43 @@ class _Estimator:
         resets = np.flatnonzero(self.act == codes[v.RESET_TIME_JUMP])
         bounds = [0, *resets.tolist(), m]
         starts = np.flatnonzero(self.act != codes[v.ACCEPT])  # START, gap restarts, resets
-        self.t_clock = sample_clock(self.t, starts, self.empty)  # integration's intervals: jitter out
-        self._noise_known = bool(self.sig2 is not None or self.cfg.gyro_noise_density > 0)
+        self.t_clock = sample_clock(self.t, starts, self.empty)  # intervals: jitter out
         for b0, b1 in zip(bounds[:-1], bounds[1:], strict=True):
             if b1 <= b0:
                 continue
             s = starts[(starts >= b0) & (starts < b1)].tolist()
             runs = list(zip(s, [*s[1:], b1], strict=True))
             self._block(b0, b1, runs, q_out, var_out)
-        known = self._var_known()
-        if not known:
-            var_out = None
-        if var_out is None:
+        cfg = self.cfg
+        if not (self.sig2 is not None or cfg.gyro_noise_density > 0
+                or cfg.gyro_bias_sigma_rad_s > 0 or cfg.levelling
+                or any(r.gyro_var.any() for r in self.rests)):
             return q_out, None, None
         known = self.empty(m, bool)
         known.fill(True)
         return q_out, var_out, known
 
-    def _var_known(self) -> bool:
-        cfg = self.cfg
-        return bool(self._noise_known or cfg.gyro_bias_sigma_rad_s > 0
-                    or cfg.levelling or any(
-                        r.gyro_var.any() for r in self.rests))
-
     def _block(self, b0, b1, runs, q_out, var_out):
         cfg = self.cfg
-        tau = self._clock(b0, b1, runs)
+        tau = self._clock(b0, b1)
         rest = self._zeros(b1 - b0, bool)
         if cfg.gyro_bias is GyroBiasMode.AUTO or cfg.levelling or cfg.aiding is not Aiding.NONE:
             self._find_rests(b0, runs, rest)
         rests = self._rest_stats(b0, b1, rest, tau)
         self.rests += rests
-        q_start = self.q_init
-        tilt_var0 = None
-        if cfg.levelling:
-            with_f = [r for r in rests if np.isfinite(r.accel_mean).all()]
-            if not with_f and self.alignment is not None:
-                # a block after a time jump without a rest of its own: the attitude resets
-                # to the alignment of the recording's start
-                with_f = None
-            elif not with_f:
-                raise ValueError(f"cannot align: no rest of at least {cfg.min_rest_s:g} s with a "
-                                 "usable accelerometer in the recording (initial_attitude "
-                                 "'level')")
-        if cfg.levelling and with_f is None:
-            q_start = self.alignment.q_nb
-            tilt_var0 = self.alignment.level_error_expected ** 2
-        elif cfg.levelling:
-            r0 = with_f[0]
-            q_start, roll, pitch = level_quaternion(r0.accel_mean,
-                                                    math.radians(cfg.initial_heading_deg))
-            g = float(np.linalg.norm(r0.accel_mean))
-            sl = math.sqrt(cfg.accel_bias_sigma ** 2 + float(np.mean(r0.accel_var[:2]))
-                           / (r0.stop - r0.start)) / g
-            tilt_var0 = sl * sl
-            if self.alignment is None:
-                self._align_row = b0 + r0.start
-                self.alignment = AlignmentResult(
-                    q_start, roll, pitch, wrap_2pi(math.radians(cfg.initial_heading_deg)),
-                    "given", sl, math.nan, int(self.t[b0 + r0.start]),
-                    int(self.t[b0 + r0.stop - 1]), r0.stop - r0.start, r0.accel_mean,
-                    r0.bias)
-        zupt = cfg.gyro_bias is GyroBiasMode.AUTO
-        self._integrate(b0, runs, rest if zupt else None, rests, tau, q_start, q_out)
+        held = rest if cfg.gyro_bias is GyroBiasMode.AUTO else None  # the attitude held there
         tt0 = np.full(3, cfg.initial_attitude_variance)
-        if tilt_var0 is not None:
-            tt0[:2] = tilt_var0
-        self._covariance(b0, b1, rest if zupt else None, rests, tau, q_out, var_out, tt0)
+        q_start = self.q_init
+        if cfg.levelling:
+            q_start, tt0[:2] = self._level_start(b0, rests)
+        self._integrate(b0, runs, held, rests, tau, q_start, q_out)
+        self._covariance(b0, b1, held, rests, tau, q_out, var_out, tt0)
         if self.a is not None and cfg.aiding is not Aiding.NONE:
             # gravity, tilt, magnetometer: the tilt from gravity of step 4 (the offline chain
             # has one tilt method; the causal filters' differences are causal remedies)
-            self._tilt_from_gravity(b0, b1, rest if zupt else None, q_out, var_out)
+            self._tilt_from_gravity(b0, b1, held, q_out, var_out)
         elif self.a is not None and cfg.levelling:
-            self._level_at_rests(b0, b1, rests, tau, q_out, var_out)
+            self._level_at_rests(b0, b1, rests, tau, q_out)
         if cfg.aiding is Aiding.MAGNETOMETER:
             if self.mag is None:
                 self.notes.append("aiding magnetometer without a field: heading gyro-only")
@@ -693,13 +622,36 @@ class _Estimator:
                 self._heading_from_field(b0, b1, q_out, var_out)
                 self._aligned_heading_from_field(b0, b1, q_out)
 
+    def _level_start(self, b0, rests):
+        """(attitude, tilt variance) a block starts from with ``initial_attitude`` level:
+        levelled on its first rest with an accelerometer (the recording's first is the
+        alignment), else (a block after a time jump without one) the alignment's."""
+        cfg = self.cfg
+        r0 = next((r for r in rests if np.isfinite(r.accel_mean).all()), None)
+        if r0 is None and self.alignment is None:
+            raise ValueError(f"cannot align: no rest of at least {cfg.min_rest_s:g} s with a "
+                             "usable accelerometer in the recording (initial_attitude 'level')")
+        if r0 is None:
+            return self.alignment.q_nb, self.alignment.level_error_expected ** 2
+        heading = math.radians(cfg.initial_heading_deg)
+        q_start, roll, pitch = level_quaternion(r0.accel_mean, heading)
+        sl = math.sqrt(cfg.accel_bias_sigma ** 2 + float(np.mean(r0.accel_var[:2]))
+                       / (r0.stop - r0.start)) / float(np.linalg.norm(r0.accel_mean))
+        if self.alignment is None:
+            self._align_row = b0 + r0.start
+            self.alignment = AlignmentResult(
+                q_start, roll, pitch, wrap_2pi(heading), "given", sl, math.nan,
+                int(self.t[b0 + r0.start]), int(self.t[b0 + r0.stop - 1]), r0.stop - r0.start,
+                r0.accel_mean, r0.bias)
+        return q_start, sl * sl
+
     def _zeros(self, shape, dtype) -> np.ndarray:
         """A zeroed array from the allocator (the flags and clocks of a block's length)."""
         a = self.empty(shape, dtype)
         a.fill(0)
         return a
 
-    def _clock(self, b0, b1, runs) -> np.ndarray:
+    def _clock(self, b0, b1) -> np.ndarray:
         """Seconds since the block's first row, gaps counted (the bias walks across them)."""
         tau = self.empty(b1 - b0, np.float64)
         for c0, c1 in _chunks(b0, b1, self.size):
@@ -710,18 +662,16 @@ class _Estimator:
     def _find_rests(self, b0, runs, rest):
         params = {"gyro_std_min": NOISE_FLOOR_RAD_S, **self.cfg.rest_params()}
         t, w, a, ok = self.t, self.w, self.a, self.usable
+        min_ns = int(round(self.cfg.min_rest_s * 1e9))
         for r0, r1 in runs:
             pieces = [(r0, r1)]
             if ok is not None and not ok[r0:r1].all():
                 pieces = [(r0 + p, r0 + q) for p, q in _segments(ok[r0:r1])]
             for p0, p1 in pieces:
-                if p1 - p0 < 2:
-                    continue
-                mark = self._zeros(p1 - p0, bool)
-                _rest_mask(t[p0:p1], w[p0:p1], None if a is None else a[p0:p1], 0, p1 - p0,
-                           params, self.window_ns, self.size, mark, self._zeros,
-                           int(round(self.cfg.min_rest_s * 1e9)))
-                rest[p0 - b0:p1 - b0] |= mark
+                if p1 - p0 >= 2:
+                    _rest_mask(t[p0:p1], w[p0:p1], None if a is None else a[p0:p1], params,
+                               self.window_ns, min_ns, self.size, rest[p0 - b0:p1 - b0],
+                               self._zeros)
 
     def _rest_stats(self, b0, b1, rest, tau) -> list[OfflineRest]:
         cfg = self.cfg
@@ -759,7 +709,7 @@ class _Estimator:
                 out = [replace(r, standard_error=np.sqrt(r.gyro_var / (r.stop - r.start)
                                                          + k2 * r.duration_s / 3.0))
                        for r in out]
-        self.k2 = max(k2, getattr(self, "k2", 0.0))
+        self.k2 = max(k2, self.k2)
         return out
 
     # ------------------------------------------------------------------ 2.-3. bias, integration
@@ -777,66 +727,51 @@ class _Estimator:
     def _integrate(self, b0, runs, rest, rests, tau, q_start, q_out):
         """``ω − b(t)`` integrated run by run (a gap holds the attitude), held at rests."""
         q_prev = q_start
-        size = self.size
         for r0, r1 in runs:
-            if self.act[r0] == v.ACTION_CODES[v.RESET_TIME_JUMP] or r0 == b0:
-                q_prev = q_start
-            pieces = [(r0, r1, False)]
-            if rest is not None and rest[r0 - b0:r1 - b0].any():
-                pieces = []
+            cuts = [r0, r1]
+            if rest is not None:  # pieces of motion and of rest
                 mr = rest[r0 - b0:r1 - b0]
-                edges = np.flatnonzero(np.diff(mr.view(np.int8))) + 1
-                cuts = [0, *edges.tolist(), r1 - r0]
-                pieces = [(r0 + c0, r0 + c1, bool(mr[c0])) for c0, c1 in
-                          zip(cuts[:-1], cuts[1:], strict=True)]
-            first = True
-            for p0, p1, at_rest in pieces:
-                if at_rest:
+                cuts[1:1] = (np.flatnonzero(np.diff(mr.view(np.int8))) + 1 + r0).tolist()
+            q_out[r0] = q_prev  # the run's first row: no interval before it
+            for p0, p1 in zip(cuts[:-1], cuts[1:], strict=True):
+                if rest is not None and rest[p0 - b0]:
                     q_out[p0:p1] = q_prev
-                    first = False
-                    continue
-                anchor = None  # the attitude at the chunk's first row, from the chunk before
-                for c0, c1 in _chunks(p0, p1, size):
-                    start = first and c0 == r0  # the run's first row: nothing to integrate
-                    if c0 == p0:
-                        lo = c0 if start else c0 - 1  # the row before: its interval
-                    else:
-                        lo = max(p0 if first and p0 == r0 else p0 - 1, c0 - _OVERLAP)
-                    hi = min(p1, c1 + _OVERLAP)
-                    if start:
-                        q_out[c0] = q_prev
-                        if hi - lo == 1:
-                            continue
-                    wc = self.w[lo:hi] - self._bias_rows(rests, tau[lo - b0:hi - b0])
-                    nav = self.nav if self.nav_series is None else nav_rows(
-                        self.nav, np.arange(lo, hi), self.nav_series)
-                    fb = []
-                    q = integrate_batch(self.t_clock[lo:hi], wc,
-                                        q0=q_prev if start else q_out[lo],
-                                        algorithm=self.algorithm, nav=nav, fallbacks=fb)
-                    for f in fb:  # counted once: the intervals of the rows this chunk keeps
-                        r = f + lo
-                        self.fit_fallbacks.append(r[(r >= c0) & (r < c1)])
-                    # Higher-order algorithms take each interval's increment from neighbouring
-                    # samples: the chunk runs _OVERLAP rows into its neighbours and, after the
-                    # first, is re-anchored at its first row (the attitude there came from the
-                    # chunk before, with both sides' samples), so chunks join as one run does.
-                    if anchor is not None:
-                        q = quat_multiply(quat_multiply(anchor, quat_conjugate(q[c0 - lo])), q)
-                    q_out[c0:c1] = q[c0 - lo:c1 - lo]
-                    if c0 == p0 and lo < c0:
-                        q_out[lo] = q[0]
-                    anchor = q[c1 - lo] if c1 < p1 else None
-                first = False
+                else:
+                    self._integrate_piece(b0, p0 if p0 == r0 else p0 - 1, p0, p1, rests, tau,
+                                          q_out)
                 q_prev = q_out[p1 - 1]
-            q_prev = q_out[r1 - 1]
+
+    def _integrate_piece(self, b0, first, p0, p1, rests, tau, q_out):
+        """Rows ``p0:p1`` integrated from the attitude at row ``first`` (``p0``, or the row
+        before it) in chunks.  Higher-order algorithms take each interval's increment from
+        neighbouring samples: a chunk runs _OVERLAP rows into its neighbours and, after the
+        first, is re-anchored at its first row (the attitude there came from the chunk
+        before, with both sides' samples), so chunks join as one run does."""
+        anchor = None  # the attitude at the chunk's first row, from the chunk before
+        for c0, c1 in _chunks(p0, p1, self.size):
+            lo, hi = max(first, c0 - _OVERLAP), min(p1, c1 + _OVERLAP)
+            if hi - lo == 1:  # a run of one row: nothing to integrate
+                continue
+            wc = self.w[lo:hi] - self._bias_rows(rests, tau[lo - b0:hi - b0])
+            nav = self.nav if self.nav_series is None else nav_rows(
+                self.nav, np.arange(lo, hi), self.nav_series)
+            fb = []
+            q = integrate_batch(self.t_clock[lo:hi], wc, q0=q_out[lo], algorithm=self.algorithm,
+                                nav=nav, fallbacks=fb)
+            for f in fb:  # counted once: the intervals of the rows this chunk keeps
+                r = f + lo
+                self.fit_fallbacks.append(r[(r >= c0) & (r < c1)])
+            if anchor is not None:
+                q = quat_multiply(quat_multiply(anchor, quat_conjugate(q[c0 - lo])), q)
+            w0 = lo if c0 == p0 else c0
+            q_out[w0:c1] = q[w0 - lo:c1 - lo]
+            anchor = q[c1 - lo] if c1 < p1 else None
 
     # ------------------------------------------------------------------ 4. tilt, 6. heading
     def _clock_steps(self, b0, c0, c1, still):
-        """Seconds of the smoother's clock from the row before to each row of ``c0:c1``: the
-        stamp step, 0 at the block's first row, at a row not accepted (a gap restart: the
-        attitude is held across the gap) and at a row of ``still`` (block-relative: a rest,
-        where the attitude is held and its error cannot change)."""
+        """Steps (s) of the smoother's clock into each row of ``c0:c1``: the stamp step, 0 at
+        the block's first row, at a gap restart and at a row of ``still`` (block-relative:
+        the attitude is held there, its error cannot change)."""
         ds = np.empty(c1 - c0)
         ds[1:] = np.diff(self.t[c0:c1]) * 1e-9
         ds[0] = (self.t[c0] - self.t[c0 - 1]) * 1e-9 if c0 > b0 else 0.0
@@ -846,19 +781,15 @@ class _Estimator:
         return ds
 
     def _zero_phase(self, b0, b1, tau_s, columns, apply, still=None):
-        """The one zero-phase smoother of the chain: every row's columns ``columns(c0, c1)`` ->
-        (rows, K), the last the sample's weight ``w``, averaged with the kernel
-        ``e^(−|s_k − s_j|/τ)`` on the clock ``s`` (:meth:`_clock_steps`: time, stopped at the
-        rows of ``still``), as a first-order low-pass run forward plus one run backward (the
-        two-filter form: ``Σ_{j≤k} + Σ_{j≥k} − the row itself``).  ``apply(c0, c1, sm, n_eff)``
-        gets each chunk's smoothed columns, last chunk first, scaled so that the weight column
-        is 1 where every weight is 1 on even stamps, and the number of samples the average is
-        worth, ``n_eff = (Σ k w)² / Σ k² w²`` (``k`` the kernel; 4τ/dt on even stamps with
-        every weight 1; every row of a still stretch counts whole: its clock does not move).
-        The forward pass keeps its state at chunk starts (and its output while the block is
-        short); the backward pass recomputes a chunk's forward part where it was not kept --
-        before ``apply`` of that chunk, so ``columns`` may read what ``apply`` of later chunks
-        changed, not what it changes in this one."""
+        """The chain's one zero-phase smoother: the columns ``columns(c0, c1)`` (rows, K), the
+        last the sample's weight ``w``, averaged with the kernel ``e^(−|s_k − s_j|/τ)`` on the
+        clock of :meth:`_clock_steps` as a first-order low-pass forward plus one backward
+        (``Σ_{j≤k} + Σ_{j≥k} −`` the row itself).  ``apply(c0, c1, sm, n_eff)`` gets each
+        chunk, last first: the columns scaled so that the weight column is 1 with every weight
+        1 on even stamps, and ``n_eff = (Σ k w)² / Σ k² w²`` (4τ/dt on even stamps).  The
+        forward pass keeps its state at chunk starts (and its output while the block is
+        short); the backward pass recomputes a chunk's forward part before ``apply`` of that
+        chunk, so ``columns`` may read what ``apply`` of later chunks changed."""
         t = self.t
         dt = float(np.median(np.diff(t[b0:min(b1, b0 + 100_000)]))) * 1e-9 if b1 - b0 > 1 else 0.01
         alpha = math.exp(-max(dt, 1e-9) / tau_s)
@@ -867,8 +798,7 @@ class _Estimator:
         keep = b1 - b0 <= _KEEP_FORWARD
 
         def rows(c0, c1):
-            """The chunk's columns, its squared weight beside them (it rides with the squared
-            kernel, τ/2), and its clock steps."""
+            """The columns and the squared weight (it rides with the squared kernel, τ/2)."""
             x = columns(c0, c1)
             return np.column_stack((x, x[:, -1] * x[:, -1])), self._clock_steps(b0, c0, c1, still)
 
@@ -904,9 +834,7 @@ class _Estimator:
             apply(c0, c1, sm[:, :-1] * scale, n_eff)
 
     def _tilt_from_gravity(self, b0, b1, held, q_out, var_out):
-        """Zero-phase weighted low-pass of ``f_i`` (module docstring, step 4), the correction
-        applied in place chunk by chunk; ``held``: the rows where the attitude was held (the
-        rests, block-relative; None without), where the smoother's clock stops."""
+        """Step 4 of the module docstring, in place; the smoother's clock stops at ``held``."""
         cfg = self.cfg
         g0 = STANDARD_GRAVITY
         noise = [r.accel_var for r in self.rests if np.isfinite(r.accel_var).all()]
@@ -929,32 +857,20 @@ class _Estimator:
             okd = den > 1e-12
             # the smallest rotation taking the smoothed f_i to up (scale-free: Σ w f_i needs no
             # division by Σ w)
-            u = sm[:, :3]
-            if not okd.all():
-                u = np.where(okd[:, None], u, (0.0, 0.0, 1.0))
+            u = np.where(okd[:, None], sm[:, :3], (0.0, 0.0, 1.0))
             q_out[c0:c1] = _level_left(u, q_out[c0:c1])
-            # tilt variance: the accelerometer-bias floor plus its noise over the samples
-            # the smoother averages
+            # the accelerometer-bias floor plus its noise over the samples averaged
             tilt = floor + sf2 / (g0 * g0) / np.maximum(n_eff, 1.0)
-            if okd.all():
-                var_out[c0:c1, 0] = tilt
-                var_out[c0:c1, 1] = tilt
-            else:
-                var_out[c0:c1, 0] = np.where(okd, tilt, var_out[c0:c1, 0])
-                var_out[c0:c1, 1] = np.where(okd, tilt, var_out[c0:c1, 1])
+            var_out[c0:c1, :2] = np.where(okd[:, None], tilt[:, None], var_out[c0:c1, :2])
 
         self._zero_phase(b0, b1, cfg.offline_tilt_tau_s, columns, apply, still=held)
-        self.notes.append(f"tilt from gravity: zero-phase low-pass, τ = {cfg.offline_tilt_tau_s:g} "
-                          "s")
-
-    def _field(self, c0, c1, q):
-        """The field of rows ``[c0, c1)`` less the hard iron, rotated into the output frame by
-        ``q`` (zeros where unusable), its norm, and which rows are usable / missing."""
-        return self._field_rows(self.mag[c0:c1], q)
+        self.notes.append(f"tilt from gravity: zero-phase low-pass, τ = "
+                          f"{cfg.offline_tilt_tau_s:g} s")
 
     def _field_rows(self, raw, q):
-        """:meth:`_field` of the rows ``raw``: the one validity rule of the heading pass and
-        of the reference it learns (a zero reading must not vote for the reference)."""
+        """The field ``raw`` less the hard iron, rotated into the output frame by ``q`` (zeros
+        where unusable), its norm, and which rows are usable / missing: the one validity rule
+        of the heading pass and of the reference it learns (a zero reading must not vote)."""
         missing = np.isnan(raw).all(axis=1)
         with np.errstate(invalid="ignore", over="ignore"):
             ok = np.isfinite(raw).all(axis=1) & (np.abs(raw).max(axis=1) <= MAG_ABSURD_T)
@@ -1021,7 +937,7 @@ class _Estimator:
         def directions(c0, c1):
             """(sin, cos) of each sample's azimuth less the declination, its weight, and the
             usable / missing rows (counted by the caller)."""
-            mn, norm, ok, missing = self._field(c0, c1, q_out[c0:c1])
+            mn, norm, ok, missing = self._field_rows(self.mag[c0:c1], q_out[c0:c1])
             horiz = np.hypot(mn[:, 0], mn[:, 1])
             dip = np.arctan2(-mn[:, 2], horiz)
             good = ok & (np.abs(norm - ref_n) <= tol_n) & (np.abs(dip - ref_d) <= tol_d)
@@ -1058,7 +974,8 @@ class _Estimator:
             # heading variance: the azimuth scatter of the samples over the n_eff the smoother
             # averages, plus the tilt error about north seen through the dip (δψ = tan(dip) δθ_N)
             if good.any():
-                r = (np.arctan2(ex[good], ey[good]) - err[good] + math.pi) % (2 * math.pi) - math.pi
+                r = (np.arctan2(ex[good], ey[good]) - err[good] + math.pi) % (2 * math.pi) \
+                    - math.pi
                 scatter[0] = float(np.mean(r * r))
             if scatter[0] is not None:
                 head = scatter[0] / np.maximum(n_eff, 1.0) + coupling * var_out[c0:c1, 1]
@@ -1078,16 +995,15 @@ class _Estimator:
     def _aligned_heading_from_field(self, b0, b1, q_out):
         """The alignment's heading is the field's once the heading pass has run over the
         levelling rest (not the ``initial_heading_deg`` the start was levelled with)."""
-        row = getattr(self, "_align_row", None)
-        a = self.alignment
-        if row is None or a is None or not b0 <= row < b1 or a.heading_source != "given":
+        row, a = self._align_row, self.alignment
+        if a is None or not b0 <= row < b1 or a.heading_source != "given":
             return
         c = quat_as_matrix(q_out[row])
         heading = wrap_2pi(math.pi / 2 - math.atan2(float(c[1, 0]), float(c[0, 0])))
         self.alignment = replace(a, q_nb=q_out[row].copy(), heading=heading,
                                  heading_source="magnetometer")
 
-    def _level_at_rests(self, b0, b1, rests, tau, q_out, var_out):
+    def _level_at_rests(self, b0, b1, rests, tau, q_out):
         """Levelling at every rest, the correction interpolated in time between rests."""
         with_f = [r for r in rests if np.isfinite(r.accel_mean).all()]
         if not with_f:
@@ -1108,10 +1024,11 @@ class _Estimator:
         """Gyro-only error variance per output axis (module docstring, step 5)."""
         cfg = self.cfg
         size = max(_COV_BLOCK, self.size // _COV_BLOCK * _COV_BLOCK)  # blocks never straddle
-        auto = cfg.gyro_bias is GyroBiasMode.AUTO and rests
-        bias = _BiasTerms(rests if auto else None, cfg.gyro_bias_sigma_rad_s,
-                          getattr(self, "k2", cfg.gyro_bias_rw ** 2))
-        measured = self._measured_noise(rests)
+        bias = _BiasTerms(rests if cfg.gyro_bias is GyroBiasMode.AUTO else None,
+                          cfg.gyro_bias_sigma_rad_s, self.k2)
+        rr = [r for r in (rests or self.rests) if r.stop - r.start > 1]  # the noise at rests
+        measured = np.average([r.gyro_var for r in rr], axis=0,
+                              weights=[r.stop - r.start for r in rr]) if rr else None
         sf2 = cfg.gyro_scale_factor_sigma ** 2
         # ∫ C_nb[k, m] ω_n dτ: the lever of the gyro's gain-and-axes error matrix E[m, n]
         # (scale factors on the diagonal, axis misalignments off it; never reset)
@@ -1150,27 +1067,12 @@ class _Estimator:
                                                                            out[:, k])))
             prev_end = out[-1].copy()
 
-    def _measured_noise(self, rests):
-        """The gyro's noise variance measured at the rests (weighted by length), or None."""
-        if self.rests or rests:
-            rr = [r for r in (rests or self.rests) if r.stop - r.start > 1]
-            if rr:
-                return np.average([r.gyro_var for r in rr], axis=0,
-                                  weights=[r.stop - r.start for r in rr])
-        return None
-
     def _row_noise(self, b0, c0, c1, rest, measured):
         """(dt, angle-noise variance per row and axis) of rows ``c0:c1``: the gyro noise from
-        the messages, else the density, else the scatter measured at rests; no time passes
-        at a rejected row or a rest (held: no error grows)."""
+        the messages, else the density, else the scatter measured at rests; the time is the
+        smoother's clock (none passes at a gap or a rest: the attitude is held)."""
         nrow = c1 - c0
-        dt = np.zeros(nrow)
-        dt[1:] = np.diff(self.t[c0:c1]) * 1e-9
-        if c0 > b0:
-            dt[0] = (self.t[c0] - self.t[c0 - 1]) * 1e-9
-        dt[self.act[c0:c1] != v.ACTION_CODES[v.ACCEPT]] = 0.0
-        if rest is not None:
-            dt[rest[c0 - b0:c1 - b0]] = 0.0
+        dt = self._clock_steps(b0, c0, c1, rest)
         n2 = self.cfg.gyro_noise_density ** 2
         if self.sig2 is not None:
             s2 = np.where(self.sig2[1][c0:c1, None], self.sig2[0][c0:c1], 0.0) * (
@@ -1190,9 +1092,10 @@ class _Estimator:
             return GyroBiasReport("parameter", np.asarray(cfg.gyro_bias_rad_s, float), 0, 0,
                                   np.full(3, np.nan), False, "fixed parameter")
         if cfg.gyro_bias is GyroBiasMode.NONE or not self.rests:
-            note = "no rest found: bias 0" if cfg.gyro_bias is GyroBiasMode.AUTO else "not estimated"
-            return GyroBiasReport(cfg.gyro_bias.value, np.zeros(3), 0, 0, np.full(3, np.nan), False,
-                                  note)
+            note = "no rest found: bias 0" if cfg.gyro_bias is GyroBiasMode.AUTO \
+                else "not estimated"
+            return GyroBiasReport(cfg.gyro_bias.value, np.zeros(3), 0, 0, np.full(3, np.nan),
+                                  False, note)
         n = np.array([r.stop - r.start for r in self.rests], dtype=np.float64)
         b = np.average([r.bias for r in self.rests], axis=0, weights=n)
         se = np.sqrt(np.average([r.standard_error ** 2 for r in self.rests], axis=0,
@@ -1211,7 +1114,6 @@ def count_saturated(tv: np.ndarray, wv: np.ndarray, counts: dict, details: dict,
     held at the largest magnitude the axis ever reaches (at least SATURATION_MIN_RAD_S) for
     SATURATION_PLATEAU_NS up to the row -- the causal step's rule with the whole recording's
     largest value (a repeated local peak is no clip).  ``chunk`` rows at a time."""
-    counts[SATURATED] = 0
     n = wv.shape[0]
     top = np.zeros(3)
     for c0 in range(0, n, chunk):

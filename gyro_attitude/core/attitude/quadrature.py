@@ -7,8 +7,8 @@ import numpy as np
 from gyro_attitude.core.attitude.inputs import check_rates, check_times
 from gyro_attitude.core.attitude.interpolation import (
     GAUSS2,
+    causal_fit_points,
     causal_rates_at,
-    causal_rates_scalar,
 )
 
 
@@ -57,7 +57,7 @@ class CausalCubic(Quadrature):
 
     def increment_scalar(self, ts, ws, k, nodes):
         half = 0.5 * (ts[k] - ts[k - 1]) * 1e-9
-        (ax, ay, az), (bx, by, bz) = causal_rates_scalar(ts, ws, k, nodes, GAUSS2)
+        (ax, ay, az), (bx, by, bz), _ = causal_fit_points(ts, ws, k, len(nodes), *GAUSS2)
         return (half * (ax + bx), half * (ay + by), half * (az + bz))
 
 

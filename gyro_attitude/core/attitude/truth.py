@@ -1,4 +1,4 @@
-"""Truth attitude at an Imu stamp: slerp between the truth samples around it, and where integration may start.
+"""Truth attitude at an Imu stamp: slerp between the truth samples around it; where to start.
 
 A truth stream (optical tracking, a simulator's ``truth/attitude``) is sampled on its own clock;
 the integration starts at an Imu stamp.  :func:`truth_at` interpolates the truth there by slerp

@@ -11,10 +11,9 @@ from scipy.interpolate import BarycentricInterpolator
 from gyro_attitude.core.attitude import compose, integrate_batch
 from gyro_attitude.core.attitude.interpolation import (
     GAUSS2,
+    causal_fit_points,
     causal_rates_at,
-    causal_rates_scalar,
     fitted_rates,
-    lagrange_points_scalar,
     sliding_fit_rates,
 )
 
@@ -57,23 +56,20 @@ def test_sliding_fit_matches_scipy(jitter, offset, n_nodes, fractions):
 
 
 @pytest.mark.parametrize("jitter", [0, 300_000])
-@pytest.mark.parametrize("n_nodes", [2, 3, 4, 5])
-def test_plain_float_fit_matches_scipy(jitter, n_nodes):
-    # the per-sample twin (the four-node case written out, the others general) against the
-    # same oracle, at points inside and beyond the nodes
+@pytest.mark.parametrize(("n_nodes", "k"), [(2, 1), (3, 2), (3, 1), (4, 3)])
+def test_plain_float_fit_matches_scipy(jitter, n_nodes, k):
+    # the per-sample fit over a history of n_nodes samples (interval k: the newest, or
+    # interval 1 redone with the quadratic through 0, 1, 2) against the same oracle, at
+    # the Gauss points and beyond the nodes
     t = _stamps(40, jitter)
     w = np.random.default_rng(2).normal(size=(40, 3))
-    for kk in range(n_nodes, 40):
-        nodes = list(range(kk - n_nodes + 1, kk + 1))
-        ts, ws = t.tolist(), [tuple(r) for r in w.tolist()]
-        got = causal_rates_scalar(ts, ws, kk, nodes, (*GAUSS2, 1.7))
-        want = _oracle(t, w, [kk], [nodes[0]], n_nodes, (*GAUSS2, 1.7))[0]
-        np.testing.assert_allclose(got, want, rtol=0, atol=1e-11)
-    xs = [0.0, 0.5, 2.0, 3.5]
-    cubic = [(x ** 3 - 2 * x, 1.0 + x * x, -x) for x in xs]  # reproduced exactly by 4 nodes
-    got = lagrange_points_scalar(xs, cubic, [-1.0, 1.25])
-    np.testing.assert_allclose(got, [(1.0, 2.0, 1.0), (1.25 ** 3 - 2.5, 1.0 + 1.5625, -1.25)],
-                               rtol=0, atol=1e-13)
+    for s0 in range(0, 40 - n_nodes):
+        ts, ws = t[s0:s0 + n_nodes].tolist(), [tuple(r) for r in w[s0:s0 + n_nodes].tolist()]
+        for fa, fb in (GAUSS2, (-0.5, 1.7)):
+            got = causal_fit_points(ts, ws, k, n_nodes, fa, fb)
+            want = _oracle(t, w, [s0 + k], [s0], n_nodes, (fa, fb))[0]
+            np.testing.assert_allclose(got[:2], want, rtol=0, atol=1e-11)
+            assert got[2] == (ts[k] - ts[k - 1]) * 1e-9
 
 
 def test_sliding_fit_reproduces_a_cubic_exactly_on_jittered_stamps():
