@@ -101,7 +101,6 @@ def _clock(t: np.ndarray, period: int, starts_run: bool, ends_run: bool) -> np.n
     kl, kr = np.minimum(i, s), np.minimum(m - i, s)
     d = np.full(m, -np.inf)
     d[1:] = (c[i + kr] - c[i]) / kr - (c[i] - c[i - kl]) / kl
-    dt = np.diff(t)
     cut = np.zeros(m + 1, bool)  # cut[i]: a segment begins at sample i
     cut[0] = cut[m] = True
     high = d > 0.5 * period
