@@ -8,7 +8,6 @@ truth, compared where it covers the Imu stamps)."""
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 
