@@ -82,7 +82,7 @@ from gyro_attitude.core.attitude.modes import (
     HeadingSource,
 )
 from gyro_attitude.core.attitude.registry import DEFAULT_ALGORITHM
-from gyro_attitude.core.attitude.rest import NOISE_FLOOR_RAD_S, detect_rest
+from gyro_attitude.core.attitude.rest import NOISE_FLOOR_RAD_S, detect_rest, true_runs
 from gyro_attitude.core.attitude.sample_clock import sample_clock
 from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.core.attitude.stream import (
@@ -231,7 +231,7 @@ def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, params: dict,
     # oldest samples; on jittered or irregular stamps a window may drop two old samples at
     # once, and the one skipped is still followed by a window of rest (marking only the
     # windows' oldest samples left holes there, and no rest reached min_ns).
-    e0, e1 = _edges(newest)
+    e0, e1 = true_runs(newest)
     o0 = np.searchsorted(t, t[e0] - window_ns, side="left")
     o1 = np.searchsorted(t, t[e1 - 1] - window_ns, side="left")
     keep = t[o1] - t[o0] >= min_ns  # the causal stage's span of the same rest
@@ -246,16 +246,9 @@ def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, params: dict,
         out[a:b + 1] = True
 
 
-def _edges(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Starts and stops of the runs of True in ``mask`` (one byte a row of temporaries)."""
-    pad = np.zeros(1, np.int8)
-    edges = np.diff(np.concatenate((pad, mask.view(np.int8), pad)))
-    return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-
-
 def _segments(mask: np.ndarray) -> list[tuple[int, int]]:
     """The runs of True in ``mask``: (start, stop) pairs."""
-    e0, e1 = _edges(mask)
+    e0, e1 = true_runs(mask)
     return list(zip(e0.tolist(), e1.tolist(), strict=True))
 
 

@@ -31,6 +31,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from gyro_attitude.core.attitude.rest import true_runs
+
 #: samples each side of the clock's mean (a hardware clock drifts by ppm: seconds are a line)
 HALF_WINDOW = 256
 #: samples each side compared to find a missing sample's step in the residuals
@@ -97,8 +99,7 @@ def _clock(t: np.ndarray, period: int, starts_run: bool, ends_run: bool) -> np.n
     if high.any():
         # an excursion of d above T/2 holds a step: cut at its largest interval and at every
         # interval in it longer than 1.5 T (steps closer than S samples share an excursion)
-        edges = np.flatnonzero(np.diff(np.concatenate(([0], high.view(np.int8), [0]))))
-        for a, b in zip(edges[::2], edges[1::2], strict=True):
+        for a, b in zip(*true_runs(high), strict=True):
             span = dt[a - 1:b - 1]
             cut[a + int(np.argmax(span))] = True
             cut[a + np.flatnonzero(span > 1.5 * period)] = True
