@@ -252,36 +252,25 @@ def _segments(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(e0.tolist(), e1.tolist(), strict=True))
 
 
-def _up_correction(u: np.ndarray) -> np.ndarray:
-    """Quaternions (M, 4) of the smallest rotations taking the directions ``u`` (M, 3) to +z."""
-    # q = (u × z, |u| + u·z) normalised: the half-way quaternion, no trigonometry; exact for
-    # every u but straight down (|u| + u_z = 0 and u × z = 0: then any horizontal axis, x here)
-    q = np.empty((u.shape[0], 4))
-    q[:, 0] = u[:, 1]
-    q[:, 1] = -u[:, 0]
-    q[:, 2] = 0.0
-    q[:, 3] = np.sqrt(np.einsum("ij,ij->i", u, u)) + u[:, 2]
-    norm = np.sqrt(np.einsum("ij,ij->i", q, q))
-    down = norm <= 1e-300
-    q[down] = (1.0, 0.0, 0.0, 0.0)
-    norm[down] = 1.0
-    q /= norm[:, None]
-    return q
-
-
-def _level_left(u: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """``_up_correction(u) ⊗ q`` for unit ``q`` without building the correction: its z part is
-    0, so the product has three terms fewer per component (the tilt pass's hot step)."""
+def _up_correction(u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The smallest rotations taking the directions ``u`` (M, 3) to +z as unit quaternions
+    ``(cx, cy, 0, cw)``: the arrays ``cx, cy, cw``.  The half-way quaternion ``(u × z, |u| +
+    u·z)`` normalised, no trigonometry; exact for every u but straight down (|u| + u_z = 0 and
+    u × z = 0: then any horizontal axis, x here)."""
     cx, cy = u[:, 1].copy(), -u[:, 0]
     cw = np.sqrt(np.einsum("ij,ij->i", u, u)) + u[:, 2]
     inv = cx * cx + cy * cy + cw * cw
-    down = inv <= 1e-300  # straight down: the half-turn about x (as _up_correction)
+    down = inv <= 1e-300
     if down.any():
         cx[down], cy[down], cw[down], inv[down] = 1.0, 0.0, 0.0, 1.0
     inv = 1.0 / np.sqrt(inv)
-    cx *= inv
-    cy *= inv
-    cw *= inv
+    return cx * inv, cy * inv, cw * inv
+
+
+def _level_left(u: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """``_up_correction(u) ⊗ q`` (M, 4): the correction's z part is 0, so the product has
+    three terms fewer per component (the tilt pass's hot step)."""
+    cx, cy, cw = _up_correction(u)
     qx, qy, qz, qw = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
     out = np.empty_like(q)
     out[:, 0] = cw * qx + cx * qw + cy * qz
@@ -1003,9 +992,9 @@ class _Estimator:
             return
         xs = np.array([r.tau_s for r in with_f])
         # the correction of each rest as a rotation vector, interpolated between rests
-        rv = quat_as_rotvec(_up_correction(np.array([quat_rotate(q_out[b0 + r.start],
-                                                                 r.accel_mean)
-                                                     for r in with_f])))
+        f = np.array([quat_rotate(q_out[b0 + r.start], r.accel_mean) for r in with_f])
+        cx, cy, cw = _up_correction(f)
+        rv = quat_as_rotvec(np.column_stack((cx, cy, np.zeros_like(cx), cw)))
         for c0, c1 in _chunks(b0, b1, self.size):
             tr = tau[c0 - b0:c1 - b0]
             r = np.column_stack([np.interp(tr, xs, rv[:, i]) for i in range(3)])
