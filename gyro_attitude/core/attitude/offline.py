@@ -862,13 +862,13 @@ class _Estimator:
         ok &= norm >= MAG_ZERO_T  # (almost) zero once the hard iron is taken out: no reading
         return _qrot(q, m), norm, ok, missing
 
-    def _count_unusable(self, b0, b1):
-        """The missing and invalid field samples of rows ``[b0, b1)`` counted, in a block
-        whose heading stays gyro-only (no reference to judge disturbance by)."""
-        for c0, c1 in _chunks(b0, b1, self.size):
-            _, _, ok, missing = self._field_rows(self.mag[c0:c1], _IDENTITY)
-            self.mag_counts[MAG_MISSING] += int(np.count_nonzero(missing))
-            self.mag_counts[INVALID_MAG] += int(np.count_nonzero(~ok & ~missing))
+    def _count_field(self, ok, missing, good=None):
+        """A chunk's field samples counted: missing, invalid (neither ``ok`` nor missing) and,
+        with the reference's verdict ``good``, disturbed (``ok`` and not ``good``)."""
+        self.mag_counts[MAG_MISSING] += int(np.count_nonzero(missing))
+        self.mag_counts[INVALID_MAG] += int(np.count_nonzero(~ok & ~missing))
+        if good is not None:
+            self.mag_counts[MAG_DISTURBED] += int(np.count_nonzero(ok & ~good))
 
     def _field_reference(self, b0, b1, q_out) -> FieldReference:
         """Norm and dip of the undisturbed field: ``mag_reference_enu_t`` when given, else the
@@ -908,7 +908,8 @@ class _Estimator:
         if ref.mag_ref_norm is None:
             self.notes.append("magnetometer: too few usable field samples to learn the "
                               "reference: heading gyro-only")
-            self._count_unusable(b0, b1)
+            for c0, c1 in _chunks(b0, b1, self.size):  # no reference: none is disturbed
+                self._count_field(*self._field_rows(self.mag[c0:c1], _IDENTITY)[2:])
             return
         ref_n, ref_d = ref.mag_ref_norm, ref.mag_ref_dip
         tol_n, tol_d = cfg.mag_norm_tol * ref_n, math.radians(cfg.mag_dip_tol_deg)
@@ -942,9 +943,7 @@ class _Estimator:
 
         def apply(c0, c1, sm, n_eff):
             ex, ey, good, ok, missing = kept.pop(c0) if kept is not None else directions(c0, c1)
-            self.mag_counts[MAG_MISSING] += int(np.count_nonzero(missing))
-            self.mag_counts[INVALID_MAG] += int(np.count_nonzero(~ok & ~missing))
-            self.mag_counts[MAG_DISTURBED] += int(np.count_nonzero(ok & ~good))
+            self._count_field(ok, missing, good)
             den = sm[:, 2]
             okd = den > _MAG_WEIGHT_MIN
             err = np.where(okd, np.arctan2(sm[:, 0], sm[:, 1]), 0.0)
