@@ -159,32 +159,23 @@ def accepted_rows(action: np.ndarray, empty=np.empty, size: int = 1 << 16) -> np
 
 
 def sample_problem(t_ns, omega, max_rate_rad_s: float) -> tuple[str, str] | None:
-    """(reason, detail) when a sample is unusable on its own (its values, a stamp that is not
-    positive), else None: the checks that need no earlier sample."""
+    """(reason, detail) when a sample is unusable on its own (:func:`sample_reason`: its
+    values, a stamp that is not positive), else None: the checks that need no earlier sample."""
+    if isinstance(t_ns, bool) or not isinstance(t_ns, int | np.integer):
+        raise ValueError(f"t_ns must be an integer number of nanoseconds, got {t_ns!r}")
     try:
         values = [float(c) for c in (
             omega.tolist() if isinstance(omega, np.ndarray) and omega.ndim == 1 else omega)]
     except (TypeError, ValueError):
         return NON_FINITE, f"not numbers: {omega!r}"
-    if len(values) != 3 or not all(math.isfinite(x) for x in values):
+    if len(values) != 3:
         return NON_FINITE, f"non-finite value(s) {values}"
-    if any(abs(x) > max_rate_rad_s for x in values):
-        return IMPLAUSIBLE_RATE, (f"rate {values} rad/s beyond max_rate_rad_s = "
-                                  f"{max_rate_rad_s:g}")
-    if isinstance(t_ns, bool) or not isinstance(t_ns, int | np.integer):
-        raise ValueError(f"t_ns must be an integer number of nanoseconds, got {t_ns!r}")
-    if t_ns <= 0:
-        return ZERO_STAMP, f"stamp {int(t_ns)} ns is not positive (0: unset)"
-    return None
-
-
-def usable_samples(t_ns: np.ndarray, omega: np.ndarray, max_rate_rad_s: float) -> np.ndarray:
-    """Array form of :func:`sample_problem` is None: (N,) bool."""
-    if all_within(omega, max_rate_rad_s):
-        return np.asarray(t_ns) > 0
-    with np.errstate(invalid="ignore"):
-        ok = (np.abs(omega) <= max_rate_rad_s).all(axis=1)  # NaN fails the comparison
-    return ok & (np.asarray(t_ns) > 0)
+    why = sample_reason(t_ns, values[0], values[1], values[2], max_rate_rad_s)
+    if why == 0:
+        return None
+    name = REASON_NAMES[why]
+    return name, reason_words(name, t_ns, values, None, None, (0,) * 5,
+                              ImuCheckConfig(max_rate_rad_s=max_rate_rad_s))
 
 
 def reason_words(name: str, t_ns: int, values, frame_id, locked, figures, cfg) -> str:
@@ -573,21 +564,29 @@ def stamp_step(v, max_gap_ns, time_jump_ns, max_missing, t):
     return A_ACCEPT, R_MISSING
 
 
+@kernel(inline=True)
+def sample_reason(t, w0, w1, w2, max_rate):
+    """The checks of one sample on its own, in order: its rates finite, each within
+    ``max_rate``, its stamp positive.  The reason code of the first it fails (0: none)."""
+    if not (math.isfinite(w0) and math.isfinite(w1) and math.isfinite(w2)):
+        return R_NON_FINITE
+    if not within(w0, w1, w2, max_rate):
+        return R_IMPLAUSIBLE
+    if t <= 0:
+        return R_ZERO
+    return 0
+
+
 @kernel
 def validate(v, max_rate, max_gap_ns, time_jump_ns, max_missing, t, w0, w1, w2, frame_ok):
     """One sample's verdict on the record ``v``: the sample's values (finite,
     within ``max_rate``), its stamp (positive), its frame (``frame_ok``: the locked one, or
     none locked yet), then the stamp rule; a rejection is counted and leaves the time base
     alone.  (action code, reason code)."""
-    if not (math.isfinite(w0) and math.isfinite(w1) and math.isfinite(w2)):
-        reason = R_NON_FINITE
-    elif not within(w0, w1, w2, max_rate):
-        reason = R_IMPLAUSIBLE
-    elif t <= 0:
-        reason = R_ZERO
-    elif not frame_ok:
+    reason = sample_reason(t, w0, w1, w2, max_rate)
+    if reason == 0 and not frame_ok:
         reason = R_FRAME
-    else:
+    if reason == 0:
         action, reason = stamp_step(v, max_gap_ns, time_jump_ns, max_missing, t)
         if action != A_REJECT:
             v.skipped = 0
