@@ -30,6 +30,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from gyro_attitude.core.attitude.rest import true_runs
+
 #: samples each side of the clock's mean (a hardware clock drifts by ppm: seconds are a line)
 HALF_WINDOW = 256
 #: samples each side compared to find a missing sample's step in the residuals
@@ -110,9 +112,8 @@ def _clock(t: np.ndarray, period: int, starts_run: bool, ends_run: bool) -> np.n
         # is a whole number of periods plus its jitter, below T/2 — cut where that number
         # changes (steps closer than S samples share an excursion).  The largest interval is
         # no mark: at ±T/3 of jitter a hole's 2 T can read 1.34 T, an interval 1.66 T.
-        edges = np.flatnonzero(np.diff(np.concatenate(([0], high.view(np.int8), [0]))))
         last = 0
-        for a, b in zip(edges[::2], edges[1::2], strict=True):
+        for a, b in zip(*true_runs(high), strict=True):
             base = r[max(a - s, last):a].mean()
             level = np.rint((r[a - 1:min(b + 1, m)] - base) / period)
             steps = a + np.flatnonzero(np.diff(level))
