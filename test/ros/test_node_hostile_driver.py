@@ -121,8 +121,6 @@ needs_broad = pytest.mark.skipif(not BROAD_05.exists(), reason=f"no {BROAD_05}")
 
 
 @needs_broad
-@pytest.mark.xfail(strict=True, reason="the stamp rule (core/attitude/validation.py stamp_step) "
-                   "judges each interval against 1.5 × the median of the first 16: reported")
 def test_node_counts_no_missing_samples_on_stamps_jittered_by_a_third_of_the_period(
         launch, ros_node):
     t, w, f, tt, tq = _broad()

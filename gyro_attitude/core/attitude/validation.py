@@ -78,10 +78,11 @@ class ImuCheckConfig:
     time_jump_ns: a backward step longer than this is a time jump (reset); a backward
         step up to this long is an out-of-order sample (rejected).
     max_rate_rad_s: a sample whose rate exceeds this on any axis is implausible (rejected).
-    max_missing_samples: an interval longer than 1.5 nominal periods spans missing samples
-        (``round(dt / period) − 1``, counted); more than this many make it a gap.  The
-        nominal period is the median of the first :data:`NOMINAL_INTERVALS` intervals of each
-        time base (it restarts at a gap or a time jump).
+    max_missing_samples: a stamp a whole number of periods past the sample clock (and more
+        than 1.5 periods after the last) follows missing samples (counted); more than this
+        many make it a gap.  The clock is learnt from the first :data:`NOMINAL_INTERVALS`
+        intervals of each time base (it restarts at a gap or a time jump) and follows the
+        stamps, not their jitter (:func:`stamp_step`).
     """
 
     max_gap_ns: int = round(setting("max_gap_s").default * 1e9)
@@ -122,8 +123,8 @@ class Verdict:
 
 def _regular_stamps(t: np.ndarray, max_gap_ns: int, size: int = 1 << 16) -> bool:
     """Whether stamps ``t`` rise strictly, with no interval beyond ``max_gap_ns`` and none
-    that :class:`StampRule` takes for missing samples (from the 17th interval on, 1.5 times
-    the median of the first 16): the stream the validator accepts whole.  ``size`` intervals
+    in which :func:`stamp_step` can find missing samples (from the 17th interval on, 1.5
+    times the median of the first 16): the stream the validator accepts whole.  ``size`` intervals
     at a time (no temporary of the recording's length)."""
     if t.size < 2:
         return True
@@ -136,7 +137,9 @@ def _regular_stamps(t: np.ndarray, max_gap_ns: int, size: int = 1 << 16) -> bool
         if dt.min() <= 0 or dt.max() > max_gap_ns:
             return False
         lo = max(NOMINAL_INTERVALS - c0, 0)  # holes count from the 17th interval on
-        if lo < dt.size and np.any(2 * dt[lo:] >= 3 * p):
+        # stamp_step finds no hole in an interval of at most 1.5 periods (beyond, the step
+        # itself judges them against its sample clock)
+        if lo < dt.size and np.any(2 * dt[lo:] > 3 * p):
             return False
     return True
 
@@ -434,7 +437,17 @@ STAMPS_DTYPE = np.dtype([
     # missing and rejected, the nominal period
     ("ev_dt", np.int64), ("ev_hole", np.int64), ("ev_missing", np.int64),
     ("ev_skipped", np.int64), ("ev_period", np.int64),
+    # the sample clock the stamps scatter about (:func:`_clock_start`, :func:`stamp_step`):
+    # its period (ns), the one learnt, and where it stood at the last stamp, less that stamp
+    ("clock_period", np.float64), ("clock_learnt", np.float64), ("clock_offset", np.float64),
 ])
+
+#: the sample clock's loop gains per sample: phase and period (a critically damped
+#: second-order loop, b = a²/4: it follows a drifting crystal, not one stamp's jitter)
+CLOCK_PHASE_GAIN = 1.0 / 8.0
+CLOCK_PERIOD_GAIN = 1.0 / 256.0
+#: how far the clock's period may move from the one learnt (relative)
+CLOCK_PERIOD_RANGE = 0.02
 
 
 @kernel
@@ -453,6 +466,36 @@ def _round_half_even(x):
     if d > 0.5 or (d == 0.5 and r % 2 == 1):
         r += 1
     return int(r)
+
+
+@kernel(inline=True)
+def _periods_in(dt, p):
+    return 1 if 4 * dt < 7 * p else _round_half_even(dt / p)
+
+
+@kernel(inline=True)
+def _clock_start(v):
+    """The sample clock from the learnt intervals: each one period of the clock unless it is
+    1.75 median periods or longer (a hole: whole periods; a jittered interval reaches 1.66 of
+    them, and their median reads low), the period their sum over that count, the clock the
+    line through the stamps at it (their mean residual), relative to the last stamp."""
+    p = v.period
+    total = 0
+    count = 0
+    mean = 0.0
+    for i in range(NOMINAL_INTERVALS):
+        total += v.learn[i]
+        count += _periods_in(v.learn[i], p)
+    cp = total / count
+    count = 0
+    stamp = 0
+    for i in range(NOMINAL_INTERVALS):  # residuals of the stamps after the first (the first: 0)
+        stamp += v.learn[i]
+        count += _periods_in(v.learn[i], p)
+        mean += stamp - count * cp
+    mean /= NOMINAL_INTERVALS + 1
+    v.clock_period = v.clock_learnt = cp
+    v.clock_offset = mean - (stamp - count * cp)
 
 
 @kernel
@@ -485,12 +528,31 @@ def stamp_step(v, max_gap_ns, time_jump_ns, max_missing, t):
         v.n_learn += 1
         if v.n_learn == NOMINAL_INTERVALS:
             v.period = np.sort(v.learn)[NOMINAL_INTERVALS // 2]
+            _clock_start(v)
         return A_ACCEPT, 0
-    if 2 * dt < 3 * p:
+    # The stamp against the sample clock, not the interval alone: a driver's timing moves
+    # stamps by up to half a period about the clock, so one interval can read 1.66 periods
+    # without a hole and 1.34 with one (±1/3 of a period); the clock tells them apart.
+    cp = v.clock_period
+    ahead = dt - v.clock_offset  # from where the clock stood at the last stamp
+    k = max(_round_half_even(ahead / cp), 1)
+    e = ahead - k * cp
+    # (a clock follows a crystal's drift, ppm: bounded, a slip of a sample's jitter past
+    # half a period cannot run the period away)
+    lo, hi = (1.0 - CLOCK_PERIOD_RANGE) * v.clock_learnt, (1.0 + CLOCK_PERIOD_RANGE) * v.clock_learnt
+    v.clock_period = min(max(cp + CLOCK_PERIOD_GAIN * e / k, lo), hi)
+    v.clock_offset = -(1.0 - CLOCK_PHASE_GAIN) * e
+    # A hole needs both: the clock a whole period behind, and an interval over 1.5 nominal
+    # periods (a sampler whose own instants wander — each interval jittered, the stamps a
+    # random walk about any clock — misses no sample in a shorter one; what _regular_stamps
+    # accepts whole).  A hole in stamps jittered by ±1/3 of a period can read 1.34 periods:
+    # about 3 % of such holes go uncounted, and no jitter is counted as a hole.
+    hole = k - 1 if 2 * dt > 3 * p else 0
+    if hole == 0:
         return A_ACCEPT, 0
-    hole = _round_half_even(dt / p) - 1
     missing = max(hole - skipped, 0)
-    v.ev_hole, v.ev_missing, v.ev_skipped, v.ev_period = hole, missing, skipped, p
+    v.ev_hole, v.ev_missing, v.ev_skipped = hole, missing, skipped
+    v.ev_period = _round_half_even(cp)
     if hole > max_missing:
         v.period = 0
         v.n_learn = 0
