@@ -316,49 +316,19 @@ def _uneven(ts, n) -> bool:
 
 
 def hold_untrusted(t_ns, omega, k, fitted, phi, h, window, fallbacks) -> None:
-    """Where the fit of intervals ``k`` cannot be trusted (:func:`untrusted_fits`), replace
-    the rotation vector ``phi`` (len(k), 3) of the step by the exponential map's,
-    ``½(ω_{k-1}+ω_k)h`` (``h`` (len(k), 1)); the intervals that fell back are appended to the
-    list ``fallbacks`` (None: not collected)."""
-    _hold(t_ns, omega, k, fitted, ((phi, h),), window, fallbacks)
-
-
-def hold_untrusted_rates(t_ns, omega, k, fitted, rates, window, fallbacks) -> None:
-    """:func:`hold_untrusted` for a step built from rates (``rates``: (len(k), 3) arrays, the
-    rates the step takes, changed in place): where the fit cannot be trusted every rate moves
-    toward the endpoint mean ``½(ω_{k-1}+ω_k)`` -- a step with one constant rate, which adds no
-    commutation term (the exponential map's step, to the order of the stepper)."""
-    _hold(t_ns, omega, k, fitted, tuple((r, None) for r in rates), window, fallbacks)
-
-
-def _hold(t_ns, omega, k, fitted, targets, window, fallbacks) -> None:
-    """Blend each ``(array, scale)`` of ``targets`` toward the endpoint mean (times ``scale``
-    (len(k), 1), or as is for None) by the weight :func:`untrusted_fits` gives each row."""
+    """Where the fit of intervals ``k`` cannot be trusted (:func:`untrusted_fits`), blend the
+    rotation vector ``phi`` (len(k), 3) of the step toward the exponential map's,
+    ``½(ω_{k-1}+ω_k)h`` (``h`` (len(k), 1)), by the weight it gives each row; the intervals
+    that fell back are appended to the list ``fallbacks`` (None: not collected)."""
     lam = untrusted_fits(t_ns, omega, k, fitted, window)
-    if lam is None:
-        return
-    bad = np.flatnonzero(lam > 0.0)
+    bad = np.flatnonzero(lam > 0.0) if lam is not None else np.zeros(0, dtype=np.intp)
     if bad.size == 0:
         return
     kb = k[bad]
-    mean = 0.5 * (omega[kb - 1] + omega[kb])
     lb = lam[bad][:, None]
-    for arr, scale in targets:
-        held = mean if scale is None else mean * scale[bad]
-        arr[bad] = (1.0 - lb) * arr[bad] + lb * held
+    phi[bad] = (1.0 - lb) * phi[bad] + lb * (0.5 * (omega[kb - 1] + omega[kb]) * h[bad])
     if fallbacks is not None:
         fallbacks.append(kb)
-
-
-def causal_window(n_samples: int, lookahead: bool):
-    """``window(k)`` of :func:`causal_rates_at`'s fits: samples k-3..k (fewer at the start;
-    0..2 for interval 1 with ``lookahead``)."""
-    def window(k):
-        last = k.copy()
-        if lookahead and n_samples >= 3:
-            last[k == 1] = 2
-        return np.maximum(k - 3, 0), last
-    return window
 
 
 @kernel(inline=True)
