@@ -44,15 +44,15 @@ class Algorithm:
         """
         raise NotImplementedError
 
-    def stepper(self, q0: tuple, quadrature, singular_tol: float):
+    def stepper(self, q0: tuple, singular_tol: float):
         """A new per-stream state starting at attitude ``q0`` (tuple of 4 floats)."""
         if not self.causal:
             raise ValueError(f"{self.name} is an offline algorithm (it fits samples after "
                              "each interval) and cannot stream; use integrate_batch / replay, "
                              "or a causal algorithm")
-        return self._new_stepper(q0, quadrature, singular_tol)
+        return self._new_stepper(q0, singular_tol)
 
-    def _new_stepper(self, q0, quadrature, singular_tol):
+    def _new_stepper(self, q0, singular_tol):
         raise NotImplementedError
 
 

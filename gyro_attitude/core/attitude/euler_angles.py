@@ -85,11 +85,11 @@ class EulerAnglesRK4(Algorithm):
         out[0] = q0
         for i in range(1, t.size):
             if i == 2:
-                stepper.redo_first(t[:3], w[:3], None)
-            out[i] = stepper.interval(t[max(i - 3, 0):i + 1], w[max(i - 3, 0):i + 1], None)
+                stepper.redo_first(t[:3], w[:3])
+            out[i] = stepper.interval(t[max(i - 3, 0):i + 1], w[max(i - 3, 0):i + 1])
         return out
 
-    def _new_stepper(self, q0, quadrature, singular_tol):
+    def _new_stepper(self, q0, singular_tol):
         return EulerStepper(self, q0, singular_tol)
 
 
@@ -103,7 +103,7 @@ class EulerStepper:
         self._angles = self._angles_start = algorithm.initial_angles(np.array(q0), tol)
         self._intervals = 0
 
-    def interval(self, ts, ws, zeta):
+    def interval(self, ts, ws):
         """Step over the newest interval of the ≤ 4-sample histories ``ts``, ``ws``."""
         k = len(ts) - 1
         self._intervals += 1
@@ -114,7 +114,7 @@ class EulerStepper:
         self.q = tuple(float(c) for c in q)
         return self.q
 
-    def redo_first(self, ts, ws, zeta_first):
+    def redo_first(self, ts, ws):
         """Redo interval 1 with the quadratic through samples 0, 1, 2 (called as the third
         sample arrives)."""
         self._angles = self._step(self._angles_start, ts, ws, 1, 3, 1)

@@ -89,7 +89,7 @@ class Magnus6Quintic(Algorithm):
                 return b, LeftPrefix(_exp_rotvec(-rate_n[None, :] * span))
             return b, _exp_rotvec(-nav_zeta(t, rate_n, k))
 
-        return compose_chunked(t.size, q0, 1, increments, out=out)
+        return compose_chunked(t.size, q0, increments, out=out)
 
 
 def _window(k, n_samples):

@@ -7,7 +7,13 @@ import math
 import numpy as np
 
 from gyro_attitude.core.attitude.algorithm import RateAlgorithm
-from gyro_attitude.core.attitude.compose import compose_scalar
+from gyro_attitude.core.attitude.compose import compose_scalar, exp_scalar
+from gyro_attitude.core.attitude.coning import (
+    F_Q_BLOCK,
+    PREVIOUS,
+    IncrementAlgorithm,
+    coning_step,
+)
 from gyro_attitude.core.attitude.exp_map import EXP_MAP, exp_map_increment
 from gyro_attitude.core.attitude.first_order import (
     DCM_FIRST_ORDER,
@@ -16,8 +22,9 @@ from gyro_attitude.core.attitude.first_order import (
     quat_first_order_increment,
 )
 from gyro_attitude.core.attitude.inputs import check_q0
-from gyro_attitude.core.attitude.nav_frame import NavFrame, nav_zeta_scalar
-from gyro_attitude.core.attitude.quadrature import get_quadrature
+from gyro_attitude.core.attitude.nav_frame import NavFrame
+from gyro_attitude.core.attitude.quadrature import CUBIC as CUBIC_RULE
+from gyro_attitude.core.attitude.quadrature import get_quadrature, quadrature_increment
 from gyro_attitude.core.attitude.registry import DEFAULT_ALGORITHM, get_algorithm
 from gyro_attitude.core.attitude.rk4 import QUAT_RK4, quat_rk4_increment
 from gyro_attitude.core.attitude.rotvec import (
@@ -63,7 +70,7 @@ def body_increment(alg, ts, ws, k, n):
 @kernel(inline=True)
 def nav_interval(ci, cf, t, has_nav, r0, r1, r2):
     """ζ of the interval ending at ``t`` -- the trapezoid of the nav rates at its ends
-    (nav_zeta_scalar) -- when there is one: (has ζ, ζ); the nav rate ``r`` kept for the next."""
+    -- when there is one: (has ζ, ζ); the nav rate ``r`` kept for the next."""
     has_z = False
     z0 = z1 = z2 = 0.0
     if has_nav:
@@ -90,14 +97,12 @@ def _compose_into(cf, b, has_z, z0, z1, z2):
     return q
 
 
-@kernel
-def rate_advance(alg, ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
-    """One sample ``t`` (int ns after the last), rate ``(w0, w1, w2)`` and nav rate
-    ``(r0, r1, r2)`` at it (``has_nav``) into the state of the rate algorithm ``alg`` (``ci``
-    int slots, ``ts`` (4,) stamps, ``ws`` (4, 3) rates, ``cf`` float slots): the attitude as 4
-    floats.  The history of the last four samples; for the algorithms that fit a polynomial
-    (rotvec_cubic, quat_rk4) the first interval redone as the third sample arrives (the
-    quadratic through 0, 1, 2) and the fit's fallbacks counted."""
+@kernel(inline=True)
+def _take_sample(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
+    """The sample ``t`` (int ns after the last), rate ``(w0, w1, w2)`` and nav rate
+    ``(r0, r1, r2)`` at it (``has_nav``) into the history of the last four samples (``ci``
+    int slots, ``ts`` (4,) stamps, ``ws`` (4, 3) rates, ``cf`` float slots): (samples now
+    held, 0 when this one only starts a time base; the nav rotation ζ of its interval)."""
     has_z, z0, z1, z2 = nav_interval(ci, cf, t, has_nav, r0, r1, r2)
     if has_nav:
         ci[C_HAS_NAV_PREV] = 1
@@ -106,7 +111,7 @@ def rate_advance(alg, ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
         ci[C_LAST_T], ci[C_HAS_LAST], ci[C_N], ci[C_NEED_W0] = t, 1, 1, 0
         ts[0] = t
         ws[0, 0], ws[0, 1], ws[0, 2] = w0, w1, w2
-        return cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3]
+        return 0, has_z, z0, z1, z2
     if ci[C_NEED_W0] == 1:  # reset(q0, t_ns): the first rate held back to the start time
         ws[0, 0], ws[0, 1], ws[0, 2] = w0, w1, w2
         ci[C_NEED_W0] = 0
@@ -120,28 +125,47 @@ def rate_advance(alg, ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
     ws[n, 0], ws[n, 1], ws[n, 2] = w0, w1, w2
     n += 1
     ci[C_N] = n
+    ci[C_LAST_T] = t
     if ci[C_SAMPLES] == 2:
         cf[F_ZETA_FIRST], cf[F_ZETA_FIRST + 1], cf[F_ZETA_FIRST + 2] = z0, z1, z2
         ci[C_HAS_ZETA_FIRST] = 1 if has_z else 0
-    elif ci[C_SAMPLES] == 3 and (alg == _CUBIC or alg == _RK4):
+    return n, has_z, z0, z1, z2
+
+
+@kernel(inline=True)
+def _first_redone(cf, ci, b):
+    """The attitude of the first interval from the start with the increment ``b`` (and the
+    first interval's nav rotation), stored."""
+    q_start = (cf[F_Q_START], cf[F_Q_START + 1], cf[F_Q_START + 2], cf[F_Q_START + 3])
+    if ci[C_HAS_ZETA_FIRST] == 1:
+        q = compose_scalar(q_start, b, (cf[F_ZETA_FIRST], cf[F_ZETA_FIRST + 1],
+                                        cf[F_ZETA_FIRST + 2]))
+    else:
+        q = compose_scalar(q_start, b, None)
+    cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3] = q
+    return q
+
+
+@kernel
+def rate_advance(alg, ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
+    """One sample (:func:`_take_sample`) through the rate algorithm ``alg``: the attitude as 4
+    floats.  For the algorithms that fit a polynomial (rotvec_cubic, quat_rk4) the first
+    interval is redone as the third sample arrives (the quadratic through 0, 1, 2) and the
+    fit's fallbacks are counted."""
+    n, has_z, z0, z1, z2 = _take_sample(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2)
+    if n == 0:
+        return cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3]
+    if ci[C_SAMPLES] == 3 and (alg == _CUBIC or alg == _RK4):
         b, fell = body_increment(alg, ts, ws, 1, 3)
         ci[C_FALLBACKS] += (1 if fell else 0) - ci[C_FIRST_FELL]
         ci[C_FIRST_FELL] = 1 if fell else 0
-        q_start = (cf[F_Q_START], cf[F_Q_START + 1], cf[F_Q_START + 2], cf[F_Q_START + 3])
-        if ci[C_HAS_ZETA_FIRST] == 1:
-            q = compose_scalar(q_start, b, (cf[F_ZETA_FIRST], cf[F_ZETA_FIRST + 1],
-                                            cf[F_ZETA_FIRST + 2]))
-        else:
-            q = compose_scalar(q_start, b, None)
-        cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3] = q
+        _first_redone(cf, ci, b)
     b, fell = body_increment(alg, ts, ws, n - 1, n)
     if fell:
         ci[C_FALLBACKS] += 1
     if n == 2:
         ci[C_FIRST_FELL] = 1 if fell else 0
-    q = _compose_into(cf, b, has_z, z0, z1, z2)
-    ci[C_LAST_T] = t
-    return q
+    return _compose_into(cf, b, has_z, z0, z1, z2)
 
 
 @kernel(inline=True)
@@ -157,62 +181,109 @@ def exp_advance(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
 
 
 @kernel
-def rate_rows(alg, ci, ts, ws, cf, t, w, nav, rates, out, fell):
-    """:func:`rate_advance` over the rows of ``t`` (N,) and ``w`` (N, 3), the attitudes into
-    ``out`` (N, 4): the batch.  ``nav`` 0: no nav frame, 1: the rate ``rates[0]`` throughout,
-    2: ``rates[i]`` at row i.  ``fell[k]`` (N,) set to 1 where the step of interval k fell back
-    (interval 1 as redone at row 2)."""
-    for i in range(t.shape[0]):
+def coning_advance(alg, rule, ci, ts, ws, cf, blk, t, w0, w1, w2, has_nav, r0, r1, r2):
+    """One sample (:func:`_take_sample`) through the coning algorithm ``alg`` fed by the
+    quadrature ``rule``: the attitude as 4 floats.  A fitting rule redoes the first interval
+    as the third sample arrives (the quadratic through 0, 1, 2): the open block's first
+    increment is replaced (one sample per update: the attitude of that interval redone)."""
+    n, has_z, z0, z1, z2 = _take_sample(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2)
+    if n == 0:
+        return cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3]
+    if ci[C_SAMPLES] == 3 and rule == CUBIC_RULE:
+        d0, d1, d2 = quadrature_increment(rule, ts, ws, 1, 3)
+        blk[4, 0], blk[4, 1], blk[4, 2] = d0, d1, d2
+        if alg == PREVIOUS or alg == 1:
+            q = _first_redone(cf, ci, exp_scalar(d0, d1, d2))
+            cf[F_Q_BLOCK], cf[F_Q_BLOCK + 1], cf[F_Q_BLOCK + 2], cf[F_Q_BLOCK + 3] = q
+        else:
+            blk[0, 0], blk[0, 1], blk[0, 2] = d0, d1, d2
+    d0, d1, d2 = quadrature_increment(rule, ts, ws, n - 1, n)
+    return coning_step(alg, ci, cf, blk, d0, d1, d2, has_z, z0, z1, z2)
+
+
+@kernel
+def increment_advance(alg, ci, cf, blk, t, d0, d1, d2, has_nav, r0, r1, r2):
+    """The angle increment ``d`` over ``(last, t]`` (a time base started) through the coning
+    algorithm ``alg``: the attitude as 4 floats."""
+    has_z, z0, z1, z2 = nav_interval(ci, cf, t, has_nav, r0, r1, r2)
+    ci[C_SAMPLES] += 1
+    ci[C_LAST_T] = t
+    return coning_step(alg, ci, cf, blk, d0, d1, d2, has_z, z0, z1, z2)
+
+
+@kernel
+def batch_rows(kind, alg, rule, ci, ts, ws, cf, blk, t, w, nav, rates, out, fell):
+    """The batch: one of the steps over the rows of ``t`` (N,), the attitudes into ``out``
+    (N, 4).  ``kind`` 0: :func:`rate_advance` of the rates ``w`` (N, 3), ``fell[k]`` (N,) set
+    to 1 where the step of interval k fell back (interval 1 as redone at row 2); 1:
+    :func:`coning_advance` of the rates ``w``; 2: :func:`increment_advance` of the increments
+    ``w`` (N-1, 3) from row 1 on (a time base started at row 0).  ``nav`` 0: no nav frame, 1:
+    the rate ``rates[0]`` throughout, 2: ``rates[i]`` at row i."""
+    for i in range(1 if kind == 2 else 0, t.shape[0]):
         r = rates[i if nav == 2 else 0]
-        before, first_before = ci[C_FALLBACKS], ci[C_FIRST_FELL]
-        q = rate_advance(alg, ci, ts, ws, cf, t[i], w[i, 0], w[i, 1], w[i, 2], nav > 0, r[0],
-                         r[1], r[2])
+        if kind == 2:
+            q = increment_advance(alg, ci, cf, blk, t[i], w[i - 1, 0], w[i - 1, 1],
+                                  w[i - 1, 2], nav > 0, r[0], r[1], r[2])
+        elif kind == 1:
+            q = coning_advance(alg, rule, ci, ts, ws, cf, blk, t[i], w[i, 0], w[i, 1], w[i, 2],
+                               nav > 0, r[0], r[1], r[2])
+        else:
+            before, first_before = ci[C_FALLBACKS], ci[C_FIRST_FELL]
+            q = rate_advance(alg, ci, ts, ws, cf, t[i], w[i, 0], w[i, 1], w[i, 2], nav > 0,
+                             r[0], r[1], r[2])
+            d = ci[C_FALLBACKS] - before
+            if i == 2:  # interval 1 redone: its flag is the redo's
+                d -= ci[C_FIRST_FELL] - first_before
+                fell[1] = ci[C_FIRST_FELL]
+            if i > 0:
+                fell[i] = d
         out[i, 0], out[i, 1], out[i, 2], out[i, 3] = q
-        d = ci[C_FALLBACKS] - before
-        if i == 2:  # interval 1 redone: its flag is the redo's
-            d -= ci[C_FIRST_FELL] - first_before
-            fell[1] = ci[C_FIRST_FELL]
-        if i > 0:
-            fell[i] = d
 
 
-def integrate_rates(alg, t, w, q0, rate_n, fallbacks=None, out=None) -> np.ndarray:
-    """``integrate_batch`` of the causal rate algorithm ``alg`` on checked input: the compiled
-    loop :func:`rate_rows` from ``q0``; the intervals whose fit fell back appended to the list
+def integrate_rows(alg, t, w, q0, rate_n, rule=0, fallbacks=None, out=None,
+                   increments=False) -> np.ndarray:
+    """``integrate_batch`` of the causal algorithm ``alg`` on checked input: the compiled
+    loop :func:`batch_rows` from ``q0``, over rates (a rate algorithm; a coning algorithm fed
+    by the quadrature ``rule``'s code) or, with ``increments``, over angle increments ``w``
+    (N-1, 3) (a coning algorithm); the intervals whose fit fell back appended to the list
     ``fallbacks`` (an int array, when there are any)."""
     q = np.empty((t.size, 4)) if out is None else out
-    state = RateState(tuple(float(c) for c in q0), None, None)
-    nav = 0 if rate_n is None else 1 if rate_n.ndim == 1 else 2
     rates = np.zeros((1, 3)) if rate_n is None else np.ascontiguousarray(
         rate_n, dtype=np.float64).reshape(-1, 3)
-    fell = np.zeros(t.size, dtype=np.int8)
-    compiled(rate_rows)(alg.code, state.ci, state.ts, state.ws, state.cf, t,
-                        np.ascontiguousarray(w, dtype=np.float64), nav, rates, q, fell)
+    kind = 0 if isinstance(alg, RateAlgorithm) else 2 if increments else 1
+    state = RateState(tuple(float(c) for c in q0), int(t[0]) if kind == 2 else None,
+                      rates[0] if kind == 2 and rate_n is not None else None)
+    q[0] = q0
+    fell = np.zeros(t.size if kind == 0 else 0, dtype=np.int8)
+    compiled(batch_rows)(kind, alg.code, rule, state.ci, state.ts, state.ws, state.cf,
+                         state.blk, t, np.ascontiguousarray(w, dtype=np.float64),
+                         0 if rate_n is None else 1 if rate_n.ndim == 1 else 2, rates, q, fell)
     if fallbacks is not None and fell.any():
         fallbacks.append(np.flatnonzero(fell))
     return q
 
 
 class RateState:
-    """A rate algorithm's streaming state as arrays (see :func:`rate_advance`)."""
+    """A rate or coning algorithm's streaming state as arrays (see :func:`rate_advance`,
+    :func:`coning_advance`; the rate algorithms use the first 9 int and 14 float slots)."""
 
-    __slots__ = ("ci", "ts", "ws", "cf")
+    __slots__ = ("ci", "ts", "ws", "cf", "blk")
 
     def __init__(self, q0: tuple, t_ns: int | None, nav_rate):
-        self.ci = np.zeros(9, dtype=np.int64)
+        self.ci = np.zeros(11, dtype=np.int64)
         self.ts = np.zeros(_HISTORY, dtype=np.int64)
         self.ws = np.zeros((_HISTORY, 3))
-        self.cf = np.zeros(14)
+        self.cf = np.zeros(21)
+        self.blk = np.zeros((5, 3))
         self.reset(q0, t_ns, nav_rate)
 
     def reset(self, q0: tuple, t_ns: int | None, nav_rate) -> None:
-        """Start again from ``q0`` (at ``t_ns``), in place."""
-        self.ci[:] = 0
-        self.ts[:] = 0
-        self.ws[:] = 0.0
-        self.cf[:] = 0.0
-        self.cf[F_Q:F_Q + 4] = q0
-        self.cf[F_Q_START:F_Q_START + 4] = q0
+        """Start again from ``q0`` (at ``t_ns``, with the nav rate ``nav_rate`` there), in
+        place."""
+        for a in (self.ci, self.ts, self.ws, self.cf, self.blk):
+            a[:] = 0
+        for slot in (F_Q, F_Q_START, F_Q_BLOCK):
+            self.cf[slot:slot + 4] = q0
         if t_ns is not None:
             ci = self.ci
             ci[C_SAMPLES], ci[C_LAST_T], ci[C_HAS_LAST], ci[C_N], ci[C_NEED_W0] = 1, t_ns, 1, 1, 1
@@ -281,13 +352,10 @@ class StreamingIntegrator:
         self.samples = 0
         self.last_t_ns: int | None = None
         q_start = tuple(float(c) for c in self._q)
-        rated = isinstance(self.info, RateAlgorithm)
-        self._stepper = None if rated else self.info.stepper(q_start, self._quadrature,
-                                                              self.singular_tol)
+        kernels = isinstance(self.info, RateAlgorithm | IncrementAlgorithm)
+        self._stepper = None if kernels else self.info.stepper(q_start, self.singular_tol)
         self._ts: list[int] = []
         self._ws: list[tuple[float, float, float]] = []
-        self._nav_hist: list = []
-        self._zeta_first = None
         t = rate = None
         if t_ns is not None:
             t = self._check_time(t_ns)
@@ -295,9 +363,8 @@ class StreamingIntegrator:
             self.samples = 1
             self.last_t_ns = t
             self._ts = [t]
-            self._nav_hist = [] if rate is None else [rate.tolist()]
-        # a rate algorithm keeps its history in arrays and steps through one kernel
-        self._rates = RateState(q_start, t, rate) if rated else None
+        # a rate or coning algorithm keeps its history in arrays and steps through one kernel
+        self._rates = RateState(q_start, t, rate) if kernels else None
 
     @property
     def quaternion(self) -> np.ndarray:
@@ -356,15 +423,6 @@ class StreamingIntegrator:
                              "increasing in time")
         return t
 
-    def _nav_zeta(self, t: int):
-        """Push the nav rate of the new sample; ζ of the interval ending at it (or None)."""
-        if self.nav is None:
-            return None
-        self._nav_hist = (self._nav_hist + [self._nav_rate_at(self.samples).tolist()])[-2:]
-        if self.last_t_ns is None:
-            return None
-        return nav_zeta_scalar(self._nav_hist, (t - self.last_t_ns) * 1e-9)
-
     def update(self, t_ns: int, omega_ib_b) -> np.ndarray:
         """Consume one rate sample; return the attitude at ``t_ns`` (shape (4,))."""
         try:
@@ -380,21 +438,10 @@ class StreamingIntegrator:
         3 finite floats): the attitude as 4 floats (the stream's per-sample path: no arrays)."""
         rs = self._rates
         if rs is not None:
-            rate = self._nav_rate_at(self.samples)
             # the first sample of a time base only starts the history: the kernel run as
             # Python (a stream that ends there needs no compiler)
-            step = compiled(rate_advance) if rs.ci[C_HAS_LAST] else rate_advance
-            if rate is None:
-                q = step(self.info.code, rs.ci, rs.ts, rs.ws, rs.cf, t, w[0], w[1], w[2], False,
-                         0.0, 0.0, 0.0)
-            else:
-                q = step(self.info.code, rs.ci, rs.ts, rs.ws, rs.cf, t, w[0], w[1], w[2], True,
-                         float(rate[0]), float(rate[1]), float(rate[2]))
-            self.samples += 1
-            self.last_t_ns = t
-            self._q = q
-            return q
-        zeta = None if self.nav is None else self._nav_zeta(t)
+            return self._kernel_step(rate_advance if isinstance(self.info, RateAlgorithm)
+                                     else coning_advance, t, w, not rs.ci[C_HAS_LAST])
         self.samples += 1
         if self.last_t_ns is None:
             self.last_t_ns = t
@@ -408,12 +455,28 @@ class StreamingIntegrator:
         if len(ts) > _HISTORY:
             del ts[0]
             del ws[0]
-        stepper = self._stepper
-        if self.samples == 2:
-            self._zeta_first = zeta
-        elif self.samples == 3:
-            stepper.redo_first(ts, ws, self._zeta_first)
-        q = stepper.interval(ts, ws, zeta)
+        if self.samples == 3:
+            self._stepper.redo_first(ts, ws)
+        q = self._stepper.interval(ts, ws)
+        self.last_t_ns = t
+        self._q = q
+        return q
+
+    def _kernel_step(self, step, t: int, v, as_python: bool = False) -> tuple[float, ...]:
+        """The sample ``t`` (rate or increment ``v``) through the step kernel ``step``."""
+        rs = self._rates
+        rate = self._nav_rate_at(self.samples)
+        nav = (False, 0.0, 0.0, 0.0) if rate is None else (True, float(rate[0]),
+                                                           float(rate[1]), float(rate[2]))
+        fn = step if as_python else compiled(step)
+        if step is rate_advance:
+            q = fn(self.info.code, rs.ci, rs.ts, rs.ws, rs.cf, t, v[0], v[1], v[2], *nav)
+        elif step is coning_advance:
+            q = fn(self.info.code, self._quadrature.code, rs.ci, rs.ts, rs.ws, rs.cf, rs.blk, t,
+                   v[0], v[1], v[2], *nav)
+        else:
+            q = fn(self.info.code, rs.ci, rs.cf, rs.blk, t, v[0], v[1], v[2], *nav)
+        self.samples += 1
         self.last_t_ns = t
         self._q = q
         return q
@@ -437,12 +500,7 @@ class StreamingIntegrator:
         if self.last_t_ns is None:
             raise ValueError("update_increment needs a start time: pass t0_ns to the "
                              "constructor or reset(q0, t_ns)")
-        zeta = self._nav_zeta(t)
-        q = self._stepper.increment((dx, dy, dz), zeta)
-        self.last_t_ns = t
-        self.samples += 1
-        self._q = q
-        return np.array(q)
+        return np.array(self._kernel_step(increment_advance, t, (dx, dy, dz)))
 
 
 @kernel
