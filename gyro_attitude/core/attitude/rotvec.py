@@ -1,4 +1,4 @@
-"""Rotation-vector (Magnus) updates: trapezoid + commutation term, 4th order on the causal cubic."""
+"""Rotation-vector (Magnus) steps: trapezoid + commutation term; 4th order on the causal cubic."""
 
 from __future__ import annotations
 

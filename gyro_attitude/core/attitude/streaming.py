@@ -1,4 +1,6 @@
-"""Streaming attitude integration, one sample per call, with the same results as the batch."""
+"""The causal algorithms' steps over their sample history, stepped one sample per call
+(:class:`StreamingIntegrator`) or in a compiled loop over a record (:func:`integrate_rows`,
+the batch): one code, the same bits."""
 
 from __future__ import annotations
 
@@ -37,9 +39,10 @@ from gyro_attitude.core.jit import compiled, kernel
 
 _HISTORY = 4  # samples held: the causal cubic's four nodes
 
-# Every causal rate algorithm steps through one kernel, :func:`rate_advance`, whose state is
-# arrays (``RateState``): the batch's compiled loop (:func:`integrate_rates`), the streaming
-# integrator and the causal estimator's step (chain.py) step the same state.  Its int slots:
+# Every causal rate algorithm steps through one kernel, :func:`rate_advance` (the coning ones
+# through :func:`coning_advance`), whose state is arrays (``RateState``): the batch's compiled
+# loop (:func:`batch_rows`), the streaming integrator and the causal estimator's step
+# (chain.py) step the same state.  Its int slots:
 C_N, C_SAMPLES, C_LAST_T, C_HAS_LAST, C_FALLBACKS, C_FIRST_FELL, C_NEED_W0, C_HAS_ZETA_FIRST, \
     C_HAS_NAV_PREV = range(9)
 # and its float slots: the attitude, the stepper's start, ζ of the first interval, the last
@@ -505,8 +508,9 @@ class StreamingIntegrator:
 
 @kernel
 def cubic_reset(ci, ts, ws, cf, qx, qy, qz, qw, has_t, t, has_nav, r0, r1, r2):
-    """:meth:`CubicState.reset` from the attitude ``q`` (normalized here, as
-    :meth:`StreamingIntegrator.reset` takes it; at ``t`` when ``has_t``, with the nav rate
+    """The causal estimator's :meth:`RateState.reset` of a rate algorithm's slots (chain.py:
+    its integrator restarts inside the compiled step) from the attitude ``q`` (normalized here,
+    as :meth:`StreamingIntegrator.reset` takes it; at ``t`` when ``has_t``, with the nav rate
     ``r`` there when ``has_nav``)."""
     n = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
     qx, qy, qz, qw = qx / n, qy / n, qz / n, qw / n
