@@ -7,7 +7,7 @@ from gyro_attitude.core.attitude.compose import exp_scalar
 from gyro_attitude.core.jit import kernel
 
 
-@kernel(inline=True)
+@kernel
 def exp_map_increment(ts, ws, k, n):
     """``b_k = exp(½(ω_{k-1}+ω_k) h)``: exact for a constant rate of any magnitude; ignores
     non-commutativity (coning).  (b_k, False): no fit to distrust."""

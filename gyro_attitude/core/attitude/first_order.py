@@ -9,7 +9,7 @@ from gyro_attitude.core.attitude.compose import exp_scalar
 from gyro_attitude.core.jit import kernel
 
 
-@kernel(inline=True)
+@kernel
 def quat_first_order_increment(ts, ws, k, n):
     """``q_k = normalize(q_{k-1} ⊗ [θ/2, 1])``, ``θ = ω_{k-1} h``: ``normalize([θ/2, 1])`` is
     the rotation by ``2·atan(|θ|/2)`` about θ.  (b_k, False): no fit to distrust."""
@@ -19,7 +19,7 @@ def quat_first_order_increment(ts, ws, k, n):
     return (x / m, y / m, z / m, 1.0 / m), False
 
 
-@kernel(inline=True)
+@kernel
 def dcm_first_order_increment(ts, ws, k, n):
     """``C_k = orth(C_{k-1} (I + [θ×]))``, ``θ = ω_{k-1} h``, exact (polar)
     re-orthonormalization.  The polar factor of ``I + [θ×]`` is the rotation by ``atan(|θ|)``

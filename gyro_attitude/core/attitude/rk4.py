@@ -18,7 +18,7 @@ def _rk4_stage(p, scale, w0, w1, w2):
     return (0.5 * r[0], 0.5 * r[1], 0.5 * r[2], 0.5 * r[3])
 
 
-@kernel(inline=True)
+@kernel
 def quat_rk4_increment(ts, ws, k, n):
     """RK4 with ``ω(t_{k-1})``, the causal-cubic mid-step ``ω``, ``ω(t_k)``; normalized.
 

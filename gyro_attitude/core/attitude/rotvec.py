@@ -13,7 +13,7 @@ _SQRT3_12 = math.sqrt(3.0) / 12.0
 _GA, _GB = GAUSS2
 
 
-@kernel(inline=True)
+@kernel
 def trapezoid_increment(ts, ws, k, n):
     """``φ = ½(ω_{k-1}+ω_k)h + h²/12 ω_{k-1}×ω_k``: the rotation vector of the linear rate
     model (trapezoid increment plus its exact commutation term).  The trapezoid limits it to
