@@ -181,6 +181,9 @@ def run(args) -> int:
         error_line("replay", "give --out OUT.mcap (or --out-dir DIR for several inputs)")
         return 2
     args.input = args.input[0]
+    from gyro_attitude.io.mcap_reader import UnorderedBagError
+    from gyro_attitude.offline.fleet import separate_recordings_hint
+
     bar = None
     try:
         # Every output path is checked before the work (the plot is written last).
@@ -201,6 +204,9 @@ def run(args) -> int:
             bar = None
         if args.plot:
             write_error_plot(result, args.plot, force=True)  # checked above
+    except UnorderedBagError as exc:
+        error_line("replay", f"{exc}{separate_recordings_hint(exc)}")
+        return 1
     except (ValueError, OSError) as exc:
         error_line("replay", exc)
         return 1

@@ -128,8 +128,8 @@ def precompiled(func):
     if _jit_off() or os.environ.get("GYRO_ATTITUDE_PRECOMPILED", "1").strip() == "0" or \
             not getattr(func, _MARK, False):
         return None
-    name = precompiled_name(func)
     try:
+        name = precompiled_name(func)  # (reads the source files: none in a frozen install)
         module = importlib.import_module(f"{__package__}.{name}")
         with open(os.path.join(os.path.dirname(__file__), name + ARGS_SUFFIX), "rb") as f:
             arrays = pickle.load(f)  # written by the build beside the module

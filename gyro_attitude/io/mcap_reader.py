@@ -85,6 +85,7 @@ __all__ = [
     "resolve_mcap_path",
     "recorded_topics",
     "bag_files",
+    "UnorderedBagError",
     "topic_matches",
     "match_topic",
     "iter_chunk_records",
@@ -220,6 +221,22 @@ def recorded_topics(path, *, scan: bool = False) -> dict[str, str] | None:
     return out
 
 
+class UnorderedBagError(ValueError):
+    """A directory of several ``.mcap`` files and no ``metadata.yaml``: one split bag whose
+    order is lost, or separate recordings (``files``: their paths, sorted).  A command that
+    takes several recordings adds how to give them so."""
+
+    def __init__(self, directory: Path, files: list[Path]):
+        self.directory, self.files = directory, files
+        names = ", ".join(f.name for f in files[:3])
+        if len(files) > 3:
+            names += f" and {len(files) - 3} more"
+        super().__init__(
+            f"{directory} holds {len(files)} .mcap files ({names}) and no metadata.yaml "
+            f"saying they are one bag and in what order: give one of them, or write a split "
+            f"bag's metadata.yaml (ros2 bag reindex {directory} -s mcap)")
+
+
 #: Largest bag ``metadata.yaml`` read (bytes): rosbag2's are a few kB.
 MAX_BAG_METADATA_BYTES = 1 << 20
 
@@ -239,9 +256,10 @@ def bag_files(path) -> list[Path]:
     meta = p / "metadata.yaml"
     if not meta.is_file():
         files = sorted(p.glob("*.mcap"))
+        if len(files) > 1:
+            raise UnorderedBagError(p, files)
         if len(files) != 1:
-            raise ValueError(f"bag directory {p} holds {len(files)} .mcap files and no "
-                             "metadata.yaml saying their order")
+            raise ValueError(f"bag directory {p} holds 0 .mcap files and no metadata.yaml")
         return files
     try:
         with open(meta, "rb") as f:

@@ -22,6 +22,7 @@ from gyro_attitude.core.allan import (
     relative_error,
 )
 from gyro_attitude.core.attitude.rest import RestThresholds
+from gyro_attitude.core.attitude.sample_clock import run_period, sample_clock
 from gyro_attitude.core.attitude.validation import no_estimate
 from gyro_attitude.core.sensor_errors import FLICKER_FLOOR_FACTOR
 from gyro_attitude.core.units import format_si
@@ -399,23 +400,30 @@ def analyse_mcap(path, topic: str = "imu/data_raw", whole_record: bool = False) 
         raise ValueError(f"{path}: no sensor_msgs/Imu messages on topic {topic!r}")
     t = imu.stamp_ns.astype(np.int64)
     _check_stamps(t, path, topic)
-    steps = np.diff(t)
-    dt_ns = float(np.median(steps))
+    # A regular stream's stamps scatter by less than half a step about the clock they were
+    # taken on (a driver stamping on receipt: ±1/3 of the step, so an interval may be off by
+    # 2/3): judge each stamp against that clock, not each interval.  A step of the clock of
+    # k >= 2 periods is a hole of k - 1 missing samples.
+    period = float(run_period(t))
+    tau = sample_clock(t, [0])
+    off = np.abs(t - tau) / period
+    k = np.rint(np.diff(tau) / period)
+    if off.max() >= 0.5 or (k < 1).any():
+        bad = np.flatnonzero(off >= 0.5)
+        first = int(bad[0]) if bad.size else int(np.flatnonzero(k < 1)[0]) + 1
+        raise ValueError(f"{path}: Imu stamps on {topic!r} are not a regular stream: they lie "
+                         f"up to {off.max():.0%} of the {period / 1e6:g} ms step from the clock "
+                         f"they scatter about (first at message {first}, "
+                         f"{(t[first] - t[0]) * 1e-9:g} s after the first; a regular stream's "
+                         "lie within half a step); Allan analysis needs evenly spaced samples")
+    spread = float(off.max())
+    dt_ns = float(tau[-1] - tau[0]) / float(k.sum())  # the clock's step over the whole record
     notes = []
-    # A step of about k steps (k >= 2, i.e. >= 1.5 steps) is a hole of k - 1 missing
-    # samples; what is left (jitter) must stay under half a step, as before.
-    holes = steps >= 1.5 * dt_ns
-    k = np.rint(steps / dt_ns)
-    spread = float(np.max(np.abs(steps - np.maximum(k, 1) * dt_ns))) / dt_ns
-    if spread > 0.5 or (steps < 0.5 * dt_ns).any():
-        spread = max(spread, float(np.max(np.abs(steps[~holes] - dt_ns))) / dt_ns)
-        raise ValueError(f"{path}: Imu stamps on {topic!r} have jitter up to "
-                         f"{spread:.0%} of the {dt_ns / 1e6:g} ms step; Allan analysis needs "
-                         f"evenly spaced samples")
+    holes = k >= 2
     starts = np.r_[0, np.flatnonzero(holes) + 1]
     if holes.any():
         missing = int((k[holes] - 1).sum())
-        where = (t[int(np.flatnonzero(holes)[0])] + dt_ns - t[0]) * 1e-9  # first one missing
+        where = (tau[int(np.flatnonzero(holes)[0])] + period - tau[0]) * 1e-9  # first missing
         what = (f"{missing} samples missing in {int(holes.sum())} holes (first {where:g} s "
                 f"after the start)")
         limit = int(MAX_MISSING_FRACTION * (t.size + missing))
@@ -425,7 +433,8 @@ def analyse_mcap(path, topic: str = "imu/data_raw", whole_record: bool = False) 
                              "Allan analysis needs an unbroken static record")
         notes.append(f"{what}: cluster pairs spanning a hole are left out")
     if spread > 0.01:
-        notes.append(f"stamp jitter up to {spread:.1%} of the step (treated as even)")
+        notes.append(f"stamps scatter up to {spread:.1%} of the step about their clock "
+                     "(treated as even)")
     has_accel = not no_estimate(imu.linear_acceleration_covariance).any()
     gyro = imu.angular_velocity
     accel = imu.linear_acceleration if has_accel else None

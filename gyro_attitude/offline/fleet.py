@@ -53,6 +53,7 @@ def fleet_pairs(inputs, out_dir, *, force: bool = False) -> list[tuple[str, str]
         else:
             if not os.path.exists(text):
                 raise ValueError(f"{text}: no such file or bag directory")
+            _check_bag(text)
             files.append(text)
     seen: dict[str, str] = {}
     out_dir = Path(out_dir)
@@ -72,6 +73,29 @@ def fleet_pairs(inputs, out_dir, *, force: bool = False) -> list[tuple[str, str]
     for _, out in pairs:
         check_output_path(out, inputs=files, force=force)
     return pairs
+
+
+def separate_recordings_hint(exc) -> str:
+    """What to give for a directory of separate recordings (``exc`` an
+    :class:`~gyro_attitude.io.mcap_reader.UnorderedBagError`): each of its files."""
+    pattern = glob.escape(os.fspath(exc.directory)) + "/*.mcap"
+    return (f"; separate recordings: replay each with gyro-attitude replay '{pattern}' "
+            "--out-dir OUT_DIR")
+
+
+def _check_bag(path: str) -> None:
+    """A directory input is one bag: several .mcap files without metadata.yaml are refused
+    before any work, saying how to replay them as separate recordings."""
+    if not os.path.isdir(path):
+        return
+    from gyro_attitude.io.mcap_reader import UnorderedBagError, bag_files
+
+    try:
+        bag_files(path)
+    except UnorderedBagError as exc:
+        raise ValueError(f"{exc}{separate_recordings_hint(exc)}") from None
+    except ValueError:
+        return  # the replay of that input reports it, with the others'
 
 
 def _replay_task(task) -> dict:

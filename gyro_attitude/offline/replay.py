@@ -297,8 +297,9 @@ def estimate_recording(t_ns, omega, accel, gyro_covariance, frame_id, *, config:
             raise ValueError("initial attitude 'truth' needs the truth")
         # at the first sample the estimator accepts (a zero stamp or a NaN rate before it is
         # skipped, and the truth at its stamp would be the wrong start)
-        usable = iv.usable_samples(t_ns, omega, config.max_rate_rad_s)
-        q0, first, _ = initial_attitude_from_truth(t_ns, truth[0], truth[1], usable=usable)
+        q0, first, _ = initial_attitude_from_truth(
+            t_ns, truth[0], truth[1],
+            usable=lambda k: iv.sample_problem(t_ns[k], omega[k], config.max_rate_rad_s) is None)
     if first:
         nav = nav_rows(nav, np.arange(first, n), n)
         t_ns, omega, gyro_covariance = t_ns[first:], omega[first:], gyro_covariance[first:]

@@ -82,7 +82,7 @@ from gyro_attitude.core.attitude.modes import (
     HeadingSource,
 )
 from gyro_attitude.core.attitude.registry import DEFAULT_ALGORITHM
-from gyro_attitude.core.attitude.rest import NOISE_FLOOR_RAD_S, detect_rest
+from gyro_attitude.core.attitude.rest import NOISE_FLOOR_RAD_S, detect_rest, true_runs
 from gyro_attitude.core.attitude.sample_clock import sample_clock
 from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.core.attitude.stream import (
@@ -231,7 +231,7 @@ def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, params: dict,
     # oldest samples; on jittered or irregular stamps a window may drop two old samples at
     # once, and the one skipped is still followed by a window of rest (marking only the
     # windows' oldest samples left holes there, and no rest reached min_ns).
-    e0, e1 = _edges(newest)
+    e0, e1 = true_runs(newest)
     o0 = np.searchsorted(t, t[e0] - window_ns, side="left")
     o1 = np.searchsorted(t, t[e1 - 1] - window_ns, side="left")
     keep = t[o1] - t[o0] >= min_ns  # the causal stage's span of the same rest
@@ -246,49 +246,31 @@ def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, params: dict,
         out[a:b + 1] = True
 
 
-def _edges(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Starts and stops of the runs of True in ``mask`` (one byte a row of temporaries)."""
-    pad = np.zeros(1, np.int8)
-    edges = np.diff(np.concatenate((pad, mask.view(np.int8), pad)))
-    return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-
-
 def _segments(mask: np.ndarray) -> list[tuple[int, int]]:
     """The runs of True in ``mask``: (start, stop) pairs."""
-    e0, e1 = _edges(mask)
+    e0, e1 = true_runs(mask)
     return list(zip(e0.tolist(), e1.tolist(), strict=True))
 
 
-def _up_correction(u: np.ndarray) -> np.ndarray:
-    """Quaternions (M, 4) of the smallest rotations taking the directions ``u`` (M, 3) to +z."""
-    # q = (u × z, |u| + u·z) normalised: the half-way quaternion, no trigonometry; exact for
-    # every u but straight down (|u| + u_z = 0 and u × z = 0: then any horizontal axis, x here)
-    q = np.empty((u.shape[0], 4))
-    q[:, 0] = u[:, 1]
-    q[:, 1] = -u[:, 0]
-    q[:, 2] = 0.0
-    q[:, 3] = np.sqrt(np.einsum("ij,ij->i", u, u)) + u[:, 2]
-    norm = np.sqrt(np.einsum("ij,ij->i", q, q))
-    down = norm <= 1e-300
-    q[down] = (1.0, 0.0, 0.0, 0.0)
-    norm[down] = 1.0
-    q /= norm[:, None]
-    return q
-
-
-def _level_left(u: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """``_up_correction(u) ⊗ q`` for unit ``q`` without building the correction: its z part is
-    0, so the product has three terms fewer per component (the tilt pass's hot step)."""
+def _up_correction(u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The smallest rotations taking the directions ``u`` (M, 3) to +z as unit quaternions
+    ``(cx, cy, 0, cw)``: the arrays ``cx, cy, cw``.  The half-way quaternion ``(u × z, |u| +
+    u·z)`` normalised, no trigonometry; exact for every u but straight down (|u| + u_z = 0 and
+    u × z = 0: then any horizontal axis, x here)."""
     cx, cy = u[:, 1].copy(), -u[:, 0]
     cw = np.sqrt(np.einsum("ij,ij->i", u, u)) + u[:, 2]
     inv = cx * cx + cy * cy + cw * cw
-    down = inv <= 1e-300  # straight down: the half-turn about x (as _up_correction)
+    down = inv <= 1e-300
     if down.any():
         cx[down], cy[down], cw[down], inv[down] = 1.0, 0.0, 0.0, 1.0
     inv = 1.0 / np.sqrt(inv)
-    cx *= inv
-    cy *= inv
-    cw *= inv
+    return cx * inv, cy * inv, cw * inv
+
+
+def _level_left(u: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """``_up_correction(u) ⊗ q`` (M, 4): the correction's z part is 0, so the product has
+    three terms fewer per component (the tilt pass's hot step)."""
+    cx, cy, cw = _up_correction(u)
     qx, qy, qz, qw = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
     out = np.empty_like(q)
     out[:, 0] = cw * qx + cx * qw + cy * qz
@@ -880,13 +862,13 @@ class _Estimator:
         ok &= norm >= MAG_ZERO_T  # (almost) zero once the hard iron is taken out: no reading
         return _qrot(q, m), norm, ok, missing
 
-    def _count_unusable(self, b0, b1):
-        """The missing and invalid field samples of rows ``[b0, b1)`` counted, in a block
-        whose heading stays gyro-only (no reference to judge disturbance by)."""
-        for c0, c1 in _chunks(b0, b1, self.size):
-            _, _, ok, missing = self._field_rows(self.mag[c0:c1], _IDENTITY)
-            self.mag_counts[MAG_MISSING] += int(np.count_nonzero(missing))
-            self.mag_counts[INVALID_MAG] += int(np.count_nonzero(~ok & ~missing))
+    def _count_field(self, ok, missing, good=None):
+        """A chunk's field samples counted: missing, invalid (neither ``ok`` nor missing) and,
+        with the reference's verdict ``good``, disturbed (``ok`` and not ``good``)."""
+        self.mag_counts[MAG_MISSING] += int(np.count_nonzero(missing))
+        self.mag_counts[INVALID_MAG] += int(np.count_nonzero(~ok & ~missing))
+        if good is not None:
+            self.mag_counts[MAG_DISTURBED] += int(np.count_nonzero(ok & ~good))
 
     def _field_reference(self, b0, b1, q_out) -> FieldReference:
         """Norm and dip of the undisturbed field: ``mag_reference_enu_t`` when given, else the
@@ -926,7 +908,8 @@ class _Estimator:
         if ref.mag_ref_norm is None:
             self.notes.append("magnetometer: too few usable field samples to learn the "
                               "reference: heading gyro-only")
-            self._count_unusable(b0, b1)
+            for c0, c1 in _chunks(b0, b1, self.size):  # no reference: none is disturbed
+                self._count_field(*self._field_rows(self.mag[c0:c1], _IDENTITY)[2:])
             return
         ref_n, ref_d = ref.mag_ref_norm, ref.mag_ref_dip
         tol_n, tol_d = cfg.mag_norm_tol * ref_n, math.radians(cfg.mag_dip_tol_deg)
@@ -960,9 +943,7 @@ class _Estimator:
 
         def apply(c0, c1, sm, n_eff):
             ex, ey, good, ok, missing = kept.pop(c0) if kept is not None else directions(c0, c1)
-            self.mag_counts[MAG_MISSING] += int(np.count_nonzero(missing))
-            self.mag_counts[INVALID_MAG] += int(np.count_nonzero(~ok & ~missing))
-            self.mag_counts[MAG_DISTURBED] += int(np.count_nonzero(ok & ~good))
+            self._count_field(ok, missing, good)
             den = sm[:, 2]
             okd = den > _MAG_WEIGHT_MIN
             err = np.where(okd, np.arctan2(sm[:, 0], sm[:, 1]), 0.0)
@@ -1010,9 +991,9 @@ class _Estimator:
             return
         xs = np.array([r.tau_s for r in with_f])
         # the correction of each rest as a rotation vector, interpolated between rests
-        rv = quat_as_rotvec(_up_correction(np.array([quat_rotate(q_out[b0 + r.start],
-                                                                 r.accel_mean)
-                                                     for r in with_f])))
+        f = np.array([quat_rotate(q_out[b0 + r.start], r.accel_mean) for r in with_f])
+        cx, cy, cw = _up_correction(f)
+        rv = quat_as_rotvec(np.column_stack((cx, cy, np.zeros_like(cx), cw)))
         for c0, c1 in _chunks(b0, b1, self.size):
             tr = tau[c0 - b0:c1 - b0]
             r = np.column_stack([np.interp(tr, xs, rv[:, i]) for i in range(3)])

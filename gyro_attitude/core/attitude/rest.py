@@ -73,7 +73,7 @@ from gyro_attitude.core.earth import STANDARD_GRAVITY
 from gyro_attitude.core.jit import kernel
 
 __all__ = ["NOISE_FLOOR_RAD_S", "RestWindows", "check_samples", "detect_rest", "rest_segments",
-           "rest_start", "rest_update"]
+           "rest_start", "rest_update", "true_runs"]
 
 # Every real gyro shows noise at rest (a navigation-grade one still ~1e-6 rad/s per sample at
 # 100 Hz), so a window whose output is constant to rounding is a noise-free simulation or a stuck
@@ -182,7 +182,8 @@ class RestWindows:
 # The streaming detector's state as two arrays (in the chain's state record). Float slots: the
 # running sums (gyro x, gyro x², accel x, accel x²; 3 each), the reference samples, the last
 # window's statistics, the thresholds.
-F_C, F_REF_G, F_REF_A, F_GYRO_STD, F_ACCEL_STD, F_GYRO_MEAN, F_ACCEL_MEAN = 0, 12, 15, 18, 19, 20, 23
+F_C, F_REF_G, F_REF_A, F_GYRO_STD, F_ACCEL_STD = 0, 12, 15, 18, 19
+F_GYRO_MEAN, F_ACCEL_MEAN = 20, 23
 F_STD_MIN, F_STD_MAX, F_MEAN_MAX, F_ACCEL_STD_MAX, F_NORM_TOL, F_GRAVITY = 26, 27, 28, 29, 30, 31
 _R_FLOATS = 32
 # int slots: samples taken, whether a last stamp exists and its value, the window's oldest
@@ -395,13 +396,18 @@ def _covered(at_rest: np.ndarray, oldest: np.ndarray, empty=np.empty) -> np.ndar
     return covered
 
 
+def true_runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Starts and stops (exclusive) of the runs of True in the bool array ``mask``, in order
+    (one byte a row of temporaries)."""
+    pad = np.zeros(1, np.int8)
+    edges = np.diff(np.concatenate((pad, mask.view(np.int8), pad)))
+    return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+
+
 def rest_segments(covered: np.ndarray) -> list[tuple[int, int]]:
     """Runs of rest samples as ``(first, last)`` index pairs (inclusive), in order."""
-    c = np.asarray(covered, dtype=bool)
-    edges = np.diff(np.concatenate([[False], c, [False]]).astype(np.int8))
-    starts = np.flatnonzero(edges == 1)
-    ends = np.flatnonzero(edges == -1) - 1
-    return list(zip(starts.tolist(), ends.tolist(), strict=True))
+    starts, stops = true_runs(np.asarray(covered, dtype=bool))
+    return list(zip(starts.tolist(), (stops - 1).tolist(), strict=True))
 
 
 @kernel

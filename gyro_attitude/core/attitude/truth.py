@@ -58,23 +58,16 @@ def truth_at(truth_t, truth_q, t_ns: int, max_interval_ns: int | None = None) ->
     """Truth quaternion (4,) x, y, z, w at ``t_ns``, or ValueError when the truth does not
     cover it (outside the truth's span or inside a gap longer than ``max_interval_ns``)."""
     t, q = _check(truth_t, truth_q)
-    return _truth_at_checked(t, q, int(t_ns), max_interval_ns)
-
-
-def _truth_at_checked(t: np.ndarray, q: np.ndarray, t_ns: int,
-                      max_interval_ns: int | None) -> np.ndarray:
-    """:func:`truth_at` on a truth that :func:`_check` has checked and normalized."""
-    k = int(np.searchsorted(t, t_ns, side="left"))
-    if k < t.size and t[k] == t_ns:
-        return q[k].copy()
-    if k == 0 or k == t.size:
+    t_ns = int(t_ns)
+    got, covered = _covered(t, q, np.array([t_ns], np.int64), max_interval_ns)
+    if covered[0]:
+        return got[0]
+    if not t[0] < t_ns < t[-1]:
         raise ValueError(f"no truth at {t_ns} ns: the truth spans [{t[0]}, {t[-1]}] ns "
                          "(no extrapolation)")
-    limit = default_max_interval_ns(t) if max_interval_ns is None else int(max_interval_ns)
-    if t[k] - t[k - 1] > limit:
-        raise ValueError(f"no truth at {t_ns} ns: it falls in a truth gap of "
-                         f"{(t[k] - t[k - 1]) * 1e-9:.3g} s")
-    return _slerp(t, q, np.array([k]), np.array([t_ns], np.int64))[0]
+    k = int(np.searchsorted(t, t_ns))
+    raise ValueError(f"no truth at {t_ns} ns: it falls in a truth gap of "
+                     f"{(t[k] - t[k - 1]) * 1e-9:.3g} s")
 
 
 def _slerp(t: np.ndarray, q: np.ndarray, k: np.ndarray, t_ns: np.ndarray) -> np.ndarray:
@@ -97,7 +90,13 @@ def truth_at_stamps(truth_t, truth_q, t_ns,
     the two around it; nothing outside the truth's span or in a gap longer than
     ``max_interval_ns``). ``covered`` (M,) bool; ``q`` (covered.sum(), 4)."""
     t, q = _check(truth_t, truth_q)
-    s = np.asarray(t_ns, dtype=np.int64).reshape(-1)
+    return _covered(t, q, np.asarray(t_ns, dtype=np.int64).reshape(-1), max_interval_ns)
+
+
+def _covered(t: np.ndarray, q: np.ndarray, s: np.ndarray,
+             max_interval_ns: int | None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`truth_at_stamps` on a truth :func:`_check` has checked and normalized (the one
+    rule of where the truth is, for every caller)."""
     k = np.searchsorted(t, s, side="left")
     exact = (k < t.size) & (t[np.minimum(k, t.size - 1)] == s)
     limit = default_max_interval_ns(t) if max_interval_ns is None else int(max_interval_ns)
@@ -146,10 +145,11 @@ def initial_attitude_from_truth(imu_t, truth_t, truth_q, max_interval_ns: int | 
                                 usable=None) -> tuple[np.ndarray, int, int]:
     """``(q0, first_index, skipped)``: the truth at the first usable Imu stamp it covers.
 
-    ``usable`` (N,) bool: the samples the estimator would accept as a start
-    (:func:`.validation.usable_samples`; default all) — the truth is taken at the sample where
-    the attitude starts, never at one the estimator then rejects.  ``first_index`` that sample;
-    ``skipped`` how many Imu samples come before it (0 when the truth starts with the Imu).
+    ``usable(k) -> bool``: whether the estimator would accept Imu sample ``k`` as a start
+    (:func:`.validation.sample_problem` finds nothing; default all) — the truth is taken at
+    the sample where the attitude starts, never at one the estimator then rejects.
+    ``first_index`` that sample; ``skipped`` how many Imu samples come before it (0 when the
+    truth starts with the Imu).
     ValueError when no usable Imu stamp is covered.
     """
     t, q = _check(truth_t, truth_q)
@@ -158,14 +158,13 @@ def initial_attitude_from_truth(imu_t, truth_t, truth_q, max_interval_ns: int | 
         raise ValueError(f"Imu stamps must be a non-empty 1-D array of int ns, got shape "
                          f"{imu.shape} dtype {imu.dtype}")
     imu = imu.astype(np.int64)
-    ok = np.ones(imu.size, dtype=bool) if usable is None else np.asarray(usable, dtype=bool)
-    inside = ok & (imu >= t[0]) & (imu <= t[-1])
-    for k in np.flatnonzero(inside):  # usually the first: no list of every index
-        k = int(k)
-        try:
-            return _truth_at_checked(t, q, int(imu[k]), max_interval_ns), k, k
-        except ValueError:
-            continue  # inside a truth gap: try the next Imu sample
+    limit = default_max_interval_ns(t) if max_interval_ns is None else int(max_interval_ns)
+    for k in np.flatnonzero((imu >= t[0]) & (imu <= t[-1])).tolist():  # usually the first
+        if usable is not None and not usable(k):
+            continue
+        got, covered = _covered(t, q, imu[k:k + 1], limit)
+        if covered[0]:  # (else inside a truth gap: try the next Imu sample)
+            return got[0], k, k
     raise ValueError(f"no Imu stamp lies within the truth's span {span_words(t[0], t[-1])} "
                      f"(the Imu spans {span_words(int(imu.min()), int(imu.max()))}): cannot "
                      "take the initial attitude from the truth")

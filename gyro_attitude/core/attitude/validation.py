@@ -5,8 +5,9 @@ poisons the quaternion forever, a duplicate or out-of-order stamp gives ``dt <= 
 the rate-times-time step meaningless, and a changed ``frame_id`` means the rates are no longer
 about the axes the attitude is for. The kernel :func:`validate` classifies each sample *before*
 it reaches the integrator and keeps counts per reason on a :data:`STAMPS_DTYPE` record (the
-causal estimator's step, :mod:`.chain`); :func:`classify` gives the same verdicts for a whole
-recording at once (vectorized where the stream is regular; the offline estimator's).
+causal estimator's step, :mod:`.chain`); :func:`classify` gives a whole recording the verdicts
+of that same kernel run on every sample (the offline estimator's; a recording every sample of
+which passes is settled by whole-array reductions, without the kernel or its compiler).
 :class:`IntervalStatistics` reads the input rate and dt jitter off the step's ring of intervals.
 
 Times are integer nanoseconds (the ``header.stamp`` of the message).
@@ -159,32 +160,23 @@ def accepted_rows(action: np.ndarray, empty=np.empty, size: int = 1 << 16) -> np
 
 
 def sample_problem(t_ns, omega, max_rate_rad_s: float) -> tuple[str, str] | None:
-    """(reason, detail) when a sample is unusable on its own (its values, a stamp that is not
-    positive), else None: the checks that need no earlier sample."""
+    """(reason, detail) when a sample is unusable on its own (:func:`sample_reason`: its
+    values, a stamp that is not positive), else None: the checks that need no earlier sample."""
+    if isinstance(t_ns, bool) or not isinstance(t_ns, int | np.integer):
+        raise ValueError(f"t_ns must be an integer number of nanoseconds, got {t_ns!r}")
     try:
         values = [float(c) for c in (
             omega.tolist() if isinstance(omega, np.ndarray) and omega.ndim == 1 else omega)]
     except (TypeError, ValueError):
         return NON_FINITE, f"not numbers: {omega!r}"
-    if len(values) != 3 or not all(math.isfinite(x) for x in values):
+    if len(values) != 3:
         return NON_FINITE, f"non-finite value(s) {values}"
-    if any(abs(x) > max_rate_rad_s for x in values):
-        return IMPLAUSIBLE_RATE, (f"rate {values} rad/s beyond max_rate_rad_s = "
-                                  f"{max_rate_rad_s:g}")
-    if isinstance(t_ns, bool) or not isinstance(t_ns, int | np.integer):
-        raise ValueError(f"t_ns must be an integer number of nanoseconds, got {t_ns!r}")
-    if t_ns <= 0:
-        return ZERO_STAMP, f"stamp {int(t_ns)} ns is not positive (0: unset)"
-    return None
-
-
-def usable_samples(t_ns: np.ndarray, omega: np.ndarray, max_rate_rad_s: float) -> np.ndarray:
-    """Array form of :func:`sample_problem` is None: (N,) bool."""
-    if all_within(omega, max_rate_rad_s):
-        return np.asarray(t_ns) > 0
-    with np.errstate(invalid="ignore"):
-        ok = (np.abs(omega) <= max_rate_rad_s).all(axis=1)  # NaN fails the comparison
-    return ok & (np.asarray(t_ns) > 0)
+    why = sample_reason(t_ns, values[0], values[1], values[2], max_rate_rad_s)
+    if why == 0:
+        return None
+    name = REASON_NAMES[why]
+    return name, reason_words(name, t_ns, values, None, None, (0,) * 5,
+                              ImuCheckConfig(max_rate_rad_s=max_rate_rad_s))
 
 
 def reason_words(name: str, t_ns: int, values, frame_id, locked, figures, cfg) -> str:
@@ -285,7 +277,9 @@ def classify(t_ns, omega, frame_id: str | list[str] | None = "",
     """The verdicts :func:`validate` gives to these samples in this order.
 
     ``t_ns`` (N,) int stamps, ``omega`` (N, 3) rates, ``frame_id`` one string for all samples or
-    one per sample. A fresh validator is assumed (no locked frame, no time base).
+    one per sample. A fresh validator is assumed (no locked frame, no time base).  The usual
+    recording (one frame, every rate within bounds, positive stamps rising at a steady rate)
+    is settled by whole-array reductions; any other runs :func:`validate` on every sample.
     """
     cfg = config if config is not None else ImuCheckConfig()
     t = np.asarray(t_ns)
@@ -301,131 +295,65 @@ def classify(t_ns, omega, frame_id: str | list[str] | None = "",
     action = np.zeros(n, np.int8)
     reason = np.zeros(n, np.int8)
     details: dict[str, str] = {}
-    ok, locked = _local_checks(t, w, codes, names, cfg, reason, details)
     record = np.zeros(1, STAMPS_DTYPE).view(np.recarray)
-    resets = _stamp_checks(t, ok, cfg, action, reason, details, record)
+    if n and (codes is None or not codes.any()) and all_within(w, cfg.max_rate_rad_s) \
+            and int(t.min()) > 0 and _regular_stamps(t, cfg.max_gap_ns):
+        # every sample passes every check: no per-sample step (nor its compiler) needed
+        action.fill(ACTION_CODES[ACCEPT])
+        action[0] = ACTION_CODES[START]
+        locked = 0
+    else:
+        locked = _validate_all(t, w, codes, names, cfg, action, reason, details, record)
     counts = {r: int(np.count_nonzero(reason == _REASON_CODES[r])) for r in REJECT_REASONS}
     accepted = int(np.count_nonzero(action != ACTION_CODES[REJECT]))
-    return Classification(action, reason, counts, details, resets, accepted,
+    return Classification(action, reason, counts, details, int(record.jump_resets[0]), accepted,
                           None if locked is None else names[locked], int(record.missing[0]))
 
 
-#: the validator's figures (dt, hole, missing, skipped, period) where a reason needs none
-_NO_FIGURES = (0, 0, 0, 0, 0)
-
-
-def _local_checks(t, w, codes, names, cfg, reason, details):
-    """The sample-local checks, in the validator's order: values, then stamp, then frame
-    (reasons and first details written into ``reason`` and ``details``).  Returns (the rows
-    that pass, None standing for all: the usual recording, one frame, rates within bounds,
-    stamps positive, makes no per-row mask; the locked frame's code, None when no row passes)."""
-    n = t.shape[0]
-    rates_within = all_within(w, cfg.max_rate_rad_s)
-    if n and codes is None and rates_within and int(t.min()) > 0:
-        return None, 0
-    if rates_within:  # the rates pass: no per-row value checks
-        finite = plausible = np.ones(n, dtype=bool)
-    else:
-        with np.errstate(invalid="ignore"):
-            finite = np.isfinite(w).all(axis=1)
-            plausible = (np.abs(w) <= cfg.max_rate_rad_s).all(axis=1)
-    bad_value = ~finite
-    rate_bad = finite & ~plausible
-    zero = (t <= 0) & finite & plausible
-    ok = finite & plausible & (t > 0)
-    reason[bad_value] = _REASON_CODES[NON_FINITE]
-    reason[rate_bad] = _REASON_CODES[IMPLAUSIBLE_RATE]
-    reason[zero] = _REASON_CODES[ZERO_STAMP]
-    for name, mask in ((NON_FINITE, bad_value), (IMPLAUSIBLE_RATE, rate_bad),
-                       (ZERO_STAMP, zero)):
-        if mask.any():
-            k = int(np.flatnonzero(mask)[0])
-            details[name] = reason_words(name, int(t[k]), w[k].tolist(), None, None,
-                                         _NO_FIGURES, cfg)
-    if not ok.any():
-        return ok, None
-    # the first sample that passes the local checks is always accepted (START): its frame is
-    # the one locked in
-    first = int(np.flatnonzero(ok)[0])
-    locked = 0 if codes is None else int(codes[first])
-    if codes is not None:
-        changed = ok & (codes != locked)
-        if changed.any():
-            reason[changed] = _REASON_CODES[FRAME_CHANGED]
-            ok &= ~changed
-            k = int(np.flatnonzero(changed)[0])
-            details[FRAME_CHANGED] = reason_words(FRAME_CHANGED, int(t[k]), None,
-                                                  names[int(codes[k])], names[locked],
-                                                  _NO_FIGURES, cfg)
-    return ok, locked
-
-
-def _stamp_checks(t, ok, cfg, action, reason, details, record) -> int:
-    """The stamp checks of the rows that passed the local ones (``ok``; None: all), which
-    depend on the last accepted stamp: a regular stream (strictly increasing, no gap) is
-    settled array-wide; anything else walks the candidate stamps.  Returns the time-jump
-    resets."""
-    n = t.shape[0]
-    every = ok is None or bool(ok.all())  # then no row index, no copy of the stamps
-    idx = None if every else np.flatnonzero(ok)
-    m = n if every else idx.size
-    if not m:
-        return 0
-    tc = t if every else t[idx]
-    if _regular_stamps(tc, cfg.max_gap_ns):
-        action[slice(None) if every else idx] = ACTION_CODES[ACCEPT]
-        action[0 if every else idx[0]] = ACTION_CODES[START]
-        return 0
-    return _walk(tc, np.arange(n) if every else idx, action, reason, details, cfg, record)
-
-
 @kernel
-def walk_stamps(v, max_gap_ns, time_jump_ns, max_missing, t, rows, action, reason, first_row,
-                first_fig):
-    """The stamp rule (:func:`stamp_step`) over the candidate samples ``t`` at input ``rows``:
-    their action and reason codes, and per reason the first row and the validator's figures
-    there (for the words)."""
-    last_row = rows[0] - 1 if rows.shape[0] else -1  # START: what came before does not matter
+def validate_rows(v, max_rate, max_gap_ns, time_jump_ns, max_missing, t, w, frames, action,
+                  reason, first_row, first_fig):
+    """:func:`validate` over the samples ``t``, ``w`` (frame codes ``frames``; the first
+    accepted sample's is locked in): their action and reason codes, and per reason the first
+    row and the validator's figures there (for the words).  Returns the locked frame's code
+    (-1: no sample accepted)."""
+    locked = -1
     for i in range(t.shape[0]):
-        v.skipped = rows[i] - last_row - 1
-        act, why = stamp_step(v, max_gap_ns, time_jump_ns, max_missing, t[i])
+        act, why = validate(v, max_rate, max_gap_ns, time_jump_ns, max_missing, t[i], w[i, 0],
+                            w[i, 1], w[i, 2], locked < 0 or frames[i] == locked)
         action[i] = act
-        if act != A_REJECT:
-            last_row = rows[i]
-            if act == A_RESET_TIME_JUMP:
-                v.jump_resets += 1
+        if act != A_REJECT and locked < 0:
+            locked = frames[i]
         if why == 0:
             continue
         if why != R_TIME_JUMP and why != R_MISSING:
             reason[i] = why
         if first_row[why] < 0:
-            first_row[why] = rows[i]
+            first_row[why] = i
             first_fig[why, 0], first_fig[why, 1], first_fig[why, 2] = v.ev_dt, v.ev_hole, \
                 v.ev_missing
             first_fig[why, 3], first_fig[why, 4] = v.ev_skipped, v.ev_period
+    return locked
 
 
-def _walk(tc: np.ndarray, idx: np.ndarray, action: np.ndarray, reason: np.ndarray,
-          details: dict[str, str], cfg: ImuCheckConfig, record) -> int:
-    """:func:`walk_stamps` over the candidate stamps ``tc`` at rows ``idx``; the first detail
-    per reason into ``details``; the time-jump resets."""
-    n = tc.shape[0]
-    out_a, out_r = np.zeros(n, np.int8), np.zeros(n, np.int8)
+def _validate_all(t, w, codes, names, cfg, action, reason, details, record) -> int | None:
+    """:func:`validate_rows` over every sample into ``action``, ``reason`` and ``record``; the
+    first detail per reason into ``details``; the locked frame's code (None: none)."""
+    n = t.shape[0]
+    frames = np.zeros(n, np.int64) if codes is None else codes
     first_row = np.full(R_INTEGRATOR + 1, -1, np.int64)
     first_fig = np.zeros((R_INTEGRATOR + 1, 5), np.int64)
-    r = record[0]
-    compiled(walk_stamps)(r, int(cfg.max_gap_ns), int(cfg.time_jump_ns),
-                          int(cfg.max_missing_samples), tc, idx.astype(np.int64), out_a, out_r,
-                          first_row, first_fig)
+    locked = int(compiled(validate_rows)(
+        record[0], float(cfg.max_rate_rad_s), int(cfg.max_gap_ns), int(cfg.time_jump_ns),
+        int(cfg.max_missing_samples), t, w, frames, action, reason, first_row, first_fig))
     for why in range(1, R_INTEGRATOR):
         k = int(first_row[why])
         if k >= 0:
             name = REASON_NAMES[why]
-            details.setdefault(name, reason_words(name, int(tc[np.searchsorted(idx, k)]), None,
-                                                  None, None, first_fig[why], cfg))
-    action[idx] = out_a
-    reason[idx] = out_r
-    return int(r.jump_resets)
+            details[name] = reason_words(name, int(t[k]), w[k].tolist(), names[int(frames[k])],
+                                         None if locked < 0 else names[locked], first_fig[why],
+                                         cfg)
+    return None if locked < 0 else locked
 
 
 class IntervalStatistics:
@@ -573,21 +501,29 @@ def stamp_step(v, max_gap_ns, time_jump_ns, max_missing, t):
     return A_ACCEPT, R_MISSING
 
 
+@kernel(inline=True)
+def sample_reason(t, w0, w1, w2, max_rate):
+    """The checks of one sample on its own, in order: its rates finite, each within
+    ``max_rate``, its stamp positive.  The reason code of the first it fails (0: none)."""
+    if not (math.isfinite(w0) and math.isfinite(w1) and math.isfinite(w2)):
+        return R_NON_FINITE
+    if not within(w0, w1, w2, max_rate):
+        return R_IMPLAUSIBLE
+    if t <= 0:
+        return R_ZERO
+    return 0
+
+
 @kernel
 def validate(v, max_rate, max_gap_ns, time_jump_ns, max_missing, t, w0, w1, w2, frame_ok):
     """One sample's verdict on the record ``v``: the sample's values (finite,
     within ``max_rate``), its stamp (positive), its frame (``frame_ok``: the locked one, or
     none locked yet), then the stamp rule; a rejection is counted and leaves the time base
     alone.  (action code, reason code)."""
-    if not (math.isfinite(w0) and math.isfinite(w1) and math.isfinite(w2)):
-        reason = R_NON_FINITE
-    elif not within(w0, w1, w2, max_rate):
-        reason = R_IMPLAUSIBLE
-    elif t <= 0:
-        reason = R_ZERO
-    elif not frame_ok:
+    reason = sample_reason(t, w0, w1, w2, max_rate)
+    if reason == 0 and not frame_ok:
         reason = R_FRAME
-    else:
+    if reason == 0:
         action, reason = stamp_step(v, max_gap_ns, time_jump_ns, max_missing, t)
         if action != A_REJECT:
             v.skipped = 0

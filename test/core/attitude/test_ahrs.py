@@ -31,7 +31,7 @@ def heading_deg(q, q_true):
     return np.degrees(np.abs((2 * np.arctan2(e[..., 2], e[..., 3]) + np.pi) % (2 * np.pi) - np.pi))
 
 
-def ahrs_attitude(t_ns, gyro, accel, q0, mag=None, *, config=None):
+def aided_run(t_ns, gyro, accel, q0, mag=None, *, config=None):
     """Attitudes (N, 4) of the causal estimator with the AHRS aiding alone (no bias stage) over
     bias-free rates from ``q0``, integrated with the exponential map, and its AHRS stage (for
     the counters).  The stamps are moved 1 s on (a zero stamp is refused)."""
@@ -88,7 +88,7 @@ def test_the_low_pass_goes_on_from_its_output_when_its_time_constant_switches():
 def test_tilt_converges_to_the_static_tilt_from_a_level_start():
     truth = Rotation.from_euler("xyz", [12.0, -7.0, 30.0], degrees=True)
     t, w, f, m, qt = static(truth, 20.0, np.random.default_rng(1))
-    q, aid = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m)
+    q, aid = aided_run(t, w, f, [0, 0, 0, 1.0], m)
     assert tilt_deg(q[-1], qt[-1]) < 0.05
     assert aid.aided_samples > 0 and aid.at_rest
 
@@ -99,7 +99,7 @@ def test_a_wrong_start_takes_the_mean_vertical_of_the_first_samples_at_once():
     0.5 s): within 0.2° after 0.5 s at rest, 0.1° after 1 s."""
     truth = Rotation.from_euler("xyz", [12.0, -7.0, 30.0], degrees=True)
     t, w, f, m, qt = static(truth, 1.0, np.random.default_rng(2))
-    q, _ = ahrs_attitude(t, w, f, [0, 0, 0, 1.0])
+    q, _ = aided_run(t, w, f, [0, 0, 0, 1.0])
     assert tilt_deg(q[0], qt[0]) > 13.0  # the first sample has no interval to correct over
     assert tilt_deg(q[int(0.5 * FS):], qt[int(0.5 * FS):]).max() < 0.2
     assert tilt_deg(q[-1], qt[-1]) < 0.1
@@ -108,7 +108,7 @@ def test_a_wrong_start_takes_the_mean_vertical_of_the_first_samples_at_once():
 def test_heading_is_taken_from_the_field_and_points_to_magnetic_north():
     truth = Rotation.from_euler("xyz", [5.0, 3.0, 123.0], degrees=True)
     t, w, f, m, qt = static(truth, 15.0, np.random.default_rng(2))
-    q, aid = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m)
+    q, aid = aided_run(t, w, f, [0, 0, 0, 1.0], m)
     assert heading_deg(q[-1], qt[-1]) < 0.2
     assert aid.heading_initialized and aid.mag_used > 0
 
@@ -121,9 +121,9 @@ def test_declination_turns_the_heading_to_true_north():
                   -41e-6])
     truth = Rotation.from_euler("z", 40.0, degrees=True)
     t, w, f, m, qt = static(truth, 10.0, b_enu=b)
-    q_true_north, _ = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m,
+    q_true_north, _ = aided_run(t, w, f, [0, 0, 0, 1.0], m,
                                     config=StreamConfig(magnetic_declination_deg=decl))
-    q_magnetic, _ = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m)
+    q_magnetic, _ = aided_run(t, w, f, [0, 0, 0, 1.0], m)
     assert heading_deg(q_true_north[-1], qt[-1]) < 0.05
     assert heading_deg(q_magnetic[-1], qt[-1]) == pytest.approx(decl, abs=0.05)
 
@@ -140,12 +140,12 @@ def _sustained_acceleration(accel_x):
 
 def test_sustained_acceleration_pulls_the_tilt_by_the_rejection_angle_only():
     t, w, f = _sustained_acceleration(2.0)  # the apparent vertical tilts by atan(2/9.81)=11.5°
-    q, aid = ahrs_attitude(t, w, f, [0, 0, 0, 1.0])
+    q, aid = aided_run(t, w, f, [0, 0, 0, 1.0])
     tilt = tilt_deg(q, np.array([0, 0, 0, 1.0]))
     assert tilt.max() < 4.0
     assert aid.accel_rejected > 0
     # without the rejection the filter follows the apparent vertical
-    q_free, _ = ahrs_attitude(t, w, f, [0, 0, 0, 1.0],
+    q_free, _ = aided_run(t, w, f, [0, 0, 0, 1.0],
                               config=StreamConfig(ahrs_accel_reject_deg=180.0,
                                                                  ahrs_accel_norm_tol=1e3))
     assert tilt_deg(q_free, np.array([0, 0, 0, 1.0])).max() > 10.0
@@ -155,7 +155,7 @@ def test_a_rest_after_a_real_tilt_error_is_corrected_by_the_recovery():
     # started 8° off: the first seconds (a new low-pass) trust the accelerometer in full
     truth = Rotation.from_euler("x", 8.0, degrees=True)
     t, w, f, m, qt = static(truth, 30.0)
-    q, aid = ahrs_attitude(t, w, f, [0, 0, 0, 1.0])
+    q, aid = aided_run(t, w, f, [0, 0, 0, 1.0])
     assert tilt_deg(q[-1], qt[-1]) < 0.05
 
 
@@ -176,7 +176,7 @@ def test_a_magnet_brought_near_does_not_turn_the_heading():
     magnet = np.array([30e-6, -20e-6, 10e-6])  # fixed to the body, like a magnet carried along
     m_bad = m.copy()
     m_bad[disturbed] += magnet
-    q, aid = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m_bad)
+    q, aid = aided_run(t, w, f, [0, 0, 0, 1.0], m_bad)
     err = heading_deg(q, qt)
     # exact gyro, so the gyro-only drift over the disturbance is ~0
     assert err[disturbed].max() < 0.05
@@ -189,7 +189,7 @@ def test_a_steady_new_field_becomes_the_reference_after_the_recovery_time():
     later = t > 20e9
     m2 = m.copy()
     m2[later] *= 1.3  # a steady 30 % stronger field from 20 s (another building)
-    _, aid = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m2, config=StreamConfig(mag_recovery_s=15.0))
+    _, aid = aided_run(t, w, f, [0, 0, 0, 1.0], m2, config=StreamConfig(mag_recovery_s=15.0))
     assert aid.mag_reference_changes == 1
     assert aid.mag_ref_norm == pytest.approx(1.3 * np.linalg.norm(B_ENU), rel=0.01)
 
@@ -204,7 +204,7 @@ def test_bad_field_samples_are_counted_and_the_heading_holds(bad):
     if bad == "nan":  # NaN on one axis (a row of NaN is no field at all: mag_missing)
         mb[sel] = m[sel]
         mb[sel, 0] = np.nan
-    q, aid = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], mb)
+    q, aid = aided_run(t, w, f, [0, 0, 0, 1.0], mb)
     assert np.isfinite(q).all()
     assert heading_deg(q, qt)[sel].max() < 0.05
     counted = aid.mag_disturbed if bad == "flip" else aid.mag_invalid
@@ -216,8 +216,8 @@ def test_hard_iron_given_is_taken_out():
     hi = (20e-6, -10e-6, 5e-6)
     truth = Rotation.from_euler("z", 70.0, degrees=True)
     t, w, f, m, qt = static(truth, 10.0, hard_iron=hi)
-    q_given, _ = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m, config=StreamConfig(mag_hard_iron_t=tuple(hi)))
-    q_ignored, _ = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m)
+    q_given, _ = aided_run(t, w, f, [0, 0, 0, 1.0], m, config=StreamConfig(mag_hard_iron_t=tuple(hi)))
+    q_ignored, _ = aided_run(t, w, f, [0, 0, 0, 1.0], m)
     assert heading_deg(q_given[-1], qt[-1]) < 0.05
     assert heading_deg(q_ignored[-1], qt[-1]) > 5.0
 
@@ -230,7 +230,7 @@ def test_hard_iron_is_estimated_by_the_sphere_fit_when_the_body_turns_about_two_
     f = np.concatenate([p[2] for p in parts])
     w = np.concatenate([p[1] for p in parts])
     t = (np.arange(m.shape[0]) * (1e9 / FS)).astype(np.int64)
-    _, aid = ahrs_attitude(t, w, f, [0, 0, 0, 1.0], m,
+    _, aid = aided_run(t, w, f, [0, 0, 0, 1.0], m,
                            config=StreamConfig(mag_hard_iron_estimate=True))
     assert aid.hard_iron_fits > 0
     np.testing.assert_allclose(aid.hard_iron, hi, atol=0.2e-6)
@@ -240,7 +240,7 @@ def test_hard_iron_is_estimated_by_the_sphere_fit_when_the_body_turns_about_two_
 def test_hard_iron_fit_refuses_a_field_seen_from_one_direction_only():
     t, w, f, m, qt = static(Rotation.identity(), 10.0, np.random.default_rng(3),
                             hard_iron=(20e-6, 0, 0))
-    _, aid = ahrs_attitude(t, w, f, qt[0], m, config=StreamConfig(mag_hard_iron_estimate=True))
+    _, aid = aided_run(t, w, f, qt[0], m, config=StreamConfig(mag_hard_iron_estimate=True))
     assert aid.hard_iron_fits == 0 and aid.hard_iron == [0.0, 0.0, 0.0]
 
 

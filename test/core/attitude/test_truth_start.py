@@ -68,9 +68,8 @@ def test_offline_start_is_the_first_usable_sample_the_truth_covers():
     t = np.arange(0, 300 * MS, 5 * MS, dtype=np.int64)
     w = np.tile([0.0, 0.0, RATE], (t.size, 1))
     w[1:51] = np.nan  # 50 NaN samples after the zero stamp
-    ok = iv.usable_samples(t, w, iv.DEFAULT_MAX_RATE_RAD_S)
-    assert not ok[0] and not ok[1:51].any() and ok[51:].all()
-    q0, first, skipped = initial_attitude_from_truth(t, tt, tq, usable=ok)
+    q0, first, skipped = initial_attitude_from_truth(
+        t, tt, tq, usable=lambda k: usable(t[k], w[k]))
     assert first == skipped == 51
     assert (Rotation.from_quat(q0).inv()
             * Rotation.from_quat(expected_at(int(t[51])))).magnitude() < 1e-12
