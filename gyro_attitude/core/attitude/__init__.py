@@ -9,13 +9,14 @@ Quaternions are scalar-last.  Without a navigation frame the result is ``q_ib``;
 ``q_nb(t+T) = exp(−ζ) ⊗ q_nb(t) ⊗ exp(φ)`` with ``ζ = ∫ ω_in^n dt`` (trapezoid).
 ``q[k]`` is the attitude at ``t_ns[k]``.
 
-One module per algorithm family holds its batch kernel and its streaming step side by side
-(``first_order``, ``exp_map``, ``rotvec``, ``rk4``, ``magnus6``, ``coning``,
-``euler_angles``); ``registry`` maps names to the algorithm objects.  The batch interface
-forms all increments at once and composes them with a blocked prefix product; the
-streaming interface composes one per call; both normalize every output and agree to
-rounding.  Adding an algorithm: one module with an :class:`Algorithm` subclass instance
-and one entry in ``registry.ALGORITHMS``.
+One module per algorithm family (``first_order``, ``exp_map``, ``rotvec``, ``rk4``,
+``coning``, ``euler_angles``, ``magnus6``); ``registry`` maps names to the algorithm objects.
+A causal algorithm's step is written once, as a kernel (:mod:`gyro_attitude.core.jit`): the
+streaming interface steps it per call, the batch interface is a compiled loop over the same
+step (:mod:`.streaming`), so the two give the same bits.  The offline ``magnus6_quintic`` is
+vectorized (all increments at once, a blocked prefix product; no compiler).  Adding a rate
+algorithm: its increment kernel, an entry in ``registry.ALGORITHMS`` and a branch in
+:func:`.streaming.body_increment`.
 """
 
 from gyro_attitude.core.attitude.algorithm import Algorithm, RateAlgorithm

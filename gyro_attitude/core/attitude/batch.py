@@ -1,14 +1,17 @@
-"""Batch attitude integration over a whole record (vectorized; the front of every algorithm)."""
+"""Batch attitude integration over a whole record (the front of every algorithm): the causal
+ones step their streaming kernel in a compiled loop, the offline one is vectorized."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from gyro_attitude.core.attitude.algorithm import RateAlgorithm
 from gyro_attitude.core.attitude.coning import IncrementAlgorithm
 from gyro_attitude.core.attitude.inputs import check_q0, check_rates, check_times
 from gyro_attitude.core.attitude.nav_frame import NavFrame, nav_rate_for
 from gyro_attitude.core.attitude.quadrature import get_quadrature
 from gyro_attitude.core.attitude.registry import DEFAULT_ALGORITHM, get_algorithm
+from gyro_attitude.core.attitude.streaming import integrate_rows
 from gyro_attitude.core.rotation import as_vector_array
 
 
@@ -41,14 +44,15 @@ def integrate_batch(t_ns, omega_ib_b, q0=(0.0, 0.0, 0.0, 1.0),
     if rate_n is not None and not alg.supports_nav:
         raise ValueError(f"{alg.name} integrates q_ib only; nav frames need a quaternion "
                          "algorithm")
-    kw = {}
-    if fallbacks is not None and getattr(alg, "checks_rate_fit", False):
-        kw["fallbacks"] = fallbacks
+    if out is not None and not (isinstance(out, np.ndarray) and out.shape == (t.size, 4)
+                                and out.dtype == np.float64 and out.flags.c_contiguous
+                                and out.flags.writeable):
+        raise ValueError(f"out must be a writeable C-contiguous float64 array of shape "
+                         f"({t.size}, 4)")
+    if isinstance(alg, RateAlgorithm | IncrementAlgorithm):  # the streaming step in a loop
+        return integrate_rows(alg, t, w, q0, rate_n, quad.code, fallbacks, out)
+    kw = {"fallbacks": fallbacks} if fallbacks is not None and alg.checks_rate_fit else {}
     if out is not None:
-        if not (isinstance(out, np.ndarray) and out.shape == (t.size, 4)
-                and out.dtype == np.float64 and out.flags.c_contiguous and out.flags.writeable):
-            raise ValueError(f"out must be a writeable C-contiguous float64 array of shape "
-                             f"({t.size}, 4)")
         if not alg.integrates_into:
             out[:] = alg.integrate(t, w, q0, rate_n, quad, float(singular_tol), **kw)
             return out
@@ -71,4 +75,4 @@ def integrate_increments_batch(t_ns, delta_theta, q0=(0.0, 0.0, 0.0, 1.0),
                          f"got {d.shape}")
     q0 = check_q0(q0)
     rate_n = nav_rate_for(nav, t.size)
-    return alg.integrate_increments(t, lambda k: d[k - 1], q0, rate_n)
+    return integrate_rows(alg, t, d, q0, rate_n, increments=True)

@@ -10,12 +10,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from gyro_attitude.core.attitude.nav_frame import nav_zeta
 from gyro_attitude.core.jit import kernel
-from gyro_attitude.core.rotation import _exp_rotvec, _qmul
+from gyro_attitude.core.rotation import _qmul
 
 IDENTITY = np.array([0.0, 0.0, 0.0, 1.0])
-CHUNK = 61440  # intervals per batch chunk: a multiple of 1..4 (N-sample blocks align)
+CHUNK = 61440  # intervals per batch chunk
 _CONJ = np.array([-1.0, -1.0, -1.0, 1.0])
 
 
@@ -112,15 +111,16 @@ def prefix_product_left(a: np.ndarray) -> np.ndarray:
     return prefix_product(a * _CONJ) * _CONJ
 
 
-def compose_chunked(n_samples: int, q0: np.ndarray, n_per_update: int, increments,
+def compose_chunked(n_samples: int, q0: np.ndarray, increments,
                     out: np.ndarray | None = None) -> np.ndarray:
-    """Run ``q_k = a'_k ⊗ Q ⊗ b'_k`` over all intervals, chunk by chunk.
+    """Run ``q_k = A_k ⊗ q0 ⊗ B_k`` over all intervals, chunk by chunk (the offline
+    ``magnus6_quintic``'s batch), ``B_k``, ``A_k`` the prefix products of the body and nav
+    increments.
 
-    ``increments(k)`` returns ``(b', a' or None)`` for the interval indices ``k`` (with one
-    sample per update ``a'`` may be a :class:`LeftPrefix`, its products already); with N
-    samples per update, ``Q`` is the attitude at the last completed N-block and the
-    primed increments are the partial ones since that block.  Chunks bound memory and
-    keep the scans in cache; the carried attitude is normalized at chunk boundaries.
+    ``increments(k)`` returns ``(b, a)`` for the interval indices ``k``: the body increments
+    and the nav ones (None without a nav frame; a :class:`LeftPrefix`, their products
+    already).  Chunks bound memory and keep the scans in cache; the carried attitude is
+    normalized at chunk boundaries.
 
     Everything of a chunk but the attitude carried into it (its increments and their
     prefix products: most of the work) is independent of the other chunks, so on a
@@ -135,12 +135,21 @@ def compose_chunked(n_samples: int, q0: np.ndarray, n_per_update: int, increment
     chunks = [(k0, min(k0 + CHUNK, n_samples)) for k0 in range(1, n_samples, CHUNK)]
 
     def prepare(bounds):
-        k = np.arange(*bounds)
-        return _chunk_local(k, n_per_update, *increments(k))
+        b, a = increments(np.arange(*bounds))
+        if a is not None:
+            a = a.products if isinstance(a, LeftPrefix) else prefix_product_left(a)
+        return prefix_product(b), a
 
     start = np.asarray(q0, dtype=np.float64)
-    for (k0, k1), local in zip(chunks, _in_order(prepare, chunks), strict=True):
-        _chunk_attitudes(local, start, q[k0:k1])
+    for (k0, k1), (b, a) in zip(chunks, _in_order(prepare, chunks), strict=True):
+        # start ⊗ B_k is linear in B_k: one (m, 4) x (4, 4) product (then the nav frame's
+        # A_k on the left, when there is one).  einsum's own loop, not matmul: OpenBLAS
+        # would start threads that spin on the core the chunk workers need.
+        out_k = q[k0:k1]
+        np.einsum("ij,kj->ik", b, _left_product_matrix(start), out=out_k)
+        if a is not None:
+            out_k[:] = _qmul(a, out_k)
+        out_k /= np.sqrt(np.einsum("ij,ij->i", out_k, out_k))[:, None]
         start = q[k1 - 1]
     return q
 
@@ -163,74 +172,12 @@ def _in_order(fn, items):
             yield pending.popleft().result()
 
 
-class _ChunkLocal(NamedTuple):
-    """The part of a chunk that does not depend on the attitude carried into it.
-
-    One sample per update: ``b``, ``a`` are the prefix products of the increments (``a``
-    None without a nav frame).  N per update: ``b``, ``a`` the partial increments since
-    each block and ``b_blocks``, ``a_blocks`` the prefix products over whole blocks."""
-
-    n_per_update: int
-    b: np.ndarray
-    a: np.ndarray | None
-    b_blocks: np.ndarray | None = None
-    a_blocks: np.ndarray | None = None
-
-
 class LeftPrefix(NamedTuple):
     """What an ``increments`` function of :func:`compose_chunked` may return in place of the
-    left increments ``a`` (one sample per update only): their products
-    ``A_k = a_k ⊗ … ⊗ a_k0`` from the chunk's first interval on, already known."""
+    left increments ``a``: their products ``A_k = a_k ⊗ … ⊗ a_k0`` from the chunk's first
+    interval on, already known."""
 
     products: np.ndarray
-
-
-def _chunk_local(k, n_per_update, b, a) -> _ChunkLocal:
-    if n_per_update == 1:
-        if isinstance(a, LeftPrefix):
-            return _ChunkLocal(1, prefix_product(b), a.products)
-        return _ChunkLocal(1, prefix_product(b), None if a is None else prefix_product_left(a))
-    if isinstance(a, LeftPrefix):
-        raise ValueError("LeftPrefix needs one sample per update")
-    nfull = k.size // n_per_update
-    major = slice(n_per_update - 1, nfull * n_per_update, n_per_update)
-    nblk = -(-k.size // n_per_update)
-    bm = am = None
-    if nblk > 1:
-        bm = prefix_product(b[major][: nblk - 1])
-        if a is not None:
-            am = prefix_product_left(a[major][: nblk - 1])
-    return _ChunkLocal(n_per_update, b, a, bm, am)
-
-
-def _chunk_attitudes(local: _ChunkLocal, start, out) -> None:
-    """Normalized attitudes of one chunk into ``out`` from its local part and the attitude
-    ``start`` carried into it."""
-    n, b, a = local.n_per_update, local.b, local.a
-    if n == 1:
-        # start ⊗ B_k is linear in B_k: one (m, 4) x (4, 4) product (then the nav frame's
-        # A_k on the left, when there is one).  einsum's own loop, not matmul: OpenBLAS
-        # would start threads that spin on the core the chunk workers need.
-        np.einsum("ij,kj->ik", b, _left_product_matrix(start), out=out)
-        if a is not None:
-            out[:] = _qmul(a, out)
-        out /= np.sqrt(np.einsum("ij,ij->i", out, out))[:, None]
-        return
-    m = b.shape[0]
-    nblk = -(-m // n)
-    # Attitude before each block: Q_{m-1} = A_{m-1} ⊗ start ⊗ B_{m-1}.
-    q_before = np.empty((nblk, 4))
-    q_before[0] = start
-    if nblk > 1:
-        qb = _qmul(start, local.b_blocks)
-        if local.a_blocks is not None:
-            qb = _qmul(local.a_blocks, qb)
-        q_before[1:] = normalize_rows(qb)
-    qrep = np.repeat(q_before, n, axis=0)[:m]
-    res = _qmul(qrep, b)
-    if a is not None:
-        res = _qmul(a, res)
-    out[:] = normalize_rows(res)
 
 
 def _left_product_matrix(p: np.ndarray) -> np.ndarray:
@@ -240,14 +187,6 @@ def _left_product_matrix(p: np.ndarray) -> np.ndarray:
                      [z, w, -x, y],
                      [-y, x, w, z],
                      [-x, -y, -z, w]])
-
-
-def first_interval_output(q0, b1, t, rate_n):
-    """``q[1]`` as the causal stream emits it: ``a_1 ⊗ q0 ⊗ b_1`` from the linear fit."""
-    out = _qmul(q0, b1)
-    if rate_n is not None:
-        out = _qmul(_exp_rotvec(-nav_zeta(t, rate_n, np.array([1]))[0]), out)
-    return out / math.sqrt(float(np.dot(out, out)))
 
 
 # --------------------------------------------------------------------------- plain floats

@@ -8,7 +8,7 @@ import warnings
 import numpy as np
 
 from gyro_attitude.core.attitude.algorithm import Algorithm
-from gyro_attitude.core.attitude.interpolation import causal_rates_at
+from gyro_attitude.core.attitude.interpolation import causal_fit_points
 from gyro_attitude.core.euler_kinematics import (
     GimbalLockError,
     euler_zxz_rates_from_body_rates,
@@ -23,8 +23,9 @@ from gyro_attitude.core.euler_kinematics import (
 class EulerAnglesRK4(Algorithm):
     """Angle kinematics integrated by classical RK4; the mid-step rate comes from the causal
     cubic through the last four samples.  Divides by the ``divisor`` (sin θ / cos γ):
-    raises :class:`GimbalLockError` near the singularity.  Nonlinear in its state, so both
-    interfaces run a Python loop (tens of µs per sample); inertial frame only."""
+    raises :class:`GimbalLockError` near the singularity.  Nonlinear in its state: one
+    Python step per sample (:class:`EulerStepper`, tens of µs), the batch a loop over it;
+    inertial frame only."""
 
     sequential = True
     supports_nav = False
@@ -78,27 +79,17 @@ class EulerAnglesRK4(Algorithm):
         return angles
 
     def integrate(self, t, w, q0, rate_n, quadrature, singular_tol):
-        angles = self.initial_angles(q0, singular_tol)
-        out = np.empty((t.size, 3))
-        out[0] = angles
-        if t.size > 1:
-            k = np.arange(1, t.size)
-            wm_all = causal_rates_at(t, w, k, (0.5,), lookahead=True)[:, 0]
-            h_all = np.diff(t) * 1e-9
-            for i in range(1, t.size):
-                angles = self.step(angles, w[i - 1], wm_all[i - 1], w[i], h_all[i - 1],
-                                   singular_tol, i, int(t[i]))
-                out[i] = angles
-            if t.size >= 3:
-                # Emitted sample 1 is causal (linear fit); the chain used the redone interval.
-                wm1 = causal_rates_at(t[:2], w[:2], k[:1], (0.5,))[0, 0]
-                out[1] = self.step(out[0], w[0], wm1, w[1], h_all[0], singular_tol, 1,
-                                   int(t[1]))
-        q = self.from_angles(out)
-        # Same sign convention as q0 at the start (both q and -q are valid outputs).
-        return q * (1.0 if float(np.dot(q[0], q0)) >= 0 else -1.0)
+        """The streaming step over the rows: the attitudes (N, 4)."""
+        stepper = EulerStepper(self, tuple(float(c) for c in q0), singular_tol)
+        out = np.empty((t.size, 4))
+        out[0] = q0
+        for i in range(1, t.size):
+            if i == 2:
+                stepper.redo_first(t[:3], w[:3])
+            out[i] = stepper.interval(t[max(i - 3, 0):i + 1], w[max(i - 3, 0):i + 1])
+        return out
 
-    def _new_stepper(self, q0, quadrature, singular_tol):
+    def _new_stepper(self, q0, singular_tol):
         return EulerStepper(self, q0, singular_tol)
 
 
@@ -112,28 +103,27 @@ class EulerStepper:
         self._angles = self._angles_start = algorithm.initial_angles(np.array(q0), tol)
         self._intervals = 0
 
-    def interval(self, ts, ws, zeta):
-        tt = np.array(ts, dtype=np.int64)
-        ww = np.array(ws)
-        k = tt.size - 1
+    def interval(self, ts, ws):
+        """Step over the newest interval of the ≤ 4-sample histories ``ts``, ``ws``."""
+        k = len(ts) - 1
         self._intervals += 1
-        wm = causal_rates_at(tt, ww, np.array([k]), (0.5,))[0, 0]
-        self._angles = self._alg.step(self._angles, ww[k - 1], wm, ww[k],
-                                      (ts[k] - ts[k - 1]) * 1e-9, self._tol, self._intervals,
-                                      ts[k])
+        self._angles = self._step(self._angles, ts, ws, k, k + 1, self._intervals)
         q = self._alg.from_angles(self._angles)
         if float(np.dot(q, self.q)) < 0:
             q = -q
         self.q = tuple(float(c) for c in q)
         return self.q
 
-    def redo_first(self, ts, ws, zeta_first):
-        """Redo interval 1 with the quadratic through samples 0, 1, 2 (as the batch)."""
-        tt = np.array(ts[:3], dtype=np.int64)
-        ww = np.array(ws[:3])
-        wm = causal_rates_at(tt, ww, np.array([1]), (0.5,), lookahead=True)[0, 0]
-        self._angles = self._alg.step(self._angles_start, ww[0], wm, ww[1],
-                                      (ts[1] - ts[0]) * 1e-9, self._tol, 1, ts[1])
+    def redo_first(self, ts, ws):
+        """Redo interval 1 with the quadratic through samples 0, 1, 2 (called as the third
+        sample arrives)."""
+        self._angles = self._step(self._angles_start, ts, ws, 1, 3, 1)
+
+    def _step(self, angles, ts, ws, k, n, count):
+        wm, _, h = causal_fit_points(ts, ws, k, n, 0.5, 0.5)
+        return self._alg.step(angles, np.asarray(ws[k - 1], dtype=np.float64), np.array(wm),
+                              np.asarray(ws[k], dtype=np.float64), h, self._tol, count,
+                              int(ts[k]))
 
 
 EULER_ZXZ_RK4 = EulerAnglesRK4(

@@ -1,4 +1,7 @@
-"""Polynomial fits of rate samples in time (any spacing): batch and plain-float evaluation."""
+"""Polynomial fits of rate samples in time (any spacing) and whether one can be trusted: the
+causal step's kernels (the cubic through the last samples held, one interval at a time) and the
+offline ``magnus6_quintic``'s vectorized fits over a whole record (numpy only: an offline replay
+imports no compiler)."""
 
 from __future__ import annotations
 
@@ -9,8 +12,6 @@ import numpy as np
 from gyro_attitude.core.jit import kernel
 
 GAUSS2 = (0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0))  # 2-point Gauss nodes in [0, 1]
-# Nodes of a streaming fit through the last n samples held (n = 2, 3, 4).
-NODES = {n: tuple(range(n)) for n in range(1, 5)}
 
 
 def lagrange_eval(x_nodes: np.ndarray, y_nodes: np.ndarray, x_eval: np.ndarray) -> np.ndarray:
@@ -123,46 +124,6 @@ def fitted_rates(t_ns: np.ndarray, omega: np.ndarray, k: np.ndarray, fractions,
     return out.transpose(1, 0, 2)
 
 
-def causal_rates_at(t_ns: np.ndarray, omega: np.ndarray, k: np.ndarray,
-                    fractions: tuple[float, ...], lookahead: bool = False) -> np.ndarray:
-    """Causal cubic (samples k-3..k) rates at ``t_{k-1} + f h_k`` for intervals ``k``.
-
-    ``k`` holds interval indices ≥ 1 (interval k runs from sample k-1 to k).  Intervals
-    with fewer than four samples behind them use the quadratic (k = 2) or linear (k = 1)
-    fit.  Times are taken relative to ``t_{k-1}`` from int64 differences, so long
-    recordings lose no precision.  Returns (len(k), len(fractions), 3).
-
-    ``lookahead=True`` fits the first interval (k = 1) with the quadratic through
-    samples 0, 1, 2 when they exist.  The linear fit there leaves a one-off O(h³) error
-    that would cap every fourth-order method at order 3; both interfaces emit ``q[1]``
-    from the causal linear fit and then, once sample 2 is in, redo interval 1 with this
-    fit before going on.
-    """
-    return fitted_rates(t_ns, omega, k, fractions, 3, 4,
-                        lambda kk: _gathered_causal_rates(t_ns, omega, kk, fractions,
-                                                          lookahead))
-
-
-def _gathered_causal_rates(t_ns, omega, k, fractions, lookahead):
-    out = np.empty((k.size, len(fractions), 3))
-    fr = np.asarray(fractions, dtype=np.float64)
-    first_fix = lookahead and t_ns.size >= 3
-    for n_nodes in (2, 3, 4):
-        sel = (np.minimum(k, 3) + 1) == n_nodes
-        if first_fix:
-            sel = (sel & (k != 1)) | ((k == 1) & (n_nodes == 3))
-        if not np.any(sel):
-            continue
-        kk = k[sel]
-        idx = kk[:, None] + np.arange(1 - n_nodes, 1)[None, :]  # (m, n_nodes)
-        if first_fix and n_nodes == 3:
-            idx = np.where((kk == 1)[:, None], np.arange(3)[None, :], idx)
-        x = (t_ns[idx] - t_ns[kk - 1][:, None]) * 1e-9
-        h = (t_ns[kk] - t_ns[kk - 1]) * 1e-9
-        out[sel] = lagrange_eval(x, omega[idx], h[:, None] * fr[None, :])
-    return out
-
-
 # --------------------------------------------------------------------------- trusting a fit
 # A rate fit is a polynomial through samples; it can be trusted only where the samples resolve
 # the motion.  Two signs that they do not (docs/equations.md "When a rate fit cannot be trusted";
@@ -185,7 +146,9 @@ def _gathered_causal_rates(t_ns, omega, k, fractions, lookahead):
 #   needs N ≥ 4e-3/√h (0.03 rad/√s at 50 Hz, ~100× a poor MEMS gyro), while the aliased cones
 #   this is for (half-angle ≥ 0.1° at 100 Hz) exceed it;
 # The step of such an interval falls back to the exponential map of the endpoint mean
-# (``exp_map``), counted; the same rule serves the batch kernels and their streaming twins.
+# (``exp_map``), counted.  The rule is evaluated by the causal step, one interval at a time
+# (:func:`untrusted_fit_scalar`), and over a whole record by the offline quintic
+# (:func:`untrusted_fits`, vectorized: the offline estimator runs no compiled code).
 FIT_OVERSHOOT_MAX = 2.0
 FIT_TURN_MAX_RAD = 2.6
 FIT_CHANGE_MIN_RAD = 1e-2
@@ -264,10 +227,11 @@ def untrusted_fits(t_ns: np.ndarray, omega: np.ndarray, k: np.ndarray, fitted: n
 
 @kernel(inline=True)
 def untrusted_fit_scalar(ts, ws, k, n, f0, f1) -> float:
-    """Plain-float twin of :func:`untrusted_fits` for one interval ``k`` of the histories
-    ``ts, ws`` (their first ``n`` entries, the fit's nodes) fitted at two points (the rates
-    ``f0``, ``f1``): the weight of the exponential map's step, 0.0 when the fit can be trusted.
-    A kernel (:mod:`gyro_attitude.core.jit`): indexing only, nothing allocated."""
+    """The rule above (:func:`untrusted_fits` for the offline quintic) for one interval ``k`` of
+    the causal step's histories ``ts, ws`` (their first ``n`` entries, the fit's nodes) fitted
+    at two points (the rates ``f0``, ``f1``): the weight of the exponential map's step, 0.0
+    when the fit can be trusted.  A kernel (:mod:`gyro_attitude.core.jit`): indexing only,
+    nothing allocated."""
     weight = 0.0
     j = max(k, 2)
     if j < n:
@@ -316,49 +280,19 @@ def _uneven(ts, n) -> bool:
 
 
 def hold_untrusted(t_ns, omega, k, fitted, phi, h, window, fallbacks) -> None:
-    """Where the fit of intervals ``k`` cannot be trusted (:func:`untrusted_fits`), replace
-    the rotation vector ``phi`` (len(k), 3) of the step by the exponential map's,
-    ``½(ω_{k-1}+ω_k)h`` (``h`` (len(k), 1)); the intervals that fell back are appended to the
-    list ``fallbacks`` (None: not collected)."""
-    _hold(t_ns, omega, k, fitted, ((phi, h),), window, fallbacks)
-
-
-def hold_untrusted_rates(t_ns, omega, k, fitted, rates, window, fallbacks) -> None:
-    """:func:`hold_untrusted` for a step built from rates (``rates``: (len(k), 3) arrays, the
-    rates the step takes, changed in place): where the fit cannot be trusted every rate moves
-    toward the endpoint mean ``½(ω_{k-1}+ω_k)`` -- a step with one constant rate, which adds no
-    commutation term (the exponential map's step, to the order of the stepper)."""
-    _hold(t_ns, omega, k, fitted, tuple((r, None) for r in rates), window, fallbacks)
-
-
-def _hold(t_ns, omega, k, fitted, targets, window, fallbacks) -> None:
-    """Blend each ``(array, scale)`` of ``targets`` toward the endpoint mean (times ``scale``
-    (len(k), 1), or as is for None) by the weight :func:`untrusted_fits` gives each row."""
+    """Where the fit of intervals ``k`` cannot be trusted (:func:`untrusted_fits`), blend the
+    rotation vector ``phi`` (len(k), 3) of the step toward the exponential map's,
+    ``½(ω_{k-1}+ω_k)h`` (``h`` (len(k), 1)), by the weight it gives each row; the intervals
+    that fell back are appended to the list ``fallbacks`` (None: not collected)."""
     lam = untrusted_fits(t_ns, omega, k, fitted, window)
-    if lam is None:
-        return
-    bad = np.flatnonzero(lam > 0.0)
+    bad = np.flatnonzero(lam > 0.0) if lam is not None else np.zeros(0, dtype=np.intp)
     if bad.size == 0:
         return
     kb = k[bad]
-    mean = 0.5 * (omega[kb - 1] + omega[kb])
     lb = lam[bad][:, None]
-    for arr, scale in targets:
-        held = mean if scale is None else mean * scale[bad]
-        arr[bad] = (1.0 - lb) * arr[bad] + lb * held
+    phi[bad] = (1.0 - lb) * phi[bad] + lb * (0.5 * (omega[kb - 1] + omega[kb]) * h[bad])
     if fallbacks is not None:
         fallbacks.append(kb)
-
-
-def causal_window(n_samples: int, lookahead: bool):
-    """``window(k)`` of :func:`causal_rates_at`'s fits: samples k-3..k (fewer at the start;
-    0..2 for interval 1 with ``lookahead``)."""
-    def window(k):
-        last = k.copy()
-        if lookahead and n_samples >= 3:
-            last[k == 1] = 2
-        return np.maximum(k - 3, 0), last
-    return window
 
 
 @kernel(inline=True)

@@ -85,14 +85,6 @@ def nav_zeta(t_ns: np.ndarray, rate_n: np.ndarray, k: np.ndarray) -> np.ndarray:
     return 0.5 * (rate_n[k - 1] + rate_n[k]) * h
 
 
-def nav_zeta_scalar(rates, h):
-    """Scalar twin of :func:`nav_zeta` for one interval of length ``h``: trapezoid of the
-    nav rates at its two ends (``rates = [r0, r1]``).  For a constant rate
-    ``0.5·(r + r)·h`` is ``r·h`` to the last bit, as in the batch."""
-    r0, r1 = rates
-    return (0.5 * (r0[0] + r1[0]) * h, 0.5 * (r0[1] + r1[1]) * h, 0.5 * (r0[2] + r1[2]) * h)
-
-
 class VelocitySchedule:
     """Carrier velocities (an odometry topic) applied on the Imu time line, in stamp order.
 

@@ -1,4 +1,6 @@
-"""Streaming attitude integration, one sample per call, with the same results as the batch."""
+"""The causal algorithms' steps over their sample history, stepped one sample per call
+(:class:`StreamingIntegrator`) or in a compiled loop over a record (:func:`integrate_rows`,
+the batch): one code, the same bits."""
 
 from __future__ import annotations
 
@@ -6,30 +8,72 @@ import math
 
 import numpy as np
 
+from gyro_attitude.core.attitude.algorithm import RateAlgorithm
 from gyro_attitude.core.attitude.compose import compose_scalar, exp_scalar
+from gyro_attitude.core.attitude.coning import (
+    F_Q_BLOCK,
+    PREVIOUS,
+    IncrementAlgorithm,
+    coning_step,
+)
+from gyro_attitude.core.attitude.exp_map import EXP_MAP, exp_map_increment
+from gyro_attitude.core.attitude.first_order import (
+    DCM_FIRST_ORDER,
+    QUAT_FIRST_ORDER,
+    dcm_first_order_increment,
+    quat_first_order_increment,
+)
 from gyro_attitude.core.attitude.inputs import check_q0
-from gyro_attitude.core.attitude.nav_frame import NavFrame, nav_zeta_scalar
-from gyro_attitude.core.attitude.quadrature import get_quadrature
+from gyro_attitude.core.attitude.nav_frame import NavFrame
+from gyro_attitude.core.attitude.quadrature import CUBIC as CUBIC_RULE
+from gyro_attitude.core.attitude.quadrature import get_quadrature, quadrature_increment
 from gyro_attitude.core.attitude.registry import DEFAULT_ALGORITHM, get_algorithm
-from gyro_attitude.core.attitude.rotvec import ROTVEC_CUBIC, cubic_increment
+from gyro_attitude.core.attitude.rk4 import QUAT_RK4, quat_rk4_increment
+from gyro_attitude.core.attitude.rotvec import (
+    ROTVEC_CUBIC,
+    ROTVEC_TRAPEZOID,
+    cubic_increment,
+    trapezoid_increment,
+)
 from gyro_attitude.core.jit import compiled, kernel
 
 _HISTORY = 4  # samples held: the causal cubic's four nodes
 
-# The causal cubic (the default algorithm) steps through one kernel, :func:`cubic_advance`,
-# whose state is arrays (``CubicState``): the compiled chain of the stream (stream_loop.py)
-# steps the same state without the interpreter.  Its integer slots:
+# Every causal rate algorithm steps through one kernel, :func:`rate_advance` (the coning ones
+# through :func:`coning_advance`), whose state is arrays (``RateState``): the batch's compiled
+# loop (:func:`batch_rows`), the streaming integrator and the causal estimator's step
+# (chain.py) step the same state.  Its int slots:
 C_N, C_SAMPLES, C_LAST_T, C_HAS_LAST, C_FALLBACKS, C_FIRST_FELL, C_NEED_W0, C_HAS_ZETA_FIRST, \
     C_HAS_NAV_PREV = range(9)
 # and its float slots: the attitude, the stepper's start, ζ of the first interval, the last
 # nav rate (4 + 4 + 3 + 3)
 F_Q, F_Q_START, F_ZETA_FIRST, F_NAV_PREV = 0, 4, 8, 11
+# the algorithms' codes (RateAlgorithm.code): plain ints, constants of the compiled code
+_QUAT1, _DCM1, _EXP, _TRAP, _CUBIC, _RK4 = (a.code for a in (
+    QUAT_FIRST_ORDER, DCM_FIRST_ORDER, EXP_MAP, ROTVEC_TRAPEZOID, ROTVEC_CUBIC, QUAT_RK4))
+
+
+@kernel
+def body_increment(alg, ts, ws, k, n):
+    """The step of the rate algorithm ``alg`` over interval ``k`` of the first ``n`` samples
+    held (``ts`` stamps, ``ws`` rates): (increment quaternion, whether its fit fell back)."""
+    if alg == _CUBIC:
+        return cubic_increment(ts, ws, k, n)
+    if alg == _EXP:
+        return exp_map_increment(ts, ws, k, n)
+    if alg == _RK4:
+        return quat_rk4_increment(ts, ws, k, n)
+    if alg == _TRAP:
+        return trapezoid_increment(ts, ws, k, n)
+    if alg == _QUAT1:
+        return quat_first_order_increment(ts, ws, k, n)
+    return dcm_first_order_increment(ts, ws, k, n)
 
 
 @kernel(inline=True)
 def nav_interval(ci, cf, t, has_nav, r0, r1, r2):
     """ζ of the interval ending at ``t`` -- the trapezoid of the nav rates at its ends
-    (nav_zeta_scalar) -- when there is one: (has ζ, ζ); the nav rate ``r`` kept for the next."""
+    -- when there is one: (has ζ, ζ); the nav rate ``r`` kept for the next."""
     has_z = False
     z0 = z1 = z2 = 0.0
     if has_nav:
@@ -56,14 +100,12 @@ def _compose_into(cf, b, has_z, z0, z1, z2):
     return q
 
 
-@kernel
-def cubic_advance(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
-    """One sample ``t`` (int ns after the last), rate ``(w0, w1, w2)`` and nav rate
-    ``(r0, r1, r2)`` at it (``has_nav``) into the causal cubic's state (``ci`` int slots,
-    ``ts`` (4,) stamps, ``ws`` (4, 3) rates, ``cf`` float slots): the attitude as 4 floats.
-    :meth:`StreamingIntegrator.advance` for the cubic: the history of the last four samples,
-    the first interval redone as the third sample arrives (the quadratic through 0, 1, 2, as
-    the batch), the fit's fallbacks counted."""
+@kernel(inline=True)
+def _take_sample(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
+    """The sample ``t`` (int ns after the last), rate ``(w0, w1, w2)`` and nav rate
+    ``(r0, r1, r2)`` at it (``has_nav``) into the history of the last four samples (``ci``
+    int slots, ``ts`` (4,) stamps, ``ws`` (4, 3) rates, ``cf`` float slots): (samples now
+    held, 0 when this one only starts a time base; the nav rotation ζ of its interval)."""
     has_z, z0, z1, z2 = nav_interval(ci, cf, t, has_nav, r0, r1, r2)
     if has_nav:
         ci[C_HAS_NAV_PREV] = 1
@@ -72,7 +114,7 @@ def cubic_advance(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
         ci[C_LAST_T], ci[C_HAS_LAST], ci[C_N], ci[C_NEED_W0] = t, 1, 1, 0
         ts[0] = t
         ws[0, 0], ws[0, 1], ws[0, 2] = w0, w1, w2
-        return cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3]
+        return 0, has_z, z0, z1, z2
     if ci[C_NEED_W0] == 1:  # reset(q0, t_ns): the first rate held back to the start time
         ws[0, 0], ws[0, 1], ws[0, 2] = w0, w1, w2
         ci[C_NEED_W0] = 0
@@ -86,50 +128,165 @@ def cubic_advance(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
     ws[n, 0], ws[n, 1], ws[n, 2] = w0, w1, w2
     n += 1
     ci[C_N] = n
+    ci[C_LAST_T] = t
     if ci[C_SAMPLES] == 2:
         cf[F_ZETA_FIRST], cf[F_ZETA_FIRST + 1], cf[F_ZETA_FIRST + 2] = z0, z1, z2
         ci[C_HAS_ZETA_FIRST] = 1 if has_z else 0
-    elif ci[C_SAMPLES] == 3:
-        b, fell = cubic_increment(ts, ws, 1, range(3))
+    return n, has_z, z0, z1, z2
+
+
+@kernel(inline=True)
+def _first_redone(cf, ci, b):
+    """The attitude of the first interval from the start with the increment ``b`` (and the
+    first interval's nav rotation), stored."""
+    q_start = (cf[F_Q_START], cf[F_Q_START + 1], cf[F_Q_START + 2], cf[F_Q_START + 3])
+    if ci[C_HAS_ZETA_FIRST] == 1:
+        q = compose_scalar(q_start, b, (cf[F_ZETA_FIRST], cf[F_ZETA_FIRST + 1],
+                                        cf[F_ZETA_FIRST + 2]))
+    else:
+        q = compose_scalar(q_start, b, None)
+    cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3] = q
+    return q
+
+
+@kernel
+def rate_advance(alg, ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
+    """One sample (:func:`_take_sample`) through the rate algorithm ``alg``: the attitude as 4
+    floats.  For the algorithms that fit a polynomial (rotvec_cubic, quat_rk4) the first
+    interval is redone as the third sample arrives (the quadratic through 0, 1, 2) and the
+    fit's fallbacks are counted."""
+    n, has_z, z0, z1, z2 = _take_sample(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2)
+    if n == 0:
+        return cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3]
+    if ci[C_SAMPLES] == 3 and (alg == _CUBIC or alg == _RK4):
+        b, fell = body_increment(alg, ts, ws, 1, 3)
         ci[C_FALLBACKS] += (1 if fell else 0) - ci[C_FIRST_FELL]
-        q_start = (cf[F_Q_START], cf[F_Q_START + 1], cf[F_Q_START + 2], cf[F_Q_START + 3])
-        if ci[C_HAS_ZETA_FIRST] == 1:
-            q = compose_scalar(q_start, b, (cf[F_ZETA_FIRST], cf[F_ZETA_FIRST + 1],
-                                            cf[F_ZETA_FIRST + 2]))
-        else:
-            q = compose_scalar(q_start, b, None)
-        cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3] = q
-    b, fell = cubic_increment(ts, ws, n - 1, range(n))
+        ci[C_FIRST_FELL] = 1 if fell else 0
+        _first_redone(cf, ci, b)
+    b, fell = body_increment(alg, ts, ws, n - 1, n)
     if fell:
         ci[C_FALLBACKS] += 1
     if n == 2:
         ci[C_FIRST_FELL] = 1 if fell else 0
-    q = _compose_into(cf, b, has_z, z0, z1, z2)
+    return _compose_into(cf, b, has_z, z0, z1, z2)
+
+
+@kernel(inline=True)
+def cubic_advance(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
+    """:func:`rate_advance` of rotvec_cubic (the causal estimator's default)."""
+    return rate_advance(_CUBIC, ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2)
+
+
+@kernel(inline=True)
+def exp_advance(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
+    """:func:`rate_advance` of exp_map."""
+    return rate_advance(_EXP, ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2)
+
+
+@kernel
+def coning_advance(alg, rule, ci, ts, ws, cf, blk, t, w0, w1, w2, has_nav, r0, r1, r2):
+    """One sample (:func:`_take_sample`) through the coning algorithm ``alg`` fed by the
+    quadrature ``rule``: the attitude as 4 floats.  A fitting rule redoes the first interval
+    as the third sample arrives (the quadratic through 0, 1, 2): the open block's first
+    increment is replaced (one sample per update: the attitude of that interval redone)."""
+    n, has_z, z0, z1, z2 = _take_sample(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2)
+    if n == 0:
+        return cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3]
+    if ci[C_SAMPLES] == 3 and rule == CUBIC_RULE:
+        d0, d1, d2 = quadrature_increment(rule, ts, ws, 1, 3)
+        blk[4, 0], blk[4, 1], blk[4, 2] = d0, d1, d2
+        if alg == PREVIOUS or alg == 1:
+            q = _first_redone(cf, ci, exp_scalar(d0, d1, d2))
+            cf[F_Q_BLOCK], cf[F_Q_BLOCK + 1], cf[F_Q_BLOCK + 2], cf[F_Q_BLOCK + 3] = q
+        else:
+            blk[0, 0], blk[0, 1], blk[0, 2] = d0, d1, d2
+    d0, d1, d2 = quadrature_increment(rule, ts, ws, n - 1, n)
+    return coning_step(alg, ci, cf, blk, d0, d1, d2, has_z, z0, z1, z2)
+
+
+@kernel
+def increment_advance(alg, ci, cf, blk, t, d0, d1, d2, has_nav, r0, r1, r2):
+    """The angle increment ``d`` over ``(last, t]`` (a time base started) through the coning
+    algorithm ``alg``: the attitude as 4 floats."""
+    has_z, z0, z1, z2 = nav_interval(ci, cf, t, has_nav, r0, r1, r2)
+    ci[C_SAMPLES] += 1
     ci[C_LAST_T] = t
+    return coning_step(alg, ci, cf, blk, d0, d1, d2, has_z, z0, z1, z2)
+
+
+@kernel
+def batch_rows(kind, alg, rule, ci, ts, ws, cf, blk, t, w, nav, rates, out, fell):
+    """The batch: one of the steps over the rows of ``t`` (N,), the attitudes into ``out``
+    (N, 4).  ``kind`` 0: :func:`rate_advance` of the rates ``w`` (N, 3), ``fell[k]`` (N,) set
+    to 1 where the step of interval k fell back (interval 1 as redone at row 2); 1:
+    :func:`coning_advance` of the rates ``w``; 2: :func:`increment_advance` of the increments
+    ``w`` (N-1, 3) from row 1 on (a time base started at row 0).  ``nav`` 0: no nav frame, 1:
+    the rate ``rates[0]`` throughout, 2: ``rates[i]`` at row i."""
+    for i in range(1 if kind == 2 else 0, t.shape[0]):
+        r = rates[i if nav == 2 else 0]
+        if kind == 2:
+            q = increment_advance(alg, ci, cf, blk, t[i], w[i - 1, 0], w[i - 1, 1],
+                                  w[i - 1, 2], nav > 0, r[0], r[1], r[2])
+        elif kind == 1:
+            q = coning_advance(alg, rule, ci, ts, ws, cf, blk, t[i], w[i, 0], w[i, 1], w[i, 2],
+                               nav > 0, r[0], r[1], r[2])
+        else:
+            before, first_before = ci[C_FALLBACKS], ci[C_FIRST_FELL]
+            q = rate_advance(alg, ci, ts, ws, cf, t[i], w[i, 0], w[i, 1], w[i, 2], nav > 0,
+                             r[0], r[1], r[2])
+            d = ci[C_FALLBACKS] - before
+            if i == 2:  # interval 1 redone: its flag is the redo's
+                d -= ci[C_FIRST_FELL] - first_before
+                fell[1] = ci[C_FIRST_FELL]
+            if i > 0:
+                fell[i] = d
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = q
+
+
+def integrate_rows(alg, t, w, q0, rate_n, rule=0, fallbacks=None, out=None,
+                   increments=False) -> np.ndarray:
+    """``integrate_batch`` of the causal algorithm ``alg`` on checked input: the compiled
+    loop :func:`batch_rows` from ``q0``, over rates (a rate algorithm; a coning algorithm fed
+    by the quadrature ``rule``'s code) or, with ``increments``, over angle increments ``w``
+    (N-1, 3) (a coning algorithm); the intervals whose fit fell back appended to the list
+    ``fallbacks`` (an int array, when there are any)."""
+    q = np.empty((t.size, 4)) if out is None else out
+    rates = np.zeros((1, 3)) if rate_n is None else np.ascontiguousarray(
+        rate_n, dtype=np.float64).reshape(-1, 3)
+    kind = 0 if isinstance(alg, RateAlgorithm) else 2 if increments else 1
+    state = RateState(tuple(float(c) for c in q0), int(t[0]) if kind == 2 else None,
+                      rates[0] if kind == 2 and rate_n is not None else None)
+    q[0] = q0
+    fell = np.zeros(t.size if kind == 0 else 0, dtype=np.int8)
+    compiled(batch_rows)(kind, alg.code, rule, state.ci, state.ts, state.ws, state.cf,
+                         state.blk, t, np.ascontiguousarray(w, dtype=np.float64),
+                         0 if rate_n is None else 1 if rate_n.ndim == 1 else 2, rates, q, fell)
+    if fallbacks is not None and fell.any():
+        fallbacks.append(np.flatnonzero(fell))
     return q
 
 
-class CubicState:
-    """The causal cubic's streaming state as arrays (see :func:`cubic_advance`)."""
+class RateState:
+    """A rate or coning algorithm's streaming state as arrays (see :func:`rate_advance`,
+    :func:`coning_advance`; the rate algorithms use the first 9 int and 14 float slots)."""
 
-    __slots__ = ("ci", "ts", "ws", "cf")
+    __slots__ = ("ci", "ts", "ws", "cf", "blk")
 
     def __init__(self, q0: tuple, t_ns: int | None, nav_rate):
-        self.ci = np.zeros(9, dtype=np.int64)
+        self.ci = np.zeros(11, dtype=np.int64)
         self.ts = np.zeros(_HISTORY, dtype=np.int64)
         self.ws = np.zeros((_HISTORY, 3))
-        self.cf = np.zeros(14)
+        self.cf = np.zeros(21)
+        self.blk = np.zeros((5, 3))
         self.reset(q0, t_ns, nav_rate)
 
     def reset(self, q0: tuple, t_ns: int | None, nav_rate) -> None:
-        """Start again from ``q0`` (at ``t_ns``), in place: whoever holds the arrays (the
-        compiled chain) keeps stepping the same state."""
-        self.ci[:] = 0
-        self.ts[:] = 0
-        self.ws[:] = 0.0
-        self.cf[:] = 0.0
-        self.cf[F_Q:F_Q + 4] = q0
-        self.cf[F_Q_START:F_Q_START + 4] = q0
+        """Start again from ``q0`` (at ``t_ns``, with the nav rate ``nav_rate`` there), in
+        place."""
+        for a in (self.ci, self.ts, self.ws, self.cf, self.blk):
+            a[:] = 0
+        for slot in (F_Q, F_Q_START, F_Q_BLOCK):
+            self.cf[slot:slot + 4] = q0
         if t_ns is not None:
             ci = self.ci
             ci[C_SAMPLES], ci[C_LAST_T], ci[C_HAS_LAST], ci[C_N], ci[C_NEED_W0] = 1, t_ns, 1, 1, 1
@@ -142,10 +299,11 @@ class CubicState:
 class StreamingIntegrator:
     """Per-sample attitude update with the same results as :func:`integrate_batch`.
 
-    Every causal algorithm streams through its stepper (plain-float step, ~3-10 µs per
-    call on the 2-core development machine; the Euler baselines step in numpy, tens of
-    µs).  Offline algorithms (``causal`` False, e.g. ``magnus6_quintic``) need samples
-    after each interval and are refused with ``ValueError``.
+    Every causal rate algorithm steps through :func:`rate_advance` (compiled, the batch's
+    own step: the two give the same bits), the coning algorithms through their stepper
+    (plain floats) and the Euler baselines in numpy (tens of µs).  Offline algorithms
+    (``causal`` False, e.g. ``magnus6_quintic``) need samples after each interval and are
+    refused with ``ValueError``.
 
     ``update(t_ns, omega_ib_b)`` takes one rate sample and returns the attitude at
     ``t_ns`` (the first call, or the first after ``reset`` without ``t_ns``, only sets
@@ -193,15 +351,14 @@ class StreamingIntegrator:
     def reset(self, q0, t_ns: int | None = None) -> None:
         """Restart from attitude ``q0`` (at ``t_ns`` if given), dropping all history."""
         self._q = check_q0(q0)
-        self._fallbacks_before = self.fit_fallbacks if hasattr(self, "_stepper") else 0
+        self._fallbacks_before = self.fit_fallbacks if hasattr(self, "_rates") else 0
         self.samples = 0
         self.last_t_ns: int | None = None
         q_start = tuple(float(c) for c in self._q)
-        self._stepper = self.info.stepper(q_start, self._quadrature, self.singular_tol)
+        kernels = isinstance(self.info, RateAlgorithm | IncrementAlgorithm)
+        self._stepper = None if kernels else self.info.stepper(q_start, self.singular_tol)
         self._ts: list[int] = []
         self._ws: list[tuple[float, float, float]] = []
-        self._nav_hist: list = []
-        self._zeta_first = None
         t = rate = None
         if t_ns is not None:
             t = self._check_time(t_ns)
@@ -209,14 +366,8 @@ class StreamingIntegrator:
             self.samples = 1
             self.last_t_ns = t
             self._ts = [t]
-            self._nav_hist = [] if rate is None else [rate.tolist()]
-        # the causal cubic keeps its history in arrays and steps through one kernel
-        if self.info is not ROTVEC_CUBIC:
-            self.cubic = None
-        elif getattr(self, "cubic", None) is None:
-            self.cubic = CubicState(q_start, t, rate)
-        else:
-            self.cubic.reset(q_start, t, rate)
+        # a rate or coning algorithm keeps its history in arrays and steps through one kernel
+        self._rates = RateState(q_start, t, rate) if kernels else None
 
     @property
     def quaternion(self) -> np.ndarray:
@@ -226,17 +377,9 @@ class StreamingIntegrator:
     def fit_fallbacks(self) -> int:
         """Intervals integrated so far (since construction, across resets) whose rate fit could
         not be trusted, integrated with the exponential map (the batch's ``fallbacks``)."""
-        if getattr(self, "cubic", None) is not None:
-            return self._fallbacks_before + int(self.cubic.ci[C_FALLBACKS])
-        return self._fallbacks_before + getattr(self._stepper, "fit_fallbacks", 0)
-
-    def synced(self) -> None:
-        """Take the attitude, the sample count and the last stamp from the cubic's arrays
-        (after the compiled chain stepped them)."""
-        cs = self.cubic
-        self._q = tuple(cs.cf[F_Q:F_Q + 4].tolist())
-        self.samples = int(cs.ci[C_SAMPLES])
-        self.last_t_ns = int(cs.ci[C_LAST_T]) if cs.ci[C_HAS_LAST] else None
+        if self._rates is not None:
+            return self._fallbacks_before + int(self._rates.ci[C_FALLBACKS])
+        return self._fallbacks_before
 
     def update_nav(self, nav: NavFrame) -> None:
         """Use the constant navigation frame ``nav`` from the next sample on.
@@ -283,15 +426,6 @@ class StreamingIntegrator:
                              "increasing in time")
         return t
 
-    def _nav_zeta(self, t: int):
-        """Push the nav rate of the new sample; ζ of the interval ending at it (or None)."""
-        if self.nav is None:
-            return None
-        self._nav_hist = (self._nav_hist + [self._nav_rate_at(self.samples).tolist()])[-2:]
-        if self.last_t_ns is None:
-            return None
-        return nav_zeta_scalar(self._nav_hist, (t - self.last_t_ns) * 1e-9)
-
     def update(self, t_ns: int, omega_ib_b) -> np.ndarray:
         """Consume one rate sample; return the attitude at ``t_ns`` (shape (4,))."""
         try:
@@ -305,20 +439,12 @@ class StreamingIntegrator:
     def advance(self, t: int, w: tuple[float, float, float]) -> tuple[float, ...]:
         """:meth:`update` on a sample already checked (``t`` an int after ``last_t_ns``, ``w``
         3 finite floats): the attitude as 4 floats (the stream's per-sample path: no arrays)."""
-        cs = self.cubic
-        if cs is not None:
-            rate = self._nav_rate_at(self.samples)
+        rs = self._rates
+        if rs is not None:
             # the first sample of a time base only starts the history: the kernel run as
-            # Python (a run() that ends there, as every array-form run does, needs no compiler)
-            step = compiled(cubic_advance) if cs.ci[C_HAS_LAST] else cubic_advance
-            if rate is None:
-                q = step(cs.ci, cs.ts, cs.ws, cs.cf, t, w[0], w[1], w[2], False, 0.0, 0.0, 0.0)
-            else:
-                q = step(cs.ci, cs.ts, cs.ws, cs.cf, t, w[0], w[1], w[2], True, float(rate[0]),
-                         float(rate[1]), float(rate[2]))
-            self.took(t, q)
-            return q
-        zeta = None if self.nav is None else self._nav_zeta(t)
+            # Python (a stream that ends there needs no compiler)
+            return self._kernel_step(rate_advance if isinstance(self.info, RateAlgorithm)
+                                     else coning_advance, t, w, not rs.ci[C_HAS_LAST])
         self.samples += 1
         if self.last_t_ns is None:
             self.last_t_ns = t
@@ -332,22 +458,31 @@ class StreamingIntegrator:
         if len(ts) > _HISTORY:
             del ts[0]
             del ws[0]
-        stepper = self._stepper
-        if self.samples == 2:
-            self._zeta_first = zeta
-        elif self.samples == 3:
-            stepper.redo_first(ts, ws, self._zeta_first)
-        q = stepper.interval(ts, ws, zeta)
+        if self.samples == 3:
+            self._stepper.redo_first(ts, ws)
+        q = self._stepper.interval(ts, ws)
         self.last_t_ns = t
         self._q = q
         return q
 
-    def took(self, t: int, q: tuple) -> None:
-        """The cubic's kernel took the sample at ``t`` to the attitude ``q`` (4 floats): the
-        Python side's count, last stamp and attitude follow."""
+    def _kernel_step(self, step, t: int, v, as_python: bool = False) -> tuple[float, ...]:
+        """The sample ``t`` (rate or increment ``v``) through the step kernel ``step``."""
+        rs = self._rates
+        rate = self._nav_rate_at(self.samples)
+        nav = (False, 0.0, 0.0, 0.0) if rate is None else (True, float(rate[0]),
+                                                           float(rate[1]), float(rate[2]))
+        fn = step if as_python else compiled(step)
+        if step is rate_advance:
+            q = fn(self.info.code, rs.ci, rs.ts, rs.ws, rs.cf, t, v[0], v[1], v[2], *nav)
+        elif step is coning_advance:
+            q = fn(self.info.code, self._quadrature.code, rs.ci, rs.ts, rs.ws, rs.cf, rs.blk, t,
+                   v[0], v[1], v[2], *nav)
+        else:
+            q = fn(self.info.code, rs.ci, rs.cf, rs.blk, t, v[0], v[1], v[2], *nav)
         self.samples += 1
         self.last_t_ns = t
         self._q = q
+        return q
 
     def update_increment(self, t_ns: int, delta_theta) -> np.ndarray:
         """Consume one angle increment over ``(last_t_ns, t_ns]`` (increment algorithms).
@@ -368,18 +503,14 @@ class StreamingIntegrator:
         if self.last_t_ns is None:
             raise ValueError("update_increment needs a start time: pass t0_ns to the "
                              "constructor or reset(q0, t_ns)")
-        zeta = self._nav_zeta(t)
-        q = self._stepper.increment((dx, dy, dz), zeta)
-        self.last_t_ns = t
-        self.samples += 1
-        self._q = q
-        return np.array(q)
+        return np.array(self._kernel_step(increment_advance, t, (dx, dy, dz)))
 
 
 @kernel
 def cubic_reset(ci, ts, ws, cf, qx, qy, qz, qw, has_t, t, has_nav, r0, r1, r2):
-    """:meth:`CubicState.reset` from the attitude ``q`` (normalized here, as
-    :meth:`StreamingIntegrator.reset` takes it; at ``t`` when ``has_t``, with the nav rate
+    """The causal estimator's :meth:`RateState.reset` of a rate algorithm's slots (chain.py:
+    its integrator restarts inside the compiled step) from the attitude ``q`` (normalized here,
+    as :meth:`StreamingIntegrator.reset` takes it; at ``t`` when ``has_t``, with the nav rate
     ``r`` there when ``has_nav``)."""
     n = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
     qx, qy, qz, qw = qx / n, qy / n, qz / n, qw / n
@@ -395,31 +526,6 @@ def cubic_reset(ci, ts, ws, cf, qx, qy, qz, qw, has_t, t, has_nav, r0, r1, r2):
         if has_nav:
             cf[F_NAV_PREV], cf[F_NAV_PREV + 1], cf[F_NAV_PREV + 2] = r0, r1, r2
             ci[C_HAS_NAV_PREV] = 1
-
-
-@kernel
-def exp_advance(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
-    """:meth:`StreamingIntegrator.advance` for ``exp_map`` on the cubic's arrays (the last
-    sample in ``ts[0]``, ``ws[0]``): the exponential map of the trapezoid increment."""
-    has_z, z0, z1, z2 = nav_interval(ci, cf, t, has_nav, r0, r1, r2)
-    ci[C_SAMPLES] += 1
-    if ci[C_HAS_LAST] == 0 or ci[C_NEED_W0] == 1:
-        if ci[C_HAS_LAST] == 0:
-            ci[C_LAST_T], ci[C_HAS_LAST] = t, 1
-            ts[0] = t
-            ws[0, 0], ws[0, 1], ws[0, 2] = w0, w1, w2
-            return cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3]
-        # reset(q0, t_ns): the first rate held back to the start time
-        ws[0, 0], ws[0, 1], ws[0, 2] = w0, w1, w2
-        ci[C_NEED_W0] = 0
-    h = (t - ts[0]) * 1e-9
-    b = exp_scalar(0.5 * (ws[0, 0] + w0) * h, 0.5 * (ws[0, 1] + w1) * h,
-                   0.5 * (ws[0, 2] + w2) * h)
-    q = _compose_into(cf, b, has_z, z0, z1, z2)
-    ts[0] = t
-    ws[0, 0], ws[0, 1], ws[0, 2] = w0, w1, w2
-    ci[C_LAST_T] = t
-    return q
 
 
 def constant_nav_rate(current, nav) -> np.ndarray:

@@ -22,7 +22,8 @@ def test_integration_into_a_given_array_is_the_same_bits_and_allocates_no_second
     """integrate_batch(out=) writes the attitudes into the caller's array (the causal array form
     assembles its runs so): the bits of a fresh result, ``out`` itself returned, and for the
     rate algorithms without an (N, 4) array of its own (the peak is N x 32 bytes below the
-    fresh result's)."""
+    fresh result's, or -- the compiled loop, whose fresh peak is its result alone -- below
+    one such array)."""
     from gyro_attitude.core.attitude import integrate_batch
     from gyro_attitude.core.attitude.registry import get_algorithm
 
@@ -39,7 +40,8 @@ def test_integration_into_a_given_array_is_the_same_bits_and_allocates_no_second
     assert got.tobytes() == fresh.tobytes()
     assert np.isnan(out[[0, -1]]).all()  # nothing outside the rows given
     if get_algorithm(algorithm).integrates_into:
-        assert peak_fresh - peak_into > 0.9 * 32 * n, (peak_fresh, peak_into)
+        assert peak_fresh - peak_into > 0.9 * 32 * n or peak_into < 0.9 * 32 * n, \
+            (peak_fresh, peak_into)
     with pytest.raises(ValueError, match="out must be"):
         integrate_batch(t, w, algorithm=algorithm, out=np.empty((n, 3)))
 

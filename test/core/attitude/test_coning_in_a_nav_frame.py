@@ -17,11 +17,9 @@ from gyro_attitude.core.attitude import (
     ALGORITHMS,
     NavFrame,
     StreamingIntegrator,
-    compose,
     integrate_batch,
     integrate_increments_batch,
 )
-from gyro_attitude.core.attitude.compose import CHUNK
 
 INCR_ALGS = [a for a, i in ALGORITHMS.items() if i.consumes == "increment"]
 
@@ -169,13 +167,12 @@ def _coning(n, alpha=0.05, per=48, h_ns=1_000_000):
 
 
 @pytest.mark.parametrize("source", ["increments", "rates_trapezoid"])
-def test_one_plus_previous_across_the_batch_chunk_boundary(source):
-    # A run longer than one batch chunk (compose.CHUNK intervals): every step, including the
-    # first of the second chunk (whose Δθ_{k-1} lives in the chunk before), must rotate by
-    # docs/equations.md's φ_k = Δθ_k + (1/12) Δθ_{k-1} × Δθ_k.  The coning term is
-    # ~(α Ωh)²/12 ≈ 3.6e-6 rad here; a missing or misplaced Δθ_{k-1} changes a step by
-    # ≥ 4e-7 rad, against ~1e-16 of rounding per step.
-    n = CHUNK + 101
+def test_one_plus_previous_every_step_of_a_long_run(source):
+    # Every step of a long run must rotate by docs/equations.md's
+    # φ_k = Δθ_k + (1/12) Δθ_{k-1} × Δθ_k.  The coning term is ~(α Ωh)²/12 ≈ 3.6e-6 rad
+    # here; a missing or misplaced Δθ_{k-1} changes a step by ≥ 4e-7 rad, against ~1e-16 of
+    # rounding per step.
+    n = 20_000
     t_ns, t, alpha, omega_c = _coning(n)
     if source == "increments":
         d = coning_increments(alpha, omega_c, t)
@@ -199,18 +196,3 @@ def test_one_plus_previous_across_the_batch_chunk_boundary(source):
     drift = np.linalg.norm(np.polyfit(t[idx], err[idx], 1)[0])
     theory = alpha**2 * omega_c * (omega_c * 1e-3) ** 4 / 60
     assert 0.8 < drift / theory < 1.25
-
-
-@pytest.mark.parametrize("algorithm", INCR_ALGS)
-def test_run_split_into_small_chunks_equals_one_chunk(algorithm, monkeypatch):
-    # The same run with a chunk of 12 intervals (a multiple of N = 1..4, as CHUNK is) must
-    # give the one-chunk attitudes: what crosses a chunk edge (the previous increment, the
-    # carried attitude, the nav rotation) must be carried exactly.  Cubic quadrature: its
-    # increment at a chunk's first interval needs the samples before the chunk.
-    t_ns, t, alpha, omega_c = _coning(150, per=20)
-    _, w = coning_truth(alpha, omega_c, t)
-    nav = NavFrame(0.7, velocity_enu=(30.0, -20.0, 0.0))
-    one = integrate_batch(t_ns, w, Q0, algorithm, nav=nav, quadrature="cubic")
-    monkeypatch.setattr(compose, "CHUNK", 12)
-    split = integrate_batch(t_ns, w, Q0, algorithm, nav=nav, quadrature="cubic")
-    assert angle_between(one, split).max() < 1e-13  # reassociated rounding of 150 products

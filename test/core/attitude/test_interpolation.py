@@ -1,5 +1,5 @@
 """The rate fits in time (core/attitude/interpolation.py) against scipy's barycentric
-interpolator, on equally spaced and jittered stamps; the chunked composition's worker
+interpolator, on equally spaced and jittered stamps; the offline chunked composition's worker
 threads against its single-thread path."""
 
 from __future__ import annotations
@@ -8,11 +8,10 @@ import numpy as np
 import pytest
 from scipy.interpolate import BarycentricInterpolator
 
-from gyro_attitude.core.attitude import compose, integrate_batch
+from gyro_attitude.core.attitude import compose, increments_from_rates, integrate_batch
 from gyro_attitude.core.attitude.interpolation import (
     GAUSS2,
     causal_fit_points,
-    causal_rates_at,
     fitted_rates,
     sliding_fit_rates,
 )
@@ -87,25 +86,23 @@ def test_sliding_fit_reproduces_a_cubic_exactly_on_jittered_stamps():
 
 
 @pytest.mark.parametrize("jitter", [0, 200_000])
-def test_causal_rates_runs_and_scattered_rows_agree(jitter):
-    """A run of intervals (sliding fit from k = 3, gathered head rows) and the same intervals
-    asked one by one (all gathered) give the same rates, lookahead or not."""
+def test_cubic_increments_over_a_record_take_each_intervals_causal_window(jitter):
+    """increments_from_rates("cubic"), the compiled loop over the causal fit's step: the Gauss
+    integral of scipy's polynomial through samples k-3..k, at the start through 0..2 for
+    intervals 1 and 2 (interval 1 as the streams redo it)."""
     n = 300
     t = _stamps(n, jitter, seed=5)
     w = np.random.default_rng(6).normal(size=(n, 3))
-    for lookahead in (False, True):
-        run = causal_rates_at(t, w, np.arange(1, n), GAUSS2, lookahead)
-        one_by_one = np.concatenate([causal_rates_at(t, w, np.array([k]), GAUSS2, lookahead)
-                                     for k in range(1, n)])
-        np.testing.assert_allclose(run, one_by_one, rtol=0, atol=1e-13)
-        # the head rows: linear (k = 1, or quadratic with lookahead) and quadratic (k = 2)
-        want = _oracle(t, w, [1, 2], [0, 0], 3, GAUSS2)
-        np.testing.assert_allclose(run[1], want[1], rtol=0, atol=1e-13)
-        if lookahead:
-            np.testing.assert_allclose(run[0], want[0], rtol=0, atol=1e-13)
-        else:
-            np.testing.assert_allclose(run[0], _oracle(t, w, [1], [0], 2, GAUSS2)[0],
-                                       rtol=0, atol=1e-13)
+    k = np.arange(1, n)
+    start = np.maximum(k - 3, 0)
+    nodes = np.where(k < 3, 3, 4)
+    want = np.concatenate([_oracle(t, w, [kk], [s0], m, GAUSS2)
+                           for kk, s0, m in zip(k, start, nodes, strict=True)])
+    h = (np.diff(t) * 1e-9)[:, None]
+    got = increments_from_rates(t, w, "cubic")
+    np.testing.assert_allclose(got, 0.5 * h * (want[:, 0] + want[:, 1]), rtol=0, atol=1e-15)
+    two = increments_from_rates(t[:2], w[:2], "cubic")  # two samples: the linear fit
+    np.testing.assert_allclose(two[0], 0.5 * h[0] * (w[0] + w[1]), rtol=0, atol=1e-18)
 
 
 def test_fitted_rates_sends_the_ends_to_the_gathered_fit():
@@ -129,14 +126,14 @@ def test_fitted_rates_sends_the_ends_to_the_gathered_fit():
     assert asked == [[5, 9, 4]]
 
 
-@pytest.mark.parametrize("algorithm", ["rotvec_cubic", "magnus6_quintic", "coning2"])
+@pytest.mark.parametrize("algorithm", ["magnus6_quintic"])
 def test_threaded_composition_equals_single_thread(monkeypatch, algorithm):
     """Three chunks: worker threads prepare them, the attitude is carried in order; the
     result is the same arithmetic as the single-thread path (bit for bit)."""
     n = 2 * compose.CHUNK + 1000
     t = _stamps(n, 100_000, seed=8)
     w = np.random.default_rng(9).normal(size=(n, 3)) * 2.0
-    kw = {"quadrature": "cubic"} if algorithm == "coning2" else {}
+    kw = {}
     monkeypatch.setattr(compose, "_prepare_threads", 2)
     threaded = integrate_batch(t, w, algorithm=algorithm, **kw)
     previous = compose.set_prepare_threads(0)

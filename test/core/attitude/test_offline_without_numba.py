@@ -1,6 +1,7 @@
-"""The offline estimator runs without the compiler: an aided offline replay in a fresh process
-imports no numba (its import and first cache load take longer than all the rest of such a
-replay), and the covariance verdicts it judges once per distinct row are every row's."""
+"""The offline estimator runs without the compiler: an aided offline replay (replay's default
+algorithm, the vectorized magnus6_quintic) in a fresh process imports no numba (its import and
+first cache load take longer than all the rest of such a replay), and the covariance verdicts it
+judges once per distinct row are every row's."""
 
 import subprocess
 import sys
@@ -17,6 +18,7 @@ REPO = Path(__file__).resolve().parents[3]
 OFFLINE_RUN = """
 import sys
 import numpy as np
+from gyro_attitude.core.attitude import DEFAULT_OFFLINE_ALGORITHM
 from gyro_attitude.core.attitude.offline import estimate_offline
 from gyro_attitude.core.attitude.settings import StreamConfig
 n = 4000
@@ -26,7 +28,7 @@ w = rng.normal(0.0, 1e-3, (n, 3)); w[1500:2500, 2] += 0.5
 a = np.tile([0.3, -0.2, 9.79], (n, 1)) + rng.normal(0.0, 0.02, (n, 3))
 cov = np.tile(np.diag([1e-6, 1e-6, 2e-6]).ravel(), (n, 1)); cov[::7, 0] = -1.0
 res = estimate_offline(t, w, a, config=StreamConfig(aiding="auto"),
-                       angular_velocity_covariance=cov)
+                       angular_velocity_covariance=cov, algorithm=DEFAULT_OFFLINE_ALGORITHM)
 assert res.q.shape == (n, 4) and np.isfinite(res.q).all()
 print(",".join(m for m in sys.modules if m.split(".")[0] == "numba"))
 """

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import gyro_attitude.core.attitude.interpolation as ip
+import gyro_attitude.core.attitude.streaming as streaming
 from gyro_attitude.core.attitude import StreamingIntegrator, integrate_batch
 from gyro_attitude.core.attitude.offline import estimate_offline
 from gyro_attitude.core.attitude.settings import StreamConfig
@@ -38,8 +39,11 @@ def _rms(q, truth):
 
 
 def _rule_off(monkeypatch):
+    """The rule off in the vectorized offline kernel and in the causal step, the latter run as
+    Python (compiled code keeps the functions it was compiled with)."""
     monkeypatch.setattr(ip, "untrusted_fits", lambda *a, **k: None)
     monkeypatch.setattr(ip, "untrusted_fit_scalar", lambda *a, **k: 0.0)
+    monkeypatch.setattr(streaming, "compiled", lambda f: f)
 
 
 @pytest.mark.parametrize("algorithm, margin", [("rotvec_cubic", 1.02), ("magnus6_quintic", 1.05),
