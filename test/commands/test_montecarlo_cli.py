@@ -164,8 +164,8 @@ def test_ctrl_c_exits_130_with_the_finished_runs_marked_partial(tmp_path):
     out = tmp_path / "o.json"
     env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     proc = subprocess.Popen(
-        [sys.executable, "-m", "gyro_attitude.cli", "montecarlo", "lab_bench", "--runs", "400",
-         "--duration", "20", "--rate", "100", "--gyro-bias", "none", "--workers", "2",
+        [sys.executable, "-m", "gyro_attitude.cli", "montecarlo", "lab_bench", "--runs", "4000",
+         "--duration", "60", "--rate", "100", "--gyro-bias", "none", "--workers", "2",
          "--json", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     deadline = time.monotonic() + 60
     while not _children(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
