@@ -67,13 +67,24 @@ def sample_clock(t_ns: np.ndarray, starts: np.ndarray, empty=np.empty,
             e0, e1 = max(r0, c0 - margin), min(r1, c1 + margin)
             tau = _clock(t[e0:e1], period, r0 == e0, r1 == e1)
             tau = tau[c0 - e0:c1 - e0]
-            if np.abs(tau - t[c0:c1]).max() <= KEEP_NS:
+            off = np.abs(tau - t[c0:c1]).max()
+            # kept: stamps on their clock, or a clock that is no clock of jitter (more than
+            # half a period off: the rate changed, or the stamps wander)
+            if off <= KEEP_NS or 2 * off > period:
                 continue
             if out is t:
                 out = empty(n, np.int64)
                 out[:] = t
             out[c0:c1] = tau
+        if out is not t and not _rising(out, r0, r1, chunk):
+            out[r0:r1] = t[r0:r1]  # a clock that steps back at a cut: the stamps, as they are
     return out
+
+
+def _rising(a: np.ndarray, r0: int, r1: int, chunk: int) -> bool:
+    """Whether ``a[r0:r1]`` rises strictly (``chunk`` rows at a time)."""
+    return all(bool((np.diff(a[max(c0 - 1, r0):min(c0 + chunk, r1)]) > 0).all())
+               for c0 in range(r0, r1, chunk))
 
 
 def run_period(t_ns: np.ndarray) -> int:
@@ -85,7 +96,8 @@ def run_period(t_ns: np.ndarray) -> int:
     if dt.size == 0:
         return 0
     rough = np.median(dt)
-    return int(np.median(dt[np.abs(dt - rough) < 0.5 * rough])) if rough > 0 else int(rough)
+    near = dt[np.abs(dt - rough) < 0.5 * rough]
+    return int(np.median(near)) if rough > 0 and near.size else int(rough)
 
 
 def _clock(t: np.ndarray, period: int, starts_run: bool, ends_run: bool) -> np.ndarray:

@@ -111,3 +111,43 @@ def test_a_long_run_taken_a_chunk_at_a_time_has_the_clock_of_the_whole_run():
     # (to rounding: the whole run's cumulative sum of residuals passes 2**53 ns)
     assert np.abs(sample_clock(t, [0], chunk=1 << 14) - whole).max() <= 4
     assert rms(whole - true) < 0.5 * rms(t - true)
+
+
+def _fuzz_stamps(rng, kind):
+    """Hostile timing: a wandering sampler (random-walk stamps), a rate change, or jitter up
+    to half a period with holes."""
+    period = 3_500_000
+    n = int(rng.integers(200, 2500))
+    if kind == "wandering":
+        t = np.cumsum(period * (1 + rng.uniform(-0.5, 0.5, n)))
+    else:
+        g = np.flatnonzero(rng.random(2 * n) > rng.uniform(0, 0.1))[:n] * float(period)
+        t = g + rng.uniform(-0.46, 0.46, g.size) * period
+        if kind == "rate change":
+            a = int(rng.integers(1, g.size - 1))
+            t[a:] = t[a] + (t[a:] - t[a]) * rng.choice([0.5, 0.66, 1.5, 2.0, 3.0])
+    return 10**9 + np.round(t).astype(np.int64)
+
+
+@pytest.mark.parametrize("kind", ["wandering", "rate change", "jitter"])
+def test_the_clock_rises_strictly_whatever_the_timing(kind):
+    rng = np.random.default_rng(125)
+    for _ in range(60):
+        t = _fuzz_stamps(rng, kind)
+        t = np.unique(t)  # strictly rising stamps: one run
+        tau = sample_clock(t, np.array([0]))
+        assert (np.diff(tau) > 0).all()
+
+
+@pytest.mark.parametrize("factor", [1.1, 1.5, 2.0, 3.0])
+def test_a_rate_change_keeps_the_stamps_where_no_clock_of_jitter_fits(factor):
+    """Clean stamps whose interval changes mid-run are no jitter about one clock: kept (a
+    smoothed clock across the change moved them by up to 64 periods)."""
+    period = 10_000_000
+    dt = np.r_[np.full(1000, period), np.full(1000, int(period * factor))]
+    t = 10**9 + np.cumsum(dt).astype(np.int64)
+    tau = sample_clock(t, np.array([0]))
+    assert np.abs(tau - t).max() <= period // 2
+    w = np.zeros((t.size, 3))
+    res = estimate_offline(t, w, config=StreamConfig(aiding="none", gyro_bias="none"))
+    assert res.q.shape == (t.size, 4) and np.isfinite(res.q).all()
