@@ -124,14 +124,14 @@ class Verdict:
 def _regular_stamps(t: np.ndarray, max_gap_ns: int, size: int = 1 << 16) -> bool:
     """Whether stamps ``t`` rise strictly, with no interval beyond ``max_gap_ns`` and none
     in which :func:`stamp_step` can find missing samples (from the 17th interval on, 1.5
-    times the median of the first 16): the stream the validator accepts whole.  ``size`` intervals
+    times the nominal period of the first 16): the stream the validator accepts whole.  ``size`` intervals
     at a time (no temporary of the recording's length)."""
     if t.size < 2:
         return True
     if t.size <= NOMINAL_INTERVALS + 1:
         dt = np.diff(t)
         return bool(dt.min() > 0 and dt.max() <= max_gap_ns)
-    p = int(np.sort(np.diff(t[:NOMINAL_INTERVALS + 1]))[NOMINAL_INTERVALS // 2])
+    p = int(nominal_period(np.sort(np.diff(t[:NOMINAL_INTERVALS + 1]))))
     for c0 in range(0, t.size - 1, size):
         dt = np.diff(t[c0:c0 + size + 1])
         if dt.min() <= 0 or dt.max() > max_gap_ns:
@@ -468,17 +468,32 @@ def _round_half_even(x):
     return int(r)
 
 
+@kernel
+def nominal_period(learnt):
+    """The nominal period of a time base from its first intervals, sorted: their median, less
+    a burst's (intervals under a quarter of the median: a driver flushing its buffer at a
+    start would pull it low)."""
+    m = learnt[learnt.size // 2]
+    k = 0
+    while 4 * learnt[k] < m:
+        k += 1
+    return learnt[k + (learnt.size - k) // 2]
+
+
 @kernel(inline=True)
 def _periods_in(dt, p):
+    if 4 * dt < p:
+        return 0  # a burst (a driver flushing its buffer; jitter of T/3 leaves T/3 at least)
     return 1 if 4 * dt < 7 * p else _round_half_even(dt / p)
 
 
 @kernel(inline=True)
 def _clock_start(v):
-    """The sample clock from the learnt intervals: each one period of the clock unless it is
-    1.75 median periods or longer (a hole: whole periods; a jittered interval reaches 1.66 of
-    them, and their median reads low), the period their sum over that count, the clock the
-    line through the stamps at it (their mean residual), relative to the last stamp."""
+    """The sample clock from the learnt intervals: each one period of the clock, none when
+    under a quarter of the nominal period (a burst), whole periods when 1.75 of them or longer
+    (a hole; a jittered interval reaches 1.66, and a median of them reads low); the period
+    their sum over that count, the clock the line through the stamps at it (their mean
+    residual), relative to the last stamp."""
     p = v.period
     total = 0
     count = 0
@@ -527,7 +542,7 @@ def stamp_step(v, max_gap_ns, time_jump_ns, max_missing, t):
         v.learn[v.n_learn] = dt
         v.n_learn += 1
         if v.n_learn == NOMINAL_INTERVALS:
-            v.period = np.sort(v.learn)[NOMINAL_INTERVALS // 2]
+            v.period = nominal_period(np.sort(v.learn))
             _clock_start(v)
         return A_ACCEPT, 0
     # The stamp against the sample clock, not the interval alone: a driver's timing moves

@@ -146,3 +146,23 @@ def test_stamps_jittered_by_a_third_of_the_period_count_their_holes_and_no_jitte
     # period a few % off from 16 jittered intervals) is not counted
     assert 34 <= cls.missing_samples == res.counts[iv.MISSING_SAMPLES] <= 40
     assert cls.counts[iv.GAP] == res.counts[iv.GAP] == 0
+
+
+@pytest.mark.parametrize("where", ["start", "after a gap"])
+def test_a_burst_while_the_period_is_learnt_counts_no_missing_samples(where):
+    """A driver flushing its buffer delivers a few samples microseconds apart as a time base
+    starts: the burst is no period of the clock (counted as one, it set the clock 25 % fast
+    and jitter then read as hundreds of missing samples)."""
+    rng = np.random.default_rng(1)
+    n, period = 4000, 3_500_000
+    t = 10**9 + np.arange(n, dtype=np.int64) * period
+    t += np.round(rng.uniform(-1 / 3, 1 / 3, n) * period).astype(np.int64)
+    k0 = 0 if where == "start" else 2000
+    if where == "after a gap":
+        t[k0:] += 200_000_000
+    t[k0:k0 + 4] = t[k0 + 4] - np.arange(4, 0, -1) * 1000
+    w = np.zeros((n, 3))
+    cfg = StreamConfig(aiding="none", gyro_bias="none")
+    res = AttitudeStream(config=cfg).run(t, w, "imu")
+    cls = iv.classify(t, w, "imu", iv.ImuCheckConfig.of(cfg))
+    assert res.counts[iv.MISSING_SAMPLES] == cls.missing_samples == 0
