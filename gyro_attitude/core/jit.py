@@ -29,7 +29,6 @@ import hashlib
 import importlib
 import os
 import pickle
-import sys
 import types
 import warnings
 
@@ -94,28 +93,23 @@ def _jit_off() -> bool:
     return os.environ.get("GYRO_ATTITUDE_JIT", "1").strip() == "0"
 
 
-def _source_files(func, seen: set) -> set[str]:
-    """The files of ``func`` and of every kernel it calls, at any depth."""
-    seen.add(func)
-    files = {sys.modules[func.__module__].__file__}
-    for name in func.__code__.co_names:
-        callee = func.__globals__.get(name)
-        if getattr(callee, _MARK, False) and callee not in seen:
-            files |= _source_files(callee, seen)
-    return files
-
-
 @functools.cache
 def precompiled_name(func) -> str:
     """The module name of the ahead-of-time form of the kernel ``func``: it names a digest of
-    the source files of ``func`` and its callees and of numpy's version, so a module built
-    from other code is never taken."""
+    every source file of the core (the kernels and the constants numba freezes into them),
+    of the build script, and of numpy's and numba's versions, so a module built from other
+    code, or by another numba than the JIT's, is never taken."""
+    import importlib.metadata
+    import pathlib
+
     import numpy
 
     digest = hashlib.sha256(numpy.__version__.encode())
-    for path in sorted(_source_files(func, set()) | {__file__}):
-        with open(path, "rb") as f:
-            digest.update(f.read())
+    digest.update(importlib.metadata.version("numba").encode())
+    core = pathlib.Path(__file__).parent
+    for path in sorted([*core.rglob("*.py"), core.parent / "io" / "precompile.py"]):
+        digest.update(str(path.relative_to(core.parent)).encode())
+        digest.update(path.read_bytes())
     return f"_aot_{func.__name__}_{digest.hexdigest()[:16]}"
 
 
@@ -123,8 +117,9 @@ def precompiled_name(func) -> str:
 def precompiled(func):
     """The ahead-of-time compiled ``func`` from this package's directory, or None (not built
     for this source, ``GYRO_ATTITUDE_PRECOMPILED=0`` or ``GYRO_ATTITUDE_JIT=0``).  Called
-    with arrays of other dtypes, dimensions or layouts than it was built for (the machine code
-    would read them wrongly: it does not check), it hands the call to :func:`compiled`."""
+    with arrays of other dtypes, dimensions or layouts than it was built for, or read-only
+    ones (the machine code would read them wrongly or write into them: it does not check), it
+    hands the call to :func:`compiled`."""
     if _jit_off() or os.environ.get("GYRO_ATTITUDE_PRECOMPILED", "1").strip() == "0" or \
             not getattr(func, _MARK, False):
         return None
@@ -141,7 +136,7 @@ def precompiled(func):
         for a, spec in zip(args, arrays, strict=True):
             if spec is not None and not (isinstance(a, spec[0]) and a.ndim == spec[1]
                                          and a.dtype == spec[2] and a.flags.c_contiguous
-                                         and a.flags.aligned):
+                                         and a.flags.aligned and a.flags.writeable):
                 return compiled(func)(*args)
         return machine_code(*args)
 

@@ -82,22 +82,34 @@ def _array_args(signature) -> list:
 def main(argv: list[str] | None = None) -> int:
     """Build unless a module built from this source is there (``--force``: build anyway)."""
     from gyro_attitude.core.attitude import chain
-    from gyro_attitude.core.attitude.stream import compile_kernels
 
     force = "--force" in (sys.argv[1:] if argv is None else argv)
-    directory = Path(jit.__file__).parent
-    if jit.backend() != "numba":
-        print("precompile: skipped (no numba, or GYRO_ATTITUDE_JIT=0)", file=sys.stderr)
-        return 0
     if not force and jit.precompiled(chain.run_rows) is not None:
         print(f"precompile: {jit.precompiled_name(chain.run_rows)} is up to date",
               file=sys.stderr)
+        return 0
+    # compiled afresh, not loaded from numba's cache (set before numba is imported): the
+    # cache is keyed on each function's own file and may hold a form built before a callee
+    # changed
+    cache = tempfile.mkdtemp(prefix="gyro-attitude-precompile-")
+    os.environ["NUMBA_CACHE_DIR"] = cache
+    try:
+        return _build_fresh(chain.run_rows)
+    finally:
+        shutil.rmtree(cache, ignore_errors=True)
+
+
+def _build_fresh(func) -> int:
+    from gyro_attitude.core.attitude.stream import compile_kernels
+
+    if jit.backend() != "numba":
+        print("precompile: skipped (no numba, or GYRO_ATTITUDE_JIT=0)", file=sys.stderr)
         return 0
     try:
         # the just-in-time form, compiled for the argument types a run passes
         os.environ["GYRO_ATTITUDE_PRECOMPILED"] = "0"
         compile_kernels()
-        target = build(chain.run_rows, directory)
+        target = build(func, Path(jit.__file__).parent)
     except Exception as exc:  # a compiler missing, a read-only installation, pycc gone
         first = (str(exc).splitlines() or [""])[0]
         if "compiler" in first:

@@ -2,11 +2,9 @@
 io/precompile): taken only when built from this very source, never handed arrays it was not
 built for, and a causal run with it needs no numba in the process."""
 
-import importlib
 import os
 import subprocess
 import sys
-import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -71,43 +69,28 @@ def test_the_precompiled_loop_gives_the_jit_loops_bits():
     assert got[1].tobytes() == want[1].tobytes()  # the whole state record
 
 
-def _write(path: Path, text: str) -> None:
-    path.write_text(textwrap.dedent(text))
-
-
 def test_a_module_built_from_other_source_is_never_taken(tmp_path, monkeypatch):
-    """The module's name carries a digest of the source of the kernel and of every kernel it
-    calls, at any depth, in any file: a change to a callee in another file renames it."""
-    _write(tmp_path / "aot_callee.py", """
-        from gyro_attitude.core.jit import kernel
-
-        @kernel
-        def g(x):
-            return x + 1.0
-    """)
-    _write(tmp_path / "aot_caller.py", """
-        from gyro_attitude.core.jit import kernel
-        from aot_callee import g
-
-        @kernel
-        def f(x):
-            return g(x) * 2.0
-    """)
-    monkeypatch.syspath_prepend(str(tmp_path))
+    """The module's name carries a digest of every source file of the core (kernels, and the
+    constants numba freezes into them, in any file) and of the build script: a change to
+    any of them renames it."""
+    core = tmp_path / "core"
+    (core / "attitude").mkdir(parents=True)
+    (tmp_path / "io").mkdir()
+    (core / "jit.py").write_text("# jit\n")
+    (core / "earth.py").write_text("OMEGA_IE = 7.292115e-5\n")
+    (core / "attitude" / "chain.py").write_text("def run_rows(): pass\n")
+    (tmp_path / "io" / "precompile.py").write_text("# build\n")
+    monkeypatch.setattr(jit, "__file__", str(core / "jit.py"))
     names = []
-    for body in ("return x + 1.0", "return x + 2.0"):
-        _write(tmp_path / "aot_callee.py", f"""
-            from gyro_attitude.core.jit import kernel
-
-            @kernel
-            def g(x):
-                {body}
-        """)
-        for mod in ("aot_callee", "aot_caller"):
-            sys.modules.pop(mod, None)
-        caller = importlib.import_module("aot_caller")
-        names.append(jit.precompiled_name(caller.f))
-    assert names[0] != names[1] and all(n.startswith("_aot_f_") for n in names)
+    for path, text in ((None, None), (core / "earth.py", "OMEGA_IE = 7.3e-5\n"),
+                       (core / "attitude" / "chain.py", "def run_rows(): return 1\n"),
+                       (tmp_path / "io" / "precompile.py", "# build 2\n")):
+        if path is not None:
+            path.write_text(text)
+        jit.precompiled_name.cache_clear()
+        names.append(jit.precompiled_name(chain.run_rows))
+    jit.precompiled_name.cache_clear()
+    assert len(set(names)) == 4 and all(n.startswith("_aot_run_rows_") for n in names)
 
 
 CAUSAL_RUN = """
@@ -131,3 +114,13 @@ def test_a_causal_run_with_the_precompiled_loop_loads_no_numba():
     out = subprocess.run([sys.executable, "-c", CAUSAL_RUN], capture_output=True, text=True,
                          timeout=300, cwd=REPO, check=True).stdout.strip()
     assert out == "", f"the causal run imported {out.split(',')[:4]}"
+
+
+def test_a_read_only_output_is_refused_by_the_jit_not_written_by_the_machine_code():
+    """(The machine code would write into it: a read-only memory map crashed the process.)"""
+    loop = _built_or_skip()
+    args = list(_loop_args())
+    args[19] = np.zeros_like(args[19])
+    args[19].flags.writeable = False
+    with pytest.raises(Exception, match="(?i)read.?only|readonly|immutable"):
+        loop(*args)
