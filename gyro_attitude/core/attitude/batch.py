@@ -49,15 +49,33 @@ def integrate_batch(t_ns, omega_ib_b, q0=(0.0, 0.0, 0.0, 1.0),
                                 and out.flags.writeable):
         raise ValueError(f"out must be a writeable C-contiguous float64 array of shape "
                          f"({t.size}, 4)")
-    if isinstance(alg, RateAlgorithm | IncrementAlgorithm):  # the streaming step in a loop
-        return integrate_rows(alg, t, w, q0, rate_n, quad.code, fallbacks, out)
-    kw = {"fallbacks": fallbacks} if fallbacks is not None and alg.checks_rate_fit else {}
-    if out is not None:
-        if not alg.integrates_into:
-            out[:] = alg.integrate(t, w, q0, rate_n, quad, float(singular_tol), **kw)
-            return out
-        kw["out"] = out
-    return alg.integrate(t, w, q0, rate_n, quad, float(singular_tol), **kw)
+    try:
+        if isinstance(alg, RateAlgorithm | IncrementAlgorithm):  # the streaming step, looped
+            return _finite(integrate_rows(alg, t, w, q0, rate_n, quad.code, fallbacks, out))
+        kw = {"fallbacks": fallbacks} if fallbacks is not None and alg.checks_rate_fit else {}
+        if out is not None:
+            if not alg.integrates_into:
+                out[:] = alg.integrate(t, w, q0, rate_n, quad, float(singular_tol), **kw)
+                return _finite(out)
+            kw["out"] = out
+        return _finite(alg.integrate(t, w, q0, rate_n, quad, float(singular_tol), **kw))
+    except (ValueError, OverflowError) as exc:
+        if "math" not in str(exc) and not isinstance(exc, OverflowError):
+            raise
+        raise ValueError(f"{alg.name}: the rates or intervals are beyond what float64 can "
+                         f"integrate ({exc})") from None
+
+
+def _finite(q: np.ndarray, size: int = 1 << 16) -> np.ndarray:
+    """``q``, or ValueError naming its first non-finite row (rates of 1e150 rad/s and more,
+    or stamps whose differences float64 cannot hold, overflow the steps)."""
+    for c0 in range(0, q.shape[0], size):
+        bad = ~np.isfinite(q[c0:c0 + size]).all(axis=1)
+        if bad.any():
+            k = c0 + int(np.argmax(bad))
+            raise ValueError(f"attitude not finite from sample {k} on: the rates or intervals "
+                             "are beyond what float64 can integrate")
+    return q
 
 
 def integrate_increments_batch(t_ns, delta_theta, q0=(0.0, 0.0, 0.0, 1.0),

@@ -218,3 +218,15 @@ def test_bad_input_raises_clear_errors():
         with pytest.raises(ValueError, match="non-finite"):
             s.update(200, (0.0, np.inf, 0.0))
         assert s.samples == 1 and s.last_t_ns == 100
+
+
+@pytest.mark.parametrize("algorithm", ["exp_map", "rotvec_cubic", "quat_rk4", "coning4",
+                                       "magnus6_quintic", "quat_first_order"])
+def test_rates_beyond_what_float64_integrates_are_one_error_not_nan_attitudes(algorithm):
+    from gyro_attitude.core.attitude import integrate_batch
+
+    t = np.arange(1, 101, dtype=np.int64) * 10**7
+    w = np.full((100, 3), 0.1)
+    w[50] = 1e300
+    with np.errstate(all="ignore"), pytest.raises(ValueError, match="not finite from sample"):
+        integrate_batch(t, w, algorithm=algorithm)
