@@ -101,8 +101,10 @@ def _covered(t: np.ndarray, q: np.ndarray, s: np.ndarray,
     exact = (k < t.size) & (t[np.minimum(k, t.size - 1)] == s)
     limit = default_max_interval_ns(t) if max_interval_ns is None else int(max_interval_ns)
     inside = ~exact & (k > 0) & (k < t.size)
-    kk = np.clip(k, 1, max(t.size - 1, 1))
-    between = inside & (t.size > 1) & (t[kk] - t[kk - 1] <= limit)
+    between = np.zeros(s.size, bool)
+    if t.size > 1:  # (one truth sample covers its own stamp only)
+        kk = np.clip(k, 1, t.size - 1)
+        between = inside & (t[kk] - t[kk - 1] <= limit)
     out = np.empty((s.size, 4))
     out[exact] = q[k[exact]]
     if between.any():

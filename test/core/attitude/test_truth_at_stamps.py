@@ -1,6 +1,7 @@
 """Truth at many stamps: scipy's Slerp as the oracle, coverage (span, gaps, exact hits)."""
 
 import numpy as np
+import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
 from gyro_attitude.core.attitude.truth import truth_at, truth_at_stamps
@@ -41,3 +42,16 @@ def test_the_interval_limit_of_a_long_truth_comes_from_a_strided_sample_of_its_i
     assert 1.5 * 9_000_000 <= strided <= 1.5 * 11_000_000
     assert abs(strided - whole) <= 1.5 * 1_000_000
     assert strided < 2_000_000_000
+
+
+def test_one_truth_sample_covers_its_own_stamp_only():
+    """(The node's truth start asks the truth at the first Imu stamp as soon as one truth
+    sample has come: an IndexError stopped the node.)"""
+
+    q = np.array([[0.0, 0.0, np.sin(0.2), np.cos(0.2)]])
+    got, covered = truth_at_stamps([100], q, [50, 100, 150])
+    assert covered.tolist() == [False, True, False]
+    np.testing.assert_array_equal(got, q)
+    np.testing.assert_array_equal(truth_at([100], q, 100), q[0])
+    with pytest.raises(ValueError, match="no truth at 150"):
+        truth_at([100], q, 150)
