@@ -114,5 +114,7 @@ def test_a_pool_started_after_a_local_cluster_still_keeps_freed_memory():
     with _cluster():
         pass
     parallel.run_tasks(_allocator_state, [0, 1], got.__setitem__, workers=2)
-    assert all(trim == "65536" for _, trim in got.values()), got  # the variable is inherited
+    # (the workers inherit the variable when the pool's forkserver starts after the cluster,
+    # as when this test runs alone; started earlier in a session, it has the environment of
+    # then: the workers must keep freed memory either way)
     assert all(applied is True for applied, _ in got.values()), got
