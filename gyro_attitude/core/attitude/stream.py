@@ -44,19 +44,14 @@ from gyro_attitude.core.rotation import quat_normalize
 __all__ = ["AttitudeStream", "StreamConfig", "StreamResult", "aiding_note", "bias_summary",
            "compile_kernels"]
 
-
 INVALID_COVARIANCE = "invalid_covariance"
 INTEGRATOR_ERROR = "integrator_error"
 INVALID_ACCEL = "invalid_accel"
-# aiding magnetometer: Imu samples with no field within mag_max_age_s, fields that are not a
-# reading (non-finite, absurd, zero), fields that disagree with the reference (disturbances)
-MAG_MISSING = "mag_missing"
-INVALID_MAG = "invalid_mag"
-MAG_DISTURBED = "mag_disturbed"
-# accepted samples pinned at a repeated extreme: a clipped (saturated) gyro
-SATURATED = "saturated"
-# intervals whose rate fit could not be trusted (the samples alias the motion, or the fit leaves
-# their range): integrated toward the exponential map (interpolation.untrusted_fits)
+MAG_MISSING = "mag_missing"  # aiding magnetometer: no field within mag_max_age_s
+INVALID_MAG = "invalid_mag"  # a field that is no reading (non-finite, absurd, zero)
+MAG_DISTURBED = "mag_disturbed"  # a field that disagrees with the reference
+SATURATED = "saturated"  # accepted samples pinned at a repeated extreme: a clipped gyro
+# intervals whose rate fit could not be trusted: integrated toward the exponential map
 RATE_FIT_FALLBACK = "rate_fit_fallback"
 GYRO_NOISE_UNKNOWN = "gyro_noise_unknown"  # a detail (said once), not a count
 
@@ -75,8 +70,7 @@ START_NOTE = ("initial attitude: roll and pitch from the first accelerometer sam
 
 
 def _values(x) -> str:
-    """A sample's values as a list of floats in a log line (its repr when they are not
-    numbers): the same text from push() and from run()."""
+    """A sample's values as a list of floats in a log line (its repr when not numbers)."""
     try:
         return str(np.asarray(x, dtype=np.float64).reshape(-1).tolist())
     except (TypeError, ValueError, OverflowError):
@@ -145,15 +139,12 @@ def bias_summary(report: GyroBiasReport) -> str:
 
 @dataclass
 class StreamResult:
-    """Attitudes of :meth:`AttitudeStream.run` over N input samples.
-
-    ``index`` (M,) input positions that got an attitude (the others were skipped, or came
-    while aligning); ``q`` (M, 4) scalar-last, finite and unit; ``variance`` (M, 3) per-axis
-    orientation variance [rad²] and ``variance_known`` (M,) whether it is an estimate by that
-    row (None, None when nothing gives one); ``action`` (N,) verdict codes
-    (:data:`.validation.ACTION_CODES`); ``counts`` per reason; ``details`` the first log line
-    per reason; ``notes`` what the estimator did, in words.
-    """
+    """Attitudes of :meth:`AttitudeStream.run` over N input samples: ``index`` (M,) the
+    input rows that got one (the others were skipped, or came while aligning); ``q`` (M, 4)
+    scalar-last, finite and unit; ``variance`` (M, 3) per-axis orientation variance [rad²]
+    and ``variance_known`` (M,) whether it is an estimate (None, None when nothing gives one);
+    ``action`` (N,) verdict codes (:data:`.validation.ACTION_CODES`); ``details`` the first
+    log line per reason; ``notes`` what the estimator did, in words."""
 
     index: np.ndarray
     q: np.ndarray
@@ -179,18 +170,13 @@ _RING_START = 64  # rest-window entries held at first; a ring doubles when a win
 
 
 class AttitudeStream:
-    """Imu samples in, attitude out, through the chain's step.
-
-    ``algorithm`` one of :data:`STEP_ALGORITHMS`; ``q0`` the initial attitude (also the one a
-    time jump resets to; levelling replaces it; None: ``initial_attitude``, whose tilt the
-    first accelerometer sample replaces when :func:`starts_from_accelerometer`); ``nav`` a
-    :class:`NavFrame` for q_nb (Earth and transport rate removed; default: the one of
-    ``config`` with frame enu) or None for q_ib.  The latitude is known with a nav frame or
-    for gyrocompassing; then the Earth rate is taken out of the bias estimate.
-
-    The whole state is :attr:`state` (one record of :data:`.chain.STATE_DTYPE`) and three
-    rings; the settings are :attr:`coef` (:data:`.chain.COEF_DTYPE`), computed once.
-    """
+    """Imu samples in, attitude out, through the chain's step.  ``algorithm`` one of
+    :data:`STEP_ALGORITHMS`; ``q0`` the initial attitude (also the one a time jump resets
+    to; None: ``initial_attitude``, whose tilt the first accelerometer sample replaces when
+    :func:`starts_from_accelerometer`); ``nav`` a :class:`NavFrame` for q_nb (default: the
+    one of ``config`` with frame enu) or None for q_ib.  The whole state is :attr:`state`
+    (one record of :data:`.chain.STATE_DTYPE`) and three rings; the settings are
+    :attr:`coef` (:data:`.chain.COEF_DTYPE`), computed once."""
 
     def __init__(self, algorithm: str = DEFAULT_ALGORITHM, q0=None,
                  nav: NavFrame | None = None, config: StreamConfig | None = None):
@@ -270,7 +256,6 @@ class AttitudeStream:
             c.aiding, c.ahrs, c.kp = chain.AID_AHRS, aid.pa, aid.kp
 
     def _init_state(self, cfg: StreamConfig, q_initial: np.ndarray) -> None:
-        """The state at the start: each stage's own start, the chain's attitude and phase."""
         s = self.state[0]
         s.q = s.q_initial = q_initial
         s.phase = chain.ALIGNING if cfg.levelling else chain.RUNNING
@@ -382,8 +367,8 @@ class AttitudeStream:
 
     # ------------------------------------------------------------------ settings
     def set_config(self, config: StreamConfig) -> None:
-        """New validation thresholds from the next sample on (state kept; the bias, alignment
-        and aiding settings stay those of construction)."""
+        """New validation thresholds from the next sample on (the rest of ``config`` is
+        that of construction)."""
         self.config = replace(self.config, max_gap_s=config.max_gap_s,
                               time_jump_threshold_s=config.time_jump_threshold_s,
                               max_rate_rad_s=config.max_rate_rad_s,
@@ -405,8 +390,7 @@ class AttitudeStream:
         chain.integrator_reset(self.coef[0], s, *q, has_t, int(ci[C_LAST_T]) if has_t else 0)
 
     def update_nav(self, nav: NavFrame) -> None:
-        """Constant nav frame from the next sample on: its rate ``ω_in^n`` is evaluated here,
-        once, and is the nav rate at the next sample (see StreamingIntegrator.update_nav)."""
+        """Constant nav frame from the next sample on (its rate ω_in^n evaluated here, once)."""
         rate = constant_nav_rate(self.nav, nav)
         self.nav = nav
         self.state.nav_rate[0] = rate
@@ -431,9 +415,7 @@ class AttitudeStream:
              accel=None, mag=None) -> tuple[v.Verdict, np.ndarray | None]:
         """One sample through the chain: its verdict and the attitude at ``t_ns`` (None when it
         was skipped or while aligning).  ``accel`` the specific force (3,) m/s² or None; ``mag``
-        the magnetic field (3,) tesla time-aligned to ``t_ns`` or None (aiding magnetometer:
-        counted ``mag_missing``, heading gyro-only; a field that is not finite, absurd or zero
-        is counted ``invalid_mag``, one that disagrees with the reference ``mag_disturbed``)."""
+        the magnetic field (3,) tesla time-aligned to ``t_ns`` or None."""
         w = _floats(omega)
         t = t_ns if type(t_ns) is int and -2**63 <= t_ns < 2**63 else self._stamp(t_ns, w)
         w0, w1, w2 = w if w is not None else (math.nan, math.nan, math.nan)
@@ -549,13 +531,9 @@ class AttitudeStream:
             empty=np.empty) -> StreamResult:
         """All samples of a recording, in file order, on a fresh stream: the step of
         :meth:`push` in a compiled loop over the rows (the same code, the same numbers).
-
-        ``t_ns`` (N,) int stamps; ``omega`` (N, 3) rad/s; ``frame_id`` one for all or one per
-        sample; ``angular_velocity_covariance`` (N, 9) or None; ``accel`` (N, 3) m/s² or None;
-        ``mag`` (N, 3) tesla or None (rows of NaN: no field).  ``empty(shape, dtype)``
-        allocates the arrays of the recording's length (replay gives file-backed ones).
-        Raises ValueError when levelling cannot align on the recording.
-        """
+        Arguments as push()'s, one row per sample (``mag`` rows of NaN: no field;
+        ``frame_id`` one for all or one per sample); ``empty(shape, dtype)`` allocates the
+        arrays of the recording's length.  ValueError when levelling cannot align."""
         if self._pushed:
             raise ValueError("run() needs a fresh AttitudeStream (it replays a whole recording)")
         t = np.asarray(t_ns)
@@ -634,8 +612,7 @@ _F64 = np.dtype(np.float64)
 
 
 def _floats(x) -> tuple[float, float, float] | None:
-    """3 floats of a sample (NaN stays NaN), or None when it is not 3 numbers (text, a
-    mapping, numbers beyond float64)."""
+    """3 floats of a sample (NaN stays NaN), or None when it is not 3 numbers."""
     if type(x) is np.ndarray:
         if x.dtype is _F64 and x.shape == (3,):  # a message's array: the common case
             a, b, c = x.tolist()
@@ -654,9 +631,8 @@ def _floats(x) -> tuple[float, float, float] | None:
 
 
 def _covariance_row(covariance) -> np.ndarray:
-    """A covariance as a writable contiguous float64 array of 9 (what the compiled step was
-    compiled for; a message's array is taken as is), NaN where it is not 9 numbers (judged
-    invalid)."""
+    """A covariance as a writable contiguous float64 array of 9 (what the step was compiled
+    for; a message's array as is), NaN when it is not 9 numbers (judged invalid)."""
     c = covariance
     if type(c) is np.ndarray and c.dtype == np.float64 and c.shape == (9,) and \
             c.flags.c_contiguous and c.flags.writeable:
@@ -713,9 +689,8 @@ def recording_arrays(n: int, angular_velocity_covariance, accel):
 
 def covariance_rows(cov: np.ndarray, valid: np.ndarray, counts: dict, details: dict):
     """Per-axis gyro variances (M, 3) and whether each is known (M,) for the accepted rows
-    ``valid`` of ``cov`` (N, 9), by the causal step's verdict (:func:`.chain.covariance_verdict`);
-    the invalid ones are counted in ``counts`` and the first is described in ``details``
-    (treated as unknown)."""
+    ``valid`` of ``cov`` (N, 9), by the causal step's verdict; the invalid ones counted in
+    ``counts``, the first described in ``details``."""
     c = np.asarray(cov, dtype=np.float64)
     var_all, code_all = _verdicts(c)
     code = rows(code_all, valid)
@@ -755,9 +730,8 @@ def _judge(c: np.ndarray, loop) -> tuple[np.ndarray, np.ndarray]:
 
 
 def rows(a: np.ndarray, index: np.ndarray, empty=None) -> np.ndarray:
-    """``a[index]`` for sorted row indices; a view when they are consecutive (the usual
-    case: a recording without bad samples), sparing a copy of the whole recording.  A copy
-    goes into ``empty(shape, dtype)`` when given."""
+    """``a[index]`` for sorted row indices: a view when they are consecutive (the usual
+    case), else a copy (into ``empty(shape, dtype)`` when given)."""
     if index.size and int(index[-1]) - int(index[0]) == index.size - 1:
         return a[int(index[0]):int(index[-1]) + 1]
     if empty is None or a.strides[0] == 0:
@@ -799,12 +773,10 @@ def nav_rows(nav: NavFrame | None, index: np.ndarray, n: int) -> NavFrame | None
 
 
 def compile_kernels(config: StreamConfig | None = None, algorithm: str | None = None) -> None:
-    """Compile (or load from numba's cache) what the chain runs compiled: a short synthetic
-    recording (rest, turn, rest; accelerometer and field) pushed through a stream with
-    ``config`` (and ``algorithm``), or with every aiding mode.  The start is the given attitude
-    whatever ``config`` says (a levelling or gyrocompassing start might never align on it; its
-    kernels are the same).  The node calls it at start-up and dev.sh after installing, so that
-    no sample waits for the compiler."""
+    """Compile (or load from numba's cache) what the chain runs compiled, so that no sample
+    waits for the compiler: a synthetic recording (rest, turn, rest) run and pushed through a
+    stream with ``config``, or with every aiding mode (from the given attitude: a levelling
+    start might never align on it; its kernels are the same)."""
     n = 800
     t = 1_000_000_000 + np.arange(n, dtype=np.int64) * 5_000_000
     rng = np.random.default_rng(0)
