@@ -335,8 +335,7 @@ class AttitudeStream:
         return np.array(self.state.q[0], dtype=np.float64)
 
     @property
-    def variance(self) -> np.ndarray | None:
-        """Per-axis orientation variance [rad²]; None while nothing gives an estimate."""
+    def variance(self) -> np.ndarray | None:  # per axis [rad²]; None: nothing gives one
         s = self.state[0]
         return np.array(s.cov[V_TT:V_TT + 3]) if s.variance_known else None
 
@@ -637,9 +636,7 @@ def _covariance_row(covariance) -> np.ndarray:
     if type(c) is np.ndarray and c.dtype == np.float64 and c.shape == (9,) and \
             c.flags.c_contiguous and c.flags.writeable:
         return c
-    if isinstance(c, str | bytes | dict):
-        return np.full(9, np.nan)
-    try:
+    try:  # (text and mappings are refused here too)
         c = np.array(covariance, dtype=np.float64).reshape(-1)
     except (TypeError, ValueError, OverflowError):
         return np.full(9, np.nan)

@@ -12,12 +12,16 @@ __all__ = ["TruthStart", "default_max_interval_ns", "initial_attitude_from_truth
            "truth_at_stamps", "tilt_and_heading_error", "span_words"]
 
 
-def _check(truth_t, truth_q) -> tuple[np.ndarray, np.ndarray]:
-    t = np.asarray(truth_t)
+def _stamps(stamps, name: str) -> np.ndarray:
+    t = np.asarray(stamps)
     if t.ndim != 1 or t.size == 0 or not np.issubdtype(t.dtype, np.integer):
-        raise ValueError(f"truth stamps must be a non-empty 1-D array of int ns, got "
-                         f"shape {t.shape} dtype {t.dtype}")
-    t = t.astype(np.int64)
+        raise ValueError(f"{name} stamps must be a non-empty 1-D array of int ns, got shape "
+                         f"{t.shape} dtype {t.dtype}")
+    return t.astype(np.int64)
+
+
+def _check(truth_t, truth_q) -> tuple[np.ndarray, np.ndarray]:
+    t = _stamps(truth_t, "truth")
     if t.size > 1 and np.any(np.diff(t) <= 0):
         raise ValueError("truth stamps must be strictly increasing")
     q = np.asarray(truth_q, dtype=np.float64)
@@ -128,11 +132,7 @@ def initial_attitude_from_truth(imu_t, truth_t, truth_q,
     ValueError when no usable Imu stamp is covered.
     """
     t, q = _check(truth_t, truth_q)
-    imu = np.asarray(imu_t)
-    if imu.ndim != 1 or imu.size == 0 or not np.issubdtype(imu.dtype, np.integer):
-        raise ValueError(f"Imu stamps must be a non-empty 1-D array of int ns, got shape "
-                         f"{imu.shape} dtype {imu.dtype}")
-    imu = imu.astype(np.int64)
+    imu = _stamps(imu_t, "Imu")
     limit = default_max_interval_ns(t)
     for k in np.flatnonzero((imu >= t[0]) & (imu <= t[-1])).tolist():  # usually the first
         if usable is not None and not usable(k):
