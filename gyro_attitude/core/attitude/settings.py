@@ -391,12 +391,6 @@ class _StreamConfigMethods:
         (frame inertial otherwise leaves the Earth rate in the bias: see gyro_bias.py)."""
         return self.frame is Frame.ENU or self.heading_source is HeadingSource.GYROCOMPASS
 
-    def rest_params(self) -> dict:
-        return {"window_s": self.rest_window_s, "gyro_std_max": self.rest_gyro_std_max,
-                "gyro_mean_max": self.rest_gyro_mean_max,
-                "accel_std_max": self.rest_accel_std_max,
-                "accel_norm_tol": self.rest_accel_norm_tol}
-
     def nav_frame(self):
         """The constant :class:`NavFrame` of these settings (frame enu), else None."""
         if self.frame is not Frame.ENU:

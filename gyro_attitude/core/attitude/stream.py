@@ -277,9 +277,8 @@ class AttitudeStream:
     def _set_coefficients(self, cfg: StreamConfig, q_initial: np.ndarray) -> None:
         """The coefficients of ``cfg``: the settings as the step reads them."""
         c = self.coef[0]
-        chk = v.ImuCheckConfig.of(cfg)
-        c.max_gap_ns, c.time_jump_ns = chk.max_gap_ns, chk.time_jump_ns
-        c.max_rate, c.max_missing = chk.max_rate_rad_s, chk.max_missing_samples
+        c.max_gap_ns, c.time_jump_ns = cfg.max_gap_ns, cfg.time_jump_ns
+        c.max_rate, c.max_missing = cfg.max_rate_rad_s, cfg.max_missing_samples
         c.bias_mode = {GyroBiasMode.NONE: chain.BIAS_NONE,
                        GyroBiasMode.PARAMETER: chain.BIAS_PARAMETER,
                        GyroBiasMode.AUTO: chain.BIAS_AUTO}[cfg.gyro_bias]
@@ -439,8 +438,7 @@ class AttitudeStream:
                               time_jump_threshold_s=config.time_jump_threshold_s,
                               max_rate_rad_s=config.max_rate_rad_s,
                               max_missing_samples=config.max_missing_samples)
-        chk = v.ImuCheckConfig.of(self.config)
-        c = self.coef[0]
+        chk, c = self.config, self.coef[0]
         c.max_gap_ns, c.time_jump_ns = chk.max_gap_ns, chk.time_jump_ns
         c.max_rate, c.max_missing = chk.max_rate_rad_s, chk.max_missing_samples
         self._max_rate = float(chk.max_rate_rad_s)
@@ -745,7 +743,7 @@ class _Words:
         if name == v.NON_FINITE and self.w is None:
             return f"not numbers: {self.omega!r}"
         return v.reason_words(name, self.t_ns, self.w, self.frame_id, st._locked, figures,
-                              v.ImuCheckConfig.of(st.config))
+                              st.config.max_rate_rad_s, st.config.max_gap_ns)
 
     @classmethod
     def after_run(cls, st, t, w, names, frames, first_row, first_fig, cov, cov_in, accel_in,

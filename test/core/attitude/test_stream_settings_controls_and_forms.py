@@ -417,7 +417,7 @@ def test_bias_summary_line():
 # ------------------------------------------------------------------------- stamp boundaries
 def test_stamp_boundaries_array_wide_and_per_sample():
     # max_gap 50 ms, time jump 1 s; stamps chosen on each boundary, verdicts written out
-    cfg = iv.ImuCheckConfig(max_gap_ns=50 * MS, time_jump_ns=1000 * MS)
+    cfg = StreamConfig(max_gap_s=0.05, time_jump_threshold_s=1.0)
     base = 5_000 * MS
     steps = [  # (stamp, action, reason)
         (base, iv.START, None),
@@ -442,8 +442,7 @@ def test_stamp_boundaries_array_wide_and_per_sample():
                                                "previous one")
     assert cls.details[iv.OUT_OF_ORDER] == (f"stamp {base + 2 - 900 * MS} ns is 1000.000 ms "
                                             "before the previous")
-    val = AttitudeStream("rotvec_cubic", config=StreamConfig(
-        gyro_bias="none", max_gap_s=0.05, time_jump_threshold_s=1.0))
+    val = AttitudeStream("rotvec_cubic", config=cfg.replace(gyro_bias="none"))
     for s, action, reason in steps:
         verdict = val.push(s, [0.0, 0.0, 0.0], "imu")[0]
         assert verdict.action == action and (reason is None or verdict.reason == reason), s
