@@ -1,19 +1,11 @@
-"""Every setting of the attitude estimator, declared once.
+"""Every setting of the attitude estimator, declared once (docs/architecture.md, "Settings").
 
-One :class:`Setting` row per setting: name (also the ROS parameter name, the YAML key and the
-replay flag ``--name-with-dashes``), default, one-line help, unit, range, allowed words (an enum
-from :mod:`.modes`), array length, and whether the node may change it at runtime.  From this
-table come
-
-* :class:`StreamConfig`, the frozen settings object of the core (its fields are the rows);
-* the node's declared parameters with descriptors (``ros/attitude_integrator_node.py``);
-* replay's flags (``commands/estimator_flags.py``);
-* the commented ``config/attitude_integrator.yaml`` and the parameter table of ``docs/settings.md``
-  (:func:`yaml_lines`, :func:`markdown_table`; a test fails when the files drift).
-
-Adding a setting is one row here (and the code that uses it).  Values are checked against the
-row once, when a :class:`StreamConfig` is made (``ValueError`` naming the setting); the
-cross-setting rules (gyrocompass needs a stated bias, ...) live in :meth:`StreamConfig.check`.
+One :class:`Setting` row per setting (its name is also the ROS parameter, the YAML key and the
+replay flag ``--name-with-dashes``).  From the table come :class:`StreamConfig` (one field per
+row), the node's parameters, replay's flags, and ``config/attitude_integrator.yaml`` and
+``docs/settings.md`` (:func:`yaml_lines`, :func:`markdown_table`; a test fails when they
+drift).  Values are checked against their row once, when a :class:`StreamConfig` is made
+(``ValueError`` naming the setting); cross-setting rules live in :meth:`StreamConfig.check`.
 """
 
 from __future__ import annotations
@@ -40,16 +32,11 @@ __all__ = ["SETTINGS", "Setting", "SettingError", "StreamConfig", "markdown_tabl
 
 @dataclass(frozen=True)
 class Setting:
-    """One estimator setting (see the module docstring).
-
-    ``default`` a float, int, bool, str, enum member, or a tuple of floats (``length`` long);
-    ``low``/``high`` inclusive bounds of a number or of every element of a tuple; ``choices``
-    the enum whose words are allowed; ``optional``: ``None`` is allowed and means "not given"
-    (the node declares ``ros_default`` instead and treats it as given only where the setting's
-    help says so); ``runtime``: the node accepts a change while running (validation thresholds).
-    A filter's internal constants are rows too, their help starting "internal" (tuned on real
-    recordings, rarely worth changing).
-    """
+    """One estimator setting: ``default`` a float, int, bool, enum member, or a tuple of floats
+    (``length`` long); ``low``/``high`` inclusive bounds of a number or of every element of a
+    tuple; ``choices`` the enum whose words are allowed; ``runtime``: the node accepts a change
+    while running; ``group`` its heading in the YAML file.  A filter's internal constants are
+    rows too, their help starting "internal"."""
 
     name: str
     default: object

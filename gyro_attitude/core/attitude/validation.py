@@ -62,6 +62,7 @@ ACTIONS = (REJECT, START, ACCEPT, RESTART_AFTER_GAP, RESET_TIME_JUMP)
 ACTION_CODES: dict[str, int] = {a: i for i, a in enumerate(ACTIONS)}
 _REASON_CODES: dict[str, int] = {r: i + 1 for i, r in enumerate(REJECT_REASONS)}
 
+
 @dataclass(frozen=True)
 class Verdict:
     """Outcome of one check: ``action`` is ACCEPT/START/RESTART_AFTER_GAP/RESET_TIME_JUMP
@@ -319,8 +320,8 @@ class IntervalStatistics:
     """Input rate and dt jitter over the last accepted intervals: a face on the step's ring of
     intervals ``ring`` (ns) and its ``fill`` (held, next slot), written by :func:`interval_add`.
 
-    ``rate_hz`` = 1/mean(dt); ``jitter_s`` = standard deviation of dt (population);
-    ``max_dt_s`` = largest dt in the window. NaN while fewer than 2 intervals are known.
+    ``rate_hz`` = 1/mean(dt), ``mean_dt_s``, ``jitter_s`` = standard deviation of dt
+    (population), ``max_dt_s`` = largest dt in the window; NaN while fewer than 2 are known.
     """
 
     def __init__(self, ring: np.ndarray, fill: np.ndarray):
@@ -331,8 +332,12 @@ class IntervalStatistics:
 
     def summary(self) -> dict[str, float]:
         held, nxt = int(self.fill[0]), int(self.fill[1])
-        order = (nxt - held + np.arange(held)) % self.ring.shape[0]  # oldest first
-        return interval_summary(self.ring[order])
+        if held < 2:
+            return dict.fromkeys(("rate_hz", "mean_dt_s", "jitter_s", "max_dt_s"), math.nan)
+        dt = self.ring[(nxt - held + np.arange(held)) % self.ring.shape[0]] * 1e-9  # oldest first
+        mean = float(dt.mean())
+        return {"rate_hz": 1.0 / mean, "mean_dt_s": mean, "jitter_s": float(dt.std()),
+                "max_dt_s": float(dt.max())}
 
 
 @kernel(inline=True)
@@ -349,21 +354,6 @@ def interval_add(ring, fill, dt_ns):
     fill[1] = (fill[1] + 1) % ring.shape[0]
     if fill[0] < ring.shape[0]:
         fill[0] += 1
-
-
-def interval_summary(dt_ns: np.ndarray) -> dict[str, float]:
-    """Rate, mean dt, jitter and largest dt of accepted intervals (NaN for fewer than 2)."""
-    if dt_ns.size < 2:
-        nan = math.nan
-        return {"rate_hz": nan, "mean_dt_s": nan, "jitter_s": nan, "max_dt_s": nan}
-    dt = dt_ns * 1e-9
-    mean = float(dt.mean())
-    return {
-        "rate_hz": 1.0 / mean,
-        "mean_dt_s": mean,
-        "jitter_s": float(dt.std()),
-        "max_dt_s": float(dt.max()),
-    }
 
 
 # ---------------------------------------------------------------------------- the step's form
