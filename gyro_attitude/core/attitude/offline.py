@@ -189,7 +189,7 @@ def _mean_var(x: np.ndarray, lo: int, hi: int, size: int) -> tuple[np.ndarray, n
     return mean, var
 
 
-def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, params: dict,
+def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, cfg,
                window_ns: int, min_ns: int, size: int, out: np.ndarray, zeros) -> None:
     """Mark in ``out`` the rows of one gap-free run that rest (module docstring, step 1): the
     newest sample of a rest window, followed by a full window of rest (between the oldest
@@ -202,7 +202,7 @@ def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, params: dict,
     :func:`.rest.detect_rest` runs, in chunks carrying one window of history, only over the
     stretches that may hold a rest."""
     n = t.size
-    bound = (3.0 * params["gyro_mean_max"] ** 2 + params["gyro_std_max"] ** 2) \
+    bound = (3.0 * cfg.rest_gyro_mean_max ** 2 + cfg.rest_gyro_std_max ** 2) \
         * (1 + 1e-9) + 1e-300
     cand = zeros(n, bool)
     for c0, c1 in _chunks(0, n, size):
@@ -221,7 +221,7 @@ def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, params: dict,
             p = 0 if c0 == 0 else max(0, int(np.searchsorted(t[:c0], t[c0] - window_ns)) - 1)
             if c1 - p < 2:
                 continue
-            rw = detect_rest(t[p:c1], w[p:c1], None if a is None else a[p:c1], **params)
+            rw = detect_rest(t[p:c1], w[p:c1], None if a is None else a[p:c1], cfg, NOISE_FLOOR_RAD_S)
             kk = np.flatnonzero(rw.at_rest[c0 - p:]) + (c0 - p)
             if p != 0:  # not starting the run: 'full' counts from the run's first sample
                 kk = kk[t[p + kk] - t[0] >= window_ns]
@@ -330,7 +330,7 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
     q_init = _unit_quat(cfg.initial_attitude if q0 is None else q0)
     t = np.asarray(t_ns)
     w = np.asarray(omega, dtype=np.float64)
-    cls = v.classify(t, w, frame_id, v.ImuCheckConfig.of(cfg))  # checks t and omega shapes
+    cls = v.classify(t, w, frame_id, cfg)  # checks t and omega shapes
     n = w.shape[0]
     t = t.astype(np.int64, copy=False)
     cov, acc = recording_arrays(n, angular_velocity_covariance, accel)
@@ -642,7 +642,6 @@ class _Estimator:
 
     # ------------------------------------------------------------------ 1. rests
     def _find_rests(self, b0, runs, rest):
-        params = {"gyro_std_min": NOISE_FLOOR_RAD_S, **self.cfg.rest_params()}
         t, w, a, ok = self.t, self.w, self.a, self.usable
         min_ns = int(round(self.cfg.min_rest_s * 1e9))
         for r0, r1 in runs:
@@ -651,7 +650,7 @@ class _Estimator:
                 pieces = [(r0 + p, r0 + q) for p, q in _segments(ok[r0:r1])]
             for p0, p1 in pieces:
                 if p1 - p0 >= 2:
-                    _rest_mask(t[p0:p1], w[p0:p1], None if a is None else a[p0:p1], params,
+                    _rest_mask(t[p0:p1], w[p0:p1], None if a is None else a[p0:p1], self.cfg,
                                self.window_ns, min_ns, self.size, rest[p0 - b0:p1 - b0],
                                self._zeros)
 

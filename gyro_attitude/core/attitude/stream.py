@@ -224,8 +224,7 @@ class AttitudeStream:
 
     def _set_checks(self) -> None:
         """The validation thresholds of :attr:`config` into the coefficients."""
-        chk = v.ImuCheckConfig.of(self.config)
-        c = self.coef[0]
+        chk, c = self.config, self.coef[0]
         c.max_gap_ns, c.time_jump_ns = chk.max_gap_ns, chk.time_jump_ns
         c.max_rate, c.max_missing = chk.max_rate_rad_s, chk.max_missing_samples
         self._max_rate = float(c.max_rate)
@@ -492,7 +491,7 @@ class AttitudeStream:
             text = f"not numbers: {omega!r}"
         else:
             text = v.reason_words(name, t_ns, w, frame_id, self.frame_id, figures,
-                                  v.ImuCheckConfig.of(self.config))
+                                  self.config.max_rate_rad_s, self.config.max_gap_ns)
         self.details.setdefault(name, text)
         return text
 
