@@ -1,64 +1,10 @@
 """Offline attitude over a whole recording: rests, bias and gravity from both sides of a sample.
 
-:func:`estimate_offline` is the non-causal estimator beside :meth:`.stream.AttitudeStream.run`:
-the same sample verdicts (:func:`.validation.classify`: bad samples skipped and counted, no
-integration across a gap, a backward time jump resets to ``q0``) and the same
-:class:`.stream.StreamResult`, but every attitude may use samples after it.  Each step is an
-array operation over chunks of ``chunk_samples`` accepted samples:
-
-1. **rests** (:func:`.rest.detect_rest` with the causal thresholds, per gap-free run with a
-   usable accelerometer): a sample rests when it is the newest of a rest window (the tail of
-   a motion is out: a window starting there may pass, and holding the attitude over it loses
-   the end of the turn) and is followed by a full window of rest (the gentle start of a
-   motion is out); a rest counts when the causal bias stage counts it (its windows' oldest
-   samples span ``min_rest_s``), so both find the same rests on even, jittered or irregular
-   stamps;
-2. **gyro bias per rest** (``gyro_bias="auto"``): the rest mean with standard error
-   ``√(σ²/n + K² T/3)`` (white noise plus the bias random walk ``K`` over the rest's length
-   ``T``), interpolated linearly in time between rests (the smoother of a random-walk bias
-   between two point estimates) and held before the first and after the last.  With a
-   latitude and an accelerometer the vertical Earth rate ``ω_ie sin L`` along the rest's
-   measured up is taken out of the mean (the horizontal part needs the heading; left in, it
-   tilts -- which gravity corrects -- but does not turn the heading);
-3. **integration** of ``ω − b(t)`` with the chosen algorithm, the attitude held at rests;
-4. **tilt from gravity** (any aiding): ``f_i = C(q) f_b`` points up plus the slowly drifting
-   gyro error plus the carrier's acceleration, whose mean over a few seconds is small.  It is
-   averaged zero-phase with the kernel ``e^(−|s_k − s_j|/τ)``, ``τ = offline_tilt_tau_s`` (a
-   first-order low-pass forward plus one backward), on a clock ``s`` that stops at rests: the
-   held attitude's error cannot change there, so a rest is no reason to trust the motion's
-   ends less.  Every usable sample weighs 1, no gate (a gate on ``| |f| − g |`` keeps the
-   samples whose norm crosses g during a translation, which point anywhere:
-   docs/real_sensors.md).  The smallest rotation taking the smoothed ``u`` to up is applied
-   on the left (integration frame), the heading untouched.  ``initial_attitude="level"``
-   without aiding takes that correction at every rest from the rest's mean specific force,
-   interpolated in time between rests (the initial roll and pitch from the first rest);
-5. **covariance** per output axis: the gyro-only error ``δθ(t) = ∫ C_nb (δb + E ω + n) dτ``
-   over the motion (``E`` the gyro's 3×3 gain-and-axes error, each element of 1σ
-   ``gyro_scale_factor_sigma``: ``var_k += σ² Σ_mn (∫ C[k,m] ω_n dτ)²``).  The interpolated
-   bias ``δb = (1 − w) δb_j + w δb_{j+1}`` gives ``Σ_j M_j(t) δb_j``, ``M_j = ∫ C_nb φ_j dτ``
-   (``φ_j`` the interpolation weights), so ``var_k = Σ_j Σ_m SE_{j,m}² M_j[k,m]²`` plus the
-   angle random walk ``Σ C[k,m]² σ_m² dt²`` plus the random walk's bridge ``K²(s³/3 −
-   s⁴/4T)`` (``s`` motion time since the rest, ``T`` to the next).  The heading keeps it; the
-   tilt axes take, where gravity is used, ``(σ_ba/g)² + σ_f²/(g² n_eff)`` with ``n_eff = (Σ k
-   w)²/Σ k² w²`` the samples the smoother averages (``k`` its kernel, ``w`` the weights) and
-   ``σ_f²`` the accelerometer's scatter at rest, or the levelling variance at rests with the
-   gyro-only growth bridged between them.  The gyro noise ``σ_ω`` comes from the messages'
-   ``angular_velocity_covariance``, else ``gyro_noise_density``, else the rests' scatter;
-6. **heading from the magnetometer** (``aiding="magnetometer"``): the field less
-   ``mag_hard_iron_t`` in the tilt-corrected output frame counts (weight 1) when its norm is
-   within ``mag_norm_tol`` of the reference and its dip within ``mag_dip_tol_deg``
-   (reference: ``mag_reference_enu_t``, or the medians over the recording -- a disturbance
-   covering less than half of it cannot become the reference); its horizontal direction,
-   turned by ``magnetic_declination_deg``, is smoothed as in step 4 (``offline_mag_tau_s``)
-   and the smoothed azimuth is the heading error, taken out about the vertical.  A disturbed
-   stretch weighs 0: the smoother bridges it from the field on both sides and the gyro, with
-   no jump toward a false north.  Heading variance: the azimuth scatter over ``n_eff`` plus
-   the tilt error about north seen through the dip (``tan²(dip) var_N``).  Not done offline:
-   hard-iron estimation, reference replacement after a lasting change (``mag_recovery_s``).
-
-Time jumps split the recording into blocks estimated independently; gaps are held across.
-Memory: the outputs plus O(``chunk_samples``) working arrays (the forward low-pass keeps its
-state at chunk starts and is recomputed chunk by chunk in the backward pass).
+:func:`estimate_offline` is the non-causal estimator beside :meth:`.stream.AttitudeStream.run`
+(the same sample verdicts and :class:`.stream.StreamResult`), an array operation over chunks
+of accepted samples per step: 1. rests, 2. gyro bias per rest, 3. integration, 4. tilt from
+gravity, 5. covariance, 6. heading from the magnetometer (docs/architecture.md, "Notes:
+offline estimator": each step's rule and why).
 """
 
 from __future__ import annotations
