@@ -496,8 +496,7 @@ class _Estimator:
         self._integrate(b0, runs, held, rests, tau, q_start, q_out)
         self._covariance(b0, b1, held, rests, tau, q_out, var_out, tt0)
         if self.a is not None and cfg.aiding is not Aiding.NONE:
-            # gravity, tilt, magnetometer: the tilt from gravity of step 4 (the offline chain
-            # has one tilt method; the causal filters' differences are causal remedies)
+            # every aiding: step 4 (the causal filters' differences are causal remedies)
             self._tilt_from_gravity(b0, b1, held, q_out, var_out)
         elif self.a is not None and cfg.levelling:
             self._level_at_rests(b0, b1, rests, tau, q_out)
@@ -737,8 +736,7 @@ class _Estimator:
         def apply(c0, c1, sm, n_eff, _):
             den = sm[:, 3]
             okd = den > 1e-12
-            # the smallest rotation taking the smoothed f_i to up (scale-free: Σ w f_i needs no
-            # division by Σ w)
+            # the smallest rotation taking the smoothed f_i to up (Σ w f_i: scale-free)
             u = np.where(okd[:, None], sm[:, :3], (0.0, 0.0, 1.0))
             q_out[c0:c1] = _level_left(u, q_out[c0:c1])
             # the accelerometer-bias floor plus its noise over the samples averaged

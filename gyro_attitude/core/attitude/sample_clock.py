@@ -27,11 +27,9 @@ CHUNK = 1 << 16
 
 def sample_clock(t_ns: np.ndarray, starts: np.ndarray, empty=np.empty,
                  chunk: int = CHUNK) -> np.ndarray:
-    """The stamps ``t_ns`` (int64, strictly increasing within a run) on the clock they jitter
-    about; ``starts`` the rows that begin a run (a gap restart, a time reset: no clock spans
-    them; row 0 always does).  Returns ``t_ns`` itself when every stamp is kept, else a copy
-    from ``empty(shape, dtype)`` (the caller's allocator); temporaries are bounded by
-    ``chunk``."""
+    """The stamps ``t_ns`` (int64, rising within a run) on the clock they jitter about;
+    ``starts`` the rows that begin a run (no clock spans a gap restart or a time reset).
+    ``t_ns`` itself when every stamp is kept, else a copy from ``empty(shape, dtype)``."""
     t = np.asarray(t_ns)
     n = t.size
     bounds = sorted({0, n, *np.asarray(starts, dtype=np.int64).tolist()})
@@ -69,10 +67,9 @@ def _rising(a: np.ndarray, r0: int, r1: int, chunk: int) -> bool:
 
 
 def run_period(t_ns: np.ndarray) -> int:
-    """The period (ns) of one run's stamps: the median of those of its first
-    :data:`MEDIAN_INTERVALS` intervals within ±1/2 of the median of them all (the intervals
-    over missing samples would pull it up: 1 % at 5 % missing; the cut is symmetric, as the
-    jitter is); 0 with fewer than two stamps."""
+    """The period (ns) of one run's stamps: the median of its first :data:`MEDIAN_INTERVALS`
+    intervals within ±1/2 of their median (the intervals over missing samples would pull it
+    up: 1 % at 5 % missing); 0 with fewer than two stamps."""
     dt = np.diff(np.asarray(t_ns)[:MEDIAN_INTERVALS + 1])
     if dt.size == 0:
         return 0
