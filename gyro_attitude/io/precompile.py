@@ -23,6 +23,8 @@ from pathlib import Path
 from gyro_attitude.core import jit
 
 PREFIX = "_aot_"
+NO_COMPILER = "no working C compiler (install gcc, or name one in CC)"
+AFTER_FAILURE = "replay --estimator causal compiles its loop just in time (0.7 s more at start)"
 
 
 def build(func, directory: Path) -> Path:
@@ -68,6 +70,17 @@ def build(func, directory: Path) -> Path:
     return target
 
 
+def _compiler_works() -> bool:
+    """Whether the C compiler pycc would use compiles a trivial file (pycc's own test)."""
+    from numba.core.errors import NumbaPendingDeprecationWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumbaPendingDeprecationWarning)
+        from numba.pycc.platform import external_compiler_works
+
+        return external_compiler_works()
+
+
 def _array_args(signature) -> list:
     """Per argument of ``signature``: None (a scalar) or (np.ndarray, ndim, dtype), what
     :func:`jit.precompiled` checks before it calls the machine code."""
@@ -105,6 +118,9 @@ def _build_fresh(func) -> int:
     if jit.backend() != "numba":
         print("precompile: skipped (no numba, or GYRO_ATTITUDE_JIT=0)", file=sys.stderr)
         return 0
+    if not _compiler_works():  # said before a minute of compiling, not after it
+        print(f"precompile: not built ({NO_COMPILER}); {AFTER_FAILURE}", file=sys.stderr)
+        return 1
     try:
         # the just-in-time form, compiled for the argument types a run passes
         os.environ["GYRO_ATTITUDE_PRECOMPILED"] = "0"
@@ -113,10 +129,9 @@ def _build_fresh(func) -> int:
     except Exception as exc:  # a compiler missing, a read-only installation, pycc gone
         first = (str(exc).splitlines() or [""])[0]
         if "compiler" in first:
-            first = "no working C compiler (install gcc, or name one in CC)"
-        print(f"precompile: not built ({type(exc).__name__}: {first}); "
-              "replay --estimator causal compiles its loop just in time (0.7 s more at "
-              "start)", file=sys.stderr)
+            first = NO_COMPILER
+        print(f"precompile: not built ({type(exc).__name__}: {first}); {AFTER_FAILURE}",
+              file=sys.stderr)
         return 1
     print(f"precompile: {target.name}", file=sys.stderr)
     return 0

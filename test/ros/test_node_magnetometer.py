@@ -51,7 +51,8 @@ def test_node_takes_the_heading_from_the_magnetometer(launch, ros_node, tmp_path
     assert ros_node.wait_for_publishers("attitude"), integ.output()
     player = launch("gyro_attitude.ros.mcap_player_node", "-p", f"input:={rec}",
                     "-p", "namespace_topics:=true", "-p", "wait_for_subscribers:=1",
-                    "-p", "publish_clock:=false", "-p", "topics:=['imu/data_raw', 'imu/mag']")
+                    "-p", "publish_clock:=false", "-p", "rate:=4.0",
+                    "-p", "topics:=['imu/data_raw', 'imu/mag']")
     n = len(offline.q)
     assert ros_node.spin_until(lambda: len(got) >= n, 90.0), (
         f"{len(got)} of {n} attitudes\n{player.output()}\n{integ.output()}")
