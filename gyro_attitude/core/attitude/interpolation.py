@@ -137,9 +137,11 @@ def _turned(dot, na, nb, h):
 
 
 @kernel(inline=True)
-def _turn_weight(dot, na, nb):
-    """The exponential map's weight of a turned change: from 0 at FIT_TURN_MAX_RAD to 1 at π."""
-    turn = np.arccos(np.minimum(np.maximum(dot / np.sqrt(na * nb), -1.0), 1.0))
+def _turn_weight(turn):
+    """The exponential map's weight of a change turned by ``turn`` rad: from 0 at
+    FIT_TURN_MAX_RAD to 1 at π.  The callers take the arc cosine, ``math.acos`` on a float and
+    ``np.arccos`` on an array: numpy's arc cosine of a float differs from libm's, which the
+    compiled step calls, in the last bit."""
     return np.minimum(np.maximum((turn - FIT_TURN_MAX_RAD) / (math.pi - FIT_TURN_MAX_RAD),
                                  1e-300), 1.0)
 
@@ -185,7 +187,8 @@ def untrusted_fits(t_ns: np.ndarray, omega: np.ndarray, k: np.ndarray, fitted: n
             hit = _turned(dot, na, nb, (t_ns[j] - t_ns[j - 1]) * 1e-9)
             if hit.any():
                 bad = np.zeros(m)
-                bad[cand[hit]] = _turn_weight(dot[hit], na[hit], nb[hit])
+                cos = dot[hit] / np.sqrt(na[hit] * nb[hit])
+                bad[cand[hit]] = _turn_weight(np.arccos(np.clip(cos, -1.0, 1.0)))
     if s_max - s_min > _EVEN_TOL * s_min:  # overshoot: on uneven stamps only
         first, last = window(k)
         lo = hi = omega[first]
@@ -214,7 +217,7 @@ def untrusted_fit_scalar(ts, ws, k, n, f0, f1) -> float:
         dot = da0 * db0 + da1 * db1 + da2 * db2
         na = da0 * da0 + da1 * da1 + da2 * da2
         if _turned(dot, na, nb, (ts[j] - ts[j - 1]) * 1e-9):
-            weight = _turn_weight(dot, na, nb)
+            weight = _turn_weight(math.acos(max(-1.0, min(1.0, dot / math.sqrt(na * nb)))))
     if n > 2 and _uneven(ts, n):
         for c in range(3):
             lo, hi = math.inf, -math.inf
