@@ -89,7 +89,8 @@ class EulerAnglesRK4(Algorithm):
             out[i] = stepper.interval(t[max(i - 3, 0):i + 1], w[max(i - 3, 0):i + 1])
         return out
 
-    def _new_stepper(self, q0, singular_tol):
+    def stepper(self, q0: tuple, singular_tol: float) -> EulerStepper:
+        """A new per-stream state starting at the attitude ``q0`` (4 floats)."""
         return EulerStepper(self, q0, singular_tol)
 
 
