@@ -50,7 +50,7 @@ class Algorithm:
 
     def integrate(self, t, w, q0, rate_n, quadrature, singular_tol) -> np.ndarray:
         """Attitudes (N, 4) from checked rate samples ``w`` at times ``t`` (``rate_n``:
-        ``ω_in^n``, (3,) or (N, 3), or None)."""
+        ``ω_in^n``, (3,) or (N, 3), or None; ``quadrature``: a :class:`.coning.Quadrature`)."""
         raise NotImplementedError
 
 

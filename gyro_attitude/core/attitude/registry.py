@@ -11,13 +11,7 @@ from gyro_attitude.core.attitude.algorithm import (
     ROTVEC_TRAPEZOID,
     Algorithm,
 )
-from gyro_attitude.core.attitude.coning import (
-    CONING1,
-    CONING1_PREV,
-    CONING2,
-    CONING3,
-    CONING4,
-)
+from gyro_attitude.core.attitude.coning import CONING1, CONING1_PREV, CONING2, CONING3, CONING4
 from gyro_attitude.core.attitude.euler_angles import EULER_KRYLOV_RK4, EULER_ZXZ_RK4
 from gyro_attitude.core.attitude.magnus6 import MAGNUS6_QUINTIC
 

@@ -10,18 +10,20 @@ import numpy as np
 
 from gyro_attitude.core.attitude.algorithm import CUBIC, RK4, RateAlgorithm, body_increment
 from gyro_attitude.core.attitude.compose import compose_scalar, exp_scalar
-from gyro_attitude.core.attitude.coning import F_Q_BLOCK, PREVIOUS, coning_step
+from gyro_attitude.core.attitude.coning import (
+    F_Q_BLOCK,
+    PREVIOUS,
+    RULE_CUBIC,
+    coning_step,
+    get_quadrature,
+    quadrature_increment,
+)
 from gyro_attitude.core.attitude.inputs import check_q0
-from gyro_attitude.core.attitude.nav_frame import NavFrame
-from gyro_attitude.core.attitude.quadrature import CUBIC as CUBIC_RULE
-from gyro_attitude.core.attitude.quadrature import get_quadrature, quadrature_increment
+from gyro_attitude.core.attitude.nav_frame import NavFrame, nav_rate_for
 from gyro_attitude.core.attitude.registry import DEFAULT_ALGORITHM, get_algorithm
 from gyro_attitude.core.jit import compiled, kernel
 
-# Every causal rate algorithm steps through one kernel, :func:`rate_advance` (the coning ones
-# through :func:`coning_advance`), whose state is arrays (``RateState``): the batch's compiled
-# loop (:func:`batch_rows`), the streaming integrator and the causal estimator's step
-# (chain.py) step the same state.  Its int slots:
+# RateState's int slots (a rate algorithm's; the coning state follows, coning.C_BLOCK ...)
 C_N, C_SAMPLES, C_LAST_T, C_HAS_LAST, C_FALLBACKS, C_FIRST_FELL, C_NEED_W0, C_HAS_ZETA_FIRST, \
     C_HAS_NAV_PREV = range(9)
 # and its float slots: the attitude, the stepper's start, ζ of the first interval, the last
@@ -62,10 +64,9 @@ def _compose_into(cf, start, b, has_z, z0, z1, z2):
 
 @kernel(inline=True)
 def _take_sample(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
-    """The sample ``t`` (int ns after the last), rate ``(w0, w1, w2)`` and nav rate
-    ``(r0, r1, r2)`` at it (``has_nav``) into the history of the last four samples (``ci``
-    int slots, ``ts`` (4,) stamps, ``ws`` (4, 3) rates, ``cf`` float slots): (samples now
-    held, 0 when this one only starts a time base; the nav rotation ζ of its interval)."""
+    """The sample ``t`` (int ns after the last), rate ``w`` and nav rate ``r`` (``has_nav``)
+    into the history of the last four samples (``ts``, ``ws``): (samples now held, 0 when this
+    one only starts a time base; the nav rotation ζ of its interval)."""
     has_z, z0, z1, z2 = nav_interval(ci, cf, t, has_nav, r0, r1, r2)
     if has_nav:
         ci[C_HAS_NAV_PREV] = 1
@@ -97,10 +98,9 @@ def _take_sample(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
 
 @kernel
 def rate_advance(alg, ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
-    """One sample (:func:`_take_sample`) through the rate algorithm ``alg``: the attitude as 4
-    floats.  For the algorithms that fit a polynomial (rotvec_cubic, quat_rk4) the first
-    interval is redone as the third sample arrives (the quadratic through 0, 1, 2) and the
-    fit's fallbacks are counted."""
+    """One sample through the rate algorithm ``alg``: the attitude as 4 floats.  One that
+    checks its rate fit redoes the first interval as the third sample arrives (the quadratic
+    through 0, 1, 2) and counts the fit's fallbacks."""
     n, has_z, z0, z1, z2 = _take_sample(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2)
     if n == 0:
         return cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3]
@@ -120,14 +120,13 @@ def rate_advance(alg, ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2):
 
 @kernel
 def coning_advance(alg, rule, ci, ts, ws, cf, blk, t, w0, w1, w2, has_nav, r0, r1, r2):
-    """One sample (:func:`_take_sample`) through the coning algorithm ``alg`` fed by the
-    quadrature ``rule``: the attitude as 4 floats.  A fitting rule redoes the first interval
-    as the third sample arrives (the quadratic through 0, 1, 2): the open block's first
-    increment is replaced (one sample per update: the attitude of that interval redone)."""
+    """One sample through the coning algorithm ``alg`` fed by the quadrature ``rule``: the
+    attitude as 4 floats.  The cubic rule redoes the first increment as the third sample
+    arrives (in the open block; one sample per update: that interval's attitude redone)."""
     n, has_z, z0, z1, z2 = _take_sample(ci, ts, ws, cf, t, w0, w1, w2, has_nav, r0, r1, r2)
     if n == 0:
         return cf[F_Q], cf[F_Q + 1], cf[F_Q + 2], cf[F_Q + 3]
-    if ci[C_SAMPLES] == 3 and rule == CUBIC_RULE:
+    if ci[C_SAMPLES] == 3 and rule == RULE_CUBIC:
         d0, d1, d2 = quadrature_increment(rule, ts, ws, 1, 3)
         blk[4, 0], blk[4, 1], blk[4, 2] = d0, d1, d2
         if alg == PREVIOUS or alg == 1:
@@ -181,11 +180,10 @@ def batch_rows(kind, alg, rule, ci, ts, ws, cf, blk, t, w, nav, rates, out, fell
 
 def integrate_rows(alg, t, w, q0, rate_n, rule=0, fallbacks=None, out=None,
                    increments=False) -> np.ndarray:
-    """``integrate_batch`` of the causal algorithm ``alg`` on checked input: the compiled
-    loop :func:`batch_rows` from ``q0``, over rates (a rate algorithm; a coning algorithm fed
-    by the quadrature ``rule``'s code) or, with ``increments``, over angle increments ``w``
-    (N-1, 3) (a coning algorithm); the intervals whose fit fell back appended to the list
-    ``fallbacks`` (an int array, when there are any)."""
+    """``integrate_batch`` of the causal algorithm ``alg`` on checked input: :func:`batch_rows`
+    from ``q0`` over rates (a coning algorithm's increments by the rule ``rule``) or, with
+    ``increments``, over increments ``w`` (N-1, 3); the intervals whose fit fell back appended
+    to ``fallbacks`` (an int array, when there are any)."""
     q = np.empty((t.size, 4)) if out is None else out
     rates = np.zeros((1, 3)) if rate_n is None else np.ascontiguousarray(
         rate_n, dtype=np.float64).reshape(-1, 3)
@@ -256,16 +254,15 @@ def _three_floats(v, name: str) -> tuple[float, float, float]:
 
 
 class StreamingIntegrator:
-    """Per-sample attitude update with the same results as :func:`integrate_batch`: the
-    rate and coning algorithms step the batch's own compiled kernels (:func:`rate_advance`,
-    :func:`coning_advance`), the Euler baselines their Python step (tens of µs).  Offline
-    algorithms (``causal`` False, e.g. ``magnus6_quintic``) are refused with ``ValueError``.
+    """Per-sample attitude update with the same results as :func:`integrate_batch` (the same
+    kernels; the Euler baselines' Python step, tens of µs).  Offline algorithms (``causal``
+    False, e.g. ``magnus6_quintic``) are refused with ``ValueError``.
 
     ``update(t_ns, omega_ib_b)`` takes one rate sample and returns the attitude at ``t_ns``
     (the first call, or the first after ``reset`` without ``t_ns``, only sets the time origin
     and returns ``q0``).  Increment algorithms get their increments from ``quadrature`` as the
-    batch does, or directly through ``update_increment(t_ns, delta_theta)``.  A NavFrame with
-    time series is indexed by the sample count.  ``ValueError`` on a zero/negative step or
+    batch does, or directly through ``update_increment(t_ns, delta_theta)``.  A NavFrame's
+    series is indexed by the sample count.  ``ValueError`` on a zero/negative step or
     non-finite input.
     """
 
@@ -284,12 +281,10 @@ class StreamingIntegrator:
         if nav is not None and not self.info.supports_nav:
             raise ValueError(f"{algorithm} integrates q_ib only; nav frames need a "
                              "quaternion algorithm")
-        if nav is not None and not isinstance(nav, NavFrame):
-            raise ValueError(f"nav must be a NavFrame or None, got {type(nav).__name__}")
-        self.nav = nav
         # ω_in^n, (3,) or a series (N, 3) evaluated once for all samples (as the batch does):
         # per-sample numpy calls would cost ~30 µs per update
-        self._nav_rates = None if nav is None else nav.rate_enu(nav.series_length())
+        self._nav_rates = nav_rate_for(nav)
+        self.nav = nav
         self._rates = RateState((0.0, 0.0, 0.0, 1.0), None, None)  # every algorithm's history
         self._fallbacks_before = 0
         self.reset(q0, t0_ns)
@@ -324,16 +319,12 @@ class StreamingIntegrator:
         return self._fallbacks_before + int(self._rates.ci[C_FALLBACKS])
 
     def update_nav(self, nav: NavFrame) -> None:
-        """Use the constant navigation frame ``nav`` from the next sample on.
-
-        Its ``ω_in^n`` (Earth rate plus transport rate), computed here once, becomes the nav
-        rate at the next sample: the interval ending there integrates the trapezoid of the
-        previous rate and this one, every later interval this one.  Called before the first
-        sample, it is the rate from the first sample on.  The attitude and the history are
-        kept; ``reset`` keeps the new frame.  So a stream switched before sample s equals
-        :func:`integrate_batch` with the NavFrame series holding the new values from s on.
-        ``ValueError`` (and nothing changed) as :func:`constant_nav_rate` says.
-        """
+        """Use the constant navigation frame ``nav`` from the next sample on: its ``ω_in^n``,
+        computed here once, is the nav rate at the next sample (the interval ending there
+        integrates the trapezoid of the previous rate and this one).  The attitude and the
+        history are kept; ``reset`` keeps the new frame.  A stream switched before sample s
+        equals :func:`integrate_batch` with the NavFrame series holding the new values from s
+        on.  ``ValueError`` (nothing changed) as :func:`constant_nav_rate` says."""
         self._nav_rates = constant_nav_rate(self.nav, nav)
         self.nav = nav
 
@@ -367,9 +358,8 @@ class StreamingIntegrator:
             return self._kernel_step(step, t, w, not rs.ci[C_HAS_LAST])
         n = _take_sample(rs.ci, rs.ts, rs.ws, rs.cf, t, *w, False, 0.0, 0.0, 0.0)[0]
         if n > 0:
-            if rs.ci[C_SAMPLES] == 3:
-                self._stepper.redo_first(rs.ts[:3], rs.ws[:3])
-            rs.cf[F_Q:F_Q + 4] = self._stepper.interval(rs.ts[:n], rs.ws[:n])
+            rs.cf[F_Q:F_Q + 4] = self._stepper.interval(rs.ts[:n], rs.ws[:n],
+                                                         rs.ci[C_SAMPLES] == 3)
         return self.quaternion
 
     def update_increment(self, t_ns: int, delta_theta) -> np.ndarray:
@@ -409,7 +399,4 @@ def constant_nav_rate(current, nav) -> np.ndarray:
                          "this one integrates q_ib")
     if not isinstance(nav, NavFrame):
         raise ValueError(f"nav must be a NavFrame, got {type(nav).__name__}")
-    rate = nav.rate_enu(None)  # raises on series and on invalid values
-    if rate.shape != (3,):
-        raise ValueError(f"update_nav needs a constant NavFrame, got rate shape {rate.shape}")
-    return rate
+    return nav.rate_enu(None)  # raises on series and on invalid values
