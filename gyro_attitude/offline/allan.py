@@ -21,8 +21,8 @@ from gyro_attitude.core.allan import (
     model_variance,
     relative_error,
 )
-from gyro_attitude.core.attitude.rest import RestThresholds
 from gyro_attitude.core.attitude.sample_clock import run_period, sample_clock
+from gyro_attitude.core.attitude.settings import setting
 from gyro_attitude.core.attitude.validation import no_estimate
 from gyro_attitude.core.sensor_errors import FLICKER_FLOOR_FACTOR
 from gyro_attitude.core.units import format_si
@@ -248,7 +248,7 @@ REST_STD_FACTOR = 3.0
 REST_QUIET_PERCENTILE = 5.0
 #: ... and its mean rate within this of the still blocks' median on every axis (rad/s): a
 #: steady turn shows no spread (the rest detector's bound for a bias, core/attitude/rest.py)
-REST_MEAN_TOL_RAD_S = RestThresholds.gyro_mean_max
+REST_MEAN_TOL_RAD_S = setting("rest_gyro_mean_max").default
 #: (or within this many standard errors of a block mean, for a noisy gyro)
 REST_MEAN_NOISE_FACTOR = 6.0
 #: Shortest rest analysed on its own: τ up to about 1 s, where the ARW is read.

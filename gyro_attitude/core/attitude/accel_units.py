@@ -1,20 +1,5 @@
-"""Is the accelerometer in m/s²?  The specific force's magnitude at rest against gravity.
-
-An Imu message's ``linear_acceleration`` is m/s² (REP-145), but drivers publish g (|f| ≈ 1 at
-rest), mg or cm/s² (≈ 1000 or 981), or zeros when the sensor has none and says nothing.  Taken
-as m/s², such a field makes every rest test fail or pass on garbage and turns gravity aiding
-into a tilt toward noise, silently.  :func:`check_accel_scale` looks at the median ``|f|`` over
-the samples whose gyro says they are still (``|ω|`` below :data:`STILL_RATE_RAD_S`; over the whole
-recording when fewer than :data:`MIN_STILL` of them), which is g at rest and, over a recording
-of a carrier that starts and stops, g on the median too, and compares it with ``gravity``
-within ``tolerance`` (relative; the default accepts a 4-5 % scale error and the 0.3 % of
-gravity's change with latitude with room to spare, while g, mg and cm/s² are off by a factor
-of ~10 or ~100).
-
-Arrays only (no ROS, no files): replay calls it before the estimator; the live node feeds its
-first accepted samples to an :class:`AccelScaleWatch`, which judges them once with the same
-function (no second estimator: the node drops the field from what it pushes on a bad verdict).
-"""
+"""Is the accelerometer in m/s²?  The median specific force at rest against gravity
+(docs/architecture.md, "Notes: the estimator's edge")."""
 
 from __future__ import annotations
 
@@ -42,10 +27,9 @@ WATCH_SAMPLES = 1 << 14
 
 @dataclass(frozen=True)
 class AccelScale:
-    """The verdict: ``median_norm`` of |f| (NaN when no finite sample), over ``basis``
-    (``"still samples"`` or ``"the whole recording"``, ``samples`` of them), ``ok`` when it is
-    within the tolerance of gravity, and ``problem``: one line naming what it looks like (None
-    when ok)."""
+    """The verdict: ``median_norm`` of |f| (NaN when no finite sample) over ``samples`` of
+    ``basis`` (``"still samples"`` or ``"the whole recording"``); ``problem`` one line naming
+    what it looks like when not ``ok``."""
 
     median_norm: float
     basis: str
@@ -54,24 +38,16 @@ class AccelScale:
     problem: str | None
 
 
-def _strided(n: int) -> slice:
-    return slice(0, n, max(1, -(-n // MEDIAN_SAMPLES)))
-
-
-def check_accel_scale(accel, gyro=None, *, gravity: float = STANDARD_GRAVITY,
-                      tolerance: float = ACCEL_SCALE_TOLERANCE) -> AccelScale:
+def check_accel_scale(accel, gyro=None) -> AccelScale:
     """Whether ``accel`` (N, 3), the specific force as recorded, is in m/s²: its median norm
     over the still samples (``gyro`` (N, 3) rad/s, optional) or over every sample, against
-    ``gravity`` within the relative ``tolerance``.  Rows with a non-finite value are left out.
+    gravity within :data:`ACCEL_SCALE_TOLERANCE`.  Rows with a non-finite value are left out.
     Raises ValueError on malformed arguments."""
     a = np.asarray(accel)
     if a.ndim != 2 or a.shape[1] != 3:
         raise ValueError(f"accel must have shape (N, 3), got {a.shape}")
-    if not (isinstance(gravity, int | float) and math.isfinite(gravity) and gravity > 0):
-        raise ValueError(f"gravity must be a positive number, got {gravity!r}")
-    if not (isinstance(tolerance, int | float) and 0 < tolerance < 1):
-        raise ValueError(f"tolerance must be in (0, 1), got {tolerance!r}")
-    pick = _strided(a.shape[0])
+    gravity, tolerance = STANDARD_GRAVITY, ACCEL_SCALE_TOLERANCE
+    pick = slice(0, a.shape[0], max(1, -(-a.shape[0] // MEDIAN_SAMPLES)))
     f = np.asarray(a[pick], dtype=np.float64)
     with np.errstate(over="ignore", invalid="ignore"):
         norm = np.sqrt(np.einsum("ij,ij->i", f, f))
@@ -109,22 +85,15 @@ def check_accel_scale(accel, gyro=None, *, gravity: float = STANDARD_GRAVITY,
 
 class AccelScaleWatch:
     """:func:`check_accel_scale` on the first samples of a stream, judged once: after
-    ``span_s`` of stamps and at least :data:`MIN_STILL` samples, or ``max_samples`` of them.
-    :meth:`add` each accepted sample carrying an accelerometer; it returns the verdict on the
-    sample that completes the watch (None before and after).  ``use_accel`` says whether to go
-    on pushing the field: yes while watching (the estimator's own norm tests refuse a field
-    in g, mg, cm/s² or zero meanwhile), then as the verdict says."""
+    :data:`WATCH_S` of stamps and at least :data:`MIN_STILL` samples, or :data:`WATCH_SAMPLES`
+    of them.  :meth:`add` each accepted sample carrying an accelerometer; it returns the
+    verdict on the sample that completes the watch (None before and after).  ``use_accel``:
+    whether to go on pushing the field (yes while watching: the estimator's own norm tests
+    refuse a field in g, mg, cm/s² or zero meanwhile; then as the verdict says)."""
 
-    def __init__(self, span_s: float = WATCH_S, max_samples: int = WATCH_SAMPLES, *,
-                 gravity: float = STANDARD_GRAVITY, tolerance: float = ACCEL_SCALE_TOLERANCE):
-        if not (isinstance(span_s, int | float) and 0 < span_s < 1e6):
-            raise ValueError(f"span_s must be a positive number of seconds, got {span_s!r}")
-        if isinstance(max_samples, bool) or not isinstance(max_samples, int) or max_samples < 1:
-            raise ValueError(f"max_samples must be a positive int, got {max_samples!r}")
-        self._span_ns = int(round(span_s * 1e9))
-        self._gravity, self._tolerance = gravity, tolerance
-        self._a: np.ndarray | None = np.empty((max_samples, 3))
-        self._w = np.empty((max_samples, 3))
+    def __init__(self):
+        self._a: np.ndarray | None = np.empty((WATCH_SAMPLES, 3))
+        self._w = np.empty((WATCH_SAMPLES, 3))
         self._n = 0
         self._t0: int | None = None
         self.verdict: AccelScale | None = None
@@ -141,10 +110,9 @@ class AccelScaleWatch:
         self._a[self._n] = accel
         self._w[self._n] = gyro
         self._n += 1
-        if self._n < self._a.shape[0] and (int(t_ns) - self._t0 < self._span_ns
-                                           or self._n < MIN_STILL):
+        if self._n < WATCH_SAMPLES and (int(t_ns) - self._t0 < int(WATCH_S * 1e9)
+                                        or self._n < MIN_STILL):
             return None
-        self.verdict = check_accel_scale(self._a[:self._n], self._w[:self._n],
-                                         gravity=self._gravity, tolerance=self._tolerance)
+        self.verdict = check_accel_scale(self._a[:self._n], self._w[:self._n])
         self._a = self._w = None  # judged: the samples are no longer needed
         return self.verdict

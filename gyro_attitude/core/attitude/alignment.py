@@ -153,7 +153,7 @@ def aligner_start(cfg: StreamConfig, latitude_rad: float | None = None) -> np.re
     r.decl = math.radians(cfg.magnetic_declination_deg)
     r.hard_iron = cfg.mag_hard_iron_t
     r.given_heading_var = float(np.broadcast_to(cfg.initial_attitude_variance, (3,))[2])
-    r.rest_f, r.rest_i = rest_start(**cfg.rest_params())
+    r.rest_f, r.rest_i = rest_start(cfg)
     r.last_acc = -1
     return record
 

@@ -1,4 +1,4 @@
-"""Composing increments into attitudes: blocked prefix product (batch), plain-float helpers."""
+"""Composing increments into attitudes: blocked prefix product (batch), plain-float kernels."""
 
 from __future__ import annotations
 
@@ -26,25 +26,18 @@ def _cpus() -> int:
 
 
 #: Worker threads of :func:`compose_chunked` that prepare chunks ahead of the thread carrying
-#: the attitude: two when this process may use several CPUs, else none.  A process that is one
-#: of several workers sharing the cores (the Monte Carlo and fleet pools, a Dask task) sets 0
-#: once with :func:`set_prepare_threads`: its peers already keep every core busy, and two more
-#: threads per process only add switching.  The arithmetic is the same either way.
+#: the attitude: two when this process may use several CPUs, else none (a pool worker sets 0:
+#: its peers keep every core busy).  The arithmetic is the same either way.
 _prepare_threads = 2 if _cpus() >= 2 else 0
 
 
 def set_prepare_threads(n: int) -> int:
-    """Set the chunk-preparing threads of this process (0: every chunk in the caller's
-    thread); returns the previous number."""
+    """Set the chunk-preparing threads of this process; returns the previous number."""
     global _prepare_threads
     if isinstance(n, bool) or not isinstance(n, int) or not 0 <= n <= 64:
         raise ValueError(f"prepare threads must be an integer from 0 to 64, got {n!r}")
     previous, _prepare_threads = _prepare_threads, n
     return previous
-
-
-def normalize_rows(q: np.ndarray) -> np.ndarray:
-    return q / np.sqrt(np.einsum("...i,...i->...", q, q))[..., None]
 
 
 #: Rows of the blocked scan in :func:`prefix_product` (up to 3·this many factors, the
@@ -68,17 +61,10 @@ def prefix_product(d: np.ndarray) -> np.ndarray:
     m = d.shape[0]
     if m <= 3 * _SCAN_ROWS:
         out = np.empty_like(d)
-        if m == 0:
-            return out
-        ax, ay, az, aw = (float(c) for c in d[0])
-        out[0] = d[0]
-        for i in range(1, m):
-            bx, by, bz, bw = (float(c) for c in d[i])
-            ax, ay, az, aw = (aw * bx + ax * bw + ay * bz - az * by,
-                              aw * by - ax * bz + ay * bw + az * bx,
-                              aw * bz + ax * by - ay * bx + az * bw,
-                              aw * bw - ax * bx - ay * by - az * bz)
-            out[i] = (ax, ay, az, aw)
+        p = None
+        for i, row in enumerate(d.tolist()):
+            p = row if p is None else qmul_scalar(p, row)
+            out[i] = p
         return out
     rows = _SCAN_ROWS
     nb = -(-m // rows)
@@ -87,21 +73,15 @@ def prefix_product(d: np.ndarray) -> np.ndarray:
         d = np.concatenate((d, np.tile(IDENTITY, (pad, 1))))
     # (4, rows, nb): component c of factor j of block b; each row slice is contiguous.
     x = np.ascontiguousarray(d.reshape(nb, rows, 4).transpose(2, 1, 0))
-    X, Y, Z, W = x[0], x[1], x[2], x[3]
     for j in range(1, rows):
-        ax, ay, az, aw = X[j - 1], Y[j - 1], Z[j - 1], W[j - 1]
-        bx, by, bz, bw = X[j], Y[j], Z[j], W[j]
-        nx = aw * bx + ax * bw + ay * bz - az * by
-        ny = aw * by - ax * bz + ay * bw + az * bx
-        nz = aw * bz + ax * by - ay * bx + az * bw
-        W[j] = aw * bw - ax * bx - ay * by - az * bz
-        X[j], Y[j], Z[j] = nx, ny, nz
+        x[:, j] = qmul_scalar(x[:, j - 1], x[:, j])
     totals = np.ascontiguousarray(x[:, rows - 1, :].T)  # (nb, 4)
     before = np.empty_like(totals)
     before[0] = IDENTITY
     if nb > 1:
         # Renormalize at block boundaries so the rounding of one block cannot scale the next.
-        before[1:] = normalize_rows(prefix_product(totals[:-1]))
+        p = prefix_product(totals[:-1])
+        before[1:] = p / np.sqrt(np.einsum("...i,...i->...", p, p))[..., None]
     res = _qmul(before[None, :, :], x.transpose(1, 2, 0))  # (rows, nb, 4)
     return res.transpose(1, 0, 2).reshape(nb * rows, 4)[:m]
 
@@ -113,22 +93,13 @@ def prefix_product_left(a: np.ndarray) -> np.ndarray:
 
 def compose_chunked(n_samples: int, q0: np.ndarray, increments,
                     out: np.ndarray | None = None) -> np.ndarray:
-    """Run ``q_k = A_k ⊗ q0 ⊗ B_k`` over all intervals, chunk by chunk (the offline
-    ``magnus6_quintic``'s batch), ``B_k``, ``A_k`` the prefix products of the body and nav
-    increments.
-
-    ``increments(k)`` returns ``(b, a)`` for the interval indices ``k``: the body increments
-    and the nav ones (None without a nav frame; a :class:`LeftPrefix`, their products
-    already).  Chunks bound memory and keep the scans in cache; the carried attitude is
-    normalized at chunk boundaries.
-
-    Everything of a chunk but the attitude carried into it (its increments and their
-    prefix products: most of the work) is independent of the other chunks, so on a
-    multi-core machine two chunks are prepared at once by worker threads (numpy releases
-    the GIL in its loops) while this thread carries the attitude through the chunks in
-    order.  ``increments`` must therefore be a pure function of ``k``.  The arithmetic is
-    the same in either case.  ``out``: an (n_samples, 4) float64 array to write the
-    attitudes into (and return) instead of a new one.
+    """``q_k = A_k ⊗ q0 ⊗ B_k`` over all intervals (the offline ``magnus6_quintic``'s batch)
+    into ``out`` (n_samples, 4) or a new array, ``B_k``, ``A_k`` the prefix products of the
+    body and nav increments: ``increments(k)`` gives ``(b, a)`` for the interval indices
+    ``k`` (``a`` None without a nav frame, or a :class:`LeftPrefix`).  Chunk by chunk (memory
+    bounded, the scans in cache; the carried attitude normalized at chunk boundaries); a
+    chunk's increments and prefix products are prepared ahead by worker threads
+    (:func:`_in_order`), so ``increments`` must be a pure function of ``k``.
     """
     q = np.empty((n_samples, 4)) if out is None else out
     q[0] = q0
@@ -155,9 +126,9 @@ def compose_chunked(n_samples: int, q0: np.ndarray, increments,
 
 
 def _in_order(fn, items):
-    """``fn(item)`` for each item, in order; with several chunks, computed ahead by the
-    :data:`_prepare_threads` worker threads when there are any (at most one more submitted
-    ahead than threads: memory stays a few chunks)."""
+    """``fn(item)`` for each item, in order, computed ahead by the :data:`_prepare_threads`
+    worker threads when there are any (numpy releases the GIL in its loops; at most one
+    more submitted ahead than threads: memory stays a few chunks)."""
     threads = _prepare_threads
     if len(items) < 2 or threads == 0:
         yield from map(fn, items)
@@ -173,9 +144,8 @@ def _in_order(fn, items):
 
 
 class LeftPrefix(NamedTuple):
-    """What an ``increments`` function of :func:`compose_chunked` may return in place of the
-    left increments ``a``: their products ``A_k = a_k ⊗ … ⊗ a_k0`` from the chunk's first
-    interval on, already known."""
+    """The left products ``A_k = a_k ⊗ … ⊗ a_k0`` of a chunk, already known (in place of
+    the increments ``a`` of :func:`compose_chunked`)."""
 
     products: np.ndarray
 
@@ -189,10 +159,8 @@ def _left_product_matrix(p: np.ndarray) -> np.ndarray:
                      [-x, -y, -z, w]])
 
 
-# --------------------------------------------------------------------------- plain floats
-# The streaming steps work on tuples of floats: numpy's per-call overhead on 3-vectors
-# (~1 µs per operation) would cost ~100 µs per update.  Kernels (core/jit.py): the compiled
-# per-sample chain calls these same functions.
+# plain floats (numpy's per-call overhead on 3-vectors would cost ~100 µs per update);
+# kernels: the compiled per-sample chain calls these same functions
 
 @kernel(inline=True)
 def exp_scalar(x, y, z):

@@ -210,7 +210,7 @@ def bias_start(cfg) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     of a :class:`~.settings.StreamConfig` before the first sample: the fixed bias in mode
     ``parameter``, else 0; the rest thresholds of the table, windows less noisy than the noise
     floor refused."""
-    rf, ri = rest_start(**{"gyro_std_min": NOISE_FLOOR_RAD_S, **cfg.rest_params()})
+    rf, ri = rest_start(cfg, NOISE_FLOOR_RAD_S)
     bf = np.zeros(_B_FLOATS)
     bi = np.zeros(_B_INTS, dtype=np.int64)
     bi[J_EARTH_ALL] = 1

@@ -15,13 +15,9 @@ GAUSS2 = (0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0))  # 2-point Gau
 
 
 def lagrange_eval(x_nodes: np.ndarray, y_nodes: np.ndarray, x_eval: np.ndarray) -> np.ndarray:
-    """Evaluate the interpolating polynomial through ``(x_nodes, y_nodes)``.
-
-    ``x_nodes`` (M, n) in s, ``y_nodes`` (M, n, 3), ``x_eval`` (M, p) → (M, p, 3).  Each
-    row has its own (non-uniform) nodes; Lagrange form, n ≤ 6 so the O(n²) weights are
-    cheap and exact enough (nodes are distinct, spacing ≥ 1 ns).  For rows gathered one by
-    one (ends of a record); runs of rows use :func:`sliding_fit_rates`.
-    """
+    """The polynomial through ``(x_nodes, y_nodes)`` at ``x_eval``: (M, n) s, (M, n, 3), (M, p)
+    → (M, p, 3), each row its own nodes (Lagrange form, n ≤ 6).  For rows gathered one by one
+    (the ends of a record); runs of rows use :func:`sliding_fit_rates`."""
     n = x_nodes.shape[1]
     out = np.zeros(x_eval.shape + (3,))
     for i in range(n):
@@ -36,25 +32,18 @@ def lagrange_eval(x_nodes: np.ndarray, y_nodes: np.ndarray, x_eval: np.ndarray) 
 
 def sliding_fit_rates(t_ns: np.ndarray, omega: np.ndarray, k0: int, k1: int, offset: int,
                       n: int, fractions) -> np.ndarray:
-    """Rates at ``t_{k-1} + f h_k`` for the intervals ``k0 ≤ k < k1`` from the polynomial
-    through the ``n`` samples ``k-offset … k-offset+n-1`` (all inside the record).
-
-    Returns (len(fractions), k1-k0, 3).  Same fit as :func:`lagrange_eval` on gathered
-    rows, computed on slices: node positions in units of ``h_k`` from int64 differences,
-    the Lagrange denominators once for all fractions.  When the samples are equally
-    spaced (equal int64 steps over the whole run), every row has the same weights:
-    they are computed once and the fit is n scaled sums of slices.
-    """
+    """Rates (len(fractions), k1-k0, 3) at ``t_{k-1} + f h_k`` for the intervals ``k0 ≤ k <
+    k1`` from the polynomial through the ``n`` samples ``k-offset … k-offset+n-1`` (all inside
+    the record): :func:`lagrange_eval`'s fit on slices, the nodes in units of ``h_k`` from int64
+    differences; on equally spaced samples every row has the same weights, computed once."""
     m = k1 - k0
     s0 = k0 - offset  # window start of the first row
     fr = [float(f) for f in fractions]
     out = np.empty((len(fr), m, 3))
     if m <= 0:
         return out
-    # u_j: node j relative to t_{k-1} in units of h_k.  Plain floats where it is the same on
-    # every row (the interval's own ends, 0 and 1; every node when the samples are equally
-    # spaced: (j - offset + 1)), so their terms cost no array operation and, when all are
-    # floats, every row gets the same weights.
+    # u_j: node j relative to t_{k-1} in units of h_k; a plain float where it is the same on
+    # every row (the interval's ends 0 and 1, or every node on equally spaced samples)
     steps = np.diff(t_ns[s0:s0 + m + n - 1])
     if (steps == steps[0]).all():
         u = [float(j - offset + 1) for j in range(n)]
@@ -99,13 +88,9 @@ def sliding_fit_rates(t_ns: np.ndarray, omega: np.ndarray, k0: int, k1: int, off
 def fitted_rates(t_ns: np.ndarray, omega: np.ndarray, k: np.ndarray, fractions,
                  offset: int, n_nodes: int, gathered) -> np.ndarray:
     """Rates (len(k), len(fractions), 3) at ``t_{k-1} + f h_k`` from the polynomial through
-    samples ``k-offset … k-offset+n_nodes-1``.
-
-    The rows whose window lies inside the record take :func:`sliding_fit_rates` when ``k``
-    is a run of consecutive intervals (what the batch integrators pass); the others (the
-    ends of the record, where a method fits fewer or shifted samples, or scattered ``k``)
-    come from ``gathered(k_rows)`` → (len(k_rows), len(fractions), 3).
-    """
+    samples ``k-offset … k-offset+n_nodes-1``: :func:`sliding_fit_rates` where ``k`` is a run
+    and the window lies inside the record; the other rows (the ends of the record, where a
+    method fits fewer or shifted samples, or scattered ``k``) from ``gathered(k_rows)``."""
     k = np.asarray(k)
     m = k.size
     lo, hi = offset, t_ns.size - n_nodes + offset  # intervals with the whole window inside
@@ -125,30 +110,16 @@ def fitted_rates(t_ns: np.ndarray, omega: np.ndarray, k: np.ndarray, fractions,
 
 
 # --------------------------------------------------------------------------- trusting a fit
-# A rate fit is a polynomial through samples; it can be trusted only where the samples resolve
-# the motion.  Two signs that they do not (docs/equations.md "When a rate fit cannot be trusted";
-# the thresholds are measured by ``bench --suite nyquist``):
-#
-# * the fitted rate leaves the range of the samples it was fitted to by more than
-#   FIT_OVERSHOOT_MAX times their spread.  On equally spaced samples it cannot: the Lagrange
-#   weights bound the overshoot by (Σ|w| − 1)/2 of the spread — 0.232 for the causal cubic's
-#   Gauss points, 0.195 for the centered quintic's, 0.996 for the quintic's one-sided windows at
-#   the ends of a record — so this fires only on uneven stamps (after missing samples the
-#   cubic extrapolates over the hole), and is not evaluated on (nearly) even ones;
-# * the rate's change turns by more than FIT_TURN_MAX_RAD from one sample to the next: a rate
-#   vector turning at Ω rad/s sampled every h turns its sample-to-sample change by Ωh, which
-#   reaches π at the Nyquist rate, where a cone turning one way at Ω and the other way at
-#   2π/h − Ω give the same samples (the transverse ones), so no fit can know the sign of the
-#   commutation term that the higher-order step adds; the exponential map of the held rate
-#   adds none.  Only where that change is an angle that matters (h·|Δω| ≥
-#   FIT_CHANGE_MIN_RAD): white noise turns its differences by ~120° on average (often past
-#   the bound), but its change per step is h·|Δω| ≈ 2.4·N·√h for a noise density N — 1e-2 rad
-#   needs N ≥ 4e-3/√h (0.03 rad/√s at 50 Hz, ~100× a poor MEMS gyro), while the aliased cones
-#   this is for (half-angle ≥ 0.1° at 100 Hz) exceed it;
-# The step of such an interval falls back to the exponential map of the endpoint mean
-# (``exp_map``), counted.  The rule is evaluated by the causal step, one interval at a time
-# (:func:`untrusted_fit_scalar`), and over a whole record by the offline quintic
-# (:func:`untrusted_fits`, vectorized: the offline estimator runs no compiled code).
+# A rate fit is trusted only where its samples resolve the motion (docs/equations.md "When a rate
+# fit cannot be trusted"; the thresholds measured by ``bench --suite nyquist``): not where the
+# rate's change turns by more than FIT_TURN_MAX_RAD from one sample to the next (aliasing near
+# Nyquist) while that change is an angle that matters (h·|Δω| >= FIT_CHANGE_MIN_RAD), nor where
+# the fitted rate leaves its samples' range by more than FIT_OVERSHOOT_MAX times their spread
+# (tested on uneven stamps only: on even ones the Lagrange weights keep it below 1).  Such an
+# interval's step moves toward the exponential map of the endpoint mean, counted.  The tests
+# below work on floats and arrays alike: the causal step runs them compiled, one interval at a
+# time (:func:`untrusted_fit_scalar`), the offline quintic as numpy over a record
+# (:func:`untrusted_fits`: an offline replay imports no compiler).
 FIT_OVERSHOOT_MAX = 2.0
 FIT_TURN_MAX_RAD = 2.6
 FIT_CHANGE_MIN_RAD = 1e-2
@@ -158,68 +129,70 @@ _CHANGE_MIN2 = FIT_CHANGE_MIN_RAD * FIT_CHANGE_MIN_RAD
 _EVEN_TOL = 1e-3  # relative spread of the steps under which the stamps count as even
 
 
+@kernel(inline=True)
+def _turned(dot, na, nb, h):
+    """Whether the rate's change ``b`` (squared norm ``nb``, over a step ``h`` s) matters and
+    turned from the one before, ``a`` (``na``; ``dot = a·b``), by more than FIT_TURN_MAX_RAD."""
+    return (nb * (h * h) >= _CHANGE_MIN2) & (dot < 0.0) & (dot * dot > _TURN_COS2 * na * nb)
+
+
+@kernel(inline=True)
+def _turn_weight(dot, na, nb):
+    """The exponential map's weight of a turned change: from 0 at FIT_TURN_MAX_RAD to 1 at π."""
+    turn = np.arccos(np.minimum(np.maximum(dot / np.sqrt(na * nb), -1.0), 1.0))
+    return np.minimum(np.maximum((turn - FIT_TURN_MAX_RAD) / (math.pi - FIT_TURN_MAX_RAD),
+                                 1e-300), 1.0)
+
+
+@kernel(inline=True)
+def _overshoots(f, lo, hi):
+    """Whether the fitted rate ``f`` leaves its samples' range ``[lo, hi]`` by more than
+    FIT_OVERSHOOT_MAX times its spread."""
+    slack = FIT_OVERSHOOT_MAX * (hi - lo) + 1e-12 * (np.abs(lo) + np.abs(hi))
+    return (f > hi + slack) | (f < lo - slack)
+
+
 def untrusted_fits(t_ns: np.ndarray, omega: np.ndarray, k: np.ndarray, fitted: np.ndarray,
                    window) -> np.ndarray | None:
-    """Which intervals ``k`` (sample k-1 to k) have a rate fit that cannot be trusted (the
-    rule above): a bool mask (len(k),), or None when none has (the usual case, found with a
-    few array operations over the rows).
-
-    ``fitted`` (len(k), p, 3) the fitted rates; ``window(k)`` → (first, last) sample of each
-    row's fit (inclusive), needed only on uneven stamps.
-    """
+    """The exponential map's weight for each of a run of intervals ``k`` (sample k-1 to k),
+    fitted at the rates ``fitted`` (len(k), p, 3), or None when every fit can be trusted (the
+    usual case: a few array operations).  ``window(k)`` → (first, last) sample of each row's
+    fit (inclusive), needed on uneven stamps only."""
     m = k.size
     if m == 0:
         return None
     k0 = int(k[0])
-    kmin, kmax = (k0, int(k[-1])) if k[-1] - k0 == m - 1 else (int(k.min()), int(k.max()))
-    steps = np.diff(t_ns[max(kmin - 6, 0):min(kmax + 6, t_ns.size)])
-    s_min = int(steps.min()) if steps.size else 1
-    s_max = int(steps.max()) if steps.size else 1
+    steps = np.diff(t_ns[max(k0 - 6, 0):min(k0 + m + 5, t_ns.size)])
+    s_min, s_max = (int(steps.min()), int(steps.max())) if steps.size else (1, 1)
     h_max = s_max * 1e-9
     bad = None
-    # the turn of the rate's change, where the change is an angle that matters: changes
-    # j-1 and j, j = k (interval 1: the next change, where sample 2 exists).  A first pass
-    # with the longest step keeps the rows that may pass the angle test (few: noise at rest
-    # and resolved motion change by far less); the exact tests run on those rows only.
-    run = k[-1] - k0 == m - 1 and (k0 >= 2 or (k0 == 1 and t_ns.size > 2 and m >= 2))
-    if run:  # a run of intervals: slices (interval 1 takes change 2, as interval 2 does)
+    if t_ns.size > 2:
+        # the changes into samples j - 1 and j, j = max(k, 2) (interval 1 takes change 2, as
+        # interval 2 does).  A first pass with the longest step keeps the rows whose change
+        # may matter (few: noise at rest and resolved motion change by far less).
         j0 = max(k0, 2)
         db = omega[j0:k0 + m] - omega[j0 - 1:k0 + m - 1]
         if k0 == 1:
-            db = np.concatenate((db[:1], db))
-        rows_ = None
-    else:
-        rows_ = np.flatnonzero((k >= 2) | (t_ns.size > 2))
-        kk = np.maximum(k[rows_], 2)
-        db = omega[kk] - omega[kk - 1]
-    nb = np.einsum("ij,ij->i", db, db)
-    cand = np.flatnonzero(nb >= _CHANGE_MIN2 / (h_max * h_max))
-    if cand.size:
-        j = np.maximum(k0 + cand if run else k[rows_[cand]], 2)
-        h = (t_ns[j] - t_ns[j - 1]) * 1e-9
-        nb, db = nb[cand], db[cand]
-        keep = nb * (h * h) >= _CHANGE_MIN2
-        cand, j, nb, db = cand[keep], j[keep], nb[keep], db[keep]
-        da = omega[j - 1] - omega[j - 2]
-        dot = np.einsum("ij,ij->i", da, db)
-        na = np.einsum("ij,ij->i", da, da)
-        turned = (dot < 0.0) & (dot * dot > _TURN_COS2 * na * nb)
-        if turned.any():
-            bad = np.zeros(m)
-            hit = cand[turned]
-            turn = np.arccos(np.clip(dot[turned] / np.sqrt(na[turned] * nb[turned]), -1.0, 1.0))
-            bad[hit if rows_ is None else rows_[hit]] = np.clip(
-                (turn - FIT_TURN_MAX_RAD) / (math.pi - FIT_TURN_MAX_RAD), 1e-300, 1.0)
-    # overshoot beyond the samples' range: only on uneven stamps
-    if s_max - s_min > _EVEN_TOL * s_min:
+            db = np.concatenate((omega[2:3] - omega[1:2], db))
+        nb = np.einsum("ij,ij->i", db, db)
+        cand = np.flatnonzero(nb >= _CHANGE_MIN2 / (h_max * h_max))
+        if cand.size:
+            j = np.maximum(k0 + cand, 2)
+            nb, db = nb[cand], db[cand]
+            da = omega[j - 1] - omega[j - 2]
+            dot = np.einsum("ij,ij->i", da, db)
+            na = np.einsum("ij,ij->i", da, da)
+            hit = _turned(dot, na, nb, (t_ns[j] - t_ns[j - 1]) * 1e-9)
+            if hit.any():
+                bad = np.zeros(m)
+                bad[cand[hit]] = _turn_weight(dot[hit], na[hit], nb[hit])
+    if s_max - s_min > _EVEN_TOL * s_min:  # overshoot: on uneven stamps only
         first, last = window(k)
         lo = hi = omega[first]
         for jj in range(1, int((last - first).max()) + 1):
             wj = omega[np.minimum(first + jj, last)]
             lo, hi = np.minimum(lo, wj), np.maximum(hi, wj)
-        slack = FIT_OVERSHOOT_MAX * (hi - lo) + 1e-12 * (np.abs(lo) + np.abs(hi))
-        over = ((fitted > (hi + slack)[:, None])
-                | (fitted < (lo - slack)[:, None])).any(axis=(1, 2))
+        over = _overshoots(fitted, lo[:, None], hi[:, None]).any(axis=(1, 2))
         if over.any():
             bad = over.astype(np.float64) if bad is None else np.where(over, 1.0, bad)
     return bad
@@ -227,26 +200,21 @@ def untrusted_fits(t_ns: np.ndarray, omega: np.ndarray, k: np.ndarray, fitted: n
 
 @kernel(inline=True)
 def untrusted_fit_scalar(ts, ws, k, n, f0, f1) -> float:
-    """The rule above (:func:`untrusted_fits` for the offline quintic) for one interval ``k`` of
-    the causal step's histories ``ts, ws`` (their first ``n`` entries, the fit's nodes) fitted
-    at two points (the rates ``f0``, ``f1``): the weight of the exponential map's step, 0.0
-    when the fit can be trusted.  A kernel (:mod:`gyro_attitude.core.jit`): indexing only,
-    nothing allocated."""
+    """The rule above for one interval ``k`` of the causal step's histories ``ts, ws`` (their
+    first ``n`` entries, the fit's nodes) fitted at two points (the rates ``f0``, ``f1``): the
+    exponential map's weight, 0.0 when the fit can be trusted.  Indexing only, nothing
+    allocated."""
     weight = 0.0
     j = max(k, 2)
     if j < n:
         b, m, a = ws[j], ws[j - 1], ws[j - 2]
         db0, db1, db2 = b[0] - m[0], b[1] - m[1], b[2] - m[2]
         da0, da1, da2 = m[0] - a[0], m[1] - a[1], m[2] - a[2]
-        h = (ts[j] - ts[j - 1]) * 1e-9
         nb = db0 * db0 + db1 * db1 + db2 * db2
-        if nb * (h * h) >= _CHANGE_MIN2:
-            dot = da0 * db0 + da1 * db1 + da2 * db2
-            na = da0 * da0 + da1 * da1 + da2 * da2
-            if dot < 0.0 and dot * dot > _TURN_COS2 * na * nb:
-                turn = math.acos(max(-1.0, min(1.0, dot / math.sqrt(na * nb))))
-                weight = min(max((turn - FIT_TURN_MAX_RAD) / (math.pi - FIT_TURN_MAX_RAD),
-                                 1e-300), 1.0)
+        dot = da0 * db0 + da1 * db1 + da2 * db2
+        na = da0 * da0 + da1 * da1 + da2 * da2
+        if _turned(dot, na, nb, (ts[j] - ts[j - 1]) * 1e-9):
+            weight = _turn_weight(dot, na, nb)
     if n > 2 and _uneven(ts, n):
         for c in range(3):
             lo, hi = math.inf, -math.inf
@@ -256,9 +224,7 @@ def untrusted_fit_scalar(ts, ws, k, n, f0, f1) -> float:
                     lo = v
                 if v > hi:
                     hi = v
-            slack = FIT_OVERSHOOT_MAX * (hi - lo) + 1e-12 * (abs(lo) + abs(hi))
-            if f0[c] > hi + slack or f0[c] < lo - slack or f1[c] > hi + slack \
-                    or f1[c] < lo - slack:
+            if _overshoots(f0[c], lo, hi) or _overshoots(f1[c], lo, hi):
                 return 1.0
     return weight
 
@@ -285,9 +251,9 @@ def hold_untrusted(t_ns, omega, k, fitted, phi, h, window, fallbacks) -> None:
     ``½(ω_{k-1}+ω_k)h`` (``h`` (len(k), 1)), by the weight it gives each row; the intervals
     that fell back are appended to the list ``fallbacks`` (None: not collected)."""
     lam = untrusted_fits(t_ns, omega, k, fitted, window)
-    bad = np.flatnonzero(lam > 0.0) if lam is not None else np.zeros(0, dtype=np.intp)
-    if bad.size == 0:
+    if lam is None:
         return
+    bad = np.flatnonzero(lam)
     kb = k[bad]
     lb = lam[bad][:, None]
     phi[bad] = (1.0 - lb) * phi[bad] + lb * (0.5 * (omega[kb - 1] + omega[kb]) * h[bad])

@@ -20,11 +20,8 @@ _BEFORE = 2  # samples before the interval's left end in the centered window
 
 
 def bracket(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Lie bracket of body rates composed on the right (``q̇ = ½ q ⊗ ω``): ``[x, y] = −x × y``.
-
-    (For left-composed rates it would be ``+x × y``; with the wrong sign the sixth-order
-    step is wrong at first order in the commutator.)
-    """
+    """Lie bracket of body rates composed on the right (``q̇ = ½ q ⊗ ω``): ``[x, y] = −x × y``
+    (``+x × y`` for left-composed rates; the wrong sign errs at first order in the commutator)."""
     return np.cross(y, x)
 
 
@@ -35,8 +32,7 @@ def magnus6_rotation_vector(a1: np.ndarray, a2: np.ndarray, a3: np.ndarray,
 
     ``B1 = h A2``, ``B2 = (√15 h/3)(A3 − A1)``, ``B3 = (10 h/3)(A3 − 2 A2 + A1)``,
     ``Ω = B1 + B3/12 + (1/240)·[−20 B1 − B3 + [B1,B2], B2 − (1/60)·[B1, 2 B3 + [B1,B2]]]``.
-    Shapes (M, 3) with ``h`` (M, 1); ``q(t+h) = q(t) ⊗ exp(Ω)``.
-    """
+    Shapes (M, 3) with ``h`` (M, 1); ``q(t+h) = q(t) ⊗ exp(Ω)``."""
     b1 = h * a2
     b2 = (_S15 / 3.0) * h * (a3 - a1)
     b3 = (10.0 / 3.0) * h * (a3 - 2.0 * a2 + a1)
@@ -54,12 +50,10 @@ def quintic_window_start(k: np.ndarray, n_samples: int) -> np.ndarray:
 
 class Magnus6Quintic(Algorithm):
     """Sixth-order Magnus step on the centered quintic through six samples around the
-    interval, fitted in time (any spacing).  Offline: it uses two samples after the
-    interval, so it runs in batch (replay) only, vectorized in numpy (an offline replay
-    imports no numba): all increments at once, composed with a blocked prefix product.
-    Near the ends of the record the window is shifted inward (same degree, one-sided);
-    records of fewer than six samples use the polynomial through all of them.  Exact for
-    constant rate of any magnitude."""
+    interval (any spacing).  It uses two samples after the interval: batch (replay) only,
+    vectorized in numpy (an offline replay imports no numba), composed with a blocked prefix
+    product.  At the ends of the record the window shifts inward (one-sided, same degree);
+    fewer than six samples: the polynomial through all.  Exact for any constant rate."""
 
     causal = False
     checks_rate_fit = True
@@ -82,9 +76,8 @@ class Magnus6Quintic(Algorithm):
                 return b, None
             if rate_n.ndim == 1:
                 # A constant nav rate turns the frame about one fixed axis: the increments
-                # exp(−ω h_j) commute, and their product from the chunk's first interval is
-                # exp(−ω (t_k − t_k0−1)) in closed form (the span exact in int ns), with no
-                # scan and no rounding accumulated over the products.
+                # exp(−ω h_j) commute, and their product since the chunk's start is
+                # exp(−ω (t_k − t_k0−1)) in closed form (exact int ns span, no scan).
                 span = ((t[k] - t[k[0] - 1]) * 1e-9)[:, None]
                 return b, LeftPrefix(_exp_rotvec(-rate_n[None, :] * span))
             return b, _exp_rotvec(-nav_zeta(t, rate_n, k))
@@ -102,8 +95,7 @@ def _gathered_rates(t_ns, omega, k):
     """Gauss-point rates of intervals ``k`` with their (shifted) windows gathered row by row."""
     n_fit = min(_FIT_SAMPLES, t_ns.size)
     idx = quintic_window_start(k, t_ns.size)[:, None] + np.arange(n_fit)[None, :]
-    # Times relative to the interval's left end from int64 differences (no precision
-    # loss on long records); the Lagrange weights are ratios of these.
+    # times from the interval's left end as int64 differences (no precision lost on long records)
     x = (t_ns[idx] - t_ns[k - 1][:, None]) * 1e-9
     h = ((t_ns[k] - t_ns[k - 1]) * 1e-9)[:, None]
     return lagrange_eval(x, omega[idx], h * np.asarray(GAUSS3)[None, :])

@@ -1,18 +1,14 @@
-"""The estimator's modes as enums, parsed once at the boundary (parameter, flag, YAML).
-
-Each mode is a :class:`enum.StrEnum`: its values are the words users write (``gyro_bias: auto``),
-and :func:`parse_mode` turns a word into the member or raises a ``ValueError`` that names the
-setting and the allowed values.  Inside the package modes are compared as members
-(``cfg.gyro_bias is GyroBiasMode.AUTO``), never as strings.
-"""
+"""The estimator's modes as enums (their values the words users write, ``gyro_bias: auto``),
+parsed once at the boundary by :func:`parse_mode`; inside the package they are compared as
+members (``cfg.gyro_bias is GyroBiasMode.AUTO``), never as strings.  What each word means: the
+help of its row in the settings table."""
 
 from __future__ import annotations
 
 from enum import Enum, StrEnum
 
 __all__ = ["Aiding", "Estimator", "Frame", "GyroBiasMode", "HeadingSource", "InitialAttitudeSource",
-           "Phase", "WorldFrame",
-           "SettingError", "parse_mode"]
+           "Phase", "SettingError", "WorldFrame", "parse_mode"]
 
 
 class SettingError(ValueError):
@@ -24,17 +20,14 @@ class SettingError(ValueError):
 
 
 class Frame(StrEnum):
-    """What the estimator integrates: ``q_ib`` (inertial) or ``q_nb`` (ENU nav frame, Earth and
-    transport rate removed)."""
+    """What the estimator integrates: ``q_ib`` (inertial) or ``q_nb`` (ENU nav frame)."""
 
     INERTIAL = "inertial"
     ENU = "enu"
 
 
 class WorldFrame(StrEnum):
-    """The frame the published orientation is expressed in (core/attitude/world_frame.py):
-    ``enu`` (REP-103: x east, y north, z up), ``ned`` (x north, y east, z down), ``nwu``
-    (x north, y west, z up).  The body is the IMU's frame (header.frame_id) in every case."""
+    """The frame the published orientation is expressed in (core/attitude/world_frame.py)."""
 
     ENU = "enu"
     NED = "ned"
@@ -42,11 +35,8 @@ class WorldFrame(StrEnum):
 
 
 class InitialAttitudeSource(StrEnum):
-    """Where the initial attitude comes from: the ``initial_attitude`` setting, the truth topic
-    at the first accepted sample, levelling from the specific force over the first rest, or
-    the first accelerometer sample's tilt (an attitude from the first sample on).  ``auto``:
-    ``accelerometer`` when the aiding uses the accelerometer and ``initial_attitude`` is left at
-    the identity, ``parameter`` otherwise (:meth:`StreamConfig.start_source`)."""
+    """Where the initial attitude comes from (``auto`` resolved by
+    :attr:`StreamConfig.start_source`)."""
 
     AUTO = "auto"
     PARAMETER = "parameter"
@@ -71,11 +61,9 @@ class GyroBiasMode(StrEnum):
 
 
 class Aiding(StrEnum):
-    """Aiding of the integrated attitude: ``auto`` the AHRS filter of ahrs.py on the
-    accelerometer whenever the Imu carries one (gyro-only without); ``none``; ``tilt`` the AHRS
-    filter on the accelerometer alone (heading gyro-only); ``magnetometer`` the AHRS filter with
-    the magnetometer for heading; ``gravity`` retired (the older complementary filter, weaker
-    than ``tilt`` on every real recording): accepted, runs ``tilt`` and says so."""
+    """Aiding of the integrated attitude (the AHRS filter of ahrs.py; ``gravity``, the older
+    complementary filter weaker than ``tilt`` on every real recording, is retired: accepted,
+    runs ``tilt`` and says so)."""
 
     AUTO = "auto"
     NONE = "none"

@@ -1,64 +1,10 @@
 """Offline attitude over a whole recording: rests, bias and gravity from both sides of a sample.
 
-:func:`estimate_offline` is the non-causal estimator beside :meth:`.stream.AttitudeStream.run`:
-the same sample verdicts (:func:`.validation.classify`: bad samples skipped and counted, no
-integration across a gap, a backward time jump resets to ``q0``) and the same
-:class:`.stream.StreamResult`, but every attitude may use samples after it.  Each step is an
-array operation over chunks of ``chunk_samples`` accepted samples:
-
-1. **rests** (:func:`.rest.detect_rest` with the causal thresholds, per gap-free run with a
-   usable accelerometer): a sample rests when it is the newest of a rest window (the tail of
-   a motion is out: a window starting there may pass, and holding the attitude over it loses
-   the end of the turn) and is followed by a full window of rest (the gentle start of a
-   motion is out); a rest counts when the causal bias stage counts it (its windows' oldest
-   samples span ``min_rest_s``), so both find the same rests on even, jittered or irregular
-   stamps;
-2. **gyro bias per rest** (``gyro_bias="auto"``): the rest mean with standard error
-   ``√(σ²/n + K² T/3)`` (white noise plus the bias random walk ``K`` over the rest's length
-   ``T``), interpolated linearly in time between rests (the smoother of a random-walk bias
-   between two point estimates) and held before the first and after the last.  With a
-   latitude and an accelerometer the vertical Earth rate ``ω_ie sin L`` along the rest's
-   measured up is taken out of the mean (the horizontal part needs the heading; left in, it
-   tilts -- which gravity corrects -- but does not turn the heading);
-3. **integration** of ``ω − b(t)`` with the chosen algorithm, the attitude held at rests;
-4. **tilt from gravity** (any aiding): ``f_i = C(q) f_b`` points up plus the slowly drifting
-   gyro error plus the carrier's acceleration, whose mean over a few seconds is small.  It is
-   averaged zero-phase with the kernel ``e^(−|s_k − s_j|/τ)``, ``τ = offline_tilt_tau_s`` (a
-   first-order low-pass forward plus one backward), on a clock ``s`` that stops at rests: the
-   held attitude's error cannot change there, so a rest is no reason to trust the motion's
-   ends less.  Every usable sample weighs 1, no gate (a gate on ``| |f| − g |`` keeps the
-   samples whose norm crosses g during a translation, which point anywhere:
-   docs/real_sensors.md).  The smallest rotation taking the smoothed ``u`` to up is applied
-   on the left (integration frame), the heading untouched.  ``initial_attitude="level"``
-   without aiding takes that correction at every rest from the rest's mean specific force,
-   interpolated in time between rests (the initial roll and pitch from the first rest);
-5. **covariance** per output axis: the gyro-only error ``δθ(t) = ∫ C_nb (δb + E ω + n) dτ``
-   over the motion (``E`` the gyro's 3×3 gain-and-axes error, each element of 1σ
-   ``gyro_scale_factor_sigma``: ``var_k += σ² Σ_mn (∫ C[k,m] ω_n dτ)²``).  The interpolated
-   bias ``δb = (1 − w) δb_j + w δb_{j+1}`` gives ``Σ_j M_j(t) δb_j``, ``M_j = ∫ C_nb φ_j dτ``
-   (``φ_j`` the interpolation weights), so ``var_k = Σ_j Σ_m SE_{j,m}² M_j[k,m]²`` plus the
-   angle random walk ``Σ C[k,m]² σ_m² dt²`` plus the random walk's bridge ``K²(s³/3 −
-   s⁴/4T)`` (``s`` motion time since the rest, ``T`` to the next).  The heading keeps it; the
-   tilt axes take, where gravity is used, ``(σ_ba/g)² + σ_f²/(g² n_eff)`` with ``n_eff = (Σ k
-   w)²/Σ k² w²`` the samples the smoother averages (``k`` its kernel, ``w`` the weights) and
-   ``σ_f²`` the accelerometer's scatter at rest, or the levelling variance at rests with the
-   gyro-only growth bridged between them.  The gyro noise ``σ_ω`` comes from the messages'
-   ``angular_velocity_covariance``, else ``gyro_noise_density``, else the rests' scatter;
-6. **heading from the magnetometer** (``aiding="magnetometer"``): the field less
-   ``mag_hard_iron_t`` in the tilt-corrected output frame counts (weight 1) when its norm is
-   within ``mag_norm_tol`` of the reference and its dip within ``mag_dip_tol_deg``
-   (reference: ``mag_reference_enu_t``, or the medians over the recording -- a disturbance
-   covering less than half of it cannot become the reference); its horizontal direction,
-   turned by ``magnetic_declination_deg``, is smoothed as in step 4 (``offline_mag_tau_s``)
-   and the smoothed azimuth is the heading error, taken out about the vertical.  A disturbed
-   stretch weighs 0: the smoother bridges it from the field on both sides and the gyro, with
-   no jump toward a false north.  Heading variance: the azimuth scatter over ``n_eff`` plus
-   the tilt error about north seen through the dip (``tan²(dip) var_N``).  Not done offline:
-   hard-iron estimation, reference replacement after a lasting change (``mag_recovery_s``).
-
-Time jumps split the recording into blocks estimated independently; gaps are held across.
-Memory: the outputs plus O(``chunk_samples``) working arrays (the forward low-pass keeps its
-state at chunk starts and is recomputed chunk by chunk in the backward pass).
+:func:`estimate_offline` is the non-causal estimator beside :meth:`.stream.AttitudeStream.run`
+(the same sample verdicts and :class:`.stream.StreamResult`), an array operation over chunks
+of accepted samples per step: 1. rests, 2. gyro bias per rest, 3. integration, 4. tilt from
+gravity, 5. covariance, 6. heading from the magnetometer (docs/architecture.md, "Notes:
+offline estimator": each step's rule and why).
 """
 
 from __future__ import annotations
@@ -70,43 +16,17 @@ import numpy as np
 
 from gyro_attitude.core.angles import wrap_2pi
 from gyro_attitude.core.attitude import NavFrame, integrate_batch
+from gyro_attitude.core.attitude import stream as st
 from gyro_attitude.core.attitude import validation as v
 from gyro_attitude.core.attitude.ahrs import MAG_ABSURD_T, MAG_ZERO_T
 from gyro_attitude.core.attitude.alignment import AlignmentResult, heading_of, level_quaternion
 from gyro_attitude.core.attitude.chain import SATURATION_MIN_RAD_S, SATURATION_PLATEAU_NS
 from gyro_attitude.core.attitude.gyro_bias import GyroBiasReport
-from gyro_attitude.core.attitude.modes import (
-    Aiding,
-    Frame,
-    GyroBiasMode,
-    HeadingSource,
-)
+from gyro_attitude.core.attitude.modes import Aiding, Frame, GyroBiasMode, HeadingSource
 from gyro_attitude.core.attitude.registry import DEFAULT_ALGORITHM
 from gyro_attitude.core.attitude.rest import NOISE_FLOOR_RAD_S, detect_rest, true_runs
 from gyro_attitude.core.attitude.sample_clock import sample_clock
 from gyro_attitude.core.attitude.settings import StreamConfig
-from gyro_attitude.core.attitude.stream import (
-    INTEGRATOR_ERROR,
-    INVALID_ACCEL,
-    INVALID_COVARIANCE,
-    INVALID_MAG,
-    MAG_DISTURBED,
-    MAG_MISSING,
-    RATE_FIT_FALLBACK,
-    SATURATED,
-    START_NOTE,
-    StreamResult,
-    _unit_quat,
-    aiding_note,
-    covariance_rows,
-    nav_rows,
-    rate_fit_note,
-    recording_arrays,
-    rows,
-    saturation_note,
-    starts_from_accelerometer,
-    usable_accel,
-)
 from gyro_attitude.core.earth import OMEGA_IE, STANDARD_GRAVITY
 from gyro_attitude.core.rotation import (
     _qmul,
@@ -138,11 +58,9 @@ _IDENTITY = np.array([0.0, 0.0, 0.0, 1.0])
 
 @dataclass
 class FieldReference:
-    """The magnetometer reference of the offline heading pass (what replay's summary shows,
-    named as the causal aiding stage names it): norm (T) and dip (rad, positive down) given by
-    ``mag_reference_enu_t`` or learned as the medians over the recording; the hard iron used;
-    the offline pass never replaces its reference (``mag_reference_changes`` 0) and rejects no
-    acceleration (``accel_rejected`` None: the tilt uses every sample, see step 4)."""
+    """The heading pass's magnetometer reference, named as the causal aiding stage names it
+    (replay's summary): norm (T) and dip (rad, down) given or learned, the hard iron used; never
+    replaced (``mag_reference_changes`` 0), no acceleration rejected (the tilt uses every sample)."""
 
     mag_ref_norm: float | None = None
     mag_ref_dip: float | None = None
@@ -189,20 +107,16 @@ def _mean_var(x: np.ndarray, lo: int, hi: int, size: int) -> tuple[np.ndarray, n
     return mean, var
 
 
-def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, params: dict,
+def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, cfg,
                window_ns: int, min_ns: int, size: int, out: np.ndarray, zeros) -> None:
-    """Mark in ``out`` the rows of one gap-free run that rest (module docstring, step 1): the
-    newest sample of a rest window, followed by a full window of rest (between the oldest
-    samples of the first and the last window of a run of rest windows) whose oldest samples
+    """Mark in ``out`` the rows of one gap-free run that rest (step 1): the newest sample of a
+    rest window, followed by a full window of rest, in runs of rest windows whose oldest samples
     span ``min_ns`` (the causal bias stage's test).  ``zeros(n, dtype)`` allocates the flags.
-
-    A window at rest has ``|mean ω_i| <= gyro_mean_max`` on every axis and spread
-    ``<= gyro_std_max``, so the mean of ``|ω|²`` over it is at most ``3 gyro_mean_max² +
-    gyro_std_max²``: windows above that (motion) are skipped with one cumulative sum, and
-    :func:`.rest.detect_rest` runs, in chunks carrying one window of history, only over the
-    stretches that may hold a rest."""
+    A window at rest has a mean of ``|ω|²`` of at most ``3 gyro_mean_max² + gyro_std_max²``:
+    the windows above (motion) are skipped with one cumulative sum, and
+    :func:`.rest.detect_rest` runs only over the stretches that may hold a rest."""
     n = t.size
-    bound = (3.0 * params["gyro_mean_max"] ** 2 + params["gyro_std_max"] ** 2) \
+    bound = (3.0 * cfg.rest_gyro_mean_max ** 2 + cfg.rest_gyro_std_max ** 2) \
         * (1 + 1e-9) + 1e-300
     cand = zeros(n, bool)
     for c0, c1 in _chunks(0, n, size):
@@ -221,29 +135,30 @@ def _rest_mask(t: np.ndarray, w: np.ndarray, a: np.ndarray | None, params: dict,
             p = 0 if c0 == 0 else max(0, int(np.searchsorted(t[:c0], t[c0] - window_ns)) - 1)
             if c1 - p < 2:
                 continue
-            rw = detect_rest(t[p:c1], w[p:c1], None if a is None else a[p:c1], **params)
+            rw = detect_rest(t[p:c1], w[p:c1], None if a is None else a[p:c1], cfg, NOISE_FLOOR_RAD_S)
             kk = np.flatnonzero(rw.at_rest[c0 - p:]) + (c0 - p)
             if p != 0:  # not starting the run: 'full' counts from the run's first sample
                 kk = kk[t[p + kk] - t[0] >= window_ns]
             newest[p + kk] = True
     # Followed by a full window of rest: every sample from the oldest of a run's first rest
-    # window to the oldest of its last.  On even stamps consecutive windows have consecutive
-    # oldest samples; on jittered or irregular stamps a window may drop two old samples at
-    # once, and the one skipped is still followed by a window of rest (marking only the
-    # windows' oldest samples left holes there, and no rest reached min_ns).
+    # window to the oldest of its last (on uneven stamps a window may drop two old samples at
+    # once: the one skipped is still followed by a window of rest).
     e0, e1 = true_runs(newest)
     o0 = np.searchsorted(t, t[e0] - window_ns, side="left")
     o1 = np.searchsorted(t, t[e1 - 1] - window_ns, side="left")
     keep = t[o1] - t[o0] >= min_ns  # the causal stage's span of the same rest
-    # at rest: followed by a full window of rest (the gentle start of a motion is out) and
-    # preceded by one (so is the tail of a motion, which a window starting there can pass),
-    # both by windows of the same run: [e0, o1] (o0 < e0 and o1 < e1).  A run the causal
-    # stage does not count marks nothing, not even where a counted run's windows follow it:
-    # intersecting all runs' newest samples with the counted runs' followed ones made a
-    # flickering rest edge (an accelerometer near the norm tolerance) into extra rests the
-    # causal stage never counted (9 against 7 at 125 Hz with |f| 5 % above g)
+    # at rest: preceded and followed by a window of rest of the same run, [e0, o1]; a run the
+    # causal stage does not count marks nothing (else a flickering rest edge next to a counted
+    # run made rests the causal stage never counted: 9 against 7 at 125 Hz, |f| 5 % above g)
     for a, b in zip(e0[keep].tolist(), o1[keep].tolist(), strict=True):
         out[a:b + 1] = True
+
+
+def _with_standard_errors(rests: list[OfflineRest], k2: float) -> list[OfflineRest]:
+    """The rests with their bias's standard error ``√(σ²/n + K² T/3)`` (white noise plus the bias
+    walk of density² ``k2`` over the rest's length)."""
+    return [replace(r, standard_error=np.sqrt(r.gyro_var / (r.stop - r.start)
+                                              + k2 * r.duration_s / 3.0)) for r in rests]
 
 
 def _segments(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -310,78 +225,72 @@ def estimate_offline(t_ns, omega, accel=None, *, config: StreamConfig | None = N
                      q0=None, nav: NavFrame | None = None, mag=None,
                      frame_id: str | list[str] | None = "", angular_velocity_covariance=None,
                      algorithm: str = DEFAULT_ALGORITHM,
-                     chunk_samples: int = DEFAULT_CHUNK_SAMPLES, empty=np.empty) -> StreamResult:
-    """Attitudes of a whole recording, non-causally (see the module docstring).
-
-    ``t_ns`` (N,) int stamps; ``omega`` (N, 3) rad/s; ``accel`` (N, 3) m/s² specific force or
-    None (gyro-only: no levelling, no aiding, rests from the gyro alone); ``config`` the stream
-    settings (bias mode, rest thresholds, ``initial_attitude``, ``aiding``, noise figures);
-    ``q0`` the initial attitude (``level``: its heading is ``initial_heading_deg``; None:
-    ``initial_attitude``, whose tilt the first accelerometer sample replaces when
-    :func:`.stream.starts_from_accelerometer`); ``nav`` a
-    constant :class:`NavFrame` for q_nb or None for q_ib; ``mag`` (N, 3) the magnetic field in
-    tesla at the samples (rows of NaN: none there), used with ``aiding="magnetometer"`` (step 6);
-    ``angular_velocity_covariance`` (N, 9) or None.  ``empty(shape, dtype)`` allocates the
-    result's arrays of the recording's length (default ``np.empty``; a caller may give
-    file-backed ones).  Raises ValueError on malformed input and when
-    ``initial_attitude="level"`` finds no rest to level on.
-    """
+                     chunk_samples: int = DEFAULT_CHUNK_SAMPLES, empty=np.empty) -> st.StreamResult:
+    """Attitudes of a whole recording, non-causally.  ``t_ns`` (N,) int stamps; ``omega`` (N, 3)
+    rad/s; ``accel`` (N, 3) m/s² or None (gyro-only: rests from the gyro alone, no levelling,
+    no aiding); ``q0`` the initial attitude (None: ``initial_attitude``, whose tilt the first
+    accelerometer sample replaces when :func:`.stream.starts_from_accelerometer`); ``nav`` a
+    constant :class:`NavFrame` for q_nb or None for q_ib; ``mag`` (N, 3) T (rows of NaN: none
+    there), used with ``aiding="magnetometer"``; ``angular_velocity_covariance`` (N, 9) or
+    None.  ``empty(shape, dtype)`` allocates the arrays of the recording's length (a caller may
+    give file-backed ones).  ValueError on malformed input and when ``initial_attitude="level"``
+    finds no rest to level on."""
     cfg, nav = _checked_arguments(config, nav, chunk_samples)
-    q_init = _unit_quat(cfg.initial_attitude if q0 is None else q0)
+    q_init = st._unit_quat(cfg.initial_attitude if q0 is None else q0)
     t = np.asarray(t_ns)
     w = np.asarray(omega, dtype=np.float64)
-    cls = v.classify(t, w, frame_id, v.ImuCheckConfig.of(cfg))  # checks t and omega shapes
+    cls = v.classify(t, w, frame_id, cfg)  # checks t and omega shapes
     n = w.shape[0]
     t = t.astype(np.int64, copy=False)
-    cov, acc = recording_arrays(n, angular_velocity_covariance, accel)
+    cov, acc = st.recording_arrays(n, angular_velocity_covariance, accel)
     act = cls.action
     valid = v.accepted_rows(act, empty, chunk_samples)
-    counts = {**cls.counts, v.MISSING_SAMPLES: cls.missing_samples, INVALID_COVARIANCE: 0,
-              INVALID_ACCEL: 0, INTEGRATOR_ERROR: 0, SATURATED: 0,
-              RATE_FIT_FALLBACK: 0}
+    counts = {**cls.counts, v.MISSING_SAMPLES: cls.missing_samples, st.INVALID_COVARIANCE: 0,
+              st.INVALID_ACCEL: 0, st.INTEGRATOR_ERROR: 0, st.SATURATED: 0,
+              st.RATE_FIT_FALLBACK: 0}
     details = dict(cls.details)
-    tv = rows(t, valid, empty)
-    wv = rows(w, valid, empty)
+    tv = st.rows(t, valid, empty)
+    wv = st.rows(w, valid, empty)
     av, usable = _accel_rows(acc, valid, empty, counts, details)
-    start_notes = [aiding_note(cfg, av is not None)] if cfg.aided else []
-    if starts_from_accelerometer(cfg, q0) and av is not None:
+    start_notes = [st.aiding_note(cfg, av is not None)] if cfg.aided else []
+    if st.starts_from_accelerometer(cfg, q0) and av is not None:
         # as the causal step starts (chain.level_from_first): the first usable sample's tilt
         heading = heading_of(q_init)
         q_init, _, _ = level_quaternion(av[int(np.argmax(usable))], heading)
-        start_notes.append(START_NOTE.format(math.degrees(heading)))
+        start_notes.append(st.START_NOTE.format(math.degrees(heading)))
     mv = _mag_rows(cfg, mag, n, valid, empty)
     sig2 = None  # per-row gyro variance (M, 3) from the messages, where known
     if cov is not None:
-        var_v, known_v = covariance_rows(cov, valid, counts, details)
+        var_v, known_v = st.covariance_rows(cov, valid, counts, details)
         if known_v.any():
             sig2 = (var_v, known_v)
     if nav is not None and nav.series_length() is not None:
         if nav.series_length() != n:
             raise ValueError(f"nav time series must have one row per sample ({n}), got "
                              f"{nav.series_length()}")
-        nav = nav_rows(nav, valid, n)  # (a velocity schedule: one row per accepted sample)
+        nav = st.nav_rows(nav, valid, n)  # (a velocity schedule: one row per accepted sample)
     # saturated samples: counted as the causal path counts them
     count_saturated(tv, wv, counts, details, chunk_samples)
     est = _Estimator(cfg, q_init, nav, algorithm, chunk_samples, tv, wv, av, usable, sig2,
-                     rows(act, valid), mv, empty)
+                     st.rows(act, valid), mv, empty)
     q_out, var_out, known_out = est.run()
     fell_back = np.concatenate(est.fit_fallbacks) if est.fit_fallbacks else np.zeros(0, int)
-    counts[RATE_FIT_FALLBACK] = int(fell_back.size)
+    counts[st.RATE_FIT_FALLBACK] = int(fell_back.size)
     if fell_back.size:
-        details.setdefault(RATE_FIT_FALLBACK, rate_fit_note(int(tv[int(fell_back.min())])))
+        details.setdefault(st.RATE_FIT_FALLBACK, st.rate_fit_note(int(tv[int(fell_back.min())])))
     notes = est.notes
     if cfg.aiding is Aiding.MAGNETOMETER:
         if mv is None:
-            est.mag_counts[MAG_MISSING] = valid.size
+            est.mag_counts[st.MAG_MISSING] = valid.size
         counts.update(est.mag_counts)
-        for key in (INVALID_MAG, MAG_DISTURBED, MAG_MISSING):
+        for key in (st.INVALID_MAG, st.MAG_DISTURBED, st.MAG_MISSING):
             if counts[key]:
                 details.setdefault(key, _MAG_DETAILS[key])
     if av is None:
         notes.insert(0, "no accelerometer: gyro-only offline estimation (rests from the gyro, "
                      "no levelling, no tilt aiding)")
-    res = StreamResult(valid, q_out, var_out, known_out, act, counts, cls.time_jump_resets,
-                       details, est.bias_report(), est.alignment, notes=start_notes + notes)
+    res = st.StreamResult(valid, q_out, var_out, known_out, act, counts, cls.time_jump_resets,
+                          details, est.bias_report(), est.alignment, notes=start_notes + notes)
     res.field_reference = est.field_reference  # None unless aiding magnetometer
     return res
 
@@ -410,13 +319,13 @@ def _accel_rows(acc, valid, empty, counts, details):
     no usable one; the unusable ones counted (``invalid_accel``) with the first's detail."""
     if acc is None:
         return None, None
-    av = rows(acc, valid, empty)
-    usable = usable_accel(av)
-    counts[INVALID_ACCEL] = int(valid.size - np.count_nonzero(usable))
-    if counts[INVALID_ACCEL]:
+    av = st.rows(acc, valid, empty)
+    usable = st.usable_accel(av)
+    counts[st.INVALID_ACCEL] = int(valid.size - np.count_nonzero(usable))
+    if counts[st.INVALID_ACCEL]:
         k = int(np.flatnonzero(~usable)[0])
-        details.setdefault(INVALID_ACCEL, f"linear_acceleration {av[k].tolist()} is not "
-                           "finite or absurd: not used for rests, levelling or aiding")
+        details.setdefault(st.INVALID_ACCEL, f"linear_acceleration {av[k].tolist()} is not "
+                              "finite or absurd: not used for rests, levelling or aiding")
     if not usable.any():
         return None, None
     return av, usable
@@ -429,24 +338,21 @@ def _mag_rows(cfg, mag, n, valid, empty):
     mag = np.asarray(mag, dtype=np.float64)
     if mag.shape != (n, 3):
         raise ValueError(f"mag must have shape ({n}, 3), got {mag.shape}")
-    return rows(mag, valid, empty)
+    return st.rows(mag, valid, empty)
 
 
 # the magnetometer's counts (aiding magnetometer) and the detail of each that occurred
-_MAG_DETAILS = {MAG_MISSING: "no magnetic field sample for these Imu samples",
-                INVALID_MAG: "a magnetic field sample not finite, beyond 10 mT or below 0.1 µT",
-                MAG_DISTURBED: "a field whose norm or dip is off the reference"}
+_MAG_DETAILS = {st.MAG_MISSING: "no magnetic field sample for these Imu samples",
+                st.INVALID_MAG: "a magnetic field sample not finite, beyond 10 mT or below 0.1 µT",
+                st.MAG_DISTURBED: "a field whose norm or dip is off the reference"}
 
 
 class _BiasTerms:
-    """The bias estimate's share of the offline covariance, block by block along the
-    recording (module docstring, step 5): the error of the bias interpolated between the rests'
-    estimates (their standard errors, weighted by the interpolation), and the bias random walk
-    (``k2``), which acts on the attitude only while it is integrated (not while it is held at
-    rests): its terms run on the motion clock.  Interval s: before rest 0 (s = 0), between
-    rests s-1 and s, after the last (s = nr); rest s-1's lever grows with weight 1 − w there
-    (``m_fall``), rest s's with w (``m_rise``).  ``rests`` None: one bias of 1σ ``sigma`` held
-    throughout."""
+    """The bias's share of the covariance (step 5), block by block: the error of the bias
+    interpolated between the rests' estimates, and the bias random walk (``k2``), on the motion
+    clock (it acts only while the attitude is integrated).  Interval s: before rest 0 (s = 0),
+    between rests s-1 and s, after the last (s = nr); rest s-1's lever grows with weight 1 − w
+    there (``m_fall``), rest s's with w (``m_rise``).  ``rests`` None: one bias of 1σ ``sigma``."""
 
     def __init__(self, rests, sigma: float, k2: float):
         self.rests, self.k2 = rests, k2
@@ -470,8 +376,7 @@ class _BiasTerms:
         self.j = 0
 
     def blocks(self, c, dtb, tr) -> np.ndarray:
-        """The terms after each block (C_nb ``c``, motion time ``dtb`` and bias-clock ``tr``
-        per block; ``tr`` is monotonic)."""
+        """The terms after each block (C_nb ``c``, motion time ``dtb``, rising bias clock ``tr``)."""
         mc = self.mclock + np.cumsum(dtb)  # motion clock after each block
         self.mclock = float(mc[-1])
         seg = np.searchsorted(self.x, tr, side="right")  # interval per block
@@ -525,8 +430,7 @@ class _BiasTerms:
 
 
 class _Estimator:
-    """The passes of :func:`estimate_offline` over the accepted rows (visible state: the rests
-    found, the notes, the alignment)."""
+    """The passes of :func:`estimate_offline` over the accepted rows."""
 
     def __init__(self, cfg, q_init, nav, algorithm, size, t, w, a, usable, sig2, act, mag=None,
                  empty=np.empty):
@@ -592,8 +496,7 @@ class _Estimator:
         self._integrate(b0, runs, held, rests, tau, q_start, q_out)
         self._covariance(b0, b1, held, rests, tau, q_out, var_out, tt0)
         if self.a is not None and cfg.aiding is not Aiding.NONE:
-            # gravity, tilt, magnetometer: the tilt from gravity of step 4 (the offline chain
-            # has one tilt method; the causal filters' differences are causal remedies)
+            # every aiding: step 4 (the causal filters' differences are causal remedies)
             self._tilt_from_gravity(b0, b1, held, q_out, var_out)
         elif self.a is not None and cfg.levelling:
             self._level_at_rests(b0, b1, rests, tau, q_out)
@@ -605,9 +508,9 @@ class _Estimator:
                 self._aligned_heading_from_field(b0, b1, q_out)
 
     def _level_start(self, b0, rests):
-        """(attitude, tilt variance) a block starts from with ``initial_attitude`` level:
-        levelled on its first rest with an accelerometer (the recording's first is the
-        alignment), else (a block after a time jump without one) the alignment's."""
+        """(attitude, tilt variance) a block starts from with ``initial_attitude`` level: its
+        first rest with an accelerometer (the recording's first is the alignment), else the
+        alignment's."""
         cfg = self.cfg
         r0 = next((r for r in rests if np.isfinite(r.accel_mean).all()), None)
         if r0 is None and self.alignment is None:
@@ -642,7 +545,6 @@ class _Estimator:
 
     # ------------------------------------------------------------------ 1. rests
     def _find_rests(self, b0, runs, rest):
-        params = {"gyro_std_min": NOISE_FLOOR_RAD_S, **self.cfg.rest_params()}
         t, w, a, ok = self.t, self.w, self.a, self.usable
         min_ns = int(round(self.cfg.min_rest_s * 1e9))
         for r0, r1 in runs:
@@ -651,31 +553,29 @@ class _Estimator:
                 pieces = [(r0 + p, r0 + q) for p, q in _segments(ok[r0:r1])]
             for p0, p1 in pieces:
                 if p1 - p0 >= 2:
-                    _rest_mask(t[p0:p1], w[p0:p1], None if a is None else a[p0:p1], params,
+                    _rest_mask(t[p0:p1], w[p0:p1], None if a is None else a[p0:p1], self.cfg,
                                self.window_ns, min_ns, self.size, rest[p0 - b0:p1 - b0],
                                self._zeros)
 
     def _rest_stats(self, b0, b1, rest, tau) -> list[OfflineRest]:
         cfg = self.cfg
         out = []
-        k2 = cfg.gyro_bias_rw ** 2
         for s0, s1 in _segments(rest):
             if s1 - s0 < 3:  # (the span min_rest_s was tested on the rest as a whole)
                 rest[s0:s1] = False  # too short to count: not a rest for any step
                 continue
             mean_w, var_w = _mean_var(self.w, b0 + s0, b0 + s1, self.size)
-            n = s1 - s0
-            dur = float(tau[s1 - 1] - tau[s0])
-            se = np.sqrt(var_w / n + k2 * dur / 3.0)
             mean_f = var_f = np.full(3, np.nan)
             if self.a is not None and self.usable[b0 + s0:b0 + s1].all():
                 mean_f, var_f = _mean_var(self.a, b0 + s0, b0 + s1, self.size)
-                if self.latitude is not None:
-                    # the vertical Earth rate along the measured up (module docstring, step 2)
+                if self.latitude is not None:  # the vertical Earth rate along the measured up
                     up = mean_f / np.linalg.norm(mean_f)
                     mean_w = mean_w - OMEGA_IE * math.sin(self.latitude) * up
-            out.append(OfflineRest(s0, s1, float(0.5 * (tau[s0] + tau[s1 - 1])), dur, mean_w, se,
-                                   mean_f, var_f, var_w))
+            out.append(OfflineRest(s0, s1, float(0.5 * (tau[s0] + tau[s1 - 1])),
+                                   float(tau[s1 - 1] - tau[s0]), mean_w, None, mean_f, var_f,
+                                   var_w))
+        k2 = cfg.gyro_bias_rw ** 2
+        out = _with_standard_errors(out, k2)
         # The rests' means differ by more than their white-noise errors when the bias wanders
         # (MEMS: temperature, flicker): the random walk K that explains the differences of
         # neighbouring rests, E[Δb²] = SE_j² + SE_{j+1}² + K² Δt, when it exceeds the stated one.
@@ -688,9 +588,7 @@ class _Estimator:
                 k2 = k2_seen
                 self.notes.append(f"bias random walk {math.sqrt(k2):.2g} rad/s/√s from the "
                                   f"differences between the {len(out)} rests")
-                out = [replace(r, standard_error=np.sqrt(r.gyro_var / (r.stop - r.start)
-                                                         + k2 * r.duration_s / 3.0))
-                       for r in out]
+                out = _with_standard_errors(out, k2)
         self.k2 = max(k2, self.k2)
         return out
 
@@ -724,18 +622,16 @@ class _Estimator:
                 q_prev = q_out[p1 - 1]
 
     def _integrate_piece(self, b0, first, p0, p1, rests, tau, q_out):
-        """Rows ``p0:p1`` integrated from the attitude at row ``first`` (``p0``, or the row
-        before it) in chunks.  Higher-order algorithms take each interval's increment from
-        neighbouring samples: a chunk runs _OVERLAP rows into its neighbours and, after the
-        first, is re-anchored at its first row (the attitude there came from the chunk
-        before, with both sides' samples), so chunks join as one run does."""
+        """Rows ``p0:p1`` from the attitude at row ``first`` (``p0`` or the row before), in
+        chunks that reach _OVERLAP rows into their neighbours (the higher-order fits' samples)
+        and are re-anchored at their first row, so that they join as one run does."""
         anchor = None  # the attitude at the chunk's first row, from the chunk before
         for c0, c1 in _chunks(p0, p1, self.size):
             lo, hi = max(first, c0 - _OVERLAP), min(p1, c1 + _OVERLAP)
             if hi - lo == 1:  # a run of one row: nothing to integrate
                 continue
             wc = self.w[lo:hi] - self._bias_rows(rests, tau[lo - b0:hi - b0])
-            nav = self.nav if self.nav_series is None else nav_rows(
+            nav = self.nav if self.nav_series is None else st.nav_rows(
                 self.nav, np.arange(lo, hi), self.nav_series)
             fb = []
             q = integrate_batch(self.t_clock[lo:hi], wc, q0=q_out[lo], algorithm=self.algorithm,
@@ -763,15 +659,16 @@ class _Estimator:
         return ds
 
     def _zero_phase(self, b0, b1, tau_s, columns, apply, still=None):
-        """The chain's one zero-phase smoother: the columns ``columns(c0, c1)`` (rows, K), the
-        last the sample's weight ``w``, averaged with the kernel ``e^(−|s_k − s_j|/τ)`` on the
-        clock of :meth:`_clock_steps` as a first-order low-pass forward plus one backward
-        (``Σ_{j≤k} + Σ_{j≥k} −`` the row itself).  ``apply(c0, c1, sm, n_eff)`` gets each
-        chunk, last first: the columns scaled so that the weight column is 1 with every weight
-        1 on even stamps, and ``n_eff = (Σ k w)² / Σ k² w²`` (4τ/dt on even stamps).  The
-        forward pass keeps its state at chunk starts (and its output while the block is
-        short); the backward pass recomputes a chunk's forward part before ``apply`` of that
-        chunk, so ``columns`` may read what ``apply`` of later chunks changed."""
+        """The chain's one zero-phase smoother: the columns of ``columns(c0, c1)`` → (x (rows,
+        K), extra), the last the sample's weight ``w``, averaged with the kernel
+        ``e^(−|s_k − s_j|/τ)`` on the clock of :meth:`_clock_steps` as a first-order low-pass
+        forward plus one backward (``Σ_{j≤k} + Σ_{j≥k} −`` the row itself).
+        ``apply(c0, c1, sm, n_eff, extra)`` gets each chunk, last first: the columns scaled so
+        that the weight column is 1 with every weight 1 on even stamps, and ``n_eff = (Σ k w)² /
+        Σ k² w²`` (4τ/dt on even stamps).  The forward pass keeps its state at chunk starts (and
+        its output while the block is short); the backward pass recomputes a chunk's forward
+        part before ``apply`` of that chunk, so ``columns`` may read what ``apply`` of later
+        chunks changed."""
         t = self.t
         dt = float(np.median(np.diff(t[b0:min(b1, b0 + 100_000)]))) * 1e-9 if b1 - b0 > 1 else 0.01
         alpha = math.exp(-max(dt, 1e-9) / tau_s)
@@ -779,10 +676,11 @@ class _Estimator:
         chunks = list(_chunks(b0, b1, self.size))
         keep = b1 - b0 <= _KEEP_FORWARD
 
-        def rows(c0, c1):
+        def chunk_rows(c0, c1):
             """The columns and the squared weight (it rides with the squared kernel, τ/2)."""
-            x = columns(c0, c1)
-            return np.column_stack((x, x[:, -1] * x[:, -1])), self._clock_steps(b0, c0, c1, still)
+            x, extra = columns(c0, c1)
+            return (np.column_stack((x, x[:, -1] * x[:, -1])), self._clock_steps(b0, c0, c1, still),
+                    extra)
 
         half = 0.5 * tau_s
 
@@ -798,14 +696,14 @@ class _Estimator:
         states, kept = [], []
         for c0, c1 in chunks:  # forward
             states.append(z)
-            x, ds = rows(c0, c1)
-            _, z = run(ds, x, z)
-            kept.append((x, ds) if keep else None)
+            xk = chunk_rows(c0, c1)
+            _, z = run(xk[1], xk[0], z)
+            kept.append(xk if keep else None)
         zb = None
         ds_next = 0.0  # the clock step into the row after the chunk (none after the block)
         for (c0, c1), zi, xk in zip(reversed(chunks), reversed(states), reversed(kept),
                                     strict=True):
-            x, ds = xk if xk is not None else rows(c0, c1)
+            x, ds, extra = xk if xk is not None else chunk_rows(c0, c1)
             fwd, _ = run(ds, x, zi)
             # backward: the step from each row to the next, rows reversed
             yb, zb = run(np.concatenate(([ds_next], ds[:0:-1])), x[::-1], zb)
@@ -813,10 +711,10 @@ class _Estimator:
             sm = fwd + yb[::-1] - x  # Σ_{j≤k} + Σ_{j≥k} − the row itself
             s2, sw = sm[:, -1], sm[:, -2]
             n_eff = np.divide(sw * sw, s2, out=np.zeros_like(s2), where=s2 > 0.0)
-            apply(c0, c1, sm[:, :-1] * scale, n_eff)
+            apply(c0, c1, sm[:, :-1] * scale, n_eff, extra)
 
     def _tilt_from_gravity(self, b0, b1, held, q_out, var_out):
-        """Step 4 of the module docstring, in place; the smoother's clock stops at ``held``."""
+        """Step 4, in place; the smoother's clock stops at ``held``."""
         cfg = self.cfg
         g0 = STANDARD_GRAVITY
         noise = [r.accel_var for r in self.rests if np.isfinite(r.accel_var).all()]
@@ -832,13 +730,12 @@ class _Estimator:
                 wt = self.usable[c0:c1]
                 x[:, :3] = _qrot(q_out[c0:c1], np.where(wt[:, None], self.a[c0:c1], 0.0))
                 x[:, 3] = wt
-            return x
+            return x, None
 
-        def apply(c0, c1, sm, n_eff):
+        def apply(c0, c1, sm, n_eff, _):
             den = sm[:, 3]
             okd = den > 1e-12
-            # the smallest rotation taking the smoothed f_i to up (scale-free: Σ w f_i needs no
-            # division by Σ w)
+            # the smallest rotation taking the smoothed f_i to up (Σ w f_i: scale-free)
             u = np.where(okd[:, None], sm[:, :3], (0.0, 0.0, 1.0))
             q_out[c0:c1] = _level_left(u, q_out[c0:c1])
             # the accelerometer-bias floor plus its noise over the samples averaged
@@ -865,10 +762,10 @@ class _Estimator:
     def _count_field(self, ok, missing, good=None):
         """A chunk's field samples counted: missing, invalid (neither ``ok`` nor missing) and,
         with the reference's verdict ``good``, disturbed (``ok`` and not ``good``)."""
-        self.mag_counts[MAG_MISSING] += int(np.count_nonzero(missing))
-        self.mag_counts[INVALID_MAG] += int(np.count_nonzero(~ok & ~missing))
+        self.mag_counts[st.MAG_MISSING] += int(np.count_nonzero(missing))
+        self.mag_counts[st.INVALID_MAG] += int(np.count_nonzero(~ok & ~missing))
         if good is not None:
-            self.mag_counts[MAG_DISTURBED] += int(np.count_nonzero(ok & ~good))
+            self.mag_counts[st.MAG_DISTURBED] += int(np.count_nonzero(ok & ~good))
 
     def _field_reference(self, b0, b1, q_out) -> FieldReference:
         """Norm and dip of the undisturbed field: ``mag_reference_enu_t`` when given, else the
@@ -895,12 +792,9 @@ class _Estimator:
         return ref
 
     def _heading_from_field(self, b0, b1, q_out, var_out):
-        """Heading from the magnetometer, non-causally (module docstring, step 6): the field in
-        the tilt-corrected output frame, its horizontal direction less the declination
-        low-passed zero-phase with weight 1 where the field agrees with the reference (norm
-        within ``mag_norm_tol``, dip within ``mag_dip_tol_deg``) and 0 elsewhere; the
-        azimuth of the smoothed direction is the heading error, taken out about the vertical
-        (left, output frame: the tilt is untouched)."""
+        """Step 6: the field's horizontal direction in the tilt-corrected output frame, less the
+        declination, smoothed zero-phase with weight 1 where the field agrees with the reference;
+        the smoothed azimuth is the heading error, taken out about the vertical on the left."""
         cfg = self.cfg
         if self.field_reference is None or self.field_reference.mag_ref_norm is None:
             self.field_reference = self._field_reference(b0, b1, q_out)
@@ -917,9 +811,9 @@ class _Estimator:
         cd, sd = math.cos(decl), math.sin(decl)
         coupling = math.tan(min(abs(ref_d), math.radians(89.0))) ** 2
 
-        def directions(c0, c1):
-            """(sin, cos) of each sample's azimuth less the declination, its weight, and the
-            usable / missing rows (counted by the caller)."""
+        def columns(c0, c1):
+            """(sin, cos) of each sample's azimuth less the declination and its weight; and
+            (them, the usable and missing rows) for ``apply``."""
             mn, norm, ok, missing = self._field_rows(self.mag[c0:c1], q_out[c0:c1])
             horiz = np.hypot(mn[:, 0], mn[:, 1])
             dip = np.arctan2(-mn[:, 2], horiz)
@@ -927,22 +821,13 @@ class _Estimator:
             good &= horiz >= 1e-3 * norm  # at a magnetic pole the field gives no heading
             hx = np.divide(mn[:, 0], horiz, out=np.zeros_like(horiz), where=good)
             hy = np.divide(mn[:, 1], horiz, out=np.zeros_like(horiz), where=good)
-            return hx * cd - hy * sd, hy * cd + hx * sd, good, ok, missing
-
-        # each chunk's directions, computed in the forward pass, are kept for the backward one
-        # while the block is short (as _zero_phase keeps its forward output)
-        kept = {} if b1 - b0 <= _KEEP_FORWARD else None
-
-        def columns(c0, c1):
-            d = directions(c0, c1)
-            if kept is not None:
-                kept[c0] = d
-            return np.column_stack((d[0], d[1], d[2].astype(np.float64)))
+            ex, ey = hx * cd - hy * sd, hy * cd + hx * sd
+            return np.column_stack((ex, ey, good.astype(np.float64))), (ex, ey, good, ok, missing)
 
         scatter = [None]  # the last measured azimuth scatter about the smoothed one (rad²)
 
-        def apply(c0, c1, sm, n_eff):
-            ex, ey, good, ok, missing = kept.pop(c0) if kept is not None else directions(c0, c1)
+        def apply(c0, c1, sm, n_eff, extra):
+            ex, ey, good, ok, missing = extra
             self._count_field(ok, missing, good)
             den = sm[:, 2]
             okd = den > _MAG_WEIGHT_MIN
@@ -1002,7 +887,9 @@ class _Estimator:
 
     # ------------------------------------------------------------------ 5. covariance
     def _covariance(self, b0, b1, rest, rests, tau, q_out, var_out, tt0):
-        """Gyro-only error variance per output axis (module docstring, step 5)."""
+        """Gyro-only error variance per output axis (step 5), propagated over blocks of
+        _COV_BLOCK rows (C_nb and the bias clock at each block's middle row) and interpolated
+        linearly to the rows in between."""
         cfg = self.cfg
         size = max(_COV_BLOCK, self.size // _COV_BLOCK * _COV_BLOCK)  # blocks never straddle
         bias = _BiasTerms(rests if cfg.gyro_bias is GyroBiasMode.AUTO else None,
@@ -1011,17 +898,13 @@ class _Estimator:
         measured = np.average([r.gyro_var for r in rr], axis=0,
                               weights=[r.stop - r.start for r in rr]) if rr else None
         sf2 = cfg.gyro_scale_factor_sigma ** 2
-        # ∫ C_nb[k, m] ω_n dτ: the lever of the gyro's gain-and-axes error matrix E[m, n]
-        # (scale factors on the diagonal, axis misalignments off it; never reset)
+        # ∫ C_nb[k, m] ω_n dτ: the lever of the gyro's gain-and-axes error E[m, n] (never reset)
         m_sf = np.zeros((3, 3, 3))
         arw = np.zeros(3)
         prev_end = tt0.copy()  # variance at the row before the chunk
         for c0, c1 in _chunks(b0, b1, size):
             nrow = c1 - c0
             dt, s2 = self._row_noise(b0, c0, c1, rest, measured)
-            # The variance is smooth: it is propagated over blocks of _COV_BLOCK rows (C_nb and
-            # the interpolation weight taken at each block's middle row) and interpolated
-            # linearly to the rows in between.
             nodes = np.arange(0, nrow, _COV_BLOCK)
             mid = np.minimum(nodes + _COV_BLOCK // 2, nrow - 1)
             dtb = np.add.reduceat(dt, nodes)
@@ -1029,11 +912,7 @@ class _Estimator:
             out = tt0 + arw + np.cumsum(np.einsum("ikm,im->ik", c * c,
                                                   np.add.reduceat(s2, nodes, axis=0)), axis=0)
             arw = out[-1] - tt0
-            if sf2 > 0:
-                # gain and axes error: δθ = ∫ C_nb E ω dτ with the same E throughout, every
-                # element of 1σ = gyro_scale_factor_sigma.  The off-diagonal terms matter: a
-                # turn about one axis leaks into the others (on BROAD trial 05, turns about the
-                # vertical tilt the attitude about east, beyond the diagonal's prediction).
+            if sf2 > 0:  # δθ = ∫ C_nb E ω dτ, every element of E of 1σ gyro_scale_factor_sigma
                 turn = np.add.reduceat(self.w[c0:c1] * dt[:, None], nodes, axis=0)
                 msf = m_sf + np.cumsum(c[:, :, :, None] * turn[:, None, None, :], axis=0)
                 out += sf2 * np.einsum("ikmn,ikmn->ik", msf, msf)
@@ -1052,7 +931,6 @@ class _Estimator:
         """(dt, angle-noise variance per row and axis) of rows ``c0:c1``: the gyro noise from
         the messages, else the density, else the scatter measured at rests; the time is the
         smoother's clock (none passes at a gap or a rest: the attitude is held)."""
-        nrow = c1 - c0
         dt = self._clock_steps(b0, c0, c1, rest)
         n2 = self.cfg.gyro_noise_density ** 2
         if self.sig2 is not None:
@@ -1063,7 +941,7 @@ class _Estimator:
         elif measured is not None:
             s2 = measured[None, :] * (dt * dt)[:, None]
         else:
-            s2 = np.zeros((nrow, 3))
+            s2 = np.zeros((c1 - c0, 3))
         return dt, s2
 
     # ------------------------------------------------------------------ report
@@ -1114,6 +992,6 @@ def count_saturated(tv: np.ndarray, wv: np.ndarray, counts: dict, details: dict,
                 pinned.add(k)
                 if first is None or k < first[0]:
                     first = (k, axis, float(x))
-    counts[SATURATED] = len(pinned)
+    counts[st.SATURATED] = len(pinned)
     if first is not None:
-        details.setdefault(SATURATED, saturation_note(first[1], first[2]))
+        details.setdefault(st.SATURATED, st.saturation_note(first[1], first[2]))

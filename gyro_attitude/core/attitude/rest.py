@@ -1,58 +1,18 @@
 """Rest (zero-motion) detection from gyro and accelerometer statistics over a sliding time window.
 
-Contract (streaming, one call per accepted sample, O(1) amortized): the kernel
-:func:`rest_update` says whether the window that ENDS at this sample (all samples with
-``t >= t_ns - window``) is at rest; the index of the oldest sample in that window (counted from
-the first sample after :func:`rest_start` / :func:`rest_reset`) is then ``ri[R_OLDEST]``.  A rest
-window vouches for every sample in it; the consumers (gyro bias, alignment) take the *oldest*
-sample of each rest window, so a sample counts once it is followed by a full window of rest: the
-gentle start of a motion, which a window can miss for a few samples, never enters a rest
-average.  :func:`detect_rest` is the batch form over arrays (the offline estimator's) and gives
-bit-identical results (same cumulative sums, same operation order).
-
-A window is at rest when all hold:
-
-* it spans a full ``window_s`` of data since the first sample (no decision on a partial window);
-* ``gyro_std_max``: the gyro's deviation from the window mean, ``sqrt(Σ_axes var)``, is small
-  (and at least ``gyro_std_min``, default 0; the gyro-bias estimator asks for
-  :data:`NOISE_FLOOR_RAD_S`, see gyro_bias.py);
-  The deviation, not the magnitude, is tested so that a constant bias (0.1–5 °/s for consumer
-  MEMS) does not block rest detection;
-* ``gyro_mean_max``: the window-mean rate is below the largest plausible bias **on every
-  axis**, so a smooth constant-rate rotation is not called rest.  A steady turn about the
-  vertical leaves the accelerometer unchanged and shows no gyro spread: gyro and accelerometer
-  cannot tell it from a bias, so this bound alone separates them.  Consumer MEMS biases are
-  0.1–0.6 °/s per axis (BROAD over the dataset; 0.12–0.24 °/s on the shared trials), so the
-  bound is 0.011 rad/s (0.63 °/s) per axis.  Per axis, because a turn of rate ``|ω|`` about any
-  axis has one component of at least ``|ω|/√3``: every steady turn faster than
-  ``√3 · 0.011 = 0.019 rad/s`` (1.09 °/s) is refused whatever its axis (a turntable at
-  0.02 rad/s, a vehicle's gentle curve, a hand panning a camera), while a bias of 0.6 °/s on
-  all three axes (1.04 °/s in norm) still rests.  A gyro with a larger bias needs a larger bound
-  (``rest_gyro_mean_max``) and then takes slower turns for rests;
-* with an accelerometer: ``accel_std_max`` on the specific force's deviation (the strongest
-  motion cue for a hand-held or vehicle IMU) and ``accel_norm_tol`` on ``|‖mean f‖ − g|``.
-
-Defaults (``window_s`` 0.5 s): white gyro noise of density N sampled at rate r has per-axis
-std N·√r.  A consumer MEMS gyro (N ≈ 0.01 °/s/√Hz at 100–1000 Hz; the BROAD recordings show
-0.08–0.10 °/s per axis at 286 Hz, 0.16 °/s over three axes) stays below 0.01 rad/s (0.57 °/s)
-with a wide margin; tactical and navigation-grade gyros are 10–1000× quieter and pass a fortiori,
-so one default serves both.  Hand-held motion, even "still" holding, shows 1–10 °/s of tremor and
-is rejected.  Accelerometer noise: consumer MEMS 0.03–0.07 m/s² per axis (BROAD: 0.09 m/s² over
-three axes), below 0.25 m/s².  ``accel_norm_tol`` 1.0 m/s² (about 10 % of g) covers normal
-gravity between the equator and the poles (9.78–9.83 m/s²) plus an *uncalibrated* consumer
-accelerometer: a scale error of a few percent (±3 % in datasheets; a robot arm's read
-|f| ≈ 9.4 m/s², 4 % low) and a zero-g offset of a few tenths of m/s² on the axis along gravity,
-which changes |f| from one resting pose to the next.  At 0.5 m/s² an accelerometer 5 % off
-(0.49 m/s²) sat on the edge: its rests flickered or vanished ("no rest found: bias 0").  The
-norm test decides nothing on real recordings (BROAD: the same rest windows at 0.5, 1, 2 m/s²
-or without it; the gyro and spread tests do the work) and what it alone rejects, a steady
-vertical acceleration without rotation or vibration (a lift starting), would harm neither the
-bias (no rotation) nor the levelling (gravity's direction unchanged); it is there against a
-field that is no specific force, e.g. in g or zero (judged before, accel_units.py: beyond
-20 % of g).  Judging |f| against the recording's own gravity (the median |f| when still)
-was weighed and not taken: the causal estimator knows it only after its first rests, so
-the two estimators' rests would differ before it is learnt.  For a noisier sensor or a
-vibrating vehicle at standstill, raise the std thresholds.
+The kernel :func:`rest_update` (one call per accepted sample, O(1) amortized) says whether the
+window that ENDS at this sample (all samples with ``t >= t_ns - window``) is at rest; the index
+of its oldest sample (counted from :func:`rest_start` / :func:`rest_reset`) is then
+``ri[R_OLDEST]``.  The consumers (gyro bias, alignment) take the *oldest* sample of each rest
+window, so a sample counts once a full window of rest follows it.  :func:`detect_rest` is the
+batch form over arrays (the offline estimator's, numba-free) and gives bit-identical results
+(same cumulative sums, same operation order).  A window is at rest when it spans a full
+``rest_window_s`` since the first sample, the gyro's deviation from the window mean (over 3
+axes) lies in [``gyro_std_min``, ``rest_gyro_std_max``], the window-mean rate is within
+``rest_gyro_mean_max`` on every axis and, with an accelerometer, its deviation is within
+``rest_accel_std_max`` and ``|‖mean f‖ − g|`` within ``rest_accel_norm_tol``.  The thresholds
+are the settings table's rows; why these tests and defaults: docs/architecture.md, "Notes: rest
+detection".
 
 Numerics: window sums are differences of running (cumulative) sums of ``x − x_first`` and its
 square.  Referencing the first sample keeps the squares small; the cumulative sums' rounding
@@ -67,99 +27,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gyro_attitude.core.attitude.inputs import first_step_back
-from gyro_attitude.core.attitude.settings import setting
+from gyro_attitude.core.attitude.inputs import check_times
+from gyro_attitude.core.attitude.settings import StreamConfig
+from gyro_attitude.core.attitude.validation import all_within
 from gyro_attitude.core.earth import STANDARD_GRAVITY
 from gyro_attitude.core.jit import kernel
 
-__all__ = ["NOISE_FLOOR_RAD_S", "RestWindows", "check_samples", "detect_rest", "rest_segments",
-           "rest_start", "rest_update", "true_runs"]
+__all__ = ["NOISE_FLOOR_RAD_S", "RestWindows", "detect_rest", "rest_segments", "rest_start",
+           "rest_update", "true_runs"]
 
 # Every real gyro shows noise at rest (a navigation-grade one still ~1e-6 rad/s per sample at
 # 100 Hz), so a window whose output is constant to rounding is a noise-free simulation or a stuck
 # sensor, not evidence of rest.
 NOISE_FLOOR_RAD_S = 1e-9
-
-
-def _check_param(name: str, value, allow_zero: bool = False) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero) or v > 1e12:
-        raise ValueError(f"{name} must be a finite positive number, got {value!r}")
-    return v
-
-
-def check_samples(t_ns, gyro, accel=None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """Validated batch input: int64 strictly increasing ``t_ns`` (N,), finite ``gyro`` (N, 3)
-    rad/s, optional finite ``accel`` (N, 3) m/s² — or ``ValueError`` naming what is wrong."""
-    t = np.asarray(t_ns)
-    if t.ndim != 1 or t.size == 0:
-        raise ValueError(f"t_ns must be a non-empty 1-D array, got shape {t.shape}")
-    if not np.issubdtype(t.dtype, np.integer):
-        raise ValueError(f"t_ns must hold integer nanoseconds, got dtype {t.dtype}")
-    t = t.astype(np.int64, copy=False)
-    k = first_step_back(t)
-    if k is not None:
-        raise ValueError(f"t_ns must be strictly increasing (sample {k}: {t[k]} after "
-                         f"{t[k - 1]})")
-    out = []
-    for name, arr in (("gyro", gyro), ("accel", accel)):
-        if arr is None:
-            out.append(None)
-            continue
-        try:
-            a = np.asarray(arr, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ValueError(f"{name} must be a numeric (N, 3) array") from None
-        if a.shape != (t.size, 3):
-            raise ValueError(f"{name} must have shape ({t.size}, 3), got {a.shape}")
-        with np.errstate(invalid="ignore"):  # a NaN fails both bounds (reductions: no copy)
-            sane = bool(np.max(a) <= 1e6 and np.min(a) >= -1e6)
-        if not sane:
-            k = int(np.argmax(~np.isfinite(a).all(axis=1) | (np.abs(a) > 1e6).any(axis=1)))
-            raise ValueError(f"{name} sample {k} is not finite or absurdly large: {a[k]}")
-        out.append(a)
-    return t, out[0], out[1]
-
-
-#: the rest test's user-facing thresholds: their rows in the settings table (defaults, ranges,
-#: the one checker)
-_ROWS = {"window_s": "rest_window_s", "gyro_std_max": "rest_gyro_std_max",
-         "gyro_mean_max": "rest_gyro_mean_max", "accel_std_max": "rest_accel_std_max",
-         "accel_norm_tol": "rest_accel_norm_tol"}
-
-
-def _default(field: str) -> float:
-    return setting(_ROWS[field]).default
-
-
-@dataclass(frozen=True)
-class RestThresholds:
-    """The rest test's thresholds as the detector reads them: the table's rows ``rest_*``
-    (defaults, ranges), the gravity it compares with, and ``gyro_std_min`` (rad/s: a window
-    less noisy than this is not a rest; the bias estimator asks for the noise floor)."""
-
-    window_s: float = _default("window_s")
-    gyro_std_max: float = _default("gyro_std_max")  # deviation from the window mean, 3 axes
-    gyro_mean_max: float = _default("gyro_mean_max")  # on any axis: the largest bias taken
-    accel_std_max: float = _default("accel_std_max")  # deviation from the window mean, 3 axes
-    accel_norm_tol: float = _default("accel_norm_tol")  # |‖mean f‖ − gravity|
-    gravity: float = STANDARD_GRAVITY
-    gyro_std_min: float = 0.0
-
-    def checked(self) -> RestThresholds:
-        """Self, each threshold checked by its row of the table (ValueError naming the
-        setting)."""
-        for name, row in _ROWS.items():
-            setting(row).check(getattr(self, name))
-        _check_param("gravity", self.gravity)
-        _check_param("gyro_std_min", self.gyro_std_min, allow_zero=True)
-        if not self.gyro_std_min < self.gyro_std_max:
-            raise ValueError(f"gyro_std_min ({self.gyro_std_min!r}) must be below gyro_std_max "
-                             f"({self.gyro_std_max!r})")
-        return self
 
 
 @dataclass
@@ -198,16 +78,15 @@ _R_INTS = 10
 RING_FULL, NOT_INCREASING, ACCEL_CHANGED = -2, -1, -4
 
 
-def rest_start(**thresholds) -> tuple[np.ndarray, np.ndarray]:
-    """A rest detector's state arrays (``rf`` floats, ``ri`` ints) before its first sample:
-    the :class:`RestThresholds` given (checked by their rows of the table), the others their
-    defaults."""
-    th = RestThresholds(**thresholds).checked()
+def rest_start(cfg: StreamConfig, gyro_std_min: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """A rest detector's state arrays (``rf`` floats, ``ri`` ints) before its first sample,
+    with the thresholds of ``cfg`` (windows less noisy than ``gyro_std_min`` refused)."""
     rf = np.zeros(_R_FLOATS)
     ri = np.zeros(_R_INTS, dtype=np.int64)
-    rf[F_STD_MIN:F_GRAVITY + 1] = (th.gyro_std_min, th.gyro_std_max, th.gyro_mean_max,
-                                   th.accel_std_max, th.accel_norm_tol, th.gravity)
-    ri[R_WINDOW_NS] = int(round(th.window_s * 1e9))
+    rf[F_STD_MIN:F_GRAVITY + 1] = (gyro_std_min, cfg.rest_gyro_std_max, cfg.rest_gyro_mean_max,
+                                   cfg.rest_accel_std_max, cfg.rest_accel_norm_tol,
+                                   STANDARD_GRAVITY)
+    ri[R_WINDOW_NS] = int(round(cfg.rest_window_s * 1e9))
     rest_reset(rf, ri)  # the kernel's Python form: no compiler for a start
     return rf, ri
 
@@ -341,19 +220,15 @@ def _window_stats(t: np.ndarray, x: np.ndarray, oldest: np.ndarray, window_ns: i
         yield r0, r1, full, std, ref + m
 
 
-def detect_rest(t_ns, gyro, accel=None, window_s: float = RestThresholds.window_s,
-                gyro_std_max: float = RestThresholds.gyro_std_max,
-                gyro_mean_max: float = RestThresholds.gyro_mean_max,
-                accel_std_max: float = RestThresholds.accel_std_max,
-                accel_norm_tol: float = RestThresholds.accel_norm_tol,
-                gravity: float = STANDARD_GRAVITY, gyro_std_min: float = 0.0,
-                empty=np.empty) -> RestWindows:
-    """:func:`rest_update` over arrays (bit-identical decisions, vectorized); the per-sample
-    results come from ``empty(shape, dtype)`` (default ``np.empty``)."""
-    th = RestThresholds(window_s, gyro_std_max, gyro_mean_max, accel_std_max, accel_norm_tol,
-                        gravity, gyro_std_min).checked()
-    t, g, a = check_samples(t_ns, gyro, accel)
-    window_ns = int(round(th.window_s * 1e9))
+def detect_rest(t_ns, gyro, accel=None, cfg: StreamConfig | None = None,
+                gyro_std_min: float = 0.0, empty=np.empty) -> RestWindows:
+    """:func:`rest_update` over arrays (bit-identical decisions, vectorized) with the thresholds
+    of ``cfg`` (default the table's); the per-sample results come from ``empty(shape, dtype)``."""
+    cfg = cfg or StreamConfig()
+    t = check_times(t_ns)
+    g, a = (None if x is None else _rows_within(x, name, t.size, 1e6)
+            for name, x in (("gyro", gyro), ("accel", accel)))
+    window_ns = int(round(cfg.rest_window_s * 1e9))
     size = t.size
     oldest = empty(size, np.int64)
     for r0 in range(0, size, _STATS_CHUNK):
@@ -365,8 +240,8 @@ def detect_rest(t_ns, gyro, accel=None, window_s: float = RestThresholds.window_
         gyro_std[r0:r1] = std
         with np.errstate(invalid="ignore"):
             # the mean rate on every axis (the largest one) within the bound
-            ok[r0:r1] = full & (std >= th.gyro_std_min) & (std <= th.gyro_std_max) & (
-                np.abs(mean).max(axis=1) <= th.gyro_mean_max)
+            ok[r0:r1] = full & (std >= gyro_std_min) & (std <= cfg.rest_gyro_std_max) & (
+                np.abs(mean).max(axis=1) <= cfg.rest_gyro_mean_max)
     accel_std = empty(size, np.float64)
     accel_std.fill(np.nan)
     if a is not None:
@@ -375,10 +250,21 @@ def detect_rest(t_ns, gyro, accel=None, window_s: float = RestThresholds.window_
             norm = np.sqrt(mean[:, 0] * mean[:, 0] + mean[:, 1] * mean[:, 1]
                            + mean[:, 2] * mean[:, 2])
             with np.errstate(invalid="ignore"):
-                ok[r0:r1] &= (std <= th.accel_std_max) & (np.abs(norm - th.gravity)
-                                                          <= th.accel_norm_tol)
+                ok[r0:r1] &= (std <= cfg.rest_accel_std_max) & (
+                    np.abs(norm - STANDARD_GRAVITY) <= cfg.rest_accel_norm_tol)
     covered = _covered(ok, oldest, empty)
     return RestWindows(ok, oldest, gyro_std, accel_std, covered)
+
+
+def _rows_within(x, name: str, n: int, limit: float) -> np.ndarray:
+    """``x`` as float rows (n, 3), each value finite and within ±``limit`` (ValueError else)."""
+    a = np.asarray(x, dtype=np.float64)
+    if a.shape != (n, 3):
+        raise ValueError(f"{name} must have shape ({n}, 3), got {a.shape}")
+    if not all_within(a, limit):
+        k = int(np.argmax(~np.isfinite(a).all(axis=1) | (np.abs(a) > limit).any(axis=1)))
+        raise ValueError(f"{name} sample {k} is not finite or absurdly large: {a[k]}")
+    return a
 
 
 def _covered(at_rest: np.ndarray, oldest: np.ndarray, empty=np.empty) -> np.ndarray:

@@ -1,12 +1,6 @@
-"""A second sensor's samples (magnetometer) matched to the Imu stamps: the latest sample at or
-before each stamp, no older than a maximum age.
-
-One rule for the live node and replay: the node keeps the recent samples of the topic
-(:class:`LatestSamples`) and asks for the one at each Imu stamp; replay takes whole arrays
-(:func:`latest_at`).  Both give the same rows when every sample has arrived before the Imu
-sample of the same stamp (a recording; live, a sample that arrives after its Imu sample serves
-the next one).
-"""
+"""A second sensor's samples (magnetometer) matched to the Imu stamps, the same rule live
+(:class:`LatestSamples`) and in replay (:func:`latest_at`), and the field's clock offset
+(docs/architecture.md, "Notes: the estimator's edge")."""
 
 from __future__ import annotations
 
@@ -21,11 +15,8 @@ __all__ = ["LatestSamples", "field_clock_offset", "latest_at"]
 def latest_at(t_ns, src_t_ns, values, max_age_ns: int) -> np.ndarray:
     """``(N, W)`` rows of ``values`` (M, W) for stamps ``t_ns`` (N,): the latest source sample
     with stamp ≤ t and age ≤ ``max_age_ns``, NaN where there is none.  Source stamps need not
-    be sorted (a recording's file order); of equal stamps the last in file order wins.
-
-    A source row of NaN is a message whose values are no numbers, not a missing message: it is
-    given as +inf, so that it stays unusable (counted invalid by the consumer, as the live path
-    counts the message itself) instead of reading as "no sample"."""
+    be sorted; of equal stamps the last in file order wins.  A source row of NaN (a message
+    whose values are no numbers) is given as +inf: counted invalid, not "no sample"."""
     t = np.asarray(t_ns, dtype=np.int64)
     st = np.asarray(src_t_ns, dtype=np.int64)
     vals = np.asarray(values, dtype=np.float64)
@@ -69,7 +60,7 @@ class LatestSamples:
 
 
 #: Block length of :func:`field_clock_offset`'s series: the lag's resolution (refined between
-#: blocks), and the smoothing that lifts the field's turning above its noise.
+#: blocks) and the smoothing that lifts the field's turning above its noise.
 OFFSET_BLOCK_S = 0.02
 #: At most this much of the recording is searched (a bounded cost whatever its length).
 OFFSET_SPAN_S = 1200.0
@@ -85,6 +76,7 @@ OFFSET_PEAK_DROP = 0.2
 OFFSET_NORM_TOL = 0.05
 
 
+@np.errstate(all="ignore")
 def field_clock_offset(t_ns, omega, field, max_offset_s: float = 30.0) -> float | None:
     """How late (s; negative: early) the field rows ``field`` (N, 3), aligned to the gyro's
     stamps ``t_ns`` (NaN: no sample), are against the gyro ``omega`` (N, 3): the lag at which
@@ -102,11 +94,6 @@ def field_clock_offset(t_ns, omega, field, max_offset_s: float = 30.0) -> float 
     Absurd values (1e300, inf) leave their blocks out or give None, silently: the filter
     counts them.
     """
-    with np.errstate(all="ignore"):
-        return _field_clock_offset(t_ns, omega, field, max_offset_s)
-
-
-def _field_clock_offset(t_ns, omega, field, max_offset_s: float) -> float | None:
     t = np.asarray(t_ns, dtype=np.int64)
     if t.shape[0] < 3:
         return None

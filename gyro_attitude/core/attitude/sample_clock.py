@@ -1,29 +1,10 @@
-"""The sample clock of a regular stream whose stamps jitter (issue 38 item 1).
+"""The sample clock of a regular stream whose stamps jitter (issue 38 item 1): the clock the
+stamps jitter about, for the offline integration's intervals (the output keeps the stamps).
 
-An IMU samples on its own clock; a driver that stamps each message when the host receives it
-moves the stamps by its timing (±0.5 ms on a USB IMU, ±2 ms on a phone), not the samples.
-Integrating with the jittered stamps' intervals turns the jitter into attitude error: each step
-``ω_k (δ_{k+1} − δ_k)`` sums, by parts, to ``−Σ δ_k Δω_k``, a random walk driven by the angular
-acceleration (BROAD 16 with ±1/3 of the period: 0.3–0.8° of heading at the end, where the even
-file has 0.1°).  The offline estimator sees the whole run, so it integrates on the clock the
-stamps jitter about instead:
-
-* a run's residuals ``r_i = t_i − t_0 − i·T`` (``T`` its :func:`run_period`) are a line plus
-  the jitter, with a step of ``m·T`` where ``m`` samples are missing;
-* a step is near where the mean of the :data:`STEP_SAMPLES` residuals after a sample exceeds
-  the mean of those before it by more than ``T/2``; there each residual less the mean before
-  is a whole number of periods plus its jitter (under ``T/2``), and the step is where that
-  number changes; the steps cut the run into segments on one linear clock each;
-* each sample's clock is the mean of ``r`` over the symmetric window of ±:data:`HALF_WINDOW`
-  samples (exact on a line); near a segment's ends, where that window does not fit, the line
-  through the nearest sample whose window does (the widest the segment allows), with the
-  slope of that window's two halves.
-
-Stamps within :data:`KEEP_NS` of that clock everywhere in a chunk are kept as they are (even
-stamps, a rate whose period is not a whole number of nanoseconds).  The result is used for the
-integration's intervals only; the output keeps the stamps the messages carry.  A stream sampled
-at truly irregular instants is not told apart from a jittered one by its stamps: its runs have
-many steps or none, and the clock then stays within the stamps' own jitter of them.
+A run's residuals ``r_i = t_i − t_0 − i·T`` are a line plus the jitter, with a step of ``m·T``
+where ``m`` samples are missing; the steps cut the run into segments, and each sample's clock is
+the mean of ``r`` over ±:data:`HALF_WINDOW` samples, near a segment's ends the line through the
+nearest sample whose window fits (docs/architecture.md, "Notes: offline estimator").
 """
 
 from __future__ import annotations
@@ -46,11 +27,9 @@ CHUNK = 1 << 16
 
 def sample_clock(t_ns: np.ndarray, starts: np.ndarray, empty=np.empty,
                  chunk: int = CHUNK) -> np.ndarray:
-    """The stamps ``t_ns`` (int64, strictly increasing within a run) on the clock they jitter
-    about; ``starts`` the rows that begin a run (a gap restart, a time reset: no clock spans
-    them; row 0 always does).  Returns ``t_ns`` itself when every stamp is kept, else a copy
-    from ``empty(shape, dtype)`` (the caller's allocator); temporaries are bounded by
-    ``chunk``."""
+    """The stamps ``t_ns`` (int64, rising within a run) on the clock they jitter about;
+    ``starts`` the rows that begin a run (no clock spans a gap restart or a time reset).
+    ``t_ns`` itself when every stamp is kept, else a copy from ``empty(shape, dtype)``."""
     t = np.asarray(t_ns)
     n = t.size
     bounds = sorted({0, n, *np.asarray(starts, dtype=np.int64).tolist()})
@@ -88,10 +67,9 @@ def _rising(a: np.ndarray, r0: int, r1: int, chunk: int) -> bool:
 
 
 def run_period(t_ns: np.ndarray) -> int:
-    """The period (ns) of one run's stamps: the median of those of its first
-    :data:`MEDIAN_INTERVALS` intervals within ±1/2 of the median of them all (the intervals
-    over missing samples would pull it up: 1 % at 5 % missing; the cut is symmetric, as the
-    jitter is); 0 with fewer than two stamps."""
+    """The period (ns) of one run's stamps: the median of its first :data:`MEDIAN_INTERVALS`
+    intervals within ±1/2 of their median (the intervals over missing samples would pull it
+    up: 1 % at 5 % missing); 0 with fewer than two stamps."""
     dt = np.diff(np.asarray(t_ns)[:MEDIAN_INTERVALS + 1])
     if dt.size == 0:
         return 0

@@ -1,19 +1,11 @@
-"""Every setting of the attitude estimator, declared once.
+"""Every setting of the attitude estimator, declared once (docs/architecture.md, "Settings").
 
-One :class:`Setting` row per setting: name (also the ROS parameter name, the YAML key and the
-replay flag ``--name-with-dashes``), default, one-line help, unit, range, allowed words (an enum
-from :mod:`.modes`), array length, and whether the node may change it at runtime.  From this
-table come
-
-* :class:`StreamConfig`, the frozen settings object of the core (its fields are the rows);
-* the node's declared parameters with descriptors (``ros/attitude_integrator_node.py``);
-* replay's flags (``commands/estimator_flags.py``);
-* the commented ``config/attitude_integrator.yaml`` and the parameter table of ``docs/settings.md``
-  (:func:`yaml_lines`, :func:`markdown_table`; a test fails when the files drift).
-
-Adding a setting is one row here (and the code that uses it).  Values are checked against the
-row once, when a :class:`StreamConfig` is made (``ValueError`` naming the setting); the
-cross-setting rules (gyrocompass needs a stated bias, ...) live in :meth:`StreamConfig.check`.
+One :class:`Setting` row per setting (its name is also the ROS parameter, the YAML key and the
+replay flag ``--name-with-dashes``).  From the table come :class:`StreamConfig` (one field per
+row), the node's parameters, replay's flags, and ``config/attitude_integrator.yaml`` and
+``docs/settings.md`` (:func:`yaml_lines`, :func:`markdown_table`; a test fails when they
+drift).  Values are checked against their row once, when a :class:`StreamConfig` is made
+(``ValueError`` naming the setting); cross-setting rules live in :meth:`StreamConfig.check`.
 """
 
 from __future__ import annotations
@@ -40,16 +32,11 @@ __all__ = ["SETTINGS", "Setting", "SettingError", "StreamConfig", "markdown_tabl
 
 @dataclass(frozen=True)
 class Setting:
-    """One estimator setting (see the module docstring).
-
-    ``default`` a float, int, bool, str, enum member, or a tuple of floats (``length`` long);
-    ``low``/``high`` inclusive bounds of a number or of every element of a tuple; ``choices``
-    the enum whose words are allowed; ``optional``: ``None`` is allowed and means "not given"
-    (the node declares ``ros_default`` instead and treats it as given only where the setting's
-    help says so); ``runtime``: the node accepts a change while running (validation thresholds).
-    A filter's internal constants are rows too, their help starting "internal" (tuned on real
-    recordings, rarely worth changing).
-    """
+    """One estimator setting: ``default`` a float, int, bool, enum member, or a tuple of floats
+    (``length`` long); ``low``/``high`` inclusive bounds of a number or of every element of a
+    tuple; ``choices`` the enum whose words are allowed; ``runtime``: the node accepts a change
+    while running; ``group`` its heading in the YAML file.  A filter's internal constants are
+    rows too, their help starting "internal"."""
 
     name: str
     default: object
@@ -138,169 +125,161 @@ class Setting:
 
 _HALF_PI = math.pi / 2
 
+def _grouped(table) -> tuple[Setting, ...]:
+    """The rows of ``table``, each in the group of the heading (a string) above it."""
+    rows, group = [], ""
+    for x in table:
+        if isinstance(x, str):
+            group = x
+        else:
+            rows.append(replace(x, group=group))
+    return tuple(rows)
+
+
 #: The table (order = the order of the YAML file and the table of docs/settings.md).
-SETTINGS: tuple[Setting, ...] = (
-    # -- frame and position
-    Setting("frame", Frame.INERTIAL, "inertial: integrate q_ib; enu: q_nb with Earth and "
-            "transport rate removed", choices=Frame, group="frame"),
-    Setting("world_frame", WorldFrame.ENU, "frame of the published orientation: enu (REP-103), "
-            "ned (x north, y east, z down) or nwu (x north, y west, z up); the body is the IMU "
-            "frame in each (for an FRD body with ned, turn by 180 deg about x)",
-            choices=WorldFrame, group="frame"),
-    Setting("latitude_rad", 0.0, "geodetic latitude (frame enu; gyrocompassing; with frame enu "
-            "the Earth rate is taken out of the gyro bias)", "rad", -_HALF_PI, _HALF_PI,
-            group="frame"),
-    Setting("longitude_rad", 0.0, "longitude (frame enu)", "rad", -math.pi, math.pi,
-            group="frame"),
-    Setting("height_m", 0.0, "height above the WGS-84 ellipsoid (frame enu)", "m", -1.0e4, 1.0e6,
-            group="frame"),
+SETTINGS: tuple[Setting, ...] = _grouped((
+    "frame",  # and position
+    Setting("frame", Frame.INERTIAL, "inertial: integrate q_ib; enu: q_nb with Earth and transport "
+            "rate removed", choices=Frame),
+    Setting("world_frame", WorldFrame.ENU, "frame of the published orientation: enu (REP-103), ned "
+            "(x north, y east, z down) or nwu (x north, y west, z up); the body is the IMU frame "
+            "in each (for an FRD body with ned, turn by 180 deg about x)", choices=WorldFrame),
+    Setting("latitude_rad", 0.0, "geodetic latitude (frame enu; gyrocompassing; with frame enu the "
+            "Earth rate is taken out of the gyro bias)", "rad", -_HALF_PI, _HALF_PI),
+    Setting("longitude_rad", 0.0, "longitude (frame enu)", "rad", -math.pi, math.pi),
+    Setting("height_m", 0.0, "height above the WGS-84 ellipsoid (frame enu)", "m", -1.0e4, 1.0e6),
     Setting("velocity_enu", (0.0, 0.0, 0.0), "carrier velocity east, north, up (frame enu; an "
-            "odometry topic replaces it)", "m/s", -1.0e4, 1.0e4, length=3, group="frame"),
-    # -- initial attitude
-    Setting("initial_attitude_source", InitialAttitudeSource.AUTO,
-            "auto: accelerometer when the aiding uses the accelerometer and initial_attitude is "
-            "the identity, else parameter; accelerometer: roll and pitch from the first "
-            "accelerometer sample, the heading of initial_attitude; parameter: "
-            "initial_attitude; truth: the truth topic slerped to the first accepted Imu stamp; "
-            "level: roll and pitch from the specific force over the first rest, "
-            "heading per heading_source (no attitude while aligning)",
-            choices=InitialAttitudeSource, group="initial attitude"),
+            "odometry topic replaces it)", "m/s", -1.0e4, 1.0e4, length=3),
+    "initial attitude",
+    Setting("initial_attitude_source", InitialAttitudeSource.AUTO, "auto: accelerometer when the "
+            "aiding uses the accelerometer and initial_attitude is the identity, else parameter; "
+            "accelerometer: roll and pitch from the first accelerometer sample, the heading of "
+            "initial_attitude; parameter: initial_attitude; truth: the truth topic slerped to the "
+            "first accepted Imu stamp; level: roll and pitch from the specific force over the "
+            "first rest, heading per heading_source (no attitude while aligning)",
+            choices=InitialAttitudeSource),
     Setting("initial_attitude", (0.0, 0.0, 0.0, 1.0), "initial attitude quaternion x, y, z, w "
-            "(normalized on use; not all zero)", length=4, group="initial attitude"),
-    Setting("initial_attitude_variance", 0.0, "per-axis variance of the initial attitude "
-            "(level: of the given heading)", "rad^2", 0.0, 10.0, group="initial attitude"),
+            "(normalized on use; not all zero)", length=4),
+    Setting("initial_attitude_variance", 0.0, "per-axis variance of the initial attitude (level: "
+            "of the given heading)", "rad^2", 0.0, 10.0),
     Setting("initial_heading_deg", 0.0, "level: heading of the body x axis, clockwise from north",
-            "deg", -360.0, 360.0, group="initial attitude"),
+            "deg", -360.0, 360.0),
     Setting("heading_source", HeadingSource.PARAMETER, "level: initial_heading_deg, or "
             "gyrocompassing (needs gyro_bias parameter with gyro_bias_sigma_rad_s; refused above "
-            "heading_error_limit_deg)", choices=HeadingSource, group="initial attitude"),
+            "heading_error_limit_deg)", choices=HeadingSource),
     Setting("heading_error_limit_deg", 5.0, "largest expected gyrocompass heading error", "deg",
-            0.0, 180.0, group="initial attitude"),
+            0.0, 180.0),
     Setting("accel_bias_sigma", 0.05, "1-sigma accelerometer bias: levelling error = this / g",
-            "m/s^2", 0.0, 10.0, group="initial attitude"),
-    # -- gyro bias
+            "m/s^2", 0.0, 10.0),
+    "gyro bias",
     Setting("gyro_bias", GyroBiasMode.AUTO, "auto: estimated at every rest (zero-rate update) and "
-            "held in motion; none; parameter: gyro_bias_rad_s", choices=GyroBiasMode,
-            group="gyro bias"),
+            "held in motion; none; parameter: gyro_bias_rad_s", choices=GyroBiasMode),
     Setting("gyro_bias_rad_s", (0.0, 0.0, 0.0), "fixed gyro bias x, y, z (gyro_bias parameter)",
-            "rad/s", -1.0e3, 1.0e3, length=3, group="gyro bias"),
+            "rad/s", -1.0e3, 1.0e3, length=3),
     Setting("gyro_bias_sigma_rad_s", 0.0, "1-sigma of the bias subtracted when not estimated "
             "(none: sensor spread; parameter: calibration; auto: before the first rest)", "rad/s",
-            0.0, 10.0, group="gyro bias"),
-    Setting("gyro_bias_rw", 0.0, "gyro bias random walk (covariance)", "rad/s/sqrt(s)", 0.0, 1.0,
-            group="gyro bias"),
+            0.0, 10.0),
+    Setting("gyro_bias_rw", 0.0, "gyro bias random walk (covariance)", "rad/s/sqrt(s)", 0.0, 1.0),
     Setting("gyro_noise_density", 0.0, "gyro noise density for the covariance when the input's "
-            "angular_velocity_covariance is unknown (0 = none)", "rad/s/sqrt(Hz)", 0.0, 1.0,
-            group="gyro bias"),
+            "angular_velocity_covariance is unknown (0 = none)", "rad/s/sqrt(Hz)", 0.0, 1.0),
     Setting("gyro_scale_factor_sigma", 0.005, "offline estimator: 1-sigma relative gyro "
             "scale-factor and misalignment error in the covariance (consumer MEMS 0.3-1 %)", "",
-            0.0, 0.5, group="gyro bias"),
-    # -- rests
+            0.0, 0.5),
+    "rest",
     Setting("min_rest_s", 1.0, "shortest rest used for the bias and the alignment", "s", 0.01,
-            3600.0, group="rest"),
-    Setting("rest_window_s", 0.5, "rest detector window", "s", 0.01, 60.0,
-            group="rest"),
-    Setting("rest_gyro_std_max", 0.01, "rest: largest gyro deviation "
-            "from the window mean, over 3 axes", "rad/s", 1e-6, 10.0, group="rest"),
-    Setting("rest_gyro_mean_max", 0.011, "rest: largest window-mean "
-            "rate on any axis, the largest plausible bias (a steady turn faster than sqrt(3) "
-            "times this is never a rest)", "rad/s", 1e-6, 10.0, group="rest"),
-    Setting("rest_accel_std_max", 0.25, "rest: largest specific-force "
-            "deviation, over 3 axes", "m/s^2", 1e-4, 100.0, group="rest"),
-    Setting("rest_accel_norm_tol", 1.0, "rest: largest | |f| - g |",
-            "m/s^2", 1e-4, 100.0, group="rest"),
-    # -- aiding
-    Setting("aiding", Aiding.AUTO, "auto: the AHRS filter on the accelerometer whenever the "
-            "Imu carries one (REP-145: linear_acceleration_covariance[0] not -1, finite values), "
+            3600.0),
+    Setting("rest_window_s", 0.5, "rest detector window", "s", 0.01, 60.0),
+    Setting("rest_gyro_std_max", 0.01, "rest: largest gyro deviation from the window mean, over 3 "
+            "axes", "rad/s", 1e-6, 10.0),
+    Setting("rest_gyro_mean_max", 0.011, "rest: largest window-mean rate on any axis, the largest "
+            "plausible bias (a steady turn faster than sqrt(3) times this is never a rest)",
+            "rad/s", 1e-6, 10.0),
+    Setting("rest_accel_std_max", 0.25, "rest: largest specific-force deviation, over 3 axes",
+            "m/s^2", 1e-4, 100.0),
+    Setting("rest_accel_norm_tol", 1.0, "rest: largest | |f| - g |", "m/s^2", 1e-4, 100.0),
+    "aiding",
+    Setting("aiding", Aiding.AUTO, "auto: the AHRS filter on the accelerometer whenever the Imu "
+            "carries one (REP-145: linear_acceleration_covariance[0] not -1, finite values), "
             "gyro-only without; tilt: the AHRS filter (specific force low-passed in an "
             "almost-inertial frame, acceleration rejection, settings ahrs_*); magnetometer: the "
             "same with the heading from the magnetometer (mag_*); none: gyro-only; gravity: "
-            "retired, runs tilt", choices=Aiding, group="aiding"),
-    Setting("offline_tilt_tau_s", 3.0, "offline estimator (replay --estimator offline) with "
-            "tilt aiding: time constant of the zero-phase low-pass of the specific force in the "
-            "integration frame", "s", 0.01, 1000.0, group="aiding"),
+            "retired, runs tilt", choices=Aiding),
+    Setting("offline_tilt_tau_s", 3.0, "offline estimator (replay --estimator offline) with tilt "
+            "aiding: time constant of the zero-phase low-pass of the specific force in the "
+            "integration frame", "s", 0.01, 1000.0),
     Setting("offline_mag_tau_s", 30.0, "offline estimator with magnetometer aiding: time constant "
             "of the zero-phase low-pass of the field's horizontal direction (the heading "
-            "correction)", "s", 0.01, 1.0e4, group="aiding"),
-    # -- AHRS aiding (aiding tilt | magnetometer: core/attitude/ahrs.py)
-    Setting("ahrs_accel_tau_s", 3.0, "tilt/magnetometer aiding: time constant of the specific-"
-            "force low-pass in the almost-inertial frame", "s", 0.01, 100.0, group="ahrs"),
+            "correction)", "s", 0.01, 1.0e4),
+    "ahrs",  # AHRS aiding (aiding tilt | magnetometer: core/attitude/ahrs.py)
+    Setting("ahrs_accel_tau_s", 3.0, "tilt/magnetometer aiding: time constant of the "
+            "specific-force low-pass in the almost-inertial frame", "s", 0.01, 100.0),
     Setting("ahrs_accel_reject_deg", 3.0, "tilt/magnetometer aiding: the tilt is gyro-only while "
             "the filtered vertical is further than this from the estimate (a sustained "
-            "acceleration)", "deg", 0.1, 180.0, group="ahrs"),
+            "acceleration)", "deg", 0.1, 180.0),
     Setting("ahrs_accel_norm_tol", 3.0, "tilt/magnetometer aiding: gyro-only while | |f| - g | "
-            "exceeds this", "m/s^2", 0.0, 1.0e3, group="ahrs"),
-    Setting("ahrs_accel_recovery_s", 10.0, "tilt/magnetometer aiding: after this long rejected "
-            "the tilt follows again, at ahrs_recovery_rate_deg_s at most", "s", 0.0, 1.0e6,
-            group="ahrs"),
+            "exceeds this", "m/s^2", 0.0, 1.0e3),
+    Setting("ahrs_accel_recovery_s", 10.0, "tilt/magnetometer aiding: after this long rejected the "
+            "tilt follows again, at ahrs_recovery_rate_deg_s at most", "s", 0.0, 1.0e6),
     Setting("ahrs_recovery_rate_deg_s", 0.2, "tilt/magnetometer aiding: largest tilt correction "
             "rate while recovering (as fast as a gyro may drift, not as an acceleration pulls)",
-            "deg/s", 0.0, 1.0e3, group="ahrs"),
+            "deg/s", 0.0, 1.0e3),
     Setting("ahrs_tilt_rate_max_deg_s", 1.0, "tilt/magnetometer aiding: largest tilt correction "
-            "rate", "deg/s", 0.0, 1.0e4, group="ahrs"),
-    Setting("ahrs_bias_gain", 0.02, "tilt/magnetometer aiding: gain of the gyro-bias integral "
-            "fed by the steady corrections (0 = off)", "1/s", 0.0, 10.0, group="ahrs"),
-    Setting("ahrs_mag_tau_s", 30.0, "magnetometer aiding: time constant of the heading toward "
-            "the field", "s", 0.01, 1.0e4, group="ahrs"),
-    Setting("magnetic_declination_deg", 0.0, "magnetometer aiding: declination east of true "
-            "north; the heading then points to true north (0: to magnetic north)", "deg",
-            -180.0, 180.0, group="ahrs"),
+            "rate", "deg/s", 0.0, 1.0e4),
+    Setting("ahrs_bias_gain", 0.02, "tilt/magnetometer aiding: gain of the gyro-bias integral fed "
+            "by the steady corrections (0 = off)", "1/s", 0.0, 10.0),
+    Setting("ahrs_mag_tau_s", 30.0, "magnetometer aiding: time constant of the heading toward the "
+            "field", "s", 0.01, 1.0e4),
+    Setting("magnetic_declination_deg", 0.0, "magnetometer aiding: declination east of true north; "
+            "the heading then points to true north (0: to magnetic north)", "deg", -180.0, 180.0),
     Setting("mag_norm_tol", 0.1, "magnetometer aiding: a field whose norm differs from the "
-            "reference by more than this fraction is a disturbance (heading gyro-only)", "",
-            1e-3, 10.0, group="ahrs"),
+            "reference by more than this fraction is a disturbance (heading gyro-only)", "", 1e-3,
+            10.0),
     Setting("mag_dip_tol_deg", 10.0, "magnetometer aiding: a field whose dip differs from the "
-            "reference by more than this is a disturbance", "deg", 0.1, 180.0, group="ahrs"),
+            "reference by more than this is a disturbance", "deg", 0.1, 180.0),
     Setting("mag_recovery_s", 20.0, "magnetometer aiding: a disturbed field steady this long "
-            "becomes the new reference (never one of the other dip sign)", "s", 0.0, 1.0e6,
-            group="ahrs"),
-    Setting("mag_reference_enu_t", (0.0, 0.0, 0.0), "magnetometer aiding: the expected field "
-            "east, north, up for the disturbance test (zeros: learned from the first second)",
-            "T", -0.01, 0.01, length=3, group="ahrs"),
-    Setting("mag_hard_iron_t", (0.0, 0.0, 0.0), "magnetometer aiding: hard-iron offset "
-            "subtracted from the field (sensor frame)", "T", -0.01, 0.01, length=3,
-            group="ahrs"),
+            "becomes the new reference (never one of the other dip sign)", "s", 0.0, 1.0e6),
+    Setting("mag_reference_enu_t", (0.0, 0.0, 0.0), "magnetometer aiding: the expected field east, "
+            "north, up for the disturbance test (zeros: learned from the first second)", "T", -0.01,
+            0.01, length=3),
+    Setting("mag_hard_iron_t", (0.0, 0.0, 0.0), "magnetometer aiding: hard-iron offset subtracted "
+            "from the field (sensor frame)", "T", -0.01, 0.01, length=3),
     Setting("mag_hard_iron_estimate", False, "magnetometer aiding: estimate the hard iron by a "
-            "sphere fit once the sensor has turned about two axes", group="ahrs"),
-    Setting("mag_max_age_s", 0.1, "magnetometer aiding: a field sample serves the Imu samples "
-            "up to this long after its stamp (then heading gyro-only, counted mag_missing)", "s",
-            0.0, 10.0, group="ahrs"),
-    # -- the AHRS filter's internals: rows like the others (one home, one checker), tuned on
-    # real recordings and rarely worth changing
-    Setting("ahrs_tilt_tau_s", 0.0, "internal, tilt/magnetometer aiding: time constant of the "
-            "tilt toward the filtered vertical in motion (0: the full correction every sample, "
-            "as VQF)", "s", 0.0, 1.0e3, group="ahrs internals"),
-    Setting("ahrs_rest_accel_tau_s", 0.5, "internal, tilt/magnetometer aiding: time constant "
-            "of the specific-force low-pass at a rest", "s", 1e-3, 1.0e3,
-            group="ahrs internals"),
+            "sphere fit once the sensor has turned about two axes"),
+    Setting("mag_max_age_s", 0.1, "magnetometer aiding: a field sample serves the Imu samples up "
+            "to this long after its stamp (then heading gyro-only, counted mag_missing)", "s", 0.0,
+            10.0),
+    "ahrs internals",  # the AHRS filter's, tuned on real recordings and rarely worth changing
+    Setting("ahrs_tilt_tau_s", 0.0, "internal, tilt/magnetometer aiding: time constant of the tilt "
+            "toward the filtered vertical in motion (0: the full correction every sample, as VQF)",
+            "s", 0.0, 1.0e3),
+    Setting("ahrs_rest_accel_tau_s", 0.5, "internal, tilt/magnetometer aiding: time constant of "
+            "the specific-force low-pass at a rest", "s", 1e-3, 1.0e3),
     Setting("ahrs_rest_rate_max", 0.05, "internal, tilt/magnetometer aiding: the filter's rest "
-            "test, largest |omega|", "rad/s", 0.0, 10.0, group="ahrs internals"),
+            "test, largest |omega|", "rad/s", 0.0, 10.0),
     Setting("ahrs_rest_accel_tol", 0.3, "internal, tilt/magnetometer aiding: the filter's rest "
-            "test, largest | |f| - g |", "m/s^2", 0.0, 100.0, group="ahrs internals"),
-    Setting("ahrs_rest_min_s", 1.0, "internal, tilt/magnetometer aiding: the filter's rest "
-            "test, how long both hold", "s", 0.0, 1.0e3, group="ahrs internals"),
-    Setting("mag_reference_s", 1.0, "internal, magnetometer aiding: seconds of field the "
-            "reference is learned from (mag_reference_enu_t zeros)", "s", 0.0, 1.0e3,
-            group="ahrs internals"),
+            "test, largest | |f| - g |", "m/s^2", 0.0, 100.0),
+    Setting("ahrs_rest_min_s", 1.0, "internal, tilt/magnetometer aiding: the filter's rest test, "
+            "how long both hold", "s", 0.0, 1.0e3),
+    Setting("mag_reference_s", 1.0, "internal, magnetometer aiding: seconds of field the reference "
+            "is learned from (mag_reference_enu_t zeros)", "s", 0.0, 1.0e3),
     Setting("mag_hard_iron_window_s", 60.0, "internal, magnetometer aiding: memory of the "
-            "hard-iron sphere fit", "s", 1.0, 1.0e6, group="ahrs internals"),
-    # -- validation of the input stream
+            "hard-iron sphere fit", "s", 1.0, 1.0e6),
+    "input",  # validation of the input stream
     Setting("max_gap_s", 0.1, "a forward stamp step longer than this is a gap: not integrated "
-            "across, attitude held", "s", 1e-6, 1e6, runtime=True, group="input"),
+            "across, attitude held", "s", 1e-6, 1e6, runtime=True),
     Setting("time_jump_threshold_s", 1.0, "a backward stamp jump longer than this resets the "
             "attitude (shorter backward steps are skipped as out of order)", "s", 1e-6, 1e6,
-            runtime=True, group="input"),
-    Setting("max_missing_samples", 4, "an interval spanning missing samples (a hole of more "
-            "than 1.5 nominal periods, the median of a time base's first 16) is counted; one "
-            "missing more than this many is a gap", "samples", 0, 1e6, runtime=True,
-            group="input"),
+            runtime=True),
+    Setting("max_missing_samples", 4, "an interval spanning missing samples (a hole of more than "
+            "1.5 nominal periods, the median of a time base's first 16) is counted; one missing "
+            "more than this many is a gap", "samples", 0, 1e6, runtime=True),
     # far above any real gyro's range (tactical and MEMS gyros saturate at 40..200 rad/s), far
     # below what overflows a rotation angle in float64 over any step; likewise the bounds: a
     # rate limit above 1e6 rad/s or a gap/jump threshold above 1e6 s lets through steps whose
     # rotation angle no longer means anything
-    Setting("max_rate_rad_s", 1.0e4, "a sample with a larger rate on any axis "
-            "is implausible and skipped", "rad/s", 1e-3, 1.0e6, runtime=True,
-            group="input"),
-)
+    Setting("max_rate_rad_s", 1.0e4, "a sample with a larger rate on any axis is implausible and "
+            "skipped", "rad/s", 1e-3, 1.0e6, runtime=True),
+))
 
 _BY_NAME = {s.name: s for s in SETTINGS}
 
@@ -324,7 +303,6 @@ class _StreamConfigMethods:
             object.__setattr__(self, s.name, s.check(getattr(self, s.name)))
         self.check()
 
-    # -- cross-setting rules
     def check(self) -> None:
         """Rules that involve several settings (``ValueError`` naming them).  (The rest
         thresholds need none: rest_gyro_std_max's range starts above the noise floor the bias
@@ -343,7 +321,6 @@ class _StreamConfigMethods:
             check_gyrocompass_feasible(self.gyro_bias_sigma_rad_s, self.latitude_rad,
                                        self.heading_error_limit_deg)
 
-    # -- derived views
     @property
     def max_gap_ns(self) -> int:
         return int(round(self.max_gap_s * 1e9))
@@ -390,12 +367,6 @@ class _StreamConfigMethods:
         """The latitude describes where the IMU is: with frame enu, or for gyrocompassing
         (frame inertial otherwise leaves the Earth rate in the bias: see gyro_bias.py)."""
         return self.frame is Frame.ENU or self.heading_source is HeadingSource.GYROCOMPASS
-
-    def rest_params(self) -> dict:
-        return {"window_s": self.rest_window_s, "gyro_std_max": self.rest_gyro_std_max,
-                "gyro_mean_max": self.rest_gyro_mean_max,
-                "accel_std_max": self.rest_accel_std_max,
-                "accel_norm_tol": self.rest_accel_norm_tol}
 
     def nav_frame(self):
         """The constant :class:`NavFrame` of these settings (frame enu), else None."""

@@ -1,37 +1,7 @@
-"""The attitude estimator shared by the live node and offline replay: a chain of stages.
-
-Every Imu sample passes the stages in one order (the numbered steps of :meth:`AttitudeStream.push`):
-
-1. **validate** (:mod:`.validation`): non-finite rates, rates beyond ``max_rate_rad_s``, zero,
-   duplicate and out-of-order stamps and a changed ``frame_id`` are skipped and counted by
-   reason; a forward step longer than ``max_gap_s`` is a gap (not integrated across: the attitude
-   is held, the time base restarts); a backward jump longer than ``time_jump_threshold_s`` resets
-   the attitude to the initial one.  An accelerometer sample that is not finite or absurd is
-   counted (``invalid_accel``) and not used; a gap, a jump or such a sample breaks the rest
-   windows (a rest never spans one).
-2. **rest → gyro bias** (:mod:`.rest`, :mod:`.gyro_bias`): ``none`` | ``parameter`` | ``auto``
-   (zero-rate updates at rests, Earth rate taken out when the latitude is known); with a given
-   initial attitude and a stream that rests from its start (within one rest window), the first
-   estimate is applied back to the start — the attitude is corrected by ``−Δb·Δt``, as the still
-   body did not turn.
-3. **alignment** (:mod:`.alignment`, ``initial_attitude_source: level``): no attitude while
-   :attr:`StreamState.phase` is ``aligning``; when the first rest of ``min_rest_s`` ends, the
-   attitude starts from the levelled one with the samples since the last rest sample integrated.
-4. **aiding** (:mod:`.ahrs`, ``aiding: auto`` with an accelerometer, ``tilt``, ``magnetometer``):
-   a rate correction toward the accelerometer's vertical (and the magnetometer's heading).
-5. **integrate** ``ω − bias (+ correction)`` (:mod:`.streaming`); every attitude handed out is
-   finite and unit (a non-finite update restores the last good attitude, restarts the time base
-   and counts an ``integrator_error``).
-6. **covariance** (:mod:`.covariance`): the per-axis attitude/bias error covariance (gyro noise
-   ``σ_ω² dt²`` from the diagonal of ``angular_velocity_covariance`` or ``N² dt``, bias
-   uncertainty, zero-rate updates, alignment, aiding); a covariance that says "no estimate"
-   (REP-145: :func:`.chain.covariance_verdict`) adds nothing, an invalid one is counted.
-
-Each stage keeps its own state (the validator, the bias estimator, the aligner, the aiding
-filter, the integrator, the covariance); what the chain itself carries between samples is one
-visible :class:`StreamState`.  :meth:`AttitudeStream.push` takes one sample through the chain
-(the node); :meth:`AttitudeStream.run` is push() over a whole recording (replay).
-"""
+"""The causal attitude estimator of the live node and replay: :class:`AttitudeStream`, whose
+push() takes one Imu sample through the chain's step (:mod:`.chain`) and run() a recording
+through the same step in a compiled loop; the words of what the step did are made here
+(docs/architecture.md, "The causal estimator")."""
 
 from __future__ import annotations
 
@@ -40,19 +10,9 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
-from gyro_attitude.core.attitude import (
-    DEFAULT_ALGORITHM,
-    NavFrame,
-    chain,
-    get_algorithm,
-)
+from gyro_attitude.core.attitude import DEFAULT_ALGORITHM, NavFrame, chain, get_algorithm
 from gyro_attitude.core.attitude import validation as v
-from gyro_attitude.core.attitude.ahrs import (
-    MAG_ABSENT,
-    MAG_GIVEN,
-    MAG_NOT_FLOATS,
-    AhrsFilter,
-)
+from gyro_attitude.core.attitude.ahrs import MAG_ABSENT, MAG_GIVEN, MAG_NOT_FLOATS, AhrsFilter
 from gyro_attitude.core.attitude.alignment import (
     ALIGN_RING_DTYPE,
     AlignmentResult,
@@ -62,9 +22,7 @@ from gyro_attitude.core.attitude.alignment import (
     heading_of,
     level_quaternion,
 )
-from gyro_attitude.core.attitude.chain import (  # one home: the step's
-    ACCEL_ABSURD,
-)
+from gyro_attitude.core.attitude.chain import ACCEL_ABSURD  # one home: the step's
 from gyro_attitude.core.attitude.covariance import V_TT, covariance_start
 from gyro_attitude.core.attitude.gyro_bias import GyroBiasReport, bias_report, bias_start
 from gyro_attitude.core.attitude.modes import (
@@ -86,36 +44,37 @@ from gyro_attitude.core.rotation import quat_normalize
 __all__ = ["AttitudeStream", "StreamConfig", "StreamResult", "aiding_note", "bias_summary",
            "compile_kernels"]
 
-
 INVALID_COVARIANCE = "invalid_covariance"
 INTEGRATOR_ERROR = "integrator_error"
 INVALID_ACCEL = "invalid_accel"
-# aiding magnetometer: Imu samples with no field within mag_max_age_s, fields that are not a
-# reading (non-finite, absurd, zero), fields that disagree with the reference (disturbances)
-MAG_MISSING = "mag_missing"
-INVALID_MAG = "invalid_mag"
-MAG_DISTURBED = "mag_disturbed"
-# accepted samples pinned at a repeated extreme: a clipped (saturated) gyro
-SATURATED = "saturated"
-# intervals whose rate fit could not be trusted (the samples alias the motion, or the fit leaves
-# their range): integrated toward the exponential map (interpolation.untrusted_fits)
+MAG_MISSING = "mag_missing"  # aiding magnetometer: no field within mag_max_age_s
+INVALID_MAG = "invalid_mag"  # a field that is no reading (non-finite, absurd, zero)
+MAG_DISTURBED = "mag_disturbed"  # a field that disagrees with the reference
+SATURATED = "saturated"  # accepted samples pinned at a repeated extreme: a clipped gyro
+# intervals whose rate fit could not be trusted: integrated toward the exponential map
 RATE_FIT_FALLBACK = "rate_fit_fallback"
 GYRO_NOISE_UNKNOWN = "gyro_noise_unknown"  # a detail (said once), not a count
 
+ALIGNING, RUNNING, FAILED = Phase.ALIGNING, Phase.RUNNING, Phase.FAILED
+#: the chain's events: (index into run()'s first rows, bit of the step's events, detail key)
+_EVENTS = ((chain.EV_INVALID_COV, chain.E_INVALID_COV, INVALID_COVARIANCE),
+           (chain.EV_INVALID_ACCEL, chain.E_INVALID_ACCEL, INVALID_ACCEL),
+           (chain.EV_SATURATED, chain.E_SATURATED, SATURATED),
+           (chain.EV_FALLBACK, chain.E_FALLBACK, RATE_FIT_FALLBACK),
+           (chain.EV_MAG_MISSING, chain.E_MAG_MISSING, MAG_MISSING),
+           (chain.EV_NOISE_UNKNOWN, chain.E_NOISE_UNKNOWN, GYRO_NOISE_UNKNOWN))
+_MAG_NOTES = ((INVALID_MAG, "a magnetic field sample not finite, beyond 10 mT or below 0.1 µT"),
+              (MAG_DISTURBED, "a field whose norm or dip is off the reference"))
+START_NOTE = ("initial attitude: roll and pitch from the first accelerometer sample, the "
+              "heading of initial_attitude ({:.4g}° from north)")
 
 
 def _values(x) -> str:
-    """A sample's values as a list of floats in a log line (its repr when they are not
-    numbers): the same text from push() and from run()."""
+    """A sample's values as a list of floats in a log line (its repr when not numbers)."""
     try:
         return str(np.asarray(x, dtype=np.float64).reshape(-1).tolist())
     except (TypeError, ValueError, OverflowError):
         return repr(x)
-
-
-def invalid_accel_note(accel) -> str:
-    return (f"accelerometer sample {_values(accel)} is not 3 finite numbers: not used for "
-            "rests or aiding")
 
 
 def invalid_covariance_note(covariance) -> str:
@@ -131,18 +90,22 @@ def unknown_noise_note(cfg: StreamConfig) -> str:
                if n > 0 else "gyro noise is taken as unknown and adds nothing to the orientation "
                "variance (set gyro_noise_density)"))
 
-ALIGNING, RUNNING, FAILED = Phase.ALIGNING, Phase.RUNNING, Phase.FAILED
-_ACCEPTED, _STARTED = v.Verdict(v.ACCEPT, "", ""), v.Verdict(v.START, "", "")
+
+def saturation_note(axis: int, value: float) -> str:
+    return (f"gyro pinned at {value:g} rad/s on axis {'xyz'[axis]} (a repeated extreme: the "
+            "gyro saturated; the attitude is unreliable there)")
 
 
-START_NOTE = ("initial attitude: roll and pitch from the first accelerometer sample, the "
-              "heading of initial_attitude ({:.4g}° from north)")
+def rate_fit_note(t_ns: int) -> str:
+    return (f"rate fit not trusted at stamp {t_ns}: the samples alias the motion (the rate "
+            "turns by nearly half a turn between samples) or the fit leaves their range; the "
+            "step moved toward the exponential map (the attitude is unreliable there: sample "
+            "faster)")
 
 
 def starts_from_accelerometer(cfg: StreamConfig, q0) -> bool:
     """The tilt starts from the first accelerometer sample: ``initial_attitude_source``
-    accelerometer, or auto resolved to it with no attitude given to the estimator (``q0``
-    None; a given one is the start, as ``parameter``)."""
+    accelerometer, or auto resolved to it with no attitude ``q0`` given to the estimator."""
     if cfg.initial_attitude_source is InitialAttitudeSource.ACCELEROMETER:
         return True
     return q0 is None and cfg.start_source is InitialAttitudeSource.ACCELEROMETER
@@ -176,17 +139,12 @@ def bias_summary(report: GyroBiasReport) -> str:
 
 @dataclass
 class StreamResult:
-    """Attitudes of :meth:`AttitudeStream.run` over N input samples.
-
-    ``index`` (M,) input positions that got an attitude (the others were skipped, or came
-    while aligning); ``q`` (M, 4) scalar-last, finite and unit; ``variance`` (M, 3) per-axis
-    orientation variance [rad²] and ``variance_known`` (M,) whether it is an estimate by that
-    row (None, None when nothing gives one); ``action`` (N,) verdict codes
-    (:data:`.validation.ACTION_CODES`); ``counts`` per reason (rejections, ``gap``,
-    ``invalid_covariance``, ``invalid_accel``, ``integrator_error``); ``time_jump_resets``;
-    ``details`` the first log line per reason; ``bias`` the final :class:`GyroBiasReport`;
-    ``alignment`` the :class:`AlignmentResult` (``level``) or None.
-    """
+    """Attitudes of :meth:`AttitudeStream.run` over N input samples: ``index`` (M,) the
+    input rows that got one (the others were skipped, or came while aligning); ``q`` (M, 4)
+    scalar-last, finite and unit; ``variance`` (M, 3) per-axis orientation variance [rad²]
+    and ``variance_known`` (M,) whether it is an estimate (None, None when nothing gives one);
+    ``action`` (N,) verdict codes (:data:`.validation.ACTION_CODES`); ``details`` the first
+    log line per reason; ``notes`` what the estimator did, in words."""
 
     index: np.ndarray
     q: np.ndarray
@@ -198,36 +156,27 @@ class StreamResult:
     details: dict[str, str] = field(default_factory=dict)
     bias: GyroBiasReport | None = None
     alignment: AlignmentResult | None = None
-    notes: list[str] = field(default_factory=list)  # what the estimator did, in words
+    notes: list[str] = field(default_factory=list)
 
     @property
     def skipped(self) -> int:
         return int(self.action.shape[0] - self.index.shape[0])
 
 
-
 #: the algorithms compiled into the chain's step (the integration library has the others:
 #: integrate_batch, bench)
 STEP_ALGORITHMS = {"rotvec_cubic": chain.ALG_CUBIC, "exp_map": chain.ALG_EXP_MAP}
 _RING_START = 64  # rest-window entries held at first; a ring doubles when a window needs more
-_ALIGN_ERRORS = {1: "alignment needs the accelerometer: no usable linear_acceleration"}
 
 
 class AttitudeStream:
-    """Imu samples in, attitude out, through the chain of the module docstring.
-
-    ``algorithm`` one of :data:`STEP_ALGORITHMS`; ``q0`` the initial attitude (also the one a
-    time jump resets to; levelling replaces it; None: ``initial_attitude``, whose tilt the
-    first accelerometer sample replaces when :func:`starts_from_accelerometer`); ``nav`` a
-    :class:`NavFrame` for q_nb (Earth and transport rate removed; default: the one of
-    ``config`` with frame enu) or None for q_ib; ``config`` the settings.  The latitude is
-    known with a nav frame or for gyrocompassing; then the Earth rate is taken out of the
-    bias estimate at the current attitude.
-
-    The whole state is :attr:`state` (one record of :data:`.chain.STATE_DTYPE`) and three
-    rings; the settings are :attr:`coef` (:data:`.chain.COEF_DTYPE`), computed once.
-    :attr:`aiding`, :attr:`intervals` and :attr:`bias_report` read the record.
-    """
+    """Imu samples in, attitude out, through the chain's step.  ``algorithm`` one of
+    :data:`STEP_ALGORITHMS`; ``q0`` the initial attitude (also the one a time jump resets
+    to; None: ``initial_attitude``, whose tilt the first accelerometer sample replaces when
+    :func:`starts_from_accelerometer`); ``nav`` a :class:`NavFrame` for q_nb (default: the
+    one of ``config`` with frame enu) or None for q_ib.  The whole state is :attr:`state`
+    (one record of :data:`.chain.STATE_DTYPE`) and three rings; the settings are
+    :attr:`coef` (:data:`.chain.COEF_DTYPE`), computed once."""
 
     def __init__(self, algorithm: str = DEFAULT_ALGORITHM, q0=None,
                  nav: NavFrame | None = None, config: StreamConfig | None = None):
@@ -254,10 +203,9 @@ class AttitudeStream:
         self.align_buffer = np.zeros(_RING_START, chain.ALIGN_BUFFER_DTYPE).view(np.recarray)
         self._set_coefficients(cfg, q_initial)
         self._init_state(cfg, q_initial)
-        self._locked: str | None = None  # the frame of the time base (validation)
+        self.frame_id: str | None = None  # the frame the time base locked in (validation)
         self._pushed = False
-        self._details: dict[str, str] = {}
-        self._max_rate = float(self.coef.max_rate[0])
+        self.details: dict[str, str] = {}  # the first log line per reason
         self.alignment_error: str | None = None
         self._step = None  # the compiled step, at the first push() (run() needs none)
 
@@ -274,12 +222,16 @@ class AttitudeStream:
                              "library (integrate_batch, gyro-attitude bench) has every "
                              "algorithm")
 
-    def _set_coefficients(self, cfg: StreamConfig, q_initial: np.ndarray) -> None:
-        """The coefficients of ``cfg``: the settings as the step reads them."""
-        c = self.coef[0]
-        chk = v.ImuCheckConfig.of(cfg)
+    def _set_checks(self) -> None:
+        """The validation thresholds of :attr:`config` into the coefficients."""
+        chk, c = self.config, self.coef[0]
         c.max_gap_ns, c.time_jump_ns = chk.max_gap_ns, chk.time_jump_ns
         c.max_rate, c.max_missing = chk.max_rate_rad_s, chk.max_missing_samples
+        self._max_rate = float(c.max_rate)
+
+    def _set_coefficients(self, cfg: StreamConfig, q_initial: np.ndarray) -> None:
+        c = self.coef[0]
+        self._set_checks()
         c.bias_mode = {GyroBiasMode.NONE: chain.BIAS_NONE,
                        GyroBiasMode.PARAMETER: chain.BIAS_PARAMETER,
                        GyroBiasMode.AUTO: chain.BIAS_AUTO}[cfg.gyro_bias]
@@ -303,7 +255,6 @@ class AttitudeStream:
             c.aiding, c.ahrs, c.kp = chain.AID_AHRS, aid.pa, aid.kp
 
     def _init_state(self, cfg: StreamConfig, q_initial: np.ndarray) -> None:
-        """The state at the start: each stage's own start, the chain's attitude and phase."""
         s = self.state[0]
         s.q = s.q_initial = q_initial
         s.phase = chain.ALIGNING if cfg.levelling else chain.RUNNING
@@ -314,30 +265,23 @@ class AttitudeStream:
         s.sat = [0.0] * 3 + [math.nan] * 3
         s.rest_f, s.rest_i, s.bias_f, s.bias_i = bias_start(cfg)
         if cfg.levelling:
-            self._init_aligner(cfg)
+            gc = cfg.heading_source is HeadingSource.GYROCOMPASS
+            self.state.aligner[0] = aligner_start(cfg, self.latitude_rad if gc else None)[0]
         s.level_pending = self.coef.level_first[0]
         self.aiding = None
         if cfg.aided:
             self.aiding = AhrsFilter(cfg)
             s.ahrs_f, s.ahrs_i = self.aiding.af, self.aiding.ai
             self.aiding.af, self.aiding.ai = self.state.ahrs_f[0], self.state.ahrs_i[0]
-        self._set_nav(self.nav)
+        # the nav rate ω_in^n of a constant frame (a series is fed row by row: run())
+        s.has_nav = self.nav is not None
+        if self.nav is not None and self.nav.series_length() is None:
+            s.nav_rate = self.nav.rate_enu(None)
         # one-off steps run as the kernels' Python form: no compiler for a reset
         chain.integrator_reset(self.coef[0], s, *q_initial.tolist(), False, 0)
         s.cov, s.initial_tt = covariance_start(cfg)
         self.intervals = v.IntervalStatistics(self.state.intervals[0],
                                               self.state.interval_fill[0])
-
-    def _init_aligner(self, cfg: StreamConfig) -> None:
-        gc = cfg.heading_source is HeadingSource.GYROCOMPASS
-        self.state.aligner[0] = aligner_start(cfg, self.latitude_rad if gc else None)[0]
-
-    def _set_nav(self, nav) -> None:
-        """The nav rate ω_in^n of a constant frame (a series is fed row by row: run())."""
-        s = self.state[0]
-        s.has_nav = nav is not None
-        if nav is not None and nav.series_length() is None:
-            s.nav_rate = nav.rate_enu(None)
 
     # ------------------------------------------------------------------ queries
     @property
@@ -345,17 +289,8 @@ class AttitudeStream:
         return (Phase.RUNNING, Phase.ALIGNING, Phase.FAILED)[int(self.state.phase[0])]
 
     @property
-    def frame_id(self) -> str | None:
-        """The frame_id of the samples the time base locked in (None before the first)."""
-        return self._locked
-
-    @property
     def q_initial(self) -> np.ndarray:
         return np.array(self.state.q_initial[0])
-
-    @property
-    def details(self) -> dict[str, str]:
-        return self._details
 
     @property
     def counts(self) -> dict[str, int]:
@@ -371,11 +306,9 @@ class AttitudeStream:
             out[MAG_MISSING] = int(s.mag_missing)
             out[INVALID_MAG] = self.aiding.mag_invalid
             out[MAG_DISTURBED] = self.aiding.mag_disturbed
-            for key, text in ((INVALID_MAG, "a magnetic field sample not finite, beyond 10 mT "
-                                            "or below 0.1 µT"),
-                              (MAG_DISTURBED, "a field whose norm or dip is off the reference")):
+            for key, text in _MAG_NOTES:
                 if out[key]:
-                    self._details.setdefault(key, text)
+                    self.details.setdefault(key, text)
         return out
 
     @property
@@ -401,8 +334,7 @@ class AttitudeStream:
         return np.array(self.state.q[0], dtype=np.float64)
 
     @property
-    def variance(self) -> np.ndarray | None:
-        """Per-axis orientation variance [rad²]; None while nothing gives an estimate."""
+    def variance(self) -> np.ndarray | None:  # per axis [rad²]; None: nothing gives one
         s = self.state[0]
         return np.array(s.cov[V_TT:V_TT + 3]) if s.variance_known else None
 
@@ -433,17 +365,13 @@ class AttitudeStream:
 
     # ------------------------------------------------------------------ settings
     def set_config(self, config: StreamConfig) -> None:
-        """New validation thresholds from the next sample on (state kept; the bias, alignment
-        and aiding settings stay those of construction)."""
+        """New validation thresholds from the next sample on (the rest of ``config`` is
+        that of construction)."""
         self.config = replace(self.config, max_gap_s=config.max_gap_s,
                               time_jump_threshold_s=config.time_jump_threshold_s,
                               max_rate_rad_s=config.max_rate_rad_s,
                               max_missing_samples=config.max_missing_samples)
-        chk = v.ImuCheckConfig.of(self.config)
-        c = self.coef[0]
-        c.max_gap_ns, c.time_jump_ns = chk.max_gap_ns, chk.time_jump_ns
-        c.max_rate, c.max_missing = chk.max_rate_rad_s, chk.max_missing_samples
-        self._max_rate = float(chk.max_rate_rad_s)
+        self._set_checks()
 
     def set_algorithm(self, algorithm: str) -> None:
         """Switch the algorithm, keeping the attitude and the time base (raises ValueError and
@@ -460,8 +388,7 @@ class AttitudeStream:
         chain.integrator_reset(self.coef[0], s, *q, has_t, int(ci[C_LAST_T]) if has_t else 0)
 
     def update_nav(self, nav: NavFrame) -> None:
-        """Constant nav frame from the next sample on: its rate ``ω_in^n`` is evaluated here,
-        once, and is the nav rate at the next sample (see StreamingIntegrator.update_nav)."""
+        """Constant nav frame from the next sample on (its rate ω_in^n evaluated here, once)."""
         rate = constant_nav_rate(self.nav, nav)
         self.nav = nav
         self.state.nav_rate[0] = rate
@@ -477,7 +404,7 @@ class AttitudeStream:
         s.has_resume = False
         s.has_start = False  # the start the first rest's estimate may go back to: the next
         v.stamps_reset(s.stamps)
-        self._locked = None
+        self.frame_id = None
         s.interval_fill = 0
         chain.break_windows(self.coef[0], s)
 
@@ -486,13 +413,11 @@ class AttitudeStream:
              accel=None, mag=None) -> tuple[v.Verdict, np.ndarray | None]:
         """One sample through the chain: its verdict and the attitude at ``t_ns`` (None when it
         was skipped or while aligning).  ``accel`` the specific force (3,) m/s² or None; ``mag``
-        the magnetic field (3,) tesla time-aligned to ``t_ns`` or None (aiding magnetometer:
-        counted ``mag_missing``, heading gyro-only; a field that is not finite, absurd or zero
-        is counted ``invalid_mag``, one that disagrees with the reference ``mag_disturbed``)."""
+        the magnetic field (3,) tesla time-aligned to ``t_ns`` or None."""
         w = _floats(omega)
         t = t_ns if type(t_ns) is int and -2**63 <= t_ns < 2**63 else self._stamp(t_ns, w)
         w0, w1, w2 = w if w is not None else (math.nan, math.nan, math.nan)
-        frame_ok = self._locked is None or frame_id == self._locked
+        frame_ok = self.frame_id is None or frame_id == self.frame_id
         a = None if accel is None else _floats(accel) or (math.nan, math.nan, math.nan)
         a0, a1, a2 = a if a is not None else (0.0, 0.0, 0.0)
         cv = _ZERO9
@@ -512,16 +437,21 @@ class AttitudeStream:
             self._grow(code)
         if not self._pushed:
             self._step = direct(self._step)
-        if code == v.A_START and self._locked is None:
-            self._locked = frame_id
+        if code == v.A_START and self.frame_id is None:
+            self.frame_id = frame_id
         self._pushed = True
-        if reason == 0 and ev == 0:
-            verdict = v.PLAIN_VERDICTS[code]
-        else:
-            words = _Words(self, t_ns, omega, frame_id, accel, angular_velocity_covariance, w)
-            detail = words.after_step(reason, ev)
-            verdict = v.PLAIN_VERDICTS[code] if reason == 0 else v.Verdict(
-                v.ACTIONS[code], v.REASON_NAMES[reason], detail)
+        verdict = v.PLAIN_VERDICTS[code]
+        if reason:
+            detail = self._reason_note(reason, t_ns, omega, w, frame_id, self.state[0].stamps)
+            verdict = v.Verdict(v.ACTIONS[code], v.REASON_NAMES[reason], detail)
+        if ev:
+            sat_axis = int(self.state.ev_sat_axis[0])
+            for e, bit, key in _EVENTS:
+                if ev & bit:
+                    self._event_note(e, key, t_ns, w, angular_velocity_covariance, accel,
+                                     sat_axis)
+            if ev & chain.E_ALIGN:
+                self._align_note()
         return verdict, np.array((x, y, z, u)) if got else None
 
     def _stamp(self, t_ns, w) -> int:
@@ -552,19 +482,56 @@ class AttitudeStream:
                 new[:count] = self.align_buffer[order]
                 self.align_buffer, s.align_head = new, 0
 
+    # ------------------------------------------------------------------ words
+    # texts are made here, at the edge, from the step's codes: the first per reason is kept
+    def _reason_note(self, reason: int, t_ns, omega, w, frame_id, figures) -> str:
+        """The validator's words for ``reason`` (its figures from the step)."""
+        name = v.REASON_NAMES[reason]
+        if name == v.NON_FINITE and w is None:
+            text = f"not numbers: {omega!r}"
+        else:
+            text = v.reason_words(name, t_ns, w, frame_id, self.frame_id, figures,
+                                  self.config.max_rate_rad_s, self.config.max_gap_ns)
+        self.details.setdefault(name, text)
+        return text
+
+    def _event_note(self, e: int, key: str, t_ns, w, covariance, accel, axis: int) -> None:
+        """The words of the chain's event ``e`` (:data:`.chain.EV_*`) at a sample."""
+        if key in self.details:
+            return
+        if e == chain.EV_INVALID_COV:
+            text = invalid_covariance_note(covariance)
+        elif e == chain.EV_INVALID_ACCEL:
+            text = (f"accelerometer sample {_values(accel)} is not 3 finite numbers: not used "
+                    "for rests or aiding")
+        elif e == chain.EV_SATURATED:
+            text = saturation_note(axis, w[axis])
+        elif e == chain.EV_FALLBACK:
+            text = rate_fit_note(int(t_ns))
+        elif e == chain.EV_MAG_MISSING:
+            text = f"no field sample at stamp {int(t_ns)} (none within mag_max_age_s)"
+        else:
+            text = unknown_noise_note(self.config)
+        self.details[key] = text
+
+    def _align_note(self) -> None:
+        """:attr:`alignment_error` from the step's code."""
+        s = self.state[0]
+        code = int(s.align_error)
+        if code == 1:
+            self.alignment_error = "alignment needs the accelerometer: no usable linear_acceleration"
+        else:
+            self.alignment_error = failure_words(s.aligner, code - 1) if code else None
+
     # ------------------------------------------------------------------ a whole recording
     def run(self, t_ns, omega, frame_id: str | list[str] | None = "",
             angular_velocity_covariance=None, accel=None, mag=None,
             empty=np.empty) -> StreamResult:
         """All samples of a recording, in file order, on a fresh stream: the step of
         :meth:`push` in a compiled loop over the rows (the same code, the same numbers).
-
-        ``t_ns`` (N,) int stamps; ``omega`` (N, 3) rad/s; ``frame_id`` one for all or one per
-        sample; ``angular_velocity_covariance`` (N, 9) or None; ``accel`` (N, 3) m/s² or None;
-        ``mag`` (N, 3) tesla or None (rows of NaN: no field).  ``empty(shape, dtype)``
-        allocates the arrays of the recording's length (default ``np.empty``; replay gives
-        file-backed ones).  Raises ValueError when levelling cannot align on the recording.
-        """
+        Arguments as push()'s, one row per sample (``mag`` rows of NaN: no field;
+        ``frame_id`` one for all or one per sample); ``empty(shape, dtype)`` allocates the
+        arrays of the recording's length.  ValueError when levelling cannot align."""
         if self._pushed:
             raise ValueError("run() needs a fresh AttitudeStream (it replays a whole recording)")
         t = np.asarray(t_ns)
@@ -611,16 +578,28 @@ class AttitudeStream:
                 self._grow(chain.BIAS_RING_FULL if self.state.rest_i[0][R_COUNT]
                            == self.bias_ring.shape[0] else chain.ALIGN_RING_FULL)
             k = r
-        self._locked = names[locked] if locked >= 0 else None
+        self.frame_id = names[locked] if locked >= 0 else None
         self._pushed = True
-        _Words.after_run(self, t, w, names, frames, first_row, first_fig, cov,
-                         angular_velocity_covariance, accel, acc)
+        for reason in range(1, len(v.REASON_NAMES)):  # the words of each event's first row
+            k = int(first_row[reason])
+            if k >= 0:
+                self._reason_note(reason, int(t[k]), w[k], tuple(w[k].tolist()),
+                                  names[int(frames[k])], first_fig[reason])
+        for e, _, key in _EVENTS:
+            k = int(first_row[e])
+            if k >= 0:
+                self._event_note(e, key, t[k], w[k], None if cov is None else cov[k],
+                                 None if acc is None else acc[k], int(first_fig[e, 0]))
+        self._align_note()
         if self.state.phase[0] != chain.RUNNING:
-            raise ValueError(self.alignment_error or cannot_align(self.config))
+            raise ValueError(self.alignment_error or (
+                f"cannot align: no rest of at least {self.config.min_rest_s:g} s followed by "
+                "motion in the recording (initial_attitude_source 'level' needs the IMU still "
+                "at the start)"))
         any_known = bool(known[:m].any())
         return StreamResult(got[:m], q[:m], var[:m] if any_known else None,
                             known[:m] if any_known else None, action, self.counts,
-                            self.time_jump_resets, dict(self._details), self.bias_report,
+                            self.time_jump_resets, dict(self.details), self.bias_report,
                             self.alignment)
 
 
@@ -631,8 +610,7 @@ _F64 = np.dtype(np.float64)
 
 
 def _floats(x) -> tuple[float, float, float] | None:
-    """3 floats of a sample (NaN stays NaN), or None when it is not 3 numbers (text, a
-    mapping, numbers beyond float64)."""
+    """3 floats of a sample (NaN stays NaN), or None when it is not 3 numbers."""
     if type(x) is np.ndarray:
         if x.dtype is _F64 and x.shape == (3,):  # a message's array: the common case
             a, b, c = x.tolist()
@@ -651,16 +629,13 @@ def _floats(x) -> tuple[float, float, float] | None:
 
 
 def _covariance_row(covariance) -> np.ndarray:
-    """A covariance as a writable contiguous float64 array of 9 (what the compiled step was
-    compiled for; a message's array is taken as is), NaN where it is not 9 numbers (judged
-    invalid)."""
+    """A covariance as a writable contiguous float64 array of 9 (what the step was compiled
+    for; a message's array as is), NaN when it is not 9 numbers (judged invalid)."""
     c = covariance
     if type(c) is np.ndarray and c.dtype == np.float64 and c.shape == (9,) and \
             c.flags.c_contiguous and c.flags.writeable:
         return c
-    if isinstance(c, str | bytes | dict):
-        return np.full(9, np.nan)
-    try:
+    try:  # (text and mappings are refused here too)
         c = np.array(covariance, dtype=np.float64).reshape(-1)
     except (TypeError, ValueError, OverflowError):
         return np.full(9, np.nan)
@@ -670,179 +645,50 @@ def _covariance_row(covariance) -> np.ndarray:
 def _field(mag) -> tuple[int, tuple | None]:
     """(state, 3 floats) of a magnetometer sample: absent (None or a row of NaN), not 3 finite
     numbers, or given."""
-    if mag is None:
-        return MAG_ABSENT, None
-    m = _floats(mag)
+    m = None if mag is None else _floats(mag)
     if m is None:
-        return MAG_NOT_FLOATS, None
-    x, y, z = m
-    if math.isfinite(x) and math.isfinite(y) and math.isfinite(z):
+        return (MAG_ABSENT if mag is None else MAG_NOT_FLOATS), None
+    if math.isfinite(m[0]) and math.isfinite(m[1]) and math.isfinite(m[2]):
         return MAG_GIVEN, m
-    if math.isnan(x) and math.isnan(y) and math.isnan(z):
+    if math.isnan(m[0]) and math.isnan(m[1]) and math.isnan(m[2]):
         return MAG_ABSENT, None  # a row of NaN: no field at this sample
     return MAG_NOT_FLOATS, None
 
 
 def _field_rows(mag, n: int, use: bool):
     """Per-row field states (N,) and the field (N, 3) of a recording (:func:`_field`)."""
+    mg = _recording_rows(mag, n, 3, "mag")
     ms = np.full(n, MAG_ABSENT, np.int64)
-    if mag is None or not use:
-        if mag is not None:
-            _check_mag_shape(mag, n)
+    if mg is None or not use:
         return ms, None
-    mg = _check_mag_shape(mag, n)
-    nan = np.isnan(mg)
     finite = np.isfinite(mg).all(axis=1)
     ms[finite] = MAG_GIVEN
-    ms[~finite & ~nan.all(axis=1)] = MAG_NOT_FLOATS
+    ms[~finite & ~np.isnan(mg).all(axis=1)] = MAG_NOT_FLOATS
     return ms, mg
 
 
-def _check_mag_shape(mag, n: int) -> np.ndarray:
-    mg = np.ascontiguousarray(mag, dtype=np.float64)
-    if mg.shape != (n, 3):
-        raise ValueError(f"mag must have shape ({n}, 3), got {mg.shape}")
-    return mg
-
-
-class _Words:
-    """The words of what the step did (texts are made here, at the edge, from its codes): the
-    first detail per reason into the stream's ``details``."""
-
-    def __init__(self, stream, t_ns, omega, frame_id, accel, covariance, w):
-        self.stream, self.t_ns, self.omega, self.frame_id = stream, t_ns, omega, frame_id
-        self.accel, self.covariance, self.w = accel, covariance, w
-
-    def after_step(self, reason: int, ev: int) -> str:
-        """The words of one step's ``reason`` and events ``ev`` (:data:`.chain.E_*`)."""
-        st = self.stream
-        s = st.state[0]
-        detail = ""
-        if reason:
-            detail = self.reason_text(reason, s.stamps)
-            st._details.setdefault(v.REASON_NAMES[reason], detail)
-        if ev & chain.E_INVALID_COV:
-            st._details.setdefault(INVALID_COVARIANCE, invalid_covariance_note(self.covariance))
-        if ev & chain.E_INVALID_ACCEL:
-            st._details.setdefault(INVALID_ACCEL, invalid_accel_note(self.accel))
-        if ev & chain.E_SATURATED:
-            axis = int(s.ev_sat_axis)
-            st._details.setdefault(SATURATED, saturation_note(axis, self.w[axis]))
-        if ev & chain.E_FALLBACK:
-            st._details.setdefault(RATE_FIT_FALLBACK, rate_fit_note(int(self.t_ns)))
-        if ev & chain.E_MAG_MISSING:
-            st._details.setdefault(MAG_MISSING, mag_missing_note(int(self.t_ns)))
-        if ev & chain.E_NOISE_UNKNOWN:
-            st._details.setdefault(GYRO_NOISE_UNKNOWN, unknown_noise_note(st.config))
-        if ev & chain.E_ALIGN:
-            _align_words(st)
-        return detail
-
-    def reason_text(self, reason, figures) -> str:
-        """The validator's words for ``reason`` (its figures from the step)."""
-        name = v.REASON_NAMES[reason]
-        st = self.stream
-        if name == v.NON_FINITE and self.w is None:
-            return f"not numbers: {self.omega!r}"
-        return v.reason_words(name, self.t_ns, self.w, self.frame_id, st._locked, figures,
-                              v.ImuCheckConfig.of(st.config))
-
-    @classmethod
-    def after_run(cls, st, t, w, names, frames, first_row, first_fig, cov, cov_in, accel_in,
-                  acc) -> None:
-        """The details of a whole run, from the first row of each event."""
-        for reason in range(1, len(v.REASON_NAMES)):
-            k = int(first_row[reason])
-            if k < 0:
-                continue
-            words = cls(st, int(t[k]), w[k], names[int(frames[k])], None, None,
-                        tuple(w[k].tolist()))
-            st._details.setdefault(v.REASON_NAMES[reason],
-                                   words.reason_text(reason, first_fig[reason]))
-        k = int(first_row[chain.EV_INVALID_COV])
-        if k >= 0:
-            st._details.setdefault(INVALID_COVARIANCE, invalid_covariance_note(cov[k]))
-        k = int(first_row[chain.EV_INVALID_ACCEL])
-        if k >= 0:
-            st._details.setdefault(INVALID_ACCEL, invalid_accel_note(acc[k]))
-        k = int(first_row[chain.EV_SATURATED])
-        if k >= 0:
-            axis = int(first_fig[chain.EV_SATURATED, 0])
-            st._details.setdefault(SATURATED, saturation_note(axis, float(w[k, axis])))
-        k = int(first_row[chain.EV_FALLBACK])
-        if k >= 0:
-            st._details.setdefault(RATE_FIT_FALLBACK, rate_fit_note(int(t[k])))
-        k = int(first_row[chain.EV_MAG_MISSING])
-        if k >= 0:
-            st._details.setdefault(MAG_MISSING, mag_missing_note(int(t[k])))
-        if first_row[chain.EV_NOISE_UNKNOWN] >= 0:
-            st._details.setdefault(GYRO_NOISE_UNKNOWN, unknown_noise_note(st.config))
-        _align_words(st)
-
-
-def _align_words(st) -> None:
-    """The stream's ``alignment_error`` from the step's code."""
-    s = st.state[0]
-    code = int(s.align_error)
-    if code == 0:
-        st.alignment_error = None
-    elif code == 1:
-        st.alignment_error = _ALIGN_ERRORS[1]
-    else:
-        st.alignment_error = failure_words(s.aligner, code - 1)
-
-
-def mag_missing_note(t_ns: int) -> str:
-    return f"no field sample at stamp {t_ns} (none within mag_max_age_s)"
-
-
-def saturation_note(axis: int, value: float) -> str:
-    return (f"gyro pinned at {value:g} rad/s on axis {'xyz'[axis]} (a repeated extreme: the "
-            "gyro saturated; the attitude is unreliable there)")
-
-
-def rate_fit_note(t_ns: int) -> str:
-    return (f"rate fit not trusted at stamp {t_ns}: the samples alias the motion (the rate "
-            "turns by nearly half a turn between samples) or the fit leaves their range; the "
-            "step moved toward the exponential map (the attitude is unreliable there: sample "
-            "faster)")
-
-
-def cannot_align(cfg: StreamConfig) -> str:
-    return (f"cannot align: no rest of at least {cfg.min_rest_s:g} s followed by motion in the "
-            "recording (initial_attitude_source 'level' needs the IMU still at the start)")
-
+def _recording_rows(x, n: int, width: int, name: str) -> np.ndarray | None:
+    """``x`` (None stays None) as a contiguous float array (n, width), or ValueError."""
+    if x is None:
+        return None
+    a = np.ascontiguousarray(x, dtype=np.float64)
+    if a.shape != (n, width):
+        raise ValueError(f"{name} must have shape ({n}, {width}), got {a.shape}")
+    return a
 
 
 def recording_arrays(n: int, angular_velocity_covariance, accel):
-    """``(covariance (n, 9) or None, accel (n, 3) or None)`` as float arrays of a whole
-    recording of n samples, or ValueError naming the wrong shape."""
-    cov = acc = None
-    if angular_velocity_covariance is not None:
-        cov = np.ascontiguousarray(angular_velocity_covariance, dtype=np.float64)
-        if cov.shape != (n, 9):
-            raise ValueError(f"angular_velocity_covariance must have shape ({n}, 9), got "
-                             f"{cov.shape}")
-    if accel is not None:
-        acc = np.ascontiguousarray(accel, dtype=np.float64)
-        if acc.shape != (n, 3):
-            raise ValueError(f"accel must have shape ({n}, 3), got {acc.shape}")
-    return cov, acc
+    """``(covariance (n, 9) or None, accel (n, 3) or None)`` of a recording of n samples."""
+    return (_recording_rows(angular_velocity_covariance, n, 9, "angular_velocity_covariance"),
+            _recording_rows(accel, n, 3, "accel"))
 
 
 def covariance_rows(cov: np.ndarray, valid: np.ndarray, counts: dict, details: dict):
     """Per-axis gyro variances (M, 3) and whether each is known (M,) for the accepted rows
-    ``valid`` of ``cov`` (N, 9), by the causal step's verdict (:func:`.chain.covariance_verdict`);
-    the invalid ones are counted in ``counts`` and the first is described in ``details``
-    (treated as unknown)."""
+    ``valid`` of ``cov`` (N, 9), by the causal step's verdict; the invalid ones counted in
+    ``counts``, the first described in ``details``."""
     c = np.asarray(cov, dtype=np.float64)
-    if c.ndim == 2 and c.shape[0] > 1 and c.strides[0] == 0:
-        # one row repeated (a broadcast view: every message carried the same covariance)
-        var1, code1 = _verdicts(c[:1], loop=chain.covariance_verdicts)
-        var_all = np.broadcast_to(var1, c.shape[:1] + (3,))
-        code_all = np.broadcast_to(code1, c.shape[:1])
-    else:
-        var_all, code_all = _distinct_verdicts(c)
+    var_all, code_all = _verdicts(c)
     code = rows(code_all, valid)
     inv = code == chain.COV_INVALID
     counts[INVALID_COVARIANCE] = int(np.count_nonzero(inv))
@@ -852,35 +698,36 @@ def covariance_rows(cov: np.ndarray, valid: np.ndarray, counts: dict, details: d
     return rows(var_all, valid), code == chain.COV_KNOWN
 
 
-def _verdicts(c: np.ndarray, loop=None) -> tuple[np.ndarray, np.ndarray]:
-    var = np.zeros((c.shape[0], 3))
-    code = np.zeros(c.shape[0], np.int8)
-    (loop or compiled(chain.covariance_verdicts))(np.ascontiguousarray(c), var, code)
-    return var, code
-
-
 #: past this many distinct covariance rows the verdicts run compiled
 _FEW_DISTINCT_ROWS = 4096
 
 
-def _distinct_verdicts(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_verdicts` of every row, judged once per distinct row (by its bits): a driver
-    sends one covariance, or a few, so the interpreter judges them and a replay that runs no
-    other compiled code does not load numba (two thirds of a second in a fresh process)."""
-    if c.ndim != 2 or c.shape[0] == 0:
-        return _verdicts(c)
+def _verdicts(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The covariance verdicts (:func:`.chain.covariance_verdicts`) of every row of ``c``
+    (N, 9), judged once per distinct row (by its bits): a driver sends one covariance, or a
+    few, so the interpreter judges them and a replay that runs no other compiled code does
+    not load numba (two thirds of a second in a fresh process)."""
+    if c.shape[0] > 1 and c.strides[0] == 0:  # one row repeated (a broadcast view)
+        var, code = _judge(c[:1], chain.covariance_verdicts)
+        return np.broadcast_to(var, (c.shape[0], 3)), np.broadcast_to(code, c.shape[:1])
     bits = np.ascontiguousarray(c).view(np.dtype((np.void, c.dtype.itemsize * c.shape[1])))
     distinct, first, inverse = np.unique(bits[:, 0], return_index=True, return_inverse=True)
     if distinct.size > _FEW_DISTINCT_ROWS:
-        return _verdicts(c)
-    var, code = _verdicts(c[first], loop=chain.covariance_verdicts)
+        return _judge(c, compiled(chain.covariance_verdicts))
+    var, code = _judge(c[first], chain.covariance_verdicts)
     return var[inverse], code[inverse]
 
 
+def _judge(c: np.ndarray, loop) -> tuple[np.ndarray, np.ndarray]:
+    var = np.zeros((c.shape[0], 3))
+    code = np.zeros(c.shape[0], np.int8)
+    loop(np.ascontiguousarray(c), var, code)
+    return var, code
+
+
 def rows(a: np.ndarray, index: np.ndarray, empty=None) -> np.ndarray:
-    """``a[index]`` for sorted row indices; a view when they are consecutive (the usual
-    case: a recording without bad samples), sparing a copy of the whole recording.  A copy
-    goes into ``empty(shape, dtype)`` when given."""
+    """``a[index]`` for sorted row indices: a view when they are consecutive (the usual
+    case), else a copy (into ``empty(shape, dtype)`` when given)."""
     if index.size and int(index[-1]) - int(index[0]) == index.size - 1:
         return a[int(index[0]):int(index[-1]) + 1]
     if empty is None or a.strides[0] == 0:
@@ -922,12 +769,10 @@ def nav_rows(nav: NavFrame | None, index: np.ndarray, n: int) -> NavFrame | None
 
 
 def compile_kernels(config: StreamConfig | None = None, algorithm: str | None = None) -> None:
-    """Compile (or load from numba's cache) what the chain runs compiled: a short synthetic
-    recording (rest, turn, rest; accelerometer and field) pushed through a stream with
-    ``config`` (and ``algorithm``), or with every aiding mode.  The start is the given attitude
-    whatever ``config`` says (a levelling or gyrocompassing start might never align on it; its
-    kernels are the same).  The node calls it at start-up and dev.sh after installing, so that
-    no sample waits for the compiler."""
+    """Compile (or load from numba's cache) what the chain runs compiled, so that no sample
+    waits for the compiler: a synthetic recording (rest, turn, rest) run and pushed through a
+    stream with ``config``, or with every aiding mode (from the given attitude: a levelling
+    start might never align on it; its kernels are the same)."""
     n = 800
     t = 1_000_000_000 + np.arange(n, dtype=np.int64) * 5_000_000
     rng = np.random.default_rng(0)

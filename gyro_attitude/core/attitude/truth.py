@@ -1,13 +1,6 @@
-"""Truth attitude at an Imu stamp: slerp between the truth samples around it; where to start.
-
-A truth stream (optical tracking, a simulator's ``truth/attitude``) is sampled on its own clock;
-the integration starts at an Imu stamp.  :func:`truth_at` interpolates the truth there by slerp
-(constant-rate rotation between the two neighbouring truth samples: exact for a constant
-angular velocity, second order otherwise) and refuses to extrapolate: a stamp before
-the first truth sample, after the last, or in a truth gap longer than ``max_interval_ns`` (the
-tracker lost the markers) has no truth.  :func:`initial_attitude_from_truth` picks the first Imu
-sample that has one.
-"""
+"""Truth attitude at Imu stamps (slerp between the truth samples around each, no
+extrapolation, none across a truth gap) and where a truth start begins (docs/architecture.md,
+"Notes: the estimator's edge")."""
 
 from __future__ import annotations
 
@@ -15,16 +8,20 @@ import numpy as np
 
 from gyro_attitude.core.rotation import _exp_rotvec, _log_quat, _qmul, quat_conjugate
 
-__all__ = ["TruthStart", "default_max_interval_ns", "initial_attitude_from_truth", "truth_at",
+__all__ = ["TruthStart", "default_max_interval_ns", "initial_attitude_from_truth",
            "truth_at_stamps", "tilt_and_heading_error", "span_words"]
 
 
-def _check(truth_t, truth_q) -> tuple[np.ndarray, np.ndarray]:
-    t = np.asarray(truth_t)
+def _stamps(stamps, name: str) -> np.ndarray:
+    t = np.asarray(stamps)
     if t.ndim != 1 or t.size == 0 or not np.issubdtype(t.dtype, np.integer):
-        raise ValueError(f"truth stamps must be a non-empty 1-D array of int ns, got "
-                         f"shape {t.shape} dtype {t.dtype}")
-    t = t.astype(np.int64)
+        raise ValueError(f"{name} stamps must be a non-empty 1-D array of int ns, got shape "
+                         f"{t.shape} dtype {t.dtype}")
+    return t.astype(np.int64)
+
+
+def _check(truth_t, truth_q) -> tuple[np.ndarray, np.ndarray]:
+    t = _stamps(truth_t, "truth")
     if t.size > 1 and np.any(np.diff(t) <= 0):
         raise ValueError("truth stamps must be strictly increasing")
     q = np.asarray(truth_q, dtype=np.float64)
@@ -54,29 +51,10 @@ def default_max_interval_ns(truth_t) -> int:
     return int(1.5 * float(np.median(dt)))
 
 
-def truth_at(truth_t, truth_q, t_ns: int, max_interval_ns: int | None = None) -> np.ndarray:
-    """Truth quaternion (4,) x, y, z, w at ``t_ns``, or ValueError when the truth does not
-    cover it (outside the truth's span or inside a gap longer than ``max_interval_ns``)."""
-    t, q = _check(truth_t, truth_q)
-    t_ns = int(t_ns)
-    got, covered = _covered(t, q, np.array([t_ns], np.int64), max_interval_ns)
-    if covered[0]:
-        return got[0]
-    if not t[0] < t_ns < t[-1]:
-        raise ValueError(f"no truth at {t_ns} ns: the truth spans [{t[0]}, {t[-1]}] ns "
-                         "(no extrapolation)")
-    k = int(np.searchsorted(t, t_ns))
-    raise ValueError(f"no truth at {t_ns} ns: it falls in a truth gap of "
-                     f"{(t[k] - t[k - 1]) * 1e-9:.3g} s")
-
-
 def _slerp(t: np.ndarray, q: np.ndarray, k: np.ndarray, t_ns: np.ndarray) -> np.ndarray:
-    """Truth at ``t_ns`` (M,) between truth samples ``k - 1`` and ``k`` (M,), (M, 4).
-
-    Slerp q_a ⊗ exp(f · log(q_a* ⊗ q_b)) (the shorter way round), with core.rotation's
-    exp/log (tested against scipy): scipy.spatial's Slerp would add 0.16 s of imports to
-    every replay for this.  f from int ns differences (no precision lost on long stamps).
-    """
+    """Truth at ``t_ns`` (M,) between truth samples ``k - 1`` and ``k`` (M,): slerp
+    q_a ⊗ exp(f · log(q_a* ⊗ q_b)) with core.rotation's exp/log (scipy's Slerp would add
+    0.16 s of imports to every replay), f from int ns differences (no precision lost)."""
     a, b = q[k - 1], q[k]
     f = (t_ns - t[k - 1]) / (t[k] - t[k - 1])
     out = _qmul(a, _exp_rotvec(f[:, None] * _log_quat(_qmul(quat_conjugate(a), b))))
@@ -85,10 +63,10 @@ def _slerp(t: np.ndarray, q: np.ndarray, k: np.ndarray, t_ns: np.ndarray) -> np.
 
 def truth_at_stamps(truth_t, truth_q, t_ns,
                     max_interval_ns: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """``(q, covered)``: the truth at every stamp of ``t_ns`` (M,) that it covers, as
-    :func:`truth_at` takes it (a coinciding truth sample as is, else the slerp between
-    the two around it; nothing outside the truth's span or in a gap longer than
-    ``max_interval_ns``). ``covered`` (M,) bool; ``q`` (covered.sum(), 4)."""
+    """``(q, covered)``: the truth at every stamp of ``t_ns`` (M,) that it covers (a
+    coinciding truth sample as is, else the slerp between the two around it; nothing outside
+    the truth's span or in a gap longer than ``max_interval_ns``, default
+    :func:`default_max_interval_ns`).  ``covered`` (M,) bool; ``q`` (covered.sum(), 4)."""
     t, q = _check(truth_t, truth_q)
     return _covered(t, q, np.asarray(t_ns, dtype=np.int64).reshape(-1), max_interval_ns)
 
@@ -143,24 +121,19 @@ def span_words(t0_ns: int, t1_ns: int) -> str:
     return f"[{t0_ns * 1e-9:.3f}, {t1_ns * 1e-9:.3f}] s"
 
 
-def initial_attitude_from_truth(imu_t, truth_t, truth_q, max_interval_ns: int | None = None,
+def initial_attitude_from_truth(imu_t, truth_t, truth_q,
                                 usable=None) -> tuple[np.ndarray, int, int]:
     """``(q0, first_index, skipped)``: the truth at the first usable Imu stamp it covers.
 
     ``usable(k) -> bool``: whether the estimator would accept Imu sample ``k`` as a start
     (:func:`.validation.sample_problem` finds nothing; default all) — the truth is taken at
     the sample where the attitude starts, never at one the estimator then rejects.
-    ``first_index`` that sample; ``skipped`` how many Imu samples come before it (0 when the
-    truth starts with the Imu).
+    ``first_index`` that sample; ``skipped`` how many Imu samples come before it.
     ValueError when no usable Imu stamp is covered.
     """
     t, q = _check(truth_t, truth_q)
-    imu = np.asarray(imu_t)
-    if imu.ndim != 1 or imu.size == 0 or not np.issubdtype(imu.dtype, np.integer):
-        raise ValueError(f"Imu stamps must be a non-empty 1-D array of int ns, got shape "
-                         f"{imu.shape} dtype {imu.dtype}")
-    imu = imu.astype(np.int64)
-    limit = default_max_interval_ns(t) if max_interval_ns is None else int(max_interval_ns)
+    imu = _stamps(imu_t, "Imu")
+    limit = default_max_interval_ns(t)
     for k in np.flatnonzero((imu >= t[0]) & (imu <= t[-1])).tolist():  # usually the first
         if usable is not None and not usable(k):
             continue
@@ -223,17 +196,13 @@ class TruthStart:
             t_ns = pending[0][0]
             if t_ns > self._t[-1]:
                 return None  # the truth around it has not arrived yet
-            if t_ns >= self._t[0]:
-                try:
-                    q0 = truth_at(np.array(self._t), np.array(self._q), t_ns)
-                except ValueError:  # inside a truth gap: try the next sample
-                    pass
-                else:
-                    payloads = [p for _, p in pending]
-                    pending.clear()
-                    self._t.clear()
-                    self._q.clear()
-                    return q0, payloads
+            q0, covered = truth_at_stamps(self._t, self._q, [t_ns])
+            if covered[0]:
+                payloads = [p for _, p in pending]
+                pending.clear()
+                self._t.clear()
+                self._q.clear()
+                return q0[0], payloads
             pending.pop(0)  # before the first truth sample (or in a gap): skipped
             self.skipped += 1
         return None

@@ -1,16 +1,12 @@
 """Verdicts on a stream of Imu samples (stamps, rates, frame), per sample or array-wide.
 
-An attitude integrator must never let one bad message corrupt its state: a NaN or absurd rate
-poisons the quaternion forever, a duplicate or out-of-order stamp gives ``dt <= 0``, a gap makes
-the rate-times-time step meaningless, and a changed ``frame_id`` means the rates are no longer
-about the axes the attitude is for. The kernel :func:`validate` classifies each sample *before*
-it reaches the integrator and keeps counts per reason on a :data:`STAMPS_DTYPE` record (the
-causal estimator's step, :mod:`.chain`); :func:`classify` gives a whole recording the verdicts
-of that same kernel run on every sample (the offline estimator's; a recording every sample of
-which passes is settled by whole-array reductions, without the kernel or its compiler).
-:class:`IntervalStatistics` reads the input rate and dt jitter off the step's ring of intervals.
-
-Times are integer nanoseconds (the ``header.stamp`` of the message).
+The kernel :func:`validate` classifies each sample before it reaches the integrator (a NaN, an
+absurd rate, a stamp that does not rise, a gap or a changed ``frame_id`` would corrupt the
+attitude) and counts per reason on a :data:`STAMPS_DTYPE` record (the causal step,
+:mod:`.chain`); :func:`classify` gives a whole recording that kernel's verdicts (the offline
+estimator's; a recording every sample of which passes is settled by whole-array reductions,
+without the kernel or its compiler).  Thresholds are the settings table's rows (a
+:class:`~.settings.StreamConfig`).  Times are integer nanoseconds (``header.stamp``).
 """
 
 from __future__ import annotations
@@ -20,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gyro_attitude.core.attitude.settings import setting
+from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.core.jit import compiled, kernel
 
 # Verdicts. ACCEPT: integrate over (last, t]. START: first sample (or first after a restart):
@@ -65,45 +61,6 @@ REJECT_REASONS: tuple[str, ...] = (
 ACTIONS = (REJECT, START, ACCEPT, RESTART_AFTER_GAP, RESET_TIME_JUMP)
 ACTION_CODES: dict[str, int] = {a: i for i, a in enumerate(ACTIONS)}
 _REASON_CODES: dict[str, int] = {r: i + 1 for i, r in enumerate(REJECT_REASONS)}
-
-# the rate limit's default and bound: their home is the settings table (max_rate_rad_s)
-DEFAULT_MAX_RATE_RAD_S = setting("max_rate_rad_s").default
-
-
-@dataclass(frozen=True)
-class ImuCheckConfig:
-    """Thresholds of the validator.
-
-    max_gap_ns: a forward step longer than this is a gap (not integrated across).
-    time_jump_ns: a backward step longer than this is a time jump (reset); a backward
-        step up to this long is an out-of-order sample (rejected).
-    max_rate_rad_s: a sample whose rate exceeds this on any axis is implausible (rejected).
-    max_missing_samples: a stamp a whole number of periods past the sample clock (and more
-        than 1.5 periods after the last) follows missing samples (counted); more than this
-        many make it a gap.  The clock is learnt from the first :data:`NOMINAL_INTERVALS`
-        intervals of each time base (it restarts at a gap or a time jump) and follows the
-        stamps, not their jitter (:func:`stamp_step`).
-    """
-
-    max_gap_ns: int = round(setting("max_gap_s").default * 1e9)
-    time_jump_ns: int = round(setting("time_jump_threshold_s").default * 1e9)
-    max_rate_rad_s: float = DEFAULT_MAX_RATE_RAD_S
-    max_missing_samples: int = setting("max_missing_samples").default
-
-    def __post_init__(self):
-        # the table's rows check the values (their ranges, in seconds for the thresholds)
-        for name, row in (("max_gap_ns", "max_gap_s"), ("time_jump_ns", "time_jump_threshold_s")):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | np.integer):
-                raise ValueError(f"{name} must be an integer number of nanoseconds, got {value!r}")
-            setting(row).check(int(value) * 1e-9)
-        setting("max_rate_rad_s").check(self.max_rate_rad_s)
-        setting("max_missing_samples").check(self.max_missing_samples)
-
-    @classmethod
-    def of(cls, cfg) -> ImuCheckConfig:
-        """The validator's view of a :class:`~.settings.StreamConfig` (thresholds in ns)."""
-        return cls(cfg.max_gap_ns, cfg.time_jump_ns, cfg.max_rate_rad_s, cfg.max_missing_samples)
 
 
 @dataclass(frozen=True)
@@ -178,15 +135,15 @@ def sample_problem(t_ns, omega, max_rate_rad_s: float) -> tuple[str, str] | None
     if why == 0:
         return None
     name = REASON_NAMES[why]
-    return name, reason_words(name, t_ns, values, None, None, (0,) * 5,
-                              ImuCheckConfig(max_rate_rad_s=max_rate_rad_s))
+    return name, reason_words(name, t_ns, values, None, None, (0,) * 5, max_rate_rad_s, 0)
 
 
-def reason_words(name: str, t_ns: int, values, frame_id, locked, figures, cfg) -> str:
+def reason_words(name: str, t_ns: int, values, frame_id, locked, figures, max_rate: float,
+                 max_gap_ns: int) -> str:
     """The words of a verdict's reason ``name`` for the sample at ``t_ns`` (``values`` its
     rates as floats, for the value rules; ``frame_id`` and the ``locked`` one; ``figures``
     the validator's ``ev_*`` figures: a record or an array (dt, hole, missing, skipped,
-    period); ``cfg`` the :class:`ImuCheckConfig`)."""
+    period); the thresholds ``max_rate`` and ``max_gap_ns``)."""
     if hasattr(figures, "ev_dt"):
         dt, hole, missing, skipped, p = (int(figures.ev_dt), int(figures.ev_hole),
                                          int(figures.ev_missing), int(figures.ev_skipped),
@@ -196,7 +153,7 @@ def reason_words(name: str, t_ns: int, values, frame_id, locked, figures, cfg) -
     if name == NON_FINITE:
         return f"non-finite value(s) {list(values)}"
     if name == IMPLAUSIBLE_RATE:
-        return f"rate {list(values)} rad/s beyond max_rate_rad_s = {cfg.max_rate_rad_s:g}"
+        return f"rate {list(values)} rad/s beyond max_rate_rad_s = {max_rate:g}"
     if name == ZERO_STAMP:
         return f"stamp {int(t_ns)} ns is not positive (0: unset)"
     if name == FRAME_CHANGED:
@@ -208,7 +165,7 @@ def reason_words(name: str, t_ns: int, values, frame_id, locked, figures, cfg) -
     if name == TIME_JUMP:
         return f"time jumped back by {-dt / 1e9:.3f} s"
     if name == GAP:
-        if dt > cfg.max_gap_ns:
+        if dt > max_gap_ns:
             return f"gap of {dt / 1e6:.3f} ms"
         return (f"hole of {hole} sample(s) ({missing} missing, {skipped} rejected): "
                 f"{dt / 1e6:.3f} ms after the previous at a nominal period of {p / 1e6:.3f} ms "
@@ -276,7 +233,7 @@ def all_within(a: np.ndarray, limit: float) -> bool:
 
 
 def classify(t_ns, omega, frame_id: str | list[str] | None = "",
-             config: ImuCheckConfig | None = None) -> Classification:
+             cfg: StreamConfig | None = None) -> Classification:
     """The verdicts :func:`validate` gives to these samples in this order.
 
     ``t_ns`` (N,) int stamps, ``omega`` (N, 3) rates, ``frame_id`` one string for all samples or
@@ -284,7 +241,7 @@ def classify(t_ns, omega, frame_id: str | list[str] | None = "",
     recording (one frame, every rate within bounds, positive stamps rising at a steady rate)
     is settled by whole-array reductions; any other runs :func:`validate` on every sample.
     """
-    cfg = config if config is not None else ImuCheckConfig()
+    cfg = cfg or StreamConfig()
     t = np.asarray(t_ns)
     if t.ndim != 1 or not (np.issubdtype(t.dtype, np.integer) or t.size == 0):
         raise ValueError(f"t_ns must be a 1-D integer array of nanoseconds, got {t.dtype} "
@@ -347,15 +304,15 @@ def _validate_all(t, w, codes, names, cfg, action, reason, details, record) -> i
     first_row = np.full(R_INTEGRATOR + 1, -1, np.int64)
     first_fig = np.zeros((R_INTEGRATOR + 1, 5), np.int64)
     locked = int(compiled(validate_rows)(
-        record[0], float(cfg.max_rate_rad_s), int(cfg.max_gap_ns), int(cfg.time_jump_ns),
-        int(cfg.max_missing_samples), t, w, frames, action, reason, first_row, first_fig))
+        record[0], cfg.max_rate_rad_s, cfg.max_gap_ns, cfg.time_jump_ns, cfg.max_missing_samples,
+        t, w, frames, action, reason, first_row, first_fig))
     for why in range(1, R_INTEGRATOR):
         k = int(first_row[why])
         if k >= 0:
             name = REASON_NAMES[why]
             details[name] = reason_words(name, int(t[k]), w[k].tolist(), names[int(frames[k])],
                                          None if locked < 0 else names[locked], first_fig[why],
-                                         cfg)
+                                         cfg.max_rate_rad_s, cfg.max_gap_ns)
     return None if locked < 0 else locked
 
 
@@ -363,8 +320,8 @@ class IntervalStatistics:
     """Input rate and dt jitter over the last accepted intervals: a face on the step's ring of
     intervals ``ring`` (ns) and its ``fill`` (held, next slot), written by :func:`interval_add`.
 
-    ``rate_hz`` = 1/mean(dt); ``jitter_s`` = standard deviation of dt (population);
-    ``max_dt_s`` = largest dt in the window. NaN while fewer than 2 intervals are known.
+    ``rate_hz`` = 1/mean(dt), ``mean_dt_s``, ``jitter_s`` = standard deviation of dt
+    (population), ``max_dt_s`` = largest dt in the window; NaN while fewer than 2 are known.
     """
 
     def __init__(self, ring: np.ndarray, fill: np.ndarray):
@@ -375,8 +332,12 @@ class IntervalStatistics:
 
     def summary(self) -> dict[str, float]:
         held, nxt = int(self.fill[0]), int(self.fill[1])
-        order = (nxt - held + np.arange(held)) % self.ring.shape[0]  # oldest first
-        return interval_summary(self.ring[order])
+        if held < 2:
+            return dict.fromkeys(("rate_hz", "mean_dt_s", "jitter_s", "max_dt_s"), math.nan)
+        dt = self.ring[(nxt - held + np.arange(held)) % self.ring.shape[0]] * 1e-9  # oldest first
+        mean = float(dt.mean())
+        return {"rate_hz": 1.0 / mean, "mean_dt_s": mean, "jitter_s": float(dt.std()),
+                "max_dt_s": float(dt.max())}
 
 
 @kernel(inline=True)
@@ -393,21 +354,6 @@ def interval_add(ring, fill, dt_ns):
     fill[1] = (fill[1] + 1) % ring.shape[0]
     if fill[0] < ring.shape[0]:
         fill[0] += 1
-
-
-def interval_summary(dt_ns: np.ndarray) -> dict[str, float]:
-    """Rate, mean dt, jitter and largest dt of accepted intervals (NaN for fewer than 2)."""
-    if dt_ns.size < 2:
-        nan = math.nan
-        return {"rate_hz": nan, "mean_dt_s": nan, "jitter_s": nan, "max_dt_s": nan}
-    dt = dt_ns * 1e-9
-    mean = float(dt.mean())
-    return {
-        "rate_hz": 1.0 / mean,
-        "mean_dt_s": mean,
-        "jitter_s": float(dt.std()),
-        "max_dt_s": float(dt.max()),
-    }
 
 
 # ---------------------------------------------------------------------------- the step's form

@@ -37,10 +37,10 @@ def _rows(a, n):
     return [(False, 0.0, 0.0, 0.0)] * n if a is None else [(True, *r) for r in a.tolist()]
 
 
-def rest_rows(t, g, a=None, **thresholds):
+def rest_rows(t, g, a=None):
     """Per sample (at rest, the window's oldest index, gyro std, accel std) of
     :func:`rest_update`, and the ring sizes it went through."""
-    rf, ri = rest_start(**thresholds)
+    rf, ri = rest_start(StreamConfig())
     ring = np.zeros(64, chain.BIAS_RING_DTYPE).view(np.recarray)
     step, out, sizes = compiled(rest_update), [], set()
     for tk, gk, ak in zip(np.asarray(t).tolist(), np.asarray(g).tolist(), _rows(a, len(t)),

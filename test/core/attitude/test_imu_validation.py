@@ -86,12 +86,13 @@ def test_reset_forgets_frame_and_time():
 
 
 @pytest.mark.parametrize("kwargs, named", [
-    ({"max_gap_ns": 0}, "max_gap_s"), ({"time_jump_ns": -1}, "time_jump_threshold_s"),
-    ({"max_gap_ns": 1.5}, "max_gap_ns"), ({"time_jump_ns": True}, "time_jump_ns"),
-    ({"max_rate_rad_s": 0.0}, "max_rate_rad_s"), ({"max_missing_samples": -1}, "max_missing")])
+    ({"max_gap_s": 0}, "max_gap_s"), ({"time_jump_threshold_s": -1e-9}, "time_jump_threshold_s"),
+    ({"max_gap_s": "0.1"}, "max_gap_s"), ({"time_jump_threshold_s": True}, "time_jump"),
+    ({"max_rate_rad_s": 0.0}, "max_rate_rad_s"), ({"max_missing_samples": -1}, "max_missing"),
+    ({"max_missing_samples": 1.5}, "max_missing")])
 def test_config_refuses_bad_thresholds_naming_the_setting(kwargs, named):
     with pytest.raises(ValueError, match=named):
-        iv.ImuCheckConfig(**kwargs)
+        StreamConfig(**kwargs)
 
 
 def test_interval_statistics_against_numpy():

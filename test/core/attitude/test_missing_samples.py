@@ -36,7 +36,7 @@ def test_a_few_missing_samples_are_counted_and_a_long_hole_is_a_gap():
     assert val.counts[iv.MISSING_SAMPLES] == 2 + 4 and val.counts[iv.GAP] == 1
     assert verdicts[hole[2]].reason == verdicts[hole[4]].reason == iv.MISSING_SAMPLES
     # the array form gives the same verdicts and counts
-    cls = iv.classify(t, w, "imu", iv.ImuCheckConfig.of(StreamConfig()))
+    cls = iv.classify(t, w, "imu", StreamConfig())
     codes = [iv.ACTION_CODES[vd.action] for vd in verdicts]
     assert cls.action.tolist() == codes and cls.missing_samples == 6 and cls.counts[iv.GAP] == 1
 
@@ -58,18 +58,18 @@ def test_holes_are_found_only_once_the_period_is_known_and_jitter_is_no_hole():
     dt = PERIOD + rng.integers(-PERIOD // 4, PERIOD // 4, 500)  # ±25 % jitter
     t = np.cumsum(dt).astype(np.int64)
     w = np.zeros((t.size, 3))
-    cls = iv.classify(t, w, "imu", iv.ImuCheckConfig.of(StreamConfig()))
+    cls = iv.classify(t, w, "imu", StreamConfig())
     assert cls.missing_samples == 0 and cls.counts[iv.GAP] == 0
     # a hole within the first 16 intervals (while the period is learnt) is not counted
     t2, w2 = stream_with_holes([(5, 3)])
-    assert iv.classify(t2, w2, "imu", iv.ImuCheckConfig.of(StreamConfig())).missing_samples == 0
+    assert iv.classify(t2, w2, "imu", StreamConfig()).missing_samples == 0
 
 
 def test_rejected_samples_make_holes_but_are_not_counted_missing():
     t, w = stream_with_holes([])
     w[100] = np.nan  # one rejected: a hole of 1, counted as non-finite, not as missing
     w[200:210] = np.nan  # ten rejected in a row: the integration cannot bridge them: a gap
-    cfg = iv.ImuCheckConfig.of(StreamConfig())
+    cfg = StreamConfig()
     cls = iv.classify(t, w, "imu", cfg)
     val = AttitudeStream("rotvec_cubic", config=StreamConfig(gyro_bias="none"))
     codes = [iv.ACTION_CODES[val.push(int(x), w[k], "imu")[0].action] for k, x in enumerate(t)]
@@ -140,7 +140,7 @@ def test_stamps_jittered_by_a_third_of_the_period_count_their_holes_and_no_jitte
     t = t[keep]
     w = np.zeros((t.size, 3))
     cfg = StreamConfig(aiding="none", gyro_bias="none")
-    cls = iv.classify(t, w, "imu", iv.ImuCheckConfig.of(cfg))
+    cls = iv.classify(t, w, "imu", cfg)
     res = AttitudeStream(config=cfg).run(t, w, "imu")
     # a hole whose interval reads under 1.5 nominal periods (3-4 % at this jitter, the nominal
     # period a few % off from 16 jittered intervals) is not counted
@@ -164,5 +164,5 @@ def test_a_burst_while_the_period_is_learnt_counts_no_missing_samples(where):
     w = np.zeros((n, 3))
     cfg = StreamConfig(aiding="none", gyro_bias="none")
     res = AttitudeStream(config=cfg).run(t, w, "imu")
-    cls = iv.classify(t, w, "imu", iv.ImuCheckConfig.of(cfg))
+    cls = iv.classify(t, w, "imu", cfg)
     assert res.counts[iv.MISSING_SAMPLES] == cls.missing_samples == 0

@@ -393,12 +393,13 @@ def test_the_smoother_clock_stops_where_the_attitude_is_held(chunk):
         got_sm = np.empty((n, 4))
         got_n = np.empty(n)
 
-        def apply(c0, c1, sm, n_eff, got_sm=got_sm, got_n=got_n):
+        def apply(c0, c1, sm, n_eff, extra, got_sm=got_sm, got_n=got_n):
+            assert extra == (c0, c1)  # the columns' extra, of the same chunk
             got_sm[c0:c1] = sm
             got_n[c0:c1] = n_eff
 
-        offline._Estimator._zero_phase(est, 0, n, tau, lambda c0, c1: x[c0:c1].copy(), apply,
-                                       still=still)
+        offline._Estimator._zero_phase(est, 0, n, tau, lambda c0, c1: (x[c0:c1].copy(), (c0, c1)),
+                                       apply, still=still)
         want_sm, want_n = _brute_smoother(t, act, still, x, tau)
         dt = np.median(np.diff(t)) * 1e-9
         alpha = np.exp(-dt / tau)

@@ -15,6 +15,7 @@ from gyro_attitude.core.attitude.rest import (
     rest_start,
     rest_update,
 )
+from gyro_attitude.core.attitude.settings import StreamConfig
 
 
 def test_stream_equals_batch_bitwise():
@@ -87,11 +88,11 @@ def test_constant_fast_rotation_is_not_rest():
     t = np.arange(400, dtype=np.int64) * 5_000_000
     g = np.tile([0.0, 0.0, 0.2], (400, 1))  # smooth 11 °/s spin: zero deviation, large mean
     assert not detect_rest(t, g).at_rest.any()
-    assert detect_rest(t, g, gyro_mean_max=0.3).at_rest.any()
+    assert detect_rest(t, g, cfg=StreamConfig(rest_gyro_mean_max=0.3)).at_rest.any()
 
 
 def test_bad_input_is_refused():
-    rf, ri = rest_start()
+    rf, ri = rest_start(StreamConfig())
     wt, wx, wc = np.zeros(4, np.int64), np.zeros(4, np.int64), np.zeros((4, 12))
     assert rest_update(rf, ri, wt, wx, wc, 10, 0.0, 0.0, 0.0, True, 0.0, 0.0, 9.8) == 0
     before = rf.copy(), ri.copy()
@@ -102,13 +103,13 @@ def test_bad_input_is_refused():
         ACCEL_CHANGED
     np.testing.assert_array_equal(rf, before[0])
     np.testing.assert_array_equal(ri, before[1])
-    with pytest.raises(ValueError, match="window_s"):
-        rest_start(window_s=float("inf"))
+    with pytest.raises(ValueError, match="rest_window_s"):
+        StreamConfig(rest_window_s=float("inf"))
     with pytest.raises(ValueError, match="strictly increasing"):
         detect_rest([0, 0], np.zeros((2, 3)))
     with pytest.raises(ValueError, match="shape"):
         detect_rest([0, 1], np.zeros((3, 3)))
-    with pytest.raises(ValueError, match="non-empty"):
+    with pytest.raises(ValueError, match="empty"):
         detect_rest([], np.zeros((0, 3)))
 
 

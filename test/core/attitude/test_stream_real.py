@@ -19,7 +19,7 @@ from gyro_attitude.core.attitude.stream import (
     AttitudeStream,
     StreamConfig,
 )
-from gyro_attitude.core.attitude.truth import initial_attitude_from_truth, truth_at
+from gyro_attitude.core.attitude.truth import initial_attitude_from_truth, truth_at_stamps
 
 # the modes and hostile inputs of the golden regression test (one home: test/golden)
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "golden"))
@@ -195,19 +195,16 @@ def truth_series():
     return tt, q
 
 
-def test_truth_at_matches_scipy_slerp_and_refuses_extrapolation():
+def test_truth_at_stamps_matches_scipy_slerp_and_refuses_extrapolation():
     tt, q = truth_series()
     oracle = Slerp(tt * 1e-9, Rotation.from_quat(q))
-    for t_ns in (tt[0], tt[3] + 2_500_000, tt[-2] + 9_999_999, tt[-1]):
-        got = Rotation.from_quat(truth_at(tt, q, int(t_ns)))
-        assert (got * oracle([t_ns * 1e-9]).inv()).magnitude()[0] < 1e-9
-    with pytest.raises(ValueError, match="no extrapolation"):
-        truth_at(tt, q, int(tt[-1]) + 1)
-    with pytest.raises(ValueError, match="no extrapolation"):
-        truth_at(tt, q, int(tt[0]) - 1)
+    stamps = np.array([tt[0], tt[3] + 2_500_000, tt[-2] + 9_999_999, tt[-1]])
+    got, covered = truth_at_stamps(tt, q, stamps)
+    assert covered.all()
+    assert (Rotation.from_quat(got) * oracle(stamps * 1e-9).inv()).magnitude().max() < 1e-9
+    assert not truth_at_stamps(tt, q, [tt[-1] + 1, tt[0] - 1])[1].any()  # no extrapolation
     gap = np.delete(np.arange(50), np.arange(10, 20))
-    with pytest.raises(ValueError, match="truth gap"):
-        truth_at(tt[gap], q[gap], int(tt[15]))
+    assert not truth_at_stamps(tt[gap], q[gap], [tt[15]])[1].any()  # nothing across a gap
 
 
 def test_initial_attitude_from_truth_skips_imu_before_the_truth():

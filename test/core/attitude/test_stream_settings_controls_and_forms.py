@@ -158,16 +158,17 @@ def test_covariance_rows_written_out():
 
 # ------------------------------------------------------------------------- interval statistics
 def test_interval_summary_of_two_intervals_written_out():
-    s = iv.interval_summary(np.array([10 * MS, 20 * MS]))
-    assert s == pytest.approx({"rate_hz": 1 / 0.015, "mean_dt_s": 0.015, "jitter_s": 0.005,
-                               "max_dt_s": 0.020}, rel=1e-12)
     ring, fill = np.zeros(2, np.int64), np.zeros(2, np.int64)
-    for dt in (5 * MS, 10 * MS, 20 * MS):
+    stats = iv.IntervalStatistics(ring, fill)
+    iv.interval_add(ring, fill, 5 * MS)
+    one = stats.summary()  # one interval: no figures yet
+    assert set(one) == {"rate_hz", "mean_dt_s", "jitter_s", "max_dt_s"}
+    assert all(math.isnan(x) for x in one.values())
+    for dt in (10 * MS, 20 * MS):
         iv.interval_add(ring, fill, dt)
     # the oldest one left the window
-    assert iv.IntervalStatistics(ring, fill).summary() == pytest.approx(s, rel=1e-12)
-    one = iv.interval_summary(np.array([10 * MS]))
-    assert set(one) == set(s) and all(math.isnan(x) for x in one.values())
+    assert stats.summary() == pytest.approx({"rate_hz": 1 / 0.015, "mean_dt_s": 0.015,
+                                             "jitter_s": 0.005, "max_dt_s": 0.020}, rel=1e-12)
 
 
 # ------------------------------------------------------------------------- run() vs push()
@@ -417,7 +418,7 @@ def test_bias_summary_line():
 # ------------------------------------------------------------------------- stamp boundaries
 def test_stamp_boundaries_array_wide_and_per_sample():
     # max_gap 50 ms, time jump 1 s; stamps chosen on each boundary, verdicts written out
-    cfg = iv.ImuCheckConfig(max_gap_ns=50 * MS, time_jump_ns=1000 * MS)
+    cfg = StreamConfig(max_gap_s=0.05, time_jump_threshold_s=1.0)
     base = 5_000 * MS
     steps = [  # (stamp, action, reason)
         (base, iv.START, None),
@@ -442,8 +443,7 @@ def test_stamp_boundaries_array_wide_and_per_sample():
                                                "previous one")
     assert cls.details[iv.OUT_OF_ORDER] == (f"stamp {base + 2 - 900 * MS} ns is 1000.000 ms "
                                             "before the previous")
-    val = AttitudeStream("rotvec_cubic", config=StreamConfig(
-        gyro_bias="none", max_gap_s=0.05, time_jump_threshold_s=1.0))
+    val = AttitudeStream("rotvec_cubic", config=cfg.replace(gyro_bias="none"))
     for s, action, reason in steps:
         verdict = val.push(s, [0.0, 0.0, 0.0], "imu")[0]
         assert verdict.action == action and (reason is None or verdict.reason == reason), s

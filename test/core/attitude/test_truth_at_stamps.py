@@ -1,10 +1,9 @@
 """Truth at many stamps: scipy's Slerp as the oracle, coverage (span, gaps, exact hits)."""
 
 import numpy as np
-import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
-from gyro_attitude.core.attitude.truth import truth_at, truth_at_stamps
+from gyro_attitude.core.attitude.truth import truth_at_stamps
 
 
 def test_truth_at_stamps_equals_scipy_slerp_and_refuses_what_it_does_not_cover():
@@ -19,8 +18,8 @@ def test_truth_at_stamps_equals_scipy_slerp_and_refuses_what_it_does_not_cover()
     ref = Slerp(t.astype(float), Rotation.from_quat(q))(s[covered].astype(float))
     d = (ref.inv() * Rotation.from_quat(got)).magnitude()
     assert d.max() < 1e-9
-    for k in np.flatnonzero(covered)[::37]:  # the one-stamp function agrees bit for bit
-        np.testing.assert_array_equal(truth_at(t, q, int(s[k])),
+    for k in np.flatnonzero(covered)[::37]:  # one stamp at a time (the node) agrees bit for bit
+        np.testing.assert_array_equal(truth_at_stamps(t, q, [s[k]])[0][0],
                                       got[np.flatnonzero(covered).tolist().index(k)])
 
 
@@ -52,6 +51,3 @@ def test_one_truth_sample_covers_its_own_stamp_only():
     got, covered = truth_at_stamps([100], q, [50, 100, 150])
     assert covered.tolist() == [False, True, False]
     np.testing.assert_array_equal(got, q)
-    np.testing.assert_array_equal(truth_at([100], q, 100), q[0])
-    with pytest.raises(ValueError, match="no truth at 150"):
-        truth_at([100], q, 150)

@@ -10,6 +10,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from gyro_attitude.core.attitude import validation as iv
+from gyro_attitude.core.attitude.settings import setting
 from gyro_attitude.core.attitude.truth import TruthStart, initial_attitude_from_truth
 
 MS = 1_000_000
@@ -23,7 +24,7 @@ def truth(n=50, step=10 * MS, t0=0):
 
 
 def usable(t, w):
-    return iv.sample_problem(t, w, iv.DEFAULT_MAX_RATE_RAD_S) is None
+    return iv.sample_problem(t, w, setting("max_rate_rad_s").default) is None
 
 
 def expected_at(t_ns):
