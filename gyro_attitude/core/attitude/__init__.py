@@ -7,16 +7,7 @@ increments ``Δθ_k = ∫ ω_ib^b dt`` over ``(t_{k-1}, t_k]`` for the coning al
 Quaternions are scalar-last.  Without a navigation frame the result is ``q_ib``; with
 ``nav=NavFrame(...)`` it is ``q_nb`` (body to local ENU), each interval updated as
 ``q_nb(t+T) = exp(−ζ) ⊗ q_nb(t) ⊗ exp(φ)`` with ``ζ = ∫ ω_in^n dt`` (trapezoid).
-``q[k]`` is the attitude at ``t_ns[k]``.
-
-One module per algorithm family (``first_order``, ``exp_map``, ``rotvec``, ``rk4``,
-``coning``, ``euler_angles``, ``magnus6``); ``registry`` maps names to the algorithm objects.
-A causal algorithm's step is written once, as a kernel (:mod:`gyro_attitude.core.jit`): the
-streaming interface steps it per call, the batch interface is a compiled loop over the same
-step (:mod:`.streaming`), so the two give the same bits.  The offline ``magnus6_quintic`` is
-vectorized (all increments at once, a blocked prefix product; no compiler).  Adding a rate
-algorithm: its increment kernel, an entry in ``registry.ALGORITHMS`` and a branch in
-:func:`.streaming.body_increment`.
+``q[k]`` is the attitude at ``t_ns[k]``.  Where the algorithms live: docs/architecture.md.
 """
 
 from gyro_attitude.core.attitude.algorithm import Algorithm, RateAlgorithm
@@ -24,10 +15,11 @@ from gyro_attitude.core.attitude.batch import integrate_batch, integrate_increme
 from gyro_attitude.core.attitude.coning import (
     CONING_COEFFICIENTS,
     CONING_DRIFT_RHO,
+    QUADRATURES,
     IncrementAlgorithm,
+    increments_from_rates,
 )
 from gyro_attitude.core.attitude.nav_frame import NavFrame
-from gyro_attitude.core.attitude.quadrature import QUADRATURES, increments_from_rates
 from gyro_attitude.core.attitude.registry import (
     ALGORITHMS,
     DEFAULT_ALGORITHM,

@@ -6,10 +6,9 @@ from __future__ import annotations
 import numpy as np
 
 from gyro_attitude.core.attitude.algorithm import RateAlgorithm
-from gyro_attitude.core.attitude.coning import IncrementAlgorithm
+from gyro_attitude.core.attitude.coning import IncrementAlgorithm, get_quadrature
 from gyro_attitude.core.attitude.inputs import check_q0, check_rates, check_times
 from gyro_attitude.core.attitude.nav_frame import NavFrame, nav_rate_for
-from gyro_attitude.core.attitude.quadrature import get_quadrature
 from gyro_attitude.core.attitude.registry import DEFAULT_ALGORITHM, get_algorithm
 from gyro_attitude.core.attitude.streaming import integrate_rows
 from gyro_attitude.core.rotation import as_vector_array

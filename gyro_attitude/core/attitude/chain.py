@@ -28,6 +28,7 @@ import numpy as np
 from gyro_attitude.core.attitude.ahrs import I_AIDED as AHRS_AIDED
 from gyro_attitude.core.attitude.ahrs import I_HAS_LAST as AHRS_HAS_LAST
 from gyro_attitude.core.attitude.ahrs import MAG_ABSENT, MAG_GIVEN, ahrs_step, heading_from_field
+from gyro_attitude.core.attitude.algorithm import CUBIC, EXP
 from gyro_attitude.core.attitude.alignment import (
     ALIGNER_DTYPE,
     aligner_break,
@@ -59,9 +60,8 @@ from gyro_attitude.core.attitude.streaming import (
     C_FALLBACKS,
     C_HAS_LAST,
     C_LAST_T,
-    cubic_advance,
-    cubic_reset,
-    exp_advance,
+    rate_advance,
+    rate_reset,
 )
 from gyro_attitude.core.attitude.validation import (
     A_ACCEPT as ACCEPT,
@@ -203,19 +203,19 @@ BIAS_RING_FULL, ALIGN_RING_FULL = -2, -3
 @kernel
 def integrator_reset(c, s, qx, qy, qz, qw, has_t, t):
     """The integrator starts again from ``q`` (at ``t`` when ``has_t``: that sample is the
-    first of the new time base, its rate taken from the next one)."""
-    cubic_reset(s.cubic_i, s.cubic_t, s.cubic_w, s.cubic_f, qx, qy, qz, qw, has_t, t,
-                s.has_nav, s.nav_rate[0], s.nav_rate[1], s.nav_rate[2])
+    first of the new time base, its rate taken from the next one), normalized here as
+    StreamingIntegrator.reset takes it."""
+    n = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
+    rate_reset(s.cubic_i, s.cubic_t, s.cubic_w, s.cubic_f, qx / n, qy / n, qz / n, qw / n, has_t,
+               t, s.has_nav, s.nav_rate[0], s.nav_rate[1], s.nav_rate[2])
 
 
 @kernel
 def integrator_advance(c, s, t, w0, w1, w2):
     """The integrator's step to the sample ``t`` with rate ``w``: the attitude."""
-    if c.algorithm == ALG_CUBIC:
-        return cubic_advance(s.cubic_i, s.cubic_t, s.cubic_w, s.cubic_f, t, w0, w1, w2,
-                             s.has_nav, s.nav_rate[0], s.nav_rate[1], s.nav_rate[2])
-    return exp_advance(s.cubic_i, s.cubic_t, s.cubic_w, s.cubic_f, t, w0, w1, w2, s.has_nav,
-                       s.nav_rate[0], s.nav_rate[1], s.nav_rate[2])
+    return rate_advance(CUBIC if c.algorithm == ALG_CUBIC else EXP, s.cubic_i, s.cubic_t,
+                        s.cubic_w, s.cubic_f, t, w0, w1, w2, s.has_nav, s.nav_rate[0],
+                        s.nav_rate[1], s.nav_rate[2])
 
 
 @kernel

@@ -84,12 +84,11 @@ class EulerAnglesRK4(Algorithm):
         out = np.empty((t.size, 4))
         out[0] = q0
         for i in range(1, t.size):
-            if i == 2:
-                stepper.redo_first(t[:3], w[:3])
-            out[i] = stepper.interval(t[max(i - 3, 0):i + 1], w[max(i - 3, 0):i + 1])
+            out[i] = stepper.interval(t[max(i - 3, 0):i + 1], w[max(i - 3, 0):i + 1], i == 2)
         return out
 
-    def _new_stepper(self, q0, singular_tol):
+    def stepper(self, q0: tuple, singular_tol: float) -> EulerStepper:
+        """A new per-stream state starting at the attitude ``q0`` (4 floats)."""
         return EulerStepper(self, q0, singular_tol)
 
 
@@ -103,8 +102,12 @@ class EulerStepper:
         self._angles = self._angles_start = algorithm.initial_angles(np.array(q0), tol)
         self._intervals = 0
 
-    def interval(self, ts, ws):
-        """Step over the newest interval of the ≤ 4-sample histories ``ts``, ``ws``."""
+    def interval(self, ts, ws, redo_first: bool = False) -> tuple[float, ...]:
+        """Step over the newest interval of the ≤ 4-sample histories ``ts``, ``ws``; with
+        ``redo_first`` (as the third sample arrives) interval 1 is first redone with the
+        quadratic through samples 0, 1, 2."""
+        if redo_first:
+            self._angles = self._step(self._angles_start, ts, ws, 1, 3, 1)
         k = len(ts) - 1
         self._intervals += 1
         self._angles = self._step(self._angles, ts, ws, k, k + 1, self._intervals)
@@ -113,11 +116,6 @@ class EulerStepper:
             q = -q
         self.q = tuple(float(c) for c in q)
         return self.q
-
-    def redo_first(self, ts, ws):
-        """Redo interval 1 with the quadratic through samples 0, 1, 2 (called as the third
-        sample arrives)."""
-        self._angles = self._step(self._angles_start, ts, ws, 1, 3, 1)
 
     def _step(self, angles, ts, ws, k, n, count):
         wm, _, h = causal_fit_points(ts, ws, k, n, 0.5, 0.5)

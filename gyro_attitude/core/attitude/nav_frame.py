@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import bisect
 from dataclasses import dataclass, field
+from operator import itemgetter
 
 import numpy as np
 
@@ -53,8 +55,7 @@ class NavFrame:
         if np.any(np.abs(v) > MAX_SPEED_M_S):
             raise ValueError(f"NavFrame velocity_enu must be within ±{MAX_SPEED_M_S:g} m/s per "
                              f"axis, got {np.max(np.abs(v)):g}")
-        series = lat.ndim > 0 or h.ndim > 0 or v.ndim > 1
-        if series:
+        if lat.ndim > 0 or h.ndim > 0 or v.ndim > 1:
             if n_samples is None:
                 raise ValueError("NavFrame holds time series; the sample count is needed")
             for name, arr, nd in (("latitude_rad", lat, 0), ("height_m", h, 0),
@@ -62,19 +63,19 @@ class NavFrame:
                 if arr.ndim > nd and arr.shape[0] != n_samples:
                     raise ValueError(f"NavFrame.{name} has {arr.shape[0]} samples, "
                                      f"expected {n_samples} (one per gyro sample)")
-            lat = np.broadcast_to(lat, (n_samples,))
-            h = np.broadcast_to(h, (n_samples,))
+            lat, h = np.broadcast_to(lat, (n_samples,)), np.broadcast_to(h, (n_samples,))
             v = np.broadcast_to(v, (n_samples, 3))
         return nav_rate_enu(lat, h, v)
 
 
-def nav_rate_for(nav: NavFrame | None, n_samples: int) -> np.ndarray | None:
-    """``ω_in^n`` for a batch of ``n_samples`` ((3,) or (n_samples, 3)), None without nav."""
+def nav_rate_for(nav: NavFrame | None, n_samples: int | None = None) -> np.ndarray | None:
+    """``ω_in^n`` of ``nav`` for ``n_samples`` (by default its own series length): (3,) or
+    (n_samples, 3), None without nav."""
     if nav is None:
         return None
     if not isinstance(nav, NavFrame):
         raise ValueError(f"nav must be a NavFrame or None, got {type(nav).__name__}")
-    return nav.rate_enu(n_samples)
+    return nav.rate_enu(nav.series_length() if n_samples is None else n_samples)
 
 
 def nav_zeta(t_ns: np.ndarray, rate_n: np.ndarray, k: np.ndarray) -> np.ndarray:
@@ -112,23 +113,16 @@ class VelocitySchedule:
         v = np.asarray(velocity_enu, dtype=np.float64)
         if v.shape != (3,) or not np.all(np.isfinite(v)):
             raise ValueError(f"velocity must be 3 finite numbers (m/s), got {velocity_enu!r}")
-        q = self._queue
-        item = (int(t_ns), v)
-        if q and item[0] < q[-1][0]:  # out of order: keep the queue sorted by stamp
-            k = next(i for i, x in enumerate(q) if x[0] > item[0])
-            q.insert(k, item)
-        else:
-            q.append(item)
-        if len(q) > self.kept:
-            del q[0]
+        # in stamp order (a late one inserted after those of equal stamp); the oldest go first
+        bisect.insort(self._queue, (int(t_ns), v), key=itemgetter(0))
+        if len(self._queue) > self.kept:
+            del self._queue[0]
 
     def newest_due(self, t_ns: int) -> np.ndarray | None:
         """The newest velocity stamped at or before ``t_ns`` (and drop it and older ones), or
         None when none is due."""
         q = self._queue
-        k = 0
-        while k < len(q) and q[k][0] <= t_ns:
-            k += 1
+        k = bisect.bisect_right(q, t_ns, key=itemgetter(0))
         if k == 0:
             return None
         v = q[k - 1][1]

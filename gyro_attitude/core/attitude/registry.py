@@ -2,22 +2,20 @@
 
 from __future__ import annotations
 
-from gyro_attitude.core.attitude.algorithm import Algorithm
-from gyro_attitude.core.attitude.coning import (
-    CONING1,
-    CONING1_PREV,
-    CONING2,
-    CONING3,
-    CONING4,
+from gyro_attitude.core.attitude.algorithm import (
+    DCM_FIRST_ORDER,
+    EXP_MAP,
+    QUAT_FIRST_ORDER,
+    QUAT_RK4,
+    ROTVEC_CUBIC,
+    ROTVEC_TRAPEZOID,
+    Algorithm,
 )
+from gyro_attitude.core.attitude.coning import CONING1, CONING1_PREV, CONING2, CONING3, CONING4
 from gyro_attitude.core.attitude.euler_angles import EULER_KRYLOV_RK4, EULER_ZXZ_RK4
-from gyro_attitude.core.attitude.exp_map import EXP_MAP
-from gyro_attitude.core.attitude.first_order import DCM_FIRST_ORDER, QUAT_FIRST_ORDER
 from gyro_attitude.core.attitude.magnus6 import MAGNUS6_QUINTIC
-from gyro_attitude.core.attitude.rk4 import QUAT_RK4
-from gyro_attitude.core.attitude.rotvec import ROTVEC_CUBIC, ROTVEC_TRAPEZOID
 
-#: Every algorithm by name (adding one: its module + one entry here).
+#: Every algorithm by name (adding one: its step + one entry here).
 ALGORITHMS: dict[str, Algorithm] = {a.name: a for a in (
     EULER_ZXZ_RK4, EULER_KRYLOV_RK4, DCM_FIRST_ORDER, QUAT_FIRST_ORDER, QUAT_RK4, EXP_MAP,
     ROTVEC_TRAPEZOID, ROTVEC_CUBIC, MAGNUS6_QUINTIC,

@@ -1,13 +1,7 @@
 """The published orientation in the world frame the user picks (``world_frame``): ENU (REP-103,
 the estimator's own frame), NED or NWU — one home for the conversion, used by the node and replay.
-
-``q_world_b = q_world_enu ⊗ q_enu_b``: only the reference frame changes; the body stays the IMU's
-frame (``header.frame_id``: a ``sensor_msgs/Imu`` orientation is always that of its own frame).
-
-* ``ned``: x north, y east, z down; ``q_ned_enu`` is the half turn about (1, 1, 0)/√2 (it swaps
-  x and y and flips z).  Aerospace users who want an FRD body (x forward, y right, z down) from a
-  FLU IMU frame multiply by the half turn about x on the right: ``q_ned_b ⊗ (1, 0, 0, 0)``.
-* ``nwu``: x north, y west, z up; ``q_nwu_enu`` is the quarter turn −90° about z.
+``q_world_b = q_world_enu ⊗ q_enu_b``: only the reference frame changes, the body stays the IMU's
+frame (docs/architecture.md, "Notes: the integration library").
 """
 
 from __future__ import annotations
@@ -25,8 +19,8 @@ _H = math.sqrt(0.5)
 #: q_world_enu (x, y, z, w) per world frame.
 WORLD_FROM_ENU = {
     WorldFrame.ENU: (0.0, 0.0, 0.0, 1.0),
-    WorldFrame.NED: (_H, _H, 0.0, 0.0),
-    WorldFrame.NWU: (0.0, 0.0, -_H, _H),
+    WorldFrame.NED: (_H, _H, 0.0, 0.0),  # x north, y east, z down: half turn about (1, 1, 0)
+    WorldFrame.NWU: (0.0, 0.0, -_H, _H),  # x north, y west, z up: -90° about z
 }
 
 

@@ -237,6 +237,6 @@ def test_update_nav_refuses_bad_values_and_keeps_its_frame():
         with pytest.raises(ValueError):
             s.update_nav(bad)
         assert s.nav is nav0
-    np.testing.assert_array_equal(s._nav_const, nav0.rate_enu())
+    np.testing.assert_array_equal(s._nav_rates, nav0.rate_enu())
     with pytest.raises(ValueError, match="NavFrame"):
         StreamingIntegrator(DEFAULT_ALGORITHM, Q0).update_nav(nav0)
