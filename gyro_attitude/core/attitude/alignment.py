@@ -1,42 +1,8 @@
-"""Static self-alignment at the first rest: levelling from the specific force, heading given or gyrocompassed.
-
-Contract (streaming): the kernel :func:`aligner_update` once per accepted sample (accelerometer
-required), O(1), on the record :func:`aligner_start` makes; it says True once the first rest of
-at least ``min_rest_s`` has ended (motion started).  :func:`aligner_result` then computes the
-alignment from the rest samples (or why it failed); an IMU that never rests cannot align, and
-an identity attitude would be a silent lie.  Rest samples are the oldest samples of rest
-windows (rest.py).
-
-Heading convention: ``heading`` is the azimuth of the body x axis, clockwise from north
-(navigation usage); in ENU its yaw about up is ``ψ = π/2 − heading``.  ``q_nb = Rz(ψ) Ry(θ) Rx(φ)``
-with roll ``φ = atan2(f_y, f_z)`` and pitch ``θ = atan2(−f_x, √(f_y² + f_z²))`` from the mean
-specific force (which points up at rest).
-
-Heading from the magnetometer (``mag_heading``: the stream's ``aiding: magnetometer`` with
-``initial_attitude_source: level``): the mean field over the same rest samples, less the hard
-iron, levelled with the roll and pitch (tilt-compensated) gives the heading,
-``h = declination − atan2(−m_y, m_x)`` with ``(m_x, m_y)`` the horizontal field in the yaw-0
-level frame (:func:`aligner_result`).  The mean of the N rest samples, not one sample: its
-noise is ``σ_m / (B_h √N)`` (``σ_m`` per axis, ``B_h`` the horizontal field), and a tilt error
-``δ`` turns it by ``tan(dip)·δ``; expected ``√(σ_m²/(N B_h²) + tan²(dip) σ_level²)``.  Rest
-samples without a usable field (absent, non-finite, beyond 10 mT, below 0.1 µT) are left out
-of the mean; with none, or at a magnetic pole, the heading stays the given one.
-
-Expected errors (1σ, reported):
-
-* levelling: ``√(σ_ba² + σ_f²/n) / g`` per tilt axis — an accelerometer bias ``b`` tilts the
-  measured vertical by ``b_horizontal / g``; ``accel_bias_sigma`` (default 0.05 m/s² ≈ 5 mg, a
-  calibrated consumer MEMS) is the user's statement of it, the noise term is measured.
-* gyrocompass: the levelled gyro sees the horizontal Earth rate ``ω_ie cos L`` along north; a
-  residual gyro bias ``δb`` across it turns the heading by ``δb / (ω_ie cos L)``, and a tilt
-  error ``δ`` leaks the vertical Earth rate in, ``δ tan L``.  Expected error
-  ``√((σ_b² + σ_ω²/n) / (ω_ie cos L)² + σ_tilt² tan² L)``, with ``gyro_bias_sigma`` the
-  uncertainty of the bias subtracted (it must be stated: at rest a bias cannot be told from the
-  Earth rate, so a bias estimated at rests has absorbed it and cannot be used).  Refused
-  (``ValueError``) above ``heading_error_limit_deg`` (default 5°): a consumer MEMS gyro (bias
-  uncertainty ~0.01 °/s = 36 °/h against 15 °/h · cos L) cannot find north; a tactical one
-  (1 °/h: ~5° at 45°N) barely; a navigation-grade one (0.01 °/h: ~0.05°) can.
-"""
+"""Static self-alignment at the first rest: levelling from the mean specific force, the heading
+given, gyrocompassed or from the mean field, each with its expected error (docs/
+architecture.md, "Notes: the estimator's stages").  The kernel :func:`aligner_update` once per
+accepted sample (accelerometer required) on the record :func:`aligner_start` makes says when
+the first rest of at least ``min_rest_s`` has ended; :func:`aligner_result` then aligns."""
 
 from __future__ import annotations
 
@@ -88,9 +54,9 @@ class AlignmentResult:
 
 @kernel
 def level_q(fx, fy, fz, heading):
-    """:func:`level_quaternion` in plain floats, for the compiled chain (the per-sample path
-    while aligning takes the Earth rate out at it): ``(usable, x, y, z, w, roll, pitch)``;
-    ``usable`` False (and the identity) when ``f`` is no gravity measurement."""
+    """``(usable, x, y, z, w, roll, pitch)``: ``q_nb = Rz(π/2 − heading) Ry(pitch) Rx(roll)``
+    with body z along the measured up ``f``; not usable (the identity) when ``f`` is no
+    gravity measurement."""
     if not (math.isfinite(fx * fy * fz) and fx * fx + fy * fy + fz * fz >= 1.0):
         return False, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0
     roll = math.atan2(fy, fz)
@@ -120,9 +86,8 @@ def heading_of(q_nb) -> float:
 
 
 def level_quaternion(f_b, heading: float) -> tuple[np.ndarray, float, float]:
-    """``(q_nb, roll, pitch)`` with body z along the measured up ``f_b`` and the given heading
-    (:func:`level_q` run by the interpreter: one call is not worth loading the compiled form,
-    a third of a second in a fresh process)."""
+    """``(q_nb, roll, pitch)`` of :func:`level_q`, run by the interpreter (one call is not worth
+    loading the compiled form)."""
     fx, fy, fz = (float(c) for c in f_b)
     ok, x, y, z, w, roll, pitch = level_q(fx, fy, fz, float(heading))
     if not ok:
@@ -131,11 +96,8 @@ def level_quaternion(f_b, heading: float) -> tuple[np.ndarray, float, float]:
 
 
 def aligner_start(cfg: StreamConfig, latitude_rad: float | None = None) -> np.recarray:
-    """The aligner's record (:data:`ALIGNER_DTYPE`, one) of ``cfg`` before the first sample:
-    ``initial_heading_deg`` or ``heading_source`` gyrocompass at ``latitude_rad``, the gyro
-    bias subtracted when it is a ``parameter``, ``accel_bias_sigma``,
-    ``heading_error_limit_deg``, ``min_rest_s``, the rest thresholds, the heading from the
-    field with ``aiding: magnetometer``; the table has checked every value."""
+    """The aligner's record (:data:`ALIGNER_DTYPE`, one) of ``cfg`` before the first sample
+    (gyrocompass at ``latitude_rad``)."""
     gc = cfg.heading_source is HeadingSource.GYROCOMPASS
     if gc and latitude_rad is None:
         raise ValueError("gyrocompass alignment needs the latitude (frame enu or latitude_rad)")
