@@ -146,6 +146,7 @@ def failure_words(r, failed: int) -> str:
 ALIGN_FAILED_GYROCOMPASS, ALIGN_FAILED_GRAVITY = 1, 2
 #: heading sources of :data:`ALIGNER_DTYPE` (AlignmentResult.heading_source)
 HEADING_SOURCES = ("given", "gyrocompass", "magnetometer")
+F, W, M = 0, 1, 2  # the rows of the aligner's sums
 
 #: the aligner's rest window: the detector's ring (stamp, index, running sums) and each
 #: sample's rate, specific force and usable field (less the hard iron)
@@ -164,10 +165,9 @@ ALIGNER_DTYPE = np.dtype([
     # the detector and the open rest
     ("rest_f", np.float64, (32,)), ("rest_i", np.int64, (10,)), ("last_acc", np.int64),
     ("has_seg", np.bool_), ("t0", np.int64), ("t1", np.int64), ("n", np.int64),
-    ("ref_f", np.float64, (3,)), ("s1f", np.float64, (3,)), ("s2f", np.float64, (3,)),
-    ("ref_w", np.float64, (3,)), ("s1w", np.float64, (3,)), ("s2w", np.float64, (3,)),
-    ("n_m", np.int64), ("ref_m", np.float64, (3,)), ("s1m", np.float64, (3,)),
-    ("s2m", np.float64, (3,)), ("done", np.bool_),
+    ("n_m", np.int64), ("done", np.bool_),
+    # rows F, W, M (specific force, rate, field): reference, Σ d, Σ d² of d = v − reference
+    ("ref", np.float64, (3, 3)), ("s1", np.float64, (3, 3)), ("s2", np.float64, (3, 3)),
     # the alignment (AlignmentResult) and its per-axis variance
     ("aligned", np.bool_), ("q", np.float64, (4,)), ("roll", np.float64),
     ("pitch", np.float64), ("heading_out", np.float64), ("source", np.int64),
@@ -186,32 +186,33 @@ def aligner_break(al):
     al.last_acc = -1
 
 
+@kernel(inline=True)
+def _sums_add(al, row, v):
+    for i in range(3):
+        d = v[i] - al.ref[row, i]
+        al.s1[row, i] += d
+        al.s2[row, i] += d * d
+
+
 @kernel
 def _aligner_add(al, t, g, a, hm, m):
     """A rest sample into the open rest's sums."""
     if not al.has_seg:
         al.has_seg, al.t0, al.n, al.n_m = True, t, 0, 0
+        al.s1[:] = 0.0
+        al.s2[:] = 0.0
         for i in range(3):
-            al.ref_f[i], al.ref_w[i] = a[i], g[i]
-            al.s1f[i] = al.s2f[i] = al.s1w[i] = al.s2w[i] = al.s1m[i] = al.s2m[i] = 0.0
-    if hm:  # the field's sums: n, reference, Σ d, Σ d² (d = m − reference)
+            al.ref[F, i], al.ref[W, i] = a[i], g[i]
+    if hm:
         if al.n_m == 0:
             for i in range(3):
-                al.ref_m[i] = m[i]
+                al.ref[M, i] = m[i]
         al.n_m += 1
-        for i in range(3):
-            d = m[i] - al.ref_m[i]
-            al.s1m[i] = al.s1m[i] + d
-            al.s2m[i] = al.s2m[i] + d * d
+        _sums_add(al, M, m)
     al.t1 = t
     al.n += 1
-    for i in range(3):
-        d = a[i] - al.ref_f[i]
-        al.s1f[i] = al.s1f[i] + d
-        al.s2f[i] = al.s2f[i] + d * d
-        e = g[i] - al.ref_w[i]
-        al.s1w[i] = al.s1w[i] + e
-        al.s2w[i] = al.s2w[i] + e * e
+    _sums_add(al, F, a)
+    _sums_add(al, W, g)
 
 
 @kernel
@@ -255,8 +256,8 @@ def _level_frame(roll, pitch, x, y, z):
 
 
 @kernel(inline=True)
-def _var(s1, s2, n, i):
-    return max(s2[i] - s1[i] * s1[i] / n, 0.0) / max(n - 1, 1)
+def _var(al, row, n, i):
+    return max(al.s2[row, i] - al.s1[row, i] * al.s1[row, i] / n, 0.0) / max(n - 1, 1)
 
 
 @kernel
@@ -265,21 +266,21 @@ def aligner_result(al):
     (:data:`ALIGN_FAILED_GYROCOMPASS`, :data:`ALIGN_FAILED_GRAVITY`)."""
     n = al.n
     for i in range(3):
-        al.mean_f[i] = al.ref_f[i] + al.s1f[i] / n
-        al.mean_w[i] = al.ref_w[i] + al.s1w[i] / n
+        al.mean_f[i] = al.ref[F, i] + al.s1[F, i] / n
+        al.mean_w[i] = al.ref[W, i] + al.s1[W, i] / n
     f0, f1, f2 = al.mean_f[0], al.mean_f[1], al.mean_f[2]
     g = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
     heading = al.heading
     ok, x, y, z, w, roll, pitch = level_q(f0, f1, f2, heading)
     if not ok:
         return ALIGN_FAILED_GRAVITY
-    var_f = 0.5 * (_var(al.s1f, al.s2f, n, 0) + _var(al.s1f, al.s2f, n, 1))
+    var_f = 0.5 * (_var(al, F, n, 0) + _var(al, F, n, 1))
     sigma_level = math.sqrt(al.accel_bias_sigma ** 2 + var_f / n) / g
     source = 0
     sigma_heading = math.nan
     if al.gyrocompass:
         horizontal = OMEGA_IE * math.cos(al.lat)
-        var_w = 0.5 * (_var(al.s1w, al.s2w, n, 0) + _var(al.s1w, al.s2w, n, 1))
+        var_w = 0.5 * (_var(al, W, n, 0) + _var(al, W, n, 1))
         sigma_heading = math.sqrt((al.bias_sigma ** 2 + var_w / n) / max(horizontal, 1e-300) ** 2
                                   + (sigma_level * math.tan(al.lat)) ** 2)
         if not sigma_heading <= al.limit:
@@ -296,7 +297,7 @@ def aligner_result(al):
     if al.mag_heading and al.n_m > 0:
         nm = al.n_m
         for i in range(3):
-            al.mean_m[i] = al.ref_m[i] + al.s1m[i] / nm
+            al.mean_m[i] = al.ref[M, i] + al.s1[M, i] / nm
         al.has_mean_m = True
         mm0, mm1, mm2 = al.mean_m[0], al.mean_m[1], al.mean_m[2]
         ml0, ml1, ml2 = _level_frame(roll, pitch, mm0, mm1, mm2)
@@ -308,8 +309,7 @@ def aligner_result(al):
             ok, x, y, z, w, roll, pitch = level_q(f0, f1, f2, heading)
             source = 2
             tan_dip = abs(ml2) / horizontal
-            var_m = (_var(al.s1m, al.s2m, nm, 0) + _var(al.s1m, al.s2m, nm, 1)
-                     + _var(al.s1m, al.s2m, nm, 2)) / 3.0
+            var_m = (_var(al, M, nm, 0) + _var(al, M, nm, 1) + _var(al, M, nm, 2)) / 3.0
             sigma_heading = math.sqrt(var_m / nm / horizontal ** 2
                                       + (tan_dip * sigma_level) ** 2)
     al.q[0], al.q[1], al.q[2], al.q[3] = x, y, z, w

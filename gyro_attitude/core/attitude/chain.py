@@ -217,10 +217,12 @@ def covariance_verdicts(cov, var, code):
 
 @kernel
 def judge_covariance(s, cv):
-    """(variances known, s0, s1, s2) of a sample's covariance (:func:`covariance_verdict`):
-    "no estimate" said once (the first time: an event), an invalid one counted."""
+    """(variances known, s0, s1, s2) of a sample's covariance: "no estimate" an event the
+    first time, an invalid one counted."""
     code, d0, d1, d2 = covariance_verdict(cv)
     if code == COV_NO_ESTIMATE:
+        if not s.noise_unknown:
+            s.events |= E_NOISE_UNKNOWN
         s.noise_unknown = True
     elif code == COV_INVALID:
         s.invalid_covariance += 1
@@ -346,16 +348,14 @@ def integrate(c, s, action, fresh, t, w0, w1, w2, has_a, a0, a1, a2, vok, v0, v1
         w0, w1, w2 = aiding_step(c, s, t, w0, w1, w2, has_a, a0, a1, a2, s.q[0], s.q[1],
                                  s.q[2], s.q[3], ms, m0, m1, m2)
     else:
+        q0 = s.q_initial
         if action == A_RESET_TIME_JUMP:
-            q0 = (s.q_initial[0], s.q_initial[1], s.q_initial[2], s.q_initial[3])
             reset_attitude(s.cov, s.initial_tt)
             s.interval_fill[0], s.interval_fill[1] = 0, 0
         elif action == A_RESTART_AFTER_GAP:
-            q0 = (s.q[0], s.q[1], s.q[2], s.q[3])
-        elif fresh or not s.has_resume:
-            q0 = (s.q_initial[0], s.q_initial[1], s.q_initial[2], s.q_initial[3])
-        else:
-            q0 = (s.resume_q[0], s.resume_q[1], s.resume_q[2], s.resume_q[3])
+            q0 = s.q
+        elif not fresh and s.has_resume:
+            q0 = s.resume_q
         if not fresh and action == A_START:
             s.has_resume = False
         integrator_reset(c, s, q0[0], q0[1], q0[2], q0[3], False, 0)
@@ -376,8 +376,7 @@ def integrate(c, s, action, fresh, t, w0, w1, w2, has_a, a0, a1, a2, vok, v0, v1
         s.events |= E_FALLBACK
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z) and math.isfinite(u)):
         s.integrator_error += 1
-        s.resume_q[0], s.resume_q[1], s.resume_q[2], s.resume_q[3] = (s.q[0], s.q[1], s.q[2],
-                                                                      s.q[3])
+        s.resume_q[:] = s.q
         s.has_resume = True
         s.first_rest_pending = False  # a new time base: no longer still since the start
         integrator_reset(c, s, s.q[0], s.q[1], s.q[2], s.q[3], False, 0)
@@ -482,31 +481,24 @@ def align_stage(c, s, ring, buf, t, w0, w1, w2, has_a, a0, a1, a2, b0, b1, b2, v
 @kernel(inline=True)
 def step(ca, sa, bias_ring, align_ring, align_buf, t, w0, w1, w2, frame_ok, has_a, a0, a1, a2,
          has_cov, cv, ms, m0, m1, m2):
-    """One Imu sample through the chain (:func:`chain_step`): (code, reason, whether an
-    attitude was handed out, events (bits E_*), the attitude)."""
-    s = sa[0]
-    noise_before, align_before = s.noise_unknown, s.align_error
+    """One Imu sample through the chain: (code, reason, whether an attitude was handed out,
+    events (bits E_*), the attitude).  ``code`` the verdict's action (A_REJECT ...
+    A_RESET_TIME_JUMP), or :data:`BIAS_RING_FULL` / :data:`ALIGN_RING_FULL` (nothing
+    changed); ``reason`` the validator's (0 none, 1 + index in validation.REJECT_REASONS,
+    TIME_JUMP, MISSING) or R_INTEGRATOR.  ``ca``, ``sa`` the coefficients and the state (one
+    record each); ``frame_ok`` whether the sample's frame is the locked one (or none is);
+    ``has_a``/``a`` the specific force (NaN: not numbers); ``has_cov``/``cv`` the angular_velocity_covariance
+    (9,); ``ms``/``m`` the field (ahrs.MAG_*)."""
     code, reason, got = chain_step(ca, sa, bias_ring, align_ring, align_buf, t, w0, w1, w2,
                                    frame_ok, has_a, a0, a1, a2, has_cov, cv, ms, m0, m1, m2)
-    ev = s.events
-    if s.noise_unknown != noise_before:
-        ev |= E_NOISE_UNKNOWN
-    if s.align_error != align_before:
-        ev |= E_ALIGN
-    return code, reason, got, ev, s.q[0], s.q[1], s.q[2], s.q[3]
+    s = sa[0]
+    return code, reason, got, s.events, s.q[0], s.q[1], s.q[2], s.q[3]
 
 
 @kernel(inline=True)
 def chain_step(ca, sa, bias_ring, align_ring, align_buf, t, w0, w1, w2, frame_ok, has_a, a0,
                a1, a2, has_cov, cv, ms, m0, m1, m2):
-    """One Imu sample through the chain: (code, reason, whether an attitude was handed out
-    in ``s.q``).  ``code`` the verdict's action (A_REJECT ... A_RESET_TIME_JUMP), or
-    :data:`BIAS_RING_FULL` / :data:`ALIGN_RING_FULL` (nothing changed); ``reason`` the
-    validator's (0 none, 1 + index in validation.REJECT_REASONS, TIME_JUMP, MISSING) or
-    R_INTEGRATOR.  ``frame_ok`` whether the sample's frame is the locked one (or none
-    is); ``has_a``/``a`` the specific force (NaN where it was not numbers); ``has_cov``/``cv``
-    the angular_velocity_covariance (9,); ``ms``/``m`` the field (ahrs.MAG_*).  ``ca`` and
-    ``sa`` hold the coefficients and the state (one record each)."""
+    """:func:`step` but for its events (in ``s.events``) and attitude (in ``s.q``)."""
     c = ca[0]
     s = sa[0]
     s.events = 0
@@ -558,8 +550,11 @@ def chain_step(ca, sa, bias_ring, align_ring, align_buf, t, w0, w1, w2, frame_ok
     b0, b1, b2 = bf[B_BIAS], bf[B_BIAS + 1], bf[B_BIAS + 2]
     # 3. alignment
     if s.phase != RUNNING:
+        before = s.align_error
         _, got = align_stage(c, s, align_ring, align_buf, t, w0, w1, w2, has_a, a0, a1, a2,
                              b0, b1, b2, vok, v0, v1, v2, ms, m0, m1, m2)
+        if s.align_error != before:
+            s.events |= E_ALIGN
         return action, reason, got
     # 4.-6. aiding, integration, covariance
     if not integrate(c, s, action, False, t, w0 - b0, w1 - b1, w2 - b2, has_a, a0, a1, a2,
