@@ -114,7 +114,6 @@ class AhrsFilter:
 
     aided_samples = _count(I_AIDED)
     accel_rejected = _count(I_REJECTED)
-    accel_recoveries = _count(I_RECOVERIES)
     mag_used = _count(I_MAG_USED)
     mag_disturbed = _count(I_MAG_DISTURBED)
     mag_invalid = _count(I_MAG_INVALID)
@@ -123,7 +122,6 @@ class AhrsFilter:
     del _count
     at_rest = property(lambda self: bool(self.ai[I_AT_REST]))
     heading_initialized = property(lambda self: bool(self.ai[I_HEADING_INIT]))
-    bias = property(lambda self: self.af[A_BIAS:A_BIAS + 3].tolist())
     hard_iron = property(lambda self: self.af[A_HARD_IRON:A_HARD_IRON + 3].tolist())
     mag_ref_norm = property(lambda self: float(self.af[A_REF_NORM]) if self.ai[I_HAS_REF_NORM]
                             else None)

@@ -38,7 +38,7 @@ class AlignmentResult:
     roll: float
     pitch: float
     heading: float  # clockwise from north, [0, 2π)
-    heading_source: str  # "given" | "gyrocompass"
+    heading_source: str  # HEADING_SOURCES
     level_error_expected: float
     heading_error_expected: float  # NaN for a given heading (the caller knows its quality)
     rest_start_ns: int
