@@ -280,10 +280,7 @@ def _lowpass(pa, af, ai, dt, tau, nx, ny, nz):
     lp = A_LP
     if ai[I_HAS_LP] == 0:
         # a new low-pass: the mean of the samples so far for its first accel_tau_s (as VQF),
-        # then the Butterworth from the steady state at that mean.  (Started at the estimate's
-        # vertical instead, the low-pass would pull a wrong initial attitude to the
-        # accelerometer's only over accel_tau_s, and a start that is right gains nothing
-        # from it: the tilt goes to the accelerometer's vertical either way.)
+        # then the Butterworth from the steady state at that mean
         af[lp], af[lp + 1], af[lp + 2] = nx, ny, nz
         af[lp + 3], af[lp + 4], af[lp + 5] = 0.0, 0.0, 0.0
         ai[I_HAS_LP] = LP_MEAN

@@ -271,7 +271,7 @@ def aligner_result(al):
     f0, f1, f2 = al.mean_f[0], al.mean_f[1], al.mean_f[2]
     g = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
     heading = al.heading
-    ok, x, y, z, w, roll, pitch = level_q(f0, f1, f2, heading)
+    ok, _, _, _, _, roll, pitch = level_q(f0, f1, f2, heading)
     if not ok:
         return ALIGN_FAILED_GRAVITY
     var_f = 0.5 * (_var(al, F, n, 0) + _var(al, F, n, 1))
@@ -291,7 +291,6 @@ def aligner_result(al):
         wl0, wl1, _ = _level_frame(roll, pitch, al.mean_w[0] - al.bias[0],
                                    al.mean_w[1] - al.bias[1], al.mean_w[2] - al.bias[2])
         heading = (math.pi / 2 - math.atan2(wl0, wl1)) % (2.0 * math.pi)
-        ok, x, y, z, w, roll, pitch = level_q(f0, f1, f2, heading)
         source = 1
     al.has_mean_m = False
     if al.mag_heading and al.n_m > 0:
@@ -306,12 +305,12 @@ def aligner_result(al):
             # in the yaw-0 level frame the horizontal field lies atan2(−m_y, m_x) clockwise of
             # the body x axis; the x axis is at heading h, the field at the declination
             heading = (al.decl - math.atan2(-ml1, ml0)) % (2.0 * math.pi)
-            ok, x, y, z, w, roll, pitch = level_q(f0, f1, f2, heading)
             source = 2
             tan_dip = abs(ml2) / horizontal
             var_m = (_var(al, M, nm, 0) + _var(al, M, nm, 1) + _var(al, M, nm, 2)) / 3.0
             sigma_heading = math.sqrt(var_m / nm / horizontal ** 2
                                       + (tan_dip * sigma_level) ** 2)
+    _, x, y, z, w, roll, pitch = level_q(f0, f1, f2, heading)  # (roll, pitch: the same)
     al.q[0], al.q[1], al.q[2], al.q[3] = x, y, z, w
     al.roll, al.pitch, al.heading_out, al.source = roll, pitch, heading, source
     al.level_err, al.heading_err = sigma_level, sigma_heading
