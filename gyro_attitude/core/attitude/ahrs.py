@@ -291,10 +291,9 @@ def _lowpass(pa, af, ai, dt, tau, nx, ny, nz):
         # the time-weighted mean (the first sample weighs one interval): 1/(k+1) at a steady
         # rate; it lives in the almost-inertial frame like the Butterworth's state
         w = dt / (af[A_RUN_S] + dt)
-        gx = af[lp] + w * (nx - af[lp])
-        gy = af[lp + 1] + w * (ny - af[lp + 1])
-        gz = af[lp + 2] + w * (nz - af[lp + 2])
-        af[lp], af[lp + 1], af[lp + 2] = gx, gy, gz
+        for i, n in ((0, nx), (1, ny), (2, nz)):
+            af[lp + i] += w * (n - af[lp + i])
+        gx, gy, gz = af[lp], af[lp + 1], af[lp + 2]
         if af[A_RUN_S] >= pa[P_ACCEL_TAU]:
             _, c1, c2, c3, c4 = _coefficients(af, ai, tau, dt)
             r1 = c1 - c3 + c2 - c4
@@ -315,15 +314,12 @@ def _lowpass(pa, af, ai, dt, tau, nx, ny, nz):
             for i in range(3):
                 af[lp + i] += d1 * af[A_LP_OUT + i]
                 af[lp + 3 + i] += d2 * af[A_LP_OUT + i]
-        gx = b0 * nx + af[lp]
-        gy = b0 * ny + af[lp + 1]
-        gz = b0 * nz + af[lp + 2]
-        af[lp] = b1 * nx - a1 * gx + af[lp + 3]
-        af[lp + 1] = b1 * ny - a1 * gy + af[lp + 4]
-        af[lp + 2] = b1 * nz - a1 * gz + af[lp + 5]
-        af[lp + 3] = b2 * nx - a2 * gx
-        af[lp + 4] = b2 * ny - a2 * gy
-        af[lp + 5] = b2 * nz - a2 * gz
+        for i, n in ((0, nx), (1, ny), (2, nz)):  # direct form II transposed
+            g = b0 * n + af[lp + i]
+            af[lp + i] = b1 * n - a1 * g + af[lp + 3 + i]
+            af[lp + 3 + i] = b2 * n - a2 * g
+            af[A_LP_OUT + i] = g
+        gx, gy, gz = af[A_LP_OUT], af[A_LP_OUT + 1], af[A_LP_OUT + 2]
     return gx, gy, gz
 
 
