@@ -235,9 +235,9 @@ def judge_covariance(s, cv):
 
 @kernel
 def saturation_step(s, t, w0, w1, w2):
-    """Count an accepted sample pinned on a plateau: the axis (-1: none) that has held one
-    value at the largest magnitude seen (at least SATURATION_MIN_RAD_S) for
-    SATURATION_PLATEAU_NS up to this sample ``t``.  ``s.sat`` holds the largest |ω| per axis
+    """Count an accepted sample pinned on a plateau: an axis that has held one value at the
+    largest magnitude seen (at least SATURATION_MIN_RAD_S) for SATURATION_PLATEAU_NS up to
+    this sample ``t`` (the event's figure: the axis).  ``s.sat`` holds the largest |ω| per axis
     (0:3) and the last ω (3:6), ``s.sat_t0`` the stamp where the last ω's value began."""
     sat = s.sat
     pinned = -1
@@ -255,7 +255,6 @@ def saturation_step(s, t, w0, w1, w2):
         s.saturated += 1
         s.ev_sat_axis = pinned
         s.events |= E_SATURATED
-    return pinned
 
 
 @kernel
@@ -452,12 +451,10 @@ def align_stage(c, s, ring, buf, t, w0, w1, w2, has_a, a0, a1, a2, b0, b1, b2, v
         return 0, False
     # aligned: the attitude, its covariance and the integrator start from the alignment
     s.phase = RUNNING
-    for i in range(4):
-        s.q_initial[i] = al.q[i]
-        s.q[i] = al.q[i]
+    s.q_initial[:] = al.q
+    s.q[:] = al.q
     s.has_resume = False
-    for i in range(3):
-        s.initial_tt[i] = al.variance[i]
+    s.initial_tt[:] = al.variance
     reset_attitude(s.cov, s.initial_tt)
     integrator_reset(c, s, al.q[0], al.q[1], al.q[2], al.q[3], False, 0)
     s.ahrs_i[I_HAS_LAST] = 0  # a new time base for the aiding filter

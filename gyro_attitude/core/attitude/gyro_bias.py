@@ -96,9 +96,7 @@ def accumulate(bf, bi, min_rest_ns, t, v0, v1, v2, earth):
     if bi[J_HAS_SEG] == 0:
         bi[J_HAS_SEG], bi[J_SEG_T0], bi[J_SEG_N], bi[J_SEG_EARTH] = 1, t, 0, 1
         bf[B_REF], bf[B_REF + 1], bf[B_REF + 2] = v0, v1, v2
-        for i in range(3):
-            bf[B_S1 + i] = 0.0
-            bf[B_S2 + i] = 0.0
+        bf[B_S1:B_S2 + 3] = 0.0  # Σ d, Σ d²
     bi[J_SEG_T1] = t
     bi[J_SEG_N] += 1
     for i, v in ((0, v0), (1, v1), (2, v2)):
