@@ -1,55 +1,8 @@
-"""Causal AHRS aiding: tilt from the specific force filtered in an almost-inertial frame, heading
-from the magnetometer, with acceleration and magnetic-disturbance rejection (no ROS, plain floats).
-
-Contract (the aiding stage of the causal chain): the kernel :func:`ahrs_step` once per accepted
-sample, on the state arrays of :class:`AhrsFilter`: the gyro rate with the known bias removed,
-the specific force (m/s², or none), the current attitude estimate (body→ENU, scalar last) and
-the magnetic field (tesla, body frame, or none) in; the rate the integrator integrates for the
-interval ending at this sample out.  The filter owns no attitude: it expresses every correction
-as an added body rate, so the chain's integrator stays the one home of the attitude.
-
-Tilt (the structure of VQF, Laidig & Seel 2023, written from the paper):
-
-* The specific force is rotated into the nav frame with the current attitude and low-passed
-  there by a second-order Butterworth filter (time constant ``ahrs_accel_tau_s``; a new low-pass is
-  the mean of the samples so far for its first ``ahrs_accel_tau_s``, then the Butterworth from the
-  steady state at that mean, as VQF: a wrong start is levelled at once).  Every correction
-  the filter applies to the attitude is applied to the filter's state too (a rotation of its
-  delay elements), so the state lives in the frame the gyro alone would give — the
-  "almost-inertial" frame: gyro errors are not fed back into the average, and accelerations of a
-  motion average out (their integral is the velocity change) while gravity does not.
-* The tilt is then pulled toward the filtered vertical with time constant ``ahrs_tilt_tau_s``
-  (0: the full correction every sample, as VQF).
-* Acceleration rejection: while the filtered vertical is more than ``ahrs_accel_reject_deg`` from the
-  estimated one, or ``|‖f‖ − g| > ahrs_accel_norm_tol``, the tilt is gyro-only (counted in
-  ``accel_rejected``).  Recovery: at a rest (rate below ``ahrs_rest_rate_max`` and force within
-  ``ahrs_rest_accel_tol`` of g for ``ahrs_rest_min_s``) the filter trusts the accelerometer at once and
-  with the short time constant ``ahrs_rest_accel_tau_s`` (rest-adaptive); and after
-  ``ahrs_accel_recovery_s`` of continuous rejection in motion (a gyro that really drifted) the
-  correction resumes (``accel_recoveries``).  So a sustained acceleration pulls the tilt by at
-  most the rejection angle, never by its full ``atan(a/g)``.
-* A slow bias integral (``ahrs_bias_gain``, 1/s) removes the rate the corrections keep applying.
-
-Heading (``mag`` given): the field minus the hard-iron offset is rotated into the nav frame;
-the angle of its horizontal part east of north, minus ``magnetic_declination_deg`` (true north; 0 gives
-magnetic north) is the heading error, taken out about the vertical with time constant
-``ahrs_mag_tau_s`` (the first usable field sets the heading at once when the stream levels;
-the first ``ahrs_mag_tau_s`` after it converge faster).  A field whose norm differs from the
-reference by more than ``mag_norm_tol`` (relative) or whose dip (inclination, positive down)
-differs by more than ``mag_dip_tol_deg`` is a disturbance: counted (``mag_disturbed``), heading
-gyro-only.  The reference is given (``mag_reference_enu_t``) or learned from the
-first ``mag_reference_s`` of field; a disturbed field that stays steady (same norm and dip within the
-tolerances) for ``mag_recovery_s`` becomes the new reference (``mag_reference_changes``), unless
-its dip has the other sign (a field cannot cross the magnetic equator under a robot).  Fields that
-are not 3 finite numbers, beyond ``MAG_ABSURD_T`` or below ``MAG_ZERO_T`` are counted
-(``mag_invalid``) and not used.
-
-Hard iron: ``mag_hard_iron_t`` given, or ``mag_hard_iron_estimate``: the sphere fit
-``‖m − b‖² = r²`` (linear least squares in ``b`` and ``r² − ‖b‖²``) over sums accumulated per
-sample and solved every ``HARD_IRON_SOLVE_S`` with exponential forgetting; a solution is taken
-only when the field has been seen from directions spread enough (the smallest eigenvalue of the
-field's scatter above a quarter of r²... see :func:`_solve_hard_iron`).
-"""
+"""Causal AHRS aiding (tilt from the specific force filtered in an almost-inertial frame, heading
+from the magnetometer, acceleration and magnetic-disturbance rejection, hard-iron fit): the
+kernel :func:`ahrs_step` once per accepted sample on :class:`AhrsFilter`'s state arrays.  It
+owns no attitude: every correction is an added body rate (docs/architecture.md, "Notes: the
+estimator's stages")."""
 
 from __future__ import annotations
 
@@ -64,7 +17,7 @@ from gyro_attitude.core.attitude.validation import within
 from gyro_attitude.core.earth import STANDARD_GRAVITY
 from gyro_attitude.core.jit import kernel
 
-__all__ = ["AhrsFilter", "ahrs_coefficients", "MAG_ABSURD_T", "MAG_ZERO_T"]
+__all__ = ["AhrsFilter", "MAG_ABSURD_T", "MAG_ZERO_T"]
 
 MAG_ABSURD_T = 1e-2  # tesla: 10 mT, beyond any magnetometer's range (Earth's field ~25-65 µT)
 MAG_ZERO_T = 1e-7  # tesla: 0.1 µT, no magnetometer in a geomagnetic field reads this little
@@ -72,22 +25,6 @@ HARD_IRON_SOLVE_S = 1.0
 HEADING_INIT_TAU_S = 0.3
 HEADING_INIT_S = 2.0
 _SQRT2 = math.sqrt(2.0)
-
-
-def ahrs_coefficients(cfg) -> np.ndarray:
-    """The filter's parameter row (``P_*`` slots) of a :class:`~.settings.StreamConfig`: its
-    ``ahrs_*`` and ``mag_*`` rows, as the kernels read them (angles in radians, the rejection
-    angle as a cosine); the table has checked every value."""
-    return np.array([
-        cfg.ahrs_accel_tau_s, cfg.ahrs_tilt_tau_s, cfg.ahrs_rest_accel_tau_s,
-        cfg.ahrs_rest_rate_max, cfg.ahrs_rest_accel_tol, cfg.ahrs_rest_min_s, STANDARD_GRAVITY,
-        cfg.ahrs_accel_norm_tol, cfg.ahrs_accel_recovery_s, cfg.ahrs_bias_gain,
-        cfg.ahrs_mag_tau_s, cfg.mag_norm_tol, cfg.mag_reference_s, cfg.mag_hard_iron_window_s,
-        math.radians(cfg.magnetic_declination_deg),
-        math.cos(math.radians(cfg.ahrs_accel_reject_deg)),
-        math.radians(cfg.ahrs_tilt_rate_max_deg_s), 2.0 * cfg.ahrs_accel_tau_s,
-        math.radians(cfg.ahrs_recovery_rate_deg_s), math.radians(cfg.mag_dip_tol_deg),
-        1.0 if _field_reference(cfg) is not None else 0.0, cfg.mag_recovery_s])
 
 
 def _field_reference(cfg) -> tuple[float, float] | None:
@@ -129,7 +66,7 @@ I_LAST_T, I_HAS_LAST, I_AIDED, I_REJECTED, I_RECOVERIES, I_MAG_USED, I_MAG_DISTU
     I_MAG_INVALID, I_REF_CHANGES, I_AT_REST, I_HEADING_INIT, I_HAS_LP, I_HAS_KEY, I_KEY_DT, \
     I_HAS_CAND, I_HAS_REF_NORM, I_HAS_REF_DIP, I_HI_ON, I_HI_FITS = range(19)
 _A_INTS = 19
-# Parameters (ahrs_coefficients: the settings and what follows from them):
+# Parameters (AhrsFilter.pa: the settings and what follows from them):
 P_ACCEL_TAU, P_TILT_TAU, P_REST_ACCEL_TAU, P_REST_RATE_MAX, P_REST_ACCEL_TOL, P_REST_MIN_S, \
     P_GRAVITY, P_ACCEL_NORM_TOL, P_ACCEL_RECOVERY_S, P_BIAS_GAIN, P_MAG_TAU, P_MAG_NORM_TOL, \
     P_MAG_REF_S, P_HI_WINDOW_S, P_DECL, P_REJECT_COS, P_TILT_RATE, P_SETTLE_S, \
@@ -141,40 +78,35 @@ MAG_ABSENT, MAG_NOT_FLOATS, MAG_GIVEN = 0, 1, 2
 
 
 class AhrsFilter:
-    """The causal AHRS aiding stage (see the module docstring) for the settings ``config``.
-    Counters and state are public attributes: ``accel_rejected``, ``accel_recoveries``,
-    ``aided_samples`` (samples whose tilt was corrected), ``mag_used``, ``mag_disturbed``,
-    ``mag_invalid``, ``mag_reference_changes``, ``at_rest``, ``bias`` (rad/s, subtracted),
-    ``hard_iron`` (tesla), ``mag_ref_norm`` (tesla) and ``mag_ref_dip`` (rad) once known,
-    ``heading_initialized``.  They read the arrays ``pa`` (the parameter row,
-    :func:`ahrs_coefficients`), ``af`` (float state) and ``ai`` (int state) that the kernel
-    :func:`ahrs_step` steps."""
+    """The aiding stage for the settings ``config``: its parameter row ``pa`` (``P_*``: the
+    ``ahrs_*`` and ``mag_*`` settings as the kernels read them), its state arrays ``af``,
+    ``ai`` (the compiled chain holds them) and its counters read off them.  The heading is set
+    from the first usable field when the stream levels; a given initial attitude keeps its
+    heading and the field pulls it slowly."""
 
     def __init__(self, config: StreamConfig | None = None):
         self.config = cfg = config if config is not None else StreamConfig()
-        self.pa = ahrs_coefficients(cfg)
+        ref = _field_reference(cfg)
+        self.pa = np.array([
+            cfg.ahrs_accel_tau_s, cfg.ahrs_tilt_tau_s, cfg.ahrs_rest_accel_tau_s,
+            cfg.ahrs_rest_rate_max, cfg.ahrs_rest_accel_tol, cfg.ahrs_rest_min_s,
+            STANDARD_GRAVITY, cfg.ahrs_accel_norm_tol, cfg.ahrs_accel_recovery_s,
+            cfg.ahrs_bias_gain, cfg.ahrs_mag_tau_s, cfg.mag_norm_tol, cfg.mag_reference_s,
+            cfg.mag_hard_iron_window_s, math.radians(cfg.magnetic_declination_deg),
+            math.cos(math.radians(cfg.ahrs_accel_reject_deg)),
+            math.radians(cfg.ahrs_tilt_rate_max_deg_s), 2.0 * cfg.ahrs_accel_tau_s,
+            math.radians(cfg.ahrs_recovery_rate_deg_s), math.radians(cfg.mag_dip_tol_deg),
+            1.0 if ref is not None else 0.0, cfg.mag_recovery_s])
         # the tilt's effective gain for the covariance stage: the low-pass sets the time constant
         self.kp = 1.0 / max(cfg.ahrs_accel_tau_s, cfg.ahrs_tilt_tau_s)
-        self.reset()
-
-    def reset(self) -> None:
-        """Back to the start, in place (the compiled chain holds the arrays).  The heading is
-        set from the first usable field when the stream levels (a given initial attitude keeps
-        its heading and the field pulls it slowly)."""
-        cfg = self.config
-        if not hasattr(self, "af"):
-            self.af = np.zeros(_A_FLOATS)
-            self.ai = np.zeros(_A_INTS, dtype=np.int64)
-        af, ai = self.af, self.ai
-        af[:] = 0.0
-        ai[:] = 0
+        self.af = af = np.zeros(_A_FLOATS)
+        self.ai = ai = np.zeros(_A_INTS, dtype=np.int64)
         ai[I_HEADING_INIT] = not cfg.levelling
-        af[A_HARD_IRON:A_HARD_IRON + 3] = [float(c) for c in cfg.mag_hard_iron_t]
-        ref = _field_reference(cfg)
-        if ref is not None:
-            af[A_REF_NORM], ai[I_HAS_REF_NORM] = ref[0], 1
-            af[A_REF_DIP], ai[I_HAS_REF_DIP] = ref[1], 1
         ai[I_HI_ON] = bool(cfg.mag_hard_iron_estimate)
+        af[A_HARD_IRON:A_HARD_IRON + 3] = [float(c) for c in cfg.mag_hard_iron_t]
+        if ref is not None:
+            af[A_REF_NORM], af[A_REF_DIP] = ref
+            ai[I_HAS_REF_NORM] = ai[I_HAS_REF_DIP] = 1
 
     # ------------------------------------------------------------------ the state, read
     def _count(i):
@@ -182,7 +114,6 @@ class AhrsFilter:
 
     aided_samples = _count(I_AIDED)
     accel_rejected = _count(I_REJECTED)
-    accel_recoveries = _count(I_RECOVERIES)
     mag_used = _count(I_MAG_USED)
     mag_disturbed = _count(I_MAG_DISTURBED)
     mag_invalid = _count(I_MAG_INVALID)
@@ -191,7 +122,6 @@ class AhrsFilter:
     del _count
     at_rest = property(lambda self: bool(self.ai[I_AT_REST]))
     heading_initialized = property(lambda self: bool(self.ai[I_HEADING_INIT]))
-    bias = property(lambda self: self.af[A_BIAS:A_BIAS + 3].tolist())
     hard_iron = property(lambda self: self.af[A_HARD_IRON:A_HARD_IRON + 3].tolist())
     mag_ref_norm = property(lambda self: float(self.af[A_REF_NORM]) if self.ai[I_HAS_REF_NORM]
                             else None)
@@ -199,18 +129,31 @@ class AhrsFilter:
                            else None)
 
 
+@kernel(inline=True)
+def c_nb(x, y, z, s):
+    """The rows of ``C_nb`` (body → nav) of the quaternion ``(x, y, z, s)``, normalized."""
+    k = 2.0 / (x * x + y * y + z * z + s * s)
+    return (1.0 - k * (y * y + z * z), k * (x * y - z * s), k * (x * z + y * s),
+            k * (x * y + z * s), 1.0 - k * (x * x + z * z), k * (y * z - x * s),
+            k * (x * z - y * s), k * (y * z + x * s), 1.0 - k * (x * x + y * y))
+
+
 @kernel
-def heading_from_field(af, ai, seconds, norm_t, dip_rad):
-    """The heading was just set from the mean field over ``seconds`` of rest (the static
-    alignment, with the levelled attitude): the filter goes on from it as a running average
-    that has already seen that much field (no fast first phase, the time constant starts at
-    ``seconds``), and that field (norm, dip) is the reference unless one is given."""
+def heading_from_field(af, ai, seconds, x, y, z, u, vx, vy, vz):
+    """The heading was just set from the mean field ``v`` (body) over ``seconds`` of rest (the
+    alignment, attitude ``(x, y, z, u)``): the filter goes on as a running average that has
+    seen that much field, and that field's norm and dip are the reference unless one is given."""
+    # the field in the nav frame: v + u t + q × t with t = 2 q × v (rotation.quat_rotate)
+    tx, ty, tz = 2.0 * (y * vz - z * vy), 2.0 * (z * vx - x * vz), 2.0 * (x * vy - y * vx)
+    e0 = vx + u * tx + (y * tz - z * ty)
+    e1 = vy + u * ty + (z * tx - x * tz)
+    e2 = vz + u * tz + (x * ty - y * tx)
     ai[I_HEADING_INIT] = 1
     af[A_SINCE_HEADING] = HEADING_INIT_S + seconds
     if ai[I_HAS_REF_NORM] == 0:
-        af[A_REF_NORM], ai[I_HAS_REF_NORM] = norm_t, 1
+        af[A_REF_NORM], ai[I_HAS_REF_NORM] = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2), 1
     if ai[I_HAS_REF_DIP] == 0:
-        af[A_REF_DIP], ai[I_HAS_REF_DIP] = dip_rad, 1
+        af[A_REF_DIP], ai[I_HAS_REF_DIP] = math.atan2(-e2, math.hypot(e0, e1)), 1
 
 
 @kernel(inline=True)
@@ -224,17 +167,7 @@ def ahrs_step(pa, af, ai, t, w0, w1, w2, has_f, fx, fy, fz, x, y, z, s, mag_stat
     ox, oy, oz = w0 - af[A_BIAS], w1 - af[A_BIAS + 1], w2 - af[A_BIAS + 2]
     if dt == 0.0:
         ai[I_HAS_LP] = LP_NONE  # a new time base: the low-pass starts again
-    # C_nb of the (normalized) attitude: body -> nav
-    k = 2.0 / (x * x + y * y + z * z + s * s)
-    c00 = 1.0 - k * (y * y + z * z)
-    c01 = k * (x * y - z * s)
-    c02 = k * (x * z + y * s)
-    c10 = k * (x * y + z * s)
-    c11 = 1.0 - k * (x * x + z * z)
-    c12 = k * (y * z - x * s)
-    c20 = k * (x * z - y * s)
-    c21 = k * (y * z + x * s)
-    c22 = 1.0 - k * (x * x + y * y)
+    c00, c01, c02, c10, c11, c12, c20, c21, c22 = c_nb(x, y, z, s)
     dx = dy = dz = 0.0  # the nav-frame correction (rotation vector) of this sample
     learn_tilt = learn_heading = False
     hdt = dt
@@ -347,10 +280,7 @@ def _lowpass(pa, af, ai, dt, tau, nx, ny, nz):
     lp = A_LP
     if ai[I_HAS_LP] == 0:
         # a new low-pass: the mean of the samples so far for its first accel_tau_s (as VQF),
-        # then the Butterworth from the steady state at that mean.  (Started at the estimate's
-        # vertical instead, the low-pass would pull a wrong initial attitude to the
-        # accelerometer's only over accel_tau_s, and a start that is right gains nothing
-        # from it: the tilt goes to the accelerometer's vertical either way.)
+        # then the Butterworth from the steady state at that mean
         af[lp], af[lp + 1], af[lp + 2] = nx, ny, nz
         af[lp + 3], af[lp + 4], af[lp + 5] = 0.0, 0.0, 0.0
         ai[I_HAS_LP] = LP_MEAN
@@ -361,10 +291,9 @@ def _lowpass(pa, af, ai, dt, tau, nx, ny, nz):
         # the time-weighted mean (the first sample weighs one interval): 1/(k+1) at a steady
         # rate; it lives in the almost-inertial frame like the Butterworth's state
         w = dt / (af[A_RUN_S] + dt)
-        gx = af[lp] + w * (nx - af[lp])
-        gy = af[lp + 1] + w * (ny - af[lp + 1])
-        gz = af[lp + 2] + w * (nz - af[lp + 2])
-        af[lp], af[lp + 1], af[lp + 2] = gx, gy, gz
+        for i, n in ((0, nx), (1, ny), (2, nz)):
+            af[lp + i] += w * (n - af[lp + i])
+        gx, gy, gz = af[lp], af[lp + 1], af[lp + 2]
         if af[A_RUN_S] >= pa[P_ACCEL_TAU]:
             _, c1, c2, c3, c4 = _coefficients(af, ai, tau, dt)
             r1 = c1 - c3 + c2 - c4
@@ -385,15 +314,12 @@ def _lowpass(pa, af, ai, dt, tau, nx, ny, nz):
             for i in range(3):
                 af[lp + i] += d1 * af[A_LP_OUT + i]
                 af[lp + 3 + i] += d2 * af[A_LP_OUT + i]
-        gx = b0 * nx + af[lp]
-        gy = b0 * ny + af[lp + 1]
-        gz = b0 * nz + af[lp + 2]
-        af[lp] = b1 * nx - a1 * gx + af[lp + 3]
-        af[lp + 1] = b1 * ny - a1 * gy + af[lp + 4]
-        af[lp + 2] = b1 * nz - a1 * gz + af[lp + 5]
-        af[lp + 3] = b2 * nx - a2 * gx
-        af[lp + 4] = b2 * ny - a2 * gy
-        af[lp + 5] = b2 * nz - a2 * gz
+        for i, n in ((0, nx), (1, ny), (2, nz)):  # direct form II transposed
+            g = b0 * n + af[lp + i]
+            af[lp + i] = b1 * n - a1 * g + af[lp + 3 + i]
+            af[lp + 3 + i] = b2 * n - a2 * g
+            af[A_LP_OUT + i] = g
+        gx, gy, gz = af[A_LP_OUT], af[A_LP_OUT + 1], af[A_LP_OUT + 2]
     return gx, gy, gz
 
 
@@ -497,42 +423,26 @@ def _hard_iron_step(pa, af, ai, dt, m0, m1, m2):
     """Accumulate the sphere-fit sums in µT (well scaled) and solve every second."""
     x, y, z = m0 * 1e6, m1 * 1e6, m2 * 1e6
     r = x * x + y * y + z * z
-    sm = A_HI_SUMS
-    af[sm] += x * x
-    af[sm + 1] += x * y
-    af[sm + 2] += x * z
-    af[sm + 3] += y * y
-    af[sm + 4] += y * z
-    af[sm + 5] += z * z
-    af[sm + 6] += x
-    af[sm + 7] += y
-    af[sm + 8] += z
-    af[sm + 9] += 1.0
-    af[sm + 10] += r * x
-    af[sm + 11] += r * y
-    af[sm + 12] += r * z
-    af[sm + 13] += r
+    terms = (x * x, x * y, x * z, y * y, y * z, z * z, x, y, z, 1.0, r * x, r * y, r * z, r)
+    for i in range(14):
+        af[A_HI_SUMS + i] += terms[i]
     af[A_HI_SINCE] += dt
     if af[A_HI_SINCE] >= HARD_IRON_SOLVE_S:
         forget = math.exp(-af[A_HI_SINCE] / pa[P_HI_WINDOW_S])
         af[A_HI_SINCE] = 0.0
         _solve_hard_iron(pa, af, ai)
         for i in range(14):
-            af[sm + i] *= forget
+            af[A_HI_SUMS + i] *= forget
 
 
 @kernel
 def _solve_hard_iron(pa, af, ai):
-    """Solve ``m·m = 2 b·m + c`` in the least-squares sense from the sums (once a second):
-    accepted when the field's directions are spread (the smallest eigenvalue of the scatter of
-    m is at least (r/3)²/3, as from rotations of ±40° or more about two axes) and the fit is of
-    Earth-field size.
-
-    Written out rather than through ``np.linalg`` (numba's LAPACK bindings take ~15 s to
-    compile, this ~0.1 s): the normal matrix of the fit is symmetric, so a Cholesky
-    factorisation solves it (and tells a degenerate fit: not positive definite); "the smallest
-    eigenvalue of the scatter is below λ" is "scatter − λI is not positive definite", which
-    Sylvester's criterion decides from three leading minors, with no eigenvalue computed."""
+    """Solve ``m·m = 2 b·m + c`` in the least-squares sense from the sums: accepted when the
+    field's directions are spread (the smallest eigenvalue of the scatter of m at least
+    (r/3)²/3, as from rotations of ±40° or more about two axes) and the fit is of Earth-field
+    size.  Written out (numba's LAPACK bindings take ~15 s to compile): Cholesky of the
+    symmetric normal matrix (not positive definite: a degenerate fit), and Sylvester's
+    criterion on scatter − λI for the eigenvalue bound."""
     sm = A_HI_SUMS
     n = af[sm + 9]
     if n < 50:

@@ -1,42 +1,8 @@
-"""Static self-alignment at the first rest: levelling from the specific force, heading given or gyrocompassed.
-
-Contract (streaming): the kernel :func:`aligner_update` once per accepted sample (accelerometer
-required), O(1), on the record :func:`aligner_start` makes; it says True once the first rest of
-at least ``min_rest_s`` has ended (motion started).  :func:`aligner_result` then computes the
-alignment from the rest samples (or why it failed); an IMU that never rests cannot align, and
-an identity attitude would be a silent lie.  Rest samples are the oldest samples of rest
-windows (rest.py).
-
-Heading convention: ``heading`` is the azimuth of the body x axis, clockwise from north
-(navigation usage); in ENU its yaw about up is ``ψ = π/2 − heading``.  ``q_nb = Rz(ψ) Ry(θ) Rx(φ)``
-with roll ``φ = atan2(f_y, f_z)`` and pitch ``θ = atan2(−f_x, √(f_y² + f_z²))`` from the mean
-specific force (which points up at rest).
-
-Heading from the magnetometer (``mag_heading``: the stream's ``aiding: magnetometer`` with
-``initial_attitude_source: level``): the mean field over the same rest samples, less the hard
-iron, levelled with the roll and pitch (tilt-compensated) gives the heading,
-``h = declination − atan2(−m_y, m_x)`` with ``(m_x, m_y)`` the horizontal field in the yaw-0
-level frame (:func:`aligner_result`).  The mean of the N rest samples, not one sample: its
-noise is ``σ_m / (B_h √N)`` (``σ_m`` per axis, ``B_h`` the horizontal field), and a tilt error
-``δ`` turns it by ``tan(dip)·δ``; expected ``√(σ_m²/(N B_h²) + tan²(dip) σ_level²)``.  Rest
-samples without a usable field (absent, non-finite, beyond 10 mT, below 0.1 µT) are left out
-of the mean; with none, or at a magnetic pole, the heading stays the given one.
-
-Expected errors (1σ, reported):
-
-* levelling: ``√(σ_ba² + σ_f²/n) / g`` per tilt axis — an accelerometer bias ``b`` tilts the
-  measured vertical by ``b_horizontal / g``; ``accel_bias_sigma`` (default 0.05 m/s² ≈ 5 mg, a
-  calibrated consumer MEMS) is the user's statement of it, the noise term is measured.
-* gyrocompass: the levelled gyro sees the horizontal Earth rate ``ω_ie cos L`` along north; a
-  residual gyro bias ``δb`` across it turns the heading by ``δb / (ω_ie cos L)``, and a tilt
-  error ``δ`` leaks the vertical Earth rate in, ``δ tan L``.  Expected error
-  ``√((σ_b² + σ_ω²/n) / (ω_ie cos L)² + σ_tilt² tan² L)``, with ``gyro_bias_sigma`` the
-  uncertainty of the bias subtracted (it must be stated: at rest a bias cannot be told from the
-  Earth rate, so a bias estimated at rests has absorbed it and cannot be used).  Refused
-  (``ValueError``) above ``heading_error_limit_deg`` (default 5°): a consumer MEMS gyro (bias
-  uncertainty ~0.01 °/s = 36 °/h against 15 °/h · cos L) cannot find north; a tactical one
-  (1 °/h: ~5° at 45°N) barely; a navigation-grade one (0.01 °/h: ~0.05°) can.
-"""
+"""Static self-alignment at the first rest: levelling from the mean specific force, the heading
+given, gyrocompassed or from the mean field, each with its expected error (docs/
+architecture.md, "Notes: the estimator's stages").  The kernel :func:`aligner_update` once per
+accepted sample (accelerometer required) on the record :func:`aligner_start` makes says when
+the first rest of at least ``min_rest_s`` has ended; :func:`aligner_result` then aligns."""
 
 from __future__ import annotations
 
@@ -72,7 +38,7 @@ class AlignmentResult:
     roll: float
     pitch: float
     heading: float  # clockwise from north, [0, 2π)
-    heading_source: str  # "given" | "gyrocompass"
+    heading_source: str  # HEADING_SOURCES
     level_error_expected: float
     heading_error_expected: float  # NaN for a given heading (the caller knows its quality)
     rest_start_ns: int
@@ -88,9 +54,9 @@ class AlignmentResult:
 
 @kernel
 def level_q(fx, fy, fz, heading):
-    """:func:`level_quaternion` in plain floats, for the compiled chain (the per-sample path
-    while aligning takes the Earth rate out at it): ``(usable, x, y, z, w, roll, pitch)``;
-    ``usable`` False (and the identity) when ``f`` is no gravity measurement."""
+    """``(usable, x, y, z, w, roll, pitch)``: ``q_nb = Rz(π/2 − heading) Ry(pitch) Rx(roll)``
+    with body z along the measured up ``f``; not usable (the identity) when ``f`` is no
+    gravity measurement."""
     if not (math.isfinite(fx * fy * fz) and fx * fx + fy * fy + fz * fz >= 1.0):
         return False, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0
     roll = math.atan2(fy, fz)
@@ -120,9 +86,8 @@ def heading_of(q_nb) -> float:
 
 
 def level_quaternion(f_b, heading: float) -> tuple[np.ndarray, float, float]:
-    """``(q_nb, roll, pitch)`` with body z along the measured up ``f_b`` and the given heading
-    (:func:`level_q` run by the interpreter: one call is not worth loading the compiled form,
-    a third of a second in a fresh process)."""
+    """``(q_nb, roll, pitch)`` of :func:`level_q`, run by the interpreter (one call is not worth
+    loading the compiled form)."""
     fx, fy, fz = (float(c) for c in f_b)
     ok, x, y, z, w, roll, pitch = level_q(fx, fy, fz, float(heading))
     if not ok:
@@ -131,11 +96,8 @@ def level_quaternion(f_b, heading: float) -> tuple[np.ndarray, float, float]:
 
 
 def aligner_start(cfg: StreamConfig, latitude_rad: float | None = None) -> np.recarray:
-    """The aligner's record (:data:`ALIGNER_DTYPE`, one) of ``cfg`` before the first sample:
-    ``initial_heading_deg`` or ``heading_source`` gyrocompass at ``latitude_rad``, the gyro
-    bias subtracted when it is a ``parameter``, ``accel_bias_sigma``,
-    ``heading_error_limit_deg``, ``min_rest_s``, the rest thresholds, the heading from the
-    field with ``aiding: magnetometer``; the table has checked every value."""
+    """The aligner's record (:data:`ALIGNER_DTYPE`, one) of ``cfg`` before the first sample
+    (gyrocompass at ``latitude_rad``)."""
     gc = cfg.heading_source is HeadingSource.GYROCOMPASS
     if gc and latitude_rad is None:
         raise ValueError("gyrocompass alignment needs the latitude (frame enu or latitude_rad)")
@@ -184,6 +146,7 @@ def failure_words(r, failed: int) -> str:
 ALIGN_FAILED_GYROCOMPASS, ALIGN_FAILED_GRAVITY = 1, 2
 #: heading sources of :data:`ALIGNER_DTYPE` (AlignmentResult.heading_source)
 HEADING_SOURCES = ("given", "gyrocompass", "magnetometer")
+F, W, M = 0, 1, 2  # the rows of the aligner's sums
 
 #: the aligner's rest window: the detector's ring (stamp, index, running sums) and each
 #: sample's rate, specific force and usable field (less the hard iron)
@@ -202,10 +165,9 @@ ALIGNER_DTYPE = np.dtype([
     # the detector and the open rest
     ("rest_f", np.float64, (32,)), ("rest_i", np.int64, (10,)), ("last_acc", np.int64),
     ("has_seg", np.bool_), ("t0", np.int64), ("t1", np.int64), ("n", np.int64),
-    ("ref_f", np.float64, (3,)), ("s1f", np.float64, (3,)), ("s2f", np.float64, (3,)),
-    ("ref_w", np.float64, (3,)), ("s1w", np.float64, (3,)), ("s2w", np.float64, (3,)),
-    ("n_m", np.int64), ("ref_m", np.float64, (3,)), ("s1m", np.float64, (3,)),
-    ("s2m", np.float64, (3,)), ("done", np.bool_),
+    ("n_m", np.int64), ("done", np.bool_),
+    # rows F, W, M (specific force, rate, field): reference, Σ d, Σ d² of d = v − reference
+    ("ref", np.float64, (3, 3)), ("s1", np.float64, (3, 3)), ("s2", np.float64, (3, 3)),
     # the alignment (AlignmentResult) and its per-axis variance
     ("aligned", np.bool_), ("q", np.float64, (4,)), ("roll", np.float64),
     ("pitch", np.float64), ("heading_out", np.float64), ("source", np.int64),
@@ -224,32 +186,33 @@ def aligner_break(al):
     al.last_acc = -1
 
 
+@kernel(inline=True)
+def _sums_add(al, row, v):
+    for i in range(3):
+        d = v[i] - al.ref[row, i]
+        al.s1[row, i] += d
+        al.s2[row, i] += d * d
+
+
 @kernel
 def _aligner_add(al, t, g, a, hm, m):
     """A rest sample into the open rest's sums."""
     if not al.has_seg:
         al.has_seg, al.t0, al.n, al.n_m = True, t, 0, 0
+        al.s1[:] = 0.0
+        al.s2[:] = 0.0
         for i in range(3):
-            al.ref_f[i], al.ref_w[i] = a[i], g[i]
-            al.s1f[i] = al.s2f[i] = al.s1w[i] = al.s2w[i] = al.s1m[i] = al.s2m[i] = 0.0
-    if hm:  # the field's sums: n, reference, Σ d, Σ d² (d = m − reference)
+            al.ref[F, i], al.ref[W, i] = a[i], g[i]
+    if hm:
         if al.n_m == 0:
             for i in range(3):
-                al.ref_m[i] = m[i]
+                al.ref[M, i] = m[i]
         al.n_m += 1
-        for i in range(3):
-            d = m[i] - al.ref_m[i]
-            al.s1m[i] = al.s1m[i] + d
-            al.s2m[i] = al.s2m[i] + d * d
+        _sums_add(al, M, m)
     al.t1 = t
     al.n += 1
-    for i in range(3):
-        d = a[i] - al.ref_f[i]
-        al.s1f[i] = al.s1f[i] + d
-        al.s2f[i] = al.s2f[i] + d * d
-        e = g[i] - al.ref_w[i]
-        al.s1w[i] = al.s1w[i] + e
-        al.s2w[i] = al.s2w[i] + e * e
+    _sums_add(al, F, a)
+    _sums_add(al, W, g)
 
 
 @kernel
@@ -293,8 +256,8 @@ def _level_frame(roll, pitch, x, y, z):
 
 
 @kernel(inline=True)
-def _var(s1, s2, n, i):
-    return max(s2[i] - s1[i] * s1[i] / n, 0.0) / max(n - 1, 1)
+def _var(al, row, n, i):
+    return max(al.s2[row, i] - al.s1[row, i] * al.s1[row, i] / n, 0.0) / max(n - 1, 1)
 
 
 @kernel
@@ -303,21 +266,21 @@ def aligner_result(al):
     (:data:`ALIGN_FAILED_GYROCOMPASS`, :data:`ALIGN_FAILED_GRAVITY`)."""
     n = al.n
     for i in range(3):
-        al.mean_f[i] = al.ref_f[i] + al.s1f[i] / n
-        al.mean_w[i] = al.ref_w[i] + al.s1w[i] / n
+        al.mean_f[i] = al.ref[F, i] + al.s1[F, i] / n
+        al.mean_w[i] = al.ref[W, i] + al.s1[W, i] / n
     f0, f1, f2 = al.mean_f[0], al.mean_f[1], al.mean_f[2]
     g = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
     heading = al.heading
-    ok, x, y, z, w, roll, pitch = level_q(f0, f1, f2, heading)
+    ok, _, _, _, _, roll, pitch = level_q(f0, f1, f2, heading)
     if not ok:
         return ALIGN_FAILED_GRAVITY
-    var_f = 0.5 * (_var(al.s1f, al.s2f, n, 0) + _var(al.s1f, al.s2f, n, 1))
+    var_f = 0.5 * (_var(al, F, n, 0) + _var(al, F, n, 1))
     sigma_level = math.sqrt(al.accel_bias_sigma ** 2 + var_f / n) / g
     source = 0
     sigma_heading = math.nan
     if al.gyrocompass:
         horizontal = OMEGA_IE * math.cos(al.lat)
-        var_w = 0.5 * (_var(al.s1w, al.s2w, n, 0) + _var(al.s1w, al.s2w, n, 1))
+        var_w = 0.5 * (_var(al, W, n, 0) + _var(al, W, n, 1))
         sigma_heading = math.sqrt((al.bias_sigma ** 2 + var_w / n) / max(horizontal, 1e-300) ** 2
                                   + (sigma_level * math.tan(al.lat)) ** 2)
         if not sigma_heading <= al.limit:
@@ -328,13 +291,12 @@ def aligner_result(al):
         wl0, wl1, _ = _level_frame(roll, pitch, al.mean_w[0] - al.bias[0],
                                    al.mean_w[1] - al.bias[1], al.mean_w[2] - al.bias[2])
         heading = (math.pi / 2 - math.atan2(wl0, wl1)) % (2.0 * math.pi)
-        ok, x, y, z, w, roll, pitch = level_q(f0, f1, f2, heading)
         source = 1
     al.has_mean_m = False
     if al.mag_heading and al.n_m > 0:
         nm = al.n_m
         for i in range(3):
-            al.mean_m[i] = al.ref_m[i] + al.s1m[i] / nm
+            al.mean_m[i] = al.ref[M, i] + al.s1[M, i] / nm
         al.has_mean_m = True
         mm0, mm1, mm2 = al.mean_m[0], al.mean_m[1], al.mean_m[2]
         ml0, ml1, ml2 = _level_frame(roll, pitch, mm0, mm1, mm2)
@@ -343,13 +305,12 @@ def aligner_result(al):
             # in the yaw-0 level frame the horizontal field lies atan2(−m_y, m_x) clockwise of
             # the body x axis; the x axis is at heading h, the field at the declination
             heading = (al.decl - math.atan2(-ml1, ml0)) % (2.0 * math.pi)
-            ok, x, y, z, w, roll, pitch = level_q(f0, f1, f2, heading)
             source = 2
             tan_dip = abs(ml2) / horizontal
-            var_m = (_var(al.s1m, al.s2m, nm, 0) + _var(al.s1m, al.s2m, nm, 1)
-                     + _var(al.s1m, al.s2m, nm, 2)) / 3.0
+            var_m = (_var(al, M, nm, 0) + _var(al, M, nm, 1) + _var(al, M, nm, 2)) / 3.0
             sigma_heading = math.sqrt(var_m / nm / horizontal ** 2
                                       + (tan_dip * sigma_level) ** 2)
+    _, x, y, z, w, roll, pitch = level_q(f0, f1, f2, heading)  # (roll, pitch: the same)
     al.q[0], al.q[1], al.q[2], al.q[3] = x, y, z, w
     al.roll, al.pitch, al.heading_out, al.source = roll, pitch, heading, source
     al.level_err, al.heading_err = sigma_level, sigma_heading

@@ -1,33 +1,27 @@
-"""The causal estimator's one step: settings as coefficients, the state as one record, and
-:func:`step` chaining the stages for one Imu sample (the shape of VQF's core: params,
-coefficients and state; one ``update()``; a recording is a loop over it).
-
-* :data:`COEF_DTYPE` — computed once from the settings (:func:`.stream.coefficients`);
-* :data:`STATE_DTYPE` — everything the chain carries between samples, by name: the validator's
-  time base and counts, the chain's attitude and phase, and each stage's state (the rest
-  detector and bias estimator, the aligner, the aiding filter, the integrator, the
-  covariance, the interval statistics);
-* three rings (:data:`BIAS_RING_DTYPE`, :data:`ALIGN_RING_DTYPE`, :data:`ALIGN_BUFFER_DTYPE`)
-  hold the samples of the rest windows; they grow (:data:`RING_FULL`: the caller doubles them
-  and calls the same step again, nothing having changed);
-* :func:`step` — one sample through validate → rest → gyro bias → alignment → aiding →
-  integrate → covariance; :func:`run_rows` — a recording, the same step in a compiled loop.
-
-What a sample did leaves the step as codes (the verdict, the reason, events in
-``state.ev_*``); the words are made at the edge (:mod:`.stream`).  Every function here is a
-kernel (:mod:`gyro_attitude.core.jit`): the same source runs compiled or as plain Python.
-"""
+"""The causal estimator's one step, in the shape of VQF's core: the settings as coefficients
+(:data:`COEF_DTYPE`), everything carried between samples as one record (:data:`STATE_DTYPE`),
+:func:`step` chaining the stages for one Imu sample (validate → rest → gyro bias → alignment
+→ aiding → integrate → covariance) and :func:`run_rows`, a recording as the same step in a
+compiled loop.  Three rings hold the rest windows' samples; a full one is the step's code
+(nothing changed: the caller doubles it and steps again).  What a sample did leaves as codes
+(verdict, reason, event bits), the words are made at the edge (:mod:`.stream`).  Every
+function here is a kernel (:mod:`gyro_attitude.core.jit`)."""
 
 from __future__ import annotations
 
 import math
-from enum import IntEnum
 
 import numpy as np
 
-from gyro_attitude.core.attitude.ahrs import I_AIDED as AHRS_AIDED
-from gyro_attitude.core.attitude.ahrs import I_HAS_LAST as AHRS_HAS_LAST
-from gyro_attitude.core.attitude.ahrs import MAG_ABSENT, MAG_GIVEN, ahrs_step, heading_from_field
+from gyro_attitude.core.attitude.ahrs import (
+    I_AIDED,
+    I_HAS_LAST,
+    MAG_ABSENT,
+    MAG_GIVEN,
+    ahrs_step,
+    c_nb,
+    heading_from_field,
+)
 from gyro_attitude.core.attitude.algorithm import CUBIC, EXP
 from gyro_attitude.core.attitude.alignment import (
     ALIGNER_DTYPE,
@@ -64,25 +58,13 @@ from gyro_attitude.core.attitude.streaming import (
     rate_reset,
 )
 from gyro_attitude.core.attitude.validation import (
-    A_ACCEPT as ACCEPT,
-)
-from gyro_attitude.core.attitude.validation import (
-    A_REJECT as REJECT,
-)
-from gyro_attitude.core.attitude.validation import (
-    A_RESET_TIME_JUMP as RESET_TIME_JUMP,
-)
-from gyro_attitude.core.attitude.validation import (
-    A_RESTART_AFTER_GAP as RESTART_AFTER_GAP,
-)
-from gyro_attitude.core.attitude.validation import (
-    A_START as START,
-)
-from gyro_attitude.core.attitude.validation import (
-    R_INTEGRATOR as INTEGRATOR_ERROR,
-)
-from gyro_attitude.core.attitude.validation import RING as INTERVAL_RING
-from gyro_attitude.core.attitude.validation import (
+    A_ACCEPT,
+    A_REJECT,
+    A_RESET_TIME_JUMP,
+    A_RESTART_AFTER_GAP,
+    A_START,
+    R_INTEGRATOR,
+    RING,
     STAMPS_DTYPE,
     interval_add,
     stamps_reset,
@@ -94,40 +76,12 @@ from gyro_attitude.core.jit import kernel
 __all__ = ["ALIGN_BUFFER_DTYPE", "BIAS_RING_DTYPE", "COEF_DTYPE", "STATE_DTYPE", "run_rows",
            "step"]
 
-class StepPhase(IntEnum):
-    """The chain's phase in the state record (modes.Phase at the edge)."""
-
-    RUNNING = 0
-    ALIGNING = 1
-    FAILED = 2
-
-
-class AidingKind(IntEnum):
-    """The aiding filter the step runs (modes.Aiding: every aided mode is the AHRS)."""
-
-    NONE = 0
-    AHRS = 1
-
-
-class StepAlgorithm(IntEnum):
-    """The integration algorithms compiled into the step."""
-
-    CUBIC = 0  # rotvec_cubic
-    EXP_MAP = 1
-
-
-class BiasKind(IntEnum):
-    """The gyro bias stage's mode (modes.GyroBiasMode)."""
-
-    NONE = 0
-    PARAMETER = 1
-    AUTO = 2
-
-
-RUNNING, ALIGNING, FAILED = StepPhase.RUNNING, StepPhase.ALIGNING, StepPhase.FAILED
-AID_NONE, AID_AHRS = AidingKind.NONE, AidingKind.AHRS
-ALG_CUBIC, ALG_EXP_MAP = StepAlgorithm.CUBIC, StepAlgorithm.EXP_MAP
-BIAS_NONE, BIAS_PARAMETER, BIAS_AUTO = BiasKind.NONE, BiasKind.PARAMETER, BiasKind.AUTO
+# the chain's phase (modes.Phase at the edge), the aiding filter (every aided mode is the
+# AHRS), the integration algorithm, the gyro bias mode (modes.GyroBiasMode)
+RUNNING, ALIGNING, FAILED = 0, 1, 2
+AID_NONE, AID_AHRS = 0, 1
+ALG_CUBIC, ALG_EXP_MAP = 0, 1  # rotvec_cubic, exp_map
+BIAS_NONE, BIAS_PARAMETER, BIAS_AUTO = 0, 1, 2
 
 #: m/s²: a specific force beyond this (1e5 g) is no accelerometer reading
 ACCEL_ABSURD = 1e6
@@ -170,8 +124,7 @@ STATE_DTYPE = np.dtype([
     ("integrator_error", np.int64), ("saturated", np.int64), ("rate_fit_fallback", np.int64),
     ("mag_missing", np.int64),
     # the last sample's events, for the words made at the edge
-    ("ev_sat_axis", np.int64), ("ev_fallbacks", np.int64), ("ev_invalid_cov", np.bool_),
-    ("ev_invalid_accel", np.bool_), ("ev_mag_missing", np.bool_),
+    ("events", np.int64), ("ev_sat_axis", np.int64), ("ev_fallbacks", np.int64),
     # why the alignment has not started (0 none, 1 no accelerometer, 1 + ALIGN_FAILED_*)
     ("align_error", np.int64),
     # stages
@@ -182,7 +135,7 @@ STATE_DTYPE = np.dtype([
     ("cubic_i", np.int64, (9,)), ("cubic_t", np.int64, (4,)), ("cubic_w", np.float64, (4, 3)),
     ("cubic_f", np.float64, (14,)), ("has_nav", np.bool_), ("nav_rate", np.float64, (3,)),
     ("cov", np.float64, (12,)), ("initial_tt", np.float64, (3,)),
-    ("intervals", np.int64, (INTERVAL_RING,)), ("interval_fill", np.int64, (2,)),
+    ("intervals", np.int64, (RING,)), ("interval_fill", np.int64, (2,)),
     ("align_head", np.int64), ("align_count", np.int64),
 ])
 
@@ -195,9 +148,12 @@ ALIGN_BUFFER_DTYPE = np.dtype([("t", np.int64), ("w", np.float64, (3,)),
                                ("a", np.float64, (3,)), ("v", np.float64, (3,)),
                                ("vok", np.bool_), ("ms", np.int64), ("m", np.float64, (3,))])
 
-#: step codes besides the verdict's action (ACCEPT ...): the ring of the bias stage, the
+#: step codes besides the verdict's action (A_ACCEPT ...): the ring of the bias stage, the
 #: aligner or its buffer is full (nothing changed: grow it and step again)
 BIAS_RING_FULL, ALIGN_RING_FULL = -2, -3
+#: bits of :func:`step`'s events: what happened besides the verdict (words at the edge)
+E_INVALID_COV, E_INVALID_ACCEL, E_SATURATED, E_FALLBACK, E_MAG_MISSING, E_NOISE_UNKNOWN, \
+    E_ALIGN = 1, 2, 4, 8, 16, 32, 64
 
 
 @kernel
@@ -211,21 +167,6 @@ def integrator_reset(c, s, qx, qy, qz, qw, has_t, t):
 
 
 @kernel
-def integrator_advance(c, s, t, w0, w1, w2):
-    """The integrator's step to the sample ``t`` with rate ``w``: the attitude."""
-    return rate_advance(CUBIC if c.algorithm == ALG_CUBIC else EXP, s.cubic_i, s.cubic_t,
-                        s.cubic_w, s.cubic_f, t, w0, w1, w2, s.has_nav, s.nav_rate[0],
-                        s.nav_rate[1], s.nav_rate[2])
-
-
-@kernel
-def aiding_restart(c, s):
-    """A new time base for the aiding filter (its low-pass starts again)."""
-    if c.aiding == AID_AHRS:
-        s.ahrs_i[AHRS_HAS_LAST] = 0
-
-
-@kernel
 def aiding_step(c, s, t, w0, w1, w2, has_a, a0, a1, a2, x, y, z, u, ms, m0, m1, m2):
     """The aiding stage: the rate to integrate."""
     if c.aiding == AID_AHRS:
@@ -235,20 +176,13 @@ def aiding_step(c, s, t, w0, w1, w2, has_a, a0, a1, a2, x, y, z, u, ms, m0, m1, 
 
 
 @kernel
-def aided_samples(c, s):
-    if c.aiding == AID_AHRS:
-        return s.ahrs_i[AHRS_AIDED]
-    return 0
-
-
-@kernel
 def break_windows(c, s):
     """A rest never spans a gap, a jump, a restart or an unusable accelerometer sample."""
     bias_break(s.bias_f, s.bias_i, s.rest_f, s.rest_i, c.min_rest_ns)
     if s.phase == ALIGNING:
         aligner_break(s.aligner)
         s.align_count = 0
-    s.ahrs_i[AHRS_HAS_LAST] = 0
+    s.ahrs_i[I_HAS_LAST] = 0
 
 
 #: :func:`covariance_verdict`'s codes: REP-145's "no estimate", all zeros (unknown), an
@@ -285,14 +219,16 @@ def covariance_verdicts(cov, var, code):
 
 @kernel
 def judge_covariance(s, cv):
-    """(variances known, s0, s1, s2) of a sample's covariance (:func:`covariance_verdict`):
-    "no estimate" said once (the first time: an event), an invalid one counted."""
+    """(variances known, s0, s1, s2) of a sample's covariance: "no estimate" an event the
+    first time, an invalid one counted."""
     code, d0, d1, d2 = covariance_verdict(cv)
     if code == COV_NO_ESTIMATE:
+        if not s.noise_unknown:
+            s.events |= E_NOISE_UNKNOWN
         s.noise_unknown = True
     elif code == COV_INVALID:
         s.invalid_covariance += 1
-        s.ev_invalid_cov = True
+        s.events |= E_INVALID_COV
     elif code == COV_KNOWN:
         s.variance_known = True
         return True, d0, d1, d2
@@ -301,9 +237,9 @@ def judge_covariance(s, cv):
 
 @kernel
 def saturation_step(s, t, w0, w1, w2):
-    """Count an accepted sample pinned on a plateau: the axis (-1: none) that has held one
-    value at the largest magnitude seen (at least SATURATION_MIN_RAD_S) for
-    SATURATION_PLATEAU_NS up to this sample ``t``.  ``s.sat`` holds the largest |ω| per axis
+    """Count an accepted sample pinned on a plateau: an axis that has held one value at the
+    largest magnitude seen (at least SATURATION_MIN_RAD_S) for SATURATION_PLATEAU_NS up to
+    this sample ``t`` (the event's figure: the axis).  ``s.sat`` holds the largest |ω| per axis
     (0:3) and the last ω (3:6), ``s.sat_t0`` the stamp where the last ω's value began."""
     sat = s.sat
     pinned = -1
@@ -320,7 +256,7 @@ def saturation_step(s, t, w0, w1, w2):
     if pinned >= 0:
         s.saturated += 1
         s.ev_sat_axis = pinned
-    return pinned
+        s.events |= E_SATURATED
 
 
 @kernel
@@ -344,11 +280,8 @@ def first_rest_back(c, s, p0, p1, p2):
             # the tilt filter has already taken out part of the tilt this bias caused (how
             # much, its state does not say): the tilt is left to it, only the part about the
             # vertical (C_nb e)_z goes back
-            x, y, z, u = q
-            k = 2.0 / (x * x + y * y + z * z + u * u)
-            vz = (k * (x * z - y * u) * ex + k * (y * z + x * u) * ey
-                  + (1.0 - k * (x * x + y * y)) * ez)
-            x, y, z, u = qmul_scalar(exp_scalar(0.0, 0.0, vz), q)
+            _, _, _, _, _, _, c20, c21, c22 = c_nb(qf[0], qf[1], qf[2], qf[3])
+            x, y, z, u = qmul_scalar(exp_scalar(0.0, 0.0, c20 * ex + c21 * ey + c22 * ez), q)
         else:
             x, y, z, u = qmul_scalar(q, exp_scalar(ex, ey, ez))
         integrator_reset(c, s, x, y, z, u, True, t_prev)
@@ -412,42 +345,43 @@ def integrate(c, s, action, fresh, t, w0, w1, w2, has_a, a0, a1, a2, vok, v0, v1
     the attitude is not finite (counted: the last good one restored, a fresh time base)."""
     last_t = s.cubic_i[C_LAST_T]
     fell = s.cubic_i[C_FALLBACKS]
-    if action == ACCEPT:
+    if action == A_ACCEPT:
         w0, w1, w2 = aiding_step(c, s, t, w0, w1, w2, has_a, a0, a1, a2, s.q[0], s.q[1],
                                  s.q[2], s.q[3], ms, m0, m1, m2)
     else:
-        if action == RESET_TIME_JUMP:
-            q0 = (s.q_initial[0], s.q_initial[1], s.q_initial[2], s.q_initial[3])
+        q0 = s.q_initial
+        if action == A_RESET_TIME_JUMP:
             reset_attitude(s.cov, s.initial_tt)
             s.interval_fill[0], s.interval_fill[1] = 0, 0
-        elif action == RESTART_AFTER_GAP:
-            q0 = (s.q[0], s.q[1], s.q[2], s.q[3])
-        elif fresh or not s.has_resume:
-            q0 = (s.q_initial[0], s.q_initial[1], s.q_initial[2], s.q_initial[3])
-        else:
-            q0 = (s.resume_q[0], s.resume_q[1], s.resume_q[2], s.resume_q[3])
-        if not fresh and action == START:
+        elif action == A_RESTART_AFTER_GAP:
+            q0 = s.q
+        elif not fresh and s.has_resume:
+            q0 = s.resume_q
+        if not fresh and action == A_START:
             s.has_resume = False
         integrator_reset(c, s, q0[0], q0[1], q0[2], q0[3], False, 0)
-        aiding_restart(c, s)
+        s.ahrs_i[I_HAS_LAST] = 0  # a new time base for the aiding filter
         w0, w1, w2 = aiding_step(c, s, t, w0, w1, w2, has_a, a0, a1, a2, q0[0], q0[1], q0[2],
                                  q0[3], ms, m0, m1, m2)
-    x, y, z, u = integrator_advance(c, s, t, w0, w1, w2)
+    nav = s.nav_rate
+    x, y, z, u = rate_advance(CUBIC if c.algorithm == ALG_CUBIC else EXP, s.cubic_i, s.cubic_t,
+                              s.cubic_w, s.cubic_f, t, w0, w1, w2, s.has_nav, nav[0], nav[1],
+                              nav[2])
     n_fb = s.cubic_i[C_FALLBACKS] - fell
     if n_fb > 0:
         s.rate_fit_fallback += n_fb
         s.ev_fallbacks = n_fb
+        s.events |= E_FALLBACK
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z) and math.isfinite(u)):
         s.integrator_error += 1
-        s.resume_q[0], s.resume_q[1], s.resume_q[2], s.resume_q[3] = (s.q[0], s.q[1], s.q[2],
-                                                                      s.q[3])
+        s.resume_q[:] = s.q
         s.has_resume = True
         s.first_rest_pending = False  # a new time base: no longer still since the start
         integrator_reset(c, s, s.q[0], s.q[1], s.q[2], s.q[3], False, 0)
         stamps_reset(s.stamps)  # the next sample starts a fresh time base
-        aiding_restart(c, s)
+        s.ahrs_i[I_HAS_LAST] = 0  # a new time base for the aiding filter
         return False
-    if action == ACCEPT:
+    if action == A_ACCEPT:
         dt = t - last_t
         interval_add(s.intervals, s.interval_fill, dt)
         dt_s = dt * 1e-9
@@ -459,11 +393,10 @@ def integrate(c, s, action, fresh, t, w0, w1, w2, has_a, a0, a1, a2, vok, v0, v1
         else:
             nd = c.n2 * dt_s
             propagate(s.cov, c.k2, dt_s, nd, nd, nd)
-        if c.aiding != AID_NONE and aided_samples(c, s) != s.aided_seen:
+        if s.ahrs_i[I_AIDED] != s.aided_seen:
             aid_tilt(s.cov, c.kp * dt_s, s.aligner.level_var if s.aligner.aligned
                      else c.accel_floor_var)
-    if c.aiding != AID_NONE:
-        s.aided_seen = aided_samples(c, s)
+    s.aided_seen = s.ahrs_i[I_AIDED]
     s.q[0], s.q[1], s.q[2], s.q[3] = x, y, z, u
     return True
 
@@ -517,18 +450,17 @@ def align_stage(c, s, ring, buf, t, w0, w1, w2, has_a, a0, a1, a2, b0, b1, b2, v
         return 0, False
     # aligned: the attitude, its covariance and the integrator start from the alignment
     s.phase = RUNNING
-    for i in range(4):
-        s.q_initial[i] = al.q[i]
-        s.q[i] = al.q[i]
+    s.q_initial[:] = al.q
+    s.q[:] = al.q
     s.has_resume = False
-    for i in range(3):
-        s.initial_tt[i] = al.variance[i]
+    s.initial_tt[:] = al.variance
     reset_attitude(s.cov, s.initial_tt)
     integrator_reset(c, s, al.q[0], al.q[1], al.q[2], al.q[3], False, 0)
-    aiding_restart(c, s)
-    if c.aiding == AID_AHRS and al.source == 2:
-        _heading_from_field(c, s, al)
-    action = START
+    s.ahrs_i[I_HAS_LAST] = 0  # a new time base for the aiding filter
+    if c.aiding == AID_AHRS and al.source == 2:  # the heading is the mean field's
+        heading_from_field(s.ahrs_f, s.ahrs_i, (al.t1 - al.t0) * 1e-9, al.q[0], al.q[1],
+                           al.q[2], al.q[3], al.mean_m[0], al.mean_m[1], al.mean_m[2])
+    action = A_START
     fresh = True
     got = False
     for j in range(s.align_count):
@@ -536,76 +468,36 @@ def align_stage(c, s, ring, buf, t, w0, w1, w2, has_a, a0, a1, a2, b0, b1, b2, v
         got = integrate(c, s, action, fresh, e.t, e.w[0] - b0, e.w[1] - b1, e.w[2] - b2, True,
                         e.a[0], e.a[1], e.a[2], e.vok, e.v[0], e.v[1], e.v[2], e.ms, e.m[0],
                         e.m[1], e.m[2])
-        action = ACCEPT
+        action = A_ACCEPT
         fresh = False
     s.align_count = 0
     return 0, got
 
 
-@kernel
-def _heading_from_field(c, s, al):
-    """The heading is the mean field's over the rest: the AHRS goes on from it as a running
-    average that has already seen that much field (ahrs.heading_from_field)."""
-    x, y, z, u = al.q[0], al.q[1], al.q[2], al.q[3]
-    vx, vy, vz = al.mean_m[0], al.mean_m[1], al.mean_m[2]
-    # v' = v + w t + u × t with t = 2 u × v (rotation.quat_rotate)
-    tx, ty, tz = 2.0 * (y * vz - z * vy), 2.0 * (z * vx - x * vz), 2.0 * (x * vy - y * vx)
-    e0 = vx + u * tx + (y * tz - z * ty)
-    e1 = vy + u * ty + (z * tx - x * tz)
-    e2 = vz + u * tz + (x * ty - y * tx)
-    heading_from_field(s.ahrs_f, s.ahrs_i, (al.t1 - al.t0) * 1e-9,
-                       math.sqrt(e0 * e0 + e1 * e1 + e2 * e2), math.atan2(-e2, math.hypot(e0, e1)))
-
-
-#: bits of :func:`step`'s events: what happened besides the verdict (words at the edge)
-E_INVALID_COV, E_INVALID_ACCEL, E_SATURATED, E_FALLBACK, E_MAG_MISSING, E_NOISE_UNKNOWN, \
-    E_ALIGN = 1, 2, 4, 8, 16, 32, 64
-
-
 @kernel(inline=True)
 def step(ca, sa, bias_ring, align_ring, align_buf, t, w0, w1, w2, frame_ok, has_a, a0, a1, a2,
          has_cov, cv, ms, m0, m1, m2):
-    """One Imu sample through the chain (:func:`chain_step`): (code, reason, whether an
-    attitude was handed out, events (bits E_*), the attitude)."""
-    s = sa[0]
-    noise_before, align_before = s.noise_unknown, s.align_error
+    """One Imu sample through the chain: (code, reason, whether an attitude was handed out,
+    events (bits E_*), the attitude).  ``code`` the verdict's action (A_REJECT ...
+    A_RESET_TIME_JUMP), or :data:`BIAS_RING_FULL` / :data:`ALIGN_RING_FULL` (nothing
+    changed); ``reason`` the validator's (0 none, 1 + index in validation.REJECT_REASONS,
+    TIME_JUMP, MISSING) or R_INTEGRATOR.  ``ca``, ``sa`` the coefficients and the state (one
+    record each); ``frame_ok`` whether the sample's frame is the locked one (or none is);
+    ``has_a``/``a`` the specific force (NaN: not numbers); ``has_cov``/``cv`` the angular_velocity_covariance
+    (9,); ``ms``/``m`` the field (ahrs.MAG_*)."""
     code, reason, got = chain_step(ca, sa, bias_ring, align_ring, align_buf, t, w0, w1, w2,
                                    frame_ok, has_a, a0, a1, a2, has_cov, cv, ms, m0, m1, m2)
-    ev = 0
-    if code >= 0:
-        if s.ev_invalid_cov:
-            ev |= E_INVALID_COV
-        if s.ev_invalid_accel:
-            ev |= E_INVALID_ACCEL
-        if s.ev_sat_axis >= 0:
-            ev |= E_SATURATED
-        if s.ev_fallbacks > 0:
-            ev |= E_FALLBACK
-        if s.ev_mag_missing:
-            ev |= E_MAG_MISSING
-        if s.noise_unknown != noise_before:
-            ev |= E_NOISE_UNKNOWN
-        if s.align_error != align_before:
-            ev |= E_ALIGN
-    return code, reason, got, ev, s.q[0], s.q[1], s.q[2], s.q[3]
+    s = sa[0]
+    return code, reason, got, s.events, s.q[0], s.q[1], s.q[2], s.q[3]
 
 
 @kernel(inline=True)
 def chain_step(ca, sa, bias_ring, align_ring, align_buf, t, w0, w1, w2, frame_ok, has_a, a0,
                a1, a2, has_cov, cv, ms, m0, m1, m2):
-    """One Imu sample through the chain: (code, reason, whether an attitude was handed out
-    in ``s.q``).  ``code`` the verdict's action (REJECT ... RESET_TIME_JUMP), or
-    :data:`BIAS_RING_FULL` / :data:`ALIGN_RING_FULL` (nothing changed); ``reason`` the
-    validator's (0 none, 1 + index in validation.REJECT_REASONS, TIME_JUMP, MISSING) or
-    INTEGRATOR_ERROR.  ``frame_ok`` whether the sample's frame is the locked one (or none
-    is); ``has_a``/``a`` the specific force (NaN where it was not numbers); ``has_cov``/``cv``
-    the angular_velocity_covariance (9,); ``ms``/``m`` the field (ahrs.MAG_*).  ``ca`` and
-    ``sa`` hold the coefficients and the state (one record each)."""
+    """:func:`step` but for its events (in ``s.events``) and attitude (in ``s.q``)."""
     c = ca[0]
     s = sa[0]
-    s.ev_sat_axis = -1
-    s.ev_fallbacks = 0
-    s.ev_invalid_cov = s.ev_invalid_accel = s.ev_mag_missing = False
+    s.events = 0
     # rings full before anything changes: grow and step again
     if c.bias_mode == BIAS_AUTO and s.rest_i[R_COUNT] == bias_ring.shape[0]:
         return BIAS_RING_FULL, 0, False
@@ -615,7 +507,7 @@ def chain_step(ca, sa, bias_ring, align_ring, align_buf, t, w0, w1, w2, frame_ok
     # 1. validate
     action, reason = validate(s.stamps, c.max_rate, c.max_gap_ns, c.time_jump_ns,
                               c.max_missing, t, w0, w1, w2, frame_ok)
-    if action == REJECT:
+    if action == A_REJECT:
         return action, reason, False
     vok = False
     v0 = v1 = v2 = 0.0
@@ -623,7 +515,7 @@ def chain_step(ca, sa, bias_ring, align_ring, align_buf, t, w0, w1, w2, frame_ok
         vok, v0, v1, v2 = judge_covariance(s, cv)
     if has_a and not within(a0, a1, a2, ACCEL_ABSURD):
         s.invalid_accel += 1
-        s.ev_invalid_accel = True
+        s.events |= E_INVALID_ACCEL
         break_windows(c, s)
         s.accel_present = -1
         has_a = False
@@ -633,18 +525,18 @@ def chain_step(ca, sa, bias_ring, align_ring, align_buf, t, w0, w1, w2, frame_ok
         s.accel_present = 1 if has_a else 0
     if c.mag_mode and ms == MAG_ABSENT:
         s.mag_missing += 1
-        s.ev_mag_missing = True
-    if s.level_pending and action == START:
+        s.events |= E_MAG_MISSING
+    if s.level_pending and action == A_START:
         s.level_pending = False  # the first sample only: later ones would make the tilt jump
         if has_a and s.phase == RUNNING:
             level_from_first(c, s, a0, a1, a2)
-    if not s.has_start or action == RESET_TIME_JUMP:
+    if not s.has_start or action == A_RESET_TIME_JUMP:
         # the start the first rest's estimate may be applied back to: a jump back starts the
         # attitude again from the initial one, a fresh start
         s.has_start, s.start_t = True, t
-    elif action == RESTART_AFTER_GAP:
+    elif action == A_RESTART_AFTER_GAP:
         s.first_rest_pending = False  # the samples before the gap are not the rest's
-    if action != ACCEPT:
+    if action != A_ACCEPT:
         break_windows(c, s)
     saturation_step(s, t, w0, w1, w2)
     # 2. rest -> gyro bias
@@ -654,13 +546,16 @@ def chain_step(ca, sa, bias_ring, align_ring, align_buf, t, w0, w1, w2, frame_ok
     b0, b1, b2 = bf[B_BIAS], bf[B_BIAS + 1], bf[B_BIAS + 2]
     # 3. alignment
     if s.phase != RUNNING:
+        before = s.align_error
         _, got = align_stage(c, s, align_ring, align_buf, t, w0, w1, w2, has_a, a0, a1, a2,
                              b0, b1, b2, vok, v0, v1, v2, ms, m0, m1, m2)
+        if s.align_error != before:
+            s.events |= E_ALIGN
         return action, reason, got
     # 4.-6. aiding, integration, covariance
     if not integrate(c, s, action, False, t, w0 - b0, w1 - b1, w2 - b2, has_a, a0, a1, a2,
                      vok, v0, v1, v2, ms, m0, m1, m2):
-        return REJECT, INTEGRATOR_ERROR, False
+        return A_REJECT, R_INTEGRATOR, False
     return action, reason, True
 
 
@@ -687,9 +582,9 @@ def run_rows(ca, sa, bias_ring, align_ring, align_buf, r0, t, w, frames, locked,
         code, reason, got, ev, x, y, z, u = step(
             ca, sa, bias_ring, align_ring, align_buf, t[k], w[k, 0], w[k, 1], w[k, 2],
             frame_ok, has_a, a[0], a[1], a[2], has_cov, cv, ms[k], mm[0], mm[1], mm[2])
-        if code < REJECT:
+        if code < A_REJECT:
             return k, m, locked
-        if code == START and locked < 0:
+        if code == A_START and locked < 0:
             locked = frames[k]
         action_out[k] = code
         if reason > 0 or ev != 0:
@@ -707,7 +602,7 @@ def run_rows(ca, sa, bias_ring, align_ring, align_buf, r0, t, w, frames, locked,
 #: events whose first row run_rows keeps (index into ``first_row``), after the validator's
 #: reason codes: the chain's own
 EV_INVALID_COV, EV_INVALID_ACCEL, EV_SATURATED, EV_FALLBACK, EV_MAG_MISSING, \
-    EV_NOISE_UNKNOWN = range(INTEGRATOR_ERROR + 1, INTEGRATOR_ERROR + 7)
+    EV_NOISE_UNKNOWN = range(R_INTEGRATOR + 1, R_INTEGRATOR + 7)
 N_EVENTS = EV_NOISE_UNKNOWN + 1
 
 

@@ -1,32 +1,7 @@
-"""Honest orientation covariance: per-axis attitude/bias error propagation (noise, bias, alignment, aiding).
-
-Per axis ``i`` the error state is ``x = [δθ_i, δb_i]`` (attitude error [rad], error of the gyro
-bias subtracted [rad/s]) with covariance ``P = [[tt, tb], [tb, bb]]``.  Over an accepted interval
-``dt`` the attitude error integrates the bias error, ``δθ' = δθ − δb dt + n``, and the bias error
-walks, ``δb' = δb + w``:
-
-* ``tt += q − 2 dt·tb + dt²·bb``; ``tb −= dt·bb``; ``bb += K² dt``;
-* ``q`` is the angle-random-walk increment: ``σ_ω² dt²`` with ``σ_ω²`` the per-sample gyro variance
-  of the message's ``angular_velocity_covariance``, else ``N² dt`` from the stated noise density
-  ``N`` [rad/s/√Hz]; ``K`` [rad/s/√s] is the bias random walk (bias-uncertainty growth);
-* a zero-rate update at a rest (gyro_bias ``auto``) re-estimates the bias from averaged samples
-  independent of the past attitude error: ``bb = SE²`` (its standard error), ``tb = 0``;
-  when the stream was still since its start and the attitude was corrected back to it with the
-  first estimate (stream.py), the attitude error is ``−δb·Δt`` plus the noise so far:
-  ``tt = tt₀ + Σq + bb Δt²``, ``tb = −bb Δt`` (:func:`first_rest_update`);
-* alignment sets ``tt`` to the levelling variance on the tilt axes and the heading variance on
-  the third; a time-jump reset goes back to that initial ``tt`` with ``tb = 0`` (``bb`` stays:
-  the bias knowledge survives a jump of the clock);
-* gravity aiding relaxes the tilt axes (0, 1) toward the levelling floor ``σ_level²`` (the
-  accelerometer-bias term, which averaging does not beat) with the loop gain ``k_p``:
-  ``tt ← a² tt + (1 − a²) σ_level²``, ``tb ← a tb``, ``a = 1 − k_p dt``; the heading axis stays
-  gyro-only and its variance keeps growing.
-
-The axes are the output's (nav) axes fed with the body-axis figures of the same index: exact for a
-sensor whose three axes have equal noise and bias uncertainty (then ``C_nb δb`` has the same
-statistics as ``δb``), a per-axis approximation otherwise.  Correlations between axes are not
-carried (a 3×3 diagonal covariance is published).
-"""
+"""Honest orientation covariance: per axis the error state ``[δθ, δb]`` (attitude error, error
+of the gyro bias subtracted) with ``P = [[tt, tb], [tb, bb]]``, propagated over accepted
+intervals and reset by rests, alignment and aiding (the model: docs/architecture.md, "Notes:
+the estimator's stages")."""
 
 from __future__ import annotations
 

@@ -1,32 +1,8 @@
-"""Gyro bias: none, a fixed parameter, or estimated at rests (zero-rate updates).
-
-Contract (streaming): the kernel :func:`bias_step` once per accepted sample, O(1) amortized,
-on the state :func:`bias_start` makes; the bias (3,) rad/s to subtract from that sample is then
-``bf[B_BIAS:B_BIAS + 3]``.  With the current attitude estimate (body→ENU) and a latitude it
-takes the Earth rate ``C_bn ω_ie^n`` out of the rest average.
-
-Modes:
-
-* ``none``: bias 0.  ``parameter``: the fixed ``gyro_bias_rad_s`` [x, y, z] rad/s given.
-* ``auto``: the rest detector (:func:`.rest.rest_update`) finds rests; each rest window
-  contributes its *oldest* sample (so every rest sample is followed by a full window of rest,
-  see rest.py).  A rest counts once its samples span ``min_rest_s`` (default 1 s, i.e. 1.5 s
-  of rest with the 0.5 s window): from then on, while it lasts, and after it, the bias is the
-  mean over all qualifying rests so far, each weighted by its length (the pooled sample mean).
-  During motion the bias is held.  A window must show at least
-  :data:`.rest.NOISE_FLOOR_RAD_S` of gyro noise: on noise-free simulated data a constant slow
-  rotation or the Earth rate would otherwise be taken for a bias; an ideal gyro has none to
-  estimate.  Before the first qualifying rest it is 0 and the report says so.
-
-Report (:func:`bias_report`, a :class:`GyroBiasReport`): value, rests used, standard error per
-axis, and whether the Earth rate was removed.  The standard error is the larger of (a) the
-white-noise figure ``σ_within / √N`` and (b) the scatter of the rest means between rests
-(needs ≥ 2 rests).
-With one rest only (a), a lower bound: MEMS noise has flicker components that averaging does not
-beat.  Without latitude and attitude the Earth rate (up to 15 °/h) is absorbed into the bias —
-right for an inertial-frame integration, and a consumer MEMS bias (0.1–0.6 °/s here) is 25–150×
-larger anyway — but a navigation-frame integration then removes the Earth rate twice.
-"""
+"""Gyro bias: none, a fixed parameter, or estimated at rests (the pooled mean of the rests so
+far, the Earth rate taken out when the attitude and latitude are known; docs/architecture.md,
+"Notes: the estimator's stages").  The kernel :func:`bias_step` once per accepted sample,
+O(1) amortized, on the state :func:`bias_start` makes; the bias to subtract is then
+``bf[B_BIAS:B_BIAS + 3]``."""
 
 from __future__ import annotations
 
@@ -35,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gyro_attitude.core.attitude.ahrs import c_nb
 from gyro_attitude.core.attitude.modes import GyroBiasMode
 from gyro_attitude.core.attitude.rest import (
     NOISE_FLOOR_RAD_S,
@@ -80,39 +57,23 @@ _B_INTS = 13
 BAD_ATTITUDE = -3
 
 
-@kernel(inline=True)
-def seg_stats(n, bf):
-    """Mean and within-rest squared deviations of the open rest's ``n`` samples."""
-    m0 = bf[B_REF] + bf[B_S1] / n
-    m1 = bf[B_REF + 1] + bf[B_S1 + 1] / n
-    m2 = bf[B_REF + 2] + bf[B_S1 + 2] / n
-    d0 = max(bf[B_S2] - bf[B_S1] * bf[B_S1] / n, 0.0)
-    d1 = max(bf[B_S2 + 1] - bf[B_S1 + 1] * bf[B_S1 + 1] / n, 0.0)
-    d2 = max(bf[B_S2 + 2] - bf[B_S1 + 2] * bf[B_S1 + 2] / n, 0.0)
-    return m0, m1, m2, d0, d1, d2
-
-
 @kernel
-def pool_add(bf, bi, n, m0, m1, m2, d0, d1, d2):
-    """Pool a completed rest of ``n`` samples, mean ``m``, squared deviations ``d``."""
-    bi[J_POOL_K] += 1
-    bi[J_POOL_N] += n
-    for i, m, d in ((0, m0, d0), (1, m1, d1), (2, m2, d2)):
-        bf[B_SUM_NM + i] = bf[B_SUM_NM + i] + n * m
-        bf[B_SUM_NM2 + i] = bf[B_SUM_NM2 + i] + n * m * m
-        bf[B_SSD + i] = bf[B_SSD + i] + d
-
-
-@kernel
-def publish_pooled(bf, bi, n_c, m0, m1, m2, d0, d1, d2):
-    """Publish the pooled estimate of the completed rests and an open one (``n_c`` samples,
-    mean ``m``, squared deviations ``d``): bias, standard error, rests and samples."""
+def pool_open_rest(bf, bi, publish):
+    """The open rest's mean and within-rest squared deviations joined to the completed rests'
+    sums: ``publish`` the pooled estimate (bias, standard error: the larger of the white-noise
+    figure and the scatter between rests; rests and samples), else pool the rest (it ended)."""
+    n_c = bi[J_SEG_N]
     k = bi[J_POOL_K] + 1
     n = bi[J_POOL_N] + n_c
-    for i, m, d in ((0, m0, d0), (1, m1, d1), (2, m2, d2)):
+    for i in range(3):
+        s1 = bf[B_S1 + i]
+        m = bf[B_REF + i] + s1 / n_c
         snm = bf[B_SUM_NM + i] + n_c * m
         snm2 = bf[B_SUM_NM2 + i] + n_c * m * m
-        ssd = bf[B_SSD + i] + d
+        ssd = bf[B_SSD + i] + max(bf[B_S2 + i] - s1 * s1 / n_c, 0.0)
+        if not publish:
+            bf[B_SUM_NM + i], bf[B_SUM_NM2 + i], bf[B_SSD + i] = snm, snm2, ssd
+            continue
         bias = snm / n
         white = math.sqrt(ssd / max(n - k, 1) / n)
         between = 0.0
@@ -120,7 +81,10 @@ def publish_pooled(bf, bi, n_c, m0, m1, m2, d0, d1, d2):
             between = math.sqrt(max(snm2 - n * bias * bias, 0.0) / n / (k - 1))
         bf[B_BIAS + i] = bias
         bf[B_SE + i] = max(white, between)
-    bi[J_K], bi[J_N] = k, n
+    if publish:
+        bi[J_K], bi[J_N] = k, n
+    else:
+        bi[J_POOL_K], bi[J_POOL_N] = k, n
 
 
 @kernel
@@ -132,9 +96,7 @@ def accumulate(bf, bi, min_rest_ns, t, v0, v1, v2, earth):
     if bi[J_HAS_SEG] == 0:
         bi[J_HAS_SEG], bi[J_SEG_T0], bi[J_SEG_N], bi[J_SEG_EARTH] = 1, t, 0, 1
         bf[B_REF], bf[B_REF + 1], bf[B_REF + 2] = v0, v1, v2
-        for i in range(3):
-            bf[B_S1 + i] = 0.0
-            bf[B_S2 + i] = 0.0
+        bf[B_S1:B_S2 + 3] = 0.0  # Σ d, Σ d²
     bi[J_SEG_T1] = t
     bi[J_SEG_N] += 1
     for i, v in ((0, v0), (1, v1), (2, v2)):
@@ -144,8 +106,7 @@ def accumulate(bf, bi, min_rest_ns, t, v0, v1, v2, earth):
     if not earth:
         bi[J_SEG_EARTH] = 0
     if bi[J_SEG_T1] - bi[J_SEG_T0] >= min_rest_ns:
-        m0, m1, m2, d0, d1, d2 = seg_stats(bi[J_SEG_N], bf)
-        publish_pooled(bf, bi, bi[J_SEG_N], m0, m1, m2, d0, d1, d2)
+        pool_open_rest(bf, bi, True)
         bi[J_UPDATED] = 1
         bi[J_EARTH_NOW] = 1 if (bi[J_EARTH_ALL] == 1 and bi[J_SEG_EARTH] == 1) else 0
 
@@ -155,8 +116,7 @@ def close_rest(bf, bi, min_rest_ns):
     """The open rest ended: pooled when it spans ``min_rest_ns``."""
     bi[J_HAS_SEG] = 0
     if bi[J_SEG_T1] - bi[J_SEG_T0] >= min_rest_ns:
-        m0, m1, m2, d0, d1, d2 = seg_stats(bi[J_SEG_N], bf)
-        pool_add(bf, bi, bi[J_SEG_N], m0, m1, m2, d0, d1, d2)
+        pool_open_rest(bf, bi, False)
         if bi[J_SEG_EARTH] == 0:
             bi[J_EARTH_ALL] = 0
 
@@ -177,8 +137,12 @@ def bias_step(bf, bi, min_rest_ns, rf, ri, wt, wx, wc, pv, pe, earth_n, t, g0, g
         n = x * x + y * y + z * z + u * u
         if not (math.isfinite(n) and n > 1e-18):
             return BAD_ATTITUDE
-        e0, e1, e2 = _c_bn_times(x, y, z, u, 2.0 / n, earth_n)
-        pv[slot, 0], pv[slot, 1], pv[slot, 2] = g0 - e0, g1 - e1, g2 - e2
+        # C_bn ω_ie^n: the rows of C_bn are the columns of C_nb
+        c00, c01, c02, c10, c11, c12, c20, c21, c22 = c_nb(x, y, z, u)
+        e0, e1, e2 = float(earth_n[0]), float(earth_n[1]), float(earth_n[2])
+        pv[slot, 0] = g0 - (c00 * e0 + c10 * e1 + c20 * e2)
+        pv[slot, 1] = g1 - (c01 * e0 + c11 * e1 + c21 * e2)
+        pv[slot, 2] = g2 - (c02 * e0 + c12 * e1 + c22 * e2)
     else:
         pv[slot, 0], pv[slot, 1], pv[slot, 2] = g0, g1, g2
     pe[slot] = has_q
@@ -191,18 +155,6 @@ def bias_step(bf, bi, min_rest_ns, rf, ri, wt, wx, wc, pv, pe, earth_n, t, g0, g
     elif bi[J_HAS_SEG] == 1:
         close_rest(bf, bi, min_rest_ns)
     return slot
-
-
-@kernel(inline=True)
-def _c_bn_times(x, y, z, w, s, w_n):
-    """``C_bn ω`` with ``s = 2/|q|²``."""
-    e0, e1, e2 = float(w_n[0]), float(w_n[1]), float(w_n[2])
-    # C_nb from the quaternion (scalar last); C_bn = C_nbᵀ: rows of C_bn are columns of C_nb
-    c00, c01, c02 = 1 - s * (y * y + z * z), s * (x * y - z * w), s * (x * z + y * w)
-    c10, c11, c12 = s * (x * y + z * w), 1 - s * (x * x + z * z), s * (y * z - x * w)
-    c20, c21, c22 = s * (x * z - y * w), s * (y * z + x * w), 1 - s * (x * x + y * y)
-    return (c00 * e0 + c10 * e1 + c20 * e2, c01 * e0 + c11 * e1 + c21 * e2,
-            c02 * e0 + c12 * e1 + c22 * e2)
 
 
 def bias_start(cfg) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
