@@ -30,7 +30,9 @@ fi
 # without a compiler gets one line saying so, and everything but publish_tf still works
 bash interfaces/build_tf2_msgs.sh "$venv"
 echo "[dev.sh] installing gyro_attitude into $venv" >&2
-rm -rf build/ros_launchers
+# build/lib is setuptools' copy of the package: a module deleted from the source stays there
+# and would be installed again, so the copy starts afresh
+rm -rf build/ros_launchers build/lib
 "$venv/bin/python" -m pip install --quiet --disable-pip-version-check \
   --no-deps --no-build-isolation --force-reinstall .
 
