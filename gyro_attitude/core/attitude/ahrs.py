@@ -80,9 +80,12 @@ MAG_ABSENT, MAG_NOT_FLOATS, MAG_GIVEN = 0, 1, 2
 class AhrsFilter:
     """The aiding stage for the settings ``config``: its parameter row ``pa`` (``P_*``: the
     ``ahrs_*`` and ``mag_*`` settings as the kernels read them), its state arrays ``af``,
-    ``ai`` (the compiled chain holds them) and its counters read off them.  The heading is set
-    from the first usable field when the stream levels; a given initial attitude keeps its
-    heading and the field pulls it slowly."""
+    ``ai`` (the compiled chain holds them) and its counters read off them: sample counts
+    ``aided_samples`` (tilt corrected), ``accel_rejected``, ``mag_used``, ``mag_disturbed``,
+    ``mag_invalid``, ``mag_reference_changes``, ``hard_iron_fits``; ``hard_iron`` (tesla),
+    ``mag_ref_norm`` (tesla) and ``mag_ref_dip`` (rad), None until known; ``at_rest``,
+    ``heading_initialized``.  The heading is set from the first usable field when the stream
+    levels; a given initial attitude keeps its heading and the field pulls it slowly."""
 
     def __init__(self, config: StreamConfig | None = None):
         self.config = cfg = config if config is not None else StreamConfig()

@@ -10,6 +10,7 @@ function here is a kernel (:mod:`gyro_attitude.core.jit`)."""
 from __future__ import annotations
 
 import math
+from enum import IntEnum
 
 import numpy as np
 
@@ -76,12 +77,42 @@ from gyro_attitude.core.jit import kernel
 __all__ = ["ALIGN_BUFFER_DTYPE", "BIAS_RING_DTYPE", "COEF_DTYPE", "STATE_DTYPE", "run_rows",
            "step"]
 
-# the chain's phase (modes.Phase at the edge), the aiding filter (every aided mode is the
-# AHRS), the integration algorithm, the gyro bias mode (modes.GyroBiasMode)
-RUNNING, ALIGNING, FAILED = 0, 1, 2
-AID_NONE, AID_AHRS = 0, 1
-ALG_CUBIC, ALG_EXP_MAP = 0, 1  # rotvec_cubic, exp_map
-BIAS_NONE, BIAS_PARAMETER, BIAS_AUTO = 0, 1, 2
+
+
+class StepPhase(IntEnum):
+    """The chain's phase in the state record (modes.Phase at the edge)."""
+
+    RUNNING = 0
+    ALIGNING = 1
+    FAILED = 2
+
+
+class AidingKind(IntEnum):
+    """The aiding filter the step runs (modes.Aiding: every aided mode is the AHRS)."""
+
+    NONE = 0
+    AHRS = 1
+
+
+class StepAlgorithm(IntEnum):
+    """The integration algorithms compiled into the step."""
+
+    CUBIC = 0  # rotvec_cubic
+    EXP_MAP = 1
+
+
+class BiasKind(IntEnum):
+    """The gyro bias stage's mode (modes.GyroBiasMode)."""
+
+    NONE = 0
+    PARAMETER = 1
+    AUTO = 2
+
+
+RUNNING, ALIGNING, FAILED = StepPhase.RUNNING, StepPhase.ALIGNING, StepPhase.FAILED
+AID_NONE, AID_AHRS = AidingKind.NONE, AidingKind.AHRS
+ALG_CUBIC, ALG_EXP_MAP = StepAlgorithm.CUBIC, StepAlgorithm.EXP_MAP
+BIAS_NONE, BIAS_PARAMETER, BIAS_AUTO = BiasKind.NONE, BiasKind.PARAMETER, BiasKind.AUTO
 
 #: m/s²: a specific force beyond this (1e5 g) is no accelerometer reading
 ACCEL_ABSURD = 1e6

@@ -156,10 +156,26 @@ def _overshoots(f, lo, hi):
 
 def untrusted_fits(t_ns: np.ndarray, omega: np.ndarray, k: np.ndarray, fitted: np.ndarray,
                    window) -> np.ndarray | None:
-    """The exponential map's weight for each of a run of intervals ``k`` (sample k-1 to k),
-    fitted at the rates ``fitted`` (len(k), p, 3), or None when every fit can be trusted (the
-    usual case: a few array operations).  ``window(k)`` → (first, last) sample of each row's
-    fit (inclusive), needed on uneven stamps only."""
+    """The exponential map's weight for each of the intervals ``k`` (sample k-1 to k), fitted
+    at the rates ``fitted`` (len(k), p, 3), or None when every fit can be trusted (the usual
+    case: a few array operations).  ``window(k)`` → (first, last) sample of each row's fit
+    (inclusive), needed on uneven stamps only.  Runs of consecutive intervals (what the
+    integrators pass) are judged on slices, each run of scattered ``k`` on its own."""
+    k = np.asarray(k)
+    starts = np.flatnonzero(np.diff(k) != 1) + 1
+    if starts.size == 0:
+        return _untrusted_run(t_ns, omega, k, fitted, window)
+    bad = None
+    for rows in np.split(np.arange(k.size), starts):
+        run = _untrusted_run(t_ns, omega, k[rows], fitted[rows], window)
+        if run is not None:
+            bad = np.zeros(k.size) if bad is None else bad
+            bad[rows] = run
+    return bad
+
+
+def _untrusted_run(t_ns, omega, k, fitted, window) -> np.ndarray | None:
+    """:func:`untrusted_fits` for a run of consecutive intervals ``k``."""
     m = k.size
     if m == 0:
         return None

@@ -81,6 +81,7 @@ RING_FULL, NOT_INCREASING, ACCEL_CHANGED = -2, -1, -4
 def rest_start(cfg: StreamConfig, gyro_std_min: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """A rest detector's state arrays (``rf`` floats, ``ri`` ints) before its first sample,
     with the thresholds of ``cfg`` (windows less noisy than ``gyro_std_min`` refused)."""
+    gyro_std_min = _checked_floor(cfg, gyro_std_min)
     rf = np.zeros(_R_FLOATS)
     ri = np.zeros(_R_INTS, dtype=np.int64)
     rf[F_STD_MIN:F_GRAVITY + 1] = (gyro_std_min, cfg.rest_gyro_std_max, cfg.rest_gyro_mean_max,
@@ -89,6 +90,18 @@ def rest_start(cfg: StreamConfig, gyro_std_min: float = 0.0) -> tuple[np.ndarray
     ri[R_WINDOW_NS] = int(round(cfg.rest_window_s * 1e9))
     rest_reset(rf, ri)  # the kernel's Python form: no compiler for a start
     return rf, ri
+
+
+def _checked_floor(cfg, gyro_std_min) -> float:
+    """``gyro_std_min`` as a float below ``cfg``'s ``rest_gyro_std_max`` (ValueError, or
+    TypeError when ``cfg`` is not a :class:`StreamConfig`)."""
+    if not isinstance(cfg, StreamConfig):
+        raise TypeError(f"the rest thresholds come from a StreamConfig, got {cfg!r}")
+    if isinstance(gyro_std_min, bool) or not isinstance(gyro_std_min, int | float) or not (
+            0.0 <= gyro_std_min < cfg.rest_gyro_std_max):
+        raise ValueError(f"gyro_std_min must be a number in [0, rest_gyro_std_max = "
+                         f"{cfg.rest_gyro_std_max:g}), got {gyro_std_min!r}")
+    return float(gyro_std_min)
 
 
 @kernel
@@ -224,7 +237,8 @@ def detect_rest(t_ns, gyro, accel=None, cfg: StreamConfig | None = None,
                 gyro_std_min: float = 0.0, empty=np.empty) -> RestWindows:
     """:func:`rest_update` over arrays (bit-identical decisions, vectorized) with the thresholds
     of ``cfg`` (default the table's); the per-sample results come from ``empty(shape, dtype)``."""
-    cfg = cfg or StreamConfig()
+    cfg = StreamConfig() if cfg is None else cfg
+    gyro_std_min = _checked_floor(cfg, gyro_std_min)
     t = check_times(t_ns)
     g, a = (None if x is None else _rows_within(x, name, t.size, 1e6)
             for name, x in (("gyro", gyro), ("accel", accel)))
@@ -258,7 +272,10 @@ def detect_rest(t_ns, gyro, accel=None, cfg: StreamConfig | None = None,
 
 def _rows_within(x, name: str, n: int, limit: float) -> np.ndarray:
     """``x`` as float rows (n, 3), each value finite and within ±``limit`` (ValueError else)."""
-    a = np.asarray(x, dtype=np.float64)
+    try:
+        a = np.asarray(x, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a numeric (N, 3) array") from None
     if a.shape != (n, 3):
         raise ValueError(f"{name} must have shape ({n}, 3), got {a.shape}")
     if not all_within(a, limit):

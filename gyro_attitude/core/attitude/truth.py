@@ -121,7 +121,7 @@ def span_words(t0_ns: int, t1_ns: int) -> str:
     return f"[{t0_ns * 1e-9:.3f}, {t1_ns * 1e-9:.3f}] s"
 
 
-def initial_attitude_from_truth(imu_t, truth_t, truth_q,
+def initial_attitude_from_truth(imu_t, truth_t, truth_q, *,
                                 usable=None) -> tuple[np.ndarray, int, int]:
     """``(q0, first_index, skipped)``: the truth at the first usable Imu stamp it covers.
 

@@ -241,7 +241,9 @@ def classify(t_ns, omega, frame_id: str | list[str] | None = "",
     recording (one frame, every rate within bounds, positive stamps rising at a steady rate)
     is settled by whole-array reductions; any other runs :func:`validate` on every sample.
     """
-    cfg = cfg or StreamConfig()
+    cfg = StreamConfig() if cfg is None else cfg
+    if not isinstance(cfg, StreamConfig):
+        raise TypeError(f"the validation thresholds come from a StreamConfig, got {cfg!r}")
     t = np.asarray(t_ns)
     if t.ndim != 1 or not (np.issubdtype(t.dtype, np.integer) or t.size == 0):
         raise ValueError(f"t_ns must be a 1-D integer array of nanoseconds, got {t.dtype} "

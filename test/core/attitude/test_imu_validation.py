@@ -149,3 +149,8 @@ def test_random_streams_only_accept_positive_bounded_steps():
         assert v.accepted == len(stream) - rejects
 
     run()
+
+
+def test_validation_thresholds_given_as_anything_but_a_stream_config_are_refused():
+    with pytest.raises(TypeError, match="StreamConfig"):
+        iv.classify(np.arange(1, 4) * 10**7, np.zeros((3, 3)), "imu", {"max_rate_rad_s": 1.0})

@@ -149,3 +149,18 @@ def test_rule_constants_are_documented():
     text = (Path(__file__).parents[3] / "docs" / "equations.md").read_text()
     assert "When a rate fit cannot be trusted" in text
     assert f"{ip.FIT_TURN_MAX_RAD:g} rad" in text
+
+
+@pytest.mark.parametrize("k", [[5, 105, 50], [105, 5], [104, 105, 106, 5, 6]])
+def test_scattered_intervals_are_judged_each_where_it_lies(k):
+    # 300 rad/s turning by 3 rad a sample (aliased) around samples 100-111 only, a constant
+    # rate elsewhere: intervals there fall back, intervals far from it never do, in any order
+    t = np.arange(200, dtype=np.int64) * 10_000_000
+    w = np.tile([300.0, 0.0, 0.0], (200, 1))
+    j = np.arange(100, 112)
+    w[j] = 300.0 * np.stack([np.cos(3.0 * j), np.sin(3.0 * j), 0.0 * j], axis=1)
+    k = np.array(k)
+    bad = ip.untrusted_fits(t, w, k, np.zeros((k.size, 3, 3)), None)
+    assert bad is not None
+    near = (k > 100) & (k < 112)
+    assert (bad[near] > 0).all() and (bad[~near] == 0).all()

@@ -111,6 +111,24 @@ def test_bad_input_is_refused():
         detect_rest([0, 1], np.zeros((3, 3)))
     with pytest.raises(ValueError, match="empty"):
         detect_rest([], np.zeros((0, 3)))
+    with pytest.raises(ValueError, match="numeric"):
+        detect_rest([0, 1], [["a", "b", "c"]] * 2)
+
+
+@pytest.mark.parametrize("floor", [-1.0, float("nan"), 0.01, 1.0, "x", True])
+def test_a_noise_floor_outside_zero_to_the_std_bound_is_refused_in_one_line(floor):
+    t, g = np.arange(10) * 10**7, np.zeros((10, 3))
+    with pytest.raises(ValueError, match="gyro_std_min"):
+        detect_rest(t, g, gyro_std_min=floor)
+    with pytest.raises(ValueError, match="gyro_std_min"):
+        rest_start(StreamConfig(), floor)
+
+
+def test_thresholds_given_as_anything_but_a_stream_config_are_refused():
+    with pytest.raises(TypeError, match="StreamConfig"):
+        detect_rest(np.arange(10) * 10**7, np.zeros((10, 3)), None, 1.0)
+    with pytest.raises(TypeError, match="StreamConfig"):
+        rest_start({"rest_window_s": 1.0})
 
 
 @pytest.mark.parametrize("rate", [0.02, 0.05])

@@ -361,7 +361,7 @@ def test_push_after_run_with_auto_bias_continues_as_push():
 
 
 def test_first_push_after_run_takes_the_trapezoid_with_the_last_run_sample():
-    # exp_map integrates each interval with exp(½(ω_{k−1} + ω_k) h) (exp_map.py): after run()
+    # exp_map integrates each interval with exp(½(ω_{k−1} + ω_k) h) (algorithm.py): after run()
     # over samples 0..k−1, the push of sample k must give q_{k−1} ⊗ exp(½(ω_{k−1} + ω_k) h),
     # as push() from the start does.
     cfg = StreamConfig(gyro_bias="none")
