@@ -1,12 +1,13 @@
-"""Build the ahead-of-time compiled form of the causal estimator's loop (``chain.run_rows``)
-into the package: ``python -m gyro_attitude.io.precompile`` (``dev.sh`` runs it after
-installing).  See :func:`gyro_attitude.core.jit.precompiled`.
+"""Build the ahead-of-time compiled form of the estimators' recording loops (the causal one's
+``chain.run_rows``, the offline rest detector's ``rest.rest_rows``) into the package:
+``python -m gyro_attitude.io.precompile`` (``dev.sh`` runs it after installing).  See
+:func:`gyro_attitude.core.jit.precompiled`.
 
 It is the same code numba's JIT compiles, built by numba's ahead-of-time compiler
 (``numba.pycc``: pending deprecation since numba 0.57, and the only one numba has; if it goes,
-this build fails in one line and the loop is compiled just in time as before).  The argument
-types are those the JIT compiled for (:func:`.stream.compile_kernels` runs first).  Needs a C
-compiler; without one, one line says so and nothing else changes.
+this build fails in one line and the loops are compiled just in time as before).  The argument
+types are those the JIT compiled for (:func:`.stream.compile_kernels` and a rest detection run
+first).  Needs a C compiler; without one, one line says so and nothing else changes.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from gyro_attitude.core import jit
 
 PREFIX = "_aot_"
 NO_COMPILER = "no working C compiler (install gcc, or name one in CC)"
-AFTER_FAILURE = "replay --estimator causal compiles its loop just in time (0.7 s more at start)"
+AFTER_FAILURE = "replay compiles its loops just in time (0.7 s more at start)"
 
 
 def build(func, directory: Path) -> Path:
@@ -93,12 +94,13 @@ def _array_args(signature) -> list:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Build unless a module built from this source is there (``--force``: build anyway)."""
-    from gyro_attitude.core.attitude import chain
+    """Build unless modules built from this source are there (``--force``: build anyway)."""
+    from gyro_attitude.core.attitude import chain, rest
 
+    loops = (chain.run_rows, rest.rest_rows)
     force = "--force" in (sys.argv[1:] if argv is None else argv)
-    if not force and jit.precompiled(chain.run_rows) is not None:
-        print(f"precompile: {jit.precompiled_name(chain.run_rows)} is up to date",
+    if not force and all(jit.precompiled(f) is not None for f in loops):
+        print(f"precompile: {', '.join(map(jit.precompiled_name, loops))} are up to date",
               file=sys.stderr)
         return 0
     # compiled afresh, not loaded from numba's cache (set before numba is imported): the
@@ -107,12 +109,12 @@ def main(argv: list[str] | None = None) -> int:
     cache = tempfile.mkdtemp(prefix="gyro-attitude-precompile-")
     os.environ["NUMBA_CACHE_DIR"] = cache
     try:
-        return _build_fresh(chain.run_rows)
+        return _build_fresh(loops)
     finally:
         shutil.rmtree(cache, ignore_errors=True)
 
 
-def _build_fresh(func) -> int:
+def _build_fresh(loops) -> int:
     from gyro_attitude.core.attitude.stream import compile_kernels
 
     if jit.backend() != "numba":
@@ -125,7 +127,8 @@ def _build_fresh(func) -> int:
         # the just-in-time form, compiled for the argument types a run passes
         os.environ["GYRO_ATTITUDE_PRECOMPILED"] = "0"
         compile_kernels()
-        target = build(func, Path(jit.__file__).parent)
+        _detect_rests()
+        targets = [build(func, Path(jit.__file__).parent) for func in loops]
     except Exception as exc:  # a compiler missing, a read-only installation, pycc gone
         first = (str(exc).splitlines() or [""])[0]
         if "compiler" in first:
@@ -133,8 +136,20 @@ def _build_fresh(func) -> int:
         print(f"precompile: not built ({type(exc).__name__}: {first}); {AFTER_FAILURE}",
               file=sys.stderr)
         return 1
-    print(f"precompile: {target.name}", file=sys.stderr)
+    print(f"precompile: {', '.join(t.name for t in targets)}", file=sys.stderr)
     return 0
+
+
+def _detect_rests() -> None:
+    """The offline rest detector run (its loop compiled just in time for the argument types
+    it passes, the same with and without an accelerometer)."""
+    import numpy as np
+
+    from gyro_attitude.core.attitude.rest import detect_rest
+
+    t = np.arange(1, 301, dtype=np.int64) * 5_000_000
+    g = 1e-3 * np.random.default_rng(0).standard_normal((300, 3))
+    detect_rest(t, g, g + (0.0, 0.0, 9.8))
 
 
 if __name__ == "__main__":

@@ -4,15 +4,14 @@ The kernel :func:`rest_update` (one call per accepted sample, O(1) amortized) sa
 window that ENDS at this sample (all samples with ``t >= t_ns - window``) is at rest; the index
 of its oldest sample (counted from :func:`rest_start` / :func:`rest_reset`) is then
 ``ri[R_OLDEST]``.  The consumers (gyro bias, alignment) take the *oldest* sample of each rest
-window, so a sample counts once a full window of rest follows it.  :func:`detect_rest` is the
-batch form over arrays (the offline estimator's, numba-free) and gives bit-identical results
-(same cumulative sums, same operation order).  A window is at rest when it spans a full
-``rest_window_s`` since the first sample, the gyro's deviation from the window mean (over 3
-axes) lies in [``gyro_std_min``, ``rest_gyro_std_max``], the window-mean rate is within
-``rest_gyro_mean_max`` on every axis and, with an accelerometer, its deviation is within
-``rest_accel_std_max`` and ``|‖mean f‖ − g|`` within ``rest_accel_norm_tol``.  The thresholds
-are the settings table's rows; why these tests and defaults: docs/architecture.md, "Notes: rest
-detection".
+window, so a sample counts once a full window of rest follows it.  :func:`detect_rest` (the
+offline estimator's) steps the same kernel over arrays in a compiled loop, :func:`rest_rows`.
+A window is at rest when it spans a full ``rest_window_s`` since the first sample, the gyro's
+deviation from the window mean (over 3 axes) lies in [``gyro_std_min``,
+``rest_gyro_std_max``], the window-mean rate is within ``rest_gyro_mean_max`` on every axis
+and, with an accelerometer, its deviation is within ``rest_accel_std_max`` and ``|‖mean f‖ −
+g|`` within ``rest_accel_norm_tol``.  The thresholds are the settings table's rows; why these
+tests and defaults: docs/architecture.md, "Notes: rest detection".
 
 Numerics: window sums are differences of running (cumulative) sums of ``x − x_first`` and its
 square.  Referencing the first sample keeps the squares small; the cumulative sums' rounding
@@ -31,10 +30,10 @@ from gyro_attitude.core.attitude.inputs import check_times
 from gyro_attitude.core.attitude.settings import StreamConfig
 from gyro_attitude.core.attitude.validation import all_within
 from gyro_attitude.core.earth import STANDARD_GRAVITY
-from gyro_attitude.core.jit import kernel
+from gyro_attitude.core.jit import compiled, kernel, precompiled
 
-__all__ = ["NOISE_FLOOR_RAD_S", "RestWindows", "detect_rest", "rest_segments", "rest_start",
-           "rest_update", "true_runs"]
+__all__ = ["NOISE_FLOOR_RAD_S", "RestWindows", "detect_rest", "rest_rows", "rest_segments",
+           "rest_start", "rest_update", "true_runs"]
 
 # Every real gyro shows noise at rest (a navigation-grade one still ~1e-6 rad/s per sample at
 # 100 Hz), so a window whose output is constant to rounding is a noise-free simulation or a stuck
@@ -156,8 +155,6 @@ def rest_update(rf, ri, wt, wx, wc, t, g0, g1, g2, has_a, a0, a1, a2):
 
 @kernel(inline=True)
 def _decide(rf, ri, t, n, wc, head):
-    # written out per axis; the same operations in the same order as detect_rest's arrays,
-    # so the decisions stay bit-identical
     m0 = (rf[F_C] - wc[head, 0]) / n
     m1 = (rf[F_C + 1] - wc[head, 1]) / n
     m2 = (rf[F_C + 2] - wc[head, 2]) / n
@@ -187,93 +184,56 @@ def _decide(rf, ri, t, n, wc, head):
     return ok
 
 
-_STATS_CHUNK = 1 << 16  # rows of window statistics computed at a time
+@kernel
+def rest_rows(rf, ri, ring, k0, t, g, has_a, a, at_rest, oldest, gyro_std, accel_std):
+    """:func:`rest_update` over rows ``k0`` … of a recording (``a`` read only when ``has_a``),
+    each row's decision, window start and statistics into the last four arrays.  Returns the
+    row it stopped at: ``len(t)`` when done, else the ring was full there (the caller grows it,
+    :func:`grown_ring`, and calls again from that row)."""
+    for k in range(k0, t.shape[0]):
+        if has_a:
+            code = rest_update(rf, ri, ring.t, ring.x, ring.c, t[k], g[k, 0], g[k, 1], g[k, 2],
+                               True, a[k, 0], a[k, 1], a[k, 2])
+        else:
+            code = rest_update(rf, ri, ring.t, ring.x, ring.c, t[k], g[k, 0], g[k, 1], g[k, 2],
+                               False, 0.0, 0.0, 0.0)
+        if code < 0:  # RING_FULL (the stamps increase and the accelerometer is on every row)
+            return k
+        at_rest[k] = ri[R_AT_REST] == 1
+        oldest[k] = ri[R_OLDEST]
+        gyro_std[k] = rf[F_GYRO_STD]
+        accel_std[k] = rf[F_ACCEL_STD]
+    return t.shape[0]
 
 
-def _window_stats(t: np.ndarray, x: np.ndarray, oldest: np.ndarray, window_ns: int):
-    """The window statistics of :func:`detect_rest`, a chunk of rows at a time: per chunk
-    ``(r0, r1, full, std, mean)`` for the windows ending at rows r0 … r1−1 (``std`` NaN where
-    the window is not yet full).
-
-    The running sums C[k] = Σ_{j<k} (x_j − x_0) and of their squares are the streaming
-    detector's, added in the same order (``np.cumsum`` adds sequentially; each chunk's sums
-    start from the last sum of the one before), so the statistics are the same numbers; only
-    the sums from the oldest row of the chunk's first window on are held, so the memory is a
-    chunk and a window, not the recording."""
-    size = x.shape[0]
-    ref = x[0]
-    base = 0  # sample index of the first sum held
-    c1 = np.zeros((1, 3))  # C[base …]: starts as C[0] = 0
-    c2 = np.zeros((1, 3))
-    for r0 in range(0, size, _STATS_CHUNK):
-        r1 = min(r0 + _STATS_CHUNK, size)
-        lo = int(oldest[r0])  # the oldest sum any window of this chunk looks back to
-        keep = r0 + 1 - lo  # sums C[lo … r0] carried over
-        d = x[r0:r1] - ref
-        d2 = d * d
-        # C[r0 + 1 … r1] continue from C[r0]: the carry added to the first difference is the
-        # streaming detector's first addition (a + b == b + a exactly), cumsum the rest
-        d[0] += c1[-1]
-        d2[0] += c2[-1]
-        held1 = np.empty((keep + r1 - r0, 3))
-        held2 = np.empty((keep + r1 - r0, 3))
-        held1[:keep] = c1[lo - base:]
-        held2[:keep] = c2[lo - base:]
-        np.cumsum(d, axis=0, out=held1[keep:])
-        np.cumsum(d2, axis=0, out=held2[keep:])
-        del d, d2
-        c1, c2, base = held1, held2, lo
-        o = oldest[r0:r1] - base
-        n = (np.arange(r0, r1) + 1 - oldest[r0:r1]).astype(np.float64)[:, None]
-        m = (c1[keep:] - c1[o]) / n
-        v = (c2[keep:] - c2[o]) / n - m * m
-        std = np.sqrt(np.maximum(v[:, 0] + v[:, 1] + v[:, 2], 0.0))
-        full = t[r0:r1] - t[0] >= window_ns
-        std[~full] = np.nan
-        yield r0, r1, full, std, ref + m
+_RING_DTYPE = np.dtype([("t", np.int64), ("x", np.int64), ("c", np.float64, (12,))])
 
 
 def detect_rest(t_ns, gyro, accel=None, cfg: StreamConfig | None = None,
                 gyro_std_min: float = 0.0, empty=np.empty) -> RestWindows:
-    """:func:`rest_update` over arrays (bit-identical decisions, vectorized) with the thresholds
-    of ``cfg`` (default the table's); the per-sample results come from ``empty(shape, dtype)``."""
-    cfg = StreamConfig() if cfg is None else cfg
-    gyro_std_min = _checked_floor(cfg, gyro_std_min)
+    """:func:`rest_update` over arrays (:func:`rest_rows`, compiled) with the thresholds of
+    ``cfg`` (default the table's); the per-sample results come from ``empty(shape, dtype)``."""
+    rf, ri = rest_start(StreamConfig() if cfg is None else cfg, gyro_std_min)
     t = check_times(t_ns)
     g, a = (None if x is None else _rows_within(x, name, t.size, 1e6)
             for name, x in (("gyro", gyro), ("accel", accel)))
-    window_ns = int(round(cfg.rest_window_s * 1e9))
     size = t.size
-    oldest = empty(size, np.int64)
-    for r0 in range(0, size, _STATS_CHUNK):
-        r1 = min(r0 + _STATS_CHUNK, size)
-        oldest[r0:r1] = np.searchsorted(t, t[r0:r1] - window_ns, side="left")
-    gyro_std = empty(size, np.float64)
-    ok = empty(size, bool)
-    for r0, r1, full, std, mean in _window_stats(t, g, oldest, window_ns):
-        gyro_std[r0:r1] = std
-        with np.errstate(invalid="ignore"):
-            # the mean rate on every axis (the largest one) within the bound
-            ok[r0:r1] = full & (std >= gyro_std_min) & (std <= cfg.rest_gyro_std_max) & (
-                np.abs(mean).max(axis=1) <= cfg.rest_gyro_mean_max)
-    accel_std = empty(size, np.float64)
-    accel_std.fill(np.nan)
-    if a is not None:
-        for r0, r1, _, std, mean in _window_stats(t, a, oldest, window_ns):
-            accel_std[r0:r1] = std
-            norm = np.sqrt(mean[:, 0] * mean[:, 0] + mean[:, 1] * mean[:, 1]
-                           + mean[:, 2] * mean[:, 2])
-            with np.errstate(invalid="ignore"):
-                ok[r0:r1] &= (std <= cfg.rest_accel_std_max) & (
-                    np.abs(norm - STANDARD_GRAVITY) <= cfg.rest_accel_norm_tol)
-    covered = _covered(ok, oldest, empty)
-    return RestWindows(ok, oldest, gyro_std, accel_std, covered)
+    at_rest, oldest = empty(size, bool), empty(size, np.int64)
+    gyro_std, accel_std = empty(size, np.float64), empty(size, np.float64)
+    ring = np.zeros(64, _RING_DTYPE).view(np.recarray)
+    loop = precompiled(rest_rows) or compiled(rest_rows)
+    k = 0
+    while (k := loop(rf, ri, ring, k, t, g, a is not None, g if a is None else a, at_rest,
+                     oldest, gyro_std, accel_std)) < size:
+        ring = grown_ring(ring, ri)
+    return RestWindows(at_rest, oldest, gyro_std, accel_std, _covered(at_rest, oldest, empty))
 
 
 def _rows_within(x, name: str, n: int, limit: float) -> np.ndarray:
-    """``x`` as float rows (n, 3), each value finite and within ±``limit`` (ValueError else)."""
+    """``x`` as C-ordered float rows (n, 3), each value finite and within ±``limit``
+    (ValueError else)."""
     try:
-        a = np.asarray(x, dtype=np.float64)
+        a = np.ascontiguousarray(x, dtype=np.float64)
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be a numeric (N, 3) array") from None
     if a.shape != (n, 3):
@@ -284,13 +244,16 @@ def _rows_within(x, name: str, n: int, limit: float) -> np.ndarray:
     return a
 
 
+_COVER_CHUNK = 1 << 16  # rest rows marked at a time
+
+
 def _covered(at_rest: np.ndarray, oldest: np.ndarray, empty=np.empty) -> np.ndarray:
     """Samples lying in at least one rest window: mark [oldest[k], k] for each rest k."""
     n = at_rest.size
     diff = empty(n + 1, np.int64)
     diff.fill(0)
-    for c0 in range(0, n, _STATS_CHUNK):  # the rest rows chunk by chunk
-        k = np.flatnonzero(at_rest[c0:c0 + _STATS_CHUNK]) + c0
+    for c0 in range(0, n, _COVER_CHUNK):  # the rest rows chunk by chunk
+        k = np.flatnonzero(at_rest[c0:c0 + _COVER_CHUNK]) + c0
         np.add.at(diff, oldest[k], 1)
         np.add.at(diff, k + 1, -1)
     np.cumsum(diff[:n], out=diff[:n])  # in place: the count of windows over each sample

@@ -48,11 +48,11 @@ def test_a_window_that_outgrows_its_ring_mid_stream_keeps_its_samples_in_order()
 
 
 @pytest.mark.parametrize("chunk", [5, 37, 1000])  # below, near and above a window's rows
-def test_batch_in_chunks_equals_the_stream_bitwise(monkeypatch, chunk):
-    """The batch statistics run a chunk of rows at a time, each chunk's running sums
-    continuing the last one's: the same numbers as the streaming detector's, sample by
-    sample (window statistics and decisions), whatever the chunk."""
-    monkeypatch.setattr(rest, "_STATS_CHUNK", chunk)
+def test_batch_equals_the_stream_bitwise_and_marks_every_rest_windows_samples(monkeypatch, chunk):
+    """The batch loop gives the streaming detector's numbers sample by sample (window
+    statistics and decisions); ``covered`` marks the samples of every rest window, a chunk of
+    rest rows at a time, whatever the chunk."""
+    monkeypatch.setattr(rest, "_COVER_CHUNK", chunk)
     t, g, a, _ = rest_motion_rest(seed=5)
     batch = detect_rest(t, g, a)
     got = np.array(rest_rows(t, g, a)[0])
@@ -61,6 +61,10 @@ def test_batch_in_chunks_equals_the_stream_bitwise(monkeypatch, chunk):
     np.testing.assert_array_equal(got[:, 2], batch.gyro_std)
     np.testing.assert_array_equal(got[:, 3], batch.accel_std)
     assert batch.at_rest.any() and not batch.at_rest.all()
+    covered = np.zeros(t.size, bool)
+    for k in np.flatnonzero(batch.at_rest):
+        covered[batch.oldest[k]:k + 1] = True
+    np.testing.assert_array_equal(batch.covered, covered)
 
 
 @pytest.mark.parametrize("use_accel", [True, False])
