@@ -1,8 +1,11 @@
-"""The offline estimator runs without the compiler: an aided offline replay (replay's default
+"""The offline estimator runs without the compiler: with the precompiled rest loop
+(``rest.rest_rows``, built by io/precompile) an aided offline replay (replay's default
 algorithm, the vectorized magnus6_quintic) in a fresh process imports no numba (its import and
-first cache load take longer than all the rest of such a replay), and the covariance verdicts it
-judges once per distinct row are every row's."""
+first cache load take longer than all the rest of such a replay); without it the loop is
+compiled just in time, with the same results; and the covariance verdicts it judges once per
+distinct row are every row's."""
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -10,7 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gyro_attitude.core.attitude import chain
+from gyro_attitude.core import jit
+from gyro_attitude.core.attitude import chain, rest
 from gyro_attitude.core.attitude.stream import covariance_rows
 
 REPO = Path(__file__).resolve().parents[3]
@@ -29,15 +33,28 @@ a = np.tile([0.3, -0.2, 9.79], (n, 1)) + rng.normal(0.0, 0.02, (n, 3))
 cov = np.tile(np.diag([1e-6, 1e-6, 2e-6]).ravel(), (n, 1)); cov[::7, 0] = -1.0
 res = estimate_offline(t, w, a, config=StreamConfig(aiding="auto"),
                        angular_velocity_covariance=cov, algorithm=DEFAULT_OFFLINE_ALGORITHM)
-assert res.q.shape == (n, 4) and np.isfinite(res.q).all()
+assert res.q.shape == (n, 4) and np.isfinite(res.q).all() and res.bias.rests_used > 0
 print(",".join(m for m in sys.modules if m.split(".")[0] == "numba"))
+print(res.q.tobytes().hex())
 """
 
 
-def test_an_aided_offline_estimate_loads_no_numba():
+def _offline_run(**env):
     out = subprocess.run([sys.executable, "-c", OFFLINE_RUN], capture_output=True, text=True,
-                         timeout=300, cwd=REPO, check=True).stdout.strip()
-    assert out == "", f"the offline estimate imported {out.split(',')[:4]}"
+                         timeout=300, cwd=REPO, check=True, env=dict(os.environ, **env)).stdout
+    return out.split("\n")[:2]
+
+
+def test_with_the_precompiled_rest_loop_an_aided_offline_estimate_loads_no_numba():
+    if jit.precompiled(rest.rest_rows) is None:
+        if os.environ.get("CI") == "true":
+            pytest.fail("dev.sh builds the precompiled loops in CI (gyro_attitude.io.precompile)")
+        pytest.skip("the precompiled rest loop is not built here")
+    numba_modules, q = _offline_run()
+    assert numba_modules == "", f"the offline estimate imported {numba_modules.split(',')[:4]}"
+    numba_modules, q_jit = _offline_run(GYRO_ATTITUDE_PRECOMPILED="0")
+    assert numba_modules != "" or jit.backend() == "python"  # the loop compiled just in time
+    assert q_jit == q
 
 
 def _row_by_row(cov):
