@@ -44,9 +44,10 @@ echo "[dev.sh] compiling the per-sample kernels (cached after the first time)" >
 # (the just-in-time loop too, where a precompiled one would be taken: it is the fallback)
 (cd / && GYRO_ATTITUDE_PRECOMPILED=0 "$venv/bin/python" -c "$warm")
 [ "$what" = "test" ] && GYRO_ATTITUDE_PRECOMPILED=0 "$venv/bin/python" -c "$warm"
-# the recording loop of replay --estimator causal compiled ahead of time (a fresh process then
-# needs no numba); without a C compiler one line says so and the loop is compiled just in time
-echo "[dev.sh] compiling the recording loop ahead of time" >&2
+# the recording loops (replay --estimator causal's, the offline rest detector's) compiled ahead
+# of time (a fresh replay then needs no numba); without a C compiler one line says so and the
+# loops are compiled just in time
+echo "[dev.sh] compiling the recording loops ahead of time" >&2
 (cd / && "$venv/bin/python" -m gyro_attitude.io.precompile) || true
 if [ "$what" = "test" ]; then "$venv/bin/python" -m gyro_attitude.io.precompile || true; fi
 
