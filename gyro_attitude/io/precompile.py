@@ -127,7 +127,6 @@ def _build_fresh(loops) -> int:
         # the just-in-time form, compiled for the argument types a run passes
         os.environ["GYRO_ATTITUDE_PRECOMPILED"] = "0"
         compile_kernels()
-        _detect_rests()
         targets = [build(func, Path(jit.__file__).parent) for func in loops]
     except Exception as exc:  # a compiler missing, a read-only installation, pycc gone
         first = (str(exc).splitlines() or [""])[0]
@@ -138,18 +137,6 @@ def _build_fresh(loops) -> int:
         return 1
     print(f"precompile: {', '.join(t.name for t in targets)}", file=sys.stderr)
     return 0
-
-
-def _detect_rests() -> None:
-    """The offline rest detector run (its loop compiled just in time for the argument types
-    it passes, the same with and without an accelerometer)."""
-    import numpy as np
-
-    from gyro_attitude.core.attitude.rest import detect_rest
-
-    t = np.arange(1, 301, dtype=np.int64) * 5_000_000
-    g = 1e-3 * np.random.default_rng(0).standard_normal((300, 3))
-    detect_rest(t, g, g + (0.0, 0.0, 9.8))
 
 
 if __name__ == "__main__":

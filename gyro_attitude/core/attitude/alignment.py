@@ -18,6 +18,7 @@ from gyro_attitude.core.attitude.rest import (
     R_AT_REST,
     R_HEAD,
     R_OLDEST,
+    RING_FIELDS,
     rest_reset,
     rest_start,
     rest_update,
@@ -150,8 +151,7 @@ F, W, M = 0, 1, 2  # the rows of the aligner's sums
 
 #: the aligner's rest window: the detector's ring (stamp, index, running sums) and each
 #: sample's rate, specific force and usable field (less the hard iron)
-ALIGN_RING_DTYPE = np.dtype([("t", np.int64), ("x", np.int64), ("c", np.float64, (12,)),
-                             ("g", np.float64, (3,)), ("a", np.float64, (3,)),
+ALIGN_RING_DTYPE = np.dtype([*RING_FIELDS, ("g", np.float64, (3,)), ("a", np.float64, (3,)),
                              ("m", np.float64, (3,)), ("hm", np.bool_)])
 
 #: the aligner as one record: its options, its rest detector, the open rest's sums and, once

@@ -50,7 +50,7 @@ from gyro_attitude.core.attitude.gyro_bias import (
     bias_break,
     bias_step,
 )
-from gyro_attitude.core.attitude.rest import R_COUNT, R_WINDOW_NS, RING_FULL
+from gyro_attitude.core.attitude.rest import R_COUNT, R_WINDOW_NS, RING_FIELDS, RING_FULL
 from gyro_attitude.core.attitude.streaming import (
     C_FALLBACKS,
     C_HAS_LAST,
@@ -172,8 +172,7 @@ STATE_DTYPE = np.dtype([
 
 #: the bias stage's rest window: stamp, sample index, running sums before it, and what the
 #: sample gives a rest (its rate less the Earth rate, whether that was taken out)
-BIAS_RING_DTYPE = np.dtype([("t", np.int64), ("x", np.int64), ("c", np.float64, (12,)),
-                            ("pv", np.float64, (3,)), ("pe", np.bool_)])
+BIAS_RING_DTYPE = np.dtype([*RING_FIELDS, ("pv", np.float64, (3,)), ("pe", np.bool_)])
 #: the samples from the aligner's last rest sample on (integrated once aligned)
 ALIGN_BUFFER_DTYPE = np.dtype([("t", np.int64), ("w", np.float64, (3,)),
                                ("a", np.float64, (3,)), ("v", np.float64, (3,)),

@@ -206,7 +206,9 @@ def rest_rows(rf, ri, ring, k0, t, g, has_a, a, at_rest, oldest, gyro_std, accel
     return t.shape[0]
 
 
-_RING_DTYPE = np.dtype([("t", np.int64), ("x", np.int64), ("c", np.float64, (12,))])
+#: the fields of a rest window's ring that :func:`rest_update` writes (stamp, sample index, the
+#: running sums before the sample); the stages' rings add their own fields after them
+RING_FIELDS = [("t", np.int64), ("x", np.int64), ("c", np.float64, (12,))]
 
 
 def detect_rest(t_ns, gyro, accel=None, cfg: StreamConfig | None = None,
@@ -220,7 +222,7 @@ def detect_rest(t_ns, gyro, accel=None, cfg: StreamConfig | None = None,
     size = t.size
     at_rest, oldest = empty(size, bool), empty(size, np.int64)
     gyro_std, accel_std = empty(size, np.float64), empty(size, np.float64)
-    ring = np.zeros(64, _RING_DTYPE).view(np.recarray)
+    ring = np.zeros(64, np.dtype(RING_FIELDS)).view(np.recarray)
     loop = precompiled(rest_rows) or compiled(rest_rows)
     k = 0
     while (k := loop(rf, ri, ring, k, t, g, a is not None, g if a is None else a, at_rest,

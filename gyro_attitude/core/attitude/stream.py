@@ -34,7 +34,7 @@ from gyro_attitude.core.attitude.modes import (
     Phase,
     SettingError,
 )
-from gyro_attitude.core.attitude.rest import R_COUNT, grown_ring
+from gyro_attitude.core.attitude.rest import R_COUNT, detect_rest, grown_ring
 from gyro_attitude.core.attitude.settings import StreamConfig, check_gyrocompass_feasible
 from gyro_attitude.core.attitude.streaming import C_HAS_LAST, C_LAST_T, constant_nav_rate
 from gyro_attitude.core.earth import STANDARD_GRAVITY, check_latitude, earth_rate_enu
@@ -769,10 +769,10 @@ def nav_rows(nav: NavFrame | None, index: np.ndarray, n: int) -> NavFrame | None
 
 
 def compile_kernels(config: StreamConfig | None = None, algorithm: str | None = None) -> None:
-    """Compile (or load from numba's cache) what the chain runs compiled, so that no sample
-    waits for the compiler: a synthetic recording (rest, turn, rest) run and pushed through a
-    stream with ``config``, or with every aiding mode (from the given attitude: a levelling
-    start might never align on it; its kernels are the same)."""
+    """Compile (or load from numba's cache) what the chain and the offline rest detector run
+    compiled, so that no sample waits for the compiler: a synthetic recording (rest, turn,
+    rest) run and pushed through a stream with ``config``, or with every aiding mode (from the
+    given attitude: a levelling start might never align on it; its kernels are the same)."""
     n = 800
     t = 1_000_000_000 + np.arange(n, dtype=np.int64) * 5_000_000
     rng = np.random.default_rng(0)
@@ -785,6 +785,7 @@ def compile_kernels(config: StreamConfig | None = None, algorithm: str | None = 
         StreamConfig(aiding=aiding, gyro_noise_density=1e-4, mag_hard_iron_estimate=True)
         for aiding in Aiding]
     level_quaternion((0.0, 0.0, STANDARD_GRAVITY), 0.0)  # levelling's own call (alignment)
+    detect_rest(t, w, a)  # the offline estimator's rest loop (one form with or without accel)
     for cfg in configs:
         cfg = replace(cfg, initial_attitude_source=InitialAttitudeSource.PARAMETER,
                       heading_source=HeadingSource.PARAMETER)
