@@ -1,13 +1,13 @@
 """Build the ahead-of-time compiled form of the estimators' recording loops (the causal one's
-``chain.run_rows``, the offline rest detector's ``rest.rest_rows``) into the package:
-``python -m gyro_attitude.io.precompile`` (``dev.sh`` runs it after installing).  See
-:func:`gyro_attitude.core.jit.precompiled`.
+``chain.run_rows``, the offline one's ``rest.rest_rows`` and ``validation.validate_rows``) into
+the package: ``python -m gyro_attitude.io.precompile`` (``dev.sh`` runs it after installing).
+See :func:`gyro_attitude.core.jit.precompiled`.
 
 It is the same code numba's JIT compiles, built by numba's ahead-of-time compiler
 (``numba.pycc``: pending deprecation since numba 0.57, and the only one numba has; if it goes,
 this build fails in one line and the loops are compiled just in time as before).  The argument
-types are those the JIT compiled for (:func:`.stream.compile_kernels` and a rest detection run
-first).  Needs a C compiler; without one, one line says so and nothing else changes.
+types are those the JIT compiled for (:func:`.stream.compile_kernels` run first).  Needs a C
+compiler; without one, one line says so and nothing else changes.
 """
 
 from __future__ import annotations
@@ -95,9 +95,9 @@ def _array_args(signature) -> list:
 
 def main(argv: list[str] | None = None) -> int:
     """Build unless modules built from this source are there (``--force``: build anyway)."""
-    from gyro_attitude.core.attitude import chain, rest
+    from gyro_attitude.core.attitude import chain, rest, validation
 
-    loops = (chain.run_rows, rest.rest_rows)
+    loops = (chain.run_rows, rest.rest_rows, validation.validate_rows)
     force = "--force" in (sys.argv[1:] if argv is None else argv)
     if not force and all(jit.precompiled(f) is not None for f in loops):
         print(f"precompile: {', '.join(map(jit.precompiled_name, loops))} are up to date",

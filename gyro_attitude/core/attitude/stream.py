@@ -769,7 +769,7 @@ def nav_rows(nav: NavFrame | None, index: np.ndarray, n: int) -> NavFrame | None
 
 
 def compile_kernels(config: StreamConfig | None = None, algorithm: str | None = None) -> None:
-    """Compile (or load from numba's cache) what the chain and the offline rest detector run
+    """Compile (or load from numba's cache) what the chain and the offline estimator's loops run
     compiled, so that no sample waits for the compiler: a synthetic recording (rest, turn,
     rest) run and pushed through a stream with ``config``, or with every aiding mode (from the
     given attitude: a levelling start might never align on it; its kernels are the same)."""
@@ -786,6 +786,7 @@ def compile_kernels(config: StreamConfig | None = None, algorithm: str | None = 
         for aiding in Aiding]
     level_quaternion((0.0, 0.0, STANDARD_GRAVITY), 0.0)  # levelling's own call (alignment)
     detect_rest(t, w, a)  # the offline estimator's rest loop (one form with or without accel)
+    v.classify(t, w, "imu")  # its validator's loop
     for cfg in configs:
         cfg = replace(cfg, initial_attitude_source=InitialAttitudeSource.PARAMETER,
                       heading_source=HeadingSource.PARAMETER)

@@ -4,9 +4,9 @@ The kernel :func:`validate` classifies each sample before it reaches the integra
 absurd rate, a stamp that does not rise, a gap or a changed ``frame_id`` would corrupt the
 attitude) and counts per reason on a :data:`STAMPS_DTYPE` record (the causal step,
 :mod:`.chain`); :func:`classify` gives a whole recording that kernel's verdicts (the offline
-estimator's; a recording every sample of which passes is settled by whole-array reductions,
-without the kernel or its compiler).  Thresholds are the settings table's rows (a
-:class:`~.settings.StreamConfig`).  Times are integer nanoseconds (``header.stamp``).
+estimator's) through a compiled loop, :func:`validate_rows`.  Thresholds are the settings
+table's rows (a :class:`~.settings.StreamConfig`).  Times are integer nanoseconds
+(``header.stamp``).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gyro_attitude.core.attitude.settings import StreamConfig
-from gyro_attitude.core.jit import compiled, kernel
+from gyro_attitude.core.jit import compiled, kernel, precompiled
 
 # Verdicts. ACCEPT: integrate over (last, t]. START: first sample (or first after a restart):
 # sets the time base, nothing to integrate yet.
@@ -76,29 +76,6 @@ class Verdict:
     @property
     def rejected(self) -> bool:
         return self.action == REJECT
-
-
-def _regular_stamps(t: np.ndarray, max_gap_ns: int, size: int = 1 << 16) -> bool:
-    """Whether stamps ``t`` rise strictly, with no interval beyond ``max_gap_ns`` and none
-    in which :func:`stamp_step` can find missing samples (from the 17th interval on, 1.5
-    times the nominal period of the first 16): the stream the validator accepts whole.  ``size`` intervals
-    at a time (no temporary of the recording's length)."""
-    if t.size < 2:
-        return True
-    if t.size <= NOMINAL_INTERVALS + 1:
-        dt = np.diff(t)
-        return bool(dt.min() > 0 and dt.max() <= max_gap_ns)
-    p = int(nominal_period(np.sort(np.diff(t[:NOMINAL_INTERVALS + 1]))))
-    for c0 in range(0, t.size - 1, size):
-        dt = np.diff(t[c0:c0 + size + 1])
-        if dt.min() <= 0 or dt.max() > max_gap_ns:
-            return False
-        lo = max(NOMINAL_INTERVALS - c0, 0)  # holes count from the 17th interval on
-        # stamp_step finds no hole in an interval of at most 1.5 periods (beyond, the step
-        # itself judges them against its sample clock)
-        if lo < dt.size and np.any(2 * dt[lo:] > 3 * p):
-            return False
-    return True
 
 
 def accepted_rows(action: np.ndarray, empty=np.empty, size: int = 1 << 16) -> np.ndarray:
@@ -237,9 +214,8 @@ def classify(t_ns, omega, frame_id: str | list[str] | None = "",
     """The verdicts :func:`validate` gives to these samples in this order.
 
     ``t_ns`` (N,) int stamps, ``omega`` (N, 3) rates, ``frame_id`` one string for all samples or
-    one per sample. A fresh validator is assumed (no locked frame, no time base).  The usual
-    recording (one frame, every rate within bounds, positive stamps rising at a steady rate)
-    is settled by whole-array reductions; any other runs :func:`validate` on every sample.
+    one per sample. A fresh validator is assumed (no locked frame, no time base).  Frame ids
+    are mapped to integer codes here, at the edge; :func:`validate_rows` steps the kernel.
     """
     cfg = StreamConfig() if cfg is None else cfg
     if not isinstance(cfg, StreamConfig):
@@ -254,68 +230,57 @@ def classify(t_ns, omega, frame_id: str | list[str] | None = "",
     if w.shape != (n, 3):
         raise ValueError(f"omega must have shape ({n}, 3), got {w.shape}")
     codes, names = _frame_codes(frame_id, n)
-    action = np.zeros(n, np.int8)
-    reason = np.zeros(n, np.int8)
+    frames = np.zeros(1, np.int64) if codes is None else codes  # one for all: no row's own
+    action, reason = np.zeros(n, np.int8), np.zeros(n, np.int8)
+    record = np.zeros(1, STAMPS_DTYPE)
+    first_row = np.full(R_INTEGRATOR + 1, -1, np.int64)
+    first_fig = np.zeros((R_INTEGRATOR + 1, 5), np.int64)
+    loop = precompiled(validate_rows) or compiled(validate_rows)
+    locked = int(loop(record, cfg.max_rate_rad_s, cfg.max_gap_ns, cfg.time_jump_ns,
+                      cfg.max_missing_samples, t, w, frames, action, reason, first_row, first_fig))
     details: dict[str, str] = {}
-    record = np.zeros(1, STAMPS_DTYPE).view(np.recarray)
-    if n and (codes is None or not codes.any()) and all_within(w, cfg.max_rate_rad_s) \
-            and int(t.min()) > 0 and _regular_stamps(t, cfg.max_gap_ns):
-        # every sample passes every check: no per-sample step (nor its compiler) needed
-        action.fill(ACTION_CODES[ACCEPT])
-        action[0] = ACTION_CODES[START]
-        locked = 0
-    else:
-        locked = _validate_all(t, w, codes, names, cfg, action, reason, details, record)
-    counts = {r: int(np.count_nonzero(reason == _REASON_CODES[r])) for r in REJECT_REASONS}
-    accepted = int(np.count_nonzero(action != ACTION_CODES[REJECT]))
-    return Classification(action, reason, counts, details, int(record.jump_resets[0]), accepted,
-                          None if locked is None else names[locked], int(record.missing[0]))
+    for why in range(1, R_INTEGRATOR):
+        k = int(first_row[why])
+        if k >= 0:
+            name = REASON_NAMES[why]
+            frame = names[0] if codes is None else names[int(codes[k])]
+            details[name] = reason_words(name, int(t[k]), w[k].tolist(), frame,
+                                         None if locked < 0 else names[locked], first_fig[why],
+                                         cfg.max_rate_rad_s, cfg.max_gap_ns)
+    v = record[0]
+    counts = dict(zip(REJECT_REASONS, v["counts"][1:].tolist(), strict=True))
+    return Classification(action, reason, counts, details, int(v["jump_resets"]),
+                          int(v["accepted"]), None if locked < 0 else names[locked],
+                          int(v["missing"]))
 
 
 @kernel
 def validate_rows(v, max_rate, max_gap_ns, time_jump_ns, max_missing, t, w, frames, action,
                   reason, first_row, first_fig):
-    """:func:`validate` over the samples ``t``, ``w`` (frame codes ``frames``; the first
-    accepted sample's is locked in): their action and reason codes, and per reason the first
-    row and the validator's figures there (for the words).  Returns the locked frame's code
-    (-1: no sample accepted)."""
+    """:func:`validate` over the samples ``t``, ``w`` on the validator's record ``v[0]`` (frame
+    codes ``frames``, one per row or one for all; the first accepted sample's is locked in):
+    their action and reason codes, and per reason the first row and the validator's figures
+    there (for the words).  Returns the locked frame's code (-1: no sample accepted)."""
+    s = v[0]
+    per_row = frames.shape[0] == t.shape[0]
     locked = -1
     for i in range(t.shape[0]):
-        act, why = validate(v, max_rate, max_gap_ns, time_jump_ns, max_missing, t[i], w[i, 0],
-                            w[i, 1], w[i, 2], locked < 0 or frames[i] == locked)
+        frame = frames[i] if per_row else frames[0]
+        act, why = validate(s, max_rate, max_gap_ns, time_jump_ns, max_missing, t[i], w[i, 0],
+                            w[i, 1], w[i, 2], locked < 0 or frame == locked)
         action[i] = act
         if act != A_REJECT and locked < 0:
-            locked = frames[i]
+            locked = frame
         if why == 0:
             continue
         if why != R_TIME_JUMP and why != R_MISSING:
             reason[i] = why
         if first_row[why] < 0:
             first_row[why] = i
-            first_fig[why, 0], first_fig[why, 1], first_fig[why, 2] = v.ev_dt, v.ev_hole, \
-                v.ev_missing
-            first_fig[why, 3], first_fig[why, 4] = v.ev_skipped, v.ev_period
+            first_fig[why, 0], first_fig[why, 1], first_fig[why, 2] = s.ev_dt, s.ev_hole, \
+                s.ev_missing
+            first_fig[why, 3], first_fig[why, 4] = s.ev_skipped, s.ev_period
     return locked
-
-
-def _validate_all(t, w, codes, names, cfg, action, reason, details, record) -> int | None:
-    """:func:`validate_rows` over every sample into ``action``, ``reason`` and ``record``; the
-    first detail per reason into ``details``; the locked frame's code (None: none)."""
-    n = t.shape[0]
-    frames = np.zeros(n, np.int64) if codes is None else codes
-    first_row = np.full(R_INTEGRATOR + 1, -1, np.int64)
-    first_fig = np.zeros((R_INTEGRATOR + 1, 5), np.int64)
-    locked = int(compiled(validate_rows)(
-        record[0], cfg.max_rate_rad_s, cfg.max_gap_ns, cfg.time_jump_ns, cfg.max_missing_samples,
-        t, w, frames, action, reason, first_row, first_fig))
-    for why in range(1, R_INTEGRATOR):
-        k = int(first_row[why])
-        if k >= 0:
-            name = REASON_NAMES[why]
-            details[name] = reason_words(name, int(t[k]), w[k].tolist(), names[int(frames[k])],
-                                         None if locked < 0 else names[locked], first_fig[why],
-                                         cfg.max_rate_rad_s, cfg.max_gap_ns)
-    return None if locked < 0 else locked
 
 
 class IntervalStatistics:
