@@ -99,12 +99,12 @@ def test_a_gyro_pinned_at_its_range_is_counted_as_saturated():
     assert s.counts["saturated"] == 102
 
 
-def test_the_regular_stream_check_finds_a_hole_or_a_step_back_in_any_chunk():
-    """classify settles a regular stream array-wide with _regular_stamps, a chunk of
-    intervals at a time (no temporary of the recording's length): whatever chunk a missing
-    sample, a repeated stamp or a gap falls in, it answers as the whole-array rule
-    (the rule over all intervals at once: the oracle)."""
-    from gyro_attitude.core.attitude.validation import NOMINAL_INTERVALS, _regular_stamps
+def test_classify_finds_a_hole_or_a_step_back_wherever_it_falls():
+    """classify's verdicts on a regular stream with one sample removed, one stamp repeated or
+    one interval beyond max_gap, at every place: a hole counted exactly from the 17th interval
+    on when it spans 1.5 x the first 16's median or more (the rule over all intervals at once:
+    the oracle), a duplicate rejected, a gap restarted."""
+    from gyro_attitude.core.attitude.validation import NOMINAL_INTERVALS
 
     def holes_from(dt):  # an interval from the 17th on of 1.5 x the first 16's median or more
         if dt.size <= NOMINAL_INTERVALS:
@@ -113,17 +113,26 @@ def test_the_regular_stream_check_finds_a_hole_or_a_step_back_in_any_chunk():
         return bool(np.any(2 * dt[NOMINAL_INTERVALS:] >= 3 * p))
 
     t = 10**9 + np.arange(120, dtype=np.int64) * 5_000_000
-    gap = 100_000_000
-    assert _regular_stamps(t, gap, size=7)
+    cfg = StreamConfig(max_gap_s=0.1)
+    codes = iv.ACTION_CODES
+    cls = iv.classify(t, np.zeros((120, 3)), "imu", cfg)
+    assert cls.action[0] == codes[iv.START] and (cls.action[1:] == codes[iv.ACCEPT]).all()
+    assert cls.missing_samples == 0 and not any(cls.counts.values())
     for k in range(1, 119):
         tk = np.delete(t, k)  # interval k-1 doubles: a hole from the 17th interval on
-        assert _regular_stamps(tk, gap, size=7) == (not holes_from(np.diff(tk))), k
+        cls = iv.classify(tk, np.zeros((119, 3)), "imu", cfg)
+        assert cls.missing_samples == int(holes_from(np.diff(tk))), k
+        assert cls.accepted == 119 and not any(cls.counts.values()), k
         back = t.copy()
         back[k] = back[k - 1]  # a repeated stamp
-        assert not _regular_stamps(back, gap, size=7), k
+        cls = iv.classify(back, np.zeros((120, 3)), "imu", cfg)
+        assert cls.counts == {**dict.fromkeys(iv.REJECT_REASONS, 0), iv.DUPLICATE_STAMP: 1}, k
+        assert cls.action[k] == codes[iv.REJECT], k
         far = t.copy()
-        far[k:] += gap  # an interval beyond max_gap
-        assert not _regular_stamps(far, gap, size=7), k
+        far[k:] += 100_000_000  # an interval beyond max_gap
+        cls = iv.classify(far, np.zeros((120, 3)), "imu", cfg)
+        assert cls.counts == {**dict.fromkeys(iv.REJECT_REASONS, 0), iv.GAP: 1}, k
+        assert cls.action[k] == codes[iv.RESTART_AFTER_GAP], k
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
