@@ -44,7 +44,8 @@ echo "[dev.sh] compiling the per-sample kernels (cached after the first time)" >
 # (the just-in-time loop too, where a precompiled one would be taken: it is the fallback)
 (cd / && GYRO_ATTITUDE_PRECOMPILED=0 "$venv/bin/python" -c "$warm")
 [ "$what" = "test" ] && GYRO_ATTITUDE_PRECOMPILED=0 "$venv/bin/python" -c "$warm"
-# the recording loops (replay --estimator causal's, the offline rest detector's) compiled ahead
+# the recording loops (replay --estimator causal's, the offline estimator's rest and validation
+# loops) compiled ahead
 # of time (a fresh replay then needs no numba); without a C compiler one line says so and the
 # loops are compiled just in time
 echo "[dev.sh] compiling the recording loops ahead of time" >&2
