@@ -45,9 +45,8 @@ echo "[dev.sh] compiling the per-sample kernels (cached after the first time)" >
 (cd / && GYRO_ATTITUDE_PRECOMPILED=0 "$venv/bin/python" -c "$warm")
 [ "$what" = "test" ] && GYRO_ATTITUDE_PRECOMPILED=0 "$venv/bin/python" -c "$warm"
 # the recording loops (replay --estimator causal's, the offline estimator's rest and validation
-# loops) compiled ahead
-# of time (a fresh replay then needs no numba); without a C compiler one line says so and the
-# loops are compiled just in time
+# loops) compiled ahead of time (a fresh replay then needs no numba); without a C compiler one
+# line says so and the loops are compiled just in time
 echo "[dev.sh] compiling the recording loops ahead of time" >&2
 (cd / && "$venv/bin/python" -m gyro_attitude.io.precompile) || true
 if [ "$what" = "test" ]; then "$venv/bin/python" -m gyro_attitude.io.precompile || true; fi
