@@ -60,7 +60,6 @@ REJECT_REASONS: tuple[str, ...] = (
 #: the verdict of each code (the step's A_* codes, the arrays of :func:`classify`)
 ACTIONS = (REJECT, START, ACCEPT, RESTART_AFTER_GAP, RESET_TIME_JUMP)
 ACTION_CODES: dict[str, int] = {a: i for i, a in enumerate(ACTIONS)}
-_REASON_CODES: dict[str, int] = {r: i + 1 for i, r in enumerate(REJECT_REASONS)}
 
 
 @dataclass(frozen=True)
