@@ -93,12 +93,17 @@ def _jit_off() -> bool:
     return os.environ.get("GYRO_ATTITUDE_JIT", "1").strip() == "0"
 
 
-@functools.cache
 def precompiled_name(func) -> str:
     """The module name of the ahead-of-time form of the kernel ``func``: it names a digest of
     every source file of the core (the kernels and the constants numba freezes into them),
     of the build script, and of numpy's and numba's versions, so a module built from other
     code, or by another numba than the JIT's, is never taken."""
+    return f"_aot_{func.__name__}_{_source_digest()}"
+
+
+@functools.cache
+def _source_digest() -> str:
+    """The digest of :func:`precompiled_name`, computed once a process (it reads the core)."""
     import importlib.metadata
     import pathlib
 
@@ -110,7 +115,7 @@ def precompiled_name(func) -> str:
     for path in sorted([*core.rglob("*.py"), core.parent / "io" / "precompile.py"]):
         digest.update(str(path.relative_to(core.parent)).encode())
         digest.update(path.read_bytes())
-    return f"_aot_{func.__name__}_{digest.hexdigest()[:16]}"
+    return digest.hexdigest()[:16]
 
 
 @functools.cache

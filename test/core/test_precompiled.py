@@ -87,9 +87,9 @@ def test_a_module_built_from_other_source_is_never_taken(tmp_path, monkeypatch):
                        (tmp_path / "io" / "precompile.py", "# build 2\n")):
         if path is not None:
             path.write_text(text)
-        jit.precompiled_name.cache_clear()
+        jit._source_digest.cache_clear()
         names.append(jit.precompiled_name(chain.run_rows))
-    jit.precompiled_name.cache_clear()
+    jit._source_digest.cache_clear()
     assert len(set(names)) == 4 and all(n.startswith("_aot_run_rows_") for n in names)
 
 
