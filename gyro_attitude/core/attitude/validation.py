@@ -471,9 +471,9 @@ def stamp_step(v, max_gap_ns, time_jump_ns, max_missing, t):
     v.clock_offset = -(1.0 - CLOCK_PHASE_GAIN) * e
     # A hole needs both: the clock a whole period behind, and an interval over 1.5 nominal
     # periods (a sampler whose own instants wander — each interval jittered, the stamps a
-    # random walk about any clock — misses no sample in a shorter one; what _regular_stamps
-    # accepts whole).  A hole in stamps jittered by ±1/3 of a period can read 1.34 periods:
-    # about 3 % of such holes go uncounted, and no jitter is counted as a hole.
+    # random walk about any clock — misses no sample in a shorter one).  A hole in stamps
+    # jittered by ±1/3 of a period can read 1.34 periods: about 3 % of such holes go
+    # uncounted, and no jitter is counted as a hole.
     hole = k - 1 if 2 * dt > 3 * p else 0
     if hole == 0:
         return A_ACCEPT, 0
