@@ -186,17 +186,13 @@ def _decide(rf, ri, t, n, wc, head):
 
 @kernel
 def rest_rows(rf, ri, ring, k0, t, g, has_a, a, at_rest, oldest, gyro_std, accel_std):
-    """:func:`rest_update` over rows ``k0`` … of a recording (``a`` read only when ``has_a``),
-    each row's decision, window start and statistics into the last four arrays.  Returns the
-    row it stopped at: ``len(t)`` when done, else the ring was full there (the caller grows it,
-    :func:`grown_ring`, and calls again from that row)."""
+    """:func:`rest_update` over rows ``k0`` … of a recording (``a`` has a row per sample, which
+    counts only when ``has_a``), each row's decision, window start and statistics into the last
+    four arrays.  Returns the row it stopped at: ``len(t)`` when done, else the ring was full
+    there (the caller grows it, :func:`grown_ring`, and calls again from that row)."""
     for k in range(k0, t.shape[0]):
-        if has_a:
-            code = rest_update(rf, ri, ring.t, ring.x, ring.c, t[k], g[k, 0], g[k, 1], g[k, 2],
-                               True, a[k, 0], a[k, 1], a[k, 2])
-        else:
-            code = rest_update(rf, ri, ring.t, ring.x, ring.c, t[k], g[k, 0], g[k, 1], g[k, 2],
-                               False, 0.0, 0.0, 0.0)
+        code = rest_update(rf, ri, ring.t, ring.x, ring.c, t[k], g[k, 0], g[k, 1], g[k, 2],
+                           has_a, a[k, 0], a[k, 1], a[k, 2])
         if code < 0:  # RING_FULL (the stamps increase and the accelerometer is on every row)
             return k
         at_rest[k] = ri[R_AT_REST] == 1
@@ -209,6 +205,7 @@ def rest_rows(rf, ri, ring, k0, t, g, has_a, a, at_rest, oldest, gyro_std, accel
 #: the fields of a rest window's ring that :func:`rest_update` writes (stamp, sample index, the
 #: running sums before the sample); the stages' rings add their own fields after them
 RING_FIELDS = [("t", np.int64), ("x", np.int64), ("c", np.float64, (12,))]
+RING_START = 64  # rest-window entries held at first; a ring doubles when a window needs more
 
 
 def detect_rest(t_ns, gyro, accel=None, cfg: StreamConfig | None = None,
@@ -222,7 +219,7 @@ def detect_rest(t_ns, gyro, accel=None, cfg: StreamConfig | None = None,
     size = t.size
     at_rest, oldest = empty(size, bool), empty(size, np.int64)
     gyro_std, accel_std = empty(size, np.float64), empty(size, np.float64)
-    ring = np.zeros(64, np.dtype(RING_FIELDS)).view(np.recarray)
+    ring = np.zeros(RING_START, np.dtype(RING_FIELDS)).view(np.recarray)
     loop = precompiled(rest_rows) or compiled(rest_rows)
     k = 0
     while (k := loop(rf, ri, ring, k, t, g, a is not None, g if a is None else a, at_rest,

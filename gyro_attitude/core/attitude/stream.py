@@ -34,7 +34,7 @@ from gyro_attitude.core.attitude.modes import (
     Phase,
     SettingError,
 )
-from gyro_attitude.core.attitude.rest import R_COUNT, detect_rest, grown_ring
+from gyro_attitude.core.attitude.rest import R_COUNT, RING_START, detect_rest, grown_ring
 from gyro_attitude.core.attitude.settings import StreamConfig, check_gyrocompass_feasible
 from gyro_attitude.core.attitude.streaming import C_HAS_LAST, C_LAST_T, constant_nav_rate
 from gyro_attitude.core.earth import STANDARD_GRAVITY, check_latitude, earth_rate_enu
@@ -166,7 +166,6 @@ class StreamResult:
 #: the algorithms compiled into the chain's step (the integration library has the others:
 #: integrate_batch, bench)
 STEP_ALGORITHMS = {"rotvec_cubic": chain.ALG_CUBIC, "exp_map": chain.ALG_EXP_MAP}
-_RING_START = 64  # rest-window entries held at first; a ring doubles when a window needs more
 
 
 class AttitudeStream:
@@ -198,9 +197,9 @@ class AttitudeStream:
                                        cfg.heading_error_limit_deg)
         self.coef = np.zeros(1, chain.COEF_DTYPE).view(np.recarray)
         self.state = np.zeros(1, chain.STATE_DTYPE).view(np.recarray)
-        self.bias_ring = np.zeros(_RING_START, chain.BIAS_RING_DTYPE).view(np.recarray)
-        self.align_ring = np.zeros(_RING_START, ALIGN_RING_DTYPE).view(np.recarray)
-        self.align_buffer = np.zeros(_RING_START, chain.ALIGN_BUFFER_DTYPE).view(np.recarray)
+        self.bias_ring = np.zeros(RING_START, chain.BIAS_RING_DTYPE).view(np.recarray)
+        self.align_ring = np.zeros(RING_START, ALIGN_RING_DTYPE).view(np.recarray)
+        self.align_buffer = np.zeros(RING_START, chain.ALIGN_BUFFER_DTYPE).view(np.recarray)
         self._set_coefficients(cfg, q_initial)
         self._init_state(cfg, q_initial)
         self.frame_id: str | None = None  # the frame the time base locked in (validation)
